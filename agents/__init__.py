@@ -1,0 +1,1 @@
+"""Reinforcement-learning agents trained on the vcnc-gym environments."""
