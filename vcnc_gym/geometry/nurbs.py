@@ -1,0 +1,311 @@
+"""Planar NURBS curves, seed 000 eqs. (2)-(5).
+
+The evaluator follows Piegl and Tiller, *The NURBS Book* (seed 000 ref. [20]):
+algorithm A2.1 (knot span), A2.3 (basis functions and their derivatives) and
+A4.2 (derivatives of a rational curve from those of its homogeneous form).
+The kernels are module-level numba functions on plain arrays, so the
+interpolator and the contour-error projector call them from their own
+compiled loops; :class:`NurbsCurve` validates a definition once and wraps them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["NurbsCurve", "curve_derivatives", "curve_derivatives_into", "find_span", "workspace_size"]
+
+
+@njit(cache=True)
+def find_span(n, degree, u, knots):
+    """Index i of the knot span with knots[i] <= u < knots[i+1] (A2.1).
+
+    ``n`` is the index of the last control point; u at the end of the range
+    belongs to the last non-empty span so the curve is closed on the right.
+    """
+    if u >= knots[n + 1]:
+        return n
+    if u <= knots[degree]:
+        return degree
+    low = degree
+    high = n + 1
+    mid = (low + high) // 2
+    while u < knots[mid] or u >= knots[mid + 1]:
+        if u < knots[mid]:
+            high = mid
+        else:
+            low = mid
+        mid = (low + high) // 2
+    return mid
+
+
+@njit(cache=True)
+def _basis_derivatives(span, u, degree, order, knots, ders, work):
+    """Basis functions N_{span-p..span, p} and derivatives up to ``order`` (A2.3).
+
+    Writes ders[k, j] = d^k/du^k N_{span-p+j, p}(u) for k <= order <= degree;
+    ``work`` is scratch of at least (p+1)^2 + 4(p+1) floats.
+    """
+    p = degree
+    q = p + 1
+    ndu = work[: q * q].reshape((q, q))
+    left = work[q * q : q * q + q]
+    right = work[q * q + q : q * q + 2 * q]
+    a = work[q * q + 2 * q : q * q + 4 * q].reshape((2, q))
+    ndu[0, 0] = 1.0
+    for j in range(1, p + 1):
+        left[j] = u - knots[span + 1 - j]
+        right[j] = knots[span + j] - u
+        saved = 0.0
+        for r in range(j):
+            ndu[j, r] = right[r + 1] + left[j - r]
+            temp = ndu[r, j - 1] / ndu[j, r]
+            ndu[r, j] = saved + right[r + 1] * temp
+            saved = left[j - r] * temp
+        ndu[j, j] = saved
+    for j in range(p + 1):
+        ders[0, j] = ndu[j, p]
+    for r in range(p + 1):
+        s1 = 0
+        s2 = 1
+        a[0, 0] = 1.0
+        for k in range(1, order + 1):
+            d = 0.0
+            rk = r - k
+            pk = p - k
+            if r >= k:
+                a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
+                d = a[s2, 0] * ndu[rk, pk]
+            j1 = 1 if rk >= -1 else -rk
+            j2 = k - 1 if r - 1 <= pk else p - r
+            for j in range(j1, j2 + 1):
+                a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
+                d += a[s2, j] * ndu[rk + j, pk]
+            if r <= pk:
+                a[s2, k] = -a[s1, k - 1] / ndu[pk + 1, r]
+                d += a[s2, k] * ndu[r, pk]
+            ders[k, r] = d
+            s1, s2 = s2, s1
+    factor = p
+    for k in range(1, order + 1):
+        for j in range(p + 1):
+            ders[k, j] *= factor
+        factor *= p - k
+
+
+@njit(cache=True)
+def workspace_size(degree, order):
+    """Length of the scratch array :func:`curve_derivatives_into` needs."""
+    q = degree + 1
+    du = min(order, degree)
+    return q * q + 4 * q + (du + 1) * q + 3 * (order + 1)
+
+
+@njit(cache=True)
+def curve_derivatives_into(control_points, weights, knots, degree, u, order, out, work):
+    """:func:`curve_derivatives` with caller-owned scratch: no allocation.
+
+    ``work`` holds at least ``workspace_size(degree, order)`` floats; hot loops
+    (the contour-error projector, the env step) keep one and reuse it.
+    """
+    n = control_points.shape[0] - 1
+    p = degree
+    q = p + 1
+    span = find_span(n, p, u, knots)
+    du = min(order, p)
+    base = q * q + 4 * q
+    nders = work[base : base + (du + 1) * q].reshape((du + 1, q))
+    base += (du + 1) * q
+    aders = work[base : base + 2 * (order + 1)].reshape((order + 1, 2))
+    wders = work[base + 2 * (order + 1) : base + 3 * (order + 1)]
+    _basis_derivatives(span, u, p, du, knots, nders, work)
+    # homogeneous derivatives A^(k) = sum N^(k) w P and w^(k) = sum N^(k) w
+    aders[:] = 0.0
+    wders[:] = 0.0
+    for k in range(du + 1):
+        for j in range(q):
+            i = span - p + j
+            nw = nders[k, j] * weights[i]
+            aders[k, 0] += nw * control_points[i, 0]
+            aders[k, 1] += nw * control_points[i, 1]
+            wders[k] += nw
+    # A4.2: C^(k) = (A^(k) - sum_{i=1..k} binom(k, i) w^(i) C^(k-i)) / w
+    for k in range(order + 1):
+        vx = aders[k, 0]
+        vy = aders[k, 1]
+        binom = 1.0
+        for i in range(1, k + 1):
+            binom = binom * (k - i + 1) / i
+            vx -= binom * wders[i] * out[k - i, 0]
+            vy -= binom * wders[i] * out[k - i, 1]
+        out[k, 0] = vx / wders[0]
+        out[k, 1] = vy / wders[0]
+
+
+@njit(cache=True)
+def curve_derivatives(control_points, weights, knots, degree, u, order, out):
+    """C(u) and its derivatives with respect to u, seed 000 eq. (5) (A4.2).
+
+    Parameters
+    ----------
+    control_points : (n+1, 2) float64 array, mm.
+    weights : (n+1,) float64 array, positive.
+    knots : (n+p+2,) float64 array, non-decreasing.
+    degree : int, p >= 1.
+    u : float, inside [knots[p], knots[n+1]].
+    order : int, highest derivative wanted.
+    out : (order+1, 2) float64 array, written with [C, C', C'', ...]
+        in mm, mm/u, mm/u^2, ...
+    """
+    work = np.empty(workspace_size(degree, order))
+    curve_derivatives_into(control_points, weights, knots, degree, u, order, out, work)
+
+
+@njit(cache=True)
+def _curve_derivatives_batch(control_points, weights, knots, degree, us, order, out):
+    """Batched :func:`curve_derivatives`: out has shape (len(us), order+1, 2)."""
+    work = np.empty(workspace_size(degree, order))
+    for k in range(us.shape[0]):
+        curve_derivatives_into(control_points, weights, knots, degree, us[k], order, out[k], work)
+
+
+class NurbsCurve:
+    """A planar NURBS curve of any degree p >= 1, seed 000 eqs. (2)-(5).
+
+    Parameters
+    ----------
+    control_points : array_like, shape (n+1, 2)
+        Control points P_k in mm.
+    weights : array_like, shape (n+1,)
+        Positive, finite weights w_k.
+    knots : array_like, shape (n+p+2,)
+        Non-decreasing knot vector, kept in its own units (not renormalised).
+        The curve is defined for u in [knots[p], knots[n+1]].
+    degree : int
+        Degree p >= 1.
+
+    Raises
+    ------
+    ValueError
+        If the definition is malformed; the message names the problem.
+
+    Examples
+    --------
+    >>> line = NurbsCurve([[0, 0], [10, 0]], [1, 1], [0, 0, 1, 1], 1)
+    >>> line.point(0.25)
+    array([2.5, 0. ])
+    """
+
+    def __init__(self, control_points, weights, knots, degree: int):
+        pts = np.array(control_points, dtype=np.float64)
+        w = np.array(weights, dtype=np.float64)
+        kv = np.array(knots, dtype=np.float64)
+        if isinstance(degree, bool) or int(degree) != degree:
+            raise ValueError(f"degree must be an integer, got {degree!r}")
+        p = int(degree)
+        if p < 1:
+            raise ValueError(f"degree must be >= 1, got {p}")
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise ValueError(f"control_points must have shape (n+1, 2), got {pts.shape}")
+        n1 = pts.shape[0]
+        if n1 < p + 1:
+            raise ValueError(f"a degree-{p} curve needs at least {p + 1} control points, got {n1}")
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("control_points must be finite")
+        if w.shape != (n1,):
+            raise ValueError(f"weights must have shape ({n1},) to match the control points, got {w.shape}")
+        if not np.all(np.isfinite(w)) or np.any(w <= 0.0):
+            raise ValueError("weights must be finite and positive")
+        if kv.ndim != 1 or kv.shape[0] != n1 + p + 1:
+            raise ValueError(
+                f"knot count must be n + p + 2 = {n1 + p + 1} (m + 1 with m = n + p + 1) "
+                f"for {n1} control points and degree {p}, got {kv.size}"
+            )
+        if not np.all(np.isfinite(kv)):
+            raise ValueError("knots must be finite")
+        if np.any(np.diff(kv) < 0.0):
+            raise ValueError("knots must be non-decreasing")
+        if not kv[n1] > kv[p]:
+            raise ValueError("the knot vector leaves the curve an empty parameter range")
+        if np.any(kv[p + 1 : n1 + p] - kv[1:n1] <= 0.0):
+            raise ValueError(f"an interior knot is repeated more than p = {p} times")
+        self.control_points = pts
+        self.weights = w
+        self.knots = kv
+        self.degree = p
+        for a in (pts, w, kv):
+            a.flags.writeable = False
+
+    @property
+    def u_range(self) -> tuple[float, float]:
+        """The parameter range (u_start, u_end) = (knots[p], knots[n+1])."""
+        return float(self.knots[self.degree]), float(self.knots[-self.degree - 1])
+
+    @property
+    def kernel_args(self) -> tuple:
+        """(control_points, weights, knots, degree) for the numba kernels."""
+        return self.control_points, self.weights, self.knots, self.degree
+
+    def _check_u(self, u: np.ndarray) -> None:
+        lo, hi = self.u_range
+        if not np.all(np.isfinite(u)):
+            raise ValueError("u must be finite")
+        if np.any(u < lo) or np.any(u > hi):
+            raise ValueError(f"u outside the knot range [{lo}, {hi}]")
+
+    def point(self, u: float) -> np.ndarray:
+        """C(u) in mm, shape (2,)."""
+        return self.derivatives(u, 0)[0]
+
+    def derivatives(self, u: float, order: int = 2) -> np.ndarray:
+        """[C(u), C'(u), ..., C^(order)(u)], shape (order+1, 2), with respect to u."""
+        if int(order) != order or order < 0:
+            raise ValueError(f"order must be a non-negative integer, got {order!r}")
+        uu = float(u)
+        self._check_u(np.asarray(uu))
+        out = np.empty((int(order) + 1, 2))
+        curve_derivatives(self.control_points, self.weights, self.knots, self.degree, uu, int(order), out)
+        return out
+
+    def points(self, us) -> np.ndarray:
+        """C(u) for an array of u, shape (len(us), 2) in mm."""
+        return self.derivatives_array(us, 0)[:, 0, :]
+
+    def derivatives_array(self, us, order: int = 2) -> np.ndarray:
+        """Derivatives for an array of u, shape (len(us), order+1, 2)."""
+        if int(order) != order or order < 0:
+            raise ValueError(f"order must be a non-negative integer, got {order!r}")
+        uu = np.ascontiguousarray(us, dtype=np.float64).reshape(-1)
+        self._check_u(uu)
+        out = np.empty((uu.size, int(order) + 1, 2))
+        _curve_derivatives_batch(
+            self.control_points, self.weights, self.knots, self.degree, uu, int(order), out
+        )
+        return out
+
+    def arc_length(self, u_start: float | None = None, u_end: float | None = None) -> float:
+        """Arc length in mm between two parameters (Gauss-Legendre per knot span).
+
+        Accurate to far below a nanometre for the seed curves: 16 nodes on every
+        non-empty knot span, each split in 8 pieces.
+        """
+        lo, hi = self.u_range
+        a = lo if u_start is None else float(u_start)
+        b = hi if u_end is None else float(u_end)
+        self._check_u(np.array([a, b]))
+        if b < a:
+            raise ValueError("u_end must not be smaller than u_start")
+        breaks = np.unique(np.concatenate([[a, b], self.knots[(self.knots > a) & (self.knots < b)]]))
+        pieces = np.concatenate([np.linspace(s, e, 9)[:-1] for s, e in zip(breaks[:-1], breaks[1:])] + [[b]])
+        x, wq = np.polynomial.legendre.leggauss(16)
+        lo_e, hi_e = pieces[:-1, None], pieces[1:, None]
+        us = (0.5 * (hi_e - lo_e) * x + 0.5 * (hi_e + lo_e)).reshape(-1)
+        speed = np.linalg.norm(self.derivatives_array(us, 1)[:, 1, :], axis=1).reshape(-1, x.size)
+        return float(np.sum(0.5 * (hi_e - lo_e)[:, 0] * (speed @ wq)))
+
+    def __repr__(self) -> str:
+        lo, hi = self.u_range
+        return (
+            f"NurbsCurve(degree={self.degree}, n_control_points={len(self.weights)}, "
+            f"u_range=({lo:g}, {hi:g}))"
+        )
