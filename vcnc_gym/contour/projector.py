@@ -30,7 +30,7 @@ from ..geometry.nurbs import curve_derivatives_into, workspace_size
 __all__ = ["ContourProjector", "project_point"]
 
 _NEWTON_ITERATIONS = 12
-_NEWTON_TOLERANCE = 1e-13  # |du| * |C'| in mm
+_FINAL_STEP = 1e-5  # mm along the curve: below it the last Newton step is taken on a Taylor expansion
 
 
 @njit(cache=True)
@@ -65,17 +65,23 @@ def _refine_on_piece(control_points, weights, knots, degree, qx, qy, u0, i, piec
         curve_derivatives_into(control_points, weights, knots, degree, u, 2, der, work)
         rx = der[0, 0] - qx
         ry = der[0, 1] - qy
-        d_u = np.sqrt(rx * rx + ry * ry)
-        u_at = u
         speed2 = der[1, 0] * der[1, 0] + der[1, 1] * der[1, 1]
         f = rx * der[1, 0] + ry * der[1, 1]
         fp = speed2 + rx * der[2, 0] + ry * der[2, 1]
         if fp <= 0.0:  # not locally convex: a gradient step instead
             fp = speed2
         u_new = min(ub, max(ua, u - f / fp))
-        moved = abs(u_new - u) * np.sqrt(speed2)
-        if moved < _NEWTON_TOLERANCE:
+        du = u_new - u
+        if abs(du) * np.sqrt(speed2) < _FINAL_STEP:
+            # last step taken on the second-order Taylor expansion of C:
+            # its error is O(du^3), far below a picometre
+            rx += der[1, 0] * du + 0.5 * der[2, 0] * du * du
+            ry += der[1, 1] * du + 0.5 * der[2, 1] * du * du
+            d_u = np.sqrt(rx * rx + ry * ry)
+            u_at = u_new
             break
+        d_u = np.sqrt(rx * rx + ry * ry)
+        u_at = u
         u = u_new
     best_d = d_u
     best_u = u_at

@@ -199,6 +199,13 @@ class ContouringEnv(gym.Env):
         self._work = np.empty(workspace_size(self.curve.degree, 2))
         self._voltage = np.zeros((1, 2))
         self._previous_action = np.zeros(2)
+        self._obs_size = self.layout.size
+        self._kernel_args = (
+            self._voltage, self._state, self._params, self.dt, self.n_substeps,
+            self._reference, self._preview, self._obs_offsets, self._obs_high, self._previous_action,
+            *self.curve.kernel_args, *self.projector.arrays, self._der, self._work,
+        )
+        self._u_max = (1.0, 1.0)
         self._k = 0
         self._done = True
         self._warned_limit = False
@@ -241,6 +248,7 @@ class ContouringEnv(gym.Env):
         else:
             self.parameters = self.nominal_parameters
         self._params[0] = self.parameters
+        self._u_max = (float(self.parameters[0, plant.IDX_U_MAX]), float(self.parameters[1, plant.IDX_U_MAX]))
         plant.reset_feed_drives(self._state, self._reference[:1, sk.REF_POSITION:sk.REF_POSITION + 2])
         self._k = 0
         self._done = False
@@ -250,11 +258,7 @@ class ContouringEnv(gym.Env):
 
         obs = np.zeros(self.layout.size, dtype=np.float32)
         result = np.empty(sk.OUT_SIZE)
-        sk.contouring_step(
-            0, 0, self._voltage, self._state, self._params, self.dt, self.n_substeps,
-            self._reference, self._preview, self._obs_offsets, self._obs_high, self._previous_action,
-            *self.curve.kernel_args, *self.projector.arrays, self._der, self._work, obs, result,
-        )
+        sk.contouring_step(0, 0, *self._kernel_args, obs, result)
         info = {
             "parameters": plant.parameters_to_dict(self.parameters),
             "dt": self.dt,
@@ -271,27 +275,24 @@ class ContouringEnv(gym.Env):
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {a.shape}")
-        a0 = a[0]
-        a1 = a[1]
+        if not isinstance(action, np.ndarray):
+            action = np.asarray(action, dtype=np.float64)
+        if action.shape != (2,):
+            raise ValueError(f"action must have shape (2,), got {action.shape}")
+        a0 = float(action[0])
+        a1 = float(action[1])
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"action must be finite, got {action!r}")
         a0 = min(1.0, max(-1.0, a0))
         a1 = min(1.0, max(-1.0, a1))
-        self._voltage[0, 0] = a0 * self._params[0, 0, plant.IDX_U_MAX]
-        self._voltage[0, 1] = a1 * self._params[0, 1, plant.IDX_U_MAX]
+        self._voltage[0, 0] = a0 * self._u_max[0]
+        self._voltage[0, 1] = a1 * self._u_max[1]
         self._previous_action[0] = a0
         self._previous_action[1] = a1
 
-        obs = np.empty(self.layout.size, dtype=np.float32)
+        obs = np.empty(self._obs_size, dtype=np.float32)
         result = np.empty(sk.OUT_SIZE)
-        k = sk.contouring_step(
-            self._k, self.action_repeat, self._voltage, self._state, self._params, self.dt, self.n_substeps,
-            self._reference, self._preview, self._obs_offsets, self._obs_high, self._previous_action,
-            *self.curve.kernel_args, *self.projector.arrays, self._der, self._work, obs, result,
-        )
+        k = sk.contouring_step(self._k, self.action_repeat, *self._kernel_args, obs, result)
         self._k = k
         err = result[sk.OUT_CONTOUR_ERROR]
         diverged = result[sk.OUT_FINITE] == 0.0 or result[sk.OUT_CONTOUR_ERROR_MAX] > self.divergence_bound
@@ -301,15 +302,16 @@ class ContouringEnv(gym.Env):
         if diverged:
             remaining = max(0, self.episode_steps - math.ceil(k / self.action_repeat))
             r_div = -remaining * self.divergence_bound / self.reward_scale
+            err = err if math.isfinite(err) else math.inf
         terminated = diverged or k >= self._end_index
         self._done = terminated
         info = {
-            "contour_error": min(err, 1e6) if math.isfinite(err) else 1e6,
+            "contour_error": err,
             "contour_error_max": result[sk.OUT_CONTOUR_ERROR_MAX],
             "tracking_error": result[sk.OUT_TRACKING_ERROR:sk.OUT_TRACKING_ERROR + 2],
             "position": result[sk.OUT_POSITION:sk.OUT_POSITION + 2],
             "reference_position": result[sk.OUT_REFERENCE_POSITION:sk.OUT_REFERENCE_POSITION + 2],
-            "command": self._voltage[0].copy(),
+            "command": result[sk.OUT_COMMAND:sk.OUT_COMMAND + 2],
             "time": k * self.dt,
             "reward_contour": r_contour,
             "reward_effort": r_effort,
@@ -319,7 +321,7 @@ class ContouringEnv(gym.Env):
         if self._history is not None:
             self._history["t"].append(k * self.dt)
             self._history["position"].append(info["position"].copy())
-            self._history["contour_error"].append(info["contour_error"])
+            self._history["contour_error"].append(err)
             frame = round(1.0 / (self.metadata["render_fps"] * self.decision_period))
             if self.render_mode == "human" and (terminated or len(self._history["t"]) % frame == 0):
                 self.render()

@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from ..contour.projector import project_point
-from ..plants.vcnc_feed_drive import step_feed_drives, table_velocity
+from ..plants.vcnc_feed_drive import IDX_U_MAX, step_feed_drives, table_velocity
 
 # columns of the packed reference array (K, REF_COLUMNS)
 REF_POSITION = 0  # x_d (2) mm
@@ -30,7 +30,8 @@ OUT_REFERENCE_POSITION = 5  # (2) mm
 OUT_TRACKING_ERROR = 7  # (2) mm
 OUT_FOOT_U = 9  # curve parameter of the closest point
 OUT_FINITE = 10  # 1.0 if the plant state is finite
-OUT_SIZE = 11
+OUT_COMMAND = 11  # (2) V, the amplifier output after saturation
+OUT_SIZE = 13
 
 
 @njit(cache=True)
@@ -99,6 +100,8 @@ def contouring_step(
     result[OUT_TRACKING_ERROR + 1] = ey
     result[OUT_FOOT_U] = foot_u
     result[OUT_FINITE] = 1.0 if finite else 0.0
+    for i in range(2):
+        result[OUT_COMMAND + i] = min(params[0, i, IDX_U_MAX], max(-params[0, i, IDX_U_MAX], voltage[0, i]))
 
     # observation, field by field in ObservationLayout order
     o = obs_offsets

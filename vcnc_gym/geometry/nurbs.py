@@ -40,56 +40,58 @@ def find_span(n, degree, u, knots):
 
 
 @njit(cache=True)
-def _basis_derivatives(span, u, degree, order, knots, ders, work):
+def _basis_derivatives(span, u, degree, order, knots, work, out):
     """Basis functions N_{span-p..span, p} and derivatives up to ``order`` (A2.3).
 
-    Writes ders[k, j] = d^k/du^k N_{span-p+j, p}(u) for k <= order <= degree;
-    ``work`` is scratch of at least (p+1)^2 + 4(p+1) floats.
+    Writes d^k/du^k N_{span-p+j, p}(u) to work[out + k (p+1) + j] for
+    k <= order <= degree.  ``work`` is flat scratch whose first
+    (p+1)^2 + 4(p+1) floats this routine uses for ndu, left, right and a
+    (flat indexing: no array views on the hot path).
     """
     p = degree
     q = p + 1
-    ndu = work[: q * q].reshape((q, q))
-    left = work[q * q : q * q + q]
-    right = work[q * q + q : q * q + 2 * q]
-    a = work[q * q + 2 * q : q * q + 4 * q].reshape((2, q))
-    ndu[0, 0] = 1.0
+    ndu = 0  # ndu[i, j] -> work[ndu + i q + j]
+    left = q * q
+    right = left + q
+    a = right + q  # a[s, j] -> work[a + s q + j]
+    work[ndu] = 1.0
     for j in range(1, p + 1):
-        left[j] = u - knots[span + 1 - j]
-        right[j] = knots[span + j] - u
+        work[left + j] = u - knots[span + 1 - j]
+        work[right + j] = knots[span + j] - u
         saved = 0.0
         for r in range(j):
-            ndu[j, r] = right[r + 1] + left[j - r]
-            temp = ndu[r, j - 1] / ndu[j, r]
-            ndu[r, j] = saved + right[r + 1] * temp
-            saved = left[j - r] * temp
-        ndu[j, j] = saved
-    for j in range(p + 1):
-        ders[0, j] = ndu[j, p]
-    for r in range(p + 1):
+            work[ndu + j * q + r] = work[right + r + 1] + work[left + j - r]
+            temp = work[ndu + r * q + j - 1] / work[ndu + j * q + r]
+            work[ndu + r * q + j] = saved + work[right + r + 1] * temp
+            saved = work[left + j - r] * temp
+        work[ndu + j * q + j] = saved
+    for j in range(q):
+        work[out + j] = work[ndu + j * q + p]
+    for r in range(q):
         s1 = 0
-        s2 = 1
-        a[0, 0] = 1.0
+        s2 = q
+        work[a] = 1.0
         for k in range(1, order + 1):
             d = 0.0
             rk = r - k
             pk = p - k
             if r >= k:
-                a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
-                d = a[s2, 0] * ndu[rk, pk]
+                work[a + s2] = work[a + s1] / work[ndu + (pk + 1) * q + rk]
+                d = work[a + s2] * work[ndu + rk * q + pk]
             j1 = 1 if rk >= -1 else -rk
             j2 = k - 1 if r - 1 <= pk else p - r
             for j in range(j1, j2 + 1):
-                a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
-                d += a[s2, j] * ndu[rk + j, pk]
+                work[a + s2 + j] = (work[a + s1 + j] - work[a + s1 + j - 1]) / work[ndu + (pk + 1) * q + rk + j]
+                d += work[a + s2 + j] * work[ndu + (rk + j) * q + pk]
             if r <= pk:
-                a[s2, k] = -a[s1, k - 1] / ndu[pk + 1, r]
-                d += a[s2, k] * ndu[r, pk]
-            ders[k, r] = d
+                work[a + s2 + k] = -work[a + s1 + k - 1] / work[ndu + (pk + 1) * q + r]
+                d += work[a + s2 + k] * work[ndu + r * q + pk]
+            work[out + k * q + r] = d
             s1, s2 = s2, s1
     factor = p
     for k in range(1, order + 1):
-        for j in range(p + 1):
-            ders[k, j] *= factor
+        for j in range(q):
+            work[out + k * q + j] *= factor
         factor *= p - k
 
 
@@ -113,33 +115,37 @@ def curve_derivatives_into(control_points, weights, knots, degree, u, order, out
     q = p + 1
     span = find_span(n, p, u, knots)
     du = min(order, p)
-    base = q * q + 4 * q
-    nders = work[base : base + (du + 1) * q].reshape((du + 1, q))
-    base += (du + 1) * q
-    aders = work[base : base + 2 * (order + 1)].reshape((order + 1, 2))
-    wders = work[base + 2 * (order + 1) : base + 3 * (order + 1)]
-    _basis_derivatives(span, u, p, du, knots, nders, work)
+    nders = q * q + 4 * q  # N^(k)_j -> work[nders + k q + j]
+    aders = nders + (du + 1) * q  # A^(k) (x, y) -> work[aders + 2 k], work[aders + 2 k + 1]
+    wders = aders + 2 * (order + 1)  # w^(k) -> work[wders + k]
+    _basis_derivatives(span, u, p, du, knots, work, nders)
     # homogeneous derivatives A^(k) = sum N^(k) w P and w^(k) = sum N^(k) w
-    aders[:] = 0.0
-    wders[:] = 0.0
-    for k in range(du + 1):
-        for j in range(q):
-            i = span - p + j
-            nw = nders[k, j] * weights[i]
-            aders[k, 0] += nw * control_points[i, 0]
-            aders[k, 1] += nw * control_points[i, 1]
-            wders[k] += nw
-    # A4.2: C^(k) = (A^(k) - sum_{i=1..k} binom(k, i) w^(i) C^(k-i)) / w
     for k in range(order + 1):
-        vx = aders[k, 0]
-        vy = aders[k, 1]
+        ax = 0.0
+        ay = 0.0
+        wk = 0.0
+        if k <= du:
+            for j in range(q):
+                i = span - p + j
+                nw = work[nders + k * q + j] * weights[i]
+                ax += nw * control_points[i, 0]
+                ay += nw * control_points[i, 1]
+                wk += nw
+        work[aders + 2 * k] = ax
+        work[aders + 2 * k + 1] = ay
+        work[wders + k] = wk
+    # A4.2: C^(k) = (A^(k) - sum_{i=1..k} binom(k, i) w^(i) C^(k-i)) / w
+    inv_w = 1.0 / work[wders]
+    for k in range(order + 1):
+        vx = work[aders + 2 * k]
+        vy = work[aders + 2 * k + 1]
         binom = 1.0
         for i in range(1, k + 1):
             binom = binom * (k - i + 1) / i
-            vx -= binom * wders[i] * out[k - i, 0]
-            vy -= binom * wders[i] * out[k - i, 1]
-        out[k, 0] = vx / wders[0]
-        out[k, 1] = vy / wders[0]
+            vx -= binom * work[wders + i] * out[k - i, 0]
+            vy -= binom * work[wders + i] * out[k - i, 1]
+        out[k, 0] = vx * inv_w
+        out[k, 1] = vy * inv_w
 
 
 @njit(cache=True)

@@ -1,0 +1,829 @@
+"""Biaxial feed drive of seed 000 (VCNC contouring with QFT), as numba kernels.
+
+Each of the two axes (x, y) of a machine is the rigid feed drive of seed 000,
+section 2a, eq. (1),
+
+.. math::
+
+    X_t(s) = \\frac{r_g}{s} \\frac{1}{J s + B} \\left[K_t K_a U_a(s) - T_d(s)\\right],
+
+read in the time domain as
+
+.. math::
+
+    J \\dot\\omega = K_t K_a \\,\\mathrm{sat}(u) - B \\omega - T_f(\\omega, u),
+    \\qquad \\dot x_m = r_g \\omega,
+    \\qquad x_t = \\mathrm{play}_{D_b}(x_m),
+
+with
+
+- ``u`` the commanded voltage [V], clipped to ``[-u_max, u_max]`` by the
+  amplifier (seed 000, Table 3, "Saturation limits");
+- ``omega`` the motor angular velocity [rad/s] and ``x_m = r_g * theta`` the
+  motor-side linear position [mm];
+- ``T_f`` a Karnopp stick-slip friction torque [N m] with asymmetric static
+  and Coulomb levels (seed 000, Table 3): a drive with ``omega == 0.0``
+  (exactly) is stuck until the motor torque ``T_m = K_t K_a u`` exceeds
+  ``T_stat_pos`` (break-away in + direction) or falls below ``T_stat_neg``
+  (break-away in - direction); a moving drive feels ``T_coul_pos`` for
+  ``omega > 0`` and ``T_coul_neg`` (a negative number) for ``omega < 0``;
+- ``x_t`` the table position [mm], which follows ``x_m`` through a backlash
+  (play / hysteresis operator) of width ``D_b`` (seed 000, Table 3):
+  ``x_t <- clip(x_t, x_m - D_b/2, x_m + D_b/2)``. The table is what is
+  measured and what cuts. The cutting torque ``T_c`` of eq. (1) is zero (the
+  seed simulates air cutting).
+
+The uncertain parameters and their intervals are those of seed 000,
+section 2c: ``r_g`` and ``K_t`` are one value per machine shared by both
+axes, ``K_a`` and ``B`` are per axis. Nominal values are the interval
+midpoints.
+
+Integration is exact for piecewise-constant torque: the input is held
+constant over the control period ``dt`` (zero-order hold), which is split
+into ``n_substeps`` equal substeps; in each substep the friction torque is
+constant and the linear ODE is solved in closed form. A velocity zero
+crossing inside a substep is located exactly; the drive stops there and, if
+the motor torque breaks it away in the opposite direction, moves on for the
+rest of that substep, so with friction and backlash set to zero the kernel
+is the exact ZOH discretisation of eq. (1). Because the motor torque is
+constant over a control period, a substep holds at most one stop and one
+break-away after it, and the play operator is applied at the stop and at the
+end of each substep (the motion between is monotone), so the result is exact
+for any ``n_substeps >= 1`` up to rounding. Substeps would matter only for a
+torque that varies within a period (e.g. a position-dependent cutting torque
+``T_c``); ``DEFAULT_SUBSTEP`` keeps that margin for a few tens of ns per call.
+
+Layouts
+-------
+state : (N, 2, 3) float64
+    ``state[k, i] = (x_m [mm], omega [rad/s], x_t [mm])`` for machine ``k``
+    and axis ``i`` (0 = x, 1 = y). See ``STATE_NAMES`` and the ``S_*``
+    indices.
+params : (N, 2, P) float64
+    ``params[k, i, j]`` is parameter ``PARAMETER_NAMES[j]`` of axis ``i`` of
+    machine ``k``; see the ``IDX_*`` indices. Shared parameters (``r_g``,
+    ``K_t``) are stored on both axes with equal values.
+voltage : (N, 2) float64
+    Commanded voltage [V] per machine and axis.
+
+Examples
+--------
+>>> import numpy as np
+>>> from vcnc_gym.plants import vcnc_feed_drive as fd
+>>> params = fd.nominal_parameters()[None]          # (1, 2, P)
+>>> state = np.empty((1, 2, 3))
+>>> fd.reset_feed_drives(state, np.zeros((1, 2)))
+>>> fd.step_feed_drives(state, np.array([[5.0, -5.0]]), params, 1e-4,
+...                     fd.substeps_for(1e-4))
+>>> bool(state[0, 0, fd.S_W] > 0.0 and state[0, 1, fd.S_W] < 0.0)
+True
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = [
+    "PARAMETER_NAMES",
+    "N_PARAMETERS",
+    "IDX_R_G",
+    "IDX_K_T",
+    "IDX_K_A",
+    "IDX_J",
+    "IDX_B",
+    "IDX_T_STAT_POS",
+    "IDX_T_STAT_NEG",
+    "IDX_T_COUL_POS",
+    "IDX_T_COUL_NEG",
+    "IDX_BACKLASH",
+    "IDX_U_MAX",
+    "STATE_NAMES",
+    "S_XM",
+    "S_W",
+    "S_XT",
+    "AXES",
+    "UNCERTAIN_SHARED",
+    "UNCERTAIN_PER_AXIS",
+    "PARAMETER_INTERVALS",
+    "FIXED_PARAMETERS",
+    "DEFAULT_DT",
+    "DEFAULT_SUBSTEP",
+    "substeps_for",
+    "parameter_intervals",
+    "nominal_parameters",
+    "sample_parameters",
+    "uncertainty_vertices",
+    "parameters_to_dict",
+    "without_nonlinearities",
+    "validate_parameters",
+    "linear_transfer_function_coefficients",
+    "reset_feed_drives",
+    "step_feed_drives",
+    "table_velocity",
+    "table_velocities",
+    "FeedDrivePlant",
+]
+
+# --------------------------------------------------------------------------
+# Layouts
+# --------------------------------------------------------------------------
+
+#: Names of the per-axis parameters, in the order of the last axis of a
+#: parameter array. Units: r_g [mm/rad], K_t [N m/A], K_a [A/V],
+#: J [kg m^2], B [N m s/rad = kg m^2/s], T_* [N m], backlash [mm], u_max [V].
+PARAMETER_NAMES = (
+    "r_g",
+    "K_t",
+    "K_a",
+    "J",
+    "B",
+    "T_stat_pos",
+    "T_stat_neg",
+    "T_coul_pos",
+    "T_coul_neg",
+    "backlash",
+    "u_max",
+)
+N_PARAMETERS = len(PARAMETER_NAMES)
+(
+    IDX_R_G,
+    IDX_K_T,
+    IDX_K_A,
+    IDX_J,
+    IDX_B,
+    IDX_T_STAT_POS,
+    IDX_T_STAT_NEG,
+    IDX_T_COUL_POS,
+    IDX_T_COUL_NEG,
+    IDX_BACKLASH,
+    IDX_U_MAX,
+) = range(N_PARAMETERS)
+
+#: Names of the per-axis state entries: motor-side position x_m [mm], motor
+#: angular velocity w [rad/s], table position x_t [mm].
+STATE_NAMES = ("x_m", "w", "x_t")
+S_XM, S_W, S_XT = 0, 1, 2
+
+#: Axis order of axis 1 of every array.
+AXES = ("x", "y")
+
+# --------------------------------------------------------------------------
+# The numbers, each with its source
+# --------------------------------------------------------------------------
+
+#: Uncertain parameters shared by both axes of a machine, with their
+#: intervals (seed 000, section 2c): r_g [mm/rad], K_t [N m/A].
+UNCERTAIN_SHARED = {
+    "r_g": (1.4, 1.73),
+    "K_t": (0.42, 0.52),
+}
+
+#: Uncertain per-axis parameters with their (x, y) intervals (seed 000,
+#: section 2c): K_a [A/V], B [kg m^2/s].
+UNCERTAIN_PER_AXIS = {
+    "K_a": ((5.71, 7.07), (6.67, 8.26)),
+    "B": ((0.014, 0.026), (0.02, 0.037)),
+}
+
+#: All uncertainty intervals of seed 000, section 2c, keyed by name; the
+#: per-axis ones are ((lo_x, hi_x), (lo_y, hi_y)).
+PARAMETER_INTERVALS = {**UNCERTAIN_SHARED, **UNCERTAIN_PER_AXIS}
+
+#: Fixed per-axis parameters as (x, y) pairs (seed 000, Table 3):
+#: J [kg m^2] ("Total reflected inertia"; the seed prints the unit as
+#: kg/m^2), saturation u_max [V] (limits -5, +5), backlash D_b [mm],
+#: static friction T_stat^+/- [N m], Coulomb friction T_coul^+/- [N m] (the
+#: seed's "T_cont").
+FIXED_PARAMETERS = {
+    "J": (0.0077736, 0.0098109),
+    "T_stat_pos": (2.6256, 2.7658),
+    "T_stat_neg": (-1.8672, -2.4520),
+    "T_coul_pos": (2.1529, 2.5228),
+    "T_coul_neg": (-1.4730, -2.3887),
+    "backlash": (0.003, 0.003),
+    "u_max": (5.0, 5.0),
+}
+
+#: Default control period of the envs [s] (see DESIGN.md, "Control rate").
+DEFAULT_DT = 1e-4
+
+#: Default integration substep [s] (10 substeps at the default control period).
+#: With the torques of this model constant over a control period the kernel is
+#: exact for any substep count (stops, break-away and backlash are located
+#: inside the substep), so this value is a margin, not an accuracy need: it
+#: bounds the time resolution of anything later made to vary within a period
+#: (a 1e-5 s delay of a break-away moves the table < 1 nm at the drives'
+#: maximum acceleration K_t K_a u_max r_g / J ~ 5e3 mm/s^2). Cost: ~5 ns per
+#: axis-substep.
+DEFAULT_SUBSTEP = 1e-5
+
+
+def substeps_for(dt: float) -> int:
+    """Number of substeps for a control period.
+
+    Parameters
+    ----------
+    dt : float
+        Control period [s], > 0.
+
+    Returns
+    -------
+    int
+        ``ceil(dt / DEFAULT_SUBSTEP)`` (at least 1), with ratios within 1e-9
+        of an integer rounded to it so that ``substeps_for(1e-4) == 10``.
+    """
+    if not (dt > 0.0 and math.isfinite(dt)):
+        raise ValueError(f"dt must be positive and finite, got {dt!r}")
+    ratio = dt / DEFAULT_SUBSTEP
+    nearest = round(ratio)
+    if abs(ratio - nearest) <= 1e-9 * max(1.0, ratio):
+        return max(1, int(nearest))
+    return max(1, math.ceil(ratio))
+
+
+# --------------------------------------------------------------------------
+# Parameter sets
+# --------------------------------------------------------------------------
+
+
+def parameter_intervals() -> dict:
+    """Uncertainty intervals of seed 000, section 2c.
+
+    Returns
+    -------
+    dict
+        ``{"r_g": (lo, hi), "K_t": (lo, hi), "K_a": ((lo_x, hi_x), (lo_y,
+        hi_y)), "B": (...)}`` in mm/rad, N m/A, A/V and kg m^2/s. A fresh
+        copy; editing it changes nothing here.
+    """
+    return {
+        k: tuple(tuple(v) if isinstance(v, tuple) else v for v in val)
+        for k, val in PARAMETER_INTERVALS.items()
+    }
+
+
+def _fixed_array() -> np.ndarray:
+    p = np.zeros((2, N_PARAMETERS), dtype=np.float64)
+    for name, (vx, vy) in FIXED_PARAMETERS.items():
+        j = PARAMETER_NAMES.index(name)
+        p[0, j] = vx
+        p[1, j] = vy
+    return p
+
+
+def _assemble(r_g: float, k_t: float, k_a, b) -> np.ndarray:
+    p = _fixed_array()
+    p[:, IDX_R_G] = r_g
+    p[:, IDX_K_T] = k_t
+    p[:, IDX_K_A] = k_a
+    p[:, IDX_B] = b
+    return p
+
+
+def nominal_parameters() -> np.ndarray:
+    """Nominal parameters of both axes.
+
+    Uncertain parameters at the midpoints of their intervals (seed 000,
+    section 2c), fixed ones from seed 000, Table 3.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(2, N_PARAMETERS)``, float64; rows x, y; columns
+        ``PARAMETER_NAMES``.
+    """
+    mid = lambda iv: 0.5 * (iv[0] + iv[1])  # noqa: E731
+    ka = UNCERTAIN_PER_AXIS["K_a"]
+    b = UNCERTAIN_PER_AXIS["B"]
+    return _assemble(
+        mid(UNCERTAIN_SHARED["r_g"]),
+        mid(UNCERTAIN_SHARED["K_t"]),
+        [mid(ka[0]), mid(ka[1])],
+        [mid(b[0]), mid(b[1])],
+    )
+
+
+def sample_parameters(rng: np.random.Generator) -> np.ndarray:
+    """Draw one machine uniformly from the uncertainty box.
+
+    ``r_g`` and ``K_t`` are drawn once and shared by both axes; ``K_a`` and
+    ``B`` are drawn per axis (seed 000, section 2c). Fixed values from seed
+    000, Table 3. Exactly six uniform draws, in the order r_g, K_t, K_a_x,
+    K_a_y, B_x, B_y.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of randomness (e.g. an env's ``np_random``).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(2, N_PARAMETERS)``, float64.
+    """
+    lo, hi = _box()
+    v = rng.uniform(lo, hi)
+    return _from_box_point(v)
+
+
+def _box() -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper corners of the 6-D box (r_g, K_t, K_ax, K_ay, B_x, B_y)."""
+    s, a = UNCERTAIN_SHARED, UNCERTAIN_PER_AXIS
+    ivs = [s["r_g"], s["K_t"], a["K_a"][0], a["K_a"][1], a["B"][0], a["B"][1]]
+    lo = np.array([iv[0] for iv in ivs], dtype=np.float64)
+    hi = np.array([iv[1] for iv in ivs], dtype=np.float64)
+    return lo, hi
+
+
+def _from_box_point(v) -> np.ndarray:
+    return _assemble(v[0], v[1], [v[2], v[3]], [v[4], v[5]])
+
+
+def uncertainty_vertices() -> np.ndarray:
+    """All corners of the uncertainty box of seed 000, section 2c.
+
+    The box is 6-dimensional: (r_g, K_t, K_a_x, K_a_y, B_x, B_y). Vertex
+    ``m`` takes the upper bound of coordinate ``c`` when bit ``c`` of ``m``
+    is set (so vertex 0 is all lower bounds, vertex 63 all upper bounds).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(64, 2, N_PARAMETERS)``, float64.
+    """
+    lo, hi = _box()
+    out = np.empty((64, 2, N_PARAMETERS), dtype=np.float64)
+    for m in range(64):
+        bits = np.array([(m >> c) & 1 for c in range(6)], dtype=bool)
+        out[m] = _from_box_point(np.where(bits, hi, lo))
+    return out
+
+
+def parameters_to_dict(params: np.ndarray) -> dict:
+    """Plain-Python view of one machine's parameters, e.g. for ``info``.
+
+    Parameters
+    ----------
+    params : array_like
+        Shape ``(2, N_PARAMETERS)``.
+
+    Returns
+    -------
+    dict
+        Shared parameters (``r_g`` [mm/rad], ``K_t`` [N m/A]) as floats, all
+        others as ``(x, y)`` tuples of floats, keyed by ``PARAMETER_NAMES``.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    if p.shape != (2, N_PARAMETERS):
+        raise ValueError(f"params must have shape (2, {N_PARAMETERS}), got {p.shape}")
+    out = {}
+    for j, name in enumerate(PARAMETER_NAMES):
+        if name in UNCERTAIN_SHARED:
+            out[name] = float(p[0, j])
+        else:
+            out[name] = (float(p[0, j]), float(p[1, j]))
+    return out
+
+
+def without_nonlinearities(params: np.ndarray, keep_saturation: bool = False) -> np.ndarray:
+    """Copy of a parameter array with friction and backlash set to zero.
+
+    What remains is the linear model of seed 000, eq. (1) (plus the
+    amplifier saturation if ``keep_saturation``; otherwise ``u_max`` is set
+    to ``inf``).
+
+    Parameters
+    ----------
+    params : numpy.ndarray
+        Shape ``(..., N_PARAMETERS)``.
+    keep_saturation : bool
+        Keep ``u_max`` [V] as it is.
+
+    Returns
+    -------
+    numpy.ndarray
+        A new array of the same shape.
+    """
+    p = np.array(params, dtype=np.float64, copy=True)
+    p[..., [IDX_T_STAT_POS, IDX_T_STAT_NEG, IDX_T_COUL_POS, IDX_T_COUL_NEG, IDX_BACKLASH]] = 0.0
+    if not keep_saturation:
+        p[..., IDX_U_MAX] = np.inf
+    return p
+
+
+def validate_parameters(params, n_machines: int | None = None) -> np.ndarray:
+    """Check and normalise a parameter array for the kernels.
+
+    Parameters
+    ----------
+    params : array_like
+        Shape ``(2, P)`` (one machine) or ``(N, 2, P)``.
+    n_machines : int, optional
+        Required N; a ``(2, P)`` array is broadcast to it.
+
+    Returns
+    -------
+    numpy.ndarray
+        C-contiguous float64 array of shape ``(N, 2, P)``.
+
+    Raises
+    ------
+    ValueError
+        On a wrong shape, non-finite entries (``u_max = inf`` is allowed),
+        non-positive ``r_g``, ``K_t``, ``K_a``, ``J`` or ``u_max``, negative
+        ``B`` or backlash, friction levels not ordered
+        ``T_stat_neg <= T_coul_neg <= 0 <= T_coul_pos <= T_stat_pos``, or
+        shared parameters that differ between the axes.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    if p.ndim == 2:
+        p = p[None]
+    if p.ndim != 3 or p.shape[1:] != (2, N_PARAMETERS):
+        raise ValueError(f"params must have shape (N, 2, {N_PARAMETERS}) or (2, {N_PARAMETERS}), got {np.shape(params)}")
+    if n_machines is not None:
+        if p.shape[0] == 1 and n_machines != 1:
+            p = np.broadcast_to(p, (n_machines, 2, N_PARAMETERS))
+        elif p.shape[0] != n_machines:
+            raise ValueError(f"params are for {p.shape[0]} machines, expected {n_machines}")
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    finite = np.delete(p, IDX_U_MAX, axis=2)
+    if not np.all(np.isfinite(finite)) or np.any(np.isnan(p[..., IDX_U_MAX])):
+        raise ValueError("params must be finite (u_max may be inf)")
+    for j in (IDX_R_G, IDX_K_T, IDX_K_A, IDX_J, IDX_U_MAX):
+        if np.any(p[..., j] <= 0.0):
+            raise ValueError(f"{PARAMETER_NAMES[j]} must be > 0")
+    for j in (IDX_B, IDX_BACKLASH):
+        if np.any(p[..., j] < 0.0):
+            raise ValueError(f"{PARAMETER_NAMES[j]} must be >= 0")
+    ordered = (
+        (p[..., IDX_T_STAT_NEG] <= p[..., IDX_T_COUL_NEG])
+        & (p[..., IDX_T_COUL_NEG] <= 0.0)
+        & (p[..., IDX_T_COUL_POS] >= 0.0)
+        & (p[..., IDX_T_STAT_POS] >= p[..., IDX_T_COUL_POS])
+    )
+    if not np.all(ordered):
+        raise ValueError("friction must satisfy T_stat_neg <= T_coul_neg <= 0 <= T_coul_pos <= T_stat_pos")
+    for j in (IDX_R_G, IDX_K_T):
+        if np.any(p[:, 0, j] != p[:, 1, j]):
+            raise ValueError(f"{PARAMETER_NAMES[j]} is shared by both axes of a machine (seed 000, section 2c)")
+    return p
+
+
+def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
+    """Voltage-to-table-position transfer function of seed 000, eq. (1).
+
+    ``P(s) = r_g K_t K_a / (s (J s + B))`` [mm/V], friction, backlash and
+    saturation ignored.
+
+    Parameters
+    ----------
+    params : array_like
+        Shape ``(2, N_PARAMETERS)`` (one machine).
+    axis : int
+        0 for x, 1 for y.
+
+    Returns
+    -------
+    num, den : numpy.ndarray
+        Polynomial coefficients in descending powers of s:
+        ``num = [r_g K_t K_a]``, ``den = [J, B, 0]``; e.g. for
+        ``control.tf(num, den)``.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    if p.shape != (2, N_PARAMETERS):
+        raise ValueError(f"params must have shape (2, {N_PARAMETERS}), got {p.shape}")
+    if axis not in (0, 1):
+        raise ValueError(f"axis must be 0 (x) or 1 (y), got {axis!r}")
+    a = p[axis]
+    num = np.array([a[IDX_R_G] * a[IDX_K_T] * a[IDX_K_A]])
+    den = np.array([a[IDX_J], a[IDX_B], 0.0])
+    return num, den
+
+
+# --------------------------------------------------------------------------
+# Kernels
+# --------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _phi1(z):
+    """(e^z - 1) / z, = 1 at z = 0."""
+    if z == 0.0:
+        return 1.0
+    return math.expm1(z) / z
+
+
+@numba.njit(cache=True)
+def _phi2(z):
+    """(e^z - 1 - z) / z^2, accurate for small |z|."""
+    if abs(z) < 0.1:
+        # Taylor series: sum_k z^k / (k + 2)!
+        return (
+            1.0 / 2.0
+            + z
+            * (
+                1.0 / 6.0
+                + z
+                * (
+                    1.0 / 24.0
+                    + z
+                    * (
+                        1.0 / 120.0
+                        + z
+                        * (
+                            1.0 / 720.0
+                            + z * (1.0 / 5040.0 + z * (1.0 / 40320.0 + z * (1.0 / 362880.0 + z / 3628800.0)))
+                        )
+                    )
+                )
+            )
+        )
+    return (math.expm1(z) - z) / (z * z)
+
+
+@numba.njit(cache=True)
+def _log1p_ratio(x):
+    """log(1 + x) / x for x >= 0, = 1 at x = 0."""
+    if x == 0.0:
+        return 1.0
+    return math.log1p(x) / x
+
+
+@numba.njit(cache=True)
+def _log1p_rest(x):
+    """(x - log(1 + x)) / x^2 for x >= 0, accurate for small x."""
+    if x < 0.01:
+        # sum_k (-1)^k x^k / (k + 2)
+        return 0.5 + x * (
+            -1.0 / 3.0
+            + x * (0.25 + x * (-0.2 + x * (1.0 / 6.0 + x * (-1.0 / 7.0 + x * (0.125 + x * (-1.0 / 9.0))))))
+        )
+    return (x - math.log1p(x)) / (x * x)
+
+
+@numba.njit(cache=True)
+def _coefficients(a, h):
+    """Exact one-substep coefficients of w' = alpha - a w over time h.
+
+    w(h) = E w0 + g alpha ;  int_0^h w = g w0 + q alpha.
+    """
+    z = -a * h
+    e = math.exp(z)
+    g = h * _phi1(z)
+    q = h * h * _phi2(z)
+    return e, g, q
+
+
+@numba.njit(cache=True)
+def _clip_play(x_t, x_m, half):
+    lo = x_m - half
+    if x_t < lo:
+        return lo
+    hi = x_m + half
+    if x_t > hi:
+        return hi
+    return x_t
+
+
+@numba.njit(cache=True)
+def reset_feed_drives(state, positions):
+    """Put all drives at rest at the given positions.
+
+    Sets ``x_m = x_t = positions`` (backlash gap centred) and ``w = 0``
+    (stuck).
+
+    Parameters
+    ----------
+    state : numpy.ndarray
+        (N, 2, 3) float64, overwritten: (x_m [mm], w [rad/s], x_t [mm]).
+    positions : numpy.ndarray
+        (N, 2) float64, table positions [mm].
+    """
+    for k in range(state.shape[0]):
+        for i in range(2):
+            state[k, i, 0] = positions[k, i]
+            state[k, i, 1] = 0.0
+            state[k, i, 2] = positions[k, i]
+
+
+@numba.njit(cache=True)
+def step_feed_drives(state, voltage, params, dt, n_substeps):
+    """Advance N biaxial feed drives by one control period, in place.
+
+    Seed 000, eq. (1) with saturation, Karnopp stick-slip friction and
+    backlash (seed 000, Table 3). The voltage is held constant over ``dt``
+    and clipped to ``[-u_max, u_max]``; ``dt`` is split into ``n_substeps``
+    equal substeps, each solved in closed form with velocity zero crossings
+    located exactly. No validation (use ``validate_parameters``); callable
+    from other ``@njit`` code.
+
+    Parameters
+    ----------
+    state : numpy.ndarray
+        (N, 2, 3) float64, (x_m [mm], w [rad/s], x_t [mm]); updated in place.
+    voltage : numpy.ndarray
+        (N, 2) float64, commanded voltage [V].
+    params : numpy.ndarray
+        (N, 2, N_PARAMETERS) float64, see ``PARAMETER_NAMES``.
+    dt : float
+        Control period [s].
+    n_substeps : int
+        Number of equal substeps, >= 1 (see ``substeps_for``).
+    """
+    h = dt / n_substeps
+    for k in range(state.shape[0]):
+        for i in range(2):
+            r_g = params[k, i, 0]
+            kt_ka = params[k, i, 1] * params[k, i, 2]
+            jj = params[k, i, 3]
+            bb = params[k, i, 4]
+            ts_p = params[k, i, 5]
+            ts_n = params[k, i, 6]
+            tc_p = params[k, i, 7]
+            tc_n = params[k, i, 8]
+            half = 0.5 * params[k, i, 9]
+            u_max = params[k, i, 10]
+
+            u = voltage[k, i]
+            if u > u_max:
+                u = u_max
+            elif u < -u_max:
+                u = -u_max
+            t_m = kt_ka * u
+            inv_j = 1.0 / jj
+            a = bb * inv_j
+            e, g, q = _coefficients(a, h)
+
+            x_m = state[k, i, 0]
+            w = state[k, i, 1]
+            x_t = state[k, i, 2]
+
+            for _ in range(n_substeps):
+                if w == 0.0:
+                    # stuck: break away or stay put
+                    if t_m > ts_p:
+                        alpha = (t_m - tc_p) * inv_j
+                    elif t_m < ts_n:
+                        alpha = (t_m - tc_n) * inv_j
+                    else:
+                        continue
+                    w = alpha * g
+                    x_m += r_g * (alpha * q)
+                else:
+                    if w > 0.0:
+                        torque = t_m - tc_p
+                    else:
+                        torque = t_m - tc_n
+                    alpha = torque * inv_j
+                    w_new = e * w + g * alpha
+                    if (w > 0.0 and w_new > 0.0) or (w < 0.0 and w_new < 0.0):
+                        x_m += r_g * (g * w + q * alpha)
+                        w = w_new
+                    else:
+                        # velocity reaches zero inside this substep (torque
+                        # opposes w, so -torque has the sign of w)
+                        tau = jj * w / (-torque)  # > 0, stop time if B = 0
+                        x = bb * w / (-torque)  # >= 0
+                        t_stop = tau * _log1p_ratio(x)
+                        x_m += r_g * (tau * w * _log1p_rest(x))
+                        w = 0.0
+                        x_t = _clip_play(x_t, x_m, half)
+                        rest = h - t_stop
+                        if rest > 0.0:
+                            if t_m > ts_p:
+                                alpha = (t_m - tc_p) * inv_j
+                            elif t_m < ts_n:
+                                alpha = (t_m - tc_n) * inv_j
+                            else:
+                                continue
+                            _, g_r, q_r = _coefficients(a, rest)
+                            w = alpha * g_r
+                            x_m += r_g * (alpha * q_r)
+                x_t = _clip_play(x_t, x_m, half)
+
+            state[k, i, 0] = x_m
+            state[k, i, 1] = w
+            state[k, i, 2] = x_t
+
+
+@numba.njit(cache=True)
+def table_velocity(x_m, w, x_t, r_g, backlash):
+    """Table velocity of one axis [mm/s].
+
+    ``r_g * w`` while the motor pushes the table (the backlash gap is closed
+    on the side the motor moves towards), else 0 (the motor travels inside
+    the gap and the table stands still).
+
+    Parameters
+    ----------
+    x_m, w, x_t : float
+        Motor position [mm], motor velocity [rad/s], table position [mm].
+    r_g : float
+        Transmission gain [mm/rad].
+    backlash : float
+        Backlash width D_b [mm].
+    """
+    half = 0.5 * backlash
+    if w > 0.0:
+        if x_t <= x_m - half:
+            return r_g * w
+    elif w < 0.0:
+        if x_t >= x_m + half:
+            return r_g * w
+    return 0.0
+
+
+@numba.njit(cache=True)
+def table_velocities(state, params, out):
+    """Table velocities [mm/s] of N biaxial drives into ``out`` (N, 2).
+
+    See ``table_velocity``.
+    """
+    for k in range(state.shape[0]):
+        for i in range(2):
+            out[k, i] = table_velocity(
+                state[k, i, 0], state[k, i, 1], state[k, i, 2], params[k, i, 0], params[k, i, 9]
+            )
+
+
+# --------------------------------------------------------------------------
+# Python wrapper
+# --------------------------------------------------------------------------
+
+
+class FeedDrivePlant:
+    """N biaxial feed drives of seed 000 with validated inputs.
+
+    Holds the parameter and state arrays and calls the kernels; shapes are
+    checked in ``__init__``/``reset``, and ``step`` only converts the
+    voltage.
+
+    Parameters
+    ----------
+    params : array_like, optional
+        ``(2, P)`` or ``(N, 2, P)``; default: nominal parameters.
+    n_machines : int
+        Number of machines N (a ``(2, P)`` parameter set is shared).
+    dt : float
+        Control period [s].
+    substeps : int, optional
+        Substeps per control period; default ``substeps_for(dt)``.
+    """
+
+    def __init__(self, params=None, n_machines: int = 1, dt: float = DEFAULT_DT, substeps: int | None = None):
+        if n_machines < 1:
+            raise ValueError("n_machines must be >= 1")
+        self.n_machines = int(n_machines)
+        self.dt = float(dt)
+        self.substeps = substeps_for(self.dt) if substeps is None else int(substeps)
+        if self.substeps < 1:
+            raise ValueError("substeps must be >= 1")
+        self.params = validate_parameters(nominal_parameters() if params is None else params, self.n_machines)
+        self.state = np.zeros((self.n_machines, 2, 3), dtype=np.float64)
+        self._v = np.empty((self.n_machines, 2), dtype=np.float64)
+
+    def reset(self, positions=None, params=None) -> np.ndarray:
+        """Stop all drives at ``positions`` [mm] ((2,) or (N, 2); default 0).
+
+        Optionally replace the parameters. Returns the state array.
+        """
+        if params is not None:
+            self.params = validate_parameters(params, self.n_machines)
+        pos = np.zeros((self.n_machines, 2)) if positions is None else np.asarray(positions, dtype=np.float64)
+        pos = np.ascontiguousarray(np.broadcast_to(pos, (self.n_machines, 2)))
+        reset_feed_drives(self.state, pos)
+        return self.state
+
+    def step(self, voltage) -> np.ndarray:
+        """Advance by ``dt`` with ``voltage`` [V] ((2,) or (N, 2)); returns the state."""
+        v = np.asarray(voltage, dtype=np.float64)
+        if v.shape != (self.n_machines, 2):
+            v = np.broadcast_to(v, (self.n_machines, 2))
+        self._v[...] = v
+        step_feed_drives(self.state, self._v, self.params, self.dt, self.substeps)
+        return self.state
+
+    @property
+    def table_position(self) -> np.ndarray:
+        """Table positions x_t [mm], (N, 2) (a copy)."""
+        return self.state[:, :, S_XT].copy()
+
+    @property
+    def motor_position(self) -> np.ndarray:
+        """Motor-side positions x_m = r_g theta [mm], (N, 2) (a copy)."""
+        return self.state[:, :, S_XM].copy()
+
+    @property
+    def motor_velocity(self) -> np.ndarray:
+        """Motor angular velocities w [rad/s], (N, 2) (a copy)."""
+        return self.state[:, :, S_W].copy()
+
+    @property
+    def table_velocity(self) -> np.ndarray:
+        """Table velocities [mm/s], (N, 2); see ``table_velocity``."""
+        out = np.empty((self.n_machines, 2))
+        table_velocities(self.state, self.params, out)
+        return out
