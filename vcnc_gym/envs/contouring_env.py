@@ -94,8 +94,11 @@ class ContouringEnv(gym.Env):
     - Terminated once the reference has reached the end of the contour and
       ``settling_time`` has passed.
     - Terminated early with ``info["diverged"] = True`` when the contour
-      error exceeds ``divergence_bound`` (default 1 mm) or the plant state
-      stops being finite.
+      error exceeds ``divergence_bound`` (default 5 mm) or the plant state
+      stops being finite.  The bound is that wide because the omega's
+      corners (radius 0.19 mm) ask 100 mm/s for 5.4e4 mm/s^2, twenty times what
+      the +-5 V drives can give (~2.6e3 mm/s^2): a stable tracking controller
+      is thrown millimetres off the contour there without diverging.
     - Truncated by the ``TimeLimit`` of the registered id, set just above
       the natural length for the default arguments.  If you change ``dt``,
       ``feedrate``, ``ramp_time`` or ``action_repeat``, pass
@@ -117,7 +120,7 @@ class ContouringEnv(gym.Env):
       :mod:`vcnc_gym.plants.vcnc_feed_drive`): the plant in force.
     - ``substep`` (s, 1e-5): the plant's integration substep.
     - ``reward_scale`` (mm, 0.01), ``effort_weight`` (0.0),
-      ``divergence_bound`` (mm, 1.0), ``settling_time`` (s, 0.01).
+      ``divergence_bound`` (mm, 5.0), ``settling_time`` (s, 0.01).
     - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods.
     - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
 
@@ -140,7 +143,7 @@ class ContouringEnv(gym.Env):
         substep: float = plant.DEFAULT_SUBSTEP,
         reward_scale: float = 0.01,
         effort_weight: float = 0.0,
-        divergence_bound: float = 1.0,
+        divergence_bound: float = 5.0,
         settling_time: float = 0.01,
         preview_steps: tuple[int, ...] = (10, 50, 100),
         render_mode: str | None = None,
