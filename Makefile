@@ -1,0 +1,25 @@
+# The two commands of the README: `make bench` (the main job) and `make test`.
+# Both create .venv, install the CPU build of PyTorch from the pinned file
+# first (an unpinned torch pulls gigabytes of CUDA packages), then the project.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+
+.PHONY: install test bench
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/pip install -q torch==2.13.0
+	$(BIN)/pip install -q -e ".[dev]"
+	touch $@
+
+install: $(VENV)/.installed
+
+test: install
+	$(BIN)/python -m pytest -q
+
+bench: install
+	$(BIN)/vcnc-bench --json bench-out/bench.json --plots bench-out
