@@ -16,6 +16,8 @@ How it is found exactly and fast enough for every control period:
    bound is refined by Newton's method on the true curve,
    f(u) = (C(u) - q) . C'(u) = 0, kept inside the piece.
 
+A point outside the grid starts from the nearest cell (valid, only slower).
+
 Its own numerical error is far below a nanometre (see tests/test_contour.py,
 which checks it against dense sampling plus an independent Newton solver).
 """
@@ -104,76 +106,50 @@ def project_point(
     """Closest point of the curve to (qx, qy): returns (distance mm, u).
 
     ``der`` is a (3, 2) scratch array and ``work`` holds
-    ``workspace_size(degree, 2)`` floats.  Points outside the grid are handled by
-    visiting every piece (a diverging run, not the normal case).
+    ``workspace_size(degree, 2)`` floats.  A point outside the grid starts
+    from the nearest cell: the clamped point is no farther from any cell than
+    the point itself, so the ring bound stays valid (only slower).
     """
     nx = grid_shape[0]
     ny = grid_shape[1]
-    n_pieces = piece_sag.shape[0]
-    cx = int(np.floor((qx - grid_origin[0]) / cell_size))
-    cy = int(np.floor((qy - grid_origin[1]) / cell_size))
-    inside = 0 <= cx < nx and 0 <= cy < ny
+    cx = min(max(int(np.floor((qx - grid_origin[0]) / cell_size)), 0), nx - 1)
+    cy = min(max(int(np.floor((qy - grid_origin[1]) / cell_size)), 0), ny - 1)
+    # pass 1: rings of cells until no unvisited piece can beat the best upper bound
     best_upper = np.inf
-    rings = 0
-    if inside:
-        r = 0
-        max_r = max(nx, ny)
-        while r <= max_r:
-            for ix in range(cx - r, cx + r + 1):
-                if ix < 0 or ix >= nx:
-                    continue
-                on_edge_x = ix == cx - r or ix == cx + r
-                for iy in range(cy - r, cy + r + 1):
-                    if iy < 0 or iy >= ny:
-                        continue
-                    if not on_edge_x and iy != cy - r and iy != cy + r:
-                        continue
-                    cell = ix * ny + iy
-                    for k in range(cell_start[cell], cell_start[cell + 1]):
-                        i = cell_pieces[k]
-                        d, _t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
-                                                piece_points[i + 1, 0], piece_points[i + 1, 1])
-                        if d + piece_sag[i] < best_upper:
-                            best_upper = d + piece_sag[i]
-            rings = r
-            if r * cell_size >= best_upper:
-                break
-            r += 1
-    best_d = np.inf
-    best_u = piece_u[0]
-    if inside:
-        for ix in range(max(cx - rings, 0), min(cx + rings + 1, nx)):
-            for iy in range(max(cy - rings, 0), min(cy + rings + 1, ny)):
+    r = 0
+    while True:
+        for ix in range(max(cx - r, 0), min(cx + r + 1, nx)):
+            on_edge_x = ix == cx - r or ix == cx + r
+            for iy in range(max(cy - r, 0), min(cy + r + 1, ny)):
+                if not on_edge_x and iy != cy - r and iy != cy + r:
+                    continue  # inside the ring: visited already
                 cell = ix * ny + iy
                 for k in range(cell_start[cell], cell_start[cell + 1]):
                     i = cell_pieces[k]
-                    d, t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
-                                           piece_points[i + 1, 0], piece_points[i + 1, 1])
-                    if d - piece_sag[i] > min(best_upper, best_d):
-                        continue
-                    u0 = piece_u[i] + t * (piece_u[i + 1] - piece_u[i])
-                    dd, uu = _refine_on_piece(control_points, weights, knots, degree, qx, qy,
-                                              u0, i, piece_u, piece_points, der, work)
-                    if dd < best_d:
-                        best_d = dd
-                        best_u = uu
-    else:
-        for i in range(n_pieces):
-            d, t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
-                                   piece_points[i + 1, 0], piece_points[i + 1, 1])
-            if d + piece_sag[i] < best_upper:
-                best_upper = d + piece_sag[i]
-        for i in range(n_pieces):
-            d, t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
-                                   piece_points[i + 1, 0], piece_points[i + 1, 1])
-            if d - piece_sag[i] > min(best_upper, best_d):
-                continue
-            u0 = piece_u[i] + t * (piece_u[i + 1] - piece_u[i])
-            dd, uu = _refine_on_piece(control_points, weights, knots, degree, qx, qy,
-                                      u0, i, piece_u, piece_points, der, work)
-            if dd < best_d:
-                best_d = dd
-                best_u = uu
+                    d, _t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
+                                            piece_points[i + 1, 0], piece_points[i + 1, 1])
+                    best_upper = min(best_upper, d + piece_sag[i])
+        if r * cell_size >= best_upper or r > max(nx, ny):
+            break
+        r += 1
+    # pass 2: Newton on every visited piece whose lower bound can beat it
+    best_d = np.inf
+    best_u = piece_u[0]
+    for ix in range(max(cx - r, 0), min(cx + r + 1, nx)):
+        for iy in range(max(cy - r, 0), min(cy + r + 1, ny)):
+            cell = ix * ny + iy
+            for k in range(cell_start[cell], cell_start[cell + 1]):
+                i = cell_pieces[k]
+                d, t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
+                                       piece_points[i + 1, 0], piece_points[i + 1, 1])
+                if d - piece_sag[i] > min(best_upper, best_d):
+                    continue
+                u0 = piece_u[i] + t * (piece_u[i + 1] - piece_u[i])
+                dd, uu = _refine_on_piece(control_points, weights, knots, degree, qx, qy,
+                                          u0, i, piece_u, piece_points, der, work)
+                if dd < best_d:
+                    best_d = dd
+                    best_u = uu
     return best_d, best_u
 
 
