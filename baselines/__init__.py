@@ -1,1 +1,47 @@
-"""Classical contouring controllers as policies with Stable-Baselines3's predict signature."""
+"""Classical contouring controllers as policies with Stable-Baselines3's predict.
+
+The three controllers seed 000 compares (Jahanpour et al., 2014):
+
+- ``"qft"``: the robust QFT controller G(s) with pre-filter F(s), section 2c
+  (:class:`QFTPolicy`), with its robust-stability check, eq. (11)
+  (:func:`robust_stability_peak`, :func:`sampled_loop_spectral_radius`);
+- ``"smc"``: the adaptive sliding-mode controller of ref. [32] with Table 2
+  (:class:`SlidingModePolicy`);
+- ``"fuzzy"``: the Mamdani fuzzy controller with Table 1's rule base
+  (:class:`FuzzyPolicy`).
+
+Example
+-------
+>>> import gymnasium as gym, vcnc_gym, baselines
+>>> env = gym.make("VCNC-Omega-v0")
+>>> policy = baselines.make("qft", env)
+>>> obs, info = env.reset()
+>>> action, _ = policy.predict(obs, episode_start=True)
+"""
+
+from .base import BaselinePolicy
+from .fuzzy import DEFAULT_SCALING, FuzzyPolicy, FuzzyScaling
+from .qft import (
+    MU,
+    QFTPolicy,
+    robust_stability_peak,
+    sampled_loop_spectral_radius,
+    sampled_loop_stable,
+)
+from .registry import make, names
+from .smc import SlidingModePolicy
+
+__all__ = [
+    "make",
+    "names",
+    "BaselinePolicy",
+    "QFTPolicy",
+    "SlidingModePolicy",
+    "FuzzyPolicy",
+    "FuzzyScaling",
+    "DEFAULT_SCALING",
+    "MU",
+    "robust_stability_peak",
+    "sampled_loop_spectral_radius",
+    "sampled_loop_stable",
+]

@@ -85,6 +85,27 @@ def test_contour_error_is_distance_to_contour_not_to_reference():
     assert np.linalg.norm(info["tracking_error"]) > 1.0
 
 
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_standing_still_does_not_pay(env_id):
+    """A table that never moves stays on the contour, but falls behind the
+    reference: the episode ends as diverged with the terminal penalty."""
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    total, steps = 0.0, 0
+    while True:
+        _, reward, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
+        total += reward
+        steps += 1
+        if term or trunc:
+            break
+    assert term and info["diverged"]
+    assert np.linalg.norm(info["tracking_error"]) > env.unwrapped.tracking_bound
+    assert steps < env.unwrapped.episode_steps
+    # worse than a PD controller's whole episode
+    pd_return = sum(i["reward_contour"] for i in pd_episode(gym.make(env_id))[0])
+    assert total < pd_return
+
+
 def test_halving_the_substep_changes_the_contour_error_trace_by_under_one_percent():
     traces = []
     for substep in (1e-5, 0.5e-5):
@@ -166,6 +187,7 @@ def test_bad_actions_raise(action, match):
         ({"action_repeat": 1.5}, "action_repeat"),
         ({"contour": "square"}, "contour"),
         ({"divergence_bound": 0.0}, "divergence_bound"),
+        ({"tracking_bound": -1.0}, "tracking_bound"),
         ({"render_mode": "ascii"}, "render_mode"),
         ({"parameters": np.ones(3)}, "shape"),
         ({"preview_steps": (0, 5)}, "preview_steps"),

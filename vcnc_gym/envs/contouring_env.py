@@ -94,8 +94,11 @@ class ContouringEnv(gym.Env):
     - Terminated once the reference has reached the end of the contour and
       ``settling_time`` has passed.
     - Terminated early with ``info["diverged"] = True`` when the contour
-      error exceeds ``divergence_bound`` (default 5 mm) or the plant state
-      stops being finite.  The bound is that wide because the omega's
+      error exceeds ``divergence_bound`` (default 5 mm), the tracking error
+      exceeds ``tracking_bound`` (default 10 mm: the table has fallen that
+      far behind or ahead of the reference), or the plant state stops being
+      finite.  Without the tracking bound a table that never moves would
+      score a perfect contour error, its start point lying on the contour.  The bound is that wide because the omega's
       corners (radius 0.19 mm) ask 100 mm/s for 5.4e4 mm/s^2, twenty times what
       the +-5 V drives can give (~2.6e3 mm/s^2): a stable tracking controller
       is thrown millimetres off the contour there without diverging.
@@ -120,7 +123,8 @@ class ContouringEnv(gym.Env):
       :mod:`vcnc_gym.plants.vcnc_feed_drive`): the plant in force.
     - ``substep`` (s, 1e-5): the plant's integration substep.
     - ``reward_scale`` (mm, 0.01), ``effort_weight`` (0.0),
-      ``divergence_bound`` (mm, 5.0), ``settling_time`` (s, 0.01).
+      ``divergence_bound`` (mm, 5.0), ``tracking_bound`` (mm, 10.0),
+      ``settling_time`` (s, 0.01).
     - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods.
     - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
 
@@ -144,6 +148,7 @@ class ContouringEnv(gym.Env):
         reward_scale: float = 0.01,
         effort_weight: float = 0.0,
         divergence_bound: float = 5.0,
+        tracking_bound: float = 10.0,
         settling_time: float = 0.01,
         preview_steps: tuple[int, ...] = (10, 50, 100),
         render_mode: str | None = None,
@@ -154,6 +159,7 @@ class ContouringEnv(gym.Env):
         substep = _positive("substep", substep)
         self.reward_scale = _positive("reward_scale", reward_scale)
         self.divergence_bound = _positive("divergence_bound", divergence_bound)
+        self.tracking_bound = _positive("tracking_bound", tracking_bound)
         self.settling_time = _non_negative("settling_time", settling_time)
         self.effort_weight = _non_negative("effort_weight", effort_weight)
         if isinstance(action_repeat, bool) or int(action_repeat) != action_repeat or action_repeat < 1:
@@ -298,7 +304,12 @@ class ContouringEnv(gym.Env):
         k = sk.contouring_step(self._k, self.action_repeat, *self._kernel_args, obs, result)
         self._k = k
         err = result[sk.OUT_CONTOUR_ERROR]
-        diverged = result[sk.OUT_FINITE] == 0.0 or result[sk.OUT_CONTOUR_ERROR_MAX] > self.divergence_bound
+        lag = math.hypot(result[sk.OUT_TRACKING_ERROR], result[sk.OUT_TRACKING_ERROR + 1])
+        diverged = (
+            result[sk.OUT_FINITE] == 0.0
+            or result[sk.OUT_CONTOUR_ERROR_MAX] > self.divergence_bound
+            or lag > self.tracking_bound
+        )
         r_contour = -min(result[sk.OUT_CONTOUR_ERROR_MEAN], self.divergence_bound) / self.reward_scale
         r_effort = -self.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
         r_div = 0.0

@@ -1,0 +1,250 @@
+"""The common base of the classical baselines: an SB3-compatible ``predict``.
+
+Every baseline is a policy with Stable-Baselines3's signature::
+
+    action, state = policy.predict(observation, state=None,
+                                   episode_start=None, deterministic=True)
+
+so that :func:`stable_baselines3.common.evaluation.evaluate_policy` and any
+loop written for an SB3 agent run a classical controller unchanged.
+
+A controller has memory (filter states, integrators, adaptive estimates).  It
+is kept inside the policy, one row per environment of the batch, allocated
+when the first observation shows the batch size and reset for every
+environment whose ``episode_start`` is True.  The ``state`` argument of SB3
+(the hidden state of a recurrent network) is passed through untouched.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from vcnc_gym.plants import vcnc_feed_drive as plant
+
+__all__ = ["BaselinePolicy"]
+
+
+# -- parameter validation helpers ---------------------------------------------
+def _is_real_scalar(x) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
+def check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """A finite real scalar, optionally > 0 or >= 0; anything else raises ValueError."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if not _is_real_scalar(value):
+        raise ValueError(f"{name} must be a real number, got {value!r} of type {type(value).__name__}")
+    value = float(value)
+    if not np.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    if positive and value <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {value}")
+    if nonnegative and value < 0.0:
+        raise ValueError(f"{name} must be >= 0, got {value}")
+    return value
+
+
+def check_per_axis(name: str, value, *, positive: bool = False, nonnegative: bool = False) -> np.ndarray:
+    """A scalar or a length-2 sequence (x, y) of finite reals, returned as a (2,) array."""
+    if isinstance(value, str) or isinstance(value, bool):
+        raise ValueError(f"{name} must be a real number or a pair (x, y) of them, got {value!r}")
+    if _is_real_scalar(value) or (isinstance(value, np.ndarray) and value.ndim == 0):
+        v = check_scalar(name, value, positive=positive, nonnegative=nonnegative)
+        return np.array([v, v])
+    try:
+        items = list(value)
+    except TypeError:
+        raise ValueError(f"{name} must be a real number or a pair (x, y) of them, got {value!r}") from None
+    if len(items) != 2:
+        raise ValueError(f"{name} must be a scalar or have one value per axis (2), got {len(items)} values")
+    return np.array([check_scalar(f"{name}[{a}]", v, positive=positive, nonnegative=nonnegative)
+                     for a, v in zip("xy", items)])
+
+
+def check_polynomial(name: str, coeffs) -> np.ndarray:
+    """Polynomial coefficients, highest power first: 1-D, finite, real, leading term non-zero."""
+    if isinstance(coeffs, (str, bytes)) or _is_real_scalar(coeffs):
+        if _is_real_scalar(coeffs):
+            coeffs = [coeffs]
+        else:
+            raise ValueError(f"{name} must be a sequence of real coefficients, got {coeffs!r}")
+    try:
+        c = np.asarray(coeffs)
+    except Exception as exc:  # pragma: no cover - numpy rarely refuses
+        raise ValueError(f"{name}: cannot read coefficients {coeffs!r}: {exc}") from None
+    if c.dtype == bool or c.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must hold real numbers, got {coeffs!r}")
+    c = np.atleast_1d(c.astype(float))
+    if c.ndim != 1 or c.size == 0:
+        raise ValueError(f"{name} must be a 1-D sequence of coefficients, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"{name} must be finite, got {c}")
+    c = np.trim_zeros(c, "f")
+    if c.size == 0:
+        raise ValueError(f"{name} is the zero polynomial")
+    return c
+
+
+class BaselinePolicy:
+    """Base class of the classical controllers, with SB3's ``predict``.
+
+    Parameters
+    ----------
+    layout : vcnc_gym.envs.layout.ObservationLayout
+        Names the fields of the observation.
+    decision_period : float
+        Period in s at which :meth:`predict` is called (the env's
+        ``dt * action_repeat``); discrete controllers are discretised at it.
+    nominal_parameters : array_like, shape (2, P)
+        Nominal feed-drive parameters of the x and y axes, columns named by
+        ``vcnc_gym.plants.vcnc_feed_drive.PARAMETER_NAMES``.  The command
+        limit ``u_max`` (V) scales the normalised action.
+
+    Notes
+    -----
+    Subclasses set :attr:`state_shape` (the per-env shape of their memory,
+    ``(0,)`` for none) and implement :meth:`_initial_state` and
+    :meth:`_voltage`.  The action returned is ``clip(u / u_max, -1, 1)`` as
+    float32, u the axis command in V (seed 000, Table 3: u_max = 5 V).
+    """
+
+    #: Registry name, set by each subclass.
+    name: str = "base"
+    #: Per-environment shape of the controller memory; (0,) for a memoryless controller.
+    state_shape: tuple = (0,)
+
+    def __init__(self, layout, decision_period: float, nominal_parameters):
+        for attr in ("tracking_error", "reference_velocity", "reference_acceleration", "velocity", "size"):
+            if not hasattr(layout, attr):
+                raise ValueError(f"layout must be an ObservationLayout (missing {attr!r}), got {type(layout).__name__}")
+        self.layout = layout
+        self.decision_period = check_scalar("decision_period", decision_period, positive=True)
+        p = np.asarray(nominal_parameters)
+        if p.dtype.kind not in "iuf":
+            raise ValueError(f"nominal_parameters must be numeric, got dtype {p.dtype}")
+        p = p.astype(float)
+        if p.shape != (2, len(plant.PARAMETER_NAMES)):
+            raise ValueError(f"nominal_parameters must have shape (2, {len(plant.PARAMETER_NAMES)}), got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise ValueError("nominal_parameters must be finite")
+        self.nominal_parameters = p
+        self.u_max = p[:, plant.PARAMETER_NAMES.index("u_max")].copy()
+        if np.any(self.u_max <= 0):
+            raise ValueError(f"u_max must be > 0 on both axes, got {self.u_max}")
+        self._state = None  # (n_envs, *state_shape), allocated on the first predict
+
+    # -- construction from an env -------------------------------------------
+    @classmethod
+    def from_env(cls, env, **params):
+        """Build the controller for ``env``: its layout, decision period (s) and nominal plant.
+
+        ``env`` is a (wrapped) Gymnasium env, read through ``env.unwrapped``,
+        or an SB3 ``VecEnv`` of such envs, read through ``get_attr`` (all its
+        envs must share the decision period; the first env's layout and
+        nominal plant are used).
+        """
+        names = ("layout", "decision_period", "nominal_parameters")
+        if hasattr(env, "get_attr") and hasattr(env, "num_envs"):  # an SB3 VecEnv
+            try:
+                values = [env.get_attr(a) for a in names]
+            except AttributeError as exc:
+                raise ValueError(f"the VecEnv's envs lack {exc}; are they vcnc_gym ContouringEnvs?") from None
+            periods = values[1]
+            if any(not np.isclose(p, periods[0], rtol=1e-12, atol=0.0) for p in periods):
+                raise ValueError(f"the VecEnv's envs have different decision periods {periods}")
+            layout, period, nominal = (v[0] for v in values)
+        else:
+            u = getattr(env, "unwrapped", env)
+            missing = [a for a in names if not hasattr(u, a)]
+            if missing:
+                raise ValueError(f"env.unwrapped lacks {missing}; is it a vcnc_gym ContouringEnv?")
+            layout, period, nominal = u.layout, u.decision_period, u.nominal_parameters
+        return cls(layout=layout, decision_period=period, nominal_parameters=nominal, **params)
+
+    # -- memory ------------------------------------------------------------
+    @property
+    def n_envs(self) -> int:
+        """Batch size of the memory currently held (0 before the first predict)."""
+        return 0 if self._state is None else self._state.shape[0]
+
+    @property
+    def controller_state(self):
+        """The per-env controller memory, (n_envs, *state_shape), or None before the first predict."""
+        return self._state
+
+    def _initial_state(self) -> np.ndarray:
+        """Memory of one env at the start of an episode, shape :attr:`state_shape`."""
+        return np.zeros(self.state_shape)
+
+    def reset(self, n_envs: int | None = None, mask=None) -> None:
+        """Reset the memory of every env, or of those where ``mask`` is True.
+
+        ``n_envs`` (re)allocates the memory for that batch size first.
+        """
+        if n_envs is not None:
+            self._state = np.empty((int(n_envs),) + tuple(self.state_shape))
+            mask = None
+        if self._state is None:
+            return
+        init = self._initial_state()
+        if mask is None:
+            self._state[...] = init
+        else:
+            self._state[np.asarray(mask, dtype=bool)] = init
+
+    # -- SB3 interface -----------------------------------------------------
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        """Action for one observation or a batch, SB3's signature.
+
+        Parameters
+        ----------
+        observation : array_like, shape (obs_dim,) or (n_envs, obs_dim)
+            Observation(s) laid out by :attr:`layout` (mm, mm/s, mm/s^2).
+        state : any
+            Passed through unchanged (SB3's recurrent state; the controller
+            keeps its own memory).
+        episode_start : array_like of bool, shape (n_envs,) or scalar, optional
+            True where an episode has just begun: that env's controller
+            memory is reset before the action is computed.  Memory is also
+            reset on the first call and whenever the batch size changes.
+        deterministic : bool
+            Ignored: the controllers are deterministic.
+
+        Returns
+        -------
+        action : ndarray of float32, shape (2,) or (n_envs, 2)
+            Normalised axis commands u / u_max, clipped to [-1, 1].
+        state : any
+            The ``state`` argument.
+        """
+        obs = np.asarray(observation)
+        single = obs.ndim == 1
+        obs2 = obs.reshape(1, -1) if single else obs
+        if obs2.ndim != 2 or obs2.shape[1] != self.layout.size:
+            raise ValueError(f"observation must have shape ({self.layout.size},) or (n_envs, {self.layout.size}), "
+                             f"got {obs.shape}")
+        n = obs2.shape[0]
+        start = None
+        if episode_start is not None:
+            start = np.asarray(episode_start, dtype=bool).reshape(-1)
+            if start.size == 1 and n > 1:
+                start = np.repeat(start, n)
+            if start.size != n:
+                raise ValueError(f"episode_start has {start.size} entries for {n} observations")
+        if self._state is None or self._state.shape[0] != n:
+            self.reset(n_envs=n)
+        elif start is not None and start.any():
+            self.reset(mask=start)
+        u = self._voltage(obs2)
+        action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
+        return (action[0] if single else action), state
+
+    def _voltage(self, obs: np.ndarray) -> np.ndarray:
+        """Axis commands in V, (n_envs, 2), for a batch of observations; updates the memory."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(decision_period={self.decision_period:g} s)"

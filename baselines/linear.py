@@ -1,0 +1,108 @@
+"""Continuous designs, discretised once, stepped by a small numba kernel.
+
+A linear controller is written down once as a continuous transfer function
+(python-control), discretised with :func:`control.c2d` at the period at which
+the policy is called, and run as the state-space recursion
+
+.. math:: y_k = C x_k + D u_k, \\qquad x_{k+1} = A x_k + B u_k
+
+for a batch of independent channels.  No difference equation is derived by
+hand.
+"""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+from numba import njit
+
+__all__ = ["discretize", "DiscreteLTI", "lti_step"]
+
+
+def discretize(sys, dt: float, method: str = "tustin") -> control.StateSpace:
+    """Discrete state-space model of a continuous system.
+
+    Parameters
+    ----------
+    sys : control.TransferFunction or control.StateSpace
+        Continuous-time system (time in s).
+    dt : float
+        Sampling period in s.
+    method : str
+        Any method of :func:`control.c2d`; ``'tustin'`` (bilinear, the
+        default for controllers) or ``'zoh'`` (for plants driven by a
+        sample-and-hold).
+
+    Returns
+    -------
+    control.StateSpace
+        Discrete system with ``sys.dt == dt``.
+    """
+    ss = control.ss(sys)
+    return control.c2d(ss, dt, method=method)
+
+
+@njit(cache=True)
+def lti_step(A, B, C, D, x, u, y):
+    """One step of ``n`` independent copies of a discrete LTI system.
+
+    Parameters
+    ----------
+    A, B, C, D : ndarray, (nx, nx), (nx, nu), (ny, nx), (ny, nu)
+        Discrete state-space matrices.
+    x : ndarray, (n, nx)
+        States, advanced in place to x_{k+1}.
+    u : ndarray, (n, nu)
+        Inputs u_k.
+    y : ndarray, (n, ny)
+        Outputs y_k, written in place.
+    """
+    n, nx = x.shape
+    nu = u.shape[1]
+    ny = y.shape[1]
+    xn = np.empty(nx)
+    for i in range(n):
+        for r in range(ny):
+            acc = 0.0
+            for c in range(nx):
+                acc += C[r, c] * x[i, c]
+            for c in range(nu):
+                acc += D[r, c] * u[i, c]
+            y[i, r] = acc
+        for r in range(nx):
+            acc = 0.0
+            for c in range(nx):
+                acc += A[r, c] * x[i, c]
+            for c in range(nu):
+                acc += B[r, c] * u[i, c]
+            xn[r] = acc
+        for r in range(nx):
+            x[i, r] = xn[r]
+
+
+class DiscreteLTI:
+    """The matrices of a discrete state-space system, ready for :func:`lti_step`.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        A discrete system (``sys.dt > 0``).
+    """
+
+    def __init__(self, sys: control.StateSpace):
+        if not sys.isdtime(strict=True):
+            raise ValueError("DiscreteLTI needs a discrete-time system")
+        self.sys = sys
+        self.dt = float(sys.dt)
+        self.A = np.ascontiguousarray(sys.A, dtype=float)
+        self.B = np.ascontiguousarray(sys.B, dtype=float)
+        self.C = np.ascontiguousarray(sys.C, dtype=float)
+        self.D = np.ascontiguousarray(sys.D, dtype=float)
+        self.nx, self.nu = self.B.shape
+        self.ny = self.C.shape[0]
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Outputs y_k for inputs u (n, nu); advances the states x (n, nx) in place."""
+        y = np.empty((u.shape[0], self.ny))
+        lti_step(self.A, self.B, self.C, self.D, x, np.ascontiguousarray(u, dtype=float), y)
+        return y
