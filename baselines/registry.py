@@ -14,7 +14,7 @@ from .fuzzy import FuzzyPolicy
 from .qft import QFTPolicy
 from .smc import SlidingModePolicy
 
-__all__ = ["make", "names", "policy_class", "REGISTRY"]
+__all__ = ["make", "names", "policy_class", "REGISTRY", "VARIANTS"]
 
 #: Name -> policy class, one entry per classical controller of seed 000.
 REGISTRY: dict[str, type[BaselinePolicy]] = {
@@ -23,19 +23,27 @@ REGISTRY: dict[str, type[BaselinePolicy]] = {
     "fuzzy": FuzzyPolicy,
 }
 
+#: Name -> (registered class name, parameters it fixes): a controller of the
+#: registry with some of its parameters changed, benchmarked under its own name.
+VARIANTS: dict[str, tuple[str, dict]] = {
+    # QFT's feedback G(s) without the pre-filter (F = 1): isolates the share of
+    # the contour error that the seed's F(s) causes (docs/reproduction.md).
+    "qft-g": ("qft", {"prefilter": ((1.0,), (1.0,))}),
+}
+
 _FROM_ENV = ("layout", "decision_period", "nominal_parameters")
 
 
 def names() -> list[str]:
-    """Registered baseline names, sorted."""
-    return sorted(REGISTRY)
+    """Registered baseline names (controllers and their variants), sorted."""
+    return sorted({**REGISTRY, **VARIANTS})
 
 
 def policy_class(name: str) -> type[BaselinePolicy]:
     """The class registered under ``name``; ValueError for an unknown name."""
-    if not isinstance(name, str) or name not in REGISTRY:
+    if not isinstance(name, str) or name not in REGISTRY and name not in VARIANTS:
         raise ValueError(f"unknown baseline {name!r}; known baselines are {names()}")
-    return REGISTRY[name]
+    return REGISTRY[VARIANTS[name][0]] if name in VARIANTS else REGISTRY[name]
 
 
 def make(name: str, env, **params) -> BaselinePolicy:
@@ -44,7 +52,7 @@ def make(name: str, env, **params) -> BaselinePolicy:
     Parameters
     ----------
     name : str
-        One of :func:`names`: "qft", "smc" or "fuzzy".
+        One of :func:`names`: "qft", "smc", "fuzzy" or the variant "qft-g" (QFT with F = 1).
     env : gymnasium.Env or stable_baselines3 VecEnv
         A vcnc_gym contouring env (possibly wrapped; its ``unwrapped``
         supplies ``layout``, ``decision_period`` (s) and
@@ -68,4 +76,8 @@ def make(name: str, env, **params) -> BaselinePolicy:
     unknown = sorted(set(params) - set(accepted))
     if unknown:
         raise ValueError(f"unknown parameter(s) {unknown} for baseline {name!r}; it accepts {accepted}")
-    return cls.from_env(env, **params)
+    fixed = VARIANTS[name][1] if name in VARIANTS else {}
+    clash = sorted(set(fixed) & set(params))
+    if clash:
+        raise ValueError(f"baseline {name!r} fixes {clash}; use {VARIANTS[name][0]!r} to set them")
+    return cls.from_env(env, **fixed, **params)

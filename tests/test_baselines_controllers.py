@@ -327,11 +327,21 @@ def test_smc_disturbance_beyond_limit_leaves_predicted_offset():
 # Registry, validation and the predict contract
 # --------------------------------------------------------------------------
 def test_names_and_unknown_name():
-    assert baselines.names() == ["fuzzy", "qft", "smc"]
+    assert baselines.names() == ["fuzzy", "qft", "qft-g", "smc"]
     with pytest.raises(ValueError, match="unknown baseline"):
         baselines.make("pid", fake_env())
     with pytest.raises(ValueError, match="unknown baseline"):
         baselines.make(3, fake_env())
+
+
+def test_qft_g_variant_is_qft_without_prefilter():
+    env = fake_env()
+    variant = baselines.make("qft-g", env)
+    assert isinstance(variant, baselines.QFTPolicy)
+    np.testing.assert_allclose(variant.F.num[0][0], variant.F.den[0][0])  # F = 1
+    assert baselines.make("qft", env).F.den[0][0].size == 3  # the seed's second-order F
+    with pytest.raises(ValueError, match="fixes"):
+        baselines.make("qft-g", env, prefilter=((1.0,), (1.0,)))
 
 
 @pytest.mark.parametrize("name, params", [
