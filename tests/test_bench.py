@@ -235,3 +235,18 @@ def test_unknown_env_or_policy_exits_2_naming_the_valid_choices(argv, must_name,
         baselines = pytest.importorskip("baselines")
         for name in baselines.names():
             assert name in err
+
+
+def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, capsys):
+    import gymnasium as gym
+
+    from vcnc_gym import bench
+
+    out = tmp_path / "slow.json"
+    assert bench.main(["--env", "VCNC-Omega-v0", "--policy", "smc", "--feedrate", "50",
+                       "--no-progress", "--json", str(out)]) == 0
+    (record,) = json.loads(out.read_text())
+    assert record["paper_max_contour_error_um"] is None
+    assert record["episode_steps"] == gym.make("VCNC-Omega-v0", feedrate=50.0).unwrapped.episode_steps
+    assert not record["diverged"] and record["max_contour_error_um"] < 100.0
+    assert "at 50 mm/s" in capsys.readouterr().out

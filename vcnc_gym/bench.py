@@ -166,8 +166,8 @@ def format_table(records: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _record(env_id: str, label: str, result: EpisodeResult) -> dict:
-    paper = PAPER_TABLE_4.get((env_id, label), {}).get("max_contour_error_um")
+def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True) -> dict:
+    paper = PAPER_TABLE_4.get((env_id, label), {}).get("max_contour_error_um") if compare else None
     ratio = result.max_contour_error_um / paper if paper else None
     return {
         "env": env_id,
@@ -218,11 +218,29 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--policy", action="append", metavar="SPEC",
                    help="baseline name or KIND:ARGUMENT, repeatable (default: every registered baseline)")
     p.add_argument("--seed", type=int, default=0, help="seed passed to env.reset (default 0)")
+    p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
+                   help="S-curve feedrate in mm/s (default: the env's, seed 000's 100 mm/s); "
+                        "with another value the paper's columns stay empty")
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write ENV_contour.png and ENV_error.png per env into this directory")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     return p
+
+
+#: Seed 000, section 3: the feedrate of every contour following task, mm/s.
+PAPER_FEEDRATE = 100.0
+
+
+def _make_env(env_id: str, feedrate: float | None, parser):
+    """The env of ``env_id``; another feedrate also gets a time limit that fits it."""
+    if feedrate is None:
+        return gym.make(env_id)
+    try:
+        steps = gym.make(env_id, feedrate=feedrate).unwrapped.episode_steps
+    except ValueError as exc:
+        parser.error(str(exc))
+    return gym.make(env_id, feedrate=feedrate, max_episode_steps=steps)
 
 
 def _unique(items):
@@ -249,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(str(exc))
 
     # build every env and policy first, so a bad spec fails before any run
-    envs = {env_id: gym.make(env_id) for env_id in env_ids}
+    envs = {env_id: _make_env(env_id, args.feedrate, parser) for env_id in env_ids}
+    compare = args.feedrate is None or args.feedrate == PAPER_FEEDRATE
     runs = []
     for env_id, env in envs.items():
         for spec in specs:
@@ -270,10 +289,11 @@ def main(argv: list[str] | None = None) -> int:
             bar.set_postfix_str(f"{env_id} {label}")
             result = run_episode(policy, envs[env_id], seed=args.seed, progress=bar.update)
             results[env_id][label] = result
-            records.append(_record(env_id, label, result))
+            records.append(_record(env_id, label, result, compare))
 
-    print(f"Contour error on the nominal plant, one deterministic episode each (seed {args.seed}); "
-          "paper = seed 000 Table 4")
+    feed = envs[env_ids[0]].unwrapped.feedrate_profile.feedrate
+    print(f"Contour error on the nominal plant at {feed:g} mm/s, one deterministic episode each "
+          f"(seed {args.seed}); paper = seed 000 Table 4 (at {PAPER_FEEDRATE:g} mm/s)")
     print(format_table(records))
     if any(policy_label(s) == "qft" for s in specs):
         lines = _stability_lines(_unique(envs[e].unwrapped.decision_period for e in env_ids))
