@@ -243,10 +243,10 @@ def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, caps
     from vcnc_gym import bench
 
     out = tmp_path / "slow.json"
-    assert bench.main(["--env", "VCNC-Omega-v0", "--policy", "smc", "--feedrate", "50",
+    assert bench.main(["--env", "VCNC-Omega-v0", "--policy", "smc", "--feedrate", "20",
                        "--no-progress", "--json", str(out)]) == 0
     (record,) = json.loads(out.read_text())
     assert record["paper_max_contour_error_um"] is None
-    assert record["episode_steps"] == gym.make("VCNC-Omega-v0", feedrate=50.0).unwrapped.episode_steps
-    assert not record["diverged"] and record["max_contour_error_um"] < 100.0
-    assert "at 50 mm/s" in capsys.readouterr().out
+    assert record["episode_steps"] == gym.make("VCNC-Omega-v0", feedrate=20.0).unwrapped.episode_steps
+    assert not record["diverged"] and record["max_contour_error_um"] < 50.0  # feasible at 20 mm/s
+    assert "at 20 mm/s" in capsys.readouterr().out
