@@ -13,8 +13,14 @@ How it is found exactly and fast enough for every control period:
 2. A query visits grid cells in rings around the point until no unvisited
    piece can be closer than the best upper bound found (chord distance + h_i).
 3. Every piece whose lower bound (chord distance - h_i) is below that upper
-   bound is refined by Newton's method on the true curve,
-   f(u) = (C(u) - q) . C'(u) = 0, kept inside the piece.
+   bound is refined on the true curve: f(u) = (C(u) - q) . C'(u) = 0 is
+   solved by Newton's method safeguarded by bisection, on a bracket
+   f(lo) < 0 < f(hi) (C' is stored at the piece ends).  When
+   g(u) = |C(u) - q|^2 / 2 is provably convex on the piece (q well inside
+   the radius of curvature: |C - q| |C''| < |C'|^2 from stored per-piece
+   bounds) there is one minimum; otherwise (q near or beyond the centre of
+   curvature, where g is flat and may have several minima) the piece is
+   cut in 16 and every sign change of f is bracketed and solved.
 
 A point outside the grid starts from the nearest cell (valid, only slower).
 
@@ -31,7 +37,8 @@ from ..geometry.nurbs import curve_derivatives_into, workspace_size
 
 __all__ = ["ContourProjector", "project_point"]
 
-_NEWTON_ITERATIONS = 12
+_MAX_ITERATIONS = 60  # Newton steps, each falling back on bisection of the bracket
+_SUBDIVISIONS = 16  # sub-intervals of a piece on which g is not provably convex
 _FINAL_STEP = 1e-5  # mm along the curve: below it the last Newton step is taken on a Taylor expansion
 
 
@@ -51,47 +58,119 @@ def _chord_distance(qx, qy, ax, ay, bx, by):
 
 
 @njit(cache=True)
-def _refine_on_piece(control_points, weights, knots, degree, qx, qy, u0, i, piece_u, piece_points,
-                     der, work):
-    """Closest point on the curve piece i from u0 by Newton's method: (dist mm, u).
+def _bracketed_newton(control_points, weights, knots, degree, qx, qy, lo, hi, u0, der, work):
+    """Local minimum of |C(u) - q| in [lo, hi] given f(lo) < 0 < f(hi): (dist mm, u).
 
-    Solves f(u) = (C(u) - q) . C'(u) = 0 inside [u_i, u_i+1]; the piece's end
-    points (stored exactly) cover a minimum on its boundary.
+    Newton's method on f(u) = (C(u) - q) . C'(u), each step kept inside the
+    bracket (else a bisection step), the bracket shrunk by the sign of f.  It
+    cannot stall where f' = |C'|^2 + (C - q) . C'' is small or negative.
     """
-    ua = piece_u[i]
-    ub = piece_u[i + 1]
     u = u0
-    d_u = np.inf
-    u_at = u0  # the u at which d_u was measured
-    for _ in range(_NEWTON_ITERATIONS):
+    if not (lo < u < hi):
+        u = 0.5 * (lo + hi)
+    best_d = np.inf
+    best_u = u
+    for _ in range(_MAX_ITERATIONS):
         curve_derivatives_into(control_points, weights, knots, degree, u, 2, der, work)
         rx = der[0, 0] - qx
         ry = der[0, 1] - qy
         speed2 = der[1, 0] * der[1, 0] + der[1, 1] * der[1, 1]
         f = rx * der[1, 0] + ry * der[1, 1]
         fp = speed2 + rx * der[2, 0] + ry * der[2, 1]
-        if fp <= 0.0:  # not locally convex: a gradient step instead
-            fp = speed2
-        u_new = min(ub, max(ua, u - f / fp))
+        d = np.sqrt(rx * rx + ry * ry)
+        if d < best_d:
+            best_d = d
+            best_u = u
+        if f < 0.0:
+            lo = u
+        elif f > 0.0:
+            hi = u
+        else:
+            break
+        speed = np.sqrt(speed2)
+        newton = False
+        u_new = 0.5 * (lo + hi)
+        if fp > 0.0:
+            u_try = u - f / fp
+            # strictly inside: C is never evaluated at the bracket's ends (a piece end
+            # may be a knot where C' jumps); a converged last step is not evaluated at all
+            if lo < u_try < hi or (lo <= u_try <= hi and abs(u_try - u) * speed < _FINAL_STEP):
+                u_new = u_try
+                newton = True
         du = u_new - u
-        if abs(du) * np.sqrt(speed2) < _FINAL_STEP:
+        if newton and abs(du) * speed < _FINAL_STEP:
             # last step taken on the second-order Taylor expansion of C:
             # its error is O(du^3), far below a picometre
             rx += der[1, 0] * du + 0.5 * der[2, 0] * du * du
             ry += der[1, 1] * du + 0.5 * der[2, 1] * du * du
-            d_u = np.sqrt(rx * rx + ry * ry)
-            u_at = u_new
+            d = np.sqrt(rx * rx + ry * ry)
+            if d < best_d:
+                best_d = d
+                best_u = u_new
             break
-        d_u = np.sqrt(rx * rx + ry * ry)
-        u_at = u
+        if (hi - lo) * speed < 1e-13:
+            break
         u = u_new
-    best_d = d_u
-    best_u = u_at
-    for j in (i, i + 1):
-        d = np.hypot(piece_points[j, 0] - qx, piece_points[j, 1] - qy)
-        if d < best_d:
-            best_d = d
-            best_u = piece_u[j]
+    return best_d, best_u
+
+
+@njit(cache=True)
+def _refine_on_piece(control_points, weights, knots, degree, qx, qy, u0, i, piece_u, piece_table,
+                     reach, der, work):
+    """Closest point of the curve piece i to q: (dist mm, u).
+
+    ``piece_table`` rows hold C(u_i), C'(u_i) from the right and from the left
+    (they differ at a knot of multiplicity p) and, for piece i, a radius below
+    which g = |C - q|^2 / 2 is convex on the piece; ``reach`` bounds |C(u) - q|
+    on the piece.  C is evaluated only strictly inside the piece; its end
+    points (stored exactly) cover a minimum on its boundary.
+    """
+    ua = piece_u[i]
+    ub = piece_u[i + 1]
+    ax = piece_table[i, 0] - qx
+    ay = piece_table[i, 1] - qy
+    bx = piece_table[i + 1, 0] - qx
+    by = piece_table[i + 1, 1] - qy
+    fa = ax * piece_table[i, 2] + ay * piece_table[i, 3]
+    fb = bx * piece_table[i + 1, 4] + by * piece_table[i + 1, 5]
+    best_d = np.sqrt(ax * ax + ay * ay)
+    best_u = ua
+    d = np.sqrt(bx * bx + by * by)
+    if d < best_d:
+        best_d = d
+        best_u = ub
+    if reach < piece_table[i, 6]:
+        # g'' = |C'|^2 + (C - q) . C'' > 0 on the whole piece: f increases, one minimum
+        if fa < 0.0 < fb:
+            d, u = _bracketed_newton(control_points, weights, knots, degree, qx, qy, ua, ub, u0, der, work)
+            if d < best_d:
+                best_d = d
+                best_u = u
+        return best_d, best_u
+    # g may have several minima here: bracket every sign change of f on sub-intervals
+    ul = ua
+    fl = fa
+    for j in range(1, _SUBDIVISIONS + 1):
+        if j == _SUBDIVISIONS:
+            ur = ub
+            fr = fb
+        else:
+            ur = ua + (ub - ua) * j / _SUBDIVISIONS
+            curve_derivatives_into(control_points, weights, knots, degree, ur, 1, der, work)
+            rx = der[0, 0] - qx
+            ry = der[0, 1] - qy
+            fr = rx * der[1, 0] + ry * der[1, 1]
+            d = np.sqrt(rx * rx + ry * ry)
+            if d < best_d:
+                best_d = d
+                best_u = ur
+        if fl < 0.0 < fr:
+            d, u = _bracketed_newton(control_points, weights, knots, degree, qx, qy, ul, ur, u0, der, work)
+            if d < best_d:
+                best_d = d
+                best_u = u
+        ul = ur
+        fl = fr
     return best_d, best_u
 
 
@@ -99,11 +178,15 @@ def _refine_on_piece(control_points, weights, knots, degree, qx, qy, u0, i, piec
 def project_point(
     qx, qy,
     control_points, weights, knots, degree,
-    piece_u, piece_points, piece_sag,
+    piece_u, piece_table, piece_sag,
     grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
     der, work,
 ):
     """Closest point of the curve to (qx, qy): returns (distance mm, u).
+
+    ``piece_table`` is ``ContourProjector.piece_table``: per piece end, the
+    point, the tangent C' from the right and from the left, and (for the
+    piece starting there) its convexity radius.
 
     ``der`` is a (3, 2) scratch array and ``work`` holds
     ``workspace_size(degree, 2)`` floats.  A point outside the grid starts
@@ -126,8 +209,8 @@ def project_point(
                 cell = ix * ny + iy
                 for k in range(cell_start[cell], cell_start[cell + 1]):
                     i = cell_pieces[k]
-                    d, _t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
-                                            piece_points[i + 1, 0], piece_points[i + 1, 1])
+                    d, _t = _chord_distance(qx, qy, piece_table[i, 0], piece_table[i, 1],
+                                            piece_table[i + 1, 0], piece_table[i + 1, 1])
                     best_upper = min(best_upper, d + piece_sag[i])
         if r * cell_size >= best_upper or r > max(nx, ny):
             break
@@ -140,13 +223,18 @@ def project_point(
             cell = ix * ny + iy
             for k in range(cell_start[cell], cell_start[cell + 1]):
                 i = cell_pieces[k]
-                d, t = _chord_distance(qx, qy, piece_points[i, 0], piece_points[i, 1],
-                                       piece_points[i + 1, 0], piece_points[i + 1, 1])
+                ax = piece_table[i, 0]
+                ay = piece_table[i, 1]
+                bx = piece_table[i + 1, 0]
+                by = piece_table[i + 1, 1]
+                d, t = _chord_distance(qx, qy, ax, ay, bx, by)
                 if d - piece_sag[i] > min(best_upper, best_d):
                     continue
                 u0 = piece_u[i] + t * (piece_u[i + 1] - piece_u[i])
+                # |C(u) - q| on the piece is at most: to the chord, along it, off it
+                reach = d + np.hypot(bx - ax, by - ay) + piece_sag[i]
                 dd, uu = _refine_on_piece(control_points, weights, knots, degree, qx, qy,
-                                          u0, i, piece_u, piece_points, der, work)
+                                          u0, i, piece_u, piece_table, reach, der, work)
                 if dd < best_d:
                     best_d = dd
                     best_u = uu
@@ -154,13 +242,13 @@ def project_point(
 
 
 @njit(cache=True)
-def _project_points(qs, control_points, weights, knots, degree, piece_u, piece_points, piece_sag,
+def _project_points(qs, control_points, weights, knots, degree, piece_u, piece_table, piece_sag,
                     grid_origin, cell_size, grid_shape, cell_start, cell_pieces, dist, us):
     der = np.empty((3, 2))
     work = np.empty(workspace_size(degree, 2))
     for k in range(qs.shape[0]):
         dist[k], us[k] = project_point(qs[k, 0], qs[k, 1], control_points, weights, knots, degree,
-                                       piece_u, piece_points, piece_sag, grid_origin, cell_size,
+                                       piece_u, piece_table, piece_sag, grid_origin, cell_size,
                                        grid_shape, cell_start, cell_pieces, der, work)
 
 
@@ -194,6 +282,7 @@ class ContourProjector:
         self.curve = curve
         self.kernel_args = curve.kernel_args
         self.piece_u, self.piece_points, self.piece_sag = self._cut(curve, piece_length)
+        self.piece_table = self._table(curve, self.piece_u, self.piece_points)
         self.cell_size = float(cell_size)
         self._build_grid(margin)
 
@@ -221,6 +310,39 @@ class ContourProjector:
         # the sampled deviation, doubled, bounds the curve's distance from its chord
         sag = 2.0 * dev + 1e-9
         return piece_u, curve.points(piece_u), sag
+
+    @staticmethod
+    def _table(curve, piece_u, piece_points, sub: int = 16):
+        """Per piece end: C, C' from the right, C' from the left and (piece i) the
+        convexity radius, shape (n+1, 7).
+
+        On piece i, g(u) = |C(u) - q|^2 / 2 has g'' = |C'|^2 + (C - q) . C''
+        >= min|C'|^2 - |C - q| max|C''| > 0 when |C - q| < min|C'|^2 / max|C''|.
+        The sampled minimum speed is halved and the sampled maximum of |C''|
+        doubled, as the sampled deviation is doubled for the sag.  C' and C''
+        of piece i are sampled on [u_i, u_i+1) and at u_i+1 from the left.
+        """
+        lo, hi = curve.u_range
+        left_u = np.maximum(np.nextafter(piece_u, -np.inf), lo)  # u_i from the left (in span i-1)
+        fine = piece_u[:-1, None] + np.linspace(0.0, 1.0, sub + 1)[None, :] * np.diff(piece_u)[:, None]
+        fine[:, -1] = left_u[1:]
+        der = curve.derivatives_array(fine.reshape(-1), 2).reshape(fine.shape + (3, 2))
+        speed2 = np.sum(der[..., 1, :] ** 2, axis=-1).min(axis=1)
+        acc = np.linalg.norm(der[..., 2, :], axis=-1).max(axis=1)
+        with np.errstate(divide="ignore"):
+            radius = np.where(acc > 0.0, 0.5 * speed2 / (2.0 * acc), np.inf)
+        right = curve.derivatives_array(piece_u, 1)[:, 1, :]
+        left = curve.derivatives_array(left_u, 1)[:, 1, :]
+        # at a knot of multiplicity p, C' jumps: the sides differ; elsewhere keep the exact value
+        at_knot = np.isin(piece_u, curve.knots)
+        table = np.zeros((len(piece_u), 7))
+        table[:, :2] = piece_points
+        table[:, 2:4] = right
+        table[:, 4:6] = np.where(at_knot[:, None], left, right)
+        table[0, 4:6] = right[0]
+        table[-1, 2:6] = np.concatenate([right[-1], right[-1]])  # C'(u_end) is taken from the left
+        table[:-1, 6] = radius
+        return table
 
     @staticmethod
     def _chord_deviation(curve, piece_u, sub: int = 16):
@@ -255,8 +377,12 @@ class ContourProjector:
 
     @property
     def arrays(self) -> tuple:
-        """The arrays :func:`project_point` takes after the curve's kernel args."""
-        return (self.piece_u, self.piece_points, self.piece_sag, self.grid_origin, self.cell_size,
+        """The arrays :func:`project_point` takes after the curve's kernel args.
+
+        The second is :attr:`piece_table` (points, one-sided tangents and
+        convexity radii), not :attr:`piece_points`.
+        """
+        return (self.piece_u, self.piece_table, self.piece_sag, self.grid_origin, self.cell_size,
                 self.grid_shape, self.cell_start, self.cell_pieces)
 
     def project(self, points):

@@ -39,7 +39,7 @@ def contouring_step(
     k0, n_repeat, voltage, state, params, dt, n_substeps,
     reference, preview_steps, obs_offsets, obs_high, previous_action,
     control_points, weights, knots, degree,
-    piece_u, piece_points, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
+    piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
     der, work, obs, result,
 ):
     """Advance ``n_repeat`` control periods from reference index ``k0``.
@@ -74,7 +74,7 @@ def contouring_step(
             k += 1
         err, foot_u = project_point(
             state[0, 0, 2], state[0, 1, 2], control_points, weights, knots, degree,
-            piece_u, piece_points, piece_sag, grid_origin, cell_size, grid_shape, cell_start,
+            piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start,
             cell_pieces, der, work,
         )
         err_sum += err
