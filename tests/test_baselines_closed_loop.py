@@ -127,3 +127,11 @@ def test_evaluate_policy_batched_envs():
     policy = baselines.make("fuzzy", vec)
     rewards, _ = evaluate_policy(policy, vec, n_eval_episodes=3, return_episode_rewards=True)
     assert len(rewards) == 3 and np.ptp(rewards) <= 1e-9 * abs(np.mean(rewards))
+
+
+@pytest.mark.parametrize("name", baselines.names())
+def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
+    """All 64 corners of seed 000's box (the heart is run on vertices 0 and 63 above)."""
+    for k, vertex in enumerate(VERTICES):
+        _, diverged, terminated, _ = rollout(name, "VCNC-Omega-v0", vertex)
+        assert terminated and not diverged, f"{name} on vertex {k}"
