@@ -189,7 +189,7 @@ class ContouringEnv(gym.Env):
         # plant
         self.nominal_parameters = plant.nominal_parameters()
         self._fixed_parameters = None if parameters is None else self._check_parameters(parameters)
-        self.parameters = self._fixed_parameters if parameters is not None else self.nominal_parameters
+        self.parameters = self.nominal_parameters if parameters is None else self._fixed_parameters
         self._params = np.empty((1, 2, plant.N_PARAMETERS))
         self._state = np.zeros((1, 2, 3))
 

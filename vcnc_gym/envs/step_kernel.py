@@ -28,10 +28,9 @@ OUT_CONTOUR_ERROR_MAX = 2  # mm, max over the repeated control periods
 OUT_POSITION = 3  # (2) mm
 OUT_REFERENCE_POSITION = 5  # (2) mm
 OUT_TRACKING_ERROR = 7  # (2) mm
-OUT_FOOT_U = 9  # curve parameter of the closest point
-OUT_FINITE = 10  # 1.0 if the plant state is finite
-OUT_COMMAND = 11  # (2) V, the amplifier output after saturation
-OUT_SIZE = 13
+OUT_FINITE = 9  # 1.0 if the plant state is finite
+OUT_COMMAND = 10  # (2) V, the amplifier output after saturation
+OUT_SIZE = 12
 
 
 @njit(cache=True)
@@ -67,12 +66,11 @@ def contouring_step(
     err_sum = 0.0
     err_max = 0.0
     err = 0.0
-    foot_u = 0.0
     for j in range(max(n_repeat, 1)):
         if n_repeat > 0:  # n_repeat = 0 only observes (at reset)
             step_feed_drives(state, voltage, params, dt, n_substeps)
             k += 1
-        err, foot_u = project_point(
+        err, _foot_u = project_point(
             state[0, 0, 2], state[0, 1, 2], control_points, weights, knots, degree,
             piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start,
             cell_pieces, der, work,
@@ -98,7 +96,6 @@ def contouring_step(
     result[OUT_REFERENCE_POSITION + 1] = reference[kr, REF_POSITION + 1]
     result[OUT_TRACKING_ERROR] = ex
     result[OUT_TRACKING_ERROR + 1] = ey
-    result[OUT_FOOT_U] = foot_u
     result[OUT_FINITE] = 1.0 if finite else 0.0
     for i in range(2):
         result[OUT_COMMAND + i] = min(params[0, i, IDX_U_MAX], max(-params[0, i, IDX_U_MAX], voltage[0, i]))
