@@ -1,1 +1,31 @@
-"""Reinforcement-learning agents trained on the vcnc-gym environments."""
+"""Reinforcement-learning agents on the vcnc-gym envs: Stable-Baselines3 PPO.
+
+- :func:`train` (console script ``vcnc-train``): PPO on a VCNC env with the
+  hyperparameters of ``agents/hyperparams/ppo.yml`` (RL Zoo's format),
+  VecNormalize, checkpoints, resume, TensorBoard; one folder per run.
+- :class:`ActionMode`, :class:`ResidualAction`: the agent's action is the
+  amplifier command ("direct") or a correction of a baseline's ("residual"),
+  with action repeat.
+- :func:`load_agent`: a trained agent as a policy with SB3's ``predict`` on
+  the plain env, what ``vcnc-bench --policy ppo:PATH`` runs.
+- ``agents/trained/<env id>/``: the shipped agents.
+
+Example
+-------
+>>> import gymnasium as gym, vcnc_gym
+>>> from agents import load_agent, TRAINED
+>>> env = gym.make("VCNC-Heart-v0")
+>>> agent = load_agent(TRAINED["VCNC-Heart-v0"], env)      # doctest: +SKIP
+"""
+
+from pathlib import Path
+
+from .action_modes import ACTION_MODES, ActionMode, ResidualAction
+from .policy import AgentPolicy, load_agent
+from .training import TrainingResult, train
+
+#: Env id -> folder of the agent shipped for it.
+TRAINED = {env_id: Path(__file__).parent / "trained" / env_id for env_id in ("VCNC-Heart-v0", "VCNC-Omega-v0")}
+
+__all__ = ["train", "TrainingResult", "load_agent", "AgentPolicy", "ActionMode", "ResidualAction",
+           "ACTION_MODES", "TRAINED"]

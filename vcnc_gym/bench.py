@@ -10,9 +10,11 @@ paper's maximum beside ours::
 
 A policy is named by a spec: a bare name is a baseline of the ``baselines``
 package (``qft``, ``smc``, ``fuzzy``); ``KIND:ARGUMENT`` picks a policy
-factory from :data:`POLICY_KINDS` (``baseline:qft`` is the long form).  New
-kinds (a trained agent as ``ppo:PATH``) register a factory there;
-:func:`resolve_policy` is the one place that turns a spec into a policy.
+factory from :data:`POLICY_KINDS` (``baseline:qft`` is the long form); a
+trained agent is ``ppo:PATH`` (its folder) and the bare ``ppo`` is the agent
+shipped for the env in ``agents/trained/``.  By default the bench runs every
+baseline and the shipped agents.  :func:`resolve_policy` is the one place
+that turns a spec into a policy.
 """
 
 from __future__ import annotations
@@ -69,18 +71,52 @@ def _make_baseline(name: str, env) -> Any:
     return b.make(name, env)
 
 
+def _agents():
+    """The ``agents`` package, or None if it (or Stable-Baselines3) cannot be imported."""
+    try:
+        import agents
+    except ImportError:
+        return None
+    return agents
+
+
+def _shipped_agent(env_id: str):
+    """Folder of the agent shipped for ``env_id``, or None."""
+    a = _agents()
+    folder = a.TRAINED.get(env_id) if a is not None else None
+    return folder if folder is not None and folder.is_dir() else None
+
+
+def _load_ppo(path: str, env) -> Any:
+    """A trained PPO agent: folder with model.zip, vecnormalize.pkl, config.yml; "" = the one shipped for env."""
+    a = _agents()
+    if a is None:
+        raise ValueError("ppo agents need the agents extra: pip install 'vcnc-gym[agents]'")
+    if path == "":
+        env_id = env.unwrapped.spec.id if env.unwrapped.spec is not None else None
+        path = _shipped_agent(env_id)
+        if path is None:
+            raise ValueError(f"no agent is shipped for {env_id}; give its folder as ppo:PATH")
+    return a.load_agent(path, env)
+
+
 #: Policy kind -> factory(argument, env) returning an object with SB3's predict.
 #: A spec "KIND:ARGUMENT" calls ``POLICY_KINDS[KIND](ARGUMENT, env)``; a bare
-#: name is ``baseline:NAME``.  A later kind, e.g. ``POLICY_KINDS["ppo"] =
-#: load_ppo`` (ARGUMENT = path of the saved model), needs nothing else here.
+#: name is ``baseline:NAME``; ``ppo:PATH`` is a trained agent's folder (a
+#: run's ``best``) and the bare ``ppo`` the agent shipped for the env
+#: (``agents/trained/<env id>``).
 POLICY_KINDS: dict[str, Callable[[str, gym.Env], Any]] = {
     "baseline": _make_baseline,
+    "ppo": _load_ppo,
 }
 
 
 def _split_spec(spec: str) -> tuple[str, str]:
     kind, sep, arg = spec.partition(":")
-    return (kind, arg) if sep else ("baseline", spec)
+    if sep:
+        return kind, arg
+    # a bare name: a baseline, or a kind with its default argument ("ppo": the shipped agent)
+    return (spec, "") if spec in POLICY_KINDS and spec not in _baseline_names() else ("baseline", spec)
 
 
 def policy_label(spec: str) -> str:
@@ -151,7 +187,9 @@ def _cell(value, fmt: str) -> str:
 
 def format_table(records: list[dict]) -> str:
     """The records as a fixed-width table in the shape of seed 000's Table 4 (errors in um)."""
-    lines = [" ".join(f"{h:>{w}}" if i > 1 else f"{h:<{w}}" for i, (h, w, _, _) in enumerate(_COLUMNS))]
+    columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key == "policy" else w, key, fmt)
+               for h, w, key, fmt in _COLUMNS]
+    lines = [" ".join(f"{h:>{w}}" if i > 1 else f"{h:<{w}}" for i, (h, w, _, _) in enumerate(columns))]
     lines.append("-" * len(lines[0]))
     previous_env = None
     for rec in records:
@@ -159,7 +197,7 @@ def format_table(records: list[dict]) -> str:
             lines.append("")
         previous_env = rec["env"]
         cells = []
-        for i, (_, w, key, fmt) in enumerate(_COLUMNS):
+        for i, (_, w, key, fmt) in enumerate(columns):
             c = _cell(rec.get(key), fmt)
             cells.append(f"{c:>{w}}" if i > 1 else f"{c:<{w}}")
         lines.append(" ".join(cells))
@@ -216,7 +254,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--env", action="append", metavar="ID",
                    help=f"env id, repeatable (default: all of {', '.join(ENV_IDS)})")
     p.add_argument("--policy", action="append", metavar="SPEC",
-                   help="baseline name or KIND:ARGUMENT, repeatable (default: every registered baseline)")
+                   help="baseline name, 'ppo' (the agent shipped for the env) or KIND:ARGUMENT such as "
+                        "ppo:RUN/best, repeatable (default: every baseline and the shipped agent)")
     p.add_argument("--seed", type=int, default=0, help="seed passed to env.reset (default 0)")
     p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
                    help="S-curve feedrate in mm/s (default: the env's, seed 000's 100 mm/s); "
@@ -271,7 +310,9 @@ def main(argv: list[str] | None = None) -> int:
     compare = args.feedrate is None or args.feedrate == PAPER_FEEDRATE
     runs = []
     for env_id, env in envs.items():
-        for spec in specs:
+        # by default every baseline, and the agent shipped for the env if there is one
+        shipped = ["ppo"] if args.policy is None and _shipped_agent(env_id) is not None else []
+        for spec in specs + shipped:
             try:
                 runs.append((env_id, spec, resolve_policy(spec, env)))
             except (ValueError, OSError) as exc:

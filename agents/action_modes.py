@@ -1,0 +1,205 @@
+"""What the agent's action means: the amplifier command ("direct") or a correction of a baseline's ("residual").
+
+Two action modes, one description (:class:`ActionMode`) shared by training and
+evaluation:
+
+- **direct**: the agent's action is the normalised amplifier command
+  u / u_max of both axes.  Its decision period is the env's own
+  ``action_repeat`` (an env argument: ``gym.make(id, action_repeat=10)``),
+  held inside the env's jitted step.
+- **residual**: the agent's action a in [-1, 1]^2 corrects a classical
+  baseline of the :mod:`baselines` package::
+
+      u / u_max = clip(u_baseline(obs_k) / u_max + correction * a, -1, 1)
+
+  The baseline runs at every control period dt on the fresh observation; the
+  agent decides every ``action_repeat`` control periods and its correction is
+  held in between.  This is the :class:`ResidualAction` wrapper, which needs
+  an env with ``action_repeat=1``.
+
+:class:`ActionMode` turns a run's configuration into either form: a wrapper
+for training (:meth:`ActionMode.wrap`) and a per-control-period command for
+evaluating a trained agent on the plain env (:meth:`ActionMode.command`), so
+an agent is benchmarked on the very env the baselines run on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import gymnasium as gym
+import numpy as np
+
+__all__ = ["ActionMode", "ResidualAction", "ACTION_MODES"]
+
+#: The action modes and what the agent's action is in each.
+ACTION_MODES = {
+    "direct": "the normalised amplifier command u / u_max of both axes",
+    "residual": "a correction, scaled by `correction`, added to a baseline's normalised command",
+}
+
+
+def _check_repeat(action_repeat) -> int:
+    if isinstance(action_repeat, bool) or not isinstance(action_repeat, (int, np.integer)) or action_repeat < 1:
+        raise ValueError(f"action_repeat must be an integer >= 1, got {action_repeat!r}")
+    return int(action_repeat)
+
+
+@dataclass(frozen=True)
+class ActionMode:
+    """How an agent's action becomes the amplifier command.
+
+    Parameters
+    ----------
+    mode : str
+        "direct" or "residual" (:data:`ACTION_MODES`).
+    action_repeat : int
+        Control periods per agent decision (>= 1).
+    baseline : str
+        Residual mode: the baseline name of :func:`baselines.names` ("smc", "qft", ...).
+    correction : float
+        Residual mode: the largest correction, as a fraction of u_max (0 < correction <= 2).
+    baseline_params : dict
+        Residual mode: constructor parameters of the baseline (its seed values if empty).
+    """
+
+    mode: str = "direct"
+    action_repeat: int = 1
+    baseline: str | None = None
+    correction: float | None = None
+    baseline_params: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.mode not in ACTION_MODES:
+            raise ValueError(f"action mode must be one of {sorted(ACTION_MODES)}, got {self.mode!r}")
+        object.__setattr__(self, "action_repeat", _check_repeat(self.action_repeat))
+        if self.mode == "residual":
+            import baselines
+
+            if self.baseline not in baselines.names():
+                raise ValueError(f"residual mode needs a baseline among {baselines.names()}, got {self.baseline!r}")
+            c = self.correction
+            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or not 0 < c <= 2:
+                raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
+            object.__setattr__(self, "correction", float(c))
+        elif self.baseline is not None or self.correction is not None or self.baseline_params:
+            raise ValueError("baseline, correction and baseline_params apply to the residual mode only")
+
+    # -- the two forms -----------------------------------------------------------------
+    def wrap(self, env: gym.Env) -> gym.Env:
+        """The env as the agent trains on it: residual wrapped, or direct with the env's repeat checked."""
+        if self.mode == "residual":
+            return ResidualAction(env, baseline=self.baseline, correction=self.correction,
+                                  action_repeat=self.action_repeat, **self.baseline_params)
+        repeat = env.unwrapped.action_repeat
+        if repeat != self.action_repeat:
+            raise ValueError(f"direct mode with action_repeat={self.action_repeat} needs an env made with "
+                             f"action_repeat={self.action_repeat}, got {repeat}")
+        return env
+
+    def make_baseline(self, env):
+        """The residual's baseline for ``env`` (a control-period env), or None in direct mode."""
+        if self.mode != "residual":
+            return None
+        import baselines
+
+        return baselines.make(self.baseline, env, **self.baseline_params)
+
+    def command(self, baseline_action: np.ndarray | None, agent_action: np.ndarray) -> np.ndarray:
+        """Normalised command (float32, clipped to [-1, 1]) from the baseline's and the agent's actions."""
+        a = np.clip(agent_action, -1.0, 1.0)
+        if self.mode == "residual":
+            a = baseline_action + self.correction * a
+        return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+    def to_dict(self) -> dict:
+        """Plain mapping for a run's config file; ``ActionMode(**d)`` rebuilds it."""
+        d = {"mode": self.mode, "action_repeat": self.action_repeat}
+        if self.mode == "residual":
+            d.update(baseline=self.baseline, correction=self.correction, baseline_params=dict(self.baseline_params))
+        return d
+
+
+class ResidualAction(gym.Wrapper):
+    """The agent corrects a classical baseline: residual action mode, with action repeat.
+
+    Each :meth:`step` holds the agent's action a for ``action_repeat`` control
+    periods; in each the baseline computes its command from the current
+    observation and the env applies
+    ``clip(u_baseline / u_max + correction * a, -1, 1)``.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        A vcnc_gym contouring env made with ``action_repeat=1`` (the baseline
+        runs at its control period), possibly wrapped (``gym.make``).
+    baseline : str
+        Baseline name of :func:`baselines.names`, e.g. "smc" or "qft".
+    correction : float
+        Largest correction as a fraction of u_max, in (0, 2].
+    action_repeat : int
+        Control periods per agent decision.
+    **baseline_params
+        Constructor parameters of the baseline.
+
+    Notes
+    -----
+    The reward of a step is the mean of the env's rewards over its control
+    periods, so it has the scale of the direct mode's (whose env reward is the
+    contour error averaged over the step); a divergence penalty, counted by the
+    env in control periods, becomes the same penalty per remaining decision.
+    ``info`` is the last control period's, with "contour_error_max" the
+    largest over the step.  Usable as RL Zoo's ``env_wrapper``.
+    """
+
+    def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
+                 **baseline_params):
+        super().__init__(env)
+        self.mode = ActionMode("residual", action_repeat=action_repeat, baseline=baseline,
+                               correction=correction, baseline_params=baseline_params)
+        if env.unwrapped.action_repeat != 1:
+            raise ValueError("ResidualAction runs the baseline every control period: make the env with "
+                             f"action_repeat=1 (got {env.unwrapped.action_repeat}) and give the wrapper the repeat")
+        self.baseline = self.mode.make_baseline(env)
+        self.action_repeat = self.mode.action_repeat
+        self._obs = None
+        self._start = np.array([True])
+
+    @property
+    def decision_period(self) -> float:
+        """Time between two agent decisions, s."""
+        return self.env.unwrapped.dt * self.action_repeat
+
+    @property
+    def episode_steps(self) -> int:
+        """Natural episode length in agent decisions."""
+        return math.ceil(self.env.unwrapped.episode_steps / self.action_repeat)
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._obs = obs
+        self._start = np.array([True])
+        return obs, info
+
+    def step(self, action):
+        if self._obs is None:
+            raise RuntimeError("step() called before reset()")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {action!r}")
+        total = 0.0
+        peak = 0.0
+        for _ in range(self.action_repeat):
+            base, _ = self.baseline.predict(self._obs, episode_start=self._start)
+            self._start = np.array([False])
+            obs, reward, terminated, truncated, info = self.env.step(self.mode.command(base, a))
+            self._obs = obs
+            total += reward
+            peak = max(peak, info["contour_error_max"])
+            if terminated or truncated:
+                break
+        info = dict(info, contour_error_max=peak)
+        return obs, total / self.action_repeat, terminated, truncated, info
