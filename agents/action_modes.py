@@ -121,7 +121,7 @@ class ActionMode:
         return d
 
 
-class ResidualAction(gym.Wrapper):
+class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """The agent corrects a classical baseline: residual action mode, with action repeat.
 
     Each :meth:`step` holds the agent's action a for ``action_repeat`` control
@@ -155,6 +155,8 @@ class ResidualAction(gym.Wrapper):
 
     def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
                  **baseline_params):
+        gym.utils.RecordConstructorArgs.__init__(self, baseline=baseline, correction=correction,
+                                                 action_repeat=action_repeat, **baseline_params)
         super().__init__(env)
         self.mode = ActionMode("residual", action_repeat=action_repeat, baseline=baseline,
                                correction=correction, baseline_params=baseline_params)

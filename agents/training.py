@@ -105,7 +105,8 @@ def latest_checkpoint(run_dir) -> tuple[int, Path, Path] | None:
 
 
 def evaluation_score(max_um: float, rms_um: float) -> float:
-    """Selection score of an evaluation, um: the geometric mean of max and RMS contour error."""
+    """Selection score of an evaluation, um: the geometric mean of max and RMS contour error
+    (inf if either is not finite; a diverged episode is scored inf by the caller)."""
     return math.sqrt(max_um * rms_um) if math.isfinite(max_um) and math.isfinite(rms_um) else math.inf
 
 
@@ -147,36 +148,55 @@ def _save_agent(folder: Path, model, venv, config_file: Path) -> None:
     shutil.copyfile(config_file, folder / CONFIG_FILE)
 
 
-def _make_eval_callback(config: dict, run_dir: Path, eval_freq: int, n_envs: int, verbose: int):
+def _make_run_callback(config: dict, run_dir: Path, *, eval_freq: int, checkpoint_freq: int, verbose: int):
+    """The callback that checkpoints and evaluates, both between PPO updates.
+
+    SB3 calls ``_on_rollout_start`` after each policy update, so a checkpoint
+    or an evaluation there holds the model trained on every step counted in
+    ``num_timesteps``; ``_on_training_end`` comes after the last update.
+    """
     from stable_baselines3.common.callbacks import BaseCallback
 
     from vcnc_gym.evaluation import run_episode
 
-    class ContourEvalCallback(BaseCallback):
-        """Every ``eval_freq`` agent steps: one deterministic nominal episode; keep the best in RUN/best."""
-
+    class RunCallback(BaseCallback):
         def __init__(self):
             super().__init__(verbose)
             self.env = _eval_env(config)
             self.mode = ActionMode(**config["action_mode"])
             self.csv = run_dir / "evaluations.csv"
             self.best = _best_of(self.csv)
-            self.last = -1
+
+        def _on_training_start(self) -> None:
+            self.last_eval = self.last_checkpoint = self.num_timesteps
 
         def _on_step(self) -> bool:
-            if self.num_timesteps - self.last >= eval_freq or self.last < 0 and self.num_timesteps >= eval_freq:
-                self.evaluate()
             return True
 
-        def _on_training_end(self) -> None:
-            if self.last != self.num_timesteps:
+        def _on_rollout_start(self) -> None:
+            if self.num_timesteps - self.last_checkpoint >= checkpoint_freq:
+                self.checkpoint()
+            if self.num_timesteps - self.last_eval >= eval_freq:
                 self.evaluate()
 
+        def _on_training_end(self) -> None:
+            if self.num_timesteps != self.last_checkpoint:
+                self.checkpoint()
+            if self.num_timesteps != self.last_eval:
+                self.evaluate()
+
+        def checkpoint(self) -> None:
+            self.last_checkpoint = n = self.num_timesteps
+            folder = run_dir / "checkpoints"
+            folder.mkdir(parents=True, exist_ok=True)
+            self.model.get_vec_normalize_env().save(str(folder / f"{CHECKPOINT_PREFIX}_vecnormalize_{n}_steps.pkl"))
+            self.model.save(folder / f"{CHECKPOINT_PREFIX}_{n}_steps.zip")  # last: a zip means a complete pair
+
         def evaluate(self) -> None:
-            self.last = self.num_timesteps
+            self.last_eval = self.num_timesteps
             policy = AgentPolicy(self.model, self.model.get_vec_normalize_env(), self.mode, self.env)
             r = run_episode(policy, self.env, seed=0)
-            score = evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
+            score = math.inf if r.diverged else evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
             row = {"steps": self.num_timesteps, "max_um": r.max_contour_error_um,
                    "mean_um": r.mean_contour_error_um, "rms_um": r.rms_contour_error_um,
                    "score_um": score, "diverged": r.diverged}
@@ -188,21 +208,25 @@ def _make_eval_callback(config: dict, run_dir: Path, eval_freq: int, n_envs: int
                 w.writerow(row)
             for key in ("max_um", "rms_um", "score_um"):
                 self.logger.record(f"eval/contour_{key}", row[key])
-            if self.best is None or score < self.best["score_um"]:
+            if math.isfinite(score) and (self.best is None or score < self.best["score_um"]):
                 self.best = row
                 _save_agent(run_dir / "best", self.model, self.model.get_vec_normalize_env(), run_dir / CONFIG_FILE)
             if self.verbose:
+                best = f"{self.best['score_um']:.2f}" if self.best else "-"
                 print(f"eval at {self.num_timesteps} steps: max {r.max_contour_error_um:.2f} um, "
-                      f"RMS {r.rms_contour_error_um:.2f} um (best score {self.best['score_um']:.2f})")
+                      f"RMS {r.rms_contour_error_um:.2f} um, diverged {r.diverged} (best score {best})")
 
-    return ContourEvalCallback()
+    return RunCallback()
 
 
 def _best_of(csv_path: Path) -> dict | None:
+    """The best finite-score row of an evaluations.csv, typed, or None."""
     if not csv_path.is_file():
         return None
     with open(csv_path) as f:
-        rows = [{k: (v if k == "diverged" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+        rows = [{"steps": int(r["steps"]), **{k: float(r[k]) for k in ("max_um", "mean_um", "rms_um", "score_um")},
+                 "diverged": r["diverged"] == "True"} for r in csv.DictReader(f)]
+    rows = [r for r in rows if math.isfinite(r["score_um"])]
     return min(rows, key=lambda r: r["score_um"]) if rows else None
 
 
@@ -330,7 +354,6 @@ def learn(run_dir: Path, config: dict, checkpoint, *, checkpoint_freq: int = 50_
           verbose: int = 0) -> TrainingResult:
     """Train the run :func:`prepare_run` set up (from ``checkpoint`` if not None); options as :func:`train`."""
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
     h = config["hyperparams"]
@@ -354,14 +377,12 @@ def learn(run_dir: Path, config: dict, checkpoint, *, checkpoint_freq: int = 50_
                          custom_objects={k: kwargs[k] for k in ("learning_rate", "clip_range") if k in kwargs})
         done = model.num_timesteps
     n_envs = config["n_envs"]
-    callbacks = [CheckpointCallback(save_freq=max(1, checkpoint_freq // n_envs), save_path=str(run_dir / "checkpoints"),
-                                    name_prefix=CHECKPOINT_PREFIX, save_vecnormalize=True)]
-    evaluator = _make_eval_callback(config, run_dir, eval_freq or config["n_timesteps"], n_envs, verbose)
-    callbacks.append(evaluator)
+    evaluator = _make_run_callback(config, run_dir, eval_freq=eval_freq or config["n_timesteps"],
+                                   checkpoint_freq=checkpoint_freq, verbose=verbose)
 
     remaining = config["n_timesteps"] - done
     wall0 = time.perf_counter()
-    model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress_bar,
+    model.learn(total_timesteps=remaining, callback=evaluator, progress_bar=progress_bar,
                 reset_num_timesteps=checkpoint is None, tb_log_name="PPO")
     wall = time.perf_counter() - wall0
     _save_agent(run_dir / "final", model, venv, run_dir / CONFIG_FILE)
