@@ -21,7 +21,7 @@ import numbers
 
 import numpy as np
 
-from vcnc_gym.plants import vcnc_feed_drive as plant
+from vcnc_gym.plants import get_plant
 
 __all__ = ["BaselinePolicy"]
 
@@ -99,70 +99,79 @@ class BaselinePolicy:
         Period in s at which :meth:`predict` is called (the env's
         ``dt * action_repeat``); discrete controllers are discretised at it.
     nominal_parameters : array_like, shape (2, P)
-        Nominal feed-drive parameters of the x and y axes, columns named by
-        ``vcnc_gym.plants.vcnc_feed_drive.PARAMETER_NAMES``.  The command
-        limit ``u_max`` (V) scales the normalised action.
+        Nominal parameters of the x and y axes of the plant, columns named by
+        ``plant.parameter_names``.  The input limit (the plant's
+        ``input_limit`` parameter, e.g. ``u_max`` in V) scales the action.
+    plant : str or vcnc_gym.plants.PlantModel, optional
+        The plant the env holds; default the first of :attr:`plants`.  It must
+        be one of :attr:`plants`: a controller is designed for its seed's
+        machine.
 
     Notes
     -----
-    Subclasses set :attr:`state_shape` (the per-env shape of their memory,
-    ``(0,)`` for none) and implement :meth:`_initial_state` and
-    :meth:`_voltage`.  The action returned is ``clip(u / u_max, -1, 1)`` as
-    float32, u the axis command in V (seed 000, Table 3: u_max = 5 V).
+    Subclasses set :attr:`plants`, :attr:`state_shape` (the per-env shape of
+    their memory, ``(0,)`` for none) and implement :meth:`_initial_state` and
+    :meth:`_command`.  The action returned is ``clip(u / u_lim, -1, 1)`` as
+    float32, u the axis command in the plant's input unit and u_lim its limit.
     """
 
     #: Registry name, set by each subclass.
     name: str = "base"
+    #: Names of the plants (``vcnc_gym.plants`` modules) the controller is designed for.
+    plants: tuple[str, ...] = ()
     #: Per-environment shape of the controller memory; (0,) for a memoryless controller.
     state_shape: tuple = (0,)
 
-    def __init__(self, layout, decision_period: float, nominal_parameters):
-        for attr in ("tracking_error", "reference_velocity", "reference_acceleration", "velocity", "size"):
+    def __init__(self, layout, decision_period: float, nominal_parameters, plant=None):
+        for attr in ("size", "slice"):
             if not hasattr(layout, attr):
                 raise ValueError(f"layout must be an ObservationLayout (missing {attr!r}), got {type(layout).__name__}")
         self.layout = layout
         self.decision_period = check_scalar("decision_period", decision_period, positive=True)
+        if plant is None:
+            if not self.plants:
+                raise ValueError(f"{type(self).__name__} declares no plant; pass plant=")
+            plant = self.plants[0]
+        self.plant = get_plant(plant)
+        if self.plants and self.plant.name not in self.plants:
+            raise ValueError(f"baseline {self.name!r} is designed for the plant(s) {list(self.plants)}, "
+                             f"not {self.plant.name!r}")
         p = np.asarray(nominal_parameters)
         if p.dtype.kind not in "iuf":
             raise ValueError(f"nominal_parameters must be numeric, got dtype {p.dtype}")
-        p = p.astype(float)
-        if p.shape != (2, len(plant.PARAMETER_NAMES)):
-            raise ValueError(f"nominal_parameters must have shape (2, {len(plant.PARAMETER_NAMES)}), got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise ValueError("nominal_parameters must be finite")
-        self.nominal_parameters = p
-        self.u_max = p[:, plant.PARAMETER_NAMES.index("u_max")].copy()
-        if np.any(self.u_max <= 0):
-            raise ValueError(f"u_max must be > 0 on both axes, got {self.u_max}")
+        if p.shape != (2, self.plant.n_parameters):
+            raise ValueError(f"nominal_parameters must have shape (2, {self.plant.n_parameters}), got {p.shape}")
+        self.nominal_parameters = self.plant.validate(p)[0]
+        self.u_max = self.plant.input_limits(self.nominal_parameters).copy()
         self._state = None  # (n_envs, *state_shape), allocated on the first predict
 
     # -- construction from an env -------------------------------------------
     @classmethod
     def from_env(cls, env, **params):
-        """Build the controller for ``env``: its layout, decision period (s) and nominal plant.
+        """Build the controller for ``env``: its layout, decision period (s), plant and nominal parameters.
 
-        ``env`` is a (wrapped) Gymnasium env, read through ``env.unwrapped``,
-        or an SB3 ``VecEnv`` of such envs, read through ``get_attr`` (all its
-        envs must share the decision period; the first env's layout and
-        nominal plant are used).
+        ``env`` is a (wrapped) Gymnasium env or vector env, read through
+        ``env.unwrapped``, or an SB3 ``VecEnv`` of such envs, read through
+        ``get_attr`` (all its envs must share the decision period; the first
+        env's layout and nominal plant are used).
         """
-        names = ("layout", "decision_period", "nominal_parameters")
-        if hasattr(env, "get_attr") and hasattr(env, "num_envs"):  # an SB3 VecEnv
+        names = ("layout", "decision_period", "nominal_parameters", "plant")
+        if hasattr(env, "get_attr") and hasattr(env, "num_envs") and not hasattr(env, "unwrapped"):  # SB3 VecEnv
             try:
                 values = [env.get_attr(a) for a in names]
             except AttributeError as exc:
-                raise ValueError(f"the VecEnv's envs lack {exc}; are they vcnc_gym ContouringEnvs?") from None
+                raise ValueError(f"the VecEnv's envs lack {exc}; are they vcnc_gym envs?") from None
             periods = values[1]
             if any(not np.isclose(p, periods[0], rtol=1e-12, atol=0.0) for p in periods):
                 raise ValueError(f"the VecEnv's envs have different decision periods {periods}")
-            layout, period, nominal = (v[0] for v in values)
+            layout, period, nominal, plant = (v[0] for v in values)
         else:
             u = getattr(env, "unwrapped", env)
             missing = [a for a in names if not hasattr(u, a)]
             if missing:
-                raise ValueError(f"env.unwrapped lacks {missing}; is it a vcnc_gym ContouringEnv?")
-            layout, period, nominal = u.layout, u.decision_period, u.nominal_parameters
-        return cls(layout=layout, decision_period=period, nominal_parameters=nominal, **params)
+                raise ValueError(f"env.unwrapped lacks {missing}; is it a vcnc_gym env?")
+            layout, period, nominal, plant = u.layout, u.decision_period, u.nominal_parameters, u.plant
+        return cls(layout=layout, decision_period=period, nominal_parameters=nominal, plant=plant, **params)
 
     # -- memory ------------------------------------------------------------
     @property
@@ -238,12 +247,13 @@ class BaselinePolicy:
             self.reset(n_envs=n)
         elif start is not None and start.any():
             self.reset(mask=start)
-        u = self._voltage(obs2)
+        u = self._command(obs2)
         action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
         return (action[0] if single else action), state
 
-    def _voltage(self, obs: np.ndarray) -> np.ndarray:
-        """Axis commands in V, (n_envs, 2), for a batch of observations; updates the memory."""
+    def _command(self, obs: np.ndarray) -> np.ndarray:
+        """Axis commands in the plant's input unit (V, A), (n_envs, 2), for a batch of observations;
+        updates the memory."""
         raise NotImplementedError
 
     def __repr__(self) -> str:

@@ -225,12 +225,13 @@ class FuzzyPolicy(BaselinePolicy):
     """
 
     name = "fuzzy"
+    plants = ("vcnc_feed_drive",)
     state_shape = (0,)
 
-    def __init__(self, layout, decision_period, nominal_parameters,
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None,
                  error_scale=DEFAULT_SCALING.error_scale, rate_scale=DEFAULT_SCALING.rate_scale,
                  output_scale=DEFAULT_SCALING.output_scale):
-        super().__init__(layout, decision_period, nominal_parameters)
+        super().__init__(layout, decision_period, nominal_parameters, plant)
         self.scaling = FuzzyScaling(**{f.name: check_scalar(f.name, v, positive=True) for f, v in
                                        zip(fields(FuzzyScaling), (error_scale, rate_scale, output_scale))})
 
@@ -245,7 +246,7 @@ class FuzzyPolicy(BaselinePolicy):
                     RULE_TABLE, CENTRES, HALF_WIDTH, OUTPUT_GRID, out)
         return s.output_scale * out.reshape(e.shape)
 
-    def _voltage(self, obs):
+    def _command(self, obs):
         e = self.layout.tracking_error(obs)
         e_dot = self.layout.reference_velocity(obs) - self.layout.velocity(obs)
         return self.surface(e, e_dot)

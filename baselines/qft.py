@@ -204,10 +204,11 @@ class QFTPolicy(BaselinePolicy):
     """
 
     name = "qft"
+    plants = ("vcnc_feed_drive",)
 
-    def __init__(self, layout, decision_period, nominal_parameters, controller=QFT_CONTROLLER,
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, controller=QFT_CONTROLLER,
                  prefilter=QFT_PREFILTER, method: str = "tustin"):
-        super().__init__(layout, decision_period, nominal_parameters)
+        super().__init__(layout, decision_period, nominal_parameters, plant)
         if not isinstance(method, str):
             raise ValueError(f"method must be a string, got {method!r}")
         self.G = controller_tf(controller)
@@ -235,7 +236,7 @@ class QFTPolicy(BaselinePolicy):
                           f"(closed-loop pole at |z| = {radius:.3g}); use a shorter decision period",
                           RuntimeWarning, stacklevel=2)
 
-    def _voltage(self, obs):
+    def _command(self, obs):
         n = obs.shape[0]
         e = self.layout.tracking_error(obs)          # (n, 2) mm
         v_r = self.layout.reference_velocity(obs)    # (n, 2) mm/s

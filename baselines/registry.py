@@ -31,7 +31,7 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     "qft-g": ("qft", {"prefilter": ((1.0,), (1.0,))}),
 }
 
-_FROM_ENV = ("layout", "decision_period", "nominal_parameters")
+_FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant")
 
 
 def names() -> list[str]:

@@ -100,12 +100,13 @@ class SlidingModePolicy(BaselinePolicy):
     """
 
     name = "smc"
+    plants = ("vcnc_feed_drive",)
     state_shape = (2,)  # d_hat per axis, V
 
-    def __init__(self, layout, decision_period, nominal_parameters, lam=SMC_TABLE2["lam"],
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, lam=SMC_TABLE2["lam"],
                  K_s=SMC_TABLE2["K_s"], rho=SMC_TABLE2["rho"], d_minus=SMC_TABLE2["d_minus"],
                  d_plus=SMC_TABLE2["d_plus"]):
-        super().__init__(layout, decision_period, nominal_parameters)
+        super().__init__(layout, decision_period, nominal_parameters, plant)
         self.lam = check_per_axis("lam", lam, positive=True)
         self.K_s = check_per_axis("K_s", K_s, nonnegative=True)
         self.rho = check_per_axis("rho", rho, nonnegative=True)
@@ -133,7 +134,7 @@ class SlidingModePolicy(BaselinePolicy):
         """d_hat in V, (n_envs, 2), or None before the first predict."""
         return self._state
 
-    def _voltage(self, obs):
+    def _command(self, obs):
         e = self.layout.tracking_error(obs)
         v_d = self.layout.reference_velocity(obs)
         a_d = self.layout.reference_acceleration(obs)

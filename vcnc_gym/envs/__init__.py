@@ -1,6 +1,10 @@
 """Gymnasium environments: they wire a reference, a plant and a reward together."""
 
 from .contouring_env import ContouringEnv
+from .contouring_vector_env import ContouringVectorEnv
 from .layout import Field, ObservationLayout
+from .registry import ENV_IDS, SUITE, register_envs, suite_env
+from .task import ContouringBatch, ContouringTask
 
-__all__ = ["ContouringEnv", "Field", "ObservationLayout"]
+__all__ = ["ContouringEnv", "ContouringVectorEnv", "ContouringTask", "ContouringBatch", "Field",
+           "ObservationLayout", "ENV_IDS", "SUITE", "register_envs", "suite_env"]

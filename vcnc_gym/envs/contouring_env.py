@@ -1,52 +1,49 @@
-"""ContouringEnv: a biaxial feed drive following a contour, judged by contour error."""
+"""ContouringEnv: a biaxial machine following a contour, judged by contour error."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..contour import ContourProjector
-from ..geometry import SHAPES, NurbsCurve
-from ..geometry.nurbs import workspace_size
-from ..motion import SCurveFeedrate, interpolate
-from ..plants import vcnc_feed_drive as plant
 from . import step_kernel as sk
-from .layout import ObservationLayout
+from .task import ContouringBatch, ContouringTask
 
-__all__ = ["ContouringEnv"]
+__all__ = ["ContouringEnv", "check_actions", "step_info"]
 
 
 class ContouringEnv(gym.Env):
-    r"""Contour following with seed 000's virtual CNC (VCNC) feed drives.
+    r"""Contour following on a biaxial machine, judged by the contour error.
 
     ## Description
 
-    A biaxial (X-Y) machine table follows a contour, here a NURBS curve of
-    seed 000 (the "heart" or the "omega", section 3a), at the S-curve feedrate
-    of seed 000 (100 mm/s, 0.12 s ramps) laid out by the second-order Taylor
-    interpolator, eqs. (8)-(10).  Each axis is the feed drive of seed 000,
+    A biaxial (X-Y) machine table follows a contour, a NURBS curve (seed
+    000's "heart" or "omega", section 3a, by default), at the S-curve
+    feedrate of seed 000 (100 mm/s, 0.12 s ramps) laid out by the
+    second-order Taylor interpolator, eqs. (8)-(10).  The machine is a plant
+    of :mod:`vcnc_gym.plants` (``plant=``); by default seed 000's feed drive,
     eq. (1), with the parameters of section 2c and Table 3: +-5 V amplifier
     saturation, 3 um backlash, asymmetric static and Coulomb friction
     (Karnopp stick-slip), integrated in closed form on substeps.  The policy
-    commands the two amplifier voltages and is judged by the contour error:
-    the shortest distance from the table to the whole contour, not to the
+    commands the plant's two inputs and is judged by the contour error: the
+    shortest distance from the table to the whole contour, not to the
     current reference point.
 
     ## Action Space
 
     ``Box(-1, 1, (2,), float32)``: the normalised amplifier command per axis.
 
-    | Num | Action            | Min | Max | Unit               |
-    |-----|-------------------|-----|-----|--------------------|
-    | 0   | x-axis command    | -1  | 1   | x 5 V (u_max)      |
-    | 1   | y-axis command    | -1  | 1   | x 5 V (u_max)      |
+    | Num | Action            | Min | Max | Unit                                   |
+    |-----|-------------------|-----|-----|----------------------------------------|
+    | 0   | x-axis command    | -1  | 1   | x the plant's input limit (5 V, seed 000) |
+    | 1   | y-axis command    | -1  | 1   | x the plant's input limit (5 V, seed 000) |
 
     Values outside [-1, 1] are clipped: that is the amplifier's saturation.
-    Wrong shapes and non-finite values raise ``ValueError``.
+    ``env.unwrapped.plant`` names the input and its unit (``input_name``,
+    ``input_unit``, ``input_limit``).  Wrong shapes, non-real and non-finite
+    values raise ``ValueError``.
 
     ## Observation Space
 
@@ -68,8 +65,10 @@ class ContouringEnv(gym.Env):
     | 13-18 | preview                | mm     | x_d 1, 5, 10 ms ahead minus the table position |
     | 19-20 | previous_action        | 1      | the last action                                |
 
-    Values beyond the layout's bounds are clipped, so every observation lies
-    inside the space.
+    The position bound is 1000 mm, or the contour's extent plus
+    ``tracking_bound`` plus 100 mm if that is larger.  Values beyond the
+    layout's bounds are clipped, so every observation lies inside the space;
+    ``info["observation_clipped"]`` counts the entries clipped in a step.
 
     ## Rewards
 
@@ -102,174 +101,106 @@ class ContouringEnv(gym.Env):
       corners (radius 0.19 mm) ask 100 mm/s for 5.4e4 mm/s^2, twenty times what
       the +-5 V drives can give (~2.6e3 mm/s^2): a stable tracking controller
       is thrown millimetres off the contour there without diverging.
-    - Truncated by the ``TimeLimit`` of the registered id, set just above
-      the natural length for the default arguments.  If you change ``dt``,
-      ``feedrate``, ``ramp_time`` or ``action_repeat``, pass
-      ``max_episode_steps=env.unwrapped.episode_steps`` (or larger) to
-      ``gym.make`` as well; the env warns if the limit is too short.
+    - The natural length, ``env.unwrapped.episode_steps`` decision steps,
+      follows the configuration (``dt``, ``feedrate``, ``ramp_time``,
+      ``settling_time``, ``action_repeat``): the ids register no fixed
+      ``TimeLimit``.  ``max_episode_steps`` (an argument of the env, or of
+      ``gym.make``) truncates earlier; the env warns when that cuts the
+      contour short.
 
     ## Arguments
 
     ``gym.make("VCNC-Heart-v0", **kwargs)`` with
 
     - ``contour``: "heart", "omega" or a :class:`NurbsCurve` (mm).
+    - ``plant``: a module name of :mod:`vcnc_gym.plants`
+      (:func:`vcnc_gym.plants.plant_names`) or a ``PlantModel``; default
+      ``"vcnc_feed_drive"`` (seed 000).
     - ``feedrate`` (mm/s, 100) and ``ramp_time`` (s, 0.12): the S-curve.
     - ``dt`` (s, 1e-4): the control period, at which the command is held
       and the reference is sampled.  At 1 ms seed 000's QFT loop is unstable
       (a closed-loop pole near |z| = 10); at 0.1 ms it is stable on every
       vertex of the uncertainty box.
     - ``action_repeat`` (1): control periods per decision.
-    - ``randomize`` (False) / ``parameters`` (None, a (2, P) array of
-      :mod:`vcnc_gym.plants.vcnc_feed_drive`): the plant in force.
-    - ``substep`` (s, 1e-5): the plant's integration substep.
+    - ``randomize`` (False) / ``parameters`` (None, a (2, P) array of the
+      plant, columns ``env.unwrapped.plant.parameter_names``): the plant in
+      force; not both.  ``reset(options={"parameters": p})`` sets it for one
+      episode.
     - ``reward_scale`` (mm, 0.01), ``effort_weight`` (0.0),
       ``divergence_bound`` (mm, 5.0), ``tracking_bound`` (mm, 10.0),
       ``settling_time`` (s, 0.01).
     - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods.
+    - ``max_episode_steps`` (None: the natural length): truncation, decisions.
     - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
 
     ## Version History
 
-    - v0: initial release.
+    - v0: initial release.  The plant became an argument, the step one
+      batched kernel and the ids lost their fixed ``TimeLimit`` (the natural
+      length now follows the configuration) without changing any episode of
+      the default configuration.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
 
-    def __init__(
-        self,
-        contour: str | NurbsCurve = "heart",
-        feedrate: float = 100.0,
-        ramp_time: float = 0.12,
-        dt: float = 1e-4,
-        action_repeat: int = 1,
-        randomize: bool = False,
-        parameters: np.ndarray | None = None,
-        substep: float = plant.DEFAULT_SUBSTEP,
-        reward_scale: float = 0.01,
-        effort_weight: float = 0.0,
-        divergence_bound: float = 5.0,
-        tracking_bound: float = 10.0,
-        settling_time: float = 0.01,
-        preview_steps: tuple[int, ...] = (10, 50, 100),
-        render_mode: str | None = None,
-    ):
-        self.curve = self._make_curve(contour)
-        self.contour_name = contour if isinstance(contour, str) else "custom"
-        dt = _positive("dt", dt)
-        substep = _positive("substep", substep)
-        self.reward_scale = _positive("reward_scale", reward_scale)
-        self.divergence_bound = _positive("divergence_bound", divergence_bound)
-        self.tracking_bound = _positive("tracking_bound", tracking_bound)
-        self.settling_time = _non_negative("settling_time", settling_time)
-        self.effort_weight = _non_negative("effort_weight", effort_weight)
-        if isinstance(action_repeat, bool) or int(action_repeat) != action_repeat or action_repeat < 1:
-            raise ValueError(f"action_repeat must be an integer >= 1, got {action_repeat!r}")
+    def __init__(self, *, render_mode: str | None = None, **kwargs):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.dt = dt
-        self.action_repeat = int(action_repeat)
-        self.n_substeps = max(1, math.ceil(dt / substep - 1e-9))
-        self.randomize = bool(randomize)
         self.render_mode = render_mode
-
-        # reference, computed once: it depends only on the curve, feedrate and dt
-        self.feedrate_profile = SCurveFeedrate(feedrate=feedrate, ramp_time=ramp_time)
-        self.reference = interpolate(self.curve, self.feedrate_profile, dt)
-        tangent = self.curve.derivatives_array(self.reference.u, 1)[:, 1, :]
-        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-        self._reference = np.ascontiguousarray(np.hstack([
-            self.reference.position, self.reference.velocity, self.reference.acceleration, tangent,
-        ]))
-        self.projector = ContourProjector(self.curve, margin=max(10.0, 2 * self.divergence_bound))
-        settle_periods = math.ceil(self.settling_time / dt)
-        self._end_index = len(self.reference.t) - 1 + settle_periods
-        self.episode_steps = math.ceil(self._end_index / self.action_repeat)
-        """Natural episode length in decision steps (without divergence)."""
-
-        # plant
-        self.nominal_parameters = plant.nominal_parameters()
-        self._fixed_parameters = None if parameters is None else self._check_parameters(parameters)
-        self.parameters = self.nominal_parameters if parameters is None else self._fixed_parameters
-        self._params = np.empty((1, 2, plant.N_PARAMETERS))
-        self._state = np.zeros((1, 2, 3))
-
-        # spaces
-        self.layout = ObservationLayout(preview_steps=tuple(int(s) for s in preview_steps))
-        if any(s < 1 for s in self.layout.preview_steps):
-            raise ValueError(f"preview_steps must be positive integers, got {preview_steps!r}")
-        self._obs_high = self.layout.high()
-        self.observation_space = spaces.Box(-self._obs_high, self._obs_high, dtype=np.float32)
+        self.task = ContouringTask(**kwargs)
+        self._batch = ContouringBatch(self.task, 1)
+        b = self._batch.buffers
+        self._obs = b.obs[0]
+        self._action = b.action[0]
+        self._info = b.info[0]
+        self._flags = b.flags[0]
+        self._mode = b.mode
+        self._data = self._batch.data
+        self.layout = self.task.layout
+        high = b.obs_high
+        self.observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        self._obs_offsets = np.array([self.layout.offset(f.name) for f in self.layout.fields], dtype=np.int64)
-        self._preview = np.array(self.layout.preview_steps, dtype=np.int64)
-
-        # scratch for the kernel
-        self._der = np.empty((3, 2))
-        self._work = np.empty(workspace_size(self.curve.degree, 2))
-        self._voltage = np.zeros((1, 2))
-        self._previous_action = np.zeros(2)
-        self._obs_size = self.layout.size
-        self._kernel_args = (
-            self._voltage, self._state, self._params, self.dt, self.n_substeps,
-            self._reference, self._preview, self._obs_offsets, self._obs_high, self._previous_action,
-            *self.curve.kernel_args, *self.projector.arrays, self._der, self._work,
-        )
-        self._u_max = (1.0, 1.0)
-        self._k = 0
+        self.parameters = self.task.nominal_parameters
         self._done = True
         self._warned_limit = False
         self._history: dict[str, list] | None = None
         self._figure = None
 
-    # -- configuration helpers ----------------------------------------------
-    @staticmethod
-    def _make_curve(contour) -> NurbsCurve:
-        if isinstance(contour, NurbsCurve):
-            return contour
-        if isinstance(contour, str) and contour in SHAPES:
-            return SHAPES[contour]()
-        raise ValueError(f"contour must be one of {sorted(SHAPES)} or a NurbsCurve, got {contour!r}")
-
-    @staticmethod
-    def _check_parameters(parameters) -> np.ndarray:
-        return plant.validate_parameters(parameters, n_machines=None).reshape(2, plant.N_PARAMETERS).copy()
-
-    @property
-    def decision_period(self) -> float:
-        """Time between two decisions in s: ``dt * action_repeat``."""
-        return self.dt * self.action_repeat
+    # -- the task, read-only ----------------------------------------------------------
+    plant = property(lambda self: self.task.plant, doc="The plant model (vcnc_gym.plants.PlantModel).")
+    curve = property(lambda self: self.task.curve, doc="The contour, a NurbsCurve in mm.")
+    contour_name = property(lambda self: self.task.contour_name, doc="Name of the contour or 'custom'.")
+    reference = property(lambda self: self.task.reference, doc="The reference (motion.Reference), sampled at dt.")
+    feedrate_profile = property(lambda self: self.task.feedrate_profile, doc="The feedrate profile.")
+    projector = property(lambda self: self.task.projector, doc="The exact contour-error projector.")
+    dt = property(lambda self: self.task.dt, doc="Control period in s.")
+    action_repeat = property(lambda self: self.task.action_repeat, doc="Control periods per decision.")
+    decision_period = property(lambda self: self.task.decision_period, doc="dt * action_repeat in s.")
+    episode_steps = property(lambda self: self.task.episode_steps,
+                             doc="Natural episode length in decision steps (without divergence).")
+    nominal_parameters = property(lambda self: self.task.nominal_parameters,
+                                  doc="The plant's nominal (2, P) parameters.")
+    divergence_bound = property(lambda self: self.task.divergence_bound, doc="mm")
+    tracking_bound = property(lambda self: self.task.tracking_bound, doc="mm")
+    reward_scale = property(lambda self: self.task.reward_scale, doc="mm")
+    randomize = property(lambda self: self.task.randomize, doc="A plant drawn at every reset.")
 
     @property
     def u_max(self) -> float:
-        """Amplifier saturation in V that action 1.0 maps to (seed 000, Table 3)."""
-        return float(self.parameters[0, plant.IDX_U_MAX])
+        """The x axis' input limit that action 1.0 maps to, in ``plant.input_unit`` (5 V, seed 000 Table 3)."""
+        return float(self.plant.input_limits(self.parameters)[0])
 
     # -- Gymnasium API ----------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start a pass along the contour; ``options={"parameters": array}`` sets the plant."""
+        """Start a pass along the contour; ``options={"parameters": array}`` sets the plant for this episode."""
         super().reset(seed=seed)
-        if options and "parameters" in options:
-            self.parameters = self._check_parameters(options["parameters"])
-        elif self.randomize:
-            self.parameters = plant.sample_parameters(self.np_random)
-        elif self._fixed_parameters is not None:
-            self.parameters = self._fixed_parameters
-        else:
-            self.parameters = self.nominal_parameters
-        self._params[0] = self.parameters
-        self._u_max = (float(self.parameters[0, plant.IDX_U_MAX]), float(self.parameters[1, plant.IDX_U_MAX]))
-        plant.reset_feed_drives(self._state, self._reference[:1, sk.REF_POSITION:sk.REF_POSITION + 2])
-        self._k = 0
+        self.parameters = self.task.parameters_for_reset(self.np_random, options)
+        self._batch.reset_env(0, self.parameters)
         self._done = False
-        self._previous_action[:] = 0.0
-        self._voltage[:] = 0.0
         self._check_time_limit()
-
-        obs = np.zeros(self.layout.size, dtype=np.float32)
-        result = np.empty(sk.OUT_SIZE)
-        sk.contouring_step(0, 0, *self._kernel_args, obs, result)
+        self._batch.run()
         info = {
-            "parameters": plant.parameters_to_dict(self.parameters),
+            "parameters": self.plant.to_dict(self.parameters),
             "dt": self.dt,
             "decision_period": self.decision_period,
             "episode_steps": self.episode_steps,
@@ -277,77 +208,40 @@ class ContouringEnv(gym.Env):
             "feedrate_fluctuation": self.reference.feedrate_fluctuation,
         }
         if self.render_mode is not None:
-            self._history = {"t": [0.0], "position": [result[sk.OUT_POSITION:sk.OUT_POSITION + 2].copy()],
+            self._history = {"t": [0.0], "position": [self._info[sk.INFO_POSITION:sk.INFO_POSITION + 2].copy()],
                              "contour_error": [0.0]}
-        return obs, info
+        return self._obs.copy(), info
 
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        if not isinstance(action, np.ndarray):
-            action = np.asarray(action, dtype=np.float64)
-        if action.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {action.shape}")
-        a0 = float(action[0])
-        a1 = float(action[1])
-        if not (math.isfinite(a0) and math.isfinite(a1)):
-            raise ValueError(f"action must be finite, got {action!r}")
-        a0 = min(1.0, max(-1.0, a0))
-        a1 = min(1.0, max(-1.0, a1))
-        self._voltage[0, 0] = a0 * self._u_max[0]
-        self._voltage[0, 1] = a1 * self._u_max[1]
-        self._previous_action[0] = a0
-        self._previous_action[1] = a1
-
-        obs = np.empty(self._obs_size, dtype=np.float32)
-        result = np.empty(sk.OUT_SIZE)
-        k = sk.contouring_step(self._k, self.action_repeat, *self._kernel_args, obs, result)
-        self._k = k
-        err = result[sk.OUT_CONTOUR_ERROR]
-        lag = math.hypot(result[sk.OUT_TRACKING_ERROR], result[sk.OUT_TRACKING_ERROR + 1])
-        diverged = (
-            result[sk.OUT_FINITE] == 0.0
-            or result[sk.OUT_CONTOUR_ERROR_MAX] > self.divergence_bound
-            or lag > self.tracking_bound
-        )
-        r_contour = -min(result[sk.OUT_CONTOUR_ERROR_MEAN], self.divergence_bound) / self.reward_scale
-        r_effort = -self.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
-        r_div = 0.0
-        if diverged:
-            remaining = max(0, self.episode_steps - math.ceil(k / self.action_repeat))
-            r_div = -remaining * self.divergence_bound / self.reward_scale
-            err = err if math.isfinite(err) else math.inf
-        terminated = diverged or k >= self._end_index
-        self._done = terminated
-        info = {
-            "contour_error": err,
-            "contour_error_max": result[sk.OUT_CONTOUR_ERROR_MAX],
-            "tracking_error": result[sk.OUT_TRACKING_ERROR:sk.OUT_TRACKING_ERROR + 2],
-            "position": result[sk.OUT_POSITION:sk.OUT_POSITION + 2],
-            "reference_position": result[sk.OUT_REFERENCE_POSITION:sk.OUT_REFERENCE_POSITION + 2],
-            "command": result[sk.OUT_COMMAND:sk.OUT_COMMAND + 2],
-            "time": k * self.dt,
-            "reward_contour": r_contour,
-            "reward_effort": r_effort,
-            "reward_divergence": r_div,
-            "diverged": diverged,
-        }
+        self._action[:] = check_actions(action, (2,))
+        self._mode[0] = sk.MODE_STEP
+        self._batch.run()
+        info_arr = self._info
+        flags = self._flags
+        terminated = bool(flags[sk.FLAG_TERMINATED])
+        truncated = bool(flags[sk.FLAG_TRUNCATED])
+        self._done = terminated or truncated
+        info = step_info(info_arr, bool(flags[sk.FLAG_DIVERGED]), int(self._batch.buffers.k[0]) * self.dt)
         if self._history is not None:
-            self._history["t"].append(k * self.dt)
+            self._history["t"].append(info["time"])
             self._history["position"].append(info["position"].copy())
-            self._history["contour_error"].append(err)
+            self._history["contour_error"].append(info["contour_error"])
             frame = round(1.0 / (self.metadata["render_fps"] * self.decision_period))
-            if self.render_mode == "human" and (terminated or len(self._history["t"]) % frame == 0):
+            if self.render_mode == "human" and (self._done or len(self._history["t"]) % frame == 0):
                 self.render()
-        return obs, r_contour + r_effort + r_div, terminated, False, info
+        return self._obs.copy(), float(self._batch.buffers.reward[0]), terminated, truncated, info
 
     def _check_time_limit(self):
-        limit = getattr(self.spec, "max_episode_steps", None) if self.spec is not None else None
-        if limit is not None and limit < self.episode_steps and not self._warned_limit:
+        limits = [self.task.max_episode_steps]
+        if self.spec is not None and self.spec.max_episode_steps is not None:
+            limits.append(self.spec.max_episode_steps)
+        if min(limits) < self.episode_steps and not self._warned_limit:
             self._warned_limit = True
             gym.logger.warn(
-                f"max_episode_steps={limit} is shorter than this configuration's episode "
-                f"({self.episode_steps} steps): pass max_episode_steps={self.episode_steps} to gym.make"
+                f"max_episode_steps={min(limits)} is shorter than this configuration's episode "
+                f"({self.episode_steps} steps): episodes will be truncated before the end of the contour"
             )
 
     # -- rendering ------------------------------------------------------------------
@@ -367,15 +261,32 @@ class ContouringEnv(gym.Env):
             self._figure = None
 
 
-def _positive(name: str, value) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be positive and finite, got {value!r}")
-    return v
+def check_actions(action, shape: tuple) -> np.ndarray:
+    """``action`` as a float64 array of ``shape``; ValueError for another shape, a non-real or non-finite value."""
+    a = np.asarray(action)
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got {a.shape}")
+    if a.dtype.kind not in "iuf" or a.dtype == np.bool_:
+        raise ValueError(f"action must hold real numbers, got dtype {a.dtype}")
+    a = a.astype(np.float64, copy=False)
+    if not np.isfinite(a).all():
+        raise ValueError(f"action must be finite, got {action!r}")
+    return a
 
 
-def _non_negative(name: str, value) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} must be non-negative and finite, got {value!r}")
-    return v
+def step_info(info_arr: np.ndarray, diverged: bool, time: float) -> dict:
+    """The info dict of one env's step from its kernel info row (copies)."""
+    return {
+        "contour_error": float(info_arr[sk.INFO_CONTOUR_ERROR]),
+        "contour_error_max": float(info_arr[sk.INFO_CONTOUR_ERROR_MAX]),
+        "tracking_error": info_arr[sk.INFO_TRACKING_ERROR:sk.INFO_TRACKING_ERROR + 2].copy(),
+        "position": info_arr[sk.INFO_POSITION:sk.INFO_POSITION + 2].copy(),
+        "reference_position": info_arr[sk.INFO_REFERENCE_POSITION:sk.INFO_REFERENCE_POSITION + 2].copy(),
+        "command": info_arr[sk.INFO_COMMAND:sk.INFO_COMMAND + 2].copy(),
+        "time": time,
+        "reward_contour": float(info_arr[sk.INFO_REWARD_CONTOUR]),
+        "reward_effort": float(info_arr[sk.INFO_REWARD_EFFORT]),
+        "reward_divergence": float(info_arr[sk.INFO_REWARD_DIVERGENCE]),
+        "diverged": diverged,
+        "observation_clipped": int(info_arr[sk.INFO_CLIPPED]),
+    }

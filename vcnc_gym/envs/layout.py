@@ -8,11 +8,34 @@ with ``VecNormalize``.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["ObservationLayout", "Field"]
+__all__ = ["ObservationLayout", "Field", "FIELD_NAMES", "ObservationOffsets"]
+
+#: The observation's fields by name, in the order of the vector.  The step
+#: kernel writes each field through ``ObservationOffsets`` (the offsets of
+#: these names, computed by :meth:`ObservationLayout.offsets`), never by
+#: position, so reordering the fields here reorders the vector and nothing
+#: else.
+FIELD_NAMES = (
+    "reference_position",
+    "reference_velocity",
+    "reference_acceleration",
+    "tracking_error",
+    "contour_error",
+    "tangential_error",
+    "normal_error",
+    "velocity",
+    "preview",
+    "previous_action",
+)
+
+#: Named offsets of the fields in the observation vector, passed to the
+#: step kernel (a namedtuple of ints, one per name of ``FIELD_NAMES``).
+ObservationOffsets = namedtuple("ObservationOffsets", FIELD_NAMES)
 
 
 @dataclass(frozen=True)
@@ -51,20 +74,33 @@ class ObservationLayout:
 
     def __post_init__(self):
         pb, vb, ab, eb = self.position_bound, self.velocity_bound, self.acceleration_bound, self.error_bound
-        fields = (
-            Field("reference_position", 2, "mm", pb, "reference point x_d (x, y)"),
-            Field("reference_velocity", 2, "mm/s", vb, "reference velocity dx_d/dt"),
-            Field("reference_acceleration", 2, "mm/s^2", ab, "reference acceleration"),
-            Field("tracking_error", 2, "mm", eb, "x_d - x per axis, seed 002 eq. (2)"),
-            Field("contour_error", 1, "mm", eb, "shortest distance from the tool to the whole contour"),
-            Field("tangential_error", 1, "mm", eb, "tracking error along the path tangent, seed 002 eq. (3)"),
-            Field("normal_error", 1, "mm", eb, "tracking error along the path normal, seed 002 eq. (3)"),
-            Field("velocity", 2, "mm/s", vb, "table velocity"),
-            Field("preview", 2 * len(self.preview_steps), "mm", pb,
-                  f"reference points {list(self.preview_steps)} control periods ahead, minus the tool position"),
-            Field("previous_action", 2, "1", 1.0, "last normalised action in [-1, 1]"),
-        )
-        object.__setattr__(self, "fields", fields)
+        for name, bound in (("position_bound", pb), ("velocity_bound", vb), ("acceleration_bound", ab),
+                            ("error_bound", eb)):
+            if not (isinstance(bound, (int, float)) and np.isfinite(bound) and bound > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {bound!r}")
+        steps = self.preview_steps
+        if (not isinstance(steps, tuple) or not steps
+                or not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in steps)):
+            raise ValueError(f"preview_steps must be a non-empty tuple of integers >= 1 (control periods), "
+                             f"got {steps!r}")
+        object.__setattr__(self, "preview_steps", tuple(int(s) for s in steps))
+        by_name = {
+            "reference_position": Field("reference_position", 2, "mm", pb, "reference point x_d (x, y)"),
+            "reference_velocity": Field("reference_velocity", 2, "mm/s", vb, "reference velocity dx_d/dt"),
+            "reference_acceleration": Field("reference_acceleration", 2, "mm/s^2", ab, "reference acceleration"),
+            "tracking_error": Field("tracking_error", 2, "mm", eb,
+                                    "x_d - x per axis, x as the position sensor reads it, seed 002 eq. (2)"),
+            "contour_error": Field("contour_error", 1, "mm", eb, "shortest distance from the tool to the whole contour"),
+            "tangential_error": Field("tangential_error", 1, "mm", eb,
+                                      "tracking error along the path tangent, seed 002 eq. (3)"),
+            "normal_error": Field("normal_error", 1, "mm", eb, "tracking error along the path normal, seed 002 eq. (3)"),
+            "velocity": Field("velocity", 2, "mm/s", vb, "table velocity"),
+            "preview": Field("preview", 2 * len(self.preview_steps), "mm", pb,
+                             f"reference points {list(self.preview_steps)} control periods ahead, "
+                             f"minus the tool position"),
+            "previous_action": Field("previous_action", 2, "1", 1.0, "last normalised action in [-1, 1]"),
+        }
+        object.__setattr__(self, "fields", tuple(by_name[n] for n in FIELD_NAMES))
 
     # -- offsets -------------------------------------------------------------
     @property
@@ -84,6 +120,10 @@ class ObservationLayout:
     def offset(self, name: str) -> int:
         """Index of the first element of field ``name``."""
         return self.slice(name).start
+
+    def offsets(self) -> ObservationOffsets:
+        """The offset of every field, by name: what the step kernel writes through."""
+        return ObservationOffsets(**{f.name: self.offset(f.name) for f in self.fields})
 
     def high(self) -> np.ndarray:
         """Upper bounds of the observation space (float32); low is -high."""

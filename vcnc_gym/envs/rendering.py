@@ -37,7 +37,7 @@ def render_contouring(env):
     ax_err.plot(np.asarray(hist["t"]), 1e3 * np.asarray(hist["contour_error"]), color="C3", lw=1.0)
     ax_err.set_xlabel("time [s]")
     ax_err.set_ylabel("contour error [um]")
-    ax_err.set_xlim(0.0, env._end_index * env.dt)
+    ax_err.set_xlim(0.0, env.task.end_index * env.dt)
     ax_err.set_title("contour error")
     fig.tight_layout()
     if env.render_mode == "human":

@@ -1,129 +1,279 @@
-"""The compiled inner loop of :class:`ContouringEnv`: one decision step.
+"""The compiled inner loop of the contouring envs: one decision step of N envs.
 
-One call advances the plant by ``action_repeat`` control periods, measures the
-contour error against the whole contour and writes the observation, so a
-Python ``step`` makes exactly one numba call.  No validation here: the env
-checks its inputs before calling.
+:func:`step_serial` (a single env, N = 1) and :func:`step_parallel` (the
+native vector env, numba ``prange`` over the envs) run the same body,
+:func:`_step_env`: for each env, ``n_repeat`` control periods of the plant
+(through the plant contract, :func:`vcnc_gym.plants.contract.advance`), the
+contour error against the whole contour after each, then the observation
+(written through the layout's named offsets), the reward terms and the
+episode flags.  A Python ``step`` makes exactly one numba call, with one
+argument: a :class:`StepData`, which holds the arrays as a few named
+structures:
+
+- ``plant``: the plant's namedtuple of arrays (its type selects the plant's
+  kernels at compile time);
+- ``reference``: :data:`ReferenceArrays`, the packed reference shared by all envs;
+- ``contour``: :data:`ContourArrays`, the curve and the projector's grid;
+- ``config``: :data:`StepConfig`, the scalars of the task;
+- ``offsets``: the layout's :data:`~vcnc_gym.envs.layout.ObservationOffsets`;
+- ``buffers``: :data:`EnvBuffers`, per-env inputs, memory and outputs.
+
+No validation here: the env checks its inputs before calling.
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
-from numba import njit
+from numba import njit, prange, types
+from numba.experimental import structref
 
 from ..contour.projector import project_point
-from ..plants.vcnc_feed_drive import IDX_U_MAX, step_feed_drives, table_velocity
+from ..plants import contract
 
-# columns of the packed reference array (K, REF_COLUMNS)
+__all__ = [
+    "StepData",
+    "ReferenceArrays",
+    "ContourArrays",
+    "StepConfig",
+    "EnvBuffers",
+    "step_serial",
+    "step_parallel",
+    "MODE_IDLE",
+    "MODE_STEP",
+    "MODE_OBSERVE",
+]
+
+# columns of the packed reference samples (K, REF_COLUMNS)
 REF_POSITION = 0  # x_d (2) mm
 REF_VELOCITY = 2  # dx_d/dt (2) mm/s
 REF_ACCELERATION = 4  # d2x_d/dt2 (2) mm/s^2
 REF_TANGENT = 6  # unit path tangent at x_d (2)
 REF_COLUMNS = 8
 
-# slots of the per-step result vector written next to the observation
-OUT_CONTOUR_ERROR = 0  # mm, at the end of the step
-OUT_CONTOUR_ERROR_MEAN = 1  # mm, mean over the repeated control periods
-OUT_CONTOUR_ERROR_MAX = 2  # mm, max over the repeated control periods
-OUT_POSITION = 3  # (2) mm
-OUT_REFERENCE_POSITION = 5  # (2) mm
-OUT_TRACKING_ERROR = 7  # (2) mm
-OUT_FINITE = 9  # 1.0 if the plant state is finite
-OUT_COMMAND = 10  # (2) V, the amplifier output after saturation
-OUT_SIZE = 12
+# what the kernel does with env i, buffers.mode[i]
+MODE_IDLE = 0  # nothing (a finished env awaiting its reset)
+MODE_STEP = 1  # one decision step with buffers.action[i]
+MODE_OBSERVE = 2  # observe only (just reset): observation and info, no step
+
+# slots of buffers.info (N, INFO_SIZE), float64
+INFO_CONTOUR_ERROR = 0  # mm, at the end of the step
+INFO_CONTOUR_ERROR_MEAN = 1  # mm, mean over the step's control periods
+INFO_CONTOUR_ERROR_MAX = 2  # mm, max over the step's control periods
+INFO_POSITION = 3  # (2) mm, true table position
+INFO_REFERENCE_POSITION = 5  # (2) mm
+INFO_TRACKING_ERROR = 7  # (2) mm, x_d - x (true position)
+INFO_COMMAND = 9  # (2) plant input after saturation (V, A)
+INFO_REWARD_CONTOUR = 11
+INFO_REWARD_EFFORT = 12
+INFO_REWARD_DIVERGENCE = 13
+INFO_CLIPPED = 14  # number of observation entries clipped to the space's bounds
+INFO_SIZE = 15
+
+# flags of buffers.flags (N, FLAG_SIZE), bool
+FLAG_TERMINATED = 0
+FLAG_TRUNCATED = 1
+FLAG_DIVERGED = 2
+FLAG_SIZE = 3
+
+#: The packed reference, shared by every env: ``samples`` (K, REF_COLUMNS)
+#: float64 (x_d, dx_d/dt, d2x_d/dt2, unit tangent; past the end the last
+#: sample holds) and ``preview_steps`` (n,) int64, offsets in control periods.
+ReferenceArrays = namedtuple("ReferenceArrays", ["samples", "preview_steps"])
+
+#: The contour for the exact contour error: the NURBS arrays
+#: (:attr:`NurbsCurve.kernel_args`) and the projector's grid
+#: (:attr:`ContourProjector.arrays`).
+ContourArrays = namedtuple("ContourArrays", [
+    "control_points", "weights", "knots", "degree",
+    "piece_u", "piece_table", "piece_sag", "grid_origin", "cell_size", "grid_shape", "cell_start", "cell_pieces",
+])
+
+#: The scalars of a task: ``n_repeat`` control periods per decision;
+#: ``reward_scale`` mm; ``effort_weight``; ``divergence_bound`` and
+#: ``tracking_bound`` mm; ``end_index`` (the control period at which the
+#: episode ends); ``episode_steps`` (its natural length in decisions);
+#: ``max_steps`` (decisions after which it is truncated).
+StepConfig = namedtuple("StepConfig", [
+    "n_repeat", "reward_scale", "effort_weight", "divergence_bound", "tracking_bound",
+    "end_index", "episode_steps", "max_steps",
+])
+
+#: Per-env arrays, first axis N: inputs ``mode`` (int8) and ``action``
+#: (N, 2) float64, normalised; memory ``k`` (control periods done),
+#: ``steps`` (decisions done), ``foot`` (the closest point's curve parameter
+#: of the last control period, the next search's warm start; -1 = none),
+#: ``input_limit`` (N, 2) in the plant's unit, ``previous_action`` (N, 2);
+#: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
+#: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
+#: float32; scratch ``sensed`` (N, SENSE_SIZE), ``der`` (N, 3, 2), ``work``
+#: (N, W).
+EnvBuffers = namedtuple("EnvBuffers", [
+    "mode", "action", "k", "steps", "foot", "input_limit", "previous_action",
+    "obs", "reward", "flags", "info", "obs_high", "sensed", "der", "work",
+])
+
+
+@structref.register
+class StepDataType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+class StepData(structref.StructRefProxy):
+    """Everything one kernel call needs, as one object (one argument: a fast numba call).
+
+    Build it once per env; the numpy arrays inside are the env's own, so
+    writing ``buffers.action`` from Python is what the kernel reads.
+    """
+
+    def __new__(cls, plant, reference, contour, config, offsets, buffers):
+        return structref.StructRefProxy.__new__(cls, plant, reference, contour, config, offsets, buffers)
+
+
+structref.define_proxy(StepData, StepDataType, ["plant", "reference", "contour", "config", "offsets", "buffers"])
 
 
 @njit(cache=True)
-def contouring_step(
-    k0, n_repeat, voltage, state, params, dt, n_substeps,
-    reference, preview_steps, obs_offsets, obs_high, previous_action,
-    control_points, weights, knots, degree,
-    piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
-    der, work, obs, result,
-):
-    """Advance ``n_repeat`` control periods from reference index ``k0``.
+def _step_env(d, i):
+    """One decision step (or, in MODE_OBSERVE, one observation) of env ``i``."""
+    b = d.buffers
+    mode = b.mode[i]
+    if mode == MODE_IDLE:
+        return
+    cfg = d.config
+    c = d.contour
+    samples = d.reference.samples
+    last = samples.shape[0] - 1
+    sensed = b.sensed[i]
+    n = 0
+    a0 = 0.0
+    a1 = 0.0
+    if mode == MODE_STEP:
+        n = cfg.n_repeat
+        a0 = min(1.0, max(-1.0, b.action[i, 0]))
+        a1 = min(1.0, max(-1.0, b.action[i, 1]))
+        b.previous_action[i, 0] = a0
+        b.previous_action[i, 1] = a1
+    command = b.info[i, INFO_COMMAND:INFO_COMMAND + 2]
+    command[0] = a0 * b.input_limit[i, 0]
+    command[1] = a1 * b.input_limit[i, 1]
 
-    Parameters
-    ----------
-    k0 : int
-        Reference sample index at the start of the step.
-    voltage : (1, 2) float64
-        Amplifier command in V, held over the step (the plant saturates it).
-    state, params : plant arrays of :mod:`vcnc_gym.plants.vcnc_feed_drive`, N = 1.
-    reference : (K, REF_COLUMNS) float64
-        Packed reference; past its end the last sample holds.
-    obs_offsets : int64 array
-        Offsets of the layout fields, in :class:`ObservationLayout` order.
-    obs, result : float32 (obs_dim,) and float64 (OUT_SIZE,) outputs.
-
-    Returns
-    -------
-    int
-        The reference index after the step.
-    """
-    last = reference.shape[0] - 1
-    k = k0
+    err = 0.0
     err_sum = 0.0
     err_max = 0.0
-    err = 0.0
-    for j in range(max(n_repeat, 1)):
-        if n_repeat > 0:  # n_repeat = 0 only observes (at reset)
-            step_feed_drives(state, voltage, params, dt, n_substeps)
-            k += 1
-        err, _foot_u = project_point(
-            state[0, 0, 2], state[0, 1, 2], control_points, weights, knots, degree,
-            piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start,
-            cell_pieces, der, work,
-        )
+    for _ in range(max(n, 1)):
+        if n > 0:
+            contract.advance(d.plant, i, command)
+            b.k[i] += 1
+        contract.sense(d.plant, i, sensed)
+        err, b.foot[i] = project_point(
+            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1],
+            c.control_points, c.weights, c.knots, c.degree, c.piece_u, c.piece_table, c.piece_sag,
+            c.grid_origin, c.cell_size, c.grid_shape, c.cell_start, c.cell_pieces, b.der[i], b.work[i])
         err_sum += err
-        if err > err_max:
-            err_max = err
+        err_max = max(err_max, err)
+    if n > 0:
+        b.steps[i] += 1
+
+    k = b.k[i]
     kr = min(k, last)
-    x = state[0, 0, 2]
-    y = state[0, 1, 2]
-    ex = reference[kr, REF_POSITION] - x
-    ey = reference[kr, REF_POSITION + 1] - y
-    tx = reference[kr, REF_TANGENT]
-    ty = reference[kr, REF_TANGENT + 1]
+    x = sensed[contract.SENSE_POSITION]
+    y = sensed[contract.SENSE_POSITION + 1]
+    xm = sensed[contract.SENSE_MEASURED]
+    ym = sensed[contract.SENSE_MEASURED + 1]
+    xd = samples[kr, REF_POSITION]
+    yd = samples[kr, REF_POSITION + 1]
+    finite = np.isfinite(x) and np.isfinite(y) and np.isfinite(sensed[contract.SENSE_VELOCITY]) \
+        and np.isfinite(sensed[contract.SENSE_VELOCITY + 1])
 
-    finite = np.isfinite(x) and np.isfinite(y) and np.isfinite(state[0, 0, 1]) and np.isfinite(state[0, 1, 1])
-    result[OUT_CONTOUR_ERROR] = err
-    result[OUT_CONTOUR_ERROR_MEAN] = err_sum / max(n_repeat, 1)
-    result[OUT_CONTOUR_ERROR_MAX] = err_max
-    result[OUT_POSITION] = x
-    result[OUT_POSITION + 1] = y
-    result[OUT_REFERENCE_POSITION] = reference[kr, REF_POSITION]
-    result[OUT_REFERENCE_POSITION + 1] = reference[kr, REF_POSITION + 1]
-    result[OUT_TRACKING_ERROR] = ex
-    result[OUT_TRACKING_ERROR + 1] = ey
-    result[OUT_FINITE] = 1.0 if finite else 0.0
-    for i in range(2):
-        result[OUT_COMMAND + i] = min(params[0, i, IDX_U_MAX], max(-params[0, i, IDX_U_MAX], voltage[0, i]))
+    # info
+    info = b.info[i]
+    info[INFO_CONTOUR_ERROR] = err
+    info[INFO_CONTOUR_ERROR_MEAN] = err_sum / max(n, 1)
+    info[INFO_CONTOUR_ERROR_MAX] = err_max
+    info[INFO_POSITION] = x
+    info[INFO_POSITION + 1] = y
+    info[INFO_REFERENCE_POSITION] = xd
+    info[INFO_REFERENCE_POSITION + 1] = yd
+    info[INFO_TRACKING_ERROR] = xd - x
+    info[INFO_TRACKING_ERROR + 1] = yd - y
+    for j in range(2):
+        command[j] = min(b.input_limit[i, j], max(-b.input_limit[i, j], command[j]))
 
-    # observation, field by field in ObservationLayout order
-    o = obs_offsets
-    for j in range(6):  # reference position, velocity, acceleration
-        obs[o[0] + j] = reference[kr, j]
-    obs[o[3]] = ex
-    obs[o[3] + 1] = ey
-    obs[o[4]] = err
-    obs[o[5]] = tx * ex + ty * ey  # seed 002 eq. (3): e_l = R^T e_w
-    obs[o[6]] = -ty * ex + tx * ey
-    for i in range(2):
-        obs[o[7] + i] = table_velocity(state[0, i, 0], state[0, i, 1], state[0, i, 2],
-                                       params[0, i, 0], params[0, i, 9])
-    for j in range(preview_steps.shape[0]):
-        kp = min(kr + preview_steps[j], last)
-        obs[o[8] + 2 * j] = reference[kp, REF_POSITION] - x
-        obs[o[8] + 2 * j + 1] = reference[kp, REF_POSITION + 1] - y
-    obs[o[9]] = previous_action[0]
-    obs[o[9] + 1] = previous_action[1]
+    # reward and flags
+    flags = b.flags[i]
+    lag = np.hypot(xd - x, yd - y)
+    diverged = n > 0 and (not finite or err_max > cfg.divergence_bound or lag > cfg.tracking_bound)
+    r_contour = 0.0
+    r_effort = 0.0
+    r_div = 0.0
+    if n > 0:
+        r_contour = -min(err_sum / n, cfg.divergence_bound) / cfg.reward_scale
+        r_effort = -cfg.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
+        if diverged:
+            remaining = max(0, cfg.episode_steps - (k + cfg.n_repeat - 1) // cfg.n_repeat)
+            r_div = -remaining * cfg.divergence_bound / cfg.reward_scale
+            if not np.isfinite(err):
+                info[INFO_CONTOUR_ERROR] = np.inf
+    info[INFO_REWARD_CONTOUR] = r_contour
+    info[INFO_REWARD_EFFORT] = r_effort
+    info[INFO_REWARD_DIVERGENCE] = r_div
+    b.reward[i] = r_contour + r_effort + r_div
+    terminated = diverged or k >= cfg.end_index
+    flags[FLAG_TERMINATED] = terminated
+    flags[FLAG_TRUNCATED] = (not terminated) and b.steps[i] >= cfg.max_steps
+    flags[FLAG_DIVERGED] = diverged
+
+    # observation, field by field through the layout's named offsets
+    o = d.offsets
+    obs = b.obs[i]
+    ex = xd - xm
+    ey = yd - ym
+    tx = samples[kr, REF_TANGENT]
+    ty = samples[kr, REF_TANGENT + 1]
+    for j in range(2):
+        obs[o.reference_position + j] = samples[kr, REF_POSITION + j]
+        obs[o.reference_velocity + j] = samples[kr, REF_VELOCITY + j]
+        obs[o.reference_acceleration + j] = samples[kr, REF_ACCELERATION + j]
+        obs[o.velocity + j] = sensed[contract.SENSE_VELOCITY + j]
+        obs[o.previous_action + j] = b.previous_action[i, j]
+    obs[o.tracking_error] = ex
+    obs[o.tracking_error + 1] = ey
+    obs[o.contour_error] = err
+    obs[o.tangential_error] = tx * ex + ty * ey  # seed 002 eq. (3): e_l = R^T e_w
+    obs[o.normal_error] = -ty * ex + tx * ey
+    preview = d.reference.preview_steps
+    for j in range(preview.shape[0]):
+        kp = min(kr + preview[j], last)
+        obs[o.preview + 2 * j] = samples[kp, REF_POSITION] - xm
+        obs[o.preview + 2 * j + 1] = samples[kp, REF_POSITION + 1] - ym
+    clipped = 0
+    high = b.obs_high
     for j in range(obs.shape[0]):
         v = obs[j]
         if not np.isfinite(v):
             obs[j] = 0.0
-        elif v > obs_high[j]:
-            obs[j] = obs_high[j]
-        elif v < -obs_high[j]:
-            obs[j] = -obs_high[j]
-    return k
+            clipped += 1
+        elif v > high[j]:
+            obs[j] = high[j]
+            clipped += 1
+        elif v < -high[j]:
+            obs[j] = -high[j]
+            clipped += 1
+    info[INFO_CLIPPED] = clipped
+
+
+@njit(cache=True)
+def step_serial(d):
+    """One decision step of every env of ``d`` in turn (the single env: N = 1)."""
+    for i in range(d.buffers.mode.shape[0]):
+        _step_env(d, i)
+
+
+@njit(cache=True, parallel=True)
+def step_parallel(d):
+    """One decision step of every env of ``d``, spread over the cores (numba ``prange``)."""
+    for i in prange(d.buffers.mode.shape[0]):
+        _step_env(d, i)

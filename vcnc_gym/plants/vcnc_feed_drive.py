@@ -82,9 +82,14 @@ True
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numba
 import numpy as np
+from numba.extending import overload
+
+from . import contract
+from .contract import Parameter, PlantModel
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -105,10 +110,10 @@ __all__ = [
     "S_W",
     "S_XT",
     "AXES",
-    "UNCERTAIN_SHARED",
-    "UNCERTAIN_PER_AXIS",
+    "PARAMETERS",
+    "MODEL",
+    "FeedDriveArrays",
     "PARAMETER_INTERVALS",
-    "FIXED_PARAMETERS",
     "DEFAULT_DT",
     "DEFAULT_SUBSTEP",
     "substeps_for",
@@ -128,25 +133,47 @@ __all__ = [
 ]
 
 # --------------------------------------------------------------------------
-# Layouts
+# The numbers, each with its source: the one declaration of this plant
 # --------------------------------------------------------------------------
 
-#: Names of the per-axis parameters, in the order of the last axis of a
-#: parameter array. Units: r_g [mm/rad], K_t [N m/A], K_a [A/V],
-#: J [kg m^2], B [N m s/rad = kg m^2/s], T_* [N m], backlash [mm], u_max [V].
-PARAMETER_NAMES = (
-    "r_g",
-    "K_t",
-    "K_a",
-    "J",
-    "B",
-    "T_stat_pos",
-    "T_stat_neg",
-    "T_coul_pos",
-    "T_coul_neg",
-    "backlash",
-    "u_max",
+#: Axis order of axis 1 of every array.
+AXES = contract.AXES
+
+_SECTION_2C = "seed 000, section 2c"
+_TABLE_3 = "seed 000, Table 3"
+
+#: The per-axis parameters, in the order of the last axis of a parameter
+#: array.  Uncertain ones carry seed 000's intervals (section 2c; nominal =
+#: midpoint; r_g and K_t are one value per machine), fixed ones Table 3's
+#: values (J is "Total reflected inertia", printed kg/m^2 in the seed;
+#: T_coul are the seed's "T_cont"; saturation limits -5, +5 V).
+PARAMETERS = (
+    Parameter("r_g", "mm/rad", interval=((1.4, 1.73), (1.4, 1.73)), shared=True, source=_SECTION_2C,
+              description="transmission gain (ball screw and gear)"),
+    Parameter("K_t", "N m/A", interval=((0.42, 0.52), (0.42, 0.52)), shared=True, source=_SECTION_2C,
+              description="motor torque constant"),
+    Parameter("K_a", "A/V", interval=((5.71, 7.07), (6.67, 8.26)), source=_SECTION_2C,
+              description="amplifier gain"),
+    Parameter("J", "kg m^2", nominal=(0.0077736, 0.0098109), source=_TABLE_3,
+              description="total reflected inertia"),
+    Parameter("B", "N m s/rad", interval=((0.014, 0.026), (0.02, 0.037)), source=_SECTION_2C, sign="nonnegative",
+              description="viscous friction"),
+    Parameter("T_stat_pos", "N m", nominal=(2.6256, 2.7658), source=_TABLE_3, sign="nonnegative",
+              description="static friction, break-away in + direction"),
+    Parameter("T_stat_neg", "N m", nominal=(-1.8672, -2.4520), source=_TABLE_3, sign="nonpositive",
+              description="static friction, break-away in - direction"),
+    Parameter("T_coul_pos", "N m", nominal=(2.1529, 2.5228), source=_TABLE_3, sign="nonnegative",
+              description="Coulomb friction while w > 0"),
+    Parameter("T_coul_neg", "N m", nominal=(-1.4730, -2.3887), source=_TABLE_3, sign="nonpositive",
+              description="Coulomb friction while w < 0"),
+    Parameter("backlash", "mm", nominal=(0.003, 0.003), source=_TABLE_3, sign="nonnegative",
+              description="backlash width D_b"),
+    Parameter("u_max", "V", nominal=(5.0, 5.0), source=_TABLE_3, description="amplifier saturation"),
 )
+
+#: Names of the per-axis parameters, in the order of the last axis of a
+#: parameter array.
+PARAMETER_NAMES = tuple(p.name for p in PARAMETERS)
 N_PARAMETERS = len(PARAMETER_NAMES)
 (
     IDX_R_G,
@@ -167,45 +194,10 @@ N_PARAMETERS = len(PARAMETER_NAMES)
 STATE_NAMES = ("x_m", "w", "x_t")
 S_XM, S_W, S_XT = 0, 1, 2
 
-#: Axis order of axis 1 of every array.
-AXES = ("x", "y")
-
-# --------------------------------------------------------------------------
-# The numbers, each with its source
-# --------------------------------------------------------------------------
-
-#: Uncertain parameters shared by both axes of a machine, with their
-#: intervals (seed 000, section 2c): r_g [mm/rad], K_t [N m/A].
-UNCERTAIN_SHARED = {
-    "r_g": (1.4, 1.73),
-    "K_t": (0.42, 0.52),
-}
-
-#: Uncertain per-axis parameters with their (x, y) intervals (seed 000,
-#: section 2c): K_a [A/V], B [kg m^2/s].
-UNCERTAIN_PER_AXIS = {
-    "K_a": ((5.71, 7.07), (6.67, 8.26)),
-    "B": ((0.014, 0.026), (0.02, 0.037)),
-}
-
-#: All uncertainty intervals of seed 000, section 2c, keyed by name; the
-#: per-axis ones are ((lo_x, hi_x), (lo_y, hi_y)).
-PARAMETER_INTERVALS = {**UNCERTAIN_SHARED, **UNCERTAIN_PER_AXIS}
-
-#: Fixed per-axis parameters as (x, y) pairs (seed 000, Table 3):
-#: J [kg m^2] ("Total reflected inertia"; the seed prints the unit as
-#: kg/m^2), saturation u_max [V] (limits -5, +5), backlash D_b [mm],
-#: static friction T_stat^+/- [N m], Coulomb friction T_coul^+/- [N m] (the
-#: seed's "T_cont").
-FIXED_PARAMETERS = {
-    "J": (0.0077736, 0.0098109),
-    "T_stat_pos": (2.6256, 2.7658),
-    "T_stat_neg": (-1.8672, -2.4520),
-    "T_coul_pos": (2.1529, 2.5228),
-    "T_coul_neg": (-1.4730, -2.3887),
-    "backlash": (0.003, 0.003),
-    "u_max": (5.0, 5.0),
-}
+#: Uncertainty intervals of seed 000, section 2c, keyed by name: shared ones
+#: (lo, hi), per-axis ones ((lo_x, hi_x), (lo_y, hi_y)).  Derived from
+#: ``PARAMETERS``.
+PARAMETER_INTERVALS = {p.name: (p.interval[0] if p.shared else p.interval) for p in PARAMETERS if p.uncertain}
 
 #: Default control period of the envs [s] (see DESIGN.md, "Control rate").
 DEFAULT_DT = 1e-4
@@ -244,232 +236,13 @@ def substeps_for(dt: float) -> int:
     return max(1, math.ceil(ratio))
 
 
-# --------------------------------------------------------------------------
-# Parameter sets
-# --------------------------------------------------------------------------
-
-
-def parameter_intervals() -> dict:
-    """Uncertainty intervals of seed 000, section 2c.
-
-    Returns
-    -------
-    dict
-        ``{"r_g": (lo, hi), "K_t": (lo, hi), "K_a": ((lo_x, hi_x), (lo_y,
-        hi_y)), "B": (...)}`` in mm/rad, N m/A, A/V and kg m^2/s. A fresh
-        copy; editing it changes nothing here.
-    """
-    return {
-        k: tuple(tuple(v) if isinstance(v, tuple) else v for v in val)
-        for k, val in PARAMETER_INTERVALS.items()
-    }
-
-
-def _fixed_array() -> np.ndarray:
-    p = np.zeros((2, N_PARAMETERS), dtype=np.float64)
-    for name, (vx, vy) in FIXED_PARAMETERS.items():
-        j = PARAMETER_NAMES.index(name)
-        p[0, j] = vx
-        p[1, j] = vy
-    return p
-
-
-def _assemble(r_g: float, k_t: float, k_a, b) -> np.ndarray:
-    p = _fixed_array()
-    p[:, IDX_R_G] = r_g
-    p[:, IDX_K_T] = k_t
-    p[:, IDX_K_A] = k_a
-    p[:, IDX_B] = b
-    return p
-
-
-def nominal_parameters() -> np.ndarray:
-    """Nominal parameters of both axes.
-
-    Uncertain parameters at the midpoints of their intervals (seed 000,
-    section 2c), fixed ones from seed 000, Table 3.
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape ``(2, N_PARAMETERS)``, float64; rows x, y; columns
-        ``PARAMETER_NAMES``.
-    """
-    mid = lambda iv: 0.5 * (iv[0] + iv[1])  # noqa: E731
-    ka = UNCERTAIN_PER_AXIS["K_a"]
-    b = UNCERTAIN_PER_AXIS["B"]
-    return _assemble(
-        mid(UNCERTAIN_SHARED["r_g"]),
-        mid(UNCERTAIN_SHARED["K_t"]),
-        [mid(ka[0]), mid(ka[1])],
-        [mid(b[0]), mid(b[1])],
-    )
-
-
-def sample_parameters(rng: np.random.Generator) -> np.ndarray:
-    """Draw one machine uniformly from the uncertainty box.
-
-    ``r_g`` and ``K_t`` are drawn once and shared by both axes; ``K_a`` and
-    ``B`` are drawn per axis (seed 000, section 2c). Fixed values from seed
-    000, Table 3. Exactly six uniform draws, in the order r_g, K_t, K_a_x,
-    K_a_y, B_x, B_y.
-
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        Source of randomness (e.g. an env's ``np_random``).
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape ``(2, N_PARAMETERS)``, float64.
-    """
-    lo, hi = _box()
-    v = rng.uniform(lo, hi)
-    return _from_box_point(v)
-
-
-def _box() -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper corners of the 6-D box (r_g, K_t, K_ax, K_ay, B_x, B_y)."""
-    s, a = UNCERTAIN_SHARED, UNCERTAIN_PER_AXIS
-    ivs = [s["r_g"], s["K_t"], a["K_a"][0], a["K_a"][1], a["B"][0], a["B"][1]]
-    lo = np.array([iv[0] for iv in ivs], dtype=np.float64)
-    hi = np.array([iv[1] for iv in ivs], dtype=np.float64)
-    return lo, hi
-
-
-def _from_box_point(v) -> np.ndarray:
-    return _assemble(v[0], v[1], [v[2], v[3]], [v[4], v[5]])
-
-
-def uncertainty_vertices() -> np.ndarray:
-    """All corners of the uncertainty box of seed 000, section 2c.
-
-    The box is 6-dimensional: (r_g, K_t, K_a_x, K_a_y, B_x, B_y). Vertex
-    ``m`` takes the upper bound of coordinate ``c`` when bit ``c`` of ``m``
-    is set (so vertex 0 is all lower bounds, vertex 63 all upper bounds).
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape ``(64, 2, N_PARAMETERS)``, float64.
-    """
-    lo, hi = _box()
-    out = np.empty((64, 2, N_PARAMETERS), dtype=np.float64)
-    for m in range(64):
-        bits = np.array([(m >> c) & 1 for c in range(6)], dtype=bool)
-        out[m] = _from_box_point(np.where(bits, hi, lo))
-    return out
-
-
-def parameters_to_dict(params: np.ndarray) -> dict:
-    """Plain-Python view of one machine's parameters, e.g. for ``info``.
-
-    Parameters
-    ----------
-    params : array_like
-        Shape ``(2, N_PARAMETERS)``.
-
-    Returns
-    -------
-    dict
-        Shared parameters (``r_g`` [mm/rad], ``K_t`` [N m/A]) as floats, all
-        others as ``(x, y)`` tuples of floats, keyed by ``PARAMETER_NAMES``.
-    """
-    p = np.asarray(params, dtype=np.float64)
-    if p.shape != (2, N_PARAMETERS):
-        raise ValueError(f"params must have shape (2, {N_PARAMETERS}), got {p.shape}")
-    out = {}
-    for j, name in enumerate(PARAMETER_NAMES):
-        if name in UNCERTAIN_SHARED:
-            out[name] = float(p[0, j])
-        else:
-            out[name] = (float(p[0, j]), float(p[1, j]))
-    return out
-
-
-def without_nonlinearities(params: np.ndarray, keep_saturation: bool = False) -> np.ndarray:
-    """Copy of a parameter array with friction and backlash set to zero.
-
-    What remains is the linear model of seed 000, eq. (1) (plus the
-    amplifier saturation if ``keep_saturation``; otherwise ``u_max`` is set
-    to ``inf``).
-
-    Parameters
-    ----------
-    params : numpy.ndarray
-        Shape ``(..., N_PARAMETERS)``.
-    keep_saturation : bool
-        Keep ``u_max`` [V] as it is.
-
-    Returns
-    -------
-    numpy.ndarray
-        A new array of the same shape.
-    """
-    p = np.array(params, dtype=np.float64, copy=True)
-    p[..., [IDX_T_STAT_POS, IDX_T_STAT_NEG, IDX_T_COUL_POS, IDX_T_COUL_NEG, IDX_BACKLASH]] = 0.0
-    if not keep_saturation:
-        p[..., IDX_U_MAX] = np.inf
-    return p
-
-
-def validate_parameters(params, n_machines: int | None = None) -> np.ndarray:
-    """Check and normalise a parameter array for the kernels.
-
-    Parameters
-    ----------
-    params : array_like
-        Shape ``(2, P)`` (one machine) or ``(N, 2, P)``.
-    n_machines : int, optional
-        Required N; a ``(2, P)`` array is broadcast to it.
-
-    Returns
-    -------
-    numpy.ndarray
-        C-contiguous float64 array of shape ``(N, 2, P)``.
-
-    Raises
-    ------
-    ValueError
-        On a wrong shape, non-finite entries (``u_max = inf`` is allowed),
-        non-positive ``r_g``, ``K_t``, ``K_a``, ``J`` or ``u_max``, negative
-        ``B`` or backlash, friction levels not ordered
-        ``T_stat_neg <= T_coul_neg <= 0 <= T_coul_pos <= T_stat_pos``, or
-        shared parameters that differ between the axes.
-    """
-    p = np.asarray(params, dtype=np.float64)
-    if p.ndim == 2:
-        p = p[None]
-    if p.ndim != 3 or p.shape[1:] != (2, N_PARAMETERS):
-        raise ValueError(f"params must have shape (N, 2, {N_PARAMETERS}) or (2, {N_PARAMETERS}), got {np.shape(params)}")
-    if n_machines is not None:
-        if p.shape[0] == 1 and n_machines != 1:
-            p = np.broadcast_to(p, (n_machines, 2, N_PARAMETERS))
-        elif p.shape[0] != n_machines:
-            raise ValueError(f"params are for {p.shape[0]} machines, expected {n_machines}")
-    p = np.ascontiguousarray(p, dtype=np.float64)
-    finite = np.delete(p, IDX_U_MAX, axis=2)
-    if not np.all(np.isfinite(finite)) or np.any(np.isnan(p[..., IDX_U_MAX])):
-        raise ValueError("params must be finite (u_max may be inf)")
-    for j in (IDX_R_G, IDX_K_T, IDX_K_A, IDX_J, IDX_U_MAX):
-        if np.any(p[..., j] <= 0.0):
-            raise ValueError(f"{PARAMETER_NAMES[j]} must be > 0")
-    for j in (IDX_B, IDX_BACKLASH):
-        if np.any(p[..., j] < 0.0):
-            raise ValueError(f"{PARAMETER_NAMES[j]} must be >= 0")
+def _check_friction(p: np.ndarray) -> None:
     ordered = (
         (p[..., IDX_T_STAT_NEG] <= p[..., IDX_T_COUL_NEG])
-        & (p[..., IDX_T_COUL_NEG] <= 0.0)
-        & (p[..., IDX_T_COUL_POS] >= 0.0)
-        & (p[..., IDX_T_STAT_POS] >= p[..., IDX_T_COUL_POS])
+        & (p[..., IDX_T_COUL_POS] <= p[..., IDX_T_STAT_POS])
     )
     if not np.all(ordered):
         raise ValueError("friction must satisfy T_stat_neg <= T_coul_neg <= 0 <= T_coul_pos <= T_stat_pos")
-    for j in (IDX_R_G, IDX_K_T):
-        if np.any(p[:, 0, j] != p[:, 1, j]):
-            raise ValueError(f"{PARAMETER_NAMES[j]} is shared by both axes of a machine (seed 000, section 2c)")
-    return p
 
 
 def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
@@ -501,6 +274,132 @@ def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
     num = np.array([a[IDX_R_G] * a[IDX_K_T] * a[IDX_K_A]])
     den = np.array([a[IDX_J], a[IDX_B], 0.0])
     return num, den
+
+
+#: The arrays of N machines the env's step kernel holds (the contract's
+#: plant namedtuple): ``state`` (N, 2, 3) as ``STATE_NAMES``, ``params``
+#: (N, 2, P), the control period ``dt`` [s] and its ``n_substeps``.
+FeedDriveArrays = namedtuple("FeedDriveArrays", ["state", "params", "dt", "n_substeps"])
+
+
+def _make_arrays(n_machines: int, dt: float) -> FeedDriveArrays:
+    params = np.repeat(MODEL.nominal()[None], n_machines, axis=0)
+    return FeedDriveArrays(np.zeros((n_machines, 2, 3)), params, float(dt), substeps_for(dt))
+
+
+def _reset_machine(arrays: FeedDriveArrays, k: int, position) -> None:
+    """Machine ``k`` at rest at ``position`` (2,) mm with the backlash gap centred."""
+    arrays.state[k, :, S_XM] = position
+    arrays.state[k, :, S_W] = 0.0
+    arrays.state[k, :, S_XT] = position
+
+
+#: This plant, as the envs and baselines see it (:class:`~vcnc_gym.plants.contract.PlantModel`).
+MODEL = PlantModel(
+    name="vcnc_feed_drive",
+    source="seed 000, eq. (1), section 2c and Table 3",
+    parameters=PARAMETERS,
+    state_names=("x_m [mm]", "w [rad/s]", "x_t [mm]"),
+    input_name="amplifier voltage",
+    input_unit="V",
+    input_limit="u_max",
+    make_arrays=_make_arrays,
+    reset_machine=_reset_machine,
+    check=_check_friction,
+    linear_coefficients=linear_transfer_function_coefficients,
+)
+
+
+# --------------------------------------------------------------------------
+# Parameter sets
+# --------------------------------------------------------------------------
+
+
+def parameter_intervals() -> dict:
+    """Uncertainty intervals of seed 000, section 2c.
+
+    Returns
+    -------
+    dict
+        ``{"r_g": (lo, hi), "K_t": (lo, hi), "K_a": ((lo_x, hi_x), (lo_y,
+        hi_y)), "B": (...)}`` in mm/rad, N m/A, A/V and kg m^2/s. A fresh
+        copy; editing it changes nothing here.
+    """
+    return {k: tuple(tuple(v) if isinstance(v, tuple) else v for v in val) for k, val in PARAMETER_INTERVALS.items()}
+
+
+def nominal_parameters() -> np.ndarray:
+    """Nominal parameters of both axes, shape ``(2, N_PARAMETERS)``.
+
+    Uncertain parameters at the midpoints of their intervals (seed 000,
+    section 2c), fixed ones from seed 000, Table 3 (``MODEL.nominal()``).
+    """
+    return MODEL.nominal()
+
+
+def sample_parameters(rng: np.random.Generator) -> np.ndarray:
+    """Draw one machine uniformly from the uncertainty box, shape ``(2, N_PARAMETERS)``.
+
+    ``r_g`` and ``K_t`` are drawn once and shared by both axes; ``K_a`` and
+    ``B`` are drawn per axis (seed 000, section 2c): one ``rng.uniform``
+    call over (r_g, K_t, K_a_x, K_a_y, B_x, B_y) (``MODEL.sample``).
+    """
+    return MODEL.sample(rng)
+
+
+def uncertainty_vertices() -> np.ndarray:
+    """All 64 corners of the 6-D box (r_g, K_t, K_a_x, K_a_y, B_x, B_y), shape ``(64, 2, N_PARAMETERS)``.
+
+    Vertex ``m`` takes the upper bound of coordinate ``c`` when bit ``c`` of
+    ``m`` is set (vertex 0 is all lower bounds, vertex 63 all upper bounds).
+    """
+    return MODEL.vertices()
+
+
+def parameters_to_dict(params: np.ndarray) -> dict:
+    """One machine's parameters as plain Python (shared ones floats, others (x, y)), e.g. for ``info``."""
+    p = np.asarray(params, dtype=np.float64)
+    if p.shape != (2, N_PARAMETERS):
+        raise ValueError(f"params must have shape (2, {N_PARAMETERS}), got {p.shape}")
+    return MODEL.to_dict(p)
+
+
+def without_nonlinearities(params: np.ndarray, keep_saturation: bool = False) -> np.ndarray:
+    """Copy of a parameter array with friction and backlash set to zero.
+
+    What remains is the linear model of seed 000, eq. (1) (plus the
+    amplifier saturation if ``keep_saturation``; otherwise ``u_max`` is set
+    to ``inf``).
+
+    Parameters
+    ----------
+    params : numpy.ndarray
+        Shape ``(..., N_PARAMETERS)``.
+    keep_saturation : bool
+        Keep ``u_max`` [V] as it is.
+
+    Returns
+    -------
+    numpy.ndarray
+        A new array of the same shape.
+    """
+    p = np.array(params, dtype=np.float64, copy=True)
+    p[..., [IDX_T_STAT_POS, IDX_T_STAT_NEG, IDX_T_COUL_POS, IDX_T_COUL_NEG, IDX_BACKLASH]] = 0.0
+    if not keep_saturation:
+        p[..., IDX_U_MAX] = np.inf
+    return p
+
+
+def validate_parameters(params, n_machines: int | None = None) -> np.ndarray:
+    """Check a parameter array for the kernels: ``MODEL.validate`` with ``u_max = inf`` allowed.
+
+    Returns a C-contiguous float64 ``(N, 2, P)`` array; raises ValueError on
+    a wrong shape, non-finite entries, non-positive ``r_g``, ``K_t``,
+    ``K_a``, ``J`` or ``u_max``, negative ``B`` or backlash, friction levels
+    not ordered ``T_stat_neg <= T_coul_neg <= 0 <= T_coul_pos <=
+    T_stat_pos``, or shared parameters that differ between the axes.
+    """
+    return MODEL.validate(params, n_machines, allow_infinite_limit=True)
 
 
 # --------------------------------------------------------------------------
@@ -633,80 +532,86 @@ def step_feed_drives(state, voltage, params, dt, n_substeps):
     n_substeps : int
         Number of equal substeps, >= 1 (see ``substeps_for``).
     """
-    h = dt / n_substeps
     for k in range(state.shape[0]):
-        for i in range(2):
-            r_g = params[k, i, 0]
-            kt_ka = params[k, i, 1] * params[k, i, 2]
-            jj = params[k, i, 3]
-            bb = params[k, i, 4]
-            ts_p = params[k, i, 5]
-            ts_n = params[k, i, 6]
-            tc_p = params[k, i, 7]
-            tc_n = params[k, i, 8]
-            half = 0.5 * params[k, i, 9]
-            u_max = params[k, i, 10]
+        step_machine(state, k, voltage[k], params, dt, n_substeps)
 
-            u = voltage[k, i]
-            if u > u_max:
-                u = u_max
-            elif u < -u_max:
-                u = -u_max
-            t_m = kt_ka * u
-            inv_j = 1.0 / jj
-            a = bb * inv_j
-            e, g, q = _coefficients(a, h)
 
-            x_m = state[k, i, 0]
-            w = state[k, i, 1]
-            x_t = state[k, i, 2]
+@numba.njit(cache=True)
+def step_machine(state, k, voltage, params, dt, n_substeps):
+    """Advance both axes of machine ``k`` by one control period; ``voltage`` (2,) V. See ``step_feed_drives``."""
+    h = dt / n_substeps
+    for i in range(2):
+        r_g = params[k, i, 0]
+        kt_ka = params[k, i, 1] * params[k, i, 2]
+        jj = params[k, i, 3]
+        bb = params[k, i, 4]
+        ts_p = params[k, i, 5]
+        ts_n = params[k, i, 6]
+        tc_p = params[k, i, 7]
+        tc_n = params[k, i, 8]
+        half = 0.5 * params[k, i, 9]
+        u_max = params[k, i, 10]
 
-            for _ in range(n_substeps):
-                if w == 0.0:
-                    # stuck: break away or stay put
-                    if t_m > ts_p:
-                        alpha = (t_m - tc_p) * inv_j
-                    elif t_m < ts_n:
-                        alpha = (t_m - tc_n) * inv_j
-                    else:
-                        continue
-                    w = alpha * g
-                    x_m += r_g * (alpha * q)
+        u = voltage[i]
+        if u > u_max:
+            u = u_max
+        elif u < -u_max:
+            u = -u_max
+        t_m = kt_ka * u
+        inv_j = 1.0 / jj
+        a = bb * inv_j
+        e, g, q = _coefficients(a, h)
+
+        x_m = state[k, i, 0]
+        w = state[k, i, 1]
+        x_t = state[k, i, 2]
+
+        for _ in range(n_substeps):
+            if w == 0.0:
+                # stuck: break away or stay put
+                if t_m > ts_p:
+                    alpha = (t_m - tc_p) * inv_j
+                elif t_m < ts_n:
+                    alpha = (t_m - tc_n) * inv_j
                 else:
-                    if w > 0.0:
-                        torque = t_m - tc_p
-                    else:
-                        torque = t_m - tc_n
-                    alpha = torque * inv_j
-                    w_new = e * w + g * alpha
-                    if (w > 0.0 and w_new > 0.0) or (w < 0.0 and w_new < 0.0):
-                        x_m += r_g * (g * w + q * alpha)
-                        w = w_new
-                    else:
-                        # velocity reaches zero inside this substep (torque
-                        # opposes w, so -torque has the sign of w)
-                        tau = jj * w / (-torque)  # > 0, stop time if B = 0
-                        x = bb * w / (-torque)  # >= 0
-                        t_stop = tau * _log1p_ratio(x)
-                        x_m += r_g * (tau * w * _log1p_rest(x))
-                        w = 0.0
-                        x_t = _clip_play(x_t, x_m, half)
-                        rest = h - t_stop
-                        if rest > 0.0:
-                            if t_m > ts_p:
-                                alpha = (t_m - tc_p) * inv_j
-                            elif t_m < ts_n:
-                                alpha = (t_m - tc_n) * inv_j
-                            else:
-                                continue
-                            _, g_r, q_r = _coefficients(a, rest)
-                            w = alpha * g_r
-                            x_m += r_g * (alpha * q_r)
-                x_t = _clip_play(x_t, x_m, half)
+                    continue
+                w = alpha * g
+                x_m += r_g * (alpha * q)
+            else:
+                if w > 0.0:
+                    torque = t_m - tc_p
+                else:
+                    torque = t_m - tc_n
+                alpha = torque * inv_j
+                w_new = e * w + g * alpha
+                if (w > 0.0 and w_new > 0.0) or (w < 0.0 and w_new < 0.0):
+                    x_m += r_g * (g * w + q * alpha)
+                    w = w_new
+                else:
+                    # velocity reaches zero inside this substep (torque
+                    # opposes w, so -torque has the sign of w)
+                    tau = jj * w / (-torque)  # > 0, stop time if B = 0
+                    x = bb * w / (-torque)  # >= 0
+                    t_stop = tau * _log1p_ratio(x)
+                    x_m += r_g * (tau * w * _log1p_rest(x))
+                    w = 0.0
+                    x_t = _clip_play(x_t, x_m, half)
+                    rest = h - t_stop
+                    if rest > 0.0:
+                        if t_m > ts_p:
+                            alpha = (t_m - tc_p) * inv_j
+                        elif t_m < ts_n:
+                            alpha = (t_m - tc_n) * inv_j
+                        else:
+                            continue
+                        _, g_r, q_r = _coefficients(a, rest)
+                        w = alpha * g_r
+                        x_m += r_g * (alpha * q_r)
+            x_t = _clip_play(x_t, x_m, half)
 
-            state[k, i, 0] = x_m
-            state[k, i, 1] = w
-            state[k, i, 2] = x_t
+        state[k, i, 0] = x_m
+        state[k, i, 1] = w
+        state[k, i, 2] = x_t
 
 
 @numba.njit(cache=True)
@@ -747,6 +652,33 @@ def table_velocities(state, params, out):
             out[k, i] = table_velocity(
                 state[k, i, 0], state[k, i, 1], state[k, i, 2], params[k, i, 0], params[k, i, 9]
             )
+
+
+# --------------------------------------------------------------------------
+# The contract's kernels for FeedDriveArrays
+# --------------------------------------------------------------------------
+
+
+@overload(contract.advance, jit_options={"cache": True})
+def _advance(plant, k, command):
+    if contract.is_plant(plant, FeedDriveArrays):
+        def impl(plant, k, command):
+            step_machine(plant.state, k, command, plant.params, plant.dt, plant.n_substeps)
+        return impl
+
+
+@overload(contract.sense, jit_options={"cache": True})
+def _sense(plant, k, out):
+    if contract.is_plant(plant, FeedDriveArrays):
+        def impl(plant, k, out):
+            for i in range(2):
+                x_t = plant.state[k, i, S_XT]
+                out[contract.SENSE_POSITION + i] = x_t
+                out[contract.SENSE_MEASURED + i] = x_t
+                out[contract.SENSE_VELOCITY + i] = table_velocity(
+                    plant.state[k, i, S_XM], plant.state[k, i, S_W], x_t,
+                    plant.params[k, i, IDX_R_G], plant.params[k, i, IDX_BACKLASH])
+        return impl
 
 
 # --------------------------------------------------------------------------

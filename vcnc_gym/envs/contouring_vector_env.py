@@ -1,0 +1,229 @@
+"""ContouringVectorEnv: N contouring envs stepped by one numba call.
+
+``gym.make_vec("VCNC-Heart-v0", num_envs=N, vectorization_mode="vector_entry_point")``
+returns this :class:`gymnasium.vector.VectorEnv`.  Its ``step`` is one call of
+the same compiled body the single :class:`~vcnc_gym.envs.ContouringEnv` runs,
+over all N envs at once and spread over the cores (numba ``prange``).  Each
+env has its own plant parameters, random generator and episode; with the
+same seeds env i gives bit-identical observations, rewards and flags to a
+single env (``tests/test_vector_env.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..validation import flag
+from . import step_kernel as sk
+from .contouring_env import check_actions
+from .task import ContouringBatch, ContouringTask
+
+__all__ = ["ContouringVectorEnv"]
+
+#: Below this many envs one thread steps them all (a parallel launch costs more than it saves).
+PARALLEL_MIN_ENVS = 16
+
+_INFO_FIELDS = {
+    # info key -> (first column of the kernel's info row, columns)
+    "contour_error": (sk.INFO_CONTOUR_ERROR, 1),
+    "contour_error_max": (sk.INFO_CONTOUR_ERROR_MAX, 1),
+    "position": (sk.INFO_POSITION, 2),
+    "reference_position": (sk.INFO_REFERENCE_POSITION, 2),
+    "tracking_error": (sk.INFO_TRACKING_ERROR, 2),
+    "command": (sk.INFO_COMMAND, 2),
+    "reward_contour": (sk.INFO_REWARD_CONTOUR, 1),
+    "reward_effort": (sk.INFO_REWARD_EFFORT, 1),
+    "reward_divergence": (sk.INFO_REWARD_DIVERGENCE, 1),
+    "observation_clipped": (sk.INFO_CLIPPED, 1),
+}
+
+
+class ContouringVectorEnv(VectorEnv):
+    """``num_envs`` contouring envs of one configuration, stepped by one kernel call.
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of envs N, >= 1.
+    autoreset_mode : gymnasium.vector.AutoresetMode or str
+        ``NEXT_STEP`` (Gymnasium's default: the step after an episode ends
+        resets that env and returns its first observation with reward 0),
+        ``SAME_STEP`` (the ending step resets it at once; the last
+        observation and info are in ``info["final_obs"]`` and
+        ``info["final_info"]``) or ``DISABLED`` (reset finished envs with
+        ``reset(options={"reset_mask": mask})``).
+    parallel : bool, optional
+        Spread the envs over numba's threads; default when N >= 16.
+    **kwargs
+        The arguments of :class:`~vcnc_gym.envs.ContouringEnv` (contour,
+        plant, feedrate, dt, action_repeat, randomize, parameters, ...).
+
+    Notes
+    -----
+    ``reset(seed=s)`` seeds env i with ``s + i`` (as ``SyncVectorEnv`` does),
+    or with ``seed[i]`` for a list.  ``reset(options=...)`` takes
+    ``"parameters"`` ((2, P) for every env or (N, 2, P)) and
+    ``"reset_mask"`` ((N,) bool: reset only those envs).  ``info`` follows
+    Gymnasium's vector convention: one array per key, with a boolean mask
+    ``"_key"`` of the envs it is valid for.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, *, autoreset_mode=AutoresetMode.NEXT_STEP, parallel: bool | None = None,
+                 render_mode: str | None = None, **kwargs):
+        if render_mode is not None:
+            raise ValueError("the vector env does not render; make a single env with render_mode= to watch one")
+        self.task = ContouringTask(**kwargs)
+        self._batch = ContouringBatch(self.task, num_envs)
+        self.num_envs = self._batch.n_envs
+        try:
+            self.autoreset_mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, "
+                             f"got {autoreset_mode!r}") from None
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+        self.parallel = self.num_envs >= PARALLEL_MIN_ENVS if parallel is None else flag("parallel", parallel)
+        b = self._batch.buffers
+        self._buffers = b
+        high = b.obs_high
+        self.single_observation_space = spaces.Box(-high, high, dtype=np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.layout = self.task.layout
+        self.render_mode = None
+        self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._all = np.ones(self.num_envs, dtype=bool)
+        self._started = False
+
+    # -- the task, read-only ----------------------------------------------------------
+    plant = property(lambda self: self.task.plant, doc="The plant model (vcnc_gym.plants.PlantModel).")
+    dt = property(lambda self: self.task.dt, doc="Control period in s.")
+    decision_period = property(lambda self: self.task.decision_period, doc="dt * action_repeat in s.")
+    episode_steps = property(lambda self: self.task.episode_steps, doc="Natural episode length in decisions.")
+    nominal_parameters = property(lambda self: self.task.nominal_parameters, doc="Nominal (2, P) parameters.")
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """The plant parameters in force, (N, 2, P) (a copy)."""
+        return self._batch.parameters.copy()
+
+    @property
+    def np_random(self):
+        """The generators of the envs, a list (env i draws its plant from ``np_random[i]``)."""
+        return self._rngs
+
+    # -- Gymnasium API ----------------------------------------------------------
+    def reset(self, *, seed=None, options: dict[str, Any] | None = None):
+        """Reset every env, or those of ``options["reset_mask"]``; see the class notes for seeds and options."""
+        n = self.num_envs
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        mask = self._all if mask is None else self._check_mask(mask)
+        seeds = self._seeds(seed)
+        parameters = options.pop("parameters", None)
+        if parameters is not None:
+            p = np.asarray(parameters)
+            per_env = [p] * n if p.ndim == 2 else list(p)
+            if len(per_env) != n:
+                raise ValueError(f"parameters must be (2, P) or ({n}, 2, P), got shape {p.shape}")
+        b = self._buffers
+        b.mode[:] = sk.MODE_IDLE
+        for i in np.flatnonzero(mask):
+            if seeds[i] is not None:
+                self._rngs[i] = seeding.np_random(seeds[i])[0]
+            opts = dict(options)
+            if parameters is not None:
+                opts["parameters"] = per_env[i]
+            self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None))
+        self._batch.run(self.parallel)
+        self._autoreset[mask] = False
+        self._started = True
+        return b.obs.copy(), self._info(mask)
+
+    def step(self, actions):
+        if not self._started:
+            raise RuntimeError("step() called before reset()")
+        b = self._buffers
+        b.action[...] = check_actions(actions, (self.num_envs, 2))
+        resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else None
+        b.mode[:] = sk.MODE_STEP
+        if resetting is not None and resetting.any():
+            for i in np.flatnonzero(resetting):
+                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
+        elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
+            b.mode[self._autoreset] = sk.MODE_IDLE
+        self._batch.run(self.parallel)
+
+        terminated = b.flags[:, sk.FLAG_TERMINATED].copy()
+        truncated = b.flags[:, sk.FLAG_TRUNCATED].copy()
+        rewards = b.reward.copy()
+        stepped = self._all if resetting is None else ~resetting
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            stepped = stepped & ~self._autoreset
+        if not stepped.all():
+            terminated[~stepped] = False
+            truncated[~stepped] = False
+            rewards[~stepped] = 0.0
+        info = self._info(stepped)
+        done = terminated | truncated
+        self._autoreset = done | (self._autoreset & ~stepped if self.autoreset_mode == AutoresetMode.DISABLED
+                                  else False)
+        obs = b.obs.copy()
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
+            info["final_obs"] = np.full(self.num_envs, None, dtype=object)
+            info["final_info"] = {k: v.copy() for k, v in info.items() if k != "final_obs"}
+            info["_final_obs"] = done.copy()
+            info["_final_info"] = done.copy()
+            for i in np.flatnonzero(done):
+                info["final_obs"][i] = obs[i].copy()
+            b.mode[:] = sk.MODE_IDLE
+            for i in np.flatnonzero(done):
+                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
+            self._batch.run(self.parallel)
+            obs[done] = b.obs[done]
+            self._autoreset[:] = False
+        return obs, rewards, terminated, truncated, info
+
+    def close_extras(self, **kwargs):
+        pass
+
+    # -- helpers --------------------------------------------------------------------
+    def _seeds(self, seed) -> list:
+        n = self.num_envs
+        if seed is None:
+            return [None] * n
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            if seed < 0:
+                raise ValueError(f"seed must be >= 0, got {seed}")
+            return [int(seed) + i for i in range(n)]
+        seeds = list(seed)
+        if len(seeds) != n:
+            raise ValueError(f"seed must be an int or a sequence of {n} seeds, got {len(seeds)}")
+        return seeds
+
+    def _check_mask(self, mask) -> np.ndarray:
+        m = np.asarray(mask)
+        if m.shape != (self.num_envs,) or m.dtype != np.bool_:
+            raise ValueError(f"reset_mask must be a ({self.num_envs},) bool array, got {m.dtype} {m.shape}")
+        return m
+
+    def _info(self, valid: np.ndarray) -> dict:
+        b = self._buffers
+        info: dict[str, Any] = {}
+        for key, (col, width) in _INFO_FIELDS.items():
+            info[key] = b.info[:, col].copy() if width == 1 else b.info[:, col:col + width].copy()
+            info["_" + key] = valid.copy()
+        info["diverged"] = b.flags[:, sk.FLAG_DIVERGED].copy()
+        info["_diverged"] = valid.copy()
+        info["time"] = b.k * self.task.dt
+        info["_time"] = valid.copy()
+        return info

@@ -1,0 +1,58 @@
+"""The suite's env ids: the one table they are registered from.
+
+``import vcnc_gym`` registers every entry of :data:`SUITE` with Gymnasium,
+with its single-env entry point (``gym.make``) and, where it has one, its
+native vector entry point (``gym.make_vec(..., vectorization_mode=
+"vector_entry_point")``).  No id registers a fixed ``max_episode_steps``: an
+env's natural length follows its configuration (``env.unwrapped.episode_steps``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from gymnasium.envs.registration import register, registry
+
+__all__ = ["SuiteEnv", "SUITE", "ENV_IDS", "register_envs", "suite_env"]
+
+_CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
+_CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
+
+
+@dataclass(frozen=True)
+class SuiteEnv:
+    """One registered id: its keyword arguments, a one-line summary, its entry points."""
+
+    id: str
+    kwargs: dict = field(default_factory=dict)
+    summary: str = ""
+    entry_point: str = _CONTOURING
+    vector_entry_point: str | None = _CONTOURING_VECTOR
+
+
+#: Every env id of the suite.
+SUITE: tuple[SuiteEnv, ...] = (
+    SuiteEnv("VCNC-Heart-v0", {"contour": "heart", "plant": "vcnc_feed_drive"},
+             "seed 000 'heart' (cubic NURBS, 310 mm) at 100 mm/s on seed 000's feed drives"),
+    SuiteEnv("VCNC-Omega-v0", {"contour": "omega", "plant": "vcnc_feed_drive"},
+             "seed 000 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on seed 000's feed drives"),
+)
+
+#: The registered ids, in the order of :data:`SUITE`.
+ENV_IDS: tuple[str, ...] = tuple(e.id for e in SUITE)
+
+
+def suite_env(env_id: str) -> SuiteEnv:
+    """The :class:`SuiteEnv` of ``env_id``; ValueError naming the valid ids otherwise."""
+    for e in SUITE:
+        if e.id == env_id:
+            return e
+    raise ValueError(f"unknown env id {env_id!r}; valid ids are {', '.join(ENV_IDS)}")
+
+
+def register_envs() -> None:
+    """Register every id of :data:`SUITE` (once)."""
+    for e in SUITE:
+        if e.id not in registry:
+            register(id=e.id, entry_point=e.entry_point, vector_entry_point=e.vector_entry_point,
+                     kwargs=dict(e.kwargs))

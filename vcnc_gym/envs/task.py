@@ -1,0 +1,203 @@
+"""A contouring task and N machines running it: what the single and the vector env share.
+
+:class:`ContouringTask` is one validated configuration: the contour, its
+reference (computed once: it depends only on the curve, the feedrate and
+``dt``), the projector's grid, the observation layout, the plant model and
+the reward and episode settings.  :class:`ContouringBatch` holds the arrays
+of N envs running that task and makes the one kernel call per step.
+:class:`~vcnc_gym.envs.ContouringEnv` is a batch of one;
+:class:`~vcnc_gym.envs.ContouringVectorEnv` a batch of N.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..contour import ContourProjector
+from ..geometry import SHAPES, NurbsCurve
+from ..geometry.nurbs import workspace_size
+from ..motion import SCurveFeedrate, interpolate
+from ..plants import PlantModel, contract, get_plant
+from . import step_kernel as sk
+from ..validation import flag, integer, non_negative, positive
+from .layout import ObservationLayout
+
+__all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS"]
+
+#: The keys ``reset(options=...)`` understands.
+RESET_OPTIONS = ("parameters",)
+
+#: Smallest bound in mm of the observation's position fields; a contour reaching
+#: farther gets its extent plus the tracking bound plus this margin.
+_POSITION_BOUND = 1000.0
+_POSITION_MARGIN = 100.0
+
+
+def make_curve(contour) -> NurbsCurve:
+    """A contour given by name (one of ``geometry.SHAPES``) or as a :class:`NurbsCurve`."""
+    if isinstance(contour, NurbsCurve):
+        return contour
+    if isinstance(contour, str) and contour in SHAPES:
+        return SHAPES[contour]()
+    raise ValueError(f"contour must be one of {sorted(SHAPES)} or a NurbsCurve, got {contour!r}")
+
+
+class ContouringTask:
+    """One validated contouring configuration, shared by every env that runs it.
+
+    The arguments are those of :class:`~vcnc_gym.envs.ContouringEnv` (see
+    its docstring for their meaning and units).
+    """
+
+    def __init__(
+        self,
+        contour="heart",
+        plant="vcnc_feed_drive",
+        feedrate: float = 100.0,
+        ramp_time: float = 0.12,
+        dt: float = 1e-4,
+        action_repeat: int = 1,
+        randomize: bool = False,
+        parameters=None,
+        reward_scale: float = 0.01,
+        effort_weight: float = 0.0,
+        divergence_bound: float = 5.0,
+        tracking_bound: float = 10.0,
+        settling_time: float = 0.01,
+        preview_steps=(10, 50, 100),
+        max_episode_steps: int | None = None,
+    ):
+        self.curve = make_curve(contour)
+        self.contour_name = contour if isinstance(contour, str) else "custom"
+        self.plant: PlantModel = get_plant(plant)
+        self.dt = positive("dt", dt, "s")
+        self.action_repeat = integer("action_repeat", action_repeat, 1)
+        self.randomize = flag("randomize", randomize)
+        self.reward_scale = positive("reward_scale", reward_scale, "mm")
+        self.effort_weight = non_negative("effort_weight", effort_weight, "1")
+        self.divergence_bound = positive("divergence_bound", divergence_bound, "mm")
+        self.tracking_bound = positive("tracking_bound", tracking_bound, "mm")
+        self.settling_time = non_negative("settling_time", settling_time, "s")
+        if isinstance(preview_steps, (list, np.ndarray)):
+            preview_steps = tuple(preview_steps.tolist() if isinstance(preview_steps, np.ndarray) else preview_steps)
+
+        # the plant's parameters
+        self.nominal_parameters = self.plant.nominal()
+        if parameters is not None and self.randomize:
+            raise ValueError("pass either parameters= (a fixed plant) or randomize=True (a plant drawn at "
+                             "every reset), not both")
+        self.fixed_parameters = None if parameters is None else self.check_parameters(parameters)
+
+        # reference, computed once
+        self.feedrate_profile = SCurveFeedrate(feedrate=feedrate, ramp_time=ramp_time)
+        self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
+        tangent = self.curve.derivatives_array(self.reference.u, 1)[:, 1, :]
+        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+        samples = np.ascontiguousarray(np.hstack([
+            self.reference.position, self.reference.velocity, self.reference.acceleration, tangent,
+        ]))
+        self.projector = ContourProjector(self.curve, margin=max(10.0, 2 * self.divergence_bound))
+        self.end_index = len(self.reference.t) - 1 + math.ceil(self.settling_time / self.dt - 1e-9)
+        self.episode_steps = math.ceil(self.end_index / self.action_repeat)
+        """Natural episode length in decision steps (without divergence)."""
+        self.max_episode_steps = (self.episode_steps if max_episode_steps is None
+                                  else integer("max_episode_steps", max_episode_steps, 1))
+
+        # observation
+        extent = float(np.max(np.abs(self.reference.position)))
+        self.layout = ObservationLayout(
+            preview_steps=preview_steps,
+            position_bound=max(_POSITION_BOUND, extent + self.tracking_bound + _POSITION_MARGIN),
+        )
+        self.reference_arrays = sk.ReferenceArrays(samples, np.array(self.layout.preview_steps, dtype=np.int64))
+        self.contour_arrays = sk.ContourArrays(*self.curve.kernel_args, *self.projector.arrays)
+        self.config = sk.StepConfig(
+            n_repeat=self.action_repeat, reward_scale=self.reward_scale, effort_weight=self.effort_weight,
+            divergence_bound=self.divergence_bound, tracking_bound=self.tracking_bound,
+            end_index=self.end_index, episode_steps=self.episode_steps, max_steps=self.max_episode_steps,
+        )
+
+    @property
+    def decision_period(self) -> float:
+        """Time between two decisions in s: ``dt * action_repeat``."""
+        return self.dt * self.action_repeat
+
+    def check_parameters(self, parameters) -> np.ndarray:
+        """One machine's parameters, (2, P), checked by the plant model."""
+        p = self.plant.validate(parameters)
+        if p.shape[0] != 1:
+            raise ValueError(f"parameters must be one machine's (2, {self.plant.n_parameters}) array, got {p.shape}")
+        return p[0].copy()
+
+    def parameters_for_reset(self, rng: np.random.Generator, options) -> np.ndarray:
+        """The plant of the next episode: ``options["parameters"]``, a draw, the fixed or the nominal one."""
+        if options is not None:
+            if not isinstance(options, dict):
+                raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
+            unknown = sorted(set(options) - set(RESET_OPTIONS))
+            if unknown:
+                raise ValueError(f"unknown reset option(s) {unknown}; known: {list(RESET_OPTIONS)}")
+            if "parameters" in options:
+                return self.check_parameters(options["parameters"])
+        if self.randomize:
+            return self.plant.sample(rng)
+        if self.fixed_parameters is not None:
+            return self.fixed_parameters
+        return self.nominal_parameters
+
+
+class ContouringBatch:
+    """The arrays of ``n_envs`` envs running one :class:`ContouringTask`, and the kernel call.
+
+    Parameters
+    ----------
+    task : ContouringTask
+    n_envs : int
+        Number of envs (machines), >= 1.
+    """
+
+    def __init__(self, task: ContouringTask, n_envs: int):
+        self.task = task
+        n = self.n_envs = integer("n_envs", n_envs, 1)
+        layout = task.layout
+        self.plant_arrays = task.plant.arrays(n, task.dt)
+        self.parameters = np.repeat(task.nominal_parameters[None], n, axis=0)
+        self.buffers = sk.EnvBuffers(
+            mode=np.zeros(n, dtype=np.int8),
+            action=np.zeros((n, 2)),
+            k=np.zeros(n, dtype=np.int64),
+            steps=np.zeros(n, dtype=np.int64),
+            foot=np.full(n, -1.0),
+            input_limit=np.zeros((n, 2)),
+            previous_action=np.zeros((n, 2)),
+            obs=np.zeros((n, layout.size), dtype=np.float32),
+            reward=np.zeros(n),
+            flags=np.zeros((n, sk.FLAG_SIZE), dtype=np.bool_),
+            info=np.zeros((n, sk.INFO_SIZE)),
+            obs_high=layout.high(),
+            sensed=np.zeros((n, contract.SENSE_SIZE)),
+            der=np.zeros((n, 3, 2)),
+            work=np.zeros((n, workspace_size(task.curve.degree, 2))),
+        )
+        self.data = sk.StepData(self.plant_arrays, task.reference_arrays, task.contour_arrays, task.config,
+                                layout.offsets(), self.buffers)
+
+    def reset_env(self, i: int, parameters: np.ndarray) -> None:
+        """Env ``i`` at the start of the contour, at rest, with plant ``parameters`` (2, P); marks it to observe."""
+        b = self.buffers
+        self.parameters[i] = parameters
+        self.plant_arrays.params[i] = parameters
+        self.task.plant.reset_machine(self.plant_arrays, i, self.task.reference_arrays.samples[0, :2])
+        b.input_limit[i] = self.task.plant.input_limits(parameters)
+        b.k[i] = 0
+        b.steps[i] = 0
+        b.foot[i] = -1.0
+        b.previous_action[i] = 0.0
+        b.action[i] = 0.0
+        b.mode[i] = sk.MODE_OBSERVE
+
+    def run(self, parallel: bool = False) -> None:
+        """One kernel call: every env in MODE_STEP steps, every env in MODE_OBSERVE observes."""
+        (sk.step_parallel if parallel else sk.step_serial)(self.data)
