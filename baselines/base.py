@@ -155,8 +155,8 @@ class BaselinePolicy:
         ``get_attr`` (all its envs must share the decision period; the first
         env's layout and nominal plant are used).
         """
-        names = ("layout", "decision_period", "nominal_parameters", "plant")
-        if hasattr(env, "get_attr") and hasattr(env, "num_envs") and not hasattr(env, "unwrapped"):  # SB3 VecEnv
+        names = ("layout", "decision_period", "nominal_parameters")
+        if hasattr(env, "get_attr") and hasattr(env, "env_method"):  # an SB3 VecEnv
             try:
                 values = [env.get_attr(a) for a in names]
             except AttributeError as exc:
@@ -164,13 +164,18 @@ class BaselinePolicy:
             periods = values[1]
             if any(not np.isclose(p, periods[0], rtol=1e-12, atol=0.0) for p in periods):
                 raise ValueError(f"the VecEnv's envs have different decision periods {periods}")
-            layout, period, nominal, plant = (v[0] for v in values)
+            layout, period, nominal = (v[0] for v in values)
+            try:
+                plant = env.get_attr("plant")[0]
+            except AttributeError:
+                plant = None
         else:
             u = getattr(env, "unwrapped", env)
             missing = [a for a in names if not hasattr(u, a)]
             if missing:
                 raise ValueError(f"env.unwrapped lacks {missing}; is it a vcnc_gym env?")
-            layout, period, nominal, plant = u.layout, u.decision_period, u.nominal_parameters, u.plant
+            layout, period, nominal = u.layout, u.decision_period, u.nominal_parameters
+            plant = getattr(u, "plant", None)  # None: the controller's own plant
         return cls(layout=layout, decision_period=period, nominal_parameters=nominal, plant=plant, **params)
 
     # -- memory ------------------------------------------------------------

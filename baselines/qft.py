@@ -81,7 +81,7 @@ import control
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from vcnc_gym.plants import vcnc_feed_drive as plant
+from vcnc_gym.plants import vcnc_feed_drive as feed_drive
 from .base import BaselinePolicy, check_polynomial
 from .linear import DiscreteLTI, discretize
 
@@ -266,9 +266,9 @@ def plant_parameter_sets(axis: int, n_grid: int = 5, vertices=None) -> np.ndarra
         rows are the vertices themselves.
     """
     axis = _axis_index(axis)
-    V = plant.uncertainty_vertices() if vertices is None else np.asarray(vertices, dtype=float)
-    if V.ndim != 3 or V.shape[1:] != (2, len(plant.PARAMETER_NAMES)):
-        raise ValueError(f"vertices must have shape (V, 2, {len(plant.PARAMETER_NAMES)}), got {V.shape}")
+    V = feed_drive.uncertainty_vertices() if vertices is None else np.asarray(vertices, dtype=float)
+    if V.ndim != 3 or V.shape[1:] != (2, len(feed_drive.PARAMETER_NAMES)):
+        raise ValueError(f"vertices must have shape (V, 2, {len(feed_drive.PARAMETER_NAMES)}), got {V.shape}")
     rows = V[:, axis, :]
     lo, hi = rows.min(axis=0), rows.max(axis=0)
     varying = np.flatnonzero(hi > lo)
@@ -302,7 +302,7 @@ def _loop_polynomials(G, axis, parameter_sets, dt, method):
         gn, gd = np.asarray(G.num[0][0], float), np.asarray(G.den[0][0], float)
     out = []
     for p in parameter_sets:
-        pn, pd = plant.linear_transfer_function_coefficients(p, axis)
+        pn, pd = feed_drive.linear_transfer_function_coefficients(p, axis)
         if dt is not None:
             Pd = control.c2d(control.tf(pn, pd), dt, method="zoh")
             pn, pd = np.asarray(Pd.num[0][0], float), np.asarray(Pd.den[0][0], float)
@@ -408,11 +408,11 @@ def sampled_loop_spectral_radius(G=QFT_CONTROLLER, axis=0, dt=1e-4, *, parameter
         max |z| over all closed-loop poles and plants; < 1 means stable.
     """
     axis = _axis_index(axis)
-    sets = plant.uncertainty_vertices() if parameter_sets is None else np.asarray(parameter_sets, dtype=float)
+    sets = feed_drive.uncertainty_vertices() if parameter_sets is None else np.asarray(parameter_sets, dtype=float)
     Gd = control.c2d(controller_tf(G), dt, method=method)
     radius = 0.0
     for p in sets:
-        pn, pd = plant.linear_transfer_function_coefficients(p, axis)
+        pn, pd = feed_drive.linear_transfer_function_coefficients(p, axis)
         Pd = control.c2d(control.tf(pn, pd), dt, method="zoh")
         poles = control.feedback(Pd * Gd, 1).poles()
         radius = max(radius, float(np.max(np.abs(poles))))

@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vcnc_gym.plants import vcnc_feed_drive as plant
+from vcnc_gym.plants import vcnc_feed_drive as feed_drive
 from .base import BaselinePolicy, check_per_axis
 
 __all__ = ["SMC_TABLE2", "SlidingModePolicy"]
@@ -116,7 +116,7 @@ class SlidingModePolicy(BaselinePolicy):
             raise ValueError(f"need d_minus <= 0 <= d_plus (the estimate starts at 0), "
                              f"got d_minus={self.d_minus}, d_plus={self.d_plus}")
         p = self.nominal_parameters
-        r_g, K_t, K_a, J, B = (p[:, plant.PARAMETER_NAMES.index(n)] for n in ("r_g", "K_t", "K_a", "J", "B"))
+        r_g, K_t, K_a, J, B = (p[:, feed_drive.PARAMETER_NAMES.index(n)] for n in ("r_g", "K_t", "K_a", "J", "B"))
         gain = K_t * K_a * r_g  # Nm mm / (V rad): torque-to-voltage times transmission
         if np.any(gain <= 0):
             raise ValueError("nominal r_g K_t K_a must be > 0")

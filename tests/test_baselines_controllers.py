@@ -104,7 +104,7 @@ def test_qft_policy_output_matches_scipy_filters():
     u = np.empty((n, 2))
     pol.reset(n_envs=1)
     for k in range(n):  # the unclipped command in V (the action would saturate at 5 V)
-        u[k] = pol._voltage(make_obs(1, e=e[k], v_ref=v_r[k]))[0]
+        u[k] = pol._command(make_obs(1, e=e[k], v_ref=v_r[k]))[0]
     # independent route: scipy's bilinear transform of the seed's polynomials
     fs = 1.0 / DT
     gb, ga = ss.bilinear([22.36, 61.21], [0.0001, 1.326], fs=fs)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import vcnc_gym
-from vcnc_gym import bench
+import vcnc_bench as bench
+from vcnc_bench.policies import PolicyKind
 from vcnc_gym.evaluation import plot_contour_errors, plot_contours, run_episode, sharp_corners
 
 OMEGA = "VCNC-Omega-v0"
@@ -150,8 +151,9 @@ def test_plots_are_written(omega_pd, tmp_path):
 # -- vcnc-bench ---------------------------------------------------------------------------
 def _install_pd(monkeypatch):
     """Register kind "pd" ("pd:KP", KP in V/mm) the way a trained-agent kind would be."""
-    monkeypatch.setitem(bench.POLICY_KINDS, "pd",
-                        lambda arg, env: PDPolicy(env.unwrapped.layout, kp=float(arg or 300.0)))
+    bench.policy_kinds()  # the installed kinds first, so that "pd" is added to them
+    monkeypatch.setitem(bench.POLICY_KINDS, "pd", PolicyKind(
+        "pd", make=lambda arg, env: PDPolicy(env.unwrapped.layout, kp=float(arg or 300.0))))
 
 
 def _parse_table(text):
@@ -238,10 +240,6 @@ def test_unknown_env_or_policy_exits_2_naming_the_valid_choices(argv, must_name,
 
 
 def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, capsys):
-    import gymnasium as gym
-
-    from vcnc_gym import bench
-
     out = tmp_path / "slow.json"
     assert bench.main(["--env", "VCNC-Omega-v0", "--policy", "smc", "--feedrate", "20",
                        "--no-progress", "--json", str(out)]) == 0

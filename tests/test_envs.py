@@ -109,7 +109,7 @@ def test_standing_still_does_not_pay(env_id):
 def test_halving_the_substep_changes_the_contour_error_trace_by_under_one_percent():
     traces = []
     for substep in (1e-5, 0.5e-5):
-        env = gym.make("VCNC-Heart-v0", substep=substep)
+        env = gym.make("VCNC-Heart-v0", plant_options={"substep": substep})
         infos, _, _ = pd_episode(env)
         traces.append(np.array([i["contour_error"] for i in infos]))
     assert len(traces[0]) == len(traces[1])
@@ -237,7 +237,7 @@ def test_action_repeat_runs_the_plant_at_the_control_period():
     _, _, _, _, info_rep = rep.step(a)
     np.testing.assert_array_equal(info_base["position"], info_rep["position"])
     assert rep.unwrapped.decision_period == pytest.approx(5 * base.unwrapped.dt)
-    assert rep.unwrapped.episode_steps == -(-base.unwrapped._end_index // 5)
+    assert rep.unwrapped.episode_steps == -(-base.unwrapped.task.end_index // 5)
 
 
 def test_step_info_fields_and_units():

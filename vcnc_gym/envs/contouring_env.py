@@ -130,6 +130,8 @@ class ContouringEnv(gym.Env):
       ``divergence_bound`` (mm, 5.0), ``tracking_bound`` (mm, 10.0),
       ``settling_time`` (s, 0.01).
     - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods.
+    - ``plant_options`` (None): the plant's own settings, e.g.
+      ``{"substep": 1e-5}`` (s) for seed 000's integration substep.
     - ``max_episode_steps`` (None: the natural length): truncation, decisions.
     - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
 

@@ -68,10 +68,14 @@ class ContouringTask:
         settling_time: float = 0.01,
         preview_steps=(10, 50, 100),
         max_episode_steps: int | None = None,
+        plant_options: dict | None = None,
     ):
         self.curve = make_curve(contour)
         self.contour_name = contour if isinstance(contour, str) else "custom"
         self.plant: PlantModel = get_plant(plant)
+        if plant_options is not None and not isinstance(plant_options, dict):
+            raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
+        self.plant_options = dict(plant_options or {})
         self.dt = positive("dt", dt, "s")
         self.action_repeat = integer("action_repeat", action_repeat, 1)
         self.randomize = flag("randomize", randomize)
@@ -162,7 +166,7 @@ class ContouringBatch:
         self.task = task
         n = self.n_envs = integer("n_envs", n_envs, 1)
         layout = task.layout
-        self.plant_arrays = task.plant.arrays(n, task.dt)
+        self.plant_arrays = task.plant.arrays(n, task.dt, **task.plant_options)
         self.parameters = np.repeat(task.nominal_parameters[None], n, axis=0)
         self.buffers = sk.EnvBuffers(
             mode=np.zeros(n, dtype=np.int8),

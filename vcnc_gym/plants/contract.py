@@ -162,9 +162,11 @@ class PlantModel:
     input_limit : str
         Name of the parameter that is the input's saturation limit; action
         1.0 maps to it.
-    make_arrays : callable (n_machines, dt) -> namedtuple
+    make_arrays : callable (n_machines, dt, **options) -> namedtuple
         The plant's arrays for N machines at control period ``dt`` s, state
-        at rest at the origin, parameters nominal.
+        at rest at the origin, parameters nominal; ``options`` are the
+        plant's own settings (e.g. seed 000's integration ``substep``), the
+        envs' ``plant_options``.
     reset_machine : callable (arrays, k, position) -> None
         Put machine ``k`` at rest at ``position`` ((2,) mm).
     check : callable (params (N, 2, P)) -> None, optional
@@ -380,13 +382,23 @@ class PlantModel:
         return float(self.delay(p, axis))
 
     # -- arrays ----------------------------------------------------------------
-    def arrays(self, n_machines: int, dt: float, params=None):
-        """The plant's arrays for ``n_machines`` at ``dt`` s, with ``params`` ((2, P) or (N, 2, P)) set."""
+    def arrays(self, n_machines: int, dt: float, params=None, **options):
+        """The plant's arrays for ``n_machines`` at ``dt`` s, with ``params`` ((2, P) or (N, 2, P)) set.
+
+        ``options`` go to the plant's ``make_arrays`` (its own settings); an
+        unknown one is a ValueError naming those it takes.
+        """
         if isinstance(n_machines, bool) or int(n_machines) != n_machines or n_machines < 1:
             raise ValueError(f"n_machines must be an integer >= 1, got {n_machines!r}")
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
-        arrays = self.make_arrays(int(n_machines), float(dt))
+        import inspect
+
+        accepted = [p for p in inspect.signature(self.make_arrays).parameters][2:]
+        unknown = sorted(set(options) - set(accepted))
+        if unknown:
+            raise ValueError(f"unknown option(s) {unknown} for plant {self.name}; it takes {accepted}")
+        arrays = self.make_arrays(int(n_machines), float(dt), **options)
         if params is not None:
             arrays.params[...] = self.validate(params, int(n_machines))
         return arrays

@@ -282,9 +282,13 @@ def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
 FeedDriveArrays = namedtuple("FeedDriveArrays", ["state", "params", "dt", "n_substeps"])
 
 
-def _make_arrays(n_machines: int, dt: float) -> FeedDriveArrays:
+def _make_arrays(n_machines: int, dt: float, substep: float = DEFAULT_SUBSTEP) -> FeedDriveArrays:
+    """Arrays of N machines at rest at the origin, nominal; ``substep`` [s] the integration substep."""
+    if not (isinstance(substep, (int, float)) and not isinstance(substep, bool) and math.isfinite(substep)
+            and substep > 0):
+        raise ValueError(f"substep must be a positive finite number of seconds, got {substep!r}")
     params = np.repeat(MODEL.nominal()[None], n_machines, axis=0)
-    return FeedDriveArrays(np.zeros((n_machines, 2, 3)), params, float(dt), substeps_for(dt))
+    return FeedDriveArrays(np.zeros((n_machines, 2, 3)), params, float(dt), max(1, math.ceil(dt / substep - 1e-9)))
 
 
 def _reset_machine(arrays: FeedDriveArrays, k: int, position) -> None:

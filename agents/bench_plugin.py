@@ -1,0 +1,43 @@
+"""The ``ppo`` policy kind of vcnc-bench: trained agents, and by default the one shipped for each env.
+
+Found by the bench through the entry point ``ppo`` of the group
+``vcnc_bench.policy_kinds`` (``pyproject.toml``).  ``ppo:PATH`` is an agent
+folder (a run's ``best``) or its ``model.zip``; the bare ``ppo`` is the
+agent shipped for the env in ``agents/trained/``.
+"""
+
+from __future__ import annotations
+
+from vcnc_bench.policies import PolicyKind
+
+__all__ = ["KIND"]
+
+
+def _env_id(env) -> str | None:
+    spec = env.unwrapped.spec
+    return spec.id if spec is not None else None
+
+
+def _shipped(env):
+    from . import TRAINED
+
+    folder = TRAINED.get(_env_id(env))
+    return folder if folder is not None and folder.is_dir() else None
+
+
+def _make(path: str, env):
+    from . import load_agent
+
+    if path == "":
+        path = _shipped(env)
+        if path is None:
+            raise ValueError(f"no agent is shipped for {_env_id(env)}; give its folder as ppo:PATH")
+    return load_agent(path, env)
+
+
+KIND = PolicyKind(
+    name="ppo",
+    make=_make,
+    defaults=lambda env: ["ppo"] if _shipped(env) is not None else [],
+    description="a trained PPO agent: ppo:FOLDER, or ppo for the agent shipped for the env",
+)

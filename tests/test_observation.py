@@ -1,0 +1,79 @@
+"""Every observation field holds what its name says, for every env id, whatever the field order."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import vcnc_gym
+from vcnc_gym.envs import layout as layout_module
+
+IDS = list(vcnc_gym.ENV_IDS)
+
+
+def _check_fields(env, n_steps=400):
+    """Step a PD loop and compare each field with info, the reference and the plant."""
+    u = env.unwrapped
+    lay = u.layout
+    ref = u.task.reference_arrays.samples
+    obs, _ = env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    prev_pos = None
+    for t in range(n_steps):
+        e = lay.tracking_error(obs)
+        a = np.clip((300 * e + (lay.reference_velocity(obs) - lay.velocity(obs))) / 5.0, -1, 1)
+        a = a + 0.05 * rng.standard_normal(2)
+        obs, _, term, trunc, info = env.step(a)
+        k = min(int(round(info["time"] / u.dt)), ref.shape[0] - 1)
+        f32 = lambda x: np.asarray(x, dtype=np.float32)  # noqa: E731
+        np.testing.assert_array_equal(lay.reference_position(obs), f32(ref[k, 0:2]))
+        np.testing.assert_array_equal(lay.reference_position(obs), f32(info["reference_position"]))
+        np.testing.assert_array_equal(lay.reference_velocity(obs), f32(ref[k, 2:4]))
+        np.testing.assert_array_equal(lay.reference_acceleration(obs), f32(ref[k, 4:6]))
+        np.testing.assert_array_equal(lay.tracking_error(obs), f32(info["tracking_error"]))
+        np.testing.assert_array_equal(lay.contour_error(obs)[0], np.float32(info["contour_error"]))
+        tangent = ref[k, 6:8]
+        ex, ey = info["tracking_error"]
+        np.testing.assert_allclose(lay.get(obs, "tangential_error")[0], tangent @ [ex, ey], atol=1e-7)
+        np.testing.assert_allclose(lay.get(obs, "normal_error")[0], -tangent[1] * ex + tangent[0] * ey, atol=1e-7)
+        np.testing.assert_array_equal(lay.previous_action(obs), f32(np.clip(a, -1, 1)))
+        for j, s in enumerate(lay.preview_steps):
+            kp = min(k + s, ref.shape[0] - 1)
+            np.testing.assert_allclose(lay.preview(obs)[j], ref[kp, 0:2] - info["position"], atol=1e-5)
+        # the velocity field is the table's: it matches the position's finite difference on average
+        if prev_pos is not None and t > 50:
+            fd = (info["position"] - prev_pos) / u.decision_period
+            assert np.all(np.abs(lay.velocity(obs) - fd) <= 0.05 * np.abs(fd) + 2.0)
+        prev_pos = info["position"].copy()
+        assert info["observation_clipped"] == 0
+        if term or trunc:
+            break
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_every_field_matches_info_and_reference(env_id):
+    _check_fields(gym.make(env_id))
+
+
+def test_a_reordered_layout_still_names_the_right_fields(monkeypatch):
+    """The kernel writes by name: reversing the field order moves the fields, not their meaning."""
+    reversed_names = tuple(reversed(layout_module.FIELD_NAMES))
+    monkeypatch.setattr(layout_module, "FIELD_NAMES", reversed_names)
+    env = gym.make("VCNC-Omega-v0")
+    lay = env.unwrapped.layout
+    assert [f.name for f in lay.fields] == list(reversed_names)
+    assert lay.offset("previous_action") == 0
+    _check_fields(env, n_steps=200)
+
+
+def test_clipping_is_counted_in_info():
+    env = gym.make("VCNC-Omega-v0", tracking_bound=50.0, divergence_bound=50.0)
+    env.reset(seed=0)
+    clipped = 0
+    for _ in range(3000):  # full command one way: the tracking error leaves its 10 mm bound
+        _, _, term, trunc, info = env.step(np.array([1.0, 1.0]))
+        clipped = max(clipped, info["observation_clipped"])
+        if term or trunc:
+            break
+    assert clipped > 0

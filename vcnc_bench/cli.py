@@ -1,0 +1,233 @@
+"""``vcnc-bench``: every policy on every env of the suite, in one table, JSON and plots.
+
+Runs each policy for one deterministic episode on the nominal plant of each
+env and prints max, mean and RMS contour error (um) with the paper's
+figures beside ours (:mod:`vcnc_bench.papers`)::
+
+    vcnc-bench                                  # every policy that applies, on every env
+    vcnc-bench --env VCNC-Omega-v0 --policy qft --policy smc
+    vcnc-bench --json bench.json --plots bench-plots
+
+A policy is named by a spec (:mod:`vcnc_bench.policies`): a bare name such
+as ``qft``, or ``KIND:ARGUMENT`` such as ``ppo:runs/x/best``.  The kinds
+come from the packages that provide them (``baselines``, ``agents``); the
+bench names none.  By default each env runs the policies that apply to its
+plant (every kind's ``defaults``).
+
+This package is the top layer: it imports ``vcnc_gym`` and, through the
+policy kinds, ``baselines`` and ``agents``; nothing imports it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+
+import vcnc_gym  # noqa: F401  (registers the ids)
+from vcnc_gym.envs import ENV_IDS
+from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, run_episode
+
+from .papers import paper_figures
+from .policies import check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label, resolve_policy
+
+__all__ = ["format_table", "main"]
+
+
+# -- the table -------------------------------------------------------------------------
+_COLUMNS = [
+    # header, width, record key, format
+    ("env", 14, "env", "{}"),
+    ("policy", 10, "policy", "{}"),
+    ("max_um", 10, "max_contour_error_um", "{:.2f}"),
+    ("mean_um", 10, "mean_contour_error_um", "{:.2f}"),
+    ("rms_um", 10, "rms_contour_error_um", "{:.2f}"),
+    ("paper_max_um", 12, "paper_max_contour_error_um", "{:.2f}"),
+    ("ours/paper", 10, "ratio_to_paper", "{:.2f}"),
+    ("steps", 7, "episode_steps", "{:d}"),
+    ("wall_s", 7, "wall_s", "{:.2f}"),
+    ("diverged", 8, "diverged", "{}"),
+]
+
+
+def _cell(value, fmt: str) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return fmt.format(value)
+
+
+def format_table(records: list[dict]) -> str:
+    """The records as a fixed-width table in the shape of seed 000's Table 4 (errors in um)."""
+    columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key == "policy" else w, key, fmt)
+               for h, w, key, fmt in _COLUMNS]
+    lines = [" ".join(f"{h:>{w}}" if i > 1 else f"{h:<{w}}" for i, (h, w, _, _) in enumerate(columns))]
+    lines.append("-" * len(lines[0]))
+    previous_env = None
+    for rec in records:
+        if previous_env is not None and rec["env"] != previous_env:
+            lines.append("")
+        previous_env = rec["env"]
+        cells = []
+        for i, (_, w, key, fmt) in enumerate(columns):
+            c = _cell(rec.get(key), fmt)
+            cells.append(f"{c:>{w}}" if i > 1 else f"{c:<{w}}")
+        lines.append(" ".join(cells))
+    return "\n".join(lines)
+
+
+def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True) -> dict:
+    paper = paper_figures(env_id, label).get("max_contour_error_um") if compare else None
+    ratio = result.max_contour_error_um / paper if paper else None
+    return {
+        "env": env_id,
+        "policy": label,
+        "max_contour_error_um": result.max_contour_error_um,
+        "mean_contour_error_um": result.mean_contour_error_um,
+        "rms_contour_error_um": result.rms_contour_error_um,
+        "paper_max_contour_error_um": paper,
+        "ratio_to_paper": ratio,
+        "episode_steps": result.episode_steps,
+        "wall_s": result.wall_s,
+        "diverged": result.diverged,
+        "max_tracking_error_um": result.max_tracking_error_um,
+    }
+
+
+def _json_safe(rec: dict) -> dict:
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
+
+
+# -- command line -------------------------------------------------------------------------
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="vcnc-bench",
+        description="Run every policy on the vcnc-gym envs (nominal plant, one deterministic episode each) "
+                    "and compare with the source papers' figures.",
+    )
+    p.add_argument("--env", action="append", metavar="ID",
+                   help=f"env id, repeatable (default: all of {', '.join(ENV_IDS)})")
+    p.add_argument("--policy", action="append", metavar="SPEC",
+                   help="a baseline name, 'ppo' (the agent shipped for the env) or KIND:ARGUMENT such as "
+                        "ppo:RUN/best, repeatable (default: every policy that applies to each env's plant)")
+    p.add_argument("--seed", type=int, default=0, help="seed passed to env.reset, >= 0 (default 0)")
+    p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
+                   help="feedrate in mm/s (default: each env's own); with another value the paper's "
+                        "columns stay empty")
+    p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
+    p.add_argument("--plots", metavar="DIR", type=Path,
+                   help="write ENV_contour.png and ENV_error.png per env into this directory")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    return p
+
+
+def _make_env(env_id: str, feedrate: float | None, parser):
+    """The env of ``env_id``, at another feedrate if one is given."""
+    try:
+        return gym.make(env_id) if feedrate is None else gym.make(env_id, feedrate=feedrate)
+    except ValueError as exc:
+        parser.error(str(exc))
+
+
+def _unique(items):
+    return list(dict.fromkeys(items))
+
+
+def _check_writable(path: Path, parser, what: str) -> None:
+    """Fail before any episode runs if ``path`` (a file, or a directory for plots) cannot be written."""
+    target = path if what == "directory" else path.parent
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        probe = target / ".vcnc-bench-write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as exc:
+        parser.error(f"cannot write the {what} {path}: {exc}")
+    if what == "file" and path.is_dir():
+        parser.error(f"--json {path} is a directory; give a file name")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``vcnc-bench``; returns the exit code (argument errors exit with 2)."""
+    wall0 = time.perf_counter()
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
+
+    env_ids = _unique(args.env or list(ENV_IDS))
+    unknown = [e for e in env_ids if e not in ENV_IDS]
+    if unknown:
+        parser.error(f"unknown env id(s) {', '.join(map(repr, unknown))}; valid ids are {', '.join(ENV_IDS)}")
+    specs = _unique(args.policy or [])
+    for spec in specs:
+        try:
+            check_policy_spec(spec)
+        except ValueError as exc:
+            parser.error(str(exc))
+    if args.json is not None:
+        _check_writable(args.json, parser, "file")
+    if args.plots is not None:
+        _check_writable(args.plots, parser, "directory")
+
+    # build every env and policy first, so a bad spec fails before any run
+    envs = {env_id: _make_env(env_id, args.feedrate, parser) for env_id in env_ids}
+    compare = args.feedrate is None
+    runs = []
+    for env_id, env in envs.items():
+        for spec in specs or default_specs(env):
+            try:
+                runs.append((env_id, spec, resolve_policy(spec, env)))
+            except (ValueError, OSError) as exc:
+                parser.error(f"cannot build policy {spec!r} for {env_id}: {exc}")
+    if not runs:
+        parser.error(f"no policies to run: {policy_choices()}")
+
+    from tqdm import tqdm
+
+    total = sum(envs[e].unwrapped.episode_steps for e, _, _ in runs)
+    records: list[dict] = []
+    results: dict[str, dict[str, EpisodeResult]] = {e: {} for e in env_ids}
+    with tqdm(total=total, unit="step", file=sys.stderr, dynamic_ncols=True, leave=False,
+              disable=True if args.no_progress else None) as bar:
+        for env_id, spec, policy in runs:
+            label = policy_label(spec)
+            bar.set_postfix_str(f"{env_id} {label}")
+            result = run_episode(policy, envs[env_id], seed=args.seed, progress=bar.update)
+            results[env_id][label] = result
+            records.append(_record(env_id, label, result, compare))
+
+    feeds = sorted({envs[e].unwrapped.feedrate_profile.feedrate for e in env_ids})
+    print(f"Contour error on the nominal plant at {', '.join(f'{f:g}' for f in feeds)} mm/s, one deterministic "
+          f"episode each (seed {args.seed}); paper = the source paper's figure (seed 000 Table 4)")
+    print(format_table(records))
+    labels = _unique(r["policy"] for r in records)
+    for kind in policy_kinds().values():
+        if kind.notes is not None:
+            lines = kind.notes(env_ids, labels, envs)
+            if lines:
+                print()
+                print("\n".join(lines))
+
+    if args.json is not None:
+        args.json.write_text(json.dumps([_json_safe(r) for r in records], indent=2) + "\n")
+        print(f"\nwrote {len(records)} records to {args.json}")
+    if args.plots is not None:
+        for env_id, by_policy in results.items():
+            plot_contours(by_policy, envs[env_id], args.plots / f"{env_id}_contour.png")
+            plot_contour_errors(by_policy, envs[env_id], args.plots / f"{env_id}_error.png")
+        print(f"wrote {2 * len(results)} plots to {args.plots}")
+    for env in envs.values():
+        env.close()
+    print(f"total wall time {time.perf_counter() - wall0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""Policy kinds: how the bench turns a spec ("qft", "ppo:runs/x/best") into a policy.
+
+The bench names no controller and no agent format itself.  A package that
+provides policies registers a :class:`PolicyKind`, either by calling
+:func:`register_policy_kind` or, to be found without being imported first,
+through the entry-point group ``vcnc_bench.policy_kinds`` of its
+distribution (``pyproject.toml``)::
+
+    [project.entry-points."vcnc_bench.policy_kinds"]
+    baseline = "baselines.bench_plugin:KIND"
+    ppo = "agents.bench_plugin:KIND"
+
+A spec is ``KIND:ARGUMENT`` (``baseline:qft``, ``ppo:PATH``) or a bare name:
+a name one kind answers to (``qft``, from ``PolicyKind.names``) or a kind
+with its default argument (``ppo``: the agent shipped for the env).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, Callable
+
+__all__ = ["PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec", "policy_label",
+           "check_policy_spec", "resolve_policy", "default_specs", "policy_choices"]
+
+ENTRY_POINT_GROUP = "vcnc_bench.policy_kinds"
+
+
+@dataclass(frozen=True)
+class PolicyKind:
+    """One kind of policy the bench can build.
+
+    Attributes
+    ----------
+    name : str
+        The KIND of a ``KIND:ARGUMENT`` spec.
+    make : callable (argument: str, env) -> policy
+        Builds a policy with SB3's ``predict`` for ``env``; ValueError or
+        OSError for a bad argument.
+    names : callable () -> list of str
+        Bare names this kind answers to (a baseline's name); default none.
+    defaults : callable (env) -> list of str
+        The specs of this kind the bench runs on ``env`` when no
+        ``--policy`` is given: those that apply to its plant; default none.
+    notes : callable (env_ids, labels, envs) -> list of str, optional
+        Extra report lines printed under the table (e.g. a stability check).
+    description : str
+        One line for ``--help``.
+    """
+
+    name: str
+    make: Callable[[str, Any], Any]
+    names: Callable[[], list] = field(default=lambda: [])
+    defaults: Callable[[Any], list] = field(default=lambda env: [])
+    notes: Callable | None = None
+    description: str = ""
+
+
+#: Kind name -> PolicyKind: those registered, and those of the entry points once loaded.
+POLICY_KINDS: dict[str, PolicyKind] = {}
+_loaded = False
+
+
+def register_policy_kind(kind: PolicyKind) -> PolicyKind:
+    """Add (or replace) a policy kind; returns it."""
+    if not isinstance(kind, PolicyKind):
+        raise ValueError(f"expected a PolicyKind, got {kind!r}")
+    POLICY_KINDS[kind.name] = kind
+    return kind
+
+
+def policy_kinds() -> dict[str, PolicyKind]:
+    """Every policy kind: the registered ones and those of installed entry points (loaded once).
+
+    An entry point whose package cannot be imported (e.g. the agents extra is
+    not installed) is skipped: its kind is simply not offered.
+    """
+    global _loaded
+    if not _loaded:
+        _loaded = True
+        for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+            if ep.name in POLICY_KINDS:
+                continue
+            try:
+                kind = ep.load()
+            except ImportError:
+                continue
+            register_policy_kind(kind)
+    return POLICY_KINDS
+
+
+def _bare_names() -> dict[str, str]:
+    """Bare name -> kind name, for the names kinds answer to."""
+    out = {}
+    for kind in policy_kinds().values():
+        for n in kind.names():
+            out.setdefault(n, kind.name)
+    return out
+
+
+def split_spec(spec: str) -> tuple[str, str]:
+    """(kind, argument) of a spec; a bare name maps to the kind that answers to it."""
+    kind, sep, arg = spec.partition(":")
+    if sep:
+        return kind, arg
+    bare = _bare_names()
+    if spec in bare:
+        return bare[spec], spec
+    return spec, ""
+
+
+def policy_label(spec: str) -> str:
+    """Label of a spec in the table and the JSON: the name a kind answers to ("qft" for
+    "baseline:qft"), the spec itself otherwise ("ppo", "ppo:runs/x/best")."""
+    kind, arg = split_spec(spec)
+    kinds = policy_kinds()
+    return arg if kind in kinds and arg in kinds[kind].names() else spec
+
+
+def policy_choices() -> str:
+    """The valid specs, for error messages."""
+    names = ", ".join(sorted(_bare_names())) or "(none)"
+    kinds = ", ".join(sorted(policy_kinds()))
+    return f"{names}; or KIND:ARGUMENT with KIND one of: {kinds}"
+
+
+def check_policy_spec(spec: str) -> None:
+    """Raise ValueError, naming the valid choices, if ``spec`` names no known policy."""
+    if not isinstance(spec, str) or not spec:
+        raise ValueError(f"a policy spec must be a non-empty string; valid policies are {policy_choices()}")
+    kind, arg = split_spec(spec)
+    kinds = policy_kinds()
+    if kind not in kinds:
+        raise ValueError(f"unknown policy {spec!r}; valid policies are {policy_choices()}")
+    if ":" in spec and kinds[kind].names() and arg not in kinds[kind].names():
+        raise ValueError(f"unknown policy {spec!r}; valid policies are {policy_choices()}")
+
+
+def resolve_policy(spec: str, env) -> Any:
+    """A policy (with SB3's ``predict``) for ``env`` from a spec; ValueError listing valid specs if unknown."""
+    check_policy_spec(spec)
+    kind, arg = split_spec(spec)
+    return policy_kinds()[kind].make(arg, env)
+
+
+def default_specs(env) -> list[str]:
+    """The specs run on ``env`` by default: every kind's defaults for it, in kind order."""
+    out = []
+    for kind in policy_kinds().values():
+        out.extend(s for s in kind.defaults(env) if s not in out)
+    return out
