@@ -182,7 +182,8 @@ def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path
     for rec in records:
         assert {"env", "policy", "max_contour_error_um", "mean_contour_error_um", "rms_contour_error_um",
                 "episode_steps", "wall_s"} <= set(rec)
-        mx, mean, rms, paper, ratio, steps, wall, diverged = rows[(rec["env"], rec["policy"])]
+        mx, mean, rms, paper, ratio, steps, wall, diverged, complete = rows[(rec["env"], rec["policy"])]
+        assert complete == ("yes" if rec["completed"] else "no")
         for printed, key in [(mx, "max_contour_error_um"), (mean, "mean_contour_error_um"),
                              (rms, "rms_contour_error_um"), (wall, "wall_s")]:
             assert float(printed) == pytest.approx(rec[key], abs=0.005 + 1e-9), key
@@ -212,8 +213,12 @@ def test_paper_table_covers_every_env_and_baseline():
 
 def test_resolve_policy_builds_baselines_by_name():
     baselines = pytest.importorskip("baselines")
+    from baselines.bench_plugin import applies
+
     env = gym.make(OMEGA)
-    for name in baselines.names():
+    names = [n for n in baselines.names() if applies(n, env)]
+    assert {"qft", "smc", "fuzzy"} <= set(names)
+    for name in names:
         for spec in (name, f"baseline:{name}"):
             policy = bench.resolve_policy(spec, env)
             assert type(policy) is type(baselines.make(name, env))

@@ -52,6 +52,7 @@ _COLUMNS = [
     ("steps", 7, "episode_steps", "{:d}"),
     ("wall_s", 7, "wall_s", "{:.2f}"),
     ("diverged", 8, "diverged", "{}"),
+    ("complete", 8, "completed", "{}"),
 ]
 
 
@@ -96,6 +97,7 @@ def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True
         "episode_steps": result.episode_steps,
         "wall_s": result.wall_s,
         "diverged": result.diverged,
+        "completed": result.completed,
         "max_tracking_error_um": result.max_tracking_error_um,
     }
 
@@ -207,6 +209,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Contour error on the nominal plant at {', '.join(f'{f:g}' for f in feeds)} mm/s, one deterministic "
           f"episode each (seed {args.seed}); paper = the source paper's figure (seed 000 Table 4)")
     print(format_table(records))
+    incomplete = [f"{r['env']} {r['policy']}" for r in records if not r["completed"]]
+    if incomplete:
+        print(f"\nNOT COMPLETE (the episode did not reach the end of the contour; its errors cover only the part "
+              f"it ran): {', '.join(incomplete)}")
     labels = _unique(r["policy"] for r in records)
     for kind in policy_kinds().values():
         if kind.notes is not None:

@@ -59,6 +59,10 @@ class EpisodeResult:
         start has zero contour error but a large tracking error.
     terminated, truncated : bool
         How the episode ended (Gymnasium's flags of the last step).
+    completed : bool
+        True if the episode reached the end of the contour: terminated, not
+        diverged.  A truncated episode (a time limit) is not complete, and
+        its metrics cover only the part of the contour it ran.
     time : ndarray, (episode_steps,)
         Simulation time after each step, s.
     contour_error : ndarray, (episode_steps,)
@@ -94,7 +98,13 @@ class EpisodeResult:
             "wall_s": self.wall_s,
             "diverged": self.diverged,
             "max_tracking_error_um": self.max_tracking_error_um,
+            "completed": self.completed,
         }
+
+    @property
+    def completed(self) -> bool:
+        """The episode reached the end of the contour (terminated, not diverged)."""
+        return self.terminated and not self.diverged
 
 
 def _error_metrics_um(err_mm: np.ndarray) -> tuple[float, float, float]:

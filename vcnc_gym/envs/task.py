@@ -29,6 +29,15 @@ __all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS"]
 #: The keys ``reset(options=...)`` understands.
 RESET_OPTIONS = ("parameters",)
 
+#: The control periods an env accepts, s: dt is in seconds, so 1e-4 is 0.1 ms; a
+#: value beyond either end is a unit slip (0.1 "ms" given as 0.1 s).
+DT_RANGE = (1e-6, 1e-2)
+
+#: Largest margin in mm of the projector's grid around the contour: a tool
+#: farther out is searched from the nearest cell (exact, only slower), so a
+#: large ``divergence_bound`` costs no memory.
+_GRID_MARGIN_MAX = 50.0
+
 #: Smallest bound in mm of the observation's position fields; a contour reaching
 #: farther gets its extent plus the tracking bound plus this margin.
 _POSITION_BOUND = 1000.0
@@ -77,6 +86,9 @@ class ContouringTask:
             raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
         self.plant_options = dict(plant_options or {})
         self.dt = positive("dt", dt, "s")
+        if not DT_RANGE[0] <= self.dt <= DT_RANGE[1]:
+            raise ValueError(f"dt={dt!r} s is outside [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s; dt is the control "
+                             f"period in seconds (0.1 ms is dt=1e-4)")
         self.action_repeat = integer("action_repeat", action_repeat, 1)
         self.randomize = flag("randomize", randomize)
         self.reward_scale = positive("reward_scale", reward_scale, "mm")
@@ -102,8 +114,12 @@ class ContouringTask:
         samples = np.ascontiguousarray(np.hstack([
             self.reference.position, self.reference.velocity, self.reference.acceleration, tangent,
         ]))
-        self.projector = ContourProjector(self.curve, margin=max(10.0, 2 * self.divergence_bound))
+        self.projector = ContourProjector(self.curve, margin=min(max(10.0, 2 * self.divergence_bound),
+                                                                 _GRID_MARGIN_MAX))
         self.end_index = len(self.reference.t) - 1 + math.ceil(self.settling_time / self.dt - 1e-9)
+        if self.action_repeat > self.end_index:
+            raise ValueError(f"action_repeat={self.action_repeat} control periods is longer than the whole "
+                             f"episode ({self.end_index} periods of {self.dt:g} s)")
         self.episode_steps = math.ceil(self.end_index / self.action_repeat)
         """Natural episode length in decision steps (without divergence)."""
         self.max_episode_steps = (self.episode_steps if max_episode_steps is None

@@ -1,0 +1,170 @@
+"""An SB3 ``VecEnv`` over the native vector env: N envs stepped by one kernel call per control period.
+
+:class:`VcncVecEnv` is what ``vcnc-train`` trains on.  It runs an action mode
+(:class:`agents.action_modes.ActionMode`) over all N envs at once:
+
+- **direct**: the agent's action is the plant command, held for the env's own
+  ``action_repeat`` inside the compiled step;
+- **residual**: every control period the baseline's ``predict`` runs once on
+  the batch of N observations (no per-env Python loop), the command is
+  ``clip(u_baseline / u_max + correction * a, -1, 1)``, and the agent's
+  correction ``a`` is held for the mode's ``action_repeat`` periods.
+
+It gives what :class:`~agents.action_modes.ResidualAction` on a single env
+gives: the reward of a decision is the mean of the control periods' rewards
+(over ``action_repeat``), ``info["contour_error_max"]`` the largest over the
+decision, and an episode ending inside a decision ends the decision for that
+env (the others run on).  SB3's conventions: an ended env is reset at once,
+its last observation in ``info["terminal_observation"]``, and
+``info["TimeLimit.truncated"]`` marks a truncation.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+from .action_modes import ActionMode
+
+__all__ = ["VcncVecEnv"]
+
+#: The attributes ``get_attr`` answers, read from the vector env (the same for every env).
+_SHARED_ATTRIBUTES = ("layout", "decision_period", "nominal_parameters", "plant", "dt", "episode_steps", "task")
+
+
+class VcncVecEnv(VecEnv):
+    """N envs of ``env_id`` as one SB3 ``VecEnv``, stepped through the native vector env.
+
+    Parameters
+    ----------
+    env_id : str
+        A registered vcnc_gym id.
+    n_envs : int
+        Number of envs, >= 1.
+    mode : ActionMode
+        Direct or residual (with its baseline, correction and action repeat).
+    env_kwargs : dict, optional
+        Arguments of the env (``randomize``, ``feedrate``, ...).  In residual
+        mode the env runs at ``action_repeat=1`` (the baseline runs every
+        control period) and the mode holds the agent's action.
+    seed : int, optional
+        Env i is seeded with ``seed + i`` at the first reset (as SB3's
+        ``make_vec_env`` does).
+    """
+
+    def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None,
+                 seed: int | None = None):
+        kwargs = dict(env_kwargs or {})
+        self.mode = mode
+        residual = mode.mode == "residual"
+        env_repeat = 1 if residual else mode.action_repeat
+        if kwargs.get("action_repeat", env_repeat) != env_repeat:
+            raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
+                             f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
+        kwargs["action_repeat"] = env_repeat
+        self.venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+                                 autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
+        self.env_id = env_id
+        self.baseline = mode.make_baseline(self.venv)
+        self.repeat = mode.action_repeat if residual else 1
+        super().__init__(n_envs, self.venv.single_observation_space, self.venv.single_action_space)
+        self._seed = seed
+        self._obs = None
+        self._actions = None
+        self._start = np.ones(n_envs, dtype=bool)
+
+    # -- SB3 VecEnv API ---------------------------------------------------------------
+    def reset(self):
+        seed = self._seed
+        self._seed = None  # later resets continue each env's generator
+        obs, _ = self.venv.reset(seed=seed)
+        self._obs = obs
+        self._start[:] = True
+        return obs.copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions)
+
+    def step_wait(self):
+        if self._obs is None:
+            raise RuntimeError("step() called before reset()")
+        n = self.num_envs
+        a = self._actions
+        total = np.zeros(n)
+        peak = np.zeros(n)
+        done = np.zeros(n, dtype=bool)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        last_info = None
+        obs = self._obs
+        for _ in range(self.repeat):
+            base = None
+            if self.baseline is not None:
+                base, _ = self.baseline.predict(obs, episode_start=self._start)
+                self._start[:] = False
+            command = self.mode.command(base, a)
+            obs, reward, te, tr, info = self.venv.step(command)
+            stepped = info["_contour_error"]
+            total += reward
+            peak = np.where(stepped, np.maximum(peak, info["contour_error_max"]), peak)
+            terminated |= te
+            truncated |= tr
+            done |= te | tr
+            last_info = info if last_info is None else _merge(last_info, info, stepped)
+            if done.all():
+                break
+        infos = [{} for _ in range(n)]
+        for key in ("contour_error", "position", "reference_position", "tracking_error", "command", "time",
+                    "diverged", "reward_contour", "reward_effort", "reward_divergence"):
+            values = last_info[key]
+            for i in range(n):
+                infos[i][key] = values[i]
+        for i in range(n):
+            infos[i]["contour_error_max"] = peak[i]
+        rewards = (total / self.repeat).astype(np.float32)
+        if done.any():
+            for i in np.flatnonzero(done):
+                infos[i]["terminal_observation"] = obs[i].copy()
+                infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+            obs, _ = self.venv.reset(options={"reset_mask": done})
+            self._start[done] = True
+        self._obs = obs
+        return obs.copy(), rewards, done, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices=None) -> list:
+        if attr_name in _SHARED_ATTRIBUTES or hasattr(self.venv, attr_name):
+            value = getattr(self.venv, attr_name)
+            return [value for _ in self._get_indices(indices)]
+        raise AttributeError(f"vcnc vector env has no attribute {attr_name!r}")
+
+    def set_attr(self, attr_name: str, value, indices=None) -> None:
+        raise AttributeError(f"the envs' attributes are read-only here (tried to set {attr_name!r})")
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
+        raise AttributeError(f"the native vector env runs no per-env methods (asked for {method_name!r})")
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def seed(self, seed: int | None = None):
+        self._seed = seed
+        return [None if seed is None else seed + i for i in range(self.num_envs)]
+
+    def get_images(self):
+        raise NotImplementedError("the vector env does not render")
+
+
+def _merge(previous: dict, info: dict, stepped: np.ndarray) -> dict:
+    """Per env, the info of the last control period it was stepped in."""
+    out = {}
+    for key, value in info.items():
+        if key.startswith("_"):
+            continue
+        mask = stepped.reshape((-1,) + (1,) * (np.ndim(value) - 1))
+        out[key] = np.where(mask, value, previous[key])
+    return out
