@@ -36,6 +36,9 @@ SUITE: tuple[SuiteEnv, ...] = (
              "seed 000 'heart' (cubic NURBS, 310 mm) at 100 mm/s on seed 000's feed drives"),
     SuiteEnv("VCNC-Omega-v0", {"contour": "omega", "plant": "vcnc_feed_drive"},
              "seed 000 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on seed 000's feed drives"),
+    SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
+             "seed 001 step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
+             entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
 )
 
 #: The registered ids, in the order of :data:`SUITE`.

@@ -1,0 +1,97 @@
+"""Seed 001's controllers as policies with Stable-Baselines3's ``predict``, on :class:`PositioningEnv`.
+
+Each axis runs the unity-feedback loop of seed 001 (Figs. 3(b) and 4(b)),
+
+    u = C(z) e,    e = r - x    (mm -> V),
+
+with ``e`` the observation's ``position_error`` field (set-point minus the
+measured position, mm) and ``C(z)`` the controller of
+:func:`~baselines.seed001.controllers.controller_tf` (V/mm) discretised once
+by :func:`control.c2d` (Tustin by default) at the env's decision period and
+stepped by :func:`baselines.linear.lti_step`.  The controller's state starts
+at zero at every episode start (the loop at rest before the step).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..base import BaselinePolicy
+from ..linear import DiscreteLTI, discretize
+from .controllers import CONTROLLER_SOURCES, controller_tf
+
+__all__ = ["Seed001Policy", "PIPolicy", "IMCPolicy", "HinfPolicy", "HinfReducedPolicy"]
+
+
+class Seed001Policy(BaselinePolicy):
+    """One of seed 001's controllers, per axis, on the CNCMT axis of eq. (2); subclasses name it.
+
+    Parameters
+    ----------
+    layout : object
+        The env's observation layout (a ``position_error`` field in mm).
+    decision_period : float
+        Period in s at which :meth:`predict` is called; C(s) is discretised at it.
+    nominal_parameters : array_like, (2, P)
+        The plant's nominal parameters; ``u_max`` (V) scales the action.
+    plant : str or PlantModel, optional
+        Must be ``"cncmt_axis"``.
+    method : str
+        Discretisation method of :func:`control.c2d` (default ``"tustin"``).
+    """
+
+    name = "seed001"
+    plants = ("cncmt_axis",)
+    #: Which of seed 001's controllers (:func:`~baselines.seed001.controllers.controller_names`); set by subclasses.
+    controller_name = ""
+
+    def __init__(self, layout, decision_period: float, nominal_parameters, plant=None, method: str = "tustin"):
+        super().__init__(layout, decision_period, nominal_parameters, plant)
+        try:
+            layout.slice("position_error")
+        except KeyError:
+            raise ValueError("seed 001's controllers need an observation with a 'position_error' field "
+                             "(the PositioningEnv, e.g. VCNC-Step-v0)") from None
+        self.continuous = controller_tf(self.controller_name)  # ValueError for an unknown name
+        self.source = CONTROLLER_SOURCES[self.controller_name]
+        self.discrete = discretize(self.continuous, self.decision_period, method=method)
+        self._lti = DiscreteLTI(self.discrete)
+        self.state_shape = (2, self._lti.nx)
+
+    def _command(self, obs: np.ndarray) -> np.ndarray:
+        e = self.layout.get(obs, "position_error")  # (n, 2) mm
+        n = e.shape[0]
+        x = self._state.reshape(2 * n, self._lti.nx)
+        u = self._lti.step(x, e.reshape(2 * n, 1))
+        return u.reshape(n, 2)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.controller_name!r}, decision_period={self.decision_period:g} s)"
+
+
+class PIPolicy(Seed001Policy):
+    """Robust PI, ``K_P + K_I / s`` with K_P = 38.33 V/m, K_I = 45.65 V/(m s) (seed 001, section 3.2)."""
+
+    name = "pi"
+    controller_name = "pi"
+
+
+class IMCPolicy(Seed001Policy):
+    """IMC, ``(0.21 s + 2) / (s + 2)`` V/m (seed 001, eq. (23))."""
+
+    name = "imc"
+    controller_name = "imc"
+
+
+class HinfPolicy(Seed001Policy):
+    """Fourth-order H-infinity controller (seed 001, eq. (28))."""
+
+    name = "hinf"
+    controller_name = "hinf"
+
+
+class HinfReducedPolicy(Seed001Policy):
+    """First-order reduced H-infinity controller, ``20.97 / (s + 5.5)`` V/m (seed 001, eq. (29))."""
+
+    name = "hinf-reduced"
+    controller_name = "hinf-reduced"
