@@ -7,7 +7,9 @@
   amplifier command ("direct") or a correction of a baseline's ("residual"),
   with action repeat.
 - :func:`load_agent`: a trained agent as a policy with SB3's ``predict`` on
-  the plain env, what ``vcnc-bench --policy ppo:PATH`` runs.
+  the plain env, what ``vcnc-bench --policy ppo:PATH`` runs; it runs no code
+  from the agent's files and checks the env is the one it was trained for.
+- :class:`NormalizationStats`: VecNormalize statistics as a data-only ``.npz``.
 - ``agents/trained/<env id>/``: the shipped agents.
 
 Example
@@ -21,11 +23,12 @@ Example
 from pathlib import Path
 
 from .action_modes import ACTION_MODES, ActionMode, ResidualAction
-from .policy import AgentPolicy, load_agent
-from .training import TrainingResult, train
+from .normalization import NormalizationStats
+from .policy import AgentPolicy, env_signature, load_agent
+from .training import RunWarning, TrainingResult, train
 
 #: Env id -> folder of the agent shipped for it.
 TRAINED = {env_id: Path(__file__).parent / "trained" / env_id for env_id in ("VCNC-Heart-v0", "VCNC-Omega-v0")}
 
-__all__ = ["train", "TrainingResult", "load_agent", "AgentPolicy", "ActionMode", "ResidualAction",
-           "ACTION_MODES", "TRAINED"]
+__all__ = ["train", "TrainingResult", "RunWarning", "load_agent", "AgentPolicy", "env_signature",
+           "NormalizationStats", "ActionMode", "ResidualAction", "ACTION_MODES", "TRAINED"]

@@ -3,45 +3,56 @@
     vcnc-train --env VCNC-Heart-v0                       # runs/VCNC-Heart-v0_seed0
     vcnc-train --env VCNC-Omega-v0 --seed 3 --n-envs 4 --timesteps 200000 --output runs/omega3
     vcnc-train --env VCNC-Heart-v0 --action-mode residual --baseline qft --correction 0.3 --action-repeat 5
-    vcnc-train --resume runs/omega3                      # from its newest checkpoint
+    vcnc-train --resume runs/omega3                      # from its newest intact checkpoint
     vcnc-train --resume runs/omega3 --timesteps 400000   # ... to a new total
 
-Every option is checked before any training starts.
+Every option, the hyperparameter file and the env arguments are checked
+before the run folder is created; a bad one exits with status 2 and a
+message.  Ctrl-C (SIGINT) or SIGTERM saves a checkpoint and exits with
+status 130 or 143, printing the command that resumes the run.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["main"]
+
+_MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat")
 
 
 def _parser() -> argparse.ArgumentParser:
     from vcnc_gym import ENV_IDS
 
     from .action_modes import ACTION_MODES
-    from .config import DEFAULT_CONFIG
+    from .training import DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ
 
     p = argparse.ArgumentParser(prog="vcnc-train", description="Train Stable-Baselines3 PPO on a VCNC env.")
     p.add_argument("--env", metavar="ID", help=f"env id: {', '.join(ENV_IDS)}")
     p.add_argument("--output", metavar="DIR", type=Path, help="run folder (default runs/ENV_seedSEED)")
-    p.add_argument("--resume", metavar="DIR", type=Path, help="resume the run in DIR from its newest checkpoint")
-    p.add_argument("--timesteps", type=int, metavar="N", help="total agent steps (default: the config entry's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the envs and of PPO (default 0)")
+    p.add_argument("--resume", metavar="DIR", type=Path, help="resume the run in DIR from its newest intact checkpoint")
+    p.add_argument("--timesteps", type=int, metavar="N",
+                   help="total agent steps, rounded up to whole PPO rollouts (default: the config entry's)")
+    p.add_argument("--seed", type=int, help="seed of the envs and of PPO, in [0, 2**32 - 1] (default 0)")
     p.add_argument("--n-envs", type=int, metavar="N", help="parallel training envs (default: the config entry's)")
-    p.add_argument("--config", type=Path, default=DEFAULT_CONFIG, metavar="YAML",
+    p.add_argument("--config", type=Path, metavar="YAML",
                    help="hyperparameters in RL Zoo's format (default: the shipped agents/hyperparams/ppo.yml)")
     g = p.add_argument_group("action mode (default: the config entry's)")
     g.add_argument("--action-mode", choices=sorted(ACTION_MODES),
                    help="; ".join(f"{k}: {v}" for k, v in ACTION_MODES.items()))
     g.add_argument("--baseline", help="residual mode: the baseline corrected (e.g. smc, qft)")
     g.add_argument("--correction", type=float, help="residual mode: largest correction, fraction of u_max")
-    g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision")
-    p.add_argument("--checkpoint-freq", type=int, default=50_000, metavar="N", help="agent steps between checkpoints")
-    p.add_argument("--eval-freq", type=int, default=20_000, metavar="N",
-                   help="agent steps between deterministic evaluations on the nominal plant")
+    g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
+    p.add_argument("--checkpoint-freq", type=int, metavar="N",
+                   help=f"agent steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ}; resume: the run's)")
+    p.add_argument("--eval-freq", type=int, metavar="N",
+                   help=f"agent steps between deterministic evaluations on the nominal plant, 0: only at the end "
+                        f"(default {DEFAULT_EVAL_FREQ}; resume: the run's)")
     p.add_argument("--vec-env", choices=("dummy", "subproc"), default="dummy",
                    help="run the envs in this process or one process each")
     p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's)")
@@ -51,64 +62,112 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _action_mode(args, parser):
+def _action_mode(args, config_file):
+    """The action mode the options ask for (None: the entry's); ValueError for a bad combination."""
     from .action_modes import ActionMode
     from .config import action_mode_of, load_hyperparameters
 
-    given = {k: getattr(args, k) for k in ("action_mode", "baseline", "correction", "action_repeat")}
+    given = {k: getattr(args, k) for k in _MODE_OPTIONS}
     if all(v is None for v in given.values()):
         return None
     # start from the config entry's mode and change what the options name
-    base = action_mode_of(load_hyperparameters(args.env, args.config)).to_dict()
+    base = action_mode_of(load_hyperparameters(args.env, config_file)).to_dict()
     mode = given["action_mode"] or base["mode"]
-    d = {"mode": mode, "action_repeat": given["action_repeat"] or base["action_repeat"]}
+    d = {"mode": mode,
+         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base["action_repeat"]}
     if mode == "residual":
         d["baseline"] = given["baseline"] or base.get("baseline", "smc")
         d["correction"] = given["correction"] if given["correction"] is not None else base.get("correction", 0.2)
     elif given["baseline"] is not None or given["correction"] is not None:
-        parser.error("--baseline and --correction apply to --action-mode residual")
+        raise ValueError("--baseline and --correction apply to --action-mode residual")
     return ActionMode(**d)
 
 
+@contextmanager
+def _print_run_warnings():
+    """Show the trainer's RunWarnings as one plain line each on stderr."""
+    from .training import RunWarning
+
+    show = warnings.showwarning
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, RunWarning):
+            print(f"vcnc-train: warning: {message}", file=sys.stderr, flush=True)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", RunWarning)
+        warnings.showwarning = showwarning
+        yield
+
+
+def _after_failure(run_dir: Path, checkpoint) -> str:
+    """What a failed or aborted session left: a resumable run or nothing."""
+    from .training import latest_checkpoint
+
+    if run_dir.is_dir() and latest_checkpoint(run_dir) is not None:
+        return f"resume from the last checkpoint with: vcnc-train --resume {run_dir}"
+    return f"{run_dir} holds no checkpoint and was cleared: start again with the same command"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``vcnc-train``; argument errors exit with status 2 before any training."""
+    """Entry point of ``vcnc-train``: 0 done, 2 bad options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
     parser = _parser()
     args = parser.parse_args(argv)
     if args.resume is None and args.env is None:
         parser.error("give --env ID for a new run, or --resume DIR")
-    if args.resume is not None and args.output is not None and args.output != args.resume:
-        parser.error("--resume DIR is the run folder; --output does not apply")
-    if args.resume is not None and any(getattr(args, k) is not None for k in
-                                       ("action_mode", "baseline", "correction", "action_repeat", "n_envs")):
-        parser.error("a resumed run keeps its action mode and n_envs (see its config.yml)")
+    if args.resume is not None:
+        if args.output is not None and args.output != args.resume:
+            parser.error("--resume DIR is the run folder; --output does not apply")
+        fixed = [f"--{k.replace('_', '-')}" for k in (*_MODE_OPTIONS, "n_envs", "seed", "config")
+                 if getattr(args, k) is not None]
+        if fixed:
+            parser.error(f"a resumed run keeps its action mode, n_envs, seed and hyperparameters (see its config.yml); "
+                         f"drop {', '.join(fixed)}")
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads must be positive, got {args.threads}")
 
-    from .training import check_training_options, learn, prepare_run
+    from .config import DEFAULT_CONFIG
+    from .training import check_env_id, check_training_options, learn, prepare_run
 
     tensorboard = False if args.no_tensorboard else None
-    try:  # every check, before anything is trained
-        check_training_options(checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
-                               vec_env=args.vec_env, tensorboard=tensorboard)
-        if args.resume is None:
-            from .training import check_env_id
+    with _print_run_warnings():
+        try:  # every check, before anything is written
+            check_training_options(checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
+                                   vec_env=args.vec_env, tensorboard=tensorboard)
+            if args.resume is None:
+                check_env_id(args.env)
+                config_file = args.config if args.config is not None else DEFAULT_CONFIG
+                run_dir, config, checkpoint = prepare_run(
+                    args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
+                    n_envs=args.n_envs, config_file=config_file, action_mode=_action_mode(args, config_file),
+                    checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+            else:
+                run_dir, config, checkpoint = prepare_run(
+                    args.env, args.resume, resume=True, n_timesteps=args.timesteps,
+                    checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+        except (ValueError, FileNotFoundError, FileExistsError) as exc:
+            parser.error(str(exc))
 
-            check_env_id(args.env)
-            run_dir, config, checkpoint = prepare_run(
-                args.env, args.output, n_timesteps=args.timesteps, seed=args.seed, n_envs=args.n_envs,
-                config_file=args.config, action_mode=_action_mode(args, parser))
-        else:
-            run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps)
-    except (ValueError, FileNotFoundError, FileExistsError) as exc:
-        parser.error(str(exc))
+        if args.threads is not None:
+            import torch
 
-    if args.threads is not None:
-        import torch
-
-        torch.set_num_threads(args.threads)
-    result = learn(run_dir, config, checkpoint, checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
-                   progress_bar=not args.no_progress, tensorboard=tensorboard, vec_env=args.vec_env,
-                   verbose=args.verbose)
+            torch.set_num_threads(args.threads)
+        try:
+            result = learn(run_dir, config, checkpoint, progress_bar=not args.no_progress, tensorboard=tensorboard,
+                           vec_env=args.vec_env, verbose=args.verbose)
+        except KeyboardInterrupt:  # a second Ctrl-C
+            print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+            return 130
+        except Exception:
+            print(f"vcnc-train: training failed; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+            raise
+    resume = f"vcnc-train --resume {result.run_dir}"
+    if result.interrupted is not None:
+        print(f"vcnc-train: stopped by {result.interrupted} after {result.session_timesteps} agent steps of this "
+              f"session; checkpoint at {result.timesteps} steps saved. Resume with: {resume}", file=sys.stderr)
+        return 128 + int(getattr(signal, result.interrupted))
     print(f"trained {result.session_timesteps} agent steps in {result.wall_s:.1f} s: "
           f"{result.steps_per_s:.0f} steps/s ({result.control_periods_per_s:.0f} control periods/s); "
           f"{result.timesteps} in all")

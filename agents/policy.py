@@ -4,9 +4,16 @@ An agent is a folder (a run's ``best/`` or ``final/``, or a shipped agent in
 ``agents/trained/``) holding
 
 - ``model.zip``: the SB3 PPO model;
-- ``vecnormalize.pkl``: the observation normalisation (VecNormalize) it was trained with;
+- ``vecnormalize.npz``: the observation normalisation it was trained with
+  (:class:`agents.normalization.NormalizationStats`, plain numbers);
 - ``config.yml``: the run's configuration, whose ``action_mode`` says what
-  the action means (:class:`agents.action_modes.ActionMode`).
+  the action means (:class:`agents.action_modes.ActionMode`) and whose
+  ``env`` block records the env it was trained for (:func:`env_signature`).
+
+Loading an agent runs no code from its folder: the YAML is read with
+``yaml.safe_load``, the statistics with ``numpy.load(allow_pickle=False)``
+and the model through :func:`agents.model_file.load_ppo`, which unpickles
+nothing of the file.
 
 :class:`AgentPolicy` runs it on the plain env, the one the baselines run on
 (``action_repeat=1``): it is called every control period, asks the network
@@ -17,19 +24,25 @@ wrappers do.  Its ``predict`` has SB3's signature.
 
 from __future__ import annotations
 
-import pickle
+import hashlib
+import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from .action_modes import ActionMode
+from .normalization import NormalizationStats
 
-__all__ = ["AgentPolicy", "load_agent", "agent_files", "MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE"]
+__all__ = ["AgentPolicy", "load_agent", "agent_files", "env_signature", "check_env_signature", "check_signature",
+           "MODEL_FILE",
+           "NORMALIZATION_FILE", "CONFIG_FILE"]
 
 MODEL_FILE = "model.zip"
-NORMALIZATION_FILE = "vecnormalize.pkl"
+NORMALIZATION_FILE = "vecnormalize.npz"
 CONFIG_FILE = "config.yml"
+_PICKLED_NORMALIZATION = "vecnormalize.pkl"
 
 
 def agent_files(path) -> tuple[Path, Path, Path]:
@@ -37,12 +50,19 @@ def agent_files(path) -> tuple[Path, Path, Path]:
 
     Raises FileNotFoundError naming what is missing.
     """
+    if path is None or str(path) == "":
+        raise ValueError("the agent path is empty: give an agent folder (e.g. RUN/best) or its model.zip")
     p = Path(path)
     folder = p.parent if p.suffix == ".zip" else p
     if not folder.is_dir():
         raise FileNotFoundError(f"no agent at {str(path)!r}: not a folder or a model.zip in one")
     files = (p if p.suffix == ".zip" else folder / MODEL_FILE, folder / NORMALIZATION_FILE, folder / CONFIG_FILE)
     missing = [f.name for f in files if not f.is_file()]
+    if NORMALIZATION_FILE in missing and (folder / _PICKLED_NORMALIZATION).is_file():
+        raise ValueError(
+            f"agent folder {str(folder)!r} holds its normalisation as {_PICKLED_NORMALIZATION} (a pickle, which runs "
+            f"code when loaded) instead of {NORMALIZATION_FILE}; if you trust the folder, convert it once with "
+            f"python -m agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}")
     if missing:
         raise FileNotFoundError(f"agent folder {str(folder)!r} lacks {', '.join(missing)}")
     return files
@@ -55,7 +75,7 @@ class AgentPolicy:
     ----------
     model : stable_baselines3.common.base_class.BaseAlgorithm
         The trained model (its ``predict`` takes normalised observations).
-    normalization : stable_baselines3.common.vec_env.VecNormalize or None
+    normalization : NormalizationStats or None
         The observation statistics of training (``normalize_obs`` is used).
     action_mode : ActionMode
         What the model's action means, and its decision period in control periods.
@@ -111,23 +131,157 @@ class AgentPolicy:
         return f"AgentPolicy({type(self.model).__name__}, {self.action_mode})"
 
 
-def load_agent(path, env, device: str = "cpu") -> AgentPolicy:
+# -- the env an agent was trained for ------------------------------------------------------------
+#: Fields of :func:`env_signature` with their unit, in the order they are reported.
+_SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "dt": " s",
+                    "feedrate": " mm/s", "ramp_time": " s", "preview_steps": " control periods",
+                    "observation_shape": "", "action_shape": ""}
+
+
+def _attr(obj, dotted: str):
+    for name in dotted.split("."):
+        obj = getattr(obj, name, None)
+        if obj is None:
+            return None
+    return obj
+
+
+def _curve_digest(curve) -> str | None:
+    if curve is None:
+        return None
+    h = hashlib.sha256(str(int(curve.degree)).encode())
+    for a in (curve.control_points, curve.weights, curve.knots):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]
+
+
+def env_signature(env) -> dict:
+    """What an agent's observations and decisions depend on, read from a plain (``action_repeat=1``) env.
+
+    A YAML-safe dict: env id (None for an env not made by ``gym.make``), contour
+    name and a digest of its NURBS, plant name and options, control period
+    ``dt`` (s), feedrate (mm/s) and ramp time (s) of the reference, preview
+    steps, observation and action shapes.  Reward scale and episode bounds
+    are not part of it: they change the score, not what the agent sees.
+    """
+    u = env.unwrapped
+    spec = getattr(u, "spec", None)
+    options = _attr(u, "task.plant_options") or {}
+    floats = {k: _attr(u, a) for k, a in (("dt", "dt"), ("feedrate", "feedrate_profile.feedrate"),
+                                          ("ramp_time", "feedrate_profile.ramp_time"))}
+    preview = _attr(u, "layout.preview_steps")
+    return {
+        "id": spec.id if spec is not None else None,
+        "contour": _attr(u, "contour_name"),
+        "curve_sha256": _curve_digest(_attr(u, "curve")),
+        "plant": _attr(u, "plant.name"),
+        "plant_options": yaml.safe_load(yaml.safe_dump(dict(options))),
+        **{k: None if v is None else float(v) for k, v in floats.items()},
+        "preview_steps": None if preview is None else [int(s) for s in preview],
+        "observation_shape": [int(n) for n in u.observation_space.shape],
+        "action_shape": [int(n) for n in u.action_space.shape],
+    }
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, float) and isinstance(b, (int, float)) and not isinstance(b, bool):
+        return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
+    return a == b
+
+
+def check_signature(recorded: dict, given: dict, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
+    """ValueError listing every field where the ``given`` :func:`env_signature` differs from the ``recorded`` one.
+
+    An unknown id on either side (an env made without ``gym.make``) is not
+    compared; fields the recorded signature lacks are not compared.  With
+    ``allow_mismatch`` the differences are a warning instead, except a
+    different observation or action shape, which no agent can run on.
+    """
+    diffs, fatal = [], False
+    for key, unit in _SIGNATURE_UNITS.items():
+        if key not in recorded or key not in given or (key == "id" and (recorded[key] is None or given[key] is None)):
+            continue
+        if not _same(recorded[key], given[key]):
+            diffs.append(f"{key}: trained on {recorded[key]}{unit}, this env has {given[key]}{unit}")
+            fatal |= key in ("observation_shape", "action_shape")
+    if not diffs:
+        return
+    head = (f"{what} was trained on {recorded['id']}, not {given['id']}"
+            if recorded.get("id") and given.get("id") and recorded["id"] != given["id"]
+            else f"{what} was trained on another env configuration")
+    message = f"{head}: " + "; ".join(diffs)
+    if fatal or not allow_mismatch:
+        raise ValueError(message + ("" if fatal else " (allow_mismatch=True runs it anyway)"))
+    warnings.warn(message, stacklevel=3)
+
+
+def check_env_signature(recorded: dict, env, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
+    """:func:`check_signature` of ``env``'s :func:`env_signature` against ``recorded``."""
+    check_signature(recorded, env_signature(env), what=what, allow_mismatch=allow_mismatch)
+
+
+def _read_config(config_file: Path) -> dict:
+    try:
+        config = yaml.safe_load(config_file.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{config_file} is not valid YAML: {exc}") from None
+    if not isinstance(config, dict) or not isinstance(config.get("action_mode", {}), dict):
+        raise ValueError(f"{config_file} is not an agent's config.yml (a mapping with env_id and action_mode)")
+    return config
+
+
+def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> AgentPolicy:
     """Load the agent in folder ``path`` (or ``path`` = its model.zip) for the plain ``env``.
 
-    Raises FileNotFoundError for a missing file, ValueError for an agent
-    that does not fit ``env``.
+    Runs no code from the folder (see the module docstring).  The env must
+    be the configuration the agent was trained for: its config.yml's ``env``
+    block (:func:`env_signature`) is compared with ``env``.
+
+    Parameters
+    ----------
+    path : path
+        Agent folder (model.zip, vecnormalize.npz, config.yml) or its model.zip.
+    env : gymnasium.Env
+        The plain env (``action_repeat=1``) the agent will run on.
+    device : str
+        Torch device.
+    allow_mismatch : bool
+        Run an agent on an env configuration other than its own (another
+        contour, feedrate, ...) with a warning instead of an error.  Shapes
+        must still agree.
+
+    Raises
+    ------
+    FileNotFoundError
+        For a missing folder or file.
+    ValueError
+        For an empty path, a pickled normalisation file, damaged or foreign
+        files, or an agent trained on another env configuration (naming the
+        fields that differ).
     """
-    from stable_baselines3 import PPO
+    from .config import ppo_arguments
+    from .model_file import load_ppo
 
     model_file, norm_file, config_file = agent_files(path)
-    config = yaml.safe_load(config_file.read_text()) or {}
-    env_id = getattr(getattr(env.unwrapped, "spec", None), "id", None)
-    trained_on = config.get("env_id")
-    if env_id is not None and trained_on is not None and env_id != trained_on:
-        raise ValueError(f"the agent in {str(path)!r} was trained on {trained_on}, not {env_id}")
-    mode = ActionMode(**config.get("action_mode", {}))
-    model = PPO.load(model_file, device=device)
-    with open(norm_file, "rb") as f:
-        normalization = pickle.load(f)
-    normalization.training = False
-    return AgentPolicy(model, normalization, mode, env)
+    config = _read_config(config_file)
+    recorded = (config.get("env") or {}).get("signature")
+    if isinstance(recorded, dict):
+        check_env_signature(recorded, env, what=f"the agent in {str(path)!r}", allow_mismatch=allow_mismatch)
+    else:
+        check_env_signature({"id": config.get("env_id")}, env, what=f"the agent in {str(path)!r}",
+                            allow_mismatch=allow_mismatch)
+        warnings.warn(f"{config_file} records no env configuration (an agent from an older vcnc-train): only its "
+                      "env id and observation size are checked", stacklevel=2)
+    stats = NormalizationStats.load(norm_file)
+    obs_shape = tuple(env.unwrapped.observation_space.shape)
+    if (stats.observation_size,) != obs_shape:
+        raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
+                         f"shape {obs_shape}: it belongs to another agent or env configuration")
+    try:
+        mode = ActionMode(**config.get("action_mode", {}))
+    except TypeError as exc:
+        raise ValueError(f"{config_file}: action_mode is not an action mode ({exc})") from None
+    _, ppo_kwargs = ppo_arguments(config.get("hyperparams") or {})
+    model = load_ppo(model_file, observation_space=env.unwrapped.observation_space,
+                     action_space=env.unwrapped.action_space, ppo_kwargs=ppo_kwargs, device=device)
+    return AgentPolicy(model, stats, mode, env)
