@@ -6,9 +6,14 @@ rescaled, not shifted, knots in their own units.
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
+from .corners import polyline, smooth_polyline
 from .nurbs import NurbsCurve
 
-__all__ = ["heart", "omega", "SHAPES"]
+__all__ = ["heart", "omega", "corners_vertices", "corners_path", "SHAPES"]
 
 
 def heart() -> NurbsCurve:
@@ -39,6 +44,53 @@ def omega() -> NurbsCurve:
         knots=[0, 0, 0, 0.025, 0.1, 0.2, 0.4, 0.5, 0.6, 0.8, 0.9, 0.975, 1, 1, 1],
         degree=2,
     )
+
+
+def corners_vertices() -> np.ndarray:
+    """Vertices (mm) of seed 002's test path (Fig. 5): corners of 30, 60 and 90 degrees.
+
+    Seed 002 names the interior angles (section IV-A) but gives no lengths.
+    Our choice: four 50 mm segments (200 mm, 4 s at the paper's 50 mm/s, so
+    the linear path meets its corners at 1, 2 and 3 s and stops at 4 s, where
+    the paper's Fig. 11 shows its overshoots), starting at the origin along
+    +x, turning left 150 degrees (a 30-degree corner), right 120 degrees (60)
+    and left 90 degrees (90).  Every vertex is >= 25 mm from the segments not
+    meeting it, so the path never comes near itself.
+
+    Returns
+    -------
+    (5, 2) float64 array, mm.
+    """
+    segment = 50.0
+    headings = [0.0, 150.0, 30.0, 120.0]  # degrees: turns of +150, -120, +90
+    steps = [[segment * math.cos(math.radians(h)), segment * math.sin(math.radians(h))] for h in headings]
+    return np.cumsum(np.array([[0.0, 0.0]] + steps), axis=0)
+
+
+def corners_path(smooth: bool = True, epsilon: float = 0.05, a_max: float | None = None,
+                 j_max: float | None = None) -> NurbsCurve:
+    """Seed 002's test path (Fig. 5, :func:`corners_vertices`), sharp or corner-smoothed.
+
+    Parameters
+    ----------
+    smooth : bool
+        True: corners replaced by quintic Bezier blends (seed 002 eqs. (12)-(23)),
+        a degree-5 NURBS; False: the sharp polyline, a degree-1 NURBS whose
+        parameter is the arc length.
+    epsilon : float
+        Corner tolerance, mm (seed 002 section IV-A: 50 um).
+    a_max, j_max : float or None
+        Limits the blends are designed for, mm/s^2 and mm/s^3; None: seed
+        002's drives (:mod:`vcnc_gym.motion.jlap`).
+    """
+    if not smooth:
+        return polyline(corners_vertices())
+    if a_max is None or j_max is None:
+        from ..motion import jlap  # imported here: vcnc_gym.motion imports this package
+
+        a_max = jlap.SEED002_A_MAX if a_max is None else a_max
+        j_max = jlap.SEED002_J_MAX if j_max is None else j_max
+    return smooth_polyline(corners_vertices(), epsilon, a_max, j_max).curve
 
 
 SHAPES = {"heart": heart, "omega": omega}
