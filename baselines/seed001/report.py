@@ -195,7 +195,7 @@ def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.
         T = control.feedback(G * C, 1)
         poles = T.poles()
         stable = bool(np.all(poles.real < 0.0))
-        t = np.linspace(0.0, t_end, int(round(t_end / 1e-3)) + 1)
+        t = np.linspace(0.0, t_end, int(round(t_end / 2e-3)) + 1)  # crossings are interpolated between samples
     else:
         dt = 1e-3 if dt is None else float(dt)
         n = cncmt_axis.delay_periods(dead_time, dt, "dead_time")
@@ -260,7 +260,8 @@ def table2(dead_time: float = 0.0, dt: float | None = None, n_plants: int = 10, 
     -------
     list of dict
         One row per controller: ``nominal`` metrics, ``uncertain`` (min, max)
-        per metric over the plants, ``stability_margin`` (eq. (5)),
+        per metric over the plants whose loop is stable (``unstable_plants``
+        counts the others), ``stability_margin`` (eq. (5)),
         ``robustly_stable``, ``unstable_plants``, and ``paper``, the seed's
         row of Table 2 (the H-infinity row for both "hinf" and "hinf-reduced").
     """
@@ -298,9 +299,14 @@ def format_kharitonov(controllers=None) -> str:
 
 
 def format_table2(rows: list[dict], title: str = "") -> str:
-    """A Markdown table in Table 2's shape, ours beside the seed's ("ours / seed")."""
+    """A Markdown table in Table 2's shape, ours beside the seed's ("ours / seed").
+
+    Ranges are over the stable plants of each row; a metric undefined on all
+    of them is "n/a" (e.g. the 0-100 % rise time of a response that never
+    reaches the set-point).
+    """
     out = [title] if title else []
-    out += ["| controller | plant | OS (%) | ST (s) | RT 10-90 (s) | RT 0-100 (s) | SM |",
+    out += ["| controller | plant | OS (%) | ST (s) | RT 10-90 (s) | RT 0-100 (s) | SM, eq. (5), no dead time |",
             "|---|---|---|---|---|---|---|"]
     for r in rows:
         p = r["paper"]
@@ -347,7 +353,7 @@ def env_step_table(controllers=None, n_plants: int = 10, dead_time: float | None
     Returns
     -------
     rows : list of dict
-        As :func:`table2` (``stable`` here means "not diverged").
+        As :func:`table2`, "stable" meaning "not diverged within the episode".
     traces : dict
         ``{controller: [(t, x), ...]}``, nominal first: time [s] and x
         position [mm] per episode, for :func:`plot_step_responses`.
