@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 import json
+import pickle
 import zipfile
 from pathlib import Path
 
@@ -185,8 +186,15 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
         **{k: None for k in _RUNTIME_ONLY},
     }
     custom = {k: v for k, v in replacements.items() if k in data}
-    model = PPO.load(path, env=env, device=device, custom_objects=custom, **kwargs)
-    return model
+    try:
+        return PPO.load(path, env=env, device=device, custom_objects=custom, **kwargs)
+    except pickle.UnpicklingError as exc:
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"{path}: its tensor files (policy.pth, ...) hold more than tensors and are refused by "
+                         f"torch's weights-only reader ({reason})") from None
+    except (RuntimeError, KeyError, ValueError, AssertionError) as exc:
+        raise ValueError(f"{path} does not load as the PPO its config.yml describes "
+                         f"({type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''})") from None
 
 
 def model_timesteps(path) -> int:

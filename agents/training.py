@@ -9,8 +9,9 @@ Everything of one run lives in one folder::
       best/               model.zip, vecnormalize.npz, config.yml: best deterministic evaluation
       final/              the same three at the end of training
       evaluations.csv     steps, max / mean / RMS contour error (um) of each evaluation
-      monitor/            SB3 Monitor files of the training envs (one row per episode,
-                          with the run's agent-step count at its end, column ``steps``)
+      monitor/            SB3 Monitor files of the training envs, one row per episode: return r,
+                          length l (agent steps), t (s since the session's start) and
+                          steps (the run's agent-step count at the episode's end)
       tb/                 TensorBoard logs (when tensorboard is installed)
       summary.json        wall time, steps per second and status of each training session
 
@@ -538,8 +539,9 @@ def _make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose
         def _on_rollout_start(self) -> None:
             n = self.rollout_start = self.num_timesteps
             self.rollout_stats = self.stats()
-            due_eval = eval_freq > 0 and n - self.last_eval >= eval_freq
-            if due_eval or n - self.last_checkpoint >= checkpoint_freq:
+            # on grids of multiples of the periods (at the first update past each), whatever else was saved
+            due_eval = eval_freq > 0 and n // eval_freq > self.last_eval // eval_freq
+            if due_eval or n // checkpoint_freq > self.last_checkpoint // checkpoint_freq:
                 self.checkpoint(n, self.rollout_stats)
             if due_eval:
                 self.evaluate(n, self.rollout_stats)
@@ -580,8 +582,8 @@ def _make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose
             policy = AgentPolicy(self.model, stats, self.mode, self.env)
             r = run_episode(policy, self.env, seed=0)
             score = math.inf if r.diverged else evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
-            row = {"steps": n, "max_um": r.max_contour_error_um, "mean_um": r.mean_contour_error_um,
-                   "rms_um": r.rms_contour_error_um, "score_um": score, "diverged": r.diverged}
+            row = {"steps": int(n), "max_um": float(r.max_contour_error_um), "mean_um": float(r.mean_contour_error_um),
+                   "rms_um": float(r.rms_contour_error_um), "score_um": float(score), "diverged": bool(r.diverged)}
             new = not self.csv.exists()
             with open(self.csv, "a", newline="") as f:
                 w = csv.DictWriter(f, fieldnames=_EVAL_FIELDS)
@@ -754,7 +756,8 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
         if checkpoint is None:
             raise FileNotFoundError(
                 f"cannot resume: {run_dir / 'checkpoints'} holds no intact checkpoint "
-                f"({CHECKPOINT_PREFIX}_<steps>_steps.zip with its vecnormalize .npz); the run never reached one: "
+                f"({CHECKPOINT_PREFIX}_<steps>_steps.zip with its vecnormalize .npz); it never reached one or all "
+                f"are damaged: "
                 f"start it again with vcnc-train --env {config['env_id']} --output {run_dir}")
         config = dict(config)
         config.setdefault("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)
@@ -790,7 +793,8 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
         if not _stale_run(run_dir):
             raise FileExistsError(f"{run_dir} already holds a run (or other files); resume it with "
                                   f"vcnc-train --resume {run_dir}, or choose another output folder")
-        _note(f"{run_dir} holds a run that never reached a checkpoint: starting it over")
+        _note(f"{run_dir} holds a run without an intact checkpoint (it never reached one, or all are damaged): "
+              "starting it over")
     return run_dir, config, None
 
 
