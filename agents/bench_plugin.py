@@ -35,9 +35,18 @@ def _make(path: str, env):
     return load_agent(path, env)
 
 
+def _defaults(env) -> list[str]:
+    """The shipped agent, when there is one and it was trained on this env configuration (not, e.g., at
+    another ``--feedrate``: ``ppo`` named explicitly then says why it does not fit)."""
+    from .policy import agent_mismatch
+
+    folder = _shipped(env)
+    return ["ppo"] if folder is not None and agent_mismatch(folder, env) is None else []
+
+
 KIND = PolicyKind(
     name="ppo",
     make=_make,
-    defaults=lambda env: ["ppo"] if _shipped(env) is not None else [],
+    defaults=_defaults,
     description="a trained PPO agent: ppo:FOLDER, or ppo for the agent shipped for the env",
 )

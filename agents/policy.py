@@ -35,7 +35,8 @@ import yaml
 from .action_modes import ActionMode
 from .normalization import NormalizationStats
 
-__all__ = ["AgentPolicy", "load_agent", "agent_files", "env_signature", "check_env_signature", "check_signature",
+__all__ = ["AgentPolicy", "load_agent", "agent_files", "agent_mismatch", "env_signature", "check_env_signature",
+           "check_signature",
            "MODEL_FILE",
            "NORMALIZATION_FILE", "CONFIG_FILE"]
 
@@ -218,6 +219,21 @@ def check_signature(recorded: dict, given: dict, *, what: str = "the agent", all
 def check_env_signature(recorded: dict, env, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
     """:func:`check_signature` of ``env``'s :func:`env_signature` against ``recorded``."""
     check_signature(recorded, env_signature(env), what=what, allow_mismatch=allow_mismatch)
+
+
+def agent_mismatch(path, env) -> str | None:
+    """Why the agent in ``path`` does not fit ``env`` (the message :func:`load_agent` would raise), or None.
+
+    Reads only the agent's config.yml (no model); for choosing default
+    policies, e.g. the bench's shipped agent at a non-default feedrate.
+    """
+    config = _read_config(agent_files(path)[2])
+    recorded = (config.get("env") or {}).get("signature") or {"id": config.get("env_id")}
+    try:
+        check_signature(recorded, env_signature(env), what=f"the agent in {str(path)!r}")
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 def _read_config(config_file: Path) -> dict:

@@ -59,7 +59,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import gymnasium as gym
-import numpy as np
 import yaml
 
 import vcnc_gym
@@ -431,17 +430,22 @@ def _roll_back(run_dir: Path, config: dict, steps: int, damaged: list) -> dict:
             for p in _checkpoint_files(model_zip.parent, int(_CHECKPOINT.match(model_zip.name).group(1))):
                 if p.exists():
                     p.rename(p.with_name(p.name + ".damaged"))
-    _rebuild_best(run_dir, config, kept)
+    _rebuild_best(run_dir, config, kept, steps)
     summary = _read_summary(run_dir)
     for s in summary["sessions"]:
         if s.get("status") == "running":
             s["status"] = "killed"
+    summary["best"] = _best_of(kept)
     _write_summary(run_dir, summary)
     return {"evaluations": len(rows) - len(kept), "episodes": episodes}
 
 
-def _rebuild_best(run_dir: Path, config: dict, rows: list[dict]) -> None:
-    """Make best/ the checkpoint of the best of ``rows`` (every evaluated model is a checkpoint)."""
+def _rebuild_best(run_dir: Path, config: dict, rows: list[dict], steps: int) -> None:
+    """Make best/ the checkpoint of the best of ``rows`` if it holds a model of lost training (past
+    ``steps``) or not that best one, or is missing; a best/ of unknown origin (older runs) is left alone.
+
+    Every evaluated model is a checkpoint, so best/ is copied from ``checkpoints/``.
+    """
     best = _best_of(rows)
     folder = run_dir / "best"
     have = None
@@ -450,10 +454,14 @@ def _rebuild_best(run_dir: Path, config: dict, rows: list[dict]) -> None:
             have = (yaml.safe_load((folder / CONFIG_FILE).read_text()).get("agent") or {}).get("timesteps")
         except (yaml.YAMLError, AttributeError):
             have = None
-    if best is not None and have == best["steps"]:
+        if have is None:
+            return
+    if folder.exists() and have is not None and have <= steps and best is not None and have == best["steps"]:
+        return
+    if not folder.exists() and best is None:
         return
     if best is None:
-        if folder.exists():
+        if have is not None and have > steps:
             shutil.rmtree(folder)
         return
     model_zip, norm = _checkpoint_files(run_dir / "checkpoints", best["steps"])
@@ -494,7 +502,7 @@ def _record_session(run_dir: Path, session: dict, best: dict | None) -> None:
 
 def _write_summary(run_dir: Path, summary: dict) -> None:
     sessions = summary["sessions"]
-    summary["timesteps"] = max((s["end_timesteps"] for s in sessions), default=0)
+    summary["timesteps"] = sessions[-1]["end_timesteps"] if sessions else 0
     summary["wall_s"] = sum(s.get("wall_s", 0.0) for s in sessions)
     _write_text(run_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
 

@@ -28,7 +28,6 @@ import subprocess
 import sys
 import threading
 import time
-import warnings
 import zipfile
 from pathlib import Path
 
@@ -42,7 +41,7 @@ import agents
 import vcnc_gym  # noqa: F401
 from agents import TRAINED, load_agent
 from agents.cli import main as train_main
-from agents.config import parse_policy_kwargs, ppo_arguments
+from agents.config import parse_policy_kwargs
 from agents.model_file import PPO_DATA_KEYS, read_model_data
 from agents.normalization import NormalizationStats
 from agents.training import RunWarning, latest_checkpoint, prepare_run, scan_checkpoints
@@ -590,3 +589,18 @@ def test_kill_and_resume_loses_and_duplicates_no_row(tmp_path):
     # the check can fail: keeping the killed session's rows past the checkpoint breaks it
     if any(report["rows_past_checkpoint"].values()):
         assert any(m["chain_breaks"] or m["duplicates"] for m in naive["monitor"].values())
+
+
+def test_the_bench_runs_the_shipped_agent_only_on_its_own_configuration(capsys):
+    import vcnc_bench
+    from vcnc_bench.policies import default_specs
+
+    from agents.policy import agent_mismatch
+
+    assert "ppo" in default_specs(gym.make(OMEGA))
+    slow = gym.make(OMEGA, feedrate=20.0)
+    assert "feedrate" in agent_mismatch(TRAINED[OMEGA], slow)
+    assert "ppo" not in default_specs(slow)  # vcnc-bench --feedrate 20 runs the baselines only
+    with pytest.raises(SystemExit) as exc:
+        vcnc_bench.main(["--env", OMEGA, "--feedrate", "20", "--policy", "ppo", "--no-progress"])
+    assert exc.value.code == 2 and "feedrate: trained on 100.0 mm/s" in capsys.readouterr().err
