@@ -129,7 +129,10 @@ def test_evaluate_policy_batched_envs():
     assert len(rewards) == 3 and np.ptp(rewards) <= 1e-9 * abs(np.mean(rewards))
 
 
-@pytest.mark.parametrize("name", baselines.names())
+SEED_000 = [n for n in baselines.names() if "vcnc_feed_drive" in baselines.registry.policy_class(n).plants]
+
+
+@pytest.mark.parametrize("name", SEED_000)
 def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
     """All 64 corners of seed 000's box (the heart is run on vertices 0 and 63 above)."""
     for k, vertex in enumerate(VERTICES):

@@ -327,7 +327,10 @@ def test_smc_disturbance_beyond_limit_leaves_predicted_offset():
 # Registry, validation and the predict contract
 # --------------------------------------------------------------------------
 def test_names_and_unknown_name():
-    assert baselines.names() == ["fuzzy", "qft", "qft-g", "smc"]
+    assert {"fuzzy", "qft", "qft-g", "smc"} <= set(baselines.names())
+    assert baselines.names() == sorted(baselines.names())
+    for name in baselines.names():  # every baseline says which plants it was designed for
+        assert baselines.registry.policy_class(name).plants
     with pytest.raises(ValueError, match="unknown baseline"):
         baselines.make("pid", fake_env())
     with pytest.raises(ValueError, match="unknown baseline"):

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import vcnc_gym
 from vcnc_gym.plants import vcnc_feed_drive as plant
 
-ENV_IDS = list(vcnc_gym.ENV_IDS)
+ENV_IDS = list(vcnc_gym.envs.CONTOURING_IDS)
 
 
 def pd_episode(env, kp=300.0, kd=1.0, seed=0):

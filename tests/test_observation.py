@@ -9,7 +9,7 @@ import pytest
 import vcnc_gym
 from vcnc_gym.envs import layout as layout_module
 
-IDS = list(vcnc_gym.ENV_IDS)
+IDS = list(vcnc_gym.envs.CONTOURING_IDS)
 
 
 def _check_fields(env, n_steps=400):

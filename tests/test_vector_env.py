@@ -10,7 +10,7 @@ from gymnasium.vector import AutoresetMode
 import vcnc_gym
 from vcnc_gym.envs import ContouringVectorEnv
 
-IDS = list(vcnc_gym.ENV_IDS)
+IDS = list(vcnc_gym.envs.VECTOR_IDS)
 
 
 def _pd(layout, obs):

@@ -3,8 +3,8 @@
 from .contouring_env import ContouringEnv
 from .contouring_vector_env import ContouringVectorEnv
 from .layout import Field, ObservationLayout
-from .registry import ENV_IDS, SUITE, register_envs, suite_env
+from .registry import CONTOURING_IDS, ENV_IDS, SUITE, VECTOR_IDS, register_envs, suite_env
 from .task import ContouringBatch, ContouringTask
 
 __all__ = ["ContouringEnv", "ContouringVectorEnv", "ContouringTask", "ContouringBatch", "Field",
-           "ObservationLayout", "ENV_IDS", "SUITE", "register_envs", "suite_env"]
+           "ObservationLayout", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "SUITE", "register_envs", "suite_env"]

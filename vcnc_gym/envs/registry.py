@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["SuiteEnv", "SUITE", "ENV_IDS", "register_envs", "suite_env"]
+__all__ = ["SuiteEnv", "SUITE", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "register_envs", "suite_env"]
 
 _CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
 _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
@@ -29,6 +29,11 @@ class SuiteEnv:
     entry_point: str = _CONTOURING
     vector_entry_point: str | None = _CONTOURING_VECTOR
 
+    @property
+    def contouring(self) -> bool:
+        """True for a contour-following env (ContouringEnv): reward = -contour error along a contour."""
+        return self.entry_point == _CONTOURING
+
 
 #: Every env id of the suite.
 SUITE: tuple[SuiteEnv, ...] = (
@@ -43,6 +48,12 @@ SUITE: tuple[SuiteEnv, ...] = (
 
 #: The registered ids, in the order of :data:`SUITE`.
 ENV_IDS: tuple[str, ...] = tuple(e.id for e in SUITE)
+
+#: The contour-following ids (ContouringEnv), a subset of :data:`ENV_IDS`.
+CONTOURING_IDS: tuple[str, ...] = tuple(e.id for e in SUITE if e.contouring)
+
+#: The ids with a native vector env (``gym.make_vec(..., vectorization_mode="vector_entry_point")``).
+VECTOR_IDS: tuple[str, ...] = tuple(e.id for e in SUITE if e.vector_entry_point is not None)
 
 
 def suite_env(env_id: str) -> SuiteEnv:

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit, prange, types
 from numba.experimental import structref
 
-from ..contour.projector import project_point
+from ..contour.projector import project_point_warm
 from ..plants import contract
 
 __all__ = [
@@ -103,7 +103,7 @@ StepConfig = namedtuple("StepConfig", [
 #: Per-env arrays, first axis N: inputs ``mode`` (int8) and ``action``
 #: (N, 2) float64, normalised; memory ``k`` (control periods done),
 #: ``steps`` (decisions done), ``foot`` (the closest point's curve parameter
-#: of the last control period, the next search's warm start; -1 = none),
+#: of the last control period, the next search's warm start; NaN = none),
 #: ``input_limit`` (N, 2) in the plant's unit, ``previous_action`` (N, 2);
 #: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
 #: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
@@ -168,8 +168,8 @@ def _step_env(d, i):
             contract.advance(d.plant, i, command)
             b.k[i] += 1
         contract.sense(d.plant, i, sensed)
-        err, b.foot[i] = project_point(
-            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1],
+        err, b.foot[i] = project_point_warm(
+            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1], b.foot[i],
             c.control_points, c.weights, c.knots, c.degree, c.piece_u, c.piece_table, c.piece_sag,
             c.grid_origin, c.cell_size, c.grid_shape, c.cell_start, c.cell_pieces, b.der[i], b.work[i])
         err_sum += err

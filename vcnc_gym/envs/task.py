@@ -189,7 +189,7 @@ class ContouringBatch:
             action=np.zeros((n, 2)),
             k=np.zeros(n, dtype=np.int64),
             steps=np.zeros(n, dtype=np.int64),
-            foot=np.full(n, -1.0),
+            foot=np.full(n, np.nan),
             input_limit=np.zeros((n, 2)),
             previous_action=np.zeros((n, 2)),
             obs=np.zeros((n, layout.size), dtype=np.float32),
@@ -213,7 +213,7 @@ class ContouringBatch:
         b.input_limit[i] = self.task.plant.input_limits(parameters)
         b.k[i] = 0
         b.steps[i] = 0
-        b.foot[i] = -1.0
+        b.foot[i] = np.nan  # no previous foot: a global search
         b.previous_action[i] = 0.0
         b.action[i] = 0.0
         b.mode[i] = sk.MODE_OBSERVE
