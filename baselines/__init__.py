@@ -20,6 +20,7 @@ Example
 """
 
 from .base import BaselinePolicy
+from .contouring_fb import ContouringFBPolicy
 from .fuzzy import DEFAULT_SCALING, FuzzyPolicy, FuzzyScaling
 from .qft import (
     MU,
@@ -28,6 +29,7 @@ from .qft import (
     sampled_loop_spectral_radius,
     sampled_loop_stable,
 )
+from .ilc import ILCPolicy, run_trials
 from .registry import make, names
 from .smc import SlidingModePolicy
 
@@ -38,6 +40,9 @@ __all__ = [
     "QFTPolicy",
     "SlidingModePolicy",
     "FuzzyPolicy",
+    "ContouringFBPolicy",
+    "ILCPolicy",
+    "run_trials",
     "FuzzyScaling",
     "DEFAULT_SCALING",
     "MU",
