@@ -52,6 +52,10 @@ REF_ACCELERATION = 4  # d2x_d/dt2 (2) mm/s^2
 REF_TANGENT = 6  # unit path tangent at x_d (2)
 REF_COLUMNS = 8
 
+# envs of a parallel step are cut in this many chunks (each unpacks the StepData once),
+# enough to balance a few threads
+_CHUNKS = 64
+
 # what the kernel does with env i, buffers.mode[i]
 MODE_IDLE = 0  # nothing (a finished env awaiting its reset)
 MODE_STEP = 1  # one decision step with buffers.action[i]
@@ -136,15 +140,18 @@ structref.define_proxy(StepData, StepDataType, ["plant", "reference", "contour",
 
 
 @njit(cache=True)
-def _step_env(d, i):
-    """One decision step (or, in MODE_OBSERVE, one observation) of env ``i``."""
-    b = d.buffers
+def _step_env(plant, reference, c, cfg, o, b, i):
+    """One decision step (or, in MODE_OBSERVE, one observation) of env ``i``.
+
+    Takes the fields of a :class:`StepData` unpacked once by the caller:
+    reading a StructRef field hands out new references to every array in it
+    (atomic reference counts), which, per env and per thread, would cost more
+    than the step itself.
+    """
     mode = b.mode[i]
     if mode == MODE_IDLE:
         return
-    cfg = d.config
-    c = d.contour
-    samples = d.reference.samples
+    samples = reference.samples
     last = samples.shape[0] - 1
     sensed = b.sensed[i]
     n = 0
@@ -165,9 +172,9 @@ def _step_env(d, i):
     err_max = 0.0
     for _ in range(max(n, 1)):
         if n > 0:
-            contract.advance(d.plant, i, command)
+            contract.advance(plant, i, command)
             b.k[i] += 1
-        contract.sense(d.plant, i, sensed)
+        contract.sense(plant, i, sensed)
         err, b.foot[i] = project_point_warm(
             sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1], b.foot[i],
             c.control_points, c.weights, c.knots, c.degree, c.piece_u, c.piece_table, c.piece_sag,
@@ -227,7 +234,6 @@ def _step_env(d, i):
     flags[FLAG_DIVERGED] = diverged
 
     # observation, field by field through the layout's named offsets
-    o = d.offsets
     obs = b.obs[i]
     ex = xd - xm
     ey = yd - ym
@@ -244,7 +250,7 @@ def _step_env(d, i):
     obs[o.contour_error] = err
     obs[o.tangential_error] = tx * ex + ty * ey  # seed 002 eq. (3): e_l = R^T e_w
     obs[o.normal_error] = -ty * ex + tx * ey
-    preview = d.reference.preview_steps
+    preview = reference.preview_steps
     for j in range(preview.shape[0]):
         kp = min(kr + preview[j], last)
         obs[o.preview + 2 * j] = samples[kp, REF_POSITION] - xm
@@ -266,14 +272,24 @@ def _step_env(d, i):
 
 
 @njit(cache=True)
+def _step_range(d, start, stop):
+    """Envs ``start`` to ``stop - 1`` of ``d``, with the StepData's fields unpacked once."""
+    plant, reference, contour, config, offsets, buffers = d.plant, d.reference, d.contour, d.config, d.offsets, \
+        d.buffers
+    for i in range(start, stop):
+        _step_env(plant, reference, contour, config, offsets, buffers, i)
+
+
+@njit(cache=True)
 def step_serial(d):
     """One decision step of every env of ``d`` in turn (the single env: N = 1)."""
-    for i in range(d.buffers.mode.shape[0]):
-        _step_env(d, i)
+    _step_range(d, 0, d.buffers.mode.shape[0])
 
 
 @njit(cache=True, parallel=True)
 def step_parallel(d):
-    """One decision step of every env of ``d``, spread over the cores (numba ``prange``)."""
-    for i in prange(d.buffers.mode.shape[0]):
-        _step_env(d, i)
+    """One decision step of every env of ``d``, spread over the cores (numba ``prange`` over chunks of envs)."""
+    n = d.buffers.mode.shape[0]
+    chunks = min(n, _CHUNKS)
+    for c in prange(chunks):
+        _step_range(d, c * n // chunks, (c + 1) * n // chunks)
