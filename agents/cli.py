@@ -53,8 +53,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-freq", type=int, metavar="N",
                    help=f"agent steps between deterministic evaluations on the nominal plant, 0: only at the end "
                         f"(default {DEFAULT_EVAL_FREQ}; resume: the run's)")
-    p.add_argument("--vec-env", choices=("dummy", "subproc"), default="dummy",
-                   help="run the envs in this process or one process each")
+    p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default="native",
+                   help="native: the vector env steps every env in one compiled call (default); dummy: SB3's "
+                        "DummyVecEnv, one env after another; subproc: one process per env")
     p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs even if it is installed")

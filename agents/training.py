@@ -149,14 +149,18 @@ def _check_seed(seed) -> int:
     return v
 
 
+#: The training VecEnvs: the native vector env (one kernel call for all envs), SB3's DummyVecEnv, SubprocVecEnv.
+VEC_ENVS = ("native", "dummy", "subproc")
+
+
 def check_training_options(*, checkpoint_freq, eval_freq, vec_env, tensorboard) -> None:
     """ValueError for a bad training option of :func:`train` (the run-independent ones; None = the run's)."""
     if checkpoint_freq is not None:
         count("checkpoint_freq", checkpoint_freq)
     if eval_freq is not None:
         count("eval_freq", eval_freq, 0)
-    if vec_env not in ("dummy", "subproc"):
-        raise ValueError(f"vec_env must be 'dummy' or 'subproc', got {vec_env!r}")
+    if vec_env not in VEC_ENVS:
+        raise ValueError(f"vec_env must be one of {VEC_ENVS}, got {vec_env!r}")
     if tensorboard and importlib.util.find_spec("tensorboard") is None:
         raise ValueError("tensorboard logging was asked for but tensorboard is not installed")
 
@@ -257,7 +261,7 @@ def _env_factory(env_id: str, env_kwargs: dict, mode: ActionMode, start: int, st
     return make
 
 
-def make_training_venv(config: dict, run_dir: Path, *, vec_env: str = "dummy", start_steps: int = 0,
+def make_training_venv(config: dict, run_dir: Path, *, vec_env: str = "native", start_steps: int = 0,
                        append: bool = False):
     """The run's training VecEnv (without normalisation): n_envs envs with their Monitor files.
 
@@ -265,15 +269,23 @@ def make_training_venv(config: dict, run_dir: Path, *, vec_env: str = "dummy", s
     plants); the Monitor files ``monitor/<i>.monitor.csv`` are appended to
     (``append``, a resumed run) or started, and record the run's step count
     at the end of every episode (column ``steps``).
-    The one place that builds the training envs.
+    The one place that builds the training envs: ``vec_env="native"`` (the
+    default) steps all envs with one kernel call per control period
+    (:class:`agents.vec_env.VcncVecEnv`, the residual baseline batched);
+    "dummy" and "subproc" are SB3's per-env VecEnvs over Gymnasium envs.
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     mode = ActionMode(**config["action_mode"])
     env_kwargs = dict(config["hyperparams"].get("env_kwargs") or {})
-    cls = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv}[vec_env]
     (run_dir / "monitor").mkdir(parents=True, exist_ok=True)
+    if vec_env == "native":
+        from .vec_env import VcncVecEnv
+
+        return VcncVecEnv(config["env_id"], config["n_envs"], mode, env_kwargs, seed=config["seed"] + start_steps,
+                          monitor_dir=run_dir / "monitor", start_steps=start_steps, append=append)
+    cls = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv}[vec_env]
     return make_vec_env(_env_factory(config["env_id"], env_kwargs, mode, start_steps, config["n_envs"]),
                         n_envs=config["n_envs"], seed=config["seed"] + start_steps, vec_env_cls=cls,
                         monitor_dir=str(run_dir / "monitor"),
@@ -750,7 +762,7 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
     checkpoint, or a new run into a folder that holds one.  An ``n_timesteps``
     that is not a whole number of rollouts is rounded up (:class:`RunWarning`).
     """
-    check_training_options(checkpoint_freq=checkpoint_freq, eval_freq=eval_freq, vec_env="dummy", tensorboard=None)
+    check_training_options(checkpoint_freq=checkpoint_freq, eval_freq=eval_freq, vec_env="native", tensorboard=None)
     if resume:
         if run_dir is None:
             raise ValueError("resume needs the run folder")
@@ -809,7 +821,7 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
 def train(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = None, seed: int = 0,
           n_envs: int | None = None, config_file=DEFAULT_CONFIG, action_mode: ActionMode | None = None,
           resume: bool = False, checkpoint_freq: int | None = None, eval_freq: int | None = None,
-          progress_bar: bool = True, tensorboard: bool | None = None, vec_env: str = "dummy",
+          progress_bar: bool = True, tensorboard: bool | None = None, vec_env: str = "native",
           device: str = "cpu", verbose: int = 0) -> TrainingResult:
     """Train PPO on ``env_id`` (or resume the run in ``run_dir``) and save everything in the run folder.
 
@@ -844,7 +856,8 @@ def train(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = 
     tensorboard : bool or None
         Log to RUN/tb; None: whenever tensorboard is installed.
     vec_env : str
-        "dummy" (one process) or "subproc" (one process per env).
+        "native" (the native vector env: one kernel call steps every env), "dummy" (SB3's
+        DummyVecEnv, one Gymnasium env after another) or "subproc" (one process per env).
     device : str
         Torch device.
     verbose : int
@@ -872,7 +885,7 @@ def _clear_new_run(run_dir: Path, created: bool) -> None:
 
 
 def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True, tensorboard: bool | None = None,
-          vec_env: str = "dummy", device: str = "cpu", verbose: int = 0) -> TrainingResult:
+          vec_env: str = "native", device: str = "cpu", verbose: int = 0) -> TrainingResult:
     """Train the run :func:`prepare_run` set up (from ``checkpoint`` if not None); options as :func:`train`.
 
     A new run that fails before its first checkpoint removes what it wrote;

@@ -21,6 +21,9 @@ its last observation in ``info["terminal_observation"]``, and
 
 from __future__ import annotations
 
+import time
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
@@ -52,10 +55,20 @@ class VcncVecEnv(VecEnv):
     seed : int, optional
         Env i is seeded with ``seed + i`` at the first reset (as SB3's
         ``make_vec_env`` does).
+    monitor_dir : path, optional
+        Write one SB3 Monitor file per env, ``<monitor_dir>/<i>.monitor.csv``
+        (episode return ``r``, length ``l`` in decisions, time ``t`` in s and
+        ``steps``, the run's agent-step count at the episode's end), and put
+        SB3's ``info["episode"]`` on each ended episode.
+    start_steps : int
+        The run's agent-step count when this VecEnv starts (a resumed
+        session), for the ``steps`` column.
+    append : bool
+        Append to existing monitor files (a resumed run) instead of starting them.
     """
 
     def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None,
-                 seed: int | None = None):
+                 seed: int | None = None, *, monitor_dir=None, start_steps: int = 0, append: bool = False):
         kwargs = dict(env_kwargs or {})
         self.mode = mode
         residual = mode.mode == "residual"
@@ -74,6 +87,19 @@ class VcncVecEnv(VecEnv):
         self._obs = None
         self._actions = None
         self._start = np.ones(n_envs, dtype=bool)
+        self._steps = int(start_steps)
+        self._returns = np.zeros(n_envs)
+        self._lengths = np.zeros(n_envs, dtype=np.int64)
+        self._t0 = time.time()
+        self._writers = None
+        if monitor_dir is not None:
+            from stable_baselines3.common.monitor import ResultsWriter
+
+            Path(monitor_dir).mkdir(parents=True, exist_ok=True)
+            self._writers = [ResultsWriter(str(Path(monitor_dir) / f"{i}"),
+                                           header={"t_start": self._t0, "env_id": env_id},
+                                           extra_keys=("steps",), override_existing=not append)
+                             for i in range(n_envs)]
 
     # -- SB3 VecEnv API ---------------------------------------------------------------
     def reset(self):
@@ -124,16 +150,29 @@ class VcncVecEnv(VecEnv):
         for i in range(n):
             infos[i]["contour_error_max"] = peak[i]
         rewards = (total / self.repeat).astype(np.float32)
+        self._steps += n
+        self._returns += rewards
+        self._lengths += 1
         if done.any():
             for i in np.flatnonzero(done):
                 infos[i]["terminal_observation"] = obs[i].copy()
                 infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+                episode = {"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
+                           "t": round(time.time() - self._t0, 6)}
+                infos[i]["episode"] = episode
+                if self._writers is not None:
+                    self._writers[i].write_row({**episode, "steps": self._steps})
+                self._returns[i] = 0.0
+                self._lengths[i] = 0
             obs, _ = self.venv.reset(options={"reset_mask": done})
             self._start[done] = True
         self._obs = obs
         return obs.copy(), rewards, done, infos
 
     def close(self) -> None:
+        if self._writers is not None:
+            for w in self._writers:
+                w.close()
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices=None) -> list:

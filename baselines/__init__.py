@@ -31,6 +31,7 @@ from .qft import (
 )
 from .ilc import ILCPolicy, run_trials
 from .registry import make, names
+from .seed001 import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
 from .smc import SlidingModePolicy
 
 __all__ = [
@@ -40,6 +41,10 @@ __all__ = [
     "QFTPolicy",
     "SlidingModePolicy",
     "FuzzyPolicy",
+    "PIPolicy",
+    "IMCPolicy",
+    "HinfPolicy",
+    "HinfReducedPolicy",
     "ContouringFBPolicy",
     "ILCPolicy",
     "run_trials",

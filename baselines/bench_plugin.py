@@ -22,11 +22,12 @@ def applies(name: str, env) -> bool:
     return plant is not None and plant.name in policy_class(name).plants
 
 
-def _stability_notes(env_ids, labels, envs) -> list[str]:
+def _qft_stability(ctx) -> list[str]:
     """Seed 000 eq. (11) for the QFT loop, when "qft" ran."""
-    if "qft" not in labels:
+    ran = [e for e in ctx.env_ids if "qft" in ctx.results.get(e, {})]
+    if not ran:
         return []
-    dts = sorted({envs[e].unwrapped.decision_period for e in env_ids if applies("qft", envs[e])})
+    dts = sorted({ctx.envs[e].unwrapped.decision_period for e in ran})
     head = "QFT robust-stability peak max|T(jw)| over the uncertainty box, seed 000 eq. (11)"
     lines = [f"{head} (bound mu = {qft.MU:g}):"]
     for axis in ("x", "y"):
@@ -36,11 +37,33 @@ def _stability_notes(env_ids, labels, envs) -> list[str]:
     return lines
 
 
+def _seed001(ctx) -> list[str]:
+    """Seed 001's section 3.5 margins and Table 2, when an env on its plant (cncmt_axis) ran."""
+    ran = [e for e in ctx.env_ids if getattr(ctx.envs[e].unwrapped, "plant", None) is not None
+           and ctx.envs[e].unwrapped.plant.name == "cncmt_axis"]
+    if not ran:
+        return []
+    from .seed001 import report
+
+    lines = ["Seed 001, section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)", "",
+             report.format_kharitonov()]
+    lines.append(report.format_table2(report.table2(dead_time=0.0), "\nTable 2, continuous loop without the dead "
+                                      "time (as the seed computes it); cells: ours / seed's"))
+    rows, traces = report.env_step_table(env_id=ran[0])
+    lines.append(report.format_table2(rows, f"\nTable 2 on {ran[0]} (dead time 0.1 s exact, nominal and 10 plants "
+                                            f"across the box); cells: ours / seed's"))
+    if ctx.plots is not None:
+        path = ctx.plots / f"{ran[0]}_step_responses.png"
+        report.plot_step_responses(traces, path, setpoint=rows[0].get("setpoint_mm", 10.0))
+        ctx.plots_written.append(path)
+    return lines
+
+
 KIND = PolicyKind(
     name="baseline",
     make=lambda arg, env: make(arg, env),
     names=names,
     defaults=lambda env: [n for n in names() if applies(n, env)],
-    notes=_stability_notes,
+    report=lambda ctx: _qft_stability(ctx) + _seed001(ctx),
     description="the papers' classical controllers (baselines.names())",
 )

@@ -14,6 +14,7 @@ from .contouring_fb import ContouringFBPolicy
 from .fuzzy import FuzzyPolicy
 from .ilc import ILCPolicy
 from .qft import QFTPolicy
+from .seed001 import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
 from .smc import SlidingModePolicy
 
 __all__ = ["make", "names", "policy_class", "REGISTRY", "VARIANTS"]
@@ -23,6 +24,10 @@ REGISTRY: dict[str, type[BaselinePolicy]] = {
     "qft": QFTPolicy,
     "smc": SlidingModePolicy,
     "fuzzy": FuzzyPolicy,
+    "pi": PIPolicy,  # seed 001, section 3.2
+    "imc": IMCPolicy,  # seed 001, eq. (23)
+    "hinf": HinfPolicy,  # seed 001, eq. (28)
+    "hinf-reduced": HinfReducedPolicy,  # seed 001, eq. (29)
     "contouring-fb": ContouringFBPolicy,  # seed 002, eq. (7)
     "ilc": ILCPolicy,  # seed 002, eqs. (8)-(11)
 }

@@ -30,11 +30,12 @@ from pathlib import Path
 import gymnasium as gym
 
 import vcnc_gym  # noqa: F401  (registers the ids)
-from vcnc_gym.envs import ENV_IDS
-from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, run_episode
+from vcnc_gym.envs import ENV_IDS, suite_env
+from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
 from .papers import paper_figures
-from .policies import check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label, resolve_policy
+from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label,
+                       resolve_policy)
 
 __all__ = ["format_table", "main"]
 
@@ -83,12 +84,13 @@ def format_table(records: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True) -> dict:
+def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True, trial: int | None = None) -> dict:
     paper = paper_figures(env_id, label).get("max_contour_error_um") if compare else None
     ratio = result.max_contour_error_um / paper if paper else None
     return {
         "env": env_id,
-        "policy": label,
+        "policy": label if trial is None else f"{label} (trial {trial})",
+        "trial": trial,
         "max_contour_error_um": result.max_contour_error_um,
         "mean_contour_error_um": result.mean_contour_error_um,
         "rms_contour_error_um": result.rms_contour_error_um,
@@ -122,6 +124,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
                    help="feedrate in mm/s (default: each env's own); with another value the paper's "
                         "columns stay empty")
+    p.add_argument("--trials", type=int, default=10, metavar="K",
+                   help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
+                        "and the last, the JSON every one (default 10)")
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write ENV_contour.png and ENV_error.png per env into this directory")
@@ -162,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.seed < 0:
         parser.error(f"--seed must be >= 0, got {args.seed}")
+    if args.trials < 1:
+        parser.error(f"--trials must be >= 1, got {args.trials}")
 
     env_ids = _unique(args.env or list(ENV_IDS))
     unknown = [e for e in env_ids if e not in ENV_IDS]
@@ -193,30 +200,44 @@ def main(argv: list[str] | None = None) -> int:
 
     from tqdm import tqdm
 
-    total = sum(envs[e].unwrapped.episode_steps for e, _, _ in runs)
+    def trials_of(policy) -> int:
+        return args.trials if getattr(policy, "learns_across_episodes", False) else 1
+
+    total = sum(envs[e].unwrapped.episode_steps * trials_of(p) for e, _, p in runs)
     records: list[dict] = []
-    results: dict[str, dict[str, EpisodeResult]] = {e: {} for e in env_ids}
+    ctx = BenchContext(env_ids=env_ids, envs=envs, plots=args.plots, trials=args.trials)
     with tqdm(total=total, unit="step", file=sys.stderr, dynamic_ncols=True, leave=False,
               disable=True if args.no_progress else None) as bar:
         for env_id, spec, policy in runs:
             label = policy_label(spec)
-            bar.set_postfix_str(f"{env_id} {label}")
-            result = run_episode(policy, envs[env_id], seed=args.seed, progress=bar.update)
-            results[env_id][label] = result
-            records.append(_record(env_id, label, result, compare))
+            k = trials_of(policy)
+            trials = []
+            for trial in range(1, k + 1):
+                bar.set_postfix_str(f"{env_id} {label}" + (f" trial {trial}/{k}" if k > 1 else ""))
+                result = run_episode(policy, envs[env_id], seed=args.seed, progress=bar.update)
+                trials.append(result)
+                records.append(_record(env_id, label, result, compare and trial == k, trial if k > 1 else None))
+            ctx.results.setdefault(env_id, {})[label] = trials[-1]
+            if k > 1:
+                ctx.trials_of[(env_id, label)] = trials
+    ctx.records = records
 
-    feeds = sorted({envs[e].unwrapped.feedrate_profile.feedrate for e in env_ids})
-    print(f"Contour error on the nominal plant at {', '.join(f'{f:g}' for f in feeds)} mm/s, one deterministic "
-          f"episode each (seed {args.seed}); paper = the source paper's figure (seed 000 Table 4)")
-    print(format_table(records))
-    incomplete = [f"{r['env']} {r['policy']}" for r in records if not r["completed"]]
+    feeds = sorted({envs[e].unwrapped.feedrate_profile.feedrate for e in env_ids
+                    if hasattr(envs[e].unwrapped, "feedrate_profile")})
+    print(f"Error of every policy on the nominal plant, one deterministic episode each (seed {args.seed}"
+          + (f"; policies that learn across episodes: {args.trials} trials, first and last shown" if ctx.trials_of
+             else "") + ")" + (f"; contours at {', '.join(f'{f:g}' for f in feeds)} mm/s" if feeds else ""))
+    print("error: the contour error on contouring envs, the distance to the set-point on positioning envs; "
+          "paper = the source paper's figure")
+    shown = [r for r in records if r.get("trial") in (None, 1, args.trials)]
+    print(format_table(shown))
+    incomplete = [f"{r['env']} {r['policy']}" for r in shown if not r["completed"]]
     if incomplete:
-        print(f"\nNOT COMPLETE (the episode did not reach the end of the contour; its errors cover only the part "
-              f"it ran): {', '.join(incomplete)}")
-    labels = _unique(r["policy"] for r in records)
+        print(f"\nNOT COMPLETE (diverged, or cut short before the end of its contour or step-response window; "
+              f"its errors cover only the part it ran): {', '.join(incomplete)}")
     for kind in policy_kinds().values():
-        if kind.notes is not None:
-            lines = kind.notes(env_ids, labels, envs)
+        if kind.report is not None:
+            lines = kind.report(ctx)
             if lines:
                 print()
                 print("\n".join(lines))
@@ -225,10 +246,19 @@ def main(argv: list[str] | None = None) -> int:
         args.json.write_text(json.dumps([_json_safe(r) for r in records], indent=2) + "\n")
         print(f"\nwrote {len(records)} records to {args.json}")
     if args.plots is not None:
-        for env_id, by_policy in results.items():
+        written = 0
+        for env_id, by_policy in ctx.results.items():
+            if not suite_env(env_id).contouring:
+                continue
             plot_contours(by_policy, envs[env_id], args.plots / f"{env_id}_contour.png")
             plot_contour_errors(by_policy, envs[env_id], args.plots / f"{env_id}_error.png")
-        print(f"wrote {2 * len(results)} plots to {args.plots}")
+            written += 2
+        for (env_id, label), trials in ctx.trials_of.items():
+            plot_trials(trials, args.plots / f"{env_id}_{label}_trials.png",
+                        title=f"{env_id}: {label}, max contour error per trial")
+            written += 1
+        written += len(ctx.plots_written)
+        print(f"wrote {written} plots to {args.plots}")
     for env in envs.values():
         env.close()
     print(f"total wall time {time.perf_counter() - wall0:.1f} s")

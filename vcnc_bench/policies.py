@@ -19,12 +19,45 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from importlib import metadata
+from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec", "policy_label",
+__all__ = ["BenchContext", "PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec", "policy_label",
            "check_policy_spec", "resolve_policy", "default_specs", "policy_choices"]
 
 ENTRY_POINT_GROUP = "vcnc_bench.policy_kinds"
+
+
+@dataclass
+class BenchContext:
+    """What a bench run did, for the kinds' reports.
+
+    Attributes
+    ----------
+    env_ids : list of str
+        The envs run, in order; ``envs`` maps them to the env objects.
+    results : dict
+        ``results[env_id][label]``: the policy's (last) EpisodeResult.
+    trials_of : dict
+        ``trials_of[(env_id, label)]``: every trial's EpisodeResult of a
+        policy that learns across episodes.
+    records : list of dict
+        The JSON records (every trial).
+    plots : Path or None
+        Where plots go (``--plots``); a report that draws one appends its
+        path to ``plots_written``.
+    trials : int
+        ``--trials``.
+    """
+
+    env_ids: list
+    envs: dict
+    plots: Path | None = None
+    trials: int = 1
+    results: dict = field(default_factory=dict)
+    trials_of: dict = field(default_factory=dict)
+    records: list = field(default_factory=list)
+    plots_written: list = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -43,8 +76,10 @@ class PolicyKind:
     defaults : callable (env) -> list of str
         The specs of this kind the bench runs on ``env`` when no
         ``--policy`` is given: those that apply to its plant; default none.
-    notes : callable (env_ids, labels, envs) -> list of str, optional
-        Extra report lines printed under the table (e.g. a stability check).
+    report : callable (BenchContext) -> list of str, optional
+        Extra report lines printed under the table (a stability check, a
+        paper's table in its own shape); it may draw plots into
+        ``context.plots``.
     description : str
         One line for ``--help``.
     """
@@ -53,7 +88,7 @@ class PolicyKind:
     make: Callable[[str, Any], Any]
     names: Callable[[], list] = field(default=lambda: [])
     defaults: Callable[[Any], list] = field(default=lambda env: [])
-    notes: Callable | None = None
+    report: Callable | None = None
     description: str = ""
 
 

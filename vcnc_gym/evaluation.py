@@ -34,6 +34,7 @@ __all__ = [
     "sharp_corners",
     "plot_contours",
     "plot_contour_errors",
+    "plot_trials",
 ]
 
 
@@ -60,9 +61,12 @@ class EpisodeResult:
     terminated, truncated : bool
         How the episode ended (Gymnasium's flags of the last step).
     completed : bool
-        True if the episode reached the end of the contour: terminated, not
-        diverged.  A truncated episode (a time limit) is not complete, and
-        its metrics cover only the part of the contour it ran.
+        True if the episode did its whole task: the env's final
+        ``info["completed"]`` where it gives one (a positioning env: the
+        step-response window ran out without divergence), else terminated
+        and not diverged (a contouring env: the end of the contour reached).
+        A contouring episode cut by a time limit is not complete, and its
+        metrics cover only the part of the contour it ran.
     time : ndarray, (episode_steps,)
         Simulation time after each step, s.
     contour_error : ndarray, (episode_steps,)
@@ -82,6 +86,7 @@ class EpisodeResult:
     max_tracking_error_um: float
     terminated: bool
     truncated: bool
+    completed: bool
     time: np.ndarray = field(repr=False)
     contour_error: np.ndarray = field(repr=False)
     position: np.ndarray = field(repr=False)
@@ -100,11 +105,6 @@ class EpisodeResult:
             "max_tracking_error_um": self.max_tracking_error_um,
             "completed": self.completed,
         }
-
-    @property
-    def completed(self) -> bool:
-        """The episode reached the end of the contour (terminated, not diverged)."""
-        return self.terminated and not self.diverged
 
 
 def _error_metrics_um(err_mm: np.ndarray) -> tuple[float, float, float]:
@@ -177,6 +177,7 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
             reported = n
         if terminated or truncated:
             diverged = bool(info.get("diverged", False))
+            completed = bool(info.get("completed", terminated and not diverged))
             break
     wall = time.perf_counter() - wall0
     if progress is not None and n > reported:
@@ -196,6 +197,7 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
         max_tracking_error_um=max_track,
         terminated=bool(terminated),
         truncated=bool(truncated),
+        completed=completed,
         time=t_tr[:n].copy(),
         contour_error=e_tr.copy(),
         position=p_tr[:n].copy(),
@@ -401,6 +403,37 @@ def plot_contour_errors(results_by_policy: Mapping[str, EpisodeResult], env, pat
     ax.set_title(title or f"{env.spec.id if env.spec else u.contour_name}: contour error")
     ax.grid(True, which="both", lw=0.3)
     ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def plot_trials(trials, path, *, title: str | None = None):
+    """Max and RMS contour error (um) against trial number, for a policy that learns across episodes.
+
+    Parameters
+    ----------
+    trials : sequence of EpisodeResult
+        One per trial, in order (trial 1 first).
+    path : str or path-like
+        Where to write the figure (PNG by extension).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    k = np.arange(1, len(trials) + 1)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=110)
+    ax.plot(k, [t.max_contour_error_um for t in trials], "o-", label="max")
+    ax.plot(k, [t.rms_contour_error_um for t in trials], "s--", label="RMS")
+    ax.set_xlabel("trial")
+    ax.set_ylabel("contour error (µm)")
+    ax.set_yscale("log")
+    ax.set_xticks(k)
+    ax.grid(True, which="both", lw=0.3)
+    ax.legend()
+    ax.set_title(title or "contour error per trial")
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

@@ -212,7 +212,8 @@ class PositioningEnv(gym.Env):
       set-point exceeds ``divergence_bound`` (100 mm) or the plant state is
       not finite.  Seed 001's robust PI loop does so: with the 0.1 s dead
       time it is unstable (its delay margin is 48 ms).
-    - The last step's info holds ``"step_metrics"``: per axis (``"x"``,
+    - The last step's info holds ``"completed"`` (True when the whole window
+      ran without divergence) and ``"step_metrics"``: per axis (``"x"``,
       ``"y"``) a dict of ``overshoot`` [%], ``settling_time`` [s] (2 % band;
       ``inf`` if not settled at the end), ``rise_time`` [s] (10-90 %) and
       ``rise_time_100`` [s] (0-100 %), from the true position at every
@@ -422,6 +423,8 @@ class PositioningEnv(gym.Env):
         }
         if self._done:
             info["step_metrics"] = self.step_metrics()
+            # the task is the whole step-response window: done when it ran to its end without diverging
+            info["completed"] = bool(not diverged and self._steps >= self.episode_steps)
         return obs, r_error + r_div, terminated, truncated, info
 
     def _observation(self) -> tuple[np.ndarray, int]:
