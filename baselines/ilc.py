@@ -91,9 +91,10 @@ Running K trials::
     import gymnasium as gym, vcnc_gym, baselines
     from baselines.ilc import run_trials
     env = gym.make("VCNC-CornersSmooth-v0")
-    policy = baselines.make("ilc", env)
+    policy = baselines.make("ilc", env)             # or "ilc-q" (20 Hz low-pass Q)
     results = run_trials(policy, env, 10)          # ten EpisodeResults, trial 1 first
     [r.max_contour_error_um for r in results]
+    policy.reset_learning()                        # forget: the next episode is trial 1 again
 
 ``run_trials`` is :func:`vcnc_gym.evaluation.run_episode` K times with the
 same policy object (and the same seed, so the same plant); with a VecEnv,
@@ -245,8 +246,8 @@ class ILCPolicy(ContouringFBPolicy):
         eq. (5) leaves; the loop gain of eq. (7) broken at the input is
         k_P G(z) + k_D T / (z - 1) (position and velocity fed back, normal-direction
         gains); L(z) = k_PL + k_IL T z^-1 / (1 - z^-1) + k_DL (1 - z^-1) / T; Q as
-        the ``q`` and ``q_cutoff`` of the policy.  Below 1 at every frequency: the
-        error falls monotonically from trial to trial.
+        the ``q`` and ``q_cutoff`` of the policy.  Where it is below 1 the error
+        content falls from trial to trial; where above, it grows.
         """
         f = np.asarray(frequencies, dtype=np.float64)
         T = self.decision_period
@@ -273,7 +274,7 @@ class ILCPolicy(ContouringFBPolicy):
             self._grow()
         a_d = self.layout.reference_acceleration(obs)
         known = t < self._learned_len
-        w = fb.copy()
+        w = fb  # a fresh array: the learned input is added in place
         w[known] += self._learned[rows[known], t[known]]
         velocity = self.layout.velocity(obs)
         current = self.linearising_current(a_d + w, velocity)

@@ -20,7 +20,9 @@ from baselines.contouring_fb import ContouringFBPolicy, contouring_feedback
 from baselines.ilc import ILCPolicy, run_trials
 from vcnc_gym.envs import ContouringEnv
 from vcnc_gym.envs.layout import ObservationLayout
+from vcnc_gym.evaluation import run_episode
 from vcnc_gym.geometry import NurbsCurve
+from vcnc_gym.geometry.corners import polyline
 from vcnc_gym.plants import current_feed_drive as cfd
 
 LAYOUT = ObservationLayout()
@@ -43,18 +45,13 @@ def make_obs(x_d=0.0, v_d=0.0, a_d=0.0, e=0.0, v=0.0, preview=0.0):
     return obs
 
 
-def polyline(points):
-    pts = np.asarray(points, dtype=float)
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    return NurbsCurve(pts, np.ones(len(pts)), np.concatenate([[0.0], s, [s[-1]]]), 1)
-
-
 def test_gains_are_table_1():
     fb = baselines.make("contouring-fb", fake_env())
     np.testing.assert_array_equal(fb.k_p, [70000.0, 70000.0])
     np.testing.assert_array_equal(fb.k_d, [240.0, 240.0])
     ilc = baselines.make("ilc", fake_env())
-    assert (ilc.k_pl, ilc.k_il, ilc.k_dl, ilc.alpha, ilc.beta, ilc.q, ilc.q_cutoff) == (200, 0.2, 10, 30, 0.005, 1, None)
+    table_1 = (200, 0.2, 10, 30, 0.005, 1, None)
+    assert (ilc.k_pl, ilc.k_il, ilc.k_dl, ilc.alpha, ilc.beta, ilc.q, ilc.q_cutoff) == table_1
     assert baselines.make("ilc-q", fake_env()).q_cutoff == 20.0
     np.testing.assert_array_equal(fb.m, [0.088, 0.097])
     np.testing.assert_array_equal(fb.k_f, [235.62, 331.12])
@@ -166,10 +163,7 @@ def test_stuck_axis_error_stays_within_the_coulomb_dead_zone():
     """Along a y-parallel segment the x drive stands still: with sgn(0) = 0 in eq. (5) it stays stuck
     while m k_P |e_x| <= f_c, so the contour error there is at most f_c / (m k_P) = 7.8 um."""
     env = ContouringEnv(contour=polyline([(0, 0), (10, 0), (10, 20)]), plant="current_feed_drive", feedrate=50)
-    res = baselines.make("contouring-fb", env)
-    from vcnc_gym.evaluation import run_episode
-
-    out = run_episode(res, env)
+    out = run_episode(baselines.make("contouring-fb", env), env)
     assert not out.diverged and out.max_contour_error_um < 200.0
     on_segment = (out.reference_position[:, 1] > 10.0) & (out.reference_position[:, 1] < 19.0)
     bound = FC[0] / (M[0] * K_P)
@@ -286,7 +280,7 @@ def test_learning_gain_against_python_control():
 
 @pytest.fixture(scope="module")
 def corner_env():
-    # 10 mm legs with a 90- and a 30-degree corner, at 50 mm/s
+    # 10 mm legs with a 90- and a 60-degree corner, at 50 mm/s
     return ContouringEnv(contour=polyline([(0, 0), (10, 0), (10, 10), (10 - 10 * math.cos(math.radians(30)), 5)]),
                          plant="current_feed_drive", feedrate=50)
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from vcnc_gym.envs import ContouringEnv
-from vcnc_gym.geometry import NurbsCurve
+from vcnc_gym.geometry.corners import polyline
 from vcnc_gym.plants import current_feed_drive as cfd
 from vcnc_gym.plants import get_plant
 
@@ -220,8 +220,7 @@ def test_batch_equals_separate_machines():
 
 
 def test_env_runs_the_plant_through_the_contract():
-    curve = NurbsCurve([[0, 0], [5, 0], [5, 5]], [1, 1, 1], [0, 0, 1, 2, 2], 1)
-    env = ContouringEnv(contour=curve, plant="current_feed_drive", feedrate=50)
+    env = ContouringEnv(contour=polyline([[0, 0], [5, 0], [5, 5]]), plant="current_feed_drive", feedrate=50)
     env.reset(seed=0)
     actions = np.tile(np.array([0.3, -0.2], dtype=np.float32), (40, 1))
     positions = [env.step(a)[4]["position"] for a in actions]
