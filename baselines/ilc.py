@@ -149,6 +149,8 @@ class ILCPolicy(ContouringFBPolicy):
     """
 
     name = "ilc"
+    #: Each episode is a trial learning from the previous one (``vcnc-bench --trials K`` runs K of them).
+    learns_across_episodes = True
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None,
                  k_p=TABLE_I_FB["k_p"], k_d=TABLE_I_FB["k_d"], k_pl=TABLE_I_ILC["k_pl"], k_il=TABLE_I_ILC["k_il"],

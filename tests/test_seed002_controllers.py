@@ -239,6 +239,7 @@ def test_learning_survives_episode_start_and_reset_learning_forgets():
     first = [ilc.predict(o, episode_start=k == 0)[0] for k, o in enumerate(seq)]
     second = [ilc.predict(o, episode_start=k == 0)[0] for k, o in enumerate(seq)]
     assert not np.array_equal(np.array(first), np.array(second))
+    assert ilc.learns_across_episodes and not getattr(fb, "learns_across_episodes", False)  # vcnc-bench --trials
     ilc.reset_learning()
     again = [ilc.predict(o, episode_start=k == 0)[0] for k, o in enumerate(seq)]
     plain = [fb.predict(o, episode_start=k == 0)[0] for k, o in enumerate(seq)]
