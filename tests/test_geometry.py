@@ -9,6 +9,7 @@ by span), and the numbers printed in seed 000 section 3a.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -149,7 +150,7 @@ def test_omega_is_the_seed_definition():
 
 
 def test_shapes_registry_and_fresh_read_only_curves():
-    assert set(SHAPES) == {"heart", "omega"}
+    assert {"heart", "omega"} <= set(SHAPES)
     assert SHAPES["heart"] is heart and SHAPES["omega"] is omega
     a, b = heart(), heart()
     assert a is not b
@@ -430,3 +431,113 @@ def test_higher_orders_than_degree_are_zero_for_polynomial_pieces():
     np.testing.assert_allclose(d[3:], 0.0, atol=1e-12)
     g = GeomdlCurve(CP4, W4, KV4, 2)
     np.testing.assert_allclose(d[:3], g.derivatives(0.3, 2), atol=1e-12)
+
+
+# --------------------------------------------------------------------------- regularity (check_regular)
+
+
+def _message(curve: NurbsCurve) -> str | None:
+    try:
+        curve.check_regular()
+    except ValueError as err:
+        return str(err)
+    return None
+
+
+@pytest.mark.parametrize("make", [heart, omega], ids=["heart", "omega"])
+def test_named_shapes_are_regular(make):
+    make().check_regular()
+
+
+@pytest.mark.parametrize("degree", [1, 2, 3, 4, 5])
+def test_random_curves_are_regular(degree):
+    """The random definitions used above (weights 0.25-4, corners of full multiplicity) are all regular."""
+    for seed in range(8):
+        rng = np.random.default_rng(1000 * degree + seed)
+        NurbsCurve(*random_curve(rng, degree, force_full_multiplicity=seed % 2 == 0)).check_regular()
+
+
+def test_corner_of_full_multiplicity_is_regular():
+    """A C0 corner has non-zero one-sided tangents: regular."""
+    kv = [2.5] * 3 + [9.25] * 2 + [17.0] * 3
+    NurbsCurve([[0, 0], [5, 8], [10, 0], [20, 5], [25, -3]], [1, 2, 1, 0.5, 1], kv, 2).check_regular()
+
+
+IRREGULAR = {
+    # first two control points coincide: C'(u_start) = 0
+    "repeated first point": (
+        NurbsCurve([[0.0, 0.0], [0.0, 0.0], [10.0, 0.0]], [1, 1, 1], [0, 0, 0, 1, 1, 1], 2),
+        r"near-zero derivative C'\(u\) at its start, u = 0: \|C'\(u\)\| = 0 mm per unit of u",
+        0.0,
+    ),
+    # two interior control points coincide on a straight line: the curve stalls at the knot u = 1
+    "stall": (
+        NurbsCurve([[0, 0], [5, 5], [5, 5], [10, 10]], [1, 1, 1, 1], [0, 0, 0, 1, 2, 2, 2], 2),
+        r"near-zero derivative C'\(u\) at u = 1: \|C'\(u\)\| = 0 mm .* knot span \[1, 2\]",
+        1.0,
+    ),
+    # ... and on a turn back: a cusp
+    "cusp at a knot": (
+        NurbsCurve([[0, 0], [5, 5], [5, 5], [0, 1]], [1, 1, 1, 1], [0, 0, 0, 1, 2, 2, 2], 2),
+        r"curve has a cusp at u = 1: the tangent reverses",
+        1.0,
+    ),
+    # crossed Bezier control points: C'(1/2) = 0 inside the span, found between the samples
+    "cusp inside a span": (
+        NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3),
+        r"curve has a cusp at u = 0.5: the tangent reverses",
+        0.5,
+    ),
+    "zero-length span": (
+        NurbsCurve([[0, 0], [1, 0], [1, 0], [1, 0], [2, 0]], [1] * 5, [0, 0, 1, 2, 3, 4, 4], 1),
+        r"knot span \[1, 2\] is 0 mm long, below SPAN_LENGTH_TOLERANCE = 1e-09 x the curve's size 2 mm",
+        None,
+    ),
+    "a point": (
+        NurbsCurve([[1, 1], [1, 1], [1, 1]], [1, 2, 1], [0, 0, 0, 1, 1, 1], 2),
+        r"curve has \(near-\)zero length .* mm, below SPAN_LENGTH_TOLERANCE = 1e-09 x its size 1 mm",
+        None,
+    ),
+}
+
+
+@pytest.mark.parametrize("name", IRREGULAR)
+def test_irregular_curves_are_named(name):
+    curve, pattern, u = IRREGULAR[name]
+    message = _message(curve)
+    assert message is not None and re.search(pattern, message), message
+    if u is not None:
+        # where C' vanishes by geomdl too
+        assert np.linalg.norm(GeomdlCurve.of(curve).derivatives(u, 1)[1]) < 1e-9
+
+
+@pytest.mark.parametrize("gap, regular", [(1e-7, False), (4e-7, False), (1e-6, True), (1e-5, True)])
+def test_speed_tolerance_boundary(gap, regular):
+    """P1 = P0 + gap (10, 0) on a nearly straight quadratic of length ~10: |C'(0)| / mean speed = 2 gap."""
+    curve = NurbsCurve([[0, 0], [10 * gap, 0], [10, 1]], [1, 1, 1], [0, 0, 0, 1, 1, 1], 2)
+    mean_speed = curve.arc_length()
+    assert np.linalg.norm(GeomdlCurve.of(curve).derivatives(0.0, 1)[1]) / mean_speed == pytest.approx(
+        2 * gap, rel=0.01)
+    assert (_message(curve) is None) == regular
+
+
+@pytest.mark.parametrize("name", ["stall", "cusp inside a span", "zero-length span"])
+def test_regularity_does_not_depend_on_units(name):
+    """Coordinates x 1000 (m -> mm) and knots x 1e3 + 7: the same defect, at the mapped u."""
+    curve, _, u = IRREGULAR[name]
+    scaled = NurbsCurve(curve.control_points * 1000.0, curve.weights, curve.knots * 1e3 + 7.0, curve.degree)
+    a, b = _message(curve), _message(scaled)
+    assert a is not None and b is not None
+    kind = re.compile(r"^(curve has a \S+|knot span)")
+    assert kind.match(a).group(0) == kind.match(b).group(0)
+    if u is None:
+        assert "knot span [1007, 2007]" in b
+    else:
+        assert f"u = {u * 1e3 + 7:.10g}" in b
+
+
+def test_check_regular_is_cached():
+    curve, _, _ = IRREGULAR["cusp inside a span"]
+    first = _message(curve)
+    assert curve._regularity == first
+    assert _message(curve) == first

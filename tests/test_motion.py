@@ -345,41 +345,51 @@ def test_short_straight_path():
     np.testing.assert_allclose(np.linalg.norm(ref.position, axis=1)[:-1], ref.plan.distance(ref.t[:-1]), atol=1e-6)
 
 
-class _LongerPlan:
-    """A profile planned over 1.01 x the curve's length: eq. (8) reaches u_end early."""
-
-    def plan(self, length):
-        return SCurveFeedrate(V_SEED, TA_SEED).plan(1.01 * length)
-
-
 def test_step_past_the_end_is_clamped():
-    ref = interpolate(curve("omega"), _LongerPlan(), 1e-4)
-    u_end = curve("omega").u_range[1]
-    assert ref.u[-1] == u_end and np.all(ref.u <= u_end) and np.all(np.diff(ref.u) >= 0)
-    assert ref.duration < ref.plan.duration - 0.001
-    assert ref.end_gap < 0.0 and ref.end_gap_u < 0.0
-    # ahead by about the 1 % of path the plan still had to go
-    assert ref.end_gap == pytest.approx(-(ref.plan.length - ref.plan.distance(ref.t[-1])), abs=0.05)
-    np.testing.assert_array_equal(ref.velocity[-1], 0.0)
+    """The kernel with a plan 1 % longer than the curve: eq. (8) reaches u_end early and its step is clamped.
+
+    (``interpolate`` refuses such a plan; the kernel's clamping is what keeps a
+    reference from passing u_end when eq. (8) runs ahead at the end.)
+    """
+    from vcnc_gym.motion.interpolator import taylor_interpolate_kernel
+
+    c = curve("omega")
+    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(1.01 * c.arc_length())
+    dt = 1e-4
+    k_max = int(math.ceil(plan.duration / dt)) + 2
+    t, u, feed = (np.empty(k_max) for _ in range(3))
+    pos, vel, acc, tan = (np.empty((k_max, 2)) for _ in range(4))
+    info = np.zeros(8)
+    u_start, u_end = c.u_range
+    n = taylor_interpolate_kernel(*c.kernel_args, u_start, u_end, dt, *plan.kernel_args, 0.1, t, u, pos, vel, acc,
+                                  tan, feed, info)
+    assert info[0] == 1.0  # clamped
+    u = u[:n]
+    assert u[-1] == u_end and np.all(u <= u_end) and np.all(np.diff(u) >= 0)
+    assert t[n - 1] < plan.duration - 0.001
+    # ahead of the plan by about the 1 % of path it still had to go
+    assert plan.length - plan.distance(t[n - 1]) == pytest.approx(0.01 * c.arc_length(), rel=0.1)
+    np.testing.assert_array_equal(vel[n - 1], 0.0)
+    np.testing.assert_array_equal(acc[n - 1], 0.0)
 
 
 def test_reference_arrays_are_read_only():
     ref = reference("omega", 1e-3)
-    for name in ("t", "u", "position", "velocity", "acceleration", "feedrate"):
+    for name in ("t", "u", "position", "velocity", "acceleration", "tangent", "feedrate"):
         with pytest.raises(ValueError):
             getattr(ref, name)[0] = 1.0
     with pytest.raises(AttributeError):
         ref.dt = 1.0
 
 
-@pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan"), float("inf"), None, "1ms"])
+@pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan"), float("inf"), None, "1ms", "1e-3", True, 1e-3j])
 def test_bad_dt_raises(bad):
     with pytest.raises(ValueError, match="dt"):
         interpolate(curve("omega"), SCurveFeedrate(), bad)
 
 
 def test_bad_curve_and_profile_raise():
-    with pytest.raises(TypeError, match="kernel_args"):
+    with pytest.raises(TypeError, match="curve must be a NurbsCurve"):
         interpolate(np.zeros((5, 2)), SCurveFeedrate(), 1e-3)
     with pytest.raises(TypeError, match="profile"):
         interpolate(curve("omega"), 100.0, 1e-3)
@@ -388,5 +398,15 @@ def test_bad_curve_and_profile_raise():
 def test_singular_curve_raises():
     # repeated first control point: C'(0) = 0, eq. (9) undefined
     cusp = NurbsCurve([[0.0, 0.0], [0.0, 0.0], [10.0, 0.0]], [1, 1, 1], [0, 0, 0, 1, 1, 1], 2)
-    with pytest.raises(ValueError, match=r"C'\(u\) = 0"):
+    with pytest.raises(ValueError, match=r"near-zero derivative C'\(u\) at its start, u = 0: \|C'\(u\)\| = 0 mm"):
         interpolate(cusp, SCurveFeedrate(), 1e-3)
+
+
+@pytest.mark.parametrize("name,dt", CASES)
+def test_tangent_is_the_unit_derivative(name, dt):
+    ref = reference(name, dt)
+    idx = np.unique(np.r_[np.arange(0, len(ref), 211), len(ref) - 1])
+    d1 = geomdl_derivatives(name, ref.u[idx])[:, 1]
+    np.testing.assert_allclose(ref.tangent[idx], d1 / np.linalg.norm(d1, axis=1, keepdims=True), atol=1e-12)
+    # and the velocity command points along it
+    np.testing.assert_allclose(ref.velocity[:-1], ref.tangent[:-1] * ref.feedrate[:-1, None], atol=1e-9)

@@ -10,10 +10,34 @@ compiled loops; :class:`NurbsCurve` validates a definition once and wraps them.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
-__all__ = ["NurbsCurve", "curve_derivatives", "curve_derivatives_into", "find_span", "workspace_size"]
+__all__ = [
+    "NurbsCurve",
+    "SPAN_LENGTH_TOLERANCE",
+    "SPEED_TOLERANCE",
+    "curve_derivatives",
+    "curve_derivatives_into",
+    "find_span",
+    "workspace_size",
+]
+
+#: :meth:`NurbsCurve.check_regular`: a knot span (or the whole curve) shorter
+#: than this fraction of the curve's size max(length, max |P_k|) is a
+#: (near-)zero-length span.  Above it the span's points stand clear of the
+#: rounding of the coordinates (~1e-16 max |P_k|) by seven orders.
+SPAN_LENGTH_TOLERANCE = 1e-9
+
+#: :meth:`NurbsCurve.check_regular`: |C'(u)| below this fraction of its knot
+#: span's mean parametric speed (span arc length / span width) is a near-zero
+#: derivative.  Random curves with weights in [0.1, 10] keep at least 2e-4;
+#: a repeated control point gives ~1e-16, a true cusp ~1e-10 or less.
+SPEED_TOLERANCE = 1e-6
+
+_GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
 
 
 @njit(cache=True)
@@ -312,10 +336,12 @@ class NurbsCurve:
 
         Every non-empty knot span is cut in 8 pieces; a piece's 16-node
         Gauss-Legendre value is compared with the sum over its two halves and
-        the piece is bisected again until they agree to 1e-12 relative.  A fixed
-        rule is not enough for curves whose parametric speed |C'(u)| is sharply
-        peaked (large weight ratios, short spans): it was off by up to ~1e-4
-        relative on random rational curves.
+        the piece is bisected again until they agree to 1e-12 relative (or to
+        the length of 4 floating-point steps of u, which is all a knot span
+        very narrow for its |u| resolves).  A fixed rule is not enough for
+        curves whose parametric speed |C'(u)| is sharply peaked (large weight
+        ratios, short spans): it was off by up to ~1e-4 relative on random
+        rational curves.
         """
         lo, hi = self.u_range
         a = lo if u_start is None else float(u_start)
@@ -328,28 +354,166 @@ class NurbsCurve:
         x, wq = np.polynomial.legendre.leggauss(16)
 
         def gauss(lo_e, hi_e):
+            """16-node values of the pieces, and their resolution: the length of 4 floating-point steps of u."""
             half = 0.5 * (hi_e - lo_e)
-            us = (half[:, None] * x + 0.5 * (hi_e + lo_e)[:, None]).reshape(-1)
-            speed = np.linalg.norm(self.derivatives_array(us, 1)[:, 1, :], axis=1).reshape(-1, x.size)
-            return half * (speed @ wq)
+            us = half[:, None] * x + 0.5 * (hi_e + lo_e)[:, None]
+            us = np.minimum(us, np.nextafter(hi_e, lo_e)[:, None])  # a knot evaluates on its right span
+            speed = np.linalg.norm(self.derivatives_array(us.reshape(-1), 1)[:, 1, :], axis=1).reshape(-1, x.size)
+            resolution = 4.0 * np.max(speed, axis=1) * np.spacing(np.maximum(np.abs(lo_e), np.abs(hi_e)))
+            return half * (speed @ wq), resolution
 
         lo_e, hi_e = pieces[:-1], pieces[1:]
-        whole = gauss(lo_e, hi_e)
+        whole, _ = gauss(lo_e, hi_e)
         total = 0.0
         for _ in range(40):
             if lo_e.size == 0:
                 break
             mid = 0.5 * (lo_e + hi_e)
-            left = gauss(lo_e, mid)
-            right = gauss(mid, hi_e)
+            left, res_left = gauss(lo_e, mid)
+            right, res_right = gauss(mid, hi_e)
             halves = left + right
-            done = np.abs(halves - whole) <= 1e-12 * np.abs(halves) + 1e-15
+            # the rounding of the nodes to floats limits what a narrow piece can resolve
+            done = np.abs(halves - whole) <= 1e-12 * np.abs(halves) + 1e-15 + res_left + res_right
             total += float(np.sum(halves[done]))
             keep = ~done
             lo_e = np.concatenate([lo_e[keep], mid[keep]])
             hi_e = np.concatenate([mid[keep], hi_e[keep]])
             whole = np.concatenate([left[keep], right[keep]])
         return total + float(np.sum(whole))
+
+    def check_regular(self) -> None:
+        """Raise ``ValueError`` where the curve's tangent C'(u) / |C'(u)| is undefined.
+
+        The interpolator divides by |C'(u)| (seed 000 eq. (9): du/dt =
+        V / |C'|) and the envs command the unit tangent, so a curve must be
+        *regular*: C'(u) != 0 everywhere.  Checked, with relative tolerances
+        so that the answer does not depend on the units of u or of the
+        coordinates:
+
+        1. the curve's length L is at least ``SPAN_LENGTH_TOLERANCE`` (1e-9)
+           x its size max(L, max |P_k|) mm;
+        2. so is every non-empty knot span (a shorter span is a (near-)
+           zero-length span: the curve stands still over it);
+        3. |C'(u)| >= ``SPEED_TOLERANCE`` (1e-6) x the span's mean speed
+           (span length / span width) for every u: |C'| is sampled at 65
+           points per span (the right end from the left: u = nextafter(b,
+           a)) and every sampled local minimum is refined by golden-section
+           search to the resolution of u.  A point below the tolerance is
+           reported as a *cusp* when the tangent turns by more than 90
+           degrees across it, else as a *near-zero derivative* (a stalled
+           parametrization, e.g. coincident control points).
+
+        A corner at a knot of multiplicity p (one-sided tangents both
+        non-zero) is regular.  The outcome is cached: the curve's arrays are
+        read-only.
+
+        Raises
+        ------
+        ValueError
+            Naming the defect and the parameter u (or knot span) where it is.
+        """
+        if not hasattr(self, "_regularity"):
+            self._regularity = self._find_irregularity()
+        if self._regularity is not None:
+            raise ValueError(self._regularity)
+
+    def _find_irregularity(self) -> str | None:
+        """The message of :meth:`check_regular`, or None for a regular curve."""
+        total = self.arc_length()
+        size = max(total, float(np.max(np.abs(self.control_points))))
+        min_length = SPAN_LENGTH_TOLERANCE * size
+        if not total > min_length:
+            return (
+                f"curve has (near-)zero length {total:.3g} mm, below SPAN_LENGTH_TOLERANCE = "
+                f"{SPAN_LENGTH_TOLERANCE:g} x its size {size:.3g} mm: all control points coincide?"
+            )
+        lo, hi = self.u_range
+        knots = np.unique(self.knots[(self.knots >= lo) & (self.knots <= hi)])
+        starts, ends = knots[:-1], knots[1:]
+        lengths = np.array([self.arc_length(a, b) for a, b in zip(starts, ends)])
+        short = np.flatnonzero(~(lengths > min_length))
+        if short.size:
+            j = int(short[0])
+            return (
+                f"knot span [{starts[j]:.10g}, {ends[j]:.10g}] is {lengths[j]:.3g} mm long, below "
+                f"SPAN_LENGTH_TOLERANCE = {SPAN_LENGTH_TOLERANCE:g} x the curve's size {size:.3g} mm: a "
+                "(near-)zero-length span (coincident control points?) over which the curve stands still and "
+                "its tangent is undefined"
+            )
+        u_min, speed, span = self._slowest_points(starts, ends)
+        ratio = speed / (lengths[span] / (ends[span] - starts[span]))
+        j = int(np.argmin(ratio))
+        if ratio[j] >= SPEED_TOLERANCE:
+            return None
+        u, a, b = float(u_min[j]), float(starts[span[j]]), float(ends[span[j]])
+        where = (
+            f"|C'(u)| = {speed[j]:.3g} mm per unit of u, {ratio[j]:.2g} of the knot span [{a:.10g}, {b:.10g}]'s "
+            f"mean speed (SPEED_TOLERANCE = {SPEED_TOLERANCE:g})"
+        )
+        consequence = "the feed relation of seed 000 eq. (9), du/dt = V / |C'(u)|, and the tangent are undefined there"
+        near = 1e-6 * (b - a)
+        if u - lo <= near or hi - u <= near:
+            end = "start" if u - lo <= near else "end"
+            return (
+                f"curve has a near-zero derivative C'(u) at its {end}, u = {u:.10g}: {where} (its first or last "
+                f"control points coincide?); {consequence}"
+            )
+        step = 1e-3 * (b - a)
+        before = self.derivatives(max(lo, u - step), 1)[1]
+        after = self.derivatives(min(hi, u + step), 1)[1]
+        if float(np.dot(before, after)) < 0.0:
+            return f"curve has a cusp at u = {u:.10g}: the tangent reverses and {where}; {consequence}"
+        return (
+            f"curve has a near-zero derivative C'(u) at u = {u:.10g}: {where} (coincident control points?); "
+            f"{consequence}"
+        )
+
+    def _slowest_points(self, starts: np.ndarray, ends: np.ndarray, n: int = 64):
+        """Local minima of the parametric speed |C'(u)| on the knot spans [starts[i], ends[i]].
+
+        |C'| on n + 1 points per span (the right end from the left,
+        nextafter(b, a)), then golden-section search around every sampled
+        local minimum, all spans at once, until the bracket is 1e-12 of its
+        span or 4 floating-point steps of u (|C'| then within ~1e-12 |C''|
+        (b - a) of the minimum).
+
+        Returns
+        -------
+        u, speed : ndarray
+            Where the minima are and |C'| there, mm per unit of u.
+        span : ndarray of int
+            The span (index into ``starts``) of each minimum.
+        """
+        ends_left = np.nextafter(ends, starts)
+        us = starts[:, None] + (ends_left - starts)[:, None] * np.linspace(0.0, 1.0, n + 1)
+        us[:, -1] = ends_left
+        speed = self._speeds(us.reshape(-1)).reshape(us.shape)
+        padded = np.pad(speed, ((0, 0), (1, 1)), constant_values=np.inf)
+        span, i = np.nonzero((speed <= padded[:, :-2]) & (speed <= padded[:, 2:]))
+        lo = us[span, np.maximum(i - 1, 0)]
+        hi = us[span, np.minimum(i + 1, n)]
+        best_u, best = us[span, i], speed[span, i]
+        stop = np.maximum(1e-12 * (ends[span] - starts[span]), 4.0 * np.spacing(np.maximum(np.abs(lo), np.abs(hi))))
+        x1 = lo + _GOLDEN * (hi - lo)
+        x2 = hi - _GOLDEN * (hi - lo)
+        f1, f2 = self._speeds(x1), self._speeds(x2)
+        for _ in range(100):  # the bracket shrinks by 0.618 per pass: ~50 passes to `stop`
+            if not np.any(hi - lo > stop):
+                break
+            left = f1 < f2  # the minimum lies in [lo, x2], else in [x1, hi]
+            lo, hi = np.where(left, lo, x1), np.where(left, x2, hi)
+            x1, x2 = np.where(left, lo + _GOLDEN * (hi - lo), x2), np.where(left, x1, hi - _GOLDEN * (hi - lo))
+            fresh = self._speeds(np.where(left, x1, x2))
+            f1, f2 = np.where(left, fresh, f2), np.where(left, f1, fresh)
+            for x, f in ((x1, f1), (x2, f2)):
+                better = f < best
+                best_u, best = np.where(better, x, best_u), np.where(better, f, best)
+        return best_u, best, span
+
+    def _speeds(self, us) -> np.ndarray:
+        """|C'(u)| for an array of u, mm per unit of u."""
+        d1 = self.derivatives_array(us, 1)[:, 1, :]
+        return np.hypot(d1[:, 0], d1[:, 1])
 
     def __repr__(self) -> str:
         lo, hi = self.u_range

@@ -36,11 +36,12 @@ Examples
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from ..validation import positive
 
 __all__ = [
     "FeedratePlan",
@@ -135,24 +136,6 @@ def _scurve_batch(ts, v_peak, ramp_time, cruise_time, which, out):
 
 
 # --------------------------------------------------------------------------
-# validation helper
-# --------------------------------------------------------------------------
-
-
-def _positive_finite(name: str, value) -> float:
-    """float(value) if it is a finite number > 0, else ValueError naming ``name``."""
-    if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return x
-
-
-# --------------------------------------------------------------------------
 # the plan of one motion and the profile that makes it
 # --------------------------------------------------------------------------
 
@@ -240,8 +223,9 @@ class SCurveFeedrate:
     Raises
     ------
     ValueError
-        If ``feedrate`` or ``ramp_time`` is not a positive finite number;
-        the message names the argument.
+        If ``feedrate`` or ``ramp_time`` is not a finite real number > 0
+        (booleans, strings and complex numbers are refused); the message
+        names the argument and its unit (``vcnc_gym.validation.positive``).
 
     Examples
     --------
@@ -253,8 +237,8 @@ class SCurveFeedrate:
     """
 
     def __init__(self, feedrate: float = 100.0, ramp_time: float = 0.12):
-        self.feedrate = _positive_finite("feedrate", feedrate)
-        self.ramp_time = _positive_finite("ramp_time", ramp_time)
+        self.feedrate = positive("feedrate", feedrate, "mm/s")
+        self.ramp_time = positive("ramp_time", ramp_time, "s")
 
     def plan(self, length: float) -> FeedratePlan:
         """Plan the motion over a path of ``length`` mm.
@@ -264,7 +248,7 @@ class SCurveFeedrate:
         ValueError
             If ``length`` is not a positive finite number.
         """
-        L = _positive_finite("length", length)
+        L = positive("length", length, "mm")
         v, ta = self.feedrate, self.ramp_time
         if L >= v * ta:
             return FeedratePlan(length=L, v_peak=v, ramp_time=ta, cruise_time=(L - v * ta) / v)

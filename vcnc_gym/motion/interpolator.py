@@ -17,10 +17,28 @@ with C' = dC/du and C'' = d2C/du2 from the NURBS kernel (seed 000 eq. (5)).
 The positions are C(u_k) (eq. (2)); the velocity and acceleration commands
 follow by the chain rule, v = C' du/dt and a = C'' (du/dt)^2 + C' d2u/dt2.
 
-The loop is the numba kernel :func:`taylor_interpolate_kernel`, which calls
-:func:`vcnc_gym.geometry.nurbs.curve_derivatives` once per sample;
-:func:`interpolate` validates, plans the feedrate over the curve's length,
-runs the kernel and packs the result in a read-only :class:`Reference`.
+The loop is the numba kernel :func:`taylor_interpolate_kernel`, which
+evaluates the curve (:func:`vcnc_gym.geometry.nurbs.curve_derivatives_into`)
+once per sample; :func:`interpolate` validates, plans the feedrate over the
+curve's length, runs the kernel, checks the result and packs it in a
+read-only :class:`Reference`.
+
+Step control (not in the seed)
+------------------------------
+Eq. (8) is a truncated expansion: where |C'| changes fast compared with a
+step (large weight ratios, knots where C'' jumps, corners of a polyline)
+its step can be several times too long or stall.  Every step's arc length
+is therefore compared with the distance the profile commands over it, and
+a step that misses by more than ``step_tolerance`` x V_peak x dt (default
+``STEP_TOLERANCE`` = 0.1), or lets the distance travelled drift from the
+plan by more than 0.9 of that, is replaced by the u solved from the arc
+length (Newton on arc(u_k, u) = S(t_{k+1}) - s_k; see
+:func:`taylor_interpolate_kernel`).  Steps within the tolerance are eq. (8)
+unchanged: on the seed's heart and omega none is corrected, so the seed's
+figures are those of eq. (8) alone.  A curve whose tangent is undefined
+somewhere (a cusp, coincident control points) is refused before
+(:meth:`NurbsCurve.check_regular`), and a reference that would exceed
+``MAX_REFERENCE_SAMPLES`` samples is refused before it is allocated.
 
 Ending the motion
 -----------------
@@ -47,21 +65,245 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import curve_derivatives
-from .feedrate import (
-    FeedratePlan,
-    _positive_finite,
-    scurve_acceleration,
-    scurve_distance,
-    scurve_velocity,
-)
+from ..geometry.nurbs import NurbsCurve, curve_derivatives_into, find_span, workspace_size
+from ..validation import integer, positive, real
+from .feedrate import FeedratePlan, scurve_acceleration, scurve_distance, scurve_velocity
 
-__all__ = ["Reference", "interpolate", "taylor_interpolate_kernel"]
+__all__ = [
+    "MAX_REFERENCE_SAMPLES",
+    "STEP_TOLERANCE",
+    "Reference",
+    "interpolate",
+    "reference_samples",
+    "taylor_interpolate_kernel",
+]
+
+#: Default ``step_tolerance`` of :func:`interpolate`: every step of a reference
+#: moves along the curve within this fraction of V_peak dt of the distance the
+#: profile commands over it.  The seed's own figures stay inside it untouched:
+#: the largest step error of eq. (8) on the heart and the omega is 0.06 V_peak dt
+#: (the omega's last step at dt = 1 ms), so no step of theirs is corrected.
+STEP_TOLERANCE = 0.1
+
+#: Default ``max_samples`` of :func:`interpolate`: the most samples a reference
+#: may have.  A sample holds 11 float64 (t, u, V and the x, y of position,
+#: velocity, acceleration and tangent), so 2e6 samples are 0.16 GiB and take
+#: about 1.5 s to build; they are 200 s of motion at dt = 0.1 ms (the heart at
+#: 1.6 mm/s; the seed's 100 mm/s makes 32 213), 60 times the seed's episodes.
+MAX_REFERENCE_SAMPLES = 2_000_000
+
+_BYTES_PER_SAMPLE = 11 * 8
+
+# The kernel corrects a step when the distance travelled drifts from the plan
+# by more than this share of the tolerance; the corrected step's error is that
+# drift plus the solver's (at most half a floating-point step of u, which must
+# then stay below the remaining share).
+_DRIFT_SHARE = 0.9
 
 # end codes written by the kernel into info[0]
 _END_PROFILE = 0.0  # profile ended first: next sample placed at u_end
 _END_CLAMPED = 1.0  # u reached u_end before the profile ended: step clamped
-_END_SINGULAR = 2.0  # |C'(u)| = 0 met: the curve has a cusp, eq. (9) undefined
+_END_SINGULAR = 2.0  # |C'(u)| = 0 (or not finite) met: eq. (9) undefined
+
+# 5-point Gauss-Legendre rule on [-1, 1], for arc lengths of single steps
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
+_ARC_STACK = 64  # depth of the adaptive quadrature's stack (bisections of one step)
+
+
+# --------------------------------------------------------------------------
+# kernels
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _gauss_arc(control_points, weights, knots, degree, a, b, ders, work):
+    """Arc length from a to b (one knot span) by 5-point Gauss-Legendre on |C'(u)|, mm.
+
+    A node that rounds onto b (a piece a few ulps wide) is moved just below
+    it: at a knot the evaluator takes the span on the right.
+    """
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    below_b = np.nextafter(b, a)
+    total = 0.0
+    for i in range(_GL_X.shape[0]):
+        x = min(max(mid + half * _GL_X[i], a), below_b)
+        curve_derivatives_into(control_points, weights, knots, degree, x, 1, ders, work)
+        total += _GL_W[i] * math.sqrt(ders[1, 0] * ders[1, 0] + ders[1, 1] * ders[1, 1])
+    return half * total
+
+
+@njit(cache=True)
+def _arc_within_span(control_points, weights, knots, degree, a, b, tol, ders, work, stack):
+    """Arc length from a to b inside one knot span (|C'| smooth), adaptive Gauss-Legendre, mm.
+
+    A piece is accepted when its 5-point value and the sum over its two
+    halves agree to ``tol`` mm (or to 1e-13 relative); otherwise its halves
+    are pushed on ``stack`` (shape (3, _ARC_STACK)): at most ~60 bisections
+    deep, far below the resolution of u.
+    """
+    total = 0.0
+    top = 0
+    stack[0, 0] = a
+    stack[1, 0] = b
+    stack[2, 0] = _gauss_arc(control_points, weights, knots, degree, a, b, ders, work)
+    top = 1
+    while top > 0:
+        top -= 1
+        lo = stack[0, top]
+        hi = stack[1, top]
+        whole = stack[2, top]
+        mid = 0.5 * (lo + hi)
+        left = _gauss_arc(control_points, weights, knots, degree, lo, mid, ders, work)
+        right = _gauss_arc(control_points, weights, knots, degree, mid, hi, ders, work)
+        halves = left + right
+        if abs(halves - whole) <= max(tol, 1e-13 * halves) or top >= _ARC_STACK - 2 or not (lo < mid < hi):
+            total += halves
+        else:
+            stack[0, top] = lo
+            stack[1, top] = mid
+            stack[2, top] = left
+            stack[0, top + 1] = mid
+            stack[1, top + 1] = hi
+            stack[2, top + 1] = right
+            top += 2
+    return total
+
+
+@njit(cache=True)
+def arc_between(control_points, weights, knots, degree, a, b, tol, ders, work, stack):
+    """Arc length of the curve from u = a to u = b >= a in mm, cut at the knots between.
+
+    Adaptive Gauss-Legendre per knot span (see :func:`_arc_within_span`),
+    accurate to about ``tol`` mm per span.  ``ders`` (>= (2, 2)), ``work``
+    (``workspace_size(degree, 1)``) and ``stack`` ((3, 64)) are scratch.
+    """
+    n = control_points.shape[0] - 1
+    j = find_span(n, degree, a, knots) + 1
+    lo = a
+    total = 0.0
+    while j <= n and knots[j] < b:
+        if knots[j] > lo:
+            total += _arc_within_span(control_points, weights, knots, degree, lo, knots[j], tol, ders, work, stack)
+            lo = knots[j]
+        j += 1
+    if b > lo:
+        total += _arc_within_span(control_points, weights, knots, degree, lo, b, tol, ders, work, stack)
+    return total
+
+
+@njit(cache=True)
+def _speed(ders):
+    return math.sqrt(ders[1, 0] * ders[1, 0] + ders[1, 1] * ders[1, 1])
+
+
+@njit(cache=True)
+def _curvature(ders, speed):
+    """|C' x C''| / |C'|^3, 1/mm, in an order that neither overflows nor underflows early."""
+    cross = abs(ders[1, 0] * ders[2, 1] - ders[1, 1] * ders[2, 0])
+    return cross / speed / speed / speed
+
+
+@njit(cache=True)
+def _step_arc(control_points, weights, knots, degree, u0, u1, d0, d1, tol, ders, work, stack):
+    """Arc length of the step u0 -> u1 (derivatives d0, d1 of order 2 at its ends), mm.
+
+    Within one knot span, where |C'| is smooth, the corrected trapezoid rule
+    h/2 (f0 + f1) + h^2/12 (f0' - f1') on f = |C'| (f' = C'.C''/|C'|, error
+    O(h^5)) needs no new evaluation; it is used when it agrees with the
+    chord-and-curvature estimate c (1 + kappa^2 c^2 / 24) (c the chord,
+    kappa the mean curvature of the ends) to within ``tol`` mm: the step then
+    resolves the curve.  Otherwise (a knot inside, or a step that does not
+    resolve the curve) the arc is integrated (:func:`arc_between`).
+    """
+    n = control_points.shape[0] - 1
+    if u1 <= u0:
+        return 0.0
+    span = find_span(n, degree, u0, knots)
+    if u1 < knots[span + 1]:
+        s0 = _speed(d0)
+        s1 = _speed(d1)
+        if s0 > 0.0 and s1 > 0.0:
+            h = u1 - u0
+            g0 = (d0[1, 0] * d0[2, 0] + d0[1, 1] * d0[2, 1]) / s0
+            g1 = (d1[1, 0] * d1[2, 0] + d1[1, 1] * d1[2, 1]) / s1
+            trapezoid = 0.5 * h * (s0 + s1) + h * h * (g0 - g1) / 12.0
+            dx = d1[0, 0] - d0[0, 0]
+            dy = d1[0, 1] - d0[0, 1]
+            c = math.sqrt(dx * dx + dy * dy)
+            kappa = 0.5 * (_curvature(d0, s0) + _curvature(d1, s1))
+            chordal = c * (1.0 + kappa * kappa * c * c / 24.0)
+            if abs(trapezoid - chordal) <= tol:
+                return trapezoid
+    return arc_between(control_points, weights, knots, degree, u0, u1, 1e-3 * tol, ders, work, stack)
+
+
+@njit(cache=True)
+def _arc_step(control_points, weights, knots, degree, u0, speed0, target, u_end, tol, ders, work, stack, result):
+    """The u > u0 at which the arc from u0 is ``target`` mm (to ``tol`` mm).
+
+    The arc length is increasing in u with slope |C'(u)|, so the root is
+    unique: bracketed by marching from u0 with doubling steps (the first
+    target / |C'(u0)|), then Newton's method safeguarded by bisection.
+
+    Writes ``result`` = [u, arc from u0 to u (mm), 1.0 if the curve ends
+    (u = u_end) before the target is reached else 0.0].
+    """
+    result[2] = 0.0
+    if target <= 0.0:
+        result[0] = u0
+        result[1] = 0.0
+        return
+    lo = u0
+    arc_lo = 0.0
+    h = target / speed0
+    while True:
+        hi = lo + h
+        if not hi < u_end:
+            hi = u_end
+        if not hi > lo:
+            hi = np.nextafter(lo, np.inf)
+        arc_hi = arc_lo + arc_between(control_points, weights, knots, degree, lo, hi, 1e-3 * tol, ders, work, stack)
+        if arc_hi >= target:
+            break
+        if hi >= u_end:
+            result[0] = u_end
+            result[1] = arc_hi
+            result[2] = 1.0
+            return
+        lo = hi
+        arc_lo = arc_hi
+        h *= 2.0
+    # F(u) = arc(u0, u) - target: F(lo) < 0 <= F(hi); secant start, then Newton
+    u = lo + (hi - lo) * (target - arc_lo) / (arc_hi - arc_lo)
+    best_u = hi
+    best_arc = arc_hi
+    for _ in range(200):
+        if not (lo < u < hi):
+            u = 0.5 * (lo + hi)
+            if not (lo < u < hi):
+                break
+        arc_u = arc_lo + arc_between(control_points, weights, knots, degree, lo, u, 1e-3 * tol, ders, work, stack)
+        f = arc_u - target
+        if abs(f) < abs(best_arc - target):
+            best_u = u
+            best_arc = arc_u
+        if abs(f) <= tol:
+            break
+        if f < 0.0:
+            lo = u
+            arc_lo = arc_u
+        else:
+            hi = u
+            arc_hi = arc_u
+        curve_derivatives_into(control_points, weights, knots, degree, u, 1, ders, work)
+        speed = _speed(ders)
+        u = u - f / speed if speed > 0.0 else 0.5 * (lo + hi)
+    if abs(arc_lo - target) < abs(best_arc - target):
+        best_u = lo
+        best_arc = arc_lo
+    result[0] = best_u
+    result[1] = best_arc
 
 
 @njit(cache=True)
@@ -76,15 +318,28 @@ def taylor_interpolate_kernel(
     v_peak,
     ramp_time,
     cruise_time,
+    step_tolerance,
     t_out,
     u_out,
     pos_out,
     vel_out,
     acc_out,
+    tan_out,
     feed_out,
     info,
 ):
-    """Seed 000 eqs. (8)-(10) from t = 0 to the end of the curve.
+    """Seed 000 eqs. (8)-(10) from t = 0 to the end of the curve, with step control.
+
+    Every step is first made by eq. (8).  Its arc length a_k along the curve
+    (:func:`_step_arc`) is compared with the distance the profile commands,
+    dS_k = S(t_{k+1}) - S(t_k), and the running sum s_{k+1} = sum a_j with
+    S(t_{k+1}).  If a_k misses dS_k by more than tol = ``step_tolerance`` x
+    v_peak x dt, or s_{k+1} misses S(t_{k+1}) by more than 0.9 tol, the step
+    is replaced: u_{k+1} is solved from arc(u_k, u_{k+1}) = S(t_{k+1}) - s_k
+    (:func:`_arc_step`), which brings s back onto the plan; its error
+    against dS_k is then the drift s_k - S(t_k) the previous steps left
+    (at most 0.9 tol) plus the solver's (1e-6 tol, or half a floating-point
+    step of u where that moves farther).
 
     Parameters
     ----------
@@ -96,15 +351,19 @@ def taylor_interpolate_kernel(
         Sampling period T, s.
     v_peak, ramp_time, cruise_time : float
         The feedrate plan, as ``FeedratePlan.kernel_args`` (mm/s, s, s).
+    step_tolerance : float
+        Allowed |a_k - dS_k| and |s_k - S(t_k)|, as a fraction of v_peak dt.
     t_out, u_out, feed_out : (K_max,) float64 arrays
         Written with t_k (s), u_k and the commanded V(t_k) (mm/s).
-    pos_out, vel_out, acc_out : (K_max, 2) float64 arrays
-        Written with C(u_k) (mm), velocity (mm/s), acceleration (mm/s^2).
-        K_max must be at least ceil(duration / dt) + 1.
-    info : (4,) float64 array
-        Written with [end code, u where the Taylor integration stood at the
-        end (see :func:`interpolate`), time of that u (s), planned distance
-        S at that time (mm)].
+    pos_out, vel_out, acc_out, tan_out : (K_max, 2) float64 arrays
+        Written with C(u_k) (mm), velocity (mm/s), acceleration (mm/s^2) and
+        the unit tangent C'(u_k) / |C'(u_k)|.
+        K_max must be at least ceil(duration / dt) + 2.
+    info : (8,) float64 array
+        Written with [end code, u where eq. (8) stood at the end (see
+        :func:`interpolate`), time of that u (s), planned distance S at that
+        time (mm), number of corrected steps, largest |a_k - dS_k| (mm, the
+        last step onto u_end included), u_k and k of that step].
 
     Returns
     -------
@@ -112,12 +371,24 @@ def taylor_interpolate_kernel(
         Number K of samples written.
     """
     duration = 2.0 * ramp_time + cruise_time
+    tol = step_tolerance * v_peak * dt
     ders = np.empty((3, 2))
+    nxt = np.empty((3, 2))
+    scratch = np.empty((3, 2))
+    work = np.empty(workspace_size(degree, 2))
+    stack = np.empty((3, _ARC_STACK))
+    result = np.empty(3)
+    info[0] = -1.0  # no end yet
+    info[4] = 0.0
+    info[5] = 0.0
+    info[6] = u_start
+    info[7] = 0.0
     u = u_start
+    s = 0.0  # arc length travelled, mm
     k = 0
+    curve_derivatives_into(control_points, weights, knots, degree, u, 2, ders, work)
     while True:
         t = k * dt
-        curve_derivatives(control_points, weights, knots, degree, u, 2, ders)
         c1x = ders[1, 0]
         c1y = ders[1, 1]
         speed2 = c1x * c1x + c1y * c1y
@@ -128,44 +399,70 @@ def taylor_interpolate_kernel(
         pos_out[k, 0] = ders[0, 0]
         pos_out[k, 1] = ders[0, 1]
         feed_out[k] = v
-        if speed2 == 0.0:
+        if not (speed2 > 0.0 and speed2 < np.inf):
             info[0] = _END_SINGULAR
             info[1] = u
             return k + 1
         speed = math.sqrt(speed2)
+        tan_out[k, 0] = c1x / speed
+        tan_out[k, 1] = c1y / speed
         du = v / speed  # eq. (9)
-        ddu = a / speed - v * v * (c1x * ders[2, 0] + c1y * ders[2, 1]) / (speed2 * speed2)  # eq. (10)
+        ddu = a / speed - v * v * ((c1x * ders[2, 0] + c1y * ders[2, 1]) / speed2) / speed2  # eq. (10)
         vel_out[k, 0] = c1x * du
         vel_out[k, 1] = c1y * du
         acc_out[k, 0] = ders[2, 0] * du * du + c1x * ddu
         acc_out[k, 1] = ders[2, 1] * du * du + c1y * ddu
         t_next = (k + 1) * dt
-        end = -1.0
+        s_now = scurve_distance(t, v_peak, ramp_time, cruise_time)
+        s_next = scurve_distance(t_next, v_peak, ramp_time, cruise_time)
         if t_next >= duration:
             # the profile ends within this step: where does eq. (8) stand at
             # t = duration (partial step h = duration - t)?
             h = duration - t
+            info[0] = _END_PROFILE
             info[1] = u + h * du + 0.5 * h * h * ddu
             info[2] = duration
             info[3] = scurve_distance(duration, v_peak, ramp_time, cruise_time)
-            end = _END_PROFILE
+            step = arc_between(control_points, weights, knots, degree, u, u_end, 1e-9 * tol, scratch, work, stack)
         else:
             u_next = u + dt * du + 0.5 * dt * dt * ddu  # eq. (8)
-            if u_next < u:  # never step backwards along the path
+            if not u_next >= u:  # never step backwards along the path (nor to NaN)
                 u_next = u
+            u_taylor = u_next
+            if u_next > u_end:
+                u_next = u_end
+            curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
+            step = _step_arc(control_points, weights, knots, degree, u, u_next, ders, nxt, 1e-6 * tol, scratch,
+                             work, stack)
+            if not (abs(step - (s_next - s_now)) <= tol and abs(s + step - s_next) <= _DRIFT_SHARE * tol):
+                _arc_step(control_points, weights, knots, degree, u, speed, s_next - s, u_end, 1e-6 * tol,
+                          scratch, work, stack, result)
+                u_next = result[0]
+                step = result[1]
+                u_taylor = u_next
+                info[4] += 1.0
+                curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
             if u_next >= u_end:
-                info[1] = u_next
+                info[0] = _END_CLAMPED
+                info[1] = u_taylor
                 info[2] = t_next
-                info[3] = scurve_distance(t_next, v_peak, ramp_time, cruise_time)
-                end = _END_CLAMPED
-        if end >= 0.0:
-            info[0] = end
+                info[3] = s_next
+        error = abs(step - (s_next - s_now))
+        if error > info[5]:
+            info[5] = error
+            info[6] = u
+            info[7] = k
+        s += step
+        if info[0] >= 0.0:  # the end: the next sample is u_end
             k += 1
-            curve_derivatives(control_points, weights, knots, degree, u_end, 0, ders)
+            curve_derivatives_into(control_points, weights, knots, degree, u_end, 1, scratch, work)
+            sp = _speed(scratch)
             t_out[k] = t_next
             u_out[k] = u_end
-            pos_out[k, 0] = ders[0, 0]
-            pos_out[k, 1] = ders[0, 1]
+            pos_out[k, 0] = scratch[0, 0]
+            pos_out[k, 1] = scratch[0, 1]
+            tan_out[k, 0] = scratch[1, 0] / sp
+            tan_out[k, 1] = scratch[1, 1] / sp
             vel_out[k, 0] = 0.0
             vel_out[k, 1] = 0.0
             acc_out[k, 0] = 0.0
@@ -173,6 +470,7 @@ def taylor_interpolate_kernel(
             feed_out[k] = scurve_velocity(t_next, v_peak, ramp_time, cruise_time)
             return k + 1
         u = u_next
+        ders, nxt = nxt, ders
         k += 1
 
 
@@ -180,10 +478,11 @@ def taylor_interpolate_kernel(
 class Reference:
     """The reference motion along one contour, sampled every ``dt`` from t = 0.
 
-    Made by :func:`interpolate`. All arrays are read-only and share their
-    first axis (K samples); sample k is at t_k = k dt, except that the last
-    sample is always at the end of the curve (u = u_end) with zero velocity
-    and acceleration (see :func:`interpolate`).
+    Made by :func:`interpolate`, which checks what it states here before
+    returning it. All arrays are read-only and share their first axis (K
+    samples); sample k is at t_k = k dt, except that the last sample is
+    always at the end of the curve (u = u_end) with zero velocity and
+    acceleration (see :func:`interpolate`).
 
     Attributes
     ----------
@@ -201,6 +500,9 @@ class Reference:
         Acceleration command C''(u_k) (du/dt)^2 + C'(u_k) d2u/dt2 (eqs. (9),
         (10)), mm/s^2: tangential part dV/dt, normal part kappa V^2. Zero at
         the last sample.
+    tangent : ndarray, shape (K, 2)
+        Unit tangent C'(u_k) / |C'(u_k)| of the curve at every sample (also
+        the last), dimensionless; finite.
     feedrate : ndarray, shape (K,)
         Commanded feed V(t_k) of the S-curve profile, mm/s (0 at the last
         sample unless eq. (8) reached u_end before the profile ended).
@@ -211,6 +513,17 @@ class Reference:
         feedrate was planned over).
     plan : FeedratePlan
         The S-curve planned over ``length`` (V_peak in mm/s, T_a and T_c in s).
+    step_tolerance : float
+        The guarantee this reference was checked against: every step k, the
+        last one onto u_end included, moves along the curve (arc length
+        from u_k to u_{k+1}) within ``step_tolerance`` x V_peak x dt of the
+        commanded distance S(t_{k+1}) - S(t_k); dimensionless.
+    step_error : float
+        The largest such |arc - commanded| over the steps, as a fraction of
+        V_peak dt (at most ``step_tolerance``).
+    corrected_steps : int
+        Steps where eq. (8) was off by more than the tolerance and u_{k+1}
+        was solved from the arc length instead (0 on the heart and the omega).
     end_gap : float
         Signed distance along the path, mm, by which the Taylor-integrated
         position trailed the planned distance S(t_e) when the interpolation
@@ -224,8 +537,8 @@ class Reference:
         at t_e (negative when clamped).
     feedrate_fluctuation : float
         max_k |V_act,k - V_cmd,k| / V_peak over the steps made by eq. (8)
-        (every step but the final one onto u_end, which ``end_gap``
-        describes), dimensionless (multiply by 100 for %). Here
+        or its correction (every step but the final one onto u_end, which
+        ``end_gap`` describes), dimensionless (multiply by 100 for %). Here
         V_act,k = |C(u_{k+1}) - C(u_k)| / dt is the chord feed of step k and
         V_cmd,k = (S(t_{k+1}) - S(t_k)) / dt the commanded feed averaged over
         the step (S = integral of V, exact for the cubic). The step average
@@ -243,17 +556,21 @@ class Reference:
     position: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
+    tangent: np.ndarray
     feedrate: np.ndarray
     dt: float
     length: float
     plan: FeedratePlan
+    step_tolerance: float
+    step_error: float
+    corrected_steps: int
     end_gap: float
     end_gap_u: float
     feedrate_fluctuation: float
     cruise_fluctuation_percent: float
 
     def __post_init__(self):
-        for name in ("t", "u", "position", "velocity", "acceleration", "feedrate"):
+        for name in _ARRAYS:
             getattr(self, name).flags.writeable = False
 
     def __len__(self) -> int:
@@ -290,7 +607,120 @@ class Reference:
         return np.diff(self.plan.distance(self.t)) / self.dt
 
 
-def interpolate(curve, profile, dt: float) -> Reference:
+_ARRAYS = ("t", "u", "position", "velocity", "acceleration", "tangent", "feedrate")
+
+
+# --------------------------------------------------------------------------
+# what a reference costs, and the checks of the arguments
+# --------------------------------------------------------------------------
+
+
+def _check_profile(profile):
+    if not callable(getattr(profile, "plan", None)):
+        raise TypeError(
+            f"profile must be a feedrate profile with plan(length), e.g. SCurveFeedrate; "
+            f"got {type(profile).__name__}"
+        )
+
+
+def _describe(profile) -> str:
+    """'feedrate=... mm/s, ramp_time=... s' for an S-curve, else its repr."""
+    if hasattr(profile, "feedrate") and hasattr(profile, "ramp_time"):
+        return f"feedrate={profile.feedrate!r} mm/s, ramp_time={profile.ramp_time!r} s"
+    return repr(profile)
+
+
+def _sample_count(duration: float, dt: float) -> float:
+    """Samples over ``duration`` s at ``dt`` s: n + 1 with n the first step count such that
+    n dt >= duration in floating point, as the kernel tests it (a float: may be huge)."""
+    ratio = duration / dt
+    if not math.isfinite(ratio):
+        return math.inf
+    if ratio > 2.0**52:
+        return float(math.ceil(ratio)) + 1.0
+    n = max(1, math.ceil(ratio))
+    while n * dt < duration:
+        n += 1
+    while n > 1 and (n - 1) * dt >= duration:
+        n -= 1
+    return float(n) + 1.0
+
+
+def reference_samples(length: float, profile, dt: float) -> int:
+    """How many samples the reference of a ``length`` mm contour will have, before building it.
+
+    The reference samples t_k = k dt until the planned motion ends, plus the
+    final sample on u_end: n + 1 samples, n = ceil(duration / dt) (the first
+    n with n dt >= duration in floating point), with the duration 2 T_a + T_c
+    of ``profile.plan(length)``.  :func:`interpolate` makes exactly
+    this many, or fewer when eq. (8) reaches the end of the curve early
+    (a few samples at most, its step error being bounded).  Each sample
+    takes 88 bytes (11 float64).
+
+    Parameters
+    ----------
+    length : float
+        Arc length of the contour, mm (``NurbsCurve.arc_length()``).
+    profile : SCurveFeedrate
+        The feedrate profile (anything with ``plan(length)``).
+    dt : float
+        Sampling period, s.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        If ``length`` or ``dt`` is not a finite real number > 0.
+
+    Examples
+    --------
+    >>> from vcnc_gym.motion import SCurveFeedrate
+    >>> reference_samples(310.1146, SCurveFeedrate(100.0, 0.12), 1e-4)
+    32213
+    >>> reference_samples(310.1146, SCurveFeedrate(0.001, 0.12), 1e-4)   # 88 bytes each: 254 GiB
+    3101147201
+    """
+    length = positive("length", length, "mm")
+    dt = positive("dt", dt, "s")
+    _check_profile(profile)
+    count = _sample_count(profile.plan(length).duration, dt)
+    if not math.isfinite(count):
+        raise ValueError(f"the motion over {length!r} mm with dt={dt!r} s has more samples than a float can count")
+    return int(count)
+
+
+def _check_cost(length: float, profile, plan, dt: float, max_samples: int) -> int:
+    """The sample count of the reference (:func:`reference_samples`); ValueError beyond ``max_samples``."""
+    count = _sample_count(plan.duration, dt)
+    if count > max_samples:
+        gib = count * _BYTES_PER_SAMPLE / 2**30
+        limit_gib = max_samples * _BYTES_PER_SAMPLE / 2**30
+        raise ValueError(
+            f"{_describe(profile)} over the {length:.6g} mm contour lasts {plan.duration:.4g} s: with "
+            f"dt={dt!r} s that would make {count:.3g} reference samples ({gib:.3g} GiB); the limit is "
+            f"max_samples={max_samples} ({limit_gib:.2g} GiB; default MAX_REFERENCE_SAMPLES = "
+            f"{MAX_REFERENCE_SAMPLES:.0e}). Raise the feedrate (mm/s) or dt (s), shorten ramp_time (s), or pass "
+            "a larger max_samples"
+        )
+    return int(count)
+
+
+# --------------------------------------------------------------------------
+# the interpolator
+# --------------------------------------------------------------------------
+
+
+def interpolate(
+    curve,
+    profile,
+    dt: float,
+    *,
+    step_tolerance: float = STEP_TOLERANCE,
+    max_samples: int = MAX_REFERENCE_SAMPLES,
+) -> Reference:
     """Interpolate a curve with a feedrate profile, seed 000 eqs. (8)-(10).
 
     Plans ``profile`` over the curve's arc length, then advances the
@@ -299,46 +729,68 @@ def interpolate(curve, profile, dt: float) -> Reference:
     (dV/dt) / |C'| - V^2 (C' . C'') / |C'|^4 (eq. (10)), sampling every
     ``dt`` from t = 0.
 
-    The reference ends exactly at the end of the curve, never past it:
+    What the reference guarantees (checked before it is returned; a curve or
+    setting that cannot meet it is refused with a ``ValueError``):
 
-    * a step that would carry u to or past u_end before the profile has
-      ended is clamped to u_end;
-    * if the profile ends (the next sampling instant t_{k+1} is at or after
-      the planned duration) with u still short of u_end, the sample at
-      t_{k+1} is placed at u_end.
-
-    The last sample has zero velocity and acceleration; the signed gap it
-    closes is ``Reference.end_gap``. With the seed settings (100 mm/s,
-    0.12 s ramps) eq. (8) falls short, by 6.1e-4 mm (heart) and 6.0e-3 mm
-    (omega) at dt = 1 ms and by 6.1e-6 mm and 1.4e-4 mm at dt = 0.1 ms.
-    A step is never allowed to move u backwards.
+    * **Every step moves as commanded.**  For every step k, the last one
+      onto u_end included, the arc length of the curve from u_k to u_{k+1}
+      is within ``step_tolerance`` x V_peak x dt (default 0.1 V_peak dt) of
+      the commanded distance S(t_{k+1}) - S(t_k) (S the integral of the
+      feed); so is the arc length travelled since t = 0 of S(t_k).  Where
+      eq. (8) misses by more (large parametric accelerations, steps across
+      knots where C'' jumps, corners), u_{k+1} is solved from the arc length
+      instead (``Reference.corrected_steps``).  The seed's contours need no
+      correction: their largest eq. (8) error is 0.06 V_peak dt (the
+      omega's last step at dt = 1 ms).
+    * **The end is reached, never passed.**  u runs non-decreasing from
+      u_start to exactly u_end.  A step that would carry u to or past u_end
+      before the profile has ended is clamped to u_end; if the profile ends
+      (the next sampling instant t_{k+1} is at or after the planned
+      duration) with u still short of u_end, the sample at t_{k+1} is
+      placed at u_end.  The last sample has zero velocity and acceleration;
+      the signed gap it closes is ``Reference.end_gap``.  With the seed
+      settings (100 mm/s, 0.12 s ramps) eq. (8) falls short, by 6.1e-4 mm
+      (heart) and 6.0e-3 mm (omega) at dt = 1 ms and by 6.1e-6 mm and
+      1.4e-4 mm at dt = 0.1 ms.
+    * **Everything is finite**, the unit tangent included: the curve must be
+      regular (``NurbsCurve.check_regular``: no cusp, no near-zero C'(u),
+      no zero-length knot span), checked once per curve.
 
     Parameters
     ----------
     curve : NurbsCurve
-        The path (mm). Needs ``kernel_args``, ``u_range`` and
-        ``arc_length()``.
+        The path (mm).
     profile : SCurveFeedrate
-        The feedrate profile; anything with ``plan(length) -> FeedratePlan``.
+        The feedrate profile; anything with ``plan(length) -> FeedratePlan``
+        whose plan covers exactly ``length``.
     dt : float
         Interpolation (sampling) period T, s. Seed 000 uses 1e-3 s; the envs
         use their control period (default 1e-4 s).
+    step_tolerance : float, default STEP_TOLERANCE = 0.1
+        The guarantee above, as a fraction of V_peak dt; in [1e-6, 1].
+    max_samples : int, default MAX_REFERENCE_SAMPLES = 2e6
+        Refuse a reference of more samples (:func:`reference_samples`,
+        88 bytes each) before allocating it.
 
     Returns
     -------
     Reference
-        Time, parameter, position, velocity, acceleration and commanded feed
-        at every sample, with the plan, the end gap and the feedrate
-        fluctuation.
+        Time, parameter, position, velocity, acceleration, tangent and
+        commanded feed at every sample, with the plan, the step error, the
+        end gap and the feedrate fluctuation.
 
     Raises
     ------
     TypeError
-        If ``curve`` has no ``kernel_args`` (or ``u_range``, ``arc_length``)
-        or ``profile`` has no ``plan``.
+        If ``curve`` is not a ``NurbsCurve`` or ``profile`` has no ``plan``.
     ValueError
-        If ``dt`` is not a positive finite number, or the curve has a point
-        with C'(u) = 0 on the way (eq. (9) is undefined there).
+        If ``dt`` is not a finite real number > 0 (s); ``step_tolerance`` or
+        ``max_samples`` is out of range; the profile's plan does not cover
+        the curve's length; the reference would have more than
+        ``max_samples`` samples (the message names the feedrate, ramp time,
+        dt and the memory it would take); the curve is not regular (the
+        message names the defect and its u); or the curve cannot be followed
+        within the tolerance at this feed and dt (the message names u).
 
     Examples
     --------
@@ -349,39 +801,48 @@ def interpolate(curve, profile, dt: float) -> Reference:
     (3223, 6.0, [0.0, 0.0])
     >>> round(ref.end_gap * 1e3, 2)   # eq. (8) fell short of u_end by this, um
     0.61
+    >>> ref.corrected_steps, ref.step_error < ref.step_tolerance
+    (0, True)
     """
-    for attr in ("kernel_args", "u_range", "arc_length"):
-        if not hasattr(curve, attr):
-            raise TypeError(
-                f"curve must be a NurbsCurve-like object with kernel_args, u_range and "
-                f"arc_length(); got {type(curve).__name__} without {attr!r}"
-            )
-    if not callable(getattr(profile, "plan", None)):
-        raise TypeError(
-            f"profile must be a feedrate profile with plan(length), e.g. SCurveFeedrate; "
-            f"got {type(profile).__name__}"
-        )
-    dt = _positive_finite("dt", dt)
-    u_start, u_end = (float(x) for x in curve.u_range)
+    if not isinstance(curve, NurbsCurve):
+        raise TypeError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
+    _check_profile(profile)
+    dt = positive("dt", dt, "s")
+    step_tolerance = real("step_tolerance", step_tolerance, "fraction of feedrate x dt")
+    if not 1e-6 <= step_tolerance <= 1.0:
+        raise ValueError(f"step_tolerance must be in [1e-6, 1] (fraction of feedrate x dt), got {step_tolerance!r}")
+    max_samples = integer("max_samples", max_samples, 2)
+    curve.check_regular()
+    u_start, u_end = curve.u_range
     length = float(curve.arc_length())
     plan = profile.plan(length)
+    covered = float(plan.distance(plan.duration))
+    if not abs(covered - length) <= 1e-9 * length:
+        raise ValueError(
+            f"profile.plan({length!r}) returned a plan covering {covered!r} mm, not the curve's {length!r} mm"
+        )
+    k_max = _check_cost(length, profile, plan, dt, max_samples) + 1
 
-    k_max = int(math.ceil(plan.duration / dt)) + 2
     t = np.empty(k_max)
     u = np.empty(k_max)
     pos = np.empty((k_max, 2))
     vel = np.empty((k_max, 2))
     acc = np.empty((k_max, 2))
+    tan = np.empty((k_max, 2))
     feed = np.empty(k_max)
-    info = np.zeros(4)
+    info = np.zeros(8)
     n = taylor_interpolate_kernel(
-        *curve.kernel_args, u_start, u_end, dt, *plan.kernel_args, t, u, pos, vel, acc, feed, info
+        *curve.kernel_args, u_start, u_end, dt, *plan.kernel_args, step_tolerance, t, u, pos, vel, acc, tan,
+        feed, info,
     )
     if info[0] == _END_SINGULAR:
         raise ValueError(
-            f"curve has C'(u) = 0 at u = {info[1]!r}: the feed relation of seed 000 eq. (9) "
-            "is undefined there"
+            f"curve has C'(u) = 0 (or not finite) at u = {float(info[1])!r}: the feed relation of seed 000 "
+            "eq. (9) is undefined there"
         )
+    t, u, pos, vel, acc, tan, feed = (a[:n].copy() for a in (t, u, pos, vel, acc, tan, feed))
+    _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed)
+
     u_taylor, t_e, s_planned = float(info[1]), float(info[2]), float(info[3])
     end_gap_u = u_end - u_taylor
     if info[0] == _END_PROFILE and u_taylor < u_end:
@@ -390,8 +851,6 @@ def interpolate(curve, profile, dt: float) -> Reference:
         speed_end = float(np.linalg.norm(curve.derivatives(u_end, 1)[1]))
         travelled_left = -speed_end * (u_taylor - u_end)
     end_gap = travelled_left - (plan.length - s_planned)
-
-    t, u, pos, vel, acc, feed = (a[:n].copy() for a in (t, u, pos, vel, acc, feed))
 
     # feedrate fluctuation over the steps made by eq. (8): all but the last
     v_act = np.linalg.norm(np.diff(pos, axis=0), axis=1)[:-1] / dt
@@ -413,12 +872,65 @@ def interpolate(curve, profile, dt: float) -> Reference:
         position=pos,
         velocity=vel,
         acceleration=acc,
+        tangent=tan,
         feedrate=feed,
         dt=dt,
         length=length,
         plan=plan,
+        step_tolerance=step_tolerance,
+        step_error=float(info[5] / (plan.v_peak * dt)),
+        corrected_steps=int(info[4]),
         end_gap=float(end_gap),
         end_gap_u=float(end_gap_u),
         feedrate_fluctuation=fluctuation,
         cruise_fluctuation_percent=cruise_pct,
     )
+
+
+def _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed) -> None:
+    """Check the finished reference against what :func:`interpolate` promises; ValueError if it fails.
+
+    Independent of the kernel's bookkeeping where it can be: finiteness,
+    u from u_start to exactly u_end without going back, no chord longer than
+    the commanded distance plus the tolerance (a chord is never longer than
+    its arc); and the kernel's own arc-length error of every step.
+    """
+    u_start, u_end = curve.u_range
+    tol = step_tolerance * plan.v_peak * dt
+    for name, a in zip(_ARRAYS, (t, u, pos, vel, acc, tan, feed)):
+        if not np.all(np.isfinite(a)):
+            k = int(np.flatnonzero(~np.isfinite(a.reshape(len(t), -1)).all(axis=1))[0])
+            raise ValueError(f"the reference's {name} is not finite at sample {k} (u = {u[k]!r}): "
+                             f"the curve's derivatives overflow there")
+    if u[0] != u_start or u[-1] != u_end or np.any(np.diff(u) < 0.0):
+        raise ValueError("internal error: the reference's u does not run from u_start to u_end")
+    chords = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    commanded = np.diff(plan.distance(t))
+    excess = chords - commanded
+    worst = int(np.argmax(excess)) if excess.size else 0
+    step_error = max(float(info[5]), float(excess[worst]) if excess.size else 0.0)
+    if not step_error <= tol * (1.0 + 1e-9):
+        k = int(info[7]) if info[5] >= (excess[worst] if excess.size else 0.0) else worst
+        raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u, commanded))
+
+
+def _cannot_follow(curve, plan, dt, step_tolerance, k, u, commanded) -> str:
+    """Why step k of the reference misses the tolerance, naming its u."""
+    uk, uk1 = float(u[k]), float(u[k + 1])
+    arc = curve.arc_length(uk, uk1)
+    speed = float(np.linalg.norm(curve.derivatives(uk, 1)[1]))
+    resolution = speed * float(np.spacing(abs(uk) if uk != 0.0 else 1e-300))
+    text = (
+        f"the reference cannot follow the curve near u = {uk:.10g} (t = {k * dt:.6g} s): step {k} moves "
+        f"{arc:.3g} mm along it for a commanded {commanded[k]:.3g} mm, off by more than step_tolerance x "
+        f"V_peak x dt = {step_tolerance:g} x {plan.v_peak:.4g} mm/s x {dt!r} s = "
+        f"{step_tolerance * plan.v_peak * dt:.3g} mm"
+    )
+    if resolution > 0.1 * step_tolerance * plan.v_peak * dt:
+        knots = curve.knots
+        a = float(knots[np.searchsorted(knots, uk, side="right") - 1])
+        b = float(knots[np.searchsorted(knots, uk, side="right")]) if uk < knots[-1] else a
+        return (text + f": |C'(u)| = {speed:.3g} mm per unit of u there, so one floating-point step of u moves "
+                f"{resolution:.3g} mm; the knot span [{a:.17g}, {b:.17g}] is too short in u for its "
+                f"{curve.arc_length(a, b) if b > a else 0.0:.3g} mm")
+    return text + "; a smaller dt or feedrate may resolve it"
