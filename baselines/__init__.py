@@ -30,6 +30,7 @@ from .qft import (
     sampled_loop_stable,
 )
 from .ilc import ILCPolicy, run_trials
+from .nctf import NCTFPolicy
 from .registry import make, names
 from .seed001 import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
 from .smc import SlidingModePolicy
@@ -48,6 +49,7 @@ __all__ = [
     "ContouringFBPolicy",
     "ILCPolicy",
     "run_trials",
+    "NCTFPolicy",
     "FuzzyScaling",
     "DEFAULT_SCALING",
     "MU",

@@ -13,6 +13,7 @@ from .base import BaselinePolicy
 from .contouring_fb import ContouringFBPolicy
 from .fuzzy import FuzzyPolicy
 from .ilc import ILCPolicy
+from .nctf import NCTFPolicy
 from .qft import QFTPolicy
 from .seed001 import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
 from .smc import SlidingModePolicy
@@ -30,6 +31,7 @@ REGISTRY: dict[str, type[BaselinePolicy]] = {
     "hinf-reduced": HinfReducedPolicy,  # seed 001, eq. (29)
     "contouring-fb": ContouringFBPolicy,  # seed 002, eq. (7)
     "ilc": ILCPolicy,  # seed 002, eqs. (8)-(11)
+    "nctf": NCTFPolicy,  # seed 003, Fig. 1(a), Table I, eqs. (1)-(2)
 }
 
 #: Name -> (registered class name, parameters it fixes): a controller of the

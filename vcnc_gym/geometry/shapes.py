@@ -10,10 +10,11 @@ import math
 
 import numpy as np
 
+from ..validation import positive
 from .corners import polyline, smooth_polyline
 from .nurbs import NurbsCurve
 
-__all__ = ["heart", "omega", "corners_vertices", "corners_path", "SHAPES"]
+__all__ = ["heart", "omega", "corners_vertices", "corners_path", "circle", "SHAPES"]
 
 
 def heart() -> NurbsCurve:
@@ -93,5 +94,27 @@ def corners_path(smooth: bool = True, epsilon: float = 0.05, a_max: float | None
     return smooth_polyline(corners_vertices(), epsilon, a_max, j_max).curve
 
 
-SHAPES = {"heart": heart, "omega": omega}
+def circle(radius: float = 1.0) -> NurbsCurve:
+    """The circle of seed 003, section IV: radius ``radius`` mm (the paper's 1 mm), centred at the origin.
+
+    An exact NURBS: rational quadratic, 9 control points on the corners and
+    edge midpoints of the circumscribed square, weights 1 and sqrt(2)/2
+    (Piegl and Tiller, The NURBS Book, 2nd ed., section 7.5), u in [0, 1],
+    one quarter per knot span.  It starts at (0, R) and runs clockwise, as
+    x = R sin(w t), y = R cos(w t) do (seed 003: a sine on the x axis, a
+    cosine on the y axis).
+    """
+    r = positive("radius", radius, "mm")
+    x = [0, r, r, r, 0, -r, -r, -r, 0]
+    y = [r, r, 0, -r, -r, -r, 0, r, r]
+    w = math.sqrt(0.5)
+    return NurbsCurve(
+        control_points=list(zip(x, y)),
+        weights=[1, w, 1, w, 1, w, 1, w, 1],
+        knots=[0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1],
+        degree=2,
+    )
+
+
+SHAPES = {"heart": heart, "omega": omega, "circle": circle}
 """Named contour constructors, by the name used in env ids."""

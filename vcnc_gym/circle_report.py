@@ -1,0 +1,426 @@
+"""Seed 003's circle: its reference, a stand-alone closed loop, the paper's figures and the radial-error plot.
+
+Seed 003, section IV, drives the x axis of its X-Y table with a sine and the
+y axis with a cosine of 1 mm amplitude, so that the table traces a 1 mm
+radius circle, and reports (Fig. 6 and its text):
+
+- RMS tracking error 0.0063 mm on x and 0.0037 mm on y;
+- RMS radial error 0.0008 mm;
+- radial error within 2 um, except the initial one of the x axis's transient.
+
+The paper gives no frequency.  We take ``omega = 1 rad/s``
+(:data:`DEFAULT_OMEGA`: the default of a Simulink Sine Wave block, which a
+"1 mm amplitude sinusoidal input" with no frequency suggests; period 6.28 s,
+feed ``R omega`` = 1 mm/s), one revolution, at the control period
+:data:`DEFAULT_DT` = 1 ms (the paper gives none either).  The reference is
+x = R sin(omega t), y = R cos(omega t) from t = 0: the x axis must start at
+full feed from rest (its transient), the y axis at rest.
+
+What is here
+------------
+:func:`circle_figures`
+    The paper's four figures from any trace (time, true position, reference
+    position); the radial error is ``|p - c| - R``, its magnitude the contour
+    error of the env.  The transient excluded from the "within 2 um" figure
+    is the first :data:`DEFAULT_TRANSIENT` s (our choice).
+:func:`simulate_circle`
+    The closed loop of any SB3-style policy on seed 003's table, through
+    the plant contract's kernels, with the exact sine/cosine reference
+    (:func:`circle_reference`) and the observation of the contouring envs
+    (:class:`~vcnc_gym.envs.layout.ObservationLayout`, same fields, same
+    sensor): the paper's experiment without an env.
+:func:`plot_radial_error`
+    The circle's radial error against time (and the tracking errors), um.
+
+Units: mm, s in the traces; um in the figures (named ``*_um``) and plots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numba import njit
+
+from .envs.layout import ObservationLayout
+from .plants import contract, get_plant
+from .validation import non_negative, positive
+
+__all__ = [
+    "DEFAULT_RADIUS",
+    "DEFAULT_OMEGA",
+    "DEFAULT_DT",
+    "DEFAULT_TRANSIENT",
+    "CircleFigures",
+    "PAPER_FIGURES",
+    "CircleRun",
+    "circle_reference",
+    "circle_figures",
+    "simulate_circle",
+    "comparison_table",
+    "format_comparison",
+    "bench_report",
+    "plot_radial_error",
+]
+
+#: Circle radius, mm (seed 003, section IV).
+DEFAULT_RADIUS = 1.0
+#: Angular frequency of the sine/cosine, rad/s (our choice; seed 003 gives none).
+DEFAULT_OMEGA = 1.0
+#: Control period, s (our choice; seed 003 gives none).
+DEFAULT_DT = 1e-3
+#: Start of the trace excluded from the "radial error within" figure, s (our choice).
+DEFAULT_TRANSIENT = 1.0
+
+
+@dataclass(frozen=True)
+class CircleFigures:
+    """Seed 003's figures of one circle run, um.
+
+    Attributes
+    ----------
+    rms_x_um, rms_y_um : float
+        RMS tracking error of the x and y axes (reference minus true position).
+    rms_radial_um : float
+        RMS radial error.
+    max_radial_after_transient_um : float
+        Largest |radial error| after the transient (the paper: "within 2 um").
+    max_radial_um : float
+        Largest |radial error| over the whole run.
+    transient_s : float
+        The excluded start, s.
+    """
+
+    rms_x_um: float
+    rms_y_um: float
+    rms_radial_um: float
+    max_radial_after_transient_um: float
+    max_radial_um: float = float("nan")
+    transient_s: float = DEFAULT_TRANSIENT
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+#: Seed 003, section IV: RMS x 0.0063 mm, y 0.0037 mm, radial 0.0008 mm; radial error within 2 um.
+PAPER_FIGURES = CircleFigures(rms_x_um=6.3, rms_y_um=3.7, rms_radial_um=0.8, max_radial_after_transient_um=2.0)
+
+
+def circle_reference(radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
+                     revolutions: float = 1.0):
+    """The sine/cosine reference sampled at ``dt``: x = R sin(omega t), y = R cos(omega t).
+
+    Parameters
+    ----------
+    radius : float
+        R, mm.
+    omega : float
+        rad/s.
+    dt : float
+        Sample period, s.
+    revolutions : float
+        Length of the reference in turns.
+
+    Returns
+    -------
+    t : ndarray, (K,)
+        s, ``0, dt, ..., 2 pi revolutions / omega`` (rounded to whole samples).
+    position, velocity, acceleration : ndarray, (K, 2)
+        mm, mm/s, mm/s^2.
+    """
+    r = positive("radius", radius, "mm")
+    w = positive("omega", omega, "rad/s")
+    dt = positive("dt", dt, "s")
+    turns = positive("revolutions", revolutions, "turns")
+    n = int(round(2.0 * np.pi * turns / w / dt))
+    if n < 1:
+        raise ValueError(f"the reference of {turns} turns at {w} rad/s is shorter than one period of {dt} s")
+    t = dt * np.arange(n + 1)
+    s, c = np.sin(w * t), np.cos(w * t)
+    position = r * np.column_stack([s, c])
+    velocity = r * w * np.column_stack([c, -s])
+    acceleration = -r * w * w * np.column_stack([s, c])
+    return t, position, velocity, acceleration
+
+
+def _traces(name: str, a, n: int | None = None) -> np.ndarray:
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 2 or (n is not None and arr.shape[0] != n):
+        raise ValueError(f"{name} must have shape ({'n' if n is None else n}, 2) (mm), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (mm)")
+    return arr
+
+
+def circle_figures(time, position, reference_position, radius: float = DEFAULT_RADIUS, center=(0.0, 0.0),
+                   transient: float = DEFAULT_TRANSIENT) -> CircleFigures:
+    """Seed 003's figures of a circle run.
+
+    Parameters
+    ----------
+    time : array_like, (n,)
+        Sample times, s.
+    position, reference_position : array_like, (n, 2)
+        True table position and reference point at those times, mm.
+    radius : float
+        Circle radius, mm.
+    center : (float, float)
+        Circle centre, mm.
+    transient : float
+        Samples with ``time < transient`` (s) are left out of
+        ``max_radial_after_transient_um``.
+
+    Returns
+    -------
+    CircleFigures
+        The RMS are over all samples.
+    """
+    t = np.asarray(time, dtype=np.float64)
+    if t.ndim != 1 or t.size < 1 or not np.all(np.isfinite(t)):
+        raise ValueError(f"time must be a non-empty 1-D array of finite times (s), got shape {t.shape}")
+    p = _traces("position", position, t.size)
+    ref = _traces("reference_position", reference_position, t.size)
+    r = positive("radius", radius, "mm")
+    c = _traces("center", np.reshape(center, (1, 2)))[0]
+    tr = non_negative("transient", transient, "s")
+    after = t >= tr
+    if not after.any():
+        raise ValueError(f"no sample after the transient of {tr} s (the run ends at {t[-1]} s)")
+    err = ref - p
+    radial = np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) - r
+    um = 1e3
+    return CircleFigures(
+        rms_x_um=float(um * np.sqrt(np.mean(err[:, 0] ** 2))),
+        rms_y_um=float(um * np.sqrt(np.mean(err[:, 1] ** 2))),
+        rms_radial_um=float(um * np.sqrt(np.mean(radial**2))),
+        max_radial_after_transient_um=float(um * np.max(np.abs(radial[after]))),
+        max_radial_um=float(um * np.max(np.abs(radial))),
+        transient_s=tr,
+    )
+
+
+def comparison_table(figures: CircleFigures, paper: CircleFigures = PAPER_FIGURES) -> list[dict]:
+    """Rows ``{"figure", "ours_um", "paper_um", "ratio"}`` (ours / paper) for the paper's four figures."""
+    names = (("RMS tracking error x", "rms_x_um"), ("RMS tracking error y", "rms_y_um"),
+             ("RMS radial error", "rms_radial_um"),
+             ("max |radial error| after the transient", "max_radial_after_transient_um"))
+    return [{"figure": label, "ours_um": getattr(figures, key), "paper_um": getattr(paper, key),
+             "ratio": getattr(figures, key) / getattr(paper, key)} for label, key in names]
+
+
+def format_comparison(figures: CircleFigures, title: str = "", paper: CircleFigures = PAPER_FIGURES) -> str:
+    """:func:`comparison_table` as aligned text lines (um), under ``title``."""
+    lines = [title] if title else []
+    for row in comparison_table(figures, paper):
+        lines.append(f"  {row['figure']:<40} {row['ours_um']:8.2f} um   seed 003: {row['paper_um']:4.1f} um"
+                     f"   ratio {row['ratio']:5.2f}")
+    return "\n".join(lines)
+
+
+def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAULT_RADIUS,
+                 transient: float = DEFAULT_TRANSIENT, plot_path=None) -> list[str]:
+    """Seed 003's figures of every policy's circle run, as text lines, and optionally the radial-error plot.
+
+    Parameters
+    ----------
+    results_by_policy : mapping name -> run
+        Runs with ``time``, ``position`` and ``reference_position`` (e.g.
+        :class:`~vcnc_gym.evaluation.EpisodeResult` of a circle env, or
+        :class:`CircleRun`).
+    label : str
+        Names the env in the heading.
+    radius, transient :
+        See :func:`circle_figures`.
+    plot_path : path, optional
+        Where :func:`plot_radial_error` saves the plot of all the runs.
+
+    Returns
+    -------
+    list of str
+    """
+    head = (f"Seed 003, section IV, on {label}: RMS tracking error x, y, RMS radial error and max |radial error| "
+            f"after the first {transient:g} s")
+    lines = [head]
+    for name, run in results_by_policy.items():
+        f = circle_figures(run.time, run.position, run.reference_position, radius, (0.0, 0.0), transient)
+        lines.append(format_comparison(f, f"{name}:"))
+    if plot_path is not None and results_by_policy:
+        plot_radial_error(results_by_policy, radius, transient, path=plot_path)
+    return lines
+
+
+@dataclass
+class CircleRun:
+    """One closed-loop circle run: traces after each control period.
+
+    Attributes
+    ----------
+    time : ndarray, (n,)
+        s.
+    position, measured_position, reference_position : ndarray, (n, 2)
+        True table position, the sensor's reading, the reference point, mm.
+    command : ndarray, (n, 2)
+        Plant input applied during each period (saturated), in the plant's input unit.
+    radius : float
+        mm.
+    omega : float
+        rad/s.
+    """
+
+    time: np.ndarray
+    position: np.ndarray
+    measured_position: np.ndarray
+    reference_position: np.ndarray
+    command: np.ndarray
+    radius: float
+    omega: float
+
+    def figures(self, transient: float = DEFAULT_TRANSIENT) -> CircleFigures:
+        """:func:`circle_figures` of this run."""
+        return circle_figures(self.time, self.position, self.reference_position, self.radius, (0.0, 0.0),
+                              transient)
+
+
+@njit(cache=True)
+def _advance_and_sense(plant, command, sensed):
+    contract.advance(plant, 0, command)
+    contract.sense(plant, 0, sensed)
+
+
+@njit(cache=True)
+def _sense(plant, sensed):
+    contract.sense(plant, 0, sensed)
+
+
+def simulate_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
+                    revolutions: float = 1.0, parameters=None, plant="nct_xy_table") -> CircleRun:
+    """Run ``policy`` once around the sine/cosine circle on seed 003's table, without an env.
+
+    Parameters
+    ----------
+    policy : object with SB3's ``predict``
+        Built for the contouring envs' observation (its ``layout``
+        attribute, default :class:`~vcnc_gym.envs.layout.ObservationLayout`)
+        at decision period ``dt``; its action in [-1, 1] is scaled by the
+        plant's input limit.
+    radius, omega, dt, revolutions :
+        See :func:`circle_reference`.
+    parameters : array_like, (2, P), optional
+        The table; default nominal (seed 003, eq. (4)).
+    plant : str
+        The plant module.
+
+    Returns
+    -------
+    CircleRun
+
+    Notes
+    -----
+    Every control period: the observation is written field by field as the
+    contouring envs write it (tracking error and preview from the sensor's
+    reading, contour error from the true position, velocity as the plant
+    reports it), ``policy.predict`` is called (``episode_start`` on the
+    first period), the action is clipped to [-1, 1] and scaled, and the
+    plant advances one period through :func:`vcnc_gym.plants.contract.advance`.
+    """
+    model = get_plant(plant)
+    t, ref, ref_v, ref_a = circle_reference(radius, omega, dt, revolutions)
+    r = float(radius)
+    layout = getattr(policy, "layout", None) or ObservationLayout()
+    arrays = model.arrays(1, float(dt), model.nominal() if parameters is None else parameters)
+    model.reset_machine(arrays, 0, ref[0])
+    limit = model.input_limits(arrays.params[0])
+    sensed = np.zeros(contract.SENSE_SIZE)
+    _sense(arrays, sensed)
+    n = t.size - 1
+    last = t.size - 1
+    preview = np.array(layout.preview_steps)
+    s = {name: layout.slice(name) for name in ("reference_position", "reference_velocity", "reference_acceleration",
+                                               "tracking_error", "contour_error", "tangential_error",
+                                               "normal_error", "velocity", "preview", "previous_action")}
+    obs = np.zeros(layout.size, dtype=np.float64)
+    action = np.zeros(2)
+    command = np.zeros(2)
+    out_p = np.empty((n, 2))
+    out_m = np.empty((n, 2))
+    out_u = np.empty((n, 2))
+    for k in range(n):
+        pos = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
+        meas = sensed[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2]
+        e = ref[k] - meas
+        tangent = ref_v[k] / np.hypot(*ref_v[k])
+        obs[s["reference_position"]] = ref[k]
+        obs[s["reference_velocity"]] = ref_v[k]
+        obs[s["reference_acceleration"]] = ref_a[k]
+        obs[s["tracking_error"]] = e
+        obs[s["contour_error"]] = abs(np.hypot(*pos) - r)
+        obs[s["tangential_error"]] = tangent @ e
+        obs[s["normal_error"]] = -tangent[1] * e[0] + tangent[0] * e[1]
+        obs[s["velocity"]] = sensed[contract.SENSE_VELOCITY:contract.SENSE_VELOCITY + 2]
+        obs[s["preview"]] = (ref[np.minimum(k + preview, last)] - meas).ravel()
+        obs[s["previous_action"]] = action
+        a, _ = policy.predict(obs.astype(np.float32), episode_start=np.array([k == 0]), deterministic=True)
+        action = np.clip(np.asarray(a, dtype=np.float64).reshape(2), -1.0, 1.0)
+        command[:] = action * limit
+        _advance_and_sense(arrays, command, sensed)
+        out_p[k] = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
+        out_m[k] = sensed[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2]
+        out_u[k] = command
+    return CircleRun(time=t[1:].copy(), position=out_p, measured_position=out_m, reference_position=ref[1:].copy(),
+                     command=out_u, radius=r, omega=float(omega))
+
+
+def plot_radial_error(runs, radius: float = DEFAULT_RADIUS, transient: float = DEFAULT_TRANSIENT,
+                      paper: CircleFigures = PAPER_FIGURES, path=None):
+    """Radial error (top) and tracking errors (bottom) of circle runs against time, um.
+
+    Parameters
+    ----------
+    runs : mapping name -> run
+        Each run has ``time`` (n,), ``position`` and ``reference_position``
+        (n, 2), in s and mm (a :class:`CircleRun` or an
+        :class:`~vcnc_gym.evaluation.EpisodeResult`).
+    radius : float
+        mm; the circle is centred at the origin.
+    transient : float
+        s, marked on the plot; the paper's 2 um band is drawn after it.
+    paper : CircleFigures
+        For the band.
+    path : str or os.PathLike, optional
+        Where to save the figure (format by extension); the figure is then closed.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    if not runs:
+        raise ValueError("runs must name at least one run")
+    fig, (ax_r, ax_t) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    for name, run in runs.items():
+        t = np.asarray(run.time)
+        p = np.asarray(run.position)
+        ref = np.asarray(run.reference_position)
+        radial = 1e3 * (np.hypot(p[:, 0], p[:, 1]) - radius)
+        ax_r.plot(t, radial, lw=0.8, label=name)
+        ax_t.plot(t, 1e3 * (ref[:, 0] - p[:, 0]), lw=0.8, label=f"{name}: x")
+        ax_t.plot(t, 1e3 * (ref[:, 1] - p[:, 1]), lw=0.8, label=f"{name}: y")
+    band = paper.max_radial_after_transient_um
+    ax_r.axhspan(-band, band, color="0.9", zorder=0, label=f"seed 003: within {band:g} um")
+    for ax in (ax_r, ax_t):
+        ax.axvline(transient, color="0.5", ls=":", lw=0.8)
+        ax.legend(fontsize=7, loc="upper right")
+        ax.grid(alpha=0.3)
+    ax_r.set_ylabel("radial error |p| - R [um]")
+    ax_t.set_ylabel("tracking error [um]")
+    ax_t.set_xlabel("time [s]")
+    ax_r.set_title(f"circle R = {radius:g} mm")
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+    return fig

@@ -1,0 +1,239 @@
+"""The NCT-identified X-Y table of seed 003 (fuzzy NCTF control on a circle), as numba kernels.
+
+Each axis (x, y) of a machine is the simplified model of seed 003, eq. (3),
+
+.. math::
+
+    G(s) = \\frac{X(s)}{U(s)} = K \\frac{\\alpha}{s (s + \\alpha)},
+    \\qquad K = h_{max} / u_r, \\quad \\alpha = -m,
+
+with the numbers of eq. (4): ``K = 50.7``, ``alpha = 1.475 1/s`` on the x
+axis and ``K = 53.1``, ``alpha = 3.156 1/s`` on the y axis.  In the time
+domain, with ``v`` the table velocity,
+
+.. math::
+
+    \\dot v = \\alpha (K \\,\\mathrm{sat}(u) - v), \\qquad \\dot x = v .
+
+The input
+---------
+Seed 003 names the input only as the motor input, with ``u_r`` the rated
+motor input: the stepwise input of the identification experiment is ``u_r``
+(section III), the fuzzy compensator's output spans ``+-u_r`` (section II-B)
+and ``K = h_max / u_r`` (eq. (3)).  It gives ``u_r`` no number and no unit.
+The input here is therefore the motor command **in units of the rated
+input**: ``u = 1`` is ``u_r`` (unit ``"u_r"``), so ``K`` is in mm/s per
+``u_r`` and ``h_max = K u_r`` is the top speed of the stepwise experiment
+(50.7 mm/s on x, 53.1 mm/s on y).  The input saturates at ``+-u_r``
+(parameter ``u_r``, 1), the range the paper's controller never leaves.
+
+The sensor
+----------
+Seed 003, section III: "1 um sensor resolution is used".  The position
+sensor is modelled as a mid-tread quantiser of step ``resolution``
+(0.001 mm), ``q(x) = resolution * round(x / resolution)``: what the
+controller sees (``SENSE_MEASURED``); the true position (``SENSE_POSITION``)
+is what the contour error is scored on.  There is no tachometer: the
+velocity the plant reports (``SENSE_VELOCITY``) is the encoder's count
+difference over the last control period, ``(q(x_k) - q(x_{k-1})) / dt``
+(0 just after a reset).  The true velocity is kept in the state.
+
+Uncertainty
+-----------
+Seed 003 gives one identified model and no uncertainty.  We chose
++-10 % on ``K`` and ``alpha`` of each axis (the spread of a model read off
+one open-loop experiment; our choice, not the paper's), so that
+``randomize=True`` draws a table the NCTF design has not seen; nominal
+values are eq. (4) exactly (the interval midpoints).  ``u_r`` and the
+sensor resolution are fixed.
+
+Integration
+-----------
+Exact zero-order hold: the command is held over the control period ``dt``
+and the linear ODE is solved in closed form,
+``v1 = E v0 + (1 - E) K u``, ``x1 = x0 + g v0 + (dt - g) K u`` with
+``E = exp(-alpha dt)`` and ``g = (1 - E) / alpha``: the kernel is the ZOH
+discretisation of eq. (3) (``control.c2d(G, dt, "zoh")``) up to rounding.
+
+Layouts
+-------
+state : (N, 2, 3) float64
+    ``state[k, i] = (x [mm], v [mm/s], q_prev [mm])``: true position, true
+    velocity and the sensor reading at the start of the last control period.
+params : (N, 2, 4) float64
+    ``(K [mm/s per u_r], alpha [1/s], u_r [u_r], resolution [mm])`` per axis.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numba
+import numpy as np
+from numba.extending import overload
+
+from . import contract
+from .contract import Parameter, PlantModel
+
+__all__ = [
+    "PARAMETERS",
+    "MODEL",
+    "NctTableArrays",
+    "IDX_K",
+    "IDX_ALPHA",
+    "IDX_U_R",
+    "IDX_RESOLUTION",
+    "S_X",
+    "S_V",
+    "S_Q_PREV",
+    "UNCERTAINTY",
+    "quantise",
+    "zoh_coefficients",
+    "step_axis",
+]
+
+_EQ_4 = "seed 003, eq. (4)"
+
+#: Relative half-width of the uncertainty intervals of K and alpha (our choice; seed 003 gives none).
+UNCERTAINTY = 0.10
+
+
+def _interval(x_value: float, y_value: float) -> tuple:
+    return tuple((v * (1.0 - UNCERTAINTY), v * (1.0 + UNCERTAINTY)) for v in (x_value, y_value))
+
+
+#: The per-axis parameters, in the order of the last axis of a parameter array.
+PARAMETERS = (
+    Parameter("K", "mm/s per u_r", nominal=(50.7, 53.1), interval=_interval(50.7, 53.1),
+              source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
+              description="velocity gain K = h_max / u_r, eq. (3)"),
+    Parameter("alpha", "1/s", nominal=(1.475, 3.156), interval=_interval(1.475, 3.156),
+              source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
+              description="velocity pole alpha = -m, eq. (3)"),
+    Parameter("u_r", "u_r", nominal=(1.0, 1.0), source="seed 003, sections II-B and III (no number given)",
+              description="rated motor input: the input limit, the unit of the input"),
+    Parameter("resolution", "mm", nominal=(0.001, 0.001), source="seed 003, section III (1 um sensor)",
+              description="position sensor resolution"),
+)
+IDX_K, IDX_ALPHA, IDX_U_R, IDX_RESOLUTION = range(len(PARAMETERS))
+
+#: Per-axis state entries: true position, true velocity, sensor reading at the start of the last period.
+S_X, S_V, S_Q_PREV = 0, 1, 2
+
+#: The arrays of N machines (the contract's plant namedtuple): ``state`` (N, 2, 3),
+#: ``params`` (N, 2, 4) and the control period ``dt`` [s].
+NctTableArrays = namedtuple("NctTableArrays", ["state", "params", "dt"])
+
+
+def _linear_coefficients(params: np.ndarray, axis: int):
+    """Input-to-position transfer function of eq. (3): ``K alpha / (s^2 + alpha s)`` [mm per u_r]."""
+    p = params[axis]
+    return np.array([p[IDX_K] * p[IDX_ALPHA]]), np.array([1.0, p[IDX_ALPHA], 0.0])
+
+
+def _make_arrays(n_machines: int, dt: float) -> NctTableArrays:
+    """Arrays of N tables at rest at the origin, nominal parameters."""
+    params = np.repeat(MODEL.nominal()[None], n_machines, axis=0)
+    return NctTableArrays(np.zeros((n_machines, 2, 3)), params, float(dt))
+
+
+def _reset_machine(arrays: NctTableArrays, k: int, position) -> None:
+    """Table ``k`` at rest at ``position`` (2,) mm; the sensor reads it (velocity reading 0)."""
+    for i in range(2):
+        x = float(position[i])
+        arrays.state[k, i, S_X] = x
+        arrays.state[k, i, S_V] = 0.0
+        arrays.state[k, i, S_Q_PREV] = quantise(x, arrays.params[k, i, IDX_RESOLUTION])
+
+
+#: This plant, as the envs and baselines see it.
+MODEL = PlantModel(
+    name="nct_xy_table",
+    source="seed 003, eqs. (3)-(4) and section III",
+    parameters=PARAMETERS,
+    state_names=("x [mm]", "v [mm/s]", "q_prev [mm]"),
+    input_name="motor input (fraction of the rated input u_r)",
+    input_unit="u_r",
+    input_limit="u_r",
+    make_arrays=_make_arrays,
+    reset_machine=_reset_machine,
+    linear_coefficients=_linear_coefficients,
+)
+
+
+# --------------------------------------------------------------------------
+# Kernels
+# --------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def quantise(x, resolution):
+    """Sensor reading of position ``x`` [mm]: the nearest multiple of ``resolution`` [mm] (ties upwards)."""
+    return resolution * math.floor(x / resolution + 0.5)
+
+
+@numba.njit(cache=True)
+def zoh_coefficients(alpha, dt):
+    """Exact ZOH coefficients of ``v' = alpha (K u - v)``, ``x' = v`` over ``dt``.
+
+    Returns ``(E, g, q)`` with ``v1 = E v0 + alpha g K u`` and
+    ``x1 = x0 + g v0 + q K u``: ``E = exp(-alpha dt)``,
+    ``g = (1 - E) / alpha``, ``q = dt - g`` (series for small ``alpha dt``,
+    where ``dt - g`` would cancel).
+    """
+    z = alpha * dt
+    e = math.exp(-z)
+    if z < 0.1:
+        # (1 - e^-z) / z = sum (-z)^n / (n + 1)!,  (z - 1 + e^-z) / z^2 = sum (-z)^n / (n + 2)!
+        s1 = 1.0
+        s2 = 0.5
+        t1 = 1.0
+        t2 = 0.5
+        for n in range(1, 10):
+            t1 *= -z / (n + 1)
+            t2 *= -z / (n + 2)
+            s1 += t1
+            s2 += t2
+        return e, dt * s1, dt * z * s2
+    g = -math.expm1(-z) / alpha
+    return e, g, dt - g
+
+
+@numba.njit(cache=True)
+def step_axis(state, k, i, u, params, dt):
+    """Advance axis ``i`` of table ``k`` by ``dt`` with command ``u`` [u_r] held (saturated at +-u_r)."""
+    u_r = params[k, i, IDX_U_R]
+    if u > u_r:
+        u = u_r
+    elif u < -u_r:
+        u = -u_r
+    ku = params[k, i, IDX_K] * u
+    e, g, q = zoh_coefficients(params[k, i, IDX_ALPHA], dt)
+    x = state[k, i, S_X]
+    v = state[k, i, S_V]
+    state[k, i, S_Q_PREV] = quantise(x, params[k, i, IDX_RESOLUTION])
+    state[k, i, S_X] = x + g * v + q * ku
+    state[k, i, S_V] = e * v + params[k, i, IDX_ALPHA] * g * ku  # 1 - E = alpha g, without cancellation
+
+
+@overload(contract.advance, jit_options={"cache": True})
+def _advance(plant, k, command):
+    if contract.is_plant(plant, NctTableArrays):
+        def impl(plant, k, command):
+            for i in range(2):
+                step_axis(plant.state, k, i, command[i], plant.params, plant.dt)
+        return impl
+
+
+@overload(contract.sense, jit_options={"cache": True})
+def _sense(plant, k, out):
+    if contract.is_plant(plant, NctTableArrays):
+        def impl(plant, k, out):
+            for i in range(2):
+                x = plant.state[k, i, S_X]
+                q = quantise(x, plant.params[k, i, IDX_RESOLUTION])
+                out[contract.SENSE_POSITION + i] = x
+                out[contract.SENSE_MEASURED + i] = q
+                out[contract.SENSE_VELOCITY + i] = (q - plant.state[k, i, S_Q_PREV]) / plant.dt
+        return impl
