@@ -682,7 +682,7 @@ def main(argv=None) -> int:
     """
     import argparse
 
-    from vcnc_gym import circle_report as cr
+    from baselines import circle_report as cr
     from vcnc_gym.envs.layout import ObservationLayout
 
     parser = argparse.ArgumentParser(prog="baselines.nctf.main", description="NCTF design and circle figures")

@@ -1,5 +1,5 @@
 """Seed 003's circle: the exact NURBS (geomdl), the sine/cosine reference, the paper's figures,
-the stand-alone closed loop and the radial-error plot (vcnc_gym.circle_report)."""
+the stand-alone closed loop and the radial-error plot (baselines.circle_report)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from baselines.nctf import NCTFPolicy
-from vcnc_gym import circle_report as cr
+from baselines import circle_report as cr
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.geometry import SHAPES
 from vcnc_gym.geometry.shapes import circle

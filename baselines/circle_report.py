@@ -42,9 +42,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numba import njit
 
-from .envs.layout import ObservationLayout
-from .plants import contract, get_plant
-from .validation import non_negative, positive
+from vcnc_gym.envs.layout import ObservationLayout
+from vcnc_gym.plants import contract, get_plant
+from vcnc_gym.validation import non_negative, positive
 
 __all__ = [
     "DEFAULT_RADIUS",
