@@ -139,14 +139,18 @@ class StepData(structref.StructRefProxy):
 structref.define_proxy(StepData, StepDataType, ["plant", "reference", "contour", "config", "offsets", "buffers"])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _step_env(plant, reference, c, cfg, o, b, i):
     """One decision step (or, in MODE_OBSERVE, one observation) of env ``i``.
 
     Takes the fields of a :class:`StepData` unpacked once by the caller:
-    reading a StructRef field hands out new references to every array in it
-    (atomic reference counts), which, per env and per thread, would cost more
-    than the step itself.
+    reading a StructRef field hands out new references to every array in it.
+    Compiled without numba's reference counting (``_nrt=False``: it allocates
+    nothing): with it, every array argument is incref'd and decref'd per call,
+    atomic operations on counters that all threads share, which cost more
+    than the step itself (2.4 M against 1.1 M env-steps/s on one thread, and
+    no scaling on two; ``benchmarks/vector_env.py``).  ``_nrt`` is a private
+    numba option (0.68); without it the kernel stays correct, only slower.
     """
     mode = b.mode[i]
     if mode == MODE_IDLE:
