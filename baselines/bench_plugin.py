@@ -39,8 +39,7 @@ def _qft_stability(ctx) -> list[str]:
 
 def _seed001(ctx) -> list[str]:
     """Seed 001's section 3.5 margins and Table 2, when an env on its plant (cncmt_axis) ran."""
-    ran = [e for e in ctx.env_ids if getattr(ctx.envs[e].unwrapped, "plant", None) is not None
-           and ctx.envs[e].unwrapped.plant.name == "cncmt_axis"]
+    ran = _plant_envs(ctx, "cncmt_axis")
     if not ran:
         return []
     from .seed001 import report
@@ -59,11 +58,62 @@ def _seed001(ctx) -> list[str]:
     return lines
 
 
+def _plant_envs(ctx, plant: str) -> list[str]:
+    return [e for e in ctx.env_ids if getattr(getattr(ctx.envs[e].unwrapped, "plant", None), "name", None) == plant]
+
+
+def _seed002(ctx) -> list[str]:
+    """Seed 002's ratios (ILC/FB per path, smoothed/linear FB) and the cycle times of both paths."""
+    ran = _plant_envs(ctx, "current_feed_drive")
+    if not ran:
+        return []
+    from vcnc_bench.papers import PAPER_SEED_002, PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT
+
+    lines = ["Seed 002, section IV: max contour error ratios, ours (paper)"]
+    fb = {}
+    for e in ran:
+        res = ctx.results.get(e, {})
+        if "contouring-fb" in res:
+            fb[e] = res["contouring-fb"].max_contour_error_um
+        for ilc in ("ilc", "ilc-q"):
+            if "contouring-fb" in res and ilc in res:
+                paper = PAPER_SEED_002.get((e, "ilc"), {}).get("max_contour_error_um")
+                paper_fb = PAPER_SEED_002.get((e, "contouring-fb"), {}).get("max_contour_error_um")
+                ratio = res[ilc].max_contour_error_um / fb[e]
+                ref = f" ({paper / paper_fb:.2f})" if paper and paper_fb else ""
+                lines.append(f"  {e}: {ilc} (last trial) / contouring-fb = {ratio:.2f}{ref}")
+    if "VCNC-Corners-v0" in fb and "VCNC-CornersSmooth-v0" in fb:
+        paper = PAPER_SEED_002[("VCNC-CornersSmooth-v0", "contouring-fb")]["max_contour_error_um"] / \
+            PAPER_SEED_002[("VCNC-Corners-v0", "contouring-fb")]["max_contour_error_um"]
+        lines.append(f"  contouring-fb, smoothed / linear path = "
+                     f"{fb['VCNC-CornersSmooth-v0'] / fb['VCNC-Corners-v0']:.3f} ({paper:.2f})")
+    durations = {e: ctx.envs[e].unwrapped.reference.duration for e in ran}
+    if "VCNC-Corners-v0" in durations and "VCNC-CornersSmooth-v0" in durations:
+        lin, smooth = durations["VCNC-Corners-v0"], durations["VCNC-CornersSmooth-v0"]
+        lines.append(f"  cycle time (reference): linear {lin:.4f} s, smoothed {smooth:.4f} s: "
+                     f"{100 * (smooth / lin - 1):+.2f} % "
+                     f"(paper's experiment {PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT:+.2f} %)")
+    return lines
+
+
+def _seed003(ctx) -> list[str]:
+    """Seed 003's circle figures of every policy that ran on its table, and the radial-error plot."""
+    lines = []
+    for e in _plant_envs(ctx, "nct_xy_table"):
+        from . import circle_report
+
+        path = ctx.plots / f"{e}_radial_error.png" if ctx.plots is not None else None
+        lines += circle_report.bench_report(ctx.results.get(e, {}), label=e, plot_path=path)
+        if path is not None:
+            ctx.plots_written.append(path)
+    return lines
+
+
 KIND = PolicyKind(
     name="baseline",
     make=lambda arg, env: make(arg, env),
     names=names,
     defaults=lambda env: [n for n in names() if applies(n, env)],
-    report=lambda ctx: _qft_stability(ctx) + _seed001(ctx),
+    report=lambda ctx: _qft_stability(ctx) + _seed001(ctx) + _seed002(ctx) + _seed003(ctx),
     description="the papers' classical controllers (baselines.names())",
 )

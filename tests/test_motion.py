@@ -13,6 +13,8 @@ import math
 import time
 
 import numpy as np
+
+from vcnc_gym.motion.profile import plan_state
 import pytest
 from geomdl import NURBS
 from hypothesis import given, settings
@@ -172,10 +174,15 @@ def test_vectorised_equals_scalar_kernels():
     t = np.linspace(-0.1, plan.duration + 0.1, 97).reshape(97, 1)
     v = profile.velocity(t, 40.0)
     assert v.shape == t.shape
+    scalars = (plan.v_peak, plan.ramp_time, plan.cruise_time)
     for ti, vi, ai, si in zip(t.ravel(), v.ravel(), plan.acceleration(t).ravel(), plan.distance(t).ravel()):
-        assert vi == scurve_velocity(ti, *plan.kernel_args)
-        assert ai == scurve_acceleration(ti, *plan.kernel_args)
-        assert si == scurve_distance(ti, *plan.kernel_args)
+        assert vi == scurve_velocity(ti, *scalars)
+        assert ai == scurve_acceleration(ti, *scalars)
+        assert si == scurve_distance(ti, *scalars)
+        # the interpolator's piecewise quartic form of the same plan
+        s_pp, v_pp, a_pp = plan_state(ti, *plan.kernel_args)
+        assert abs(v_pp - vi) <= 1e-12 * 80.0 and abs(a_pp - ai) <= 1e-9 * 80.0 / 0.05
+        assert abs(s_pp - si) <= 1e-12 * 40.0
     assert isinstance(plan.velocity(0.01), float)
 
 
@@ -262,7 +269,8 @@ def test_velocity_matches_finite_differences(name, dt):
     assert np.max(err) < VELOCITY_FD_TOL[(name, dt)]
     # eq. (9): the velocity command has the commanded feed as its norm
     np.testing.assert_allclose(np.linalg.norm(ref.velocity[:-1], axis=1), ref.feedrate[:-1], rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(ref.feedrate[:-1], ref.plan.velocity(ref.t[:-1]), rtol=0, atol=0)
+    # the interpolator evaluates the plan in its piecewise-quartic form: equal up to rounding
+    np.testing.assert_allclose(ref.feedrate[:-1], ref.plan.velocity(ref.t[:-1]), rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("name,dt", CASES)
@@ -361,7 +369,8 @@ def test_step_past_the_end_is_clamped():
     pos, vel, acc, tan = (np.empty((k_max, 2)) for _ in range(4))
     info = np.zeros(8)
     u_start, u_end = c.u_range
-    n = taylor_interpolate_kernel(*c.kernel_args, u_start, u_end, dt, *plan.kernel_args, 0.1, t, u, pos, vel, acc,
+    n = taylor_interpolate_kernel(*c.kernel_args, u_start, u_end, dt, *plan.kernel_args, plan.v_peak, 0.1, t, u, pos,
+                                  vel, acc,
                                   tan, feed, info)
     assert info[0] == 1.0  # clamped
     u = u[:n]

@@ -67,7 +67,7 @@ def _cell(value, fmt: str) -> str:
 
 def format_table(records: list[dict]) -> str:
     """The records as a fixed-width table in the shape of seed 000's Table 4 (errors in um)."""
-    columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key == "policy" else w, key, fmt)
+    columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key in ("env", "policy") else w, key, fmt)
                for h, w, key, fmt in _COLUMNS]
     lines = [" ".join(f"{h:>{w}}" if i > 1 else f"{h:<{w}}" for i, (h, w, _, _) in enumerate(columns))]
     lines.append("-" * len(lines[0]))

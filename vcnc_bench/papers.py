@@ -1,11 +1,15 @@
 """The source papers' headline figures the bench prints beside ours: the only copy of them.
 
-Keyed by (env id, policy label).  Units in the key names.
+Keyed by (env id, policy label).  Units in the key names.  Seed 001's Table 2
+and seed 003's circle figures are printed in their own shape by the reports
+of :mod:`baselines.bench_plugin` (from ``baselines.seed001.report`` and
+``baselines.circle_report``), which hold them.
 """
 
 from __future__ import annotations
 
-__all__ = ["PAPER_TABLE_4", "PAPER_FEEDRATE", "paper_figures"]
+__all__ = ["PAPER_TABLE_4", "PAPER_SEED_002", "PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT", "PAPER_FEEDRATE",
+           "paper_figures"]
 
 #: Seed 000 (Jahanpour et al. 2014), Table 4 "Simulation results for the
 #: contour following tasks with the designed controllers": maximum contour
@@ -20,10 +24,24 @@ PAPER_TABLE_4: dict[tuple[str, str], dict[str, float]] = {
     ("VCNC-Omega-v0", "qft"): {"max_contour_error_um": 27.33, "average_contour_error_percent": 6.91},
 }
 
+#: Seed 002 (Simba et al.), section IV-B, simulation: maximum contour error in
+#: um of the contouring feedback controller (FB, eq. (7)) and of ILC after its
+#: trials, on the linear (sharp) and the smoothed path.  The ILC figure is
+#: compared with the bench's last trial.
+PAPER_SEED_002: dict[tuple[str, str], dict[str, float]] = {
+    ("VCNC-Corners-v0", "contouring-fb"): {"max_contour_error_um": 97.74},
+    ("VCNC-Corners-v0", "ilc"): {"max_contour_error_um": 88.92},
+    ("VCNC-CornersSmooth-v0", "contouring-fb"): {"max_contour_error_um": 17.78},
+    ("VCNC-CornersSmooth-v0", "ilc"): {"max_contour_error_um": 6.88},
+}
+
+#: Seed 002, section IV-C (experiment): cycle time of the smoothed path against the linear one, %.
+PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT = 1.36
+
 #: Seed 000, section 3: the feedrate of every contour following task, mm/s.
 PAPER_FEEDRATE = 100.0
 
 
 def paper_figures(env_id: str, label: str) -> dict[str, float]:
     """The paper's figures for a policy on an env (empty if the paper has none)."""
-    return dict(PAPER_TABLE_4.get((env_id, label), {}))
+    return dict(PAPER_TABLE_4.get((env_id, label), PAPER_SEED_002.get((env_id, label), {})))

@@ -22,7 +22,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["BenchContext", "PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec", "policy_label",
+__all__ = ["BenchContext", "PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec",
+           "policy_label",
            "check_policy_spec", "resolve_policy", "default_specs", "policy_choices"]
 
 ENTRY_POINT_GROUP = "vcnc_bench.policy_kinds"

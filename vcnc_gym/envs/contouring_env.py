@@ -112,11 +112,18 @@ class ContouringEnv(gym.Env):
 
     ``gym.make("VCNC-Heart-v0", **kwargs)`` with
 
-    - ``contour``: "heart", "omega" or a :class:`NurbsCurve` (mm).
+    - ``contour``: a name of ``vcnc_gym.geometry.SHAPES`` ("heart", "omega",
+      "circle", "corners", "corners-smooth"), a :class:`NurbsCurve` or a
+      ``SmoothedPolyline`` (mm).
     - ``plant``: a module name of :mod:`vcnc_gym.plants`
       (:func:`vcnc_gym.plants.plant_names`) or a ``PlantModel``; default
       ``"vcnc_feed_drive"`` (seed 000).
-    - ``feedrate`` (mm/s, 100) and ``ramp_time`` (s, 0.12): the S-curve.
+    - ``profile`` ("scurve"): the feedrate profile, one of "scurve" (seed
+      000's cubic S-curve: ``feedrate`` and ``ramp_time``), "constant" (the
+      feed from t = 0, no ramps: seed 002's linear path, seed 003's circle)
+      or "jlap" (seed 002's jerk-limited profile with the corner speeds of a
+      corner-smoothed path, ``contour="corners-smooth"``).
+    - ``feedrate`` (mm/s, 100) and ``ramp_time`` (s, S-curve only, default 0.12).
     - ``dt`` (s, 1e-4): the control period, at which the command is held
       and the reference is sampled.  At 1 ms seed 000's QFT loop is unstable
       (a closed-loop pole near |z| = 10); at 0.1 ms it is stable on every

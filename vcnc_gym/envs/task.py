@@ -17,14 +17,23 @@ import numpy as np
 
 from ..contour import ContourProjector
 from ..geometry import SHAPES, NurbsCurve
+from ..geometry.corners import SmoothedPolyline
 from ..geometry.nurbs import workspace_size
-from ..motion import SCurveFeedrate, interpolate
+from ..motion import ConstantFeedrate, JlapPathFeedrate, SCurveFeedrate, interpolate
 from ..plants import PlantModel, contract, get_plant
 from . import step_kernel as sk
 from ..validation import flag, integer, non_negative, positive
 from .layout import ObservationLayout
 
-__all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS"]
+__all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "make_contour", "make_profile"]
+
+#: The feedrate profiles of ``profile=``: seed 000's S-curve (``feedrate``,
+#: ``ramp_time``), a constant feed from t = 0 (seed 002's linear case, seed
+#: 003's circle), seed 002's jerk-limited profile along a corner-smoothed path.
+PROFILES = ("scurve", "constant", "jlap")
+
+#: S-curve ramp time when ``ramp_time`` is not given, s (seed 000, section 3).
+DEFAULT_RAMP_TIME = 0.12
 
 #: The keys ``reset(options=...)`` understands.
 RESET_OPTIONS = ("parameters",)
@@ -44,13 +53,32 @@ _POSITION_BOUND = 1000.0
 _POSITION_MARGIN = 100.0
 
 
-def make_curve(contour) -> NurbsCurve:
-    """A contour given by name (one of ``geometry.SHAPES``) or as a :class:`NurbsCurve`."""
-    if isinstance(contour, NurbsCurve):
-        return contour
+def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | None]:
+    """The contour given by name (``geometry.SHAPES``), as a NurbsCurve or as a SmoothedPolyline:
+    (the curve, the smoothed path or None)."""
     if isinstance(contour, str) and contour in SHAPES:
-        return SHAPES[contour]()
-    raise ValueError(f"contour must be one of {sorted(SHAPES)} or a NurbsCurve, got {contour!r}")
+        contour = SHAPES[contour]()
+    if isinstance(contour, SmoothedPolyline):
+        return contour.curve, contour
+    if isinstance(contour, NurbsCurve):
+        return contour, None
+    raise ValueError(f"contour must be one of {sorted(SHAPES)}, a NurbsCurve or a SmoothedPolyline, got {contour!r}")
+
+
+def make_profile(profile: str, feedrate, ramp_time, path: SmoothedPolyline | None):
+    """The feedrate profile of ``profile=`` (one of :data:`PROFILES`)."""
+    if profile not in PROFILES:
+        raise ValueError(f"profile must be one of {list(PROFILES)}, got {profile!r}")
+    if profile != "scurve" and ramp_time is not None:
+        raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
+    if profile == "scurve":
+        return SCurveFeedrate(feedrate=feedrate, ramp_time=DEFAULT_RAMP_TIME if ramp_time is None else ramp_time)
+    if profile == "constant":
+        return ConstantFeedrate(feedrate)
+    if path is None:
+        raise ValueError("profile='jlap' plans along a corner-smoothed path: give contour='corners-smooth' or a "
+                         "SmoothedPolyline (geometry.smooth_polyline)")
+    return JlapPathFeedrate(path, feedrate)
 
 
 class ContouringTask:
@@ -65,7 +93,8 @@ class ContouringTask:
         contour="heart",
         plant="vcnc_feed_drive",
         feedrate: float = 100.0,
-        ramp_time: float = 0.12,
+        ramp_time: float | None = None,
+        profile: str = "scurve",
         dt: float = 1e-4,
         action_repeat: int = 1,
         randomize: bool = False,
@@ -79,7 +108,7 @@ class ContouringTask:
         max_episode_steps: int | None = None,
         plant_options: dict | None = None,
     ):
-        self.curve = make_curve(contour)
+        self.curve, self.path = make_contour(contour)
         self.contour_name = contour if isinstance(contour, str) else "custom"
         self.plant: PlantModel = get_plant(plant)
         if plant_options is not None and not isinstance(plant_options, dict):
@@ -107,7 +136,7 @@ class ContouringTask:
         self.fixed_parameters = None if parameters is None else self.check_parameters(parameters)
 
         # reference, computed once
-        self.feedrate_profile = SCurveFeedrate(feedrate=feedrate, ramp_time=ramp_time)
+        self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
         tangent = self.curve.derivatives_array(self.reference.u, 1)[:, 1, :]
         tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)

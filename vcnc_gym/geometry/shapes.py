@@ -116,5 +116,21 @@ def circle(radius: float = 1.0) -> NurbsCurve:
     )
 
 
-SHAPES = {"heart": heart, "omega": omega, "circle": circle}
-"""Named contour constructors, by the name used in env ids."""
+def corners_smooth(epsilon: float = 0.05):
+    """Seed 002's test path with its corners smoothed (eqs. (12)-(23), epsilon = 50 um), as the
+    :class:`~vcnc_gym.geometry.corners.SmoothedPolyline` (curve and corner zones, which the
+    jerk-limited feedrate plans along)."""
+    from ..motion import jlap  # imported here: vcnc_gym.motion imports this package
+
+    return smooth_polyline(corners_vertices(), epsilon, jlap.SEED002_A_MAX, jlap.SEED002_J_MAX)
+
+
+SHAPES = {
+    "heart": heart,
+    "omega": omega,
+    "circle": circle,
+    "corners": lambda: corners_path(smooth=False),
+    "corners-smooth": corners_smooth,
+}
+"""Named contour constructors, by the name used in env ids: a NurbsCurve, or for
+"corners-smooth" a SmoothedPolyline (its ``curve`` is the contour)."""

@@ -1,22 +1,32 @@
 """How fast along the curve: feedrate profiles and the interpolator.
 
-:class:`SCurveFeedrate` plans the cubic S-curve of seed 000 section 2b over a
-path length; :func:`interpolate` turns a curve and a profile into a
-:class:`Reference` sampled at the control period, with the second-order
-Taylor interpolator of seed 000 eqs. (8)-(10), checked step by step
-(``STEP_TOLERANCE``) and bounded in cost (:func:`reference_samples`,
-``MAX_REFERENCE_SAMPLES``).
+Profiles (anything with ``plan(length)``): :class:`SCurveFeedrate`, the cubic
+S-curve of seed 000 section 2b; :class:`ConstantFeedrate`, a constant feed
+from the start (seed 002's linear case, seed 003's circle);
+:class:`JlapPathFeedrate`, seed 002's jerk-limited profile along a
+corner-smoothed path (:mod:`vcnc_gym.motion.jlap`).  Every plan is a
+piecewise quartic S(t) (:mod:`vcnc_gym.motion.profile`), so
+:func:`interpolate` turns any curve and profile into a :class:`Reference`
+sampled at the control period, with the second-order Taylor interpolator of
+seed 000 eqs. (8)-(10), checked step by step (``STEP_TOLERANCE``) and bounded
+in cost (:func:`reference_samples`, ``MAX_REFERENCE_SAMPLES``).
 """
 
 from .feedrate import FeedratePlan, SCurveFeedrate
 from .interpolator import MAX_REFERENCE_SAMPLES, STEP_TOLERANCE, Reference, interpolate, reference_samples
+from .jlap import ConstantFeedrate, JlapFeedrate, JlapPathFeedrate, JlapPlan, constant_feedrate
 
 __all__ = [
+    "ConstantFeedrate",
     "FeedratePlan",
+    "JlapFeedrate",
+    "JlapPathFeedrate",
+    "JlapPlan",
     "MAX_REFERENCE_SAMPLES",
     "Reference",
     "SCurveFeedrate",
     "STEP_TOLERANCE",
+    "constant_feedrate",
     "interpolate",
     "reference_samples",
 ]

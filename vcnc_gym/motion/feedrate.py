@@ -170,9 +170,26 @@ class FeedratePlan:
         return 2.0 * self.ramp_time + self.cruise_time
 
     @property
-    def kernel_args(self) -> tuple[float, float, float]:
-        """(v_peak, ramp_time, cruise_time) for :func:`scurve_velocity` & co."""
-        return self.v_peak, self.ramp_time, self.cruise_time
+    def kernel_args(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(breaks, coeffs)``: S(t) as the piecewise quartic of :mod:`vcnc_gym.motion.profile`.
+
+        Ramp up ``S = V_p (tau^3 / T_a^2 - tau^4 / (2 T_a^3))`` (the integral of
+        the smoothstep), cruise ``S = S_1 + V_p tau``, ramp down
+        ``S = S_2 + V_p tau - V_p (tau^3 / T_a^2 - tau^4 / (2 T_a^3))``.
+        """
+        vp, ta, tc = self.v_peak, self.ramp_time, self.cruise_time
+        c3, c4 = vp / ta**2, -vp / (2.0 * ta**3)
+        s1 = 0.5 * vp * ta
+        s2 = s1 + vp * tc
+        rows = [[0.0, 0.0, 0.0, c3, c4]]
+        breaks = [0.0, ta]
+        if tc > 0.0:
+            rows.append([s1, vp, 0.0, 0.0, 0.0])
+            breaks.append(ta + tc)
+        rows.append([s2, vp, 0.0, -c3, -c4])
+        breaks.append(2.0 * ta + tc)
+        rows.append([self.length, 0.0, 0.0, 0.0, 0.0])
+        return np.array(breaks), np.array(rows)
 
     def _evaluate(self, t, which: int):
         ts = np.asarray(t, dtype=np.float64)

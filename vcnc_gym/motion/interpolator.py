@@ -67,7 +67,8 @@ from numba import njit
 
 from ..geometry.nurbs import NurbsCurve, curve_derivatives_into, find_span, workspace_size
 from ..validation import integer, positive, real
-from .feedrate import FeedratePlan, scurve_acceleration, scurve_distance, scurve_velocity
+from .feedrate import FeedratePlan
+from .profile import plan_arrays, plan_state
 
 __all__ = [
     "MAX_REFERENCE_SAMPLES",
@@ -100,10 +101,17 @@ _BYTES_PER_SAMPLE = 11 * 8
 # then stay below the remaining share).
 _DRIFT_SHARE = 0.9
 
+# No sample is placed where one floating-point step of u moves more than this
+# share of the tolerance (a knot span squeezed in u: arc lengths there are only
+# as good as the resolution of u; ~1e-13 mm on ordinary curves).
+_RESOLUTION_SHARE = 0.01
+
 # end codes written by the kernel into info[0]
 _END_PROFILE = 0.0  # profile ended first: next sample placed at u_end
 _END_CLAMPED = 1.0  # u reached u_end before the profile ended: step clamped
 _END_SINGULAR = 2.0  # |C'(u)| = 0 (or not finite) met: eq. (9) undefined
+_END_FAILED = 3.0  # a corrected step still missed the tolerance: stopped after it
+_END_UNRESOLVED = 4.0  # one floating-point step of u moves too far at a sample: stopped there
 
 # 5-point Gauss-Legendre rule on [-1, 1], for arc lengths of single steps
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
@@ -315,9 +323,9 @@ def taylor_interpolate_kernel(
     u_start,
     u_end,
     dt,
+    breaks,
+    coeffs,
     v_peak,
-    ramp_time,
-    cruise_time,
     step_tolerance,
     t_out,
     u_out,
@@ -349,8 +357,11 @@ def taylor_interpolate_kernel(
         Parameter range of the curve.
     dt : float
         Sampling period T, s.
-    v_peak, ramp_time, cruise_time : float
-        The feedrate plan, as ``FeedratePlan.kernel_args`` (mm/s, s, s).
+    breaks, coeffs : numpy.ndarray
+        The feedrate plan S(t) as a piecewise quartic, the plan's
+        ``kernel_args`` (:mod:`vcnc_gym.motion.profile`: s; mm, mm/s, ...).
+    v_peak : float
+        The plan's largest feed, mm/s (the step tolerance's scale).
     step_tolerance : float
         Allowed |a_k - dS_k| and |s_k - S(t_k)|, as a fraction of v_peak dt.
     t_out, u_out, feed_out : (K_max,) float64 arrays
@@ -363,14 +374,19 @@ def taylor_interpolate_kernel(
         Written with [end code, u where eq. (8) stood at the end (see
         :func:`interpolate`), time of that u (s), planned distance S at that
         time (mm), number of corrected steps, largest |a_k - dS_k| (mm, the
-        last step onto u_end included), u_k and k of that step].
+        last step onto u_end included), u_k and k of that step].  End codes:
+        0 the profile ended, 1 u reached u_end first, 2 |C'(u)| = 0 met at
+        u = info[1] (stopped there), 3 a corrected step k still missed the
+        tolerance (stopped after its sample k + 1: no u can meet it), 4 one
+        floating-point step of u moves more than 0.01 tol at u = info[1]
+        (stopped there).
 
     Returns
     -------
     int
         Number K of samples written.
     """
-    duration = 2.0 * ramp_time + cruise_time
+    duration = breaks[breaks.shape[0] - 1]
     tol = step_tolerance * v_peak * dt
     ders = np.empty((3, 2))
     nxt = np.empty((3, 2))
@@ -392,8 +408,7 @@ def taylor_interpolate_kernel(
         c1x = ders[1, 0]
         c1y = ders[1, 1]
         speed2 = c1x * c1x + c1y * c1y
-        v = scurve_velocity(t, v_peak, ramp_time, cruise_time)
-        a = scurve_acceleration(t, v_peak, ramp_time, cruise_time)
+        _s, v, a = plan_state(t, breaks, coeffs)
         t_out[k] = t
         u_out[k] = u
         pos_out[k, 0] = ders[0, 0]
@@ -404,6 +419,10 @@ def taylor_interpolate_kernel(
             info[1] = u
             return k + 1
         speed = math.sqrt(speed2)
+        if speed * (np.nextafter(abs(u), np.inf) - abs(u)) > _RESOLUTION_SHARE * tol:
+            info[0] = _END_UNRESOLVED
+            info[1] = u
+            return k + 1
         tan_out[k, 0] = c1x / speed
         tan_out[k, 1] = c1y / speed
         du = v / speed  # eq. (9)
@@ -413,8 +432,8 @@ def taylor_interpolate_kernel(
         acc_out[k, 0] = ders[2, 0] * du * du + c1x * ddu
         acc_out[k, 1] = ders[2, 1] * du * du + c1y * ddu
         t_next = (k + 1) * dt
-        s_now = scurve_distance(t, v_peak, ramp_time, cruise_time)
-        s_next = scurve_distance(t_next, v_peak, ramp_time, cruise_time)
+        s_now = plan_state(t, breaks, coeffs)[0]
+        s_next = plan_state(t_next, breaks, coeffs)[0]
         if t_next >= duration:
             # the profile ends within this step: where does eq. (8) stand at
             # t = duration (partial step h = duration - t)?
@@ -422,7 +441,7 @@ def taylor_interpolate_kernel(
             info[0] = _END_PROFILE
             info[1] = u + h * du + 0.5 * h * h * ddu
             info[2] = duration
-            info[3] = scurve_distance(duration, v_peak, ramp_time, cruise_time)
+            info[3] = plan_state(duration, breaks, coeffs)[0]
             step = arc_between(control_points, weights, knots, degree, u, u_end, 1e-9 * tol, scratch, work, stack)
         else:
             u_next = u + dt * du + 0.5 * dt * dt * ddu  # eq. (8)
@@ -442,6 +461,15 @@ def taylor_interpolate_kernel(
                 u_taylor = u_next
                 info[4] += 1.0
                 curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
+                if abs(step - (s_next - s_now)) > tol and result[2] == 0.0:
+                    # no u meets the tolerance (u cannot resolve the step): stop here
+                    info[0] = _END_FAILED
+                    info[5] = abs(step - (s_next - s_now))
+                    info[6] = u
+                    info[7] = k
+                    t_out[k + 1] = t_next
+                    u_out[k + 1] = u_next
+                    return k + 2
             if u_next >= u_end:
                 info[0] = _END_CLAMPED
                 info[1] = u_taylor
@@ -467,7 +495,7 @@ def taylor_interpolate_kernel(
             vel_out[k, 1] = 0.0
             acc_out[k, 0] = 0.0
             acc_out[k, 1] = 0.0
-            feed_out[k] = scurve_velocity(t_next, v_peak, ramp_time, cruise_time)
+            feed_out[k] = plan_state(t_next, breaks, coeffs)[1]
             return k + 1
         u = u_next
         ders, nxt = nxt, ders
@@ -831,15 +859,21 @@ def interpolate(
     tan = np.empty((k_max, 2))
     feed = np.empty(k_max)
     info = np.zeros(8)
+    breaks, coeffs = plan_arrays(plan)
     n = taylor_interpolate_kernel(
-        *curve.kernel_args, u_start, u_end, dt, *plan.kernel_args, step_tolerance, t, u, pos, vel, acc, tan,
-        feed, info,
+        *curve.kernel_args, u_start, u_end, dt, breaks, coeffs, plan.v_peak, step_tolerance, t, u, pos, vel, acc,
+        tan, feed, info,
     )
     if info[0] == _END_SINGULAR:
         raise ValueError(
             f"curve has C'(u) = 0 (or not finite) at u = {float(info[1])!r}: the feed relation of seed 000 "
             "eq. (9) is undefined there"
         )
+    if info[0] == _END_UNRESOLVED:
+        raise ValueError(_unresolved(curve, plan, dt, step_tolerance, float(info[1]), float(t[n - 1])))
+    if info[0] == _END_FAILED:
+        k = int(info[7])
+        raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u[: k + 2], np.diff(plan.distance(t[: k + 2]))))
     t, u, pos, vel, acc, tan, feed = (a[:n].copy() for a in (t, u, pos, vel, acc, tan, feed))
     _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed)
 
@@ -860,7 +894,8 @@ def interpolate(
     else:
         fluctuation = float("nan")
     t0, t1 = t[:-2], t[1:-1]
-    cruise = (t0 >= plan.ramp_time) & (t1 <= plan.ramp_time + plan.cruise_time)
+    cruise = (np.abs(plan.velocity(t0) - plan.v_peak) <= 1e-12 * plan.v_peak) \
+        & (np.abs(plan.velocity(t1) - plan.v_peak) <= 1e-12 * plan.v_peak)
     if np.any(cruise):
         cruise_pct = float(100.0 * np.max(np.abs(v_act[cruise] - plan.v_peak)) / plan.v_peak)
     else:
@@ -917,20 +952,46 @@ def _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, fee
 def _cannot_follow(curve, plan, dt, step_tolerance, k, u, commanded) -> str:
     """Why step k of the reference misses the tolerance, naming its u."""
     uk, uk1 = float(u[k]), float(u[k + 1])
-    arc = curve.arc_length(uk, uk1)
-    speed = float(np.linalg.norm(curve.derivatives(uk, 1)[1]))
-    resolution = speed * float(np.spacing(abs(uk) if uk != 0.0 else 1e-300))
+    tol = step_tolerance * plan.v_peak * dt
     text = (
         f"the reference cannot follow the curve near u = {uk:.10g} (t = {k * dt:.6g} s): step {k} moves "
-        f"{arc:.3g} mm along it for a commanded {commanded[k]:.3g} mm, off by more than step_tolerance x "
-        f"V_peak x dt = {step_tolerance:g} x {plan.v_peak:.4g} mm/s x {dt!r} s = "
-        f"{step_tolerance * plan.v_peak * dt:.3g} mm"
+        f"{curve.arc_length(uk, uk1):.3g} mm along it for a commanded {commanded[k]:.3g} mm, off by more than "
+        f"step_tolerance x V_peak x dt = {step_tolerance:g} x {plan.v_peak:.4g} mm/s x {dt!r} s = {tol:.3g} mm"
     )
-    if resolution > 0.1 * step_tolerance * plan.v_peak * dt:
-        knots = curve.knots
-        a = float(knots[np.searchsorted(knots, uk, side="right") - 1])
-        b = float(knots[np.searchsorted(knots, uk, side="right")]) if uk < knots[-1] else a
-        return (text + f": |C'(u)| = {speed:.3g} mm per unit of u there, so one floating-point step of u moves "
-                f"{resolution:.3g} mm; the knot span [{a:.17g}, {b:.17g}] is too short in u for its "
-                f"{curve.arc_length(a, b) if b > a else 0.0:.3g} mm")
+    ends = np.array([uk, uk1])
+    moves = _resolution(curve, ends)
+    j = int(np.argmax(moves))
+    if moves[j] > _RESOLUTION_SHARE * tol:
+        return text + ": " + _squeezed(curve, float(ends[j]), float(moves[j]))
     return text + "; a smaller dt or feedrate may resolve it"
+
+
+def _unresolved(curve, plan, dt, step_tolerance, u, t) -> str:
+    """The message for a sample at u where one floating-point step of u moves too far."""
+    tol = step_tolerance * plan.v_peak * dt
+    move = float(_resolution(curve, np.array([u]))[0])
+    return (
+        f"the reference cannot follow the curve at u = {u!r} (t = {t:.6g} s): {_squeezed(curve, u, move)}. "
+        f"Arc lengths there resolve no better than {move:.3g} mm, more than {_RESOLUTION_SHARE:g} x "
+        f"step_tolerance x V_peak x dt = {_RESOLUTION_SHARE * tol:.3g} mm"
+    )
+
+
+def _resolution(curve, us: np.ndarray) -> np.ndarray:
+    """How far one floating-point step of u moves along the curve at each u, mm."""
+    speeds = np.linalg.norm(curve.derivatives_array(us, 1)[:, 1, :], axis=1)
+    return speeds * np.spacing(np.maximum(np.abs(us), 1e-300))
+
+
+def _squeezed(curve, u: float, move: float) -> str:
+    """'|C'(u)| = ..., so one floating-point step of u moves ... mm; the knot span [a, b] ...'."""
+    knots = curve.knots
+    i = min(int(np.searchsorted(knots, u, side="right")), len(knots) - 1)
+    a, b = float(knots[i - 1]), float(knots[i])
+    if not b > a:  # u_end itself: the last non-empty span
+        a = float(knots[knots < b][-1])
+    speed = float(np.linalg.norm(curve.derivatives(u, 1)[1]))
+    return (
+        f"|C'(u)| = {speed:.3g} mm per unit of u at u = {u!r}, so one floating-point step of u moves "
+        f"{move:.3g} mm; the knot span [{a!r}, {b!r}] is too short in u for its {curve.arc_length(a, b):.3g} mm"
+    )

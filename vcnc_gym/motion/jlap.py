@@ -343,8 +343,14 @@ class JlapPlan:
 
     @property
     def kernel_args(self) -> tuple[np.ndarray, np.ndarray]:
-        """(breaks, coeffs) for :func:`jlap_state` & co."""
+        """(breaks, coeffs) for :func:`jlap_state` & co. (and, widened, the interpolator's
+        :func:`vcnc_gym.motion.profile.plan_arrays`)."""
         return self.breaks, self.coeffs
+
+    @property
+    def v_peak(self) -> float:
+        """The largest feed of the plan, mm/s."""
+        return float(max(s.v_peak for s in self.sections))
 
     def state(self, t) -> np.ndarray:
         """[S, V, dV/dt, jerk] at t (s): shape t.shape + (4,), in mm, mm/s, mm/s^2, mm/s^3."""
@@ -427,6 +433,58 @@ def constant_feedrate(length: float, feedrate: float = SEED002_FEEDRATE) -> Jlap
     writer.add(length / feedrate, 0.0, 0.0, feedrate, 0.0)
     section = JlapSection("constant", 0.0, length / feedrate, 0.0, length, feedrate, feedrate, feedrate)
     return writer.finish(length, [section])
+
+
+class ConstantFeedrate:
+    """A constant feed from t = 0 to the end (no ramps): ``plan(length)`` is :func:`constant_feedrate`.
+
+    Seed 002's linear case (50 mm/s) and seed 003's circle (x = R sin(omega t),
+    y = R cos(omega t): a constant feed R omega from the start).
+
+    Parameters
+    ----------
+    feedrate : float
+        The feed, mm/s.
+    """
+
+    def __init__(self, feedrate: float = SEED002_FEEDRATE):
+        self.feedrate = _positive("feedrate", feedrate, "mm/s")
+
+    def plan(self, length: float) -> JlapPlan:
+        return constant_feedrate(length, self.feedrate)
+
+    def __repr__(self) -> str:
+        return f"ConstantFeedrate(feedrate={self.feedrate!r} mm/s)"
+
+
+class JlapPathFeedrate:
+    """Seed 002's jerk-limited feedrate along one corner-smoothed path, corner speeds included.
+
+    ``plan(length)`` plans ``path`` (a :class:`~vcnc_gym.geometry.SmoothedPolyline`)
+    with :meth:`JlapFeedrate.plan_path`, at the limits the path's blends were
+    designed for; ``length`` must be the path's.
+
+    Parameters
+    ----------
+    path : SmoothedPolyline
+    feedrate : float
+        Programmed feed, mm/s (seed 002: 50).
+    """
+
+    def __init__(self, path, feedrate: float = SEED002_FEEDRATE):
+        self.path = path
+        self.feedrate = _positive("feedrate", feedrate, "mm/s")
+        self.planner = JlapFeedrate(self.feedrate, a_max=path.a_max, j_max=path.j_max)
+
+    def plan(self, length: float) -> JlapPlan:
+        plan = self.planner.plan_path(self.path)
+        if not abs(plan.length - length) <= 1e-6 * max(1.0, length):
+            raise ValueError(f"this JLAP profile plans its own path ({plan.length:.6g} mm), not a {length:.6g} mm one")
+        return plan
+
+    def __repr__(self) -> str:
+        return f"JlapPathFeedrate(feedrate={self.feedrate!r} mm/s, a_max={self.planner.a_max!r} mm/s^2, " \
+               f"j_max={self.planner.j_max!r} mm/s^3)"
 
 
 class JlapFeedrate:
