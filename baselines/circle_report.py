@@ -23,12 +23,13 @@ What is here
     position); the radial error is ``|p - c| - R``, its magnitude the contour
     error of the env.  The transient excluded from the "within 2 um" figure
     is the first :data:`DEFAULT_TRANSIENT` s (our choice).
-:func:`simulate_circle`
-    The closed loop of any SB3-style policy on seed 003's table, through
-    the plant contract's kernels, with the exact sine/cosine reference
-    (:func:`circle_reference`) and the observation of the contouring envs
-    (:class:`~vcnc_gym.envs.layout.ObservationLayout`, same fields, same
-    sensor): the paper's experiment without an env.
+:func:`run_circle`
+    One pass of any SB3-style policy around the circle: an episode of
+    ``VCNC-Circle-v0`` (seed 003's table, its 1 um sensor, a constant feed
+    R omega from t = 0) through the one evaluation loop.
+:func:`circle_reference`
+    The exact sine/cosine reference, x = R sin(omega t), y = R cos(omega t),
+    which the env's interpolated reference is checked against.
 :func:`plot_radial_error`
     The circle's radial error against time (and the tracking errors), um.
 
@@ -40,10 +41,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from numba import njit
 
-from vcnc_gym.envs.layout import ObservationLayout
-from vcnc_gym.plants import contract, get_plant
 from vcnc_gym.validation import non_negative, positive
 
 __all__ = [
@@ -53,10 +51,9 @@ __all__ = [
     "DEFAULT_TRANSIENT",
     "CircleFigures",
     "PAPER_FIGURES",
-    "CircleRun",
     "circle_reference",
     "circle_figures",
-    "simulate_circle",
+    "run_circle",
     "comparison_table",
     "format_comparison",
     "bench_report",
@@ -225,8 +222,7 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     ----------
     results_by_policy : mapping name -> run
         Runs with ``time``, ``position`` and ``reference_position`` (e.g.
-        :class:`~vcnc_gym.evaluation.EpisodeResult` of a circle env, or
-        :class:`CircleRun`).
+        :class:`~vcnc_gym.evaluation.EpisodeResult` of a circle env).
     label : str
         Names the env in the heading.
     radius, transient :
@@ -249,125 +245,31 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     return lines
 
 
-@dataclass
-class CircleRun:
-    """One closed-loop circle run: traces after each control period.
+def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
+               **env_kwargs):
+    """One pass of ``policy`` around the sine/cosine circle: an episode of ``VCNC-Circle-v0``.
 
-    Attributes
-    ----------
-    time : ndarray, (n,)
-        s.
-    position, measured_position, reference_position : ndarray, (n, 2)
-        True table position, the sensor's reading, the reference point, mm.
-    command : ndarray, (n, 2)
-        Plant input applied during each period (saturated), in the plant's input unit.
-    radius : float
-        mm.
-    omega : float
-        rad/s.
-    """
-
-    time: np.ndarray
-    position: np.ndarray
-    measured_position: np.ndarray
-    reference_position: np.ndarray
-    command: np.ndarray
-    radius: float
-    omega: float
-
-    def figures(self, transient: float = DEFAULT_TRANSIENT) -> CircleFigures:
-        """:func:`circle_figures` of this run."""
-        return circle_figures(self.time, self.position, self.reference_position, self.radius, (0.0, 0.0),
-                              transient)
-
-
-@njit(cache=True)
-def _advance_and_sense(plant, command, sensed):
-    contract.advance(plant, 0, command)
-    contract.sense(plant, 0, sensed)
-
-
-@njit(cache=True)
-def _sense(plant, sensed):
-    contract.sense(plant, 0, sensed)
-
-
-def simulate_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
-                    revolutions: float = 1.0, parameters=None, plant="nct_xy_table") -> CircleRun:
-    """Run ``policy`` once around the sine/cosine circle on seed 003's table, without an env.
-
-    Parameters
-    ----------
-    policy : object with SB3's ``predict``
-        Built for the contouring envs' observation (its ``layout``
-        attribute, default :class:`~vcnc_gym.envs.layout.ObservationLayout`)
-        at decision period ``dt``; its action in [-1, 1] is scaled by the
-        plant's input limit.
-    radius, omega, dt, revolutions :
-        See :func:`circle_reference`.
-    parameters : array_like, (2, P), optional
-        The table; default nominal (seed 003, eq. (4)).
-    plant : str
-        The plant module.
+    The env of the registered id, with another radius (mm), frequency
+    (rad/s: feed ``radius * omega`` mm/s from t = 0) or control period (s) if
+    given, run by the one evaluation loop, :func:`vcnc_gym.evaluation.run_episode`.
 
     Returns
     -------
-    CircleRun
-
-    Notes
-    -----
-    Every control period: the observation is written field by field as the
-    contouring envs write it (tracking error and preview from the sensor's
-    reading, contour error from the true position, velocity as the plant
-    reports it), ``policy.predict`` is called (``episode_start`` on the
-    first period), the action is clipped to [-1, 1] and scaled, and the
-    plant advances one period through :func:`vcnc_gym.plants.contract.advance`.
+    vcnc_gym.evaluation.EpisodeResult
     """
-    model = get_plant(plant)
-    t, ref, ref_v, ref_a = circle_reference(radius, omega, dt, revolutions)
-    r = float(radius)
-    layout = getattr(policy, "layout", None) or ObservationLayout()
-    arrays = model.arrays(1, float(dt), model.nominal() if parameters is None else parameters)
-    model.reset_machine(arrays, 0, ref[0])
-    limit = model.input_limits(arrays.params[0])
-    sensed = np.zeros(contract.SENSE_SIZE)
-    _sense(arrays, sensed)
-    n = t.size - 1
-    last = t.size - 1
-    preview = np.array(layout.preview_steps)
-    s = {name: layout.slice(name) for name in ("reference_position", "reference_velocity", "reference_acceleration",
-                                               "tracking_error", "contour_error", "tangential_error",
-                                               "normal_error", "velocity", "preview", "previous_action")}
-    obs = np.zeros(layout.size, dtype=np.float64)
-    action = np.zeros(2)
-    command = np.zeros(2)
-    out_p = np.empty((n, 2))
-    out_m = np.empty((n, 2))
-    out_u = np.empty((n, 2))
-    for k in range(n):
-        pos = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
-        meas = sensed[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2]
-        e = ref[k] - meas
-        tangent = ref_v[k] / np.hypot(*ref_v[k])
-        obs[s["reference_position"]] = ref[k]
-        obs[s["reference_velocity"]] = ref_v[k]
-        obs[s["reference_acceleration"]] = ref_a[k]
-        obs[s["tracking_error"]] = e
-        obs[s["contour_error"]] = abs(np.hypot(*pos) - r)
-        obs[s["tangential_error"]] = tangent @ e
-        obs[s["normal_error"]] = -tangent[1] * e[0] + tangent[0] * e[1]
-        obs[s["velocity"]] = sensed[contract.SENSE_VELOCITY:contract.SENSE_VELOCITY + 2]
-        obs[s["preview"]] = (ref[np.minimum(k + preview, last)] - meas).ravel()
-        obs[s["previous_action"]] = action
-        a, _ = policy.predict(obs.astype(np.float32), episode_start=np.array([k == 0]), deterministic=True)
-        action = np.clip(np.asarray(a, dtype=np.float64).reshape(2), -1.0, 1.0)
-        command[:] = action * limit
-        _advance_and_sense(arrays, command, sensed)
-        out_p[k] = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
-        out_m[k] = sensed[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2]
-        out_u[k] = command
-    return CircleRun(time=t[1:].copy(), position=out_p, measured_position=out_m, reference_position=ref[1:].copy(),
-                     command=out_u, radius=r, omega=float(omega))
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401  (registers the ids)
+    from vcnc_gym.evaluation import run_episode
+    from vcnc_gym.geometry.shapes import circle
+
+    radius = positive("radius", radius, "mm")
+    omega = positive("omega", omega, "rad/s")
+    env = gym.make("VCNC-Circle-v0", contour=circle(radius), feedrate=radius * omega, dt=dt, **env_kwargs)
+    try:
+        return run_episode(policy, env, seed=0)
+    finally:
+        env.close()
 
 
 def plot_radial_error(runs, radius: float = DEFAULT_RADIUS, transient: float = DEFAULT_TRANSIENT,
@@ -378,8 +280,7 @@ def plot_radial_error(runs, radius: float = DEFAULT_RADIUS, transient: float = D
     ----------
     runs : mapping name -> run
         Each run has ``time`` (n,), ``position`` and ``reference_position``
-        (n, 2), in s and mm (a :class:`CircleRun` or an
-        :class:`~vcnc_gym.evaluation.EpisodeResult`).
+        (n, 2), in s and mm (an :class:`~vcnc_gym.evaluation.EpisodeResult`).
     radius : float
         mm; the circle is centred at the origin.
     transient : float

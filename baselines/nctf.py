@@ -699,7 +699,7 @@ def main(argv=None) -> int:
         print(f"  {'xy'[axis]}: h_max {n.h_max:.3f} mm/s, A {n.A:.3f} mm, m {n.m:.4f} 1/s -> eq. (3): K {K:.2f}, "
               f"alpha {alpha:.4f}; h_s-res {c.h_s_res:.4g} mm/s, u_i-max {c.u_i_max:.4g}, "
               f"u_i-s-res {c.u_i_s_res:.4g} mm^2/s")
-    run = cr.simulate_circle(policy, omega=args.omega, dt=args.dt)
-    print("\n".join(cr.bench_report({"nctf": run}, f"the circle R = 1 mm, omega = {args.omega:g} rad/s "
-                                    f"(own loop)", plot_path=args.plot)))
+    run = cr.run_circle(policy, omega=args.omega, dt=args.dt)
+    print("\n".join(cr.bench_report({"nctf": run}, f"VCNC-Circle-v0, R = 1 mm, omega = {args.omega:g} rad/s",
+                                    plot_path=args.plot)))
     return 0
