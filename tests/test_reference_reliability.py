@@ -49,6 +49,9 @@ MESSAGE_KINDS = {
     "near-zero derivative": re.compile(r"near-zero derivative C'\(u\) at (its (start|end), )?u = "),
     "zero-length span": re.compile(r"knot span \[.*\] is .* mm long, below SPAN_LENGTH_TOLERANCE"),
     "zero-length curve": re.compile(r"curve has \(near-\)zero length"),
+    "knot span too short in u (u cannot resolve the step)": re.compile(
+        r"the reference cannot follow the curve (near|at) u = .* one floating-point step of u moves .* mm; the knot "
+        r"span \[.*\] is too short in u"),
     "cannot follow": re.compile(r"the reference cannot follow the curve near u = "),
     "too many samples": re.compile(r"would make .* reference samples \(.* GiB\); the limit is max_samples="),
 }
@@ -122,7 +125,9 @@ def broken_promises(curve: NurbsCurve, ref) -> list[str]:
     if error[k] > tol * (1.0 + 1e-6):
         problems.append(f"step {k} (u = {ref.u[k]!r}) is off by {error[k] / vdt:.3g} V_peak dt > "
                         f"{ref.step_tolerance}")
-    if not abs(error[k] / vdt - ref.step_error) <= 1e-5 * ref.step_tolerance:  # the kernel's arcs: to ~1e-6 tol
+    # the kernel's arcs are accurate to ~1e-6 tol, less in knot spans narrow for their |u| (both quadratures
+    # place their nodes on floats)
+    if not abs(error[k] / vdt - ref.step_error) <= 1e-4 * ref.step_tolerance:
         problems.append(f"step_error {ref.step_error:.6g} but the largest error is {error[k] / vdt:.6g}")
     if not np.allclose(np.linalg.norm(ref.tangent, axis=1), 1.0, rtol=0, atol=1e-12):
         problems.append("tangent is not a unit vector")
@@ -267,11 +272,21 @@ def test_issue_first_two_control_points_equal_to_1e16():
         interpolate(curve, SCurveFeedrate(100.0, 0.12), 1e-4)
 
 
-def test_issue_cusp():
-    """Issue 9: a cusp jumped 17.8 mm in one step.  The cubic Bezier with crossed
-    middle control points has C'(1/2) = 0 and the tangent reverses there."""
-    curve = NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3)
-    with pytest.raises(ValueError, match=r"curve has a cusp at u = 0.5: the tangent reverses"):
+CUSPS = {
+    # C'(1) = 0 at a knot and the curve turns back: the old reference jumped 20.4 mm in one 0.1 ms step
+    "at a knot": (NurbsCurve([[0, 0], [15, 15], [15, 15], [0, 1]], [1, 2, 0.5, 1], [0, 0, 0, 0.3, 1, 1, 1], 2),
+                  r"curve has a cusp at u = 0.3: the tangent reverses"),
+    # crossed Bezier control points: C'(1/2) = 0 inside the span (old: feedrate_fluctuation 0.77)
+    "inside a span": (NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3),
+                      r"curve has a cusp at u = 0.5: the tangent reverses"),
+}
+
+
+@pytest.mark.parametrize("name", CUSPS)
+def test_issue_cusp(name):
+    """Issue 9: a cusp jumped 17.8 mm in one step."""
+    curve, pattern = CUSPS[name]
+    with pytest.raises(ValueError, match=pattern):
         interpolate(curve, SCurveFeedrate(), 1e-4)
 
 
@@ -298,6 +313,10 @@ STEP_CASES = {
     # weights 50 and 0.02: steps 9.3 x V_peak dt
     "weight ratio 2500": (NurbsCurve([[0, 0], [10, 0], [10, 10], [0, 10]], [1, 50, 0.02, 1],
                                      [0, 0, 0, 0.5, 1, 1, 1], 2), 1e-4),
+    # the crossed Bezier with weights 2, 1, 1, 0.5: no cusp but a turn of radius 0.7 um (|C'| down to
+    # 0.012 of its mean), where eq. (8) jumped 5.2 mm (523 x V_peak dt) in one step
+    "near-cusp": (NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [2, 1, 1, 0.5], [0, 0, 0, 0, 1, 1, 1, 1], 3),
+                  1e-4),
 }
 
 
@@ -356,9 +375,9 @@ def test_knot_span_too_short_in_u_for_its_length():
     """A 10 mm segment squeezed into 1e-13 of u: one floating-point step of u moves
     6 um, more than the reference may be off by; refused, naming the span."""
     curve = NurbsCurve([[0, 0], [10, 0], [10, 10], [0, 10]], [1, 1, 1, 1], [0, 0, 0.3, 0.3 + 1e-13, 1, 1], 1)
-    with pytest.raises(ValueError, match=r"cannot follow the curve near u = 0.3 .* one floating-point step of u "
-                                         r"moves .* mm; the knot span \[0.2999.*, 0.300000000000\d*\] is too short "
-                                         r"in u for its 10 mm"):
+    with pytest.raises(ValueError, match=r"cannot follow the curve near u = .* one floating-point step of u moves "
+                                         r".* mm; the knot span \[0.3, 0.3000000000000\d*\] is too short in u for "
+                                         r"its 10 mm"):
         interpolate(curve, SCurveFeedrate(), 1e-4)
 
 
