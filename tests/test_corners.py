@@ -385,12 +385,12 @@ def test_bad_vertices(vertices, match):
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(epsilon=0.0), "epsilon must be a positive finite number in mm"),
+        (dict(epsilon=0.0), "epsilon must be"),
         (dict(epsilon=-1.0), "epsilon"),
         (dict(epsilon=float("nan")), "epsilon"),
         (dict(epsilon=True), "epsilon"),
-        (dict(a_max=0.0), r"a_max must be a positive finite number in mm/s\^2"),
-        (dict(j_max=-5.0), r"j_max must be a positive finite number in mm/s\^3"),
+        (dict(a_max=0.0), r"a_max must be"),
+        (dict(j_max=-5.0), r"j_max must be"),
         (dict(j_max=float("inf")), "j_max"),
         (dict(epsilon=30.0), r"epsilon = 30 mm is too large for segment 1 \(vertices 1 to 2"),
     ],

@@ -93,6 +93,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..validation import positive as _positive
+
 from .nurbs import NurbsCurve
 
 __all__ = [
@@ -129,17 +131,6 @@ _GOLDEN = 0.5 * (math.sqrt(5.0) - 1.0)
 # --------------------------------------------------------------------------
 
 
-def _positive(name: str, value, unit: str) -> float:
-    """float(value) if it is a finite number > 0, else a ValueError naming ``name`` and its unit."""
-    if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a positive finite number in {unit}, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number in {unit}, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number in {unit}, got {value!r}")
-    return x
 
 
 def _angle(name: str, value) -> float:

@@ -94,6 +94,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..validation import positive as _positive
+
 __all__ = [
     "SEED002_A_MAX",
     "SEED002_FEEDRATE",
@@ -207,17 +209,6 @@ def _jlap_batch(ts, breaks, coeffs, out):
 # --------------------------------------------------------------------------
 
 
-def _positive(name: str, value, unit: str) -> float:
-    """float(value) if it is a finite number > 0, else a ValueError naming ``name`` and its unit."""
-    if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a positive finite number in {unit}, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number in {unit}, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number in {unit}, got {value!r}")
-    return x
 
 
 # --------------------------------------------------------------------------
