@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -165,6 +166,10 @@ class ContouringEnv(gym.Env):
         self._flags = b.flags[0]
         self._mode = b.mode
         self._data = self._batch.data
+        self._run = sk.step_serial
+        self._k = b.k
+        self._reward = b.reward
+        self._dt = self.task.dt
         self.layout = self.task.layout
         high = b.obs_high
         self.observation_space = spaces.Box(-high, high, dtype=np.float32)
@@ -226,13 +231,11 @@ class ContouringEnv(gym.Env):
             raise RuntimeError("step() called on a finished episode; call reset() first")
         self._action[:] = check_actions(action, (2,))
         self._mode[0] = sk.MODE_STEP
-        self._batch.run()
-        info_arr = self._info
-        flags = self._flags
-        terminated = bool(flags[sk.FLAG_TERMINATED])
-        truncated = bool(flags[sk.FLAG_TRUNCATED])
+        self._run(self._data)
+        flags = self._flags.tolist()
+        terminated, truncated = flags[sk.FLAG_TERMINATED], flags[sk.FLAG_TRUNCATED]
         self._done = terminated or truncated
-        info = step_info(info_arr, bool(flags[sk.FLAG_DIVERGED]), int(self._batch.buffers.k[0]) * self.dt)
+        info = step_info(self._info, flags[sk.FLAG_DIVERGED], int(self._k[0]) * self._dt)
         if self._history is not None:
             self._history["t"].append(info["time"])
             self._history["position"].append(info["position"].copy())
@@ -240,7 +243,7 @@ class ContouringEnv(gym.Env):
             frame = round(1.0 / (self.metadata["render_fps"] * self.decision_period))
             if self.render_mode == "human" and (self._done or len(self._history["t"]) % frame == 0):
                 self.render()
-        return self._obs.copy(), float(self._batch.buffers.reward[0]), terminated, truncated, info
+        return self._obs.copy(), float(self._reward[0]), terminated, truncated, info
 
     def _check_time_limit(self):
         limits = [self.task.max_episode_steps]
@@ -270,8 +273,15 @@ class ContouringEnv(gym.Env):
             self._figure = None
 
 
+_REAL_KINDS = ("f", "i", "u")
+
+
 def check_actions(action, shape: tuple) -> np.ndarray:
     """``action`` as a float64 array of ``shape``; ValueError for another shape, a non-real or non-finite value."""
+    if type(action) is np.ndarray and action.shape == shape == (2,) and action.dtype.kind == "f":
+        # the common case, cheaply: one env's float action
+        if math.isfinite(action[0]) and math.isfinite(action[1]):
+            return action
     a = np.asarray(action)
     if a.shape != shape:
         raise ValueError(f"action must have shape {shape}, got {a.shape}")
@@ -284,18 +294,21 @@ def check_actions(action, shape: tuple) -> np.ndarray:
 
 
 def step_info(info_arr: np.ndarray, diverged: bool, time: float) -> dict:
-    """The info dict of one env's step from its kernel info row (copies)."""
+    """The info dict of one env's step from its kernel info row (one copy; the arrays are views of it)."""
+    row = info_arr.copy()
+    values = row.tolist()
     return {
-        "contour_error": float(info_arr[sk.INFO_CONTOUR_ERROR]),
-        "contour_error_max": float(info_arr[sk.INFO_CONTOUR_ERROR_MAX]),
-        "tracking_error": info_arr[sk.INFO_TRACKING_ERROR:sk.INFO_TRACKING_ERROR + 2].copy(),
-        "position": info_arr[sk.INFO_POSITION:sk.INFO_POSITION + 2].copy(),
-        "reference_position": info_arr[sk.INFO_REFERENCE_POSITION:sk.INFO_REFERENCE_POSITION + 2].copy(),
-        "command": info_arr[sk.INFO_COMMAND:sk.INFO_COMMAND + 2].copy(),
+        "contour_error": values[sk.INFO_CONTOUR_ERROR],
+        "contour_error_max": values[sk.INFO_CONTOUR_ERROR_MAX],
+        "tracking_error": row[sk.INFO_TRACKING_ERROR:sk.INFO_TRACKING_ERROR + 2],
+        "position": row[sk.INFO_POSITION:sk.INFO_POSITION + 2],
+        "measured_position": row[sk.INFO_MEASURED_POSITION:sk.INFO_MEASURED_POSITION + 2],
+        "reference_position": row[sk.INFO_REFERENCE_POSITION:sk.INFO_REFERENCE_POSITION + 2],
+        "command": row[sk.INFO_COMMAND:sk.INFO_COMMAND + 2],
         "time": time,
-        "reward_contour": float(info_arr[sk.INFO_REWARD_CONTOUR]),
-        "reward_effort": float(info_arr[sk.INFO_REWARD_EFFORT]),
-        "reward_divergence": float(info_arr[sk.INFO_REWARD_DIVERGENCE]),
+        "reward_contour": values[sk.INFO_REWARD_CONTOUR],
+        "reward_effort": values[sk.INFO_REWARD_EFFORT],
+        "reward_divergence": values[sk.INFO_REWARD_DIVERGENCE],
         "diverged": diverged,
-        "observation_clipped": int(info_arr[sk.INFO_CLIPPED]),
+        "observation_clipped": int(values[sk.INFO_CLIPPED]),
     }

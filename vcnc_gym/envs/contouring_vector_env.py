@@ -34,6 +34,7 @@ _INFO_FIELDS = {
     "contour_error": (sk.INFO_CONTOUR_ERROR, 1),
     "contour_error_max": (sk.INFO_CONTOUR_ERROR_MAX, 1),
     "position": (sk.INFO_POSITION, 2),
+    "measured_position": (sk.INFO_MEASURED_POSITION, 2),
     "reference_position": (sk.INFO_REFERENCE_POSITION, 2),
     "tracking_error": (sk.INFO_TRACKING_ERROR, 2),
     "command": (sk.INFO_COMMAND, 2),

@@ -73,7 +73,8 @@ INFO_REWARD_CONTOUR = 11
 INFO_REWARD_EFFORT = 12
 INFO_REWARD_DIVERGENCE = 13
 INFO_CLIPPED = 14  # number of observation entries clipped to the space's bounds
-INFO_SIZE = 15
+INFO_MEASURED_POSITION = 15  # (2) mm, the position sensor's reading (what the observation is computed from)
+INFO_SIZE = 17
 
 # flags of buffers.flags (N, FLAG_SIZE), bool
 FLAG_TERMINATED = 0
@@ -210,6 +211,8 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     info[INFO_REFERENCE_POSITION + 1] = yd
     info[INFO_TRACKING_ERROR] = xd - x
     info[INFO_TRACKING_ERROR + 1] = yd - y
+    info[INFO_MEASURED_POSITION] = xm
+    info[INFO_MEASURED_POSITION + 1] = ym
     for j in range(2):
         command[j] = min(b.input_limit[i, j], max(-b.input_limit[i, j], command[j]))
 
