@@ -125,9 +125,9 @@ def broken_promises(curve: NurbsCurve, ref) -> list[str]:
     if error[k] > tol * (1.0 + 1e-6):
         problems.append(f"step {k} (u = {ref.u[k]!r}) is off by {error[k] / vdt:.3g} V_peak dt > "
                         f"{ref.step_tolerance}")
-    # the kernel's arcs are accurate to ~1e-6 tol, less in knot spans narrow for their |u| (both quadratures
-    # place their nodes on floats)
-    if not abs(error[k] / vdt - ref.step_error) <= 1e-4 * ref.step_tolerance:
+    # the kernel's arcs are accurate to ~1e-6 tol, to ~1e-3 tol in knot spans narrow for their |u| (both
+    # quadratures place their nodes on floats)
+    if not abs(error[k] / vdt - ref.step_error) <= 2e-3 * ref.step_tolerance:
         problems.append(f"step_error {ref.step_error:.6g} but the largest error is {error[k] / vdt:.6g}")
     if not np.allclose(np.linalg.norm(ref.tangent, axis=1), 1.0, rtol=0, atol=1e-12):
         problems.append("tangent is not a unit vector")

@@ -104,7 +104,13 @@ _DRIFT_SHARE = 0.9
 # No sample is placed where one floating-point step of u moves more than this
 # share of the tolerance (a knot span squeezed in u: arc lengths there are only
 # as good as the resolution of u; ~1e-13 mm on ordinary curves).
-_RESOLUTION_SHARE = 0.01
+_RESOLUTION_SHARE = 1e-3
+
+# A step made by eq. (8) is kept when its arc length is within (1 - _ARC_SLACK)
+# of the tolerance: the arc lengths themselves are good to ~1e-6 of the
+# tolerance, to ~1e-3 of it where u resolves the curve only just
+# (_RESOLUTION_SHARE), so the promise holds whatever the quadrature's error.
+_ARC_SLACK = 2e-3
 
 # end codes written by the kernel into info[0]
 _END_PROFILE = 0.0  # profile ended first: next sample placed at u_end
@@ -341,9 +347,10 @@ def taylor_interpolate_kernel(
     Every step is first made by eq. (8).  Its arc length a_k along the curve
     (:func:`_step_arc`) is compared with the distance the profile commands,
     dS_k = S(t_{k+1}) - S(t_k), and the running sum s_{k+1} = sum a_j with
-    S(t_{k+1}).  If a_k misses dS_k by more than tol = ``step_tolerance`` x
-    v_peak x dt, or s_{k+1} misses S(t_{k+1}) by more than 0.9 tol, the step
-    is replaced: u_{k+1} is solved from arc(u_k, u_{k+1}) = S(t_{k+1}) - s_k
+    S(t_{k+1}).  If a_k misses dS_k by more than (1 - 2e-3) tol, tol =
+    ``step_tolerance`` x v_peak x dt (the 2e-3 covers the error of the arc
+    lengths themselves), or s_{k+1} misses S(t_{k+1}) by more than 0.9 tol,
+    the step is replaced: u_{k+1} is solved from arc(u_k, u_{k+1}) = S(t_{k+1}) - s_k
     (:func:`_arc_step`), which brings s back onto the plan; its error
     against dS_k is then the drift s_k - S(t_k) the previous steps left
     (at most 0.9 tol) plus the solver's (1e-6 tol, or half a floating-point
@@ -378,7 +385,7 @@ def taylor_interpolate_kernel(
         0 the profile ended, 1 u reached u_end first, 2 |C'(u)| = 0 met at
         u = info[1] (stopped there), 3 a corrected step k still missed the
         tolerance (stopped after its sample k + 1: no u can meet it), 4 one
-        floating-point step of u moves more than 0.01 tol at u = info[1]
+        floating-point step of u moves more than 1e-3 tol at u = info[1]
         (stopped there).
 
     Returns
@@ -453,7 +460,8 @@ def taylor_interpolate_kernel(
             curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
             step = _step_arc(control_points, weights, knots, degree, u, u_next, ders, nxt, 1e-6 * tol, scratch,
                              work, stack)
-            if not (abs(step - (s_next - s_now)) <= tol and abs(s + step - s_next) <= _DRIFT_SHARE * tol):
+            kept = abs(step - (s_next - s_now)) <= (1.0 - _ARC_SLACK) * tol
+            if not (kept and abs(s + step - s_next) <= _DRIFT_SHARE * tol):
                 _arc_step(control_points, weights, knots, degree, u, speed, s_next - s, u_end, 1e-6 * tol,
                           scratch, work, stack, result)
                 u_next = result[0]
@@ -461,7 +469,7 @@ def taylor_interpolate_kernel(
                 u_taylor = u_next
                 info[4] += 1.0
                 curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
-                if abs(step - (s_next - s_now)) > tol and result[2] == 0.0:
+                if abs(step - (s_next - s_now)) > (1.0 - _ARC_SLACK) * tol and result[2] == 0.0:
                     # no u meets the tolerance (u cannot resolve the step): stop here
                     info[0] = _END_FAILED
                     info[5] = abs(step - (s_next - s_now))
