@@ -138,10 +138,8 @@ class ContouringTask:
         # reference, computed once
         self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
-        tangent = self.curve.derivatives_array(self.reference.u, 1)[:, 1, :]
-        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
         samples = np.ascontiguousarray(np.hstack([
-            self.reference.position, self.reference.velocity, self.reference.acceleration, tangent,
+            self.reference.position, self.reference.velocity, self.reference.acceleration, self.reference.tangent,
         ]))
         self.projector = ContourProjector(self.curve, margin=min(max(10.0, 2 * self.divergence_bound),
                                                                  _GRID_MARGIN_MAX))
