@@ -461,6 +461,38 @@ def test_shipped_agent_completes_its_contour(env_id):
 
 
 # -- 8. hyperparameters -----------------------------------------------------------------------------
+def test_every_env_has_an_entry_that_prepares_a_run(tmp_path):
+    """vcnc-train --env ID works for every registered id: its entry passes every check (env, action mode,
+    baseline, policy network) and nothing is written before training."""
+    entries = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())
+    assert set(entries) == set(vcnc_gym.ENV_IDS)
+    for env_id in vcnc_gym.ENV_IDS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", agents.RunWarning)  # n_timesteps rounded up to whole rollouts
+            run_dir, config, checkpoint = agents.training.prepare_run(env_id, tmp_path / env_id)
+        assert checkpoint is None and not run_dir.exists()
+        mode = ActionMode(**config["action_mode"])
+        assert mode.mode == "residual" and mode.baseline in baselines.names()
+        assert config["n_timesteps"] % (config["hyperparams"]["n_steps"] * config["n_envs"]) == 0
+    # seed 001's positioning entry, as its helper proposed it
+    step = load_hyperparameters("VCNC-Step-v0")
+    assert action_mode_of(step) == ActionMode("residual", action_repeat=1, baseline="hinf-reduced", correction=0.05)
+    assert (step["n_envs"], step["n_steps"], step["batch_size"], step["gamma"]) == (4, 512, 256, 0.99)
+
+
+def test_an_env_without_a_native_vector_env_trains_on_sb3s(tmp_path):
+    """VCNC-Step-v0 (a positioning env) has no native vector env: the default --vec-env native falls back to
+    SB3's DummyVecEnv, says so, and trains."""
+    assert "VCNC-Step-v0" not in vcnc_gym.envs.VECTOR_IDS
+    entry = load_hyperparameters("VCNC-Step-v0")
+    rollout = entry["n_steps"] * entry["n_envs"]
+    with pytest.warns(agents.RunWarning, match="no native vector env"):
+        result = agents.train("VCNC-Step-v0", tmp_path / "run", n_timesteps=rollout, progress_bar=False,
+                              tensorboard=False)
+    assert result.timesteps == rollout and result.best is not None
+    assert sessions(result.run_dir)[-1]["status"] == "finished"
+
+
 def test_hyperparameters_of_both_envs_load_and_describe_their_action_mode():
     expected = {HEART: ActionMode("residual", action_repeat=10, baseline="smc", correction=0.2),
                 OMEGA: ActionMode("residual", action_repeat=10, baseline="qft", correction=1.0)}
