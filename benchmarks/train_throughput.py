@@ -114,9 +114,10 @@ def _rates(r: dict, repeat: int) -> tuple[float, float, float, float]:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--steps", type=int, default=40_960, help="agent steps of each timed run (default 40960)")
-    p.add_argument("--n-envs", type=int, nargs="+", default=[2, 16],
-                   help="training envs, the same on both sides; one comparison each (default: 2, the entry's, and 16)")
+    p.add_argument("--steps", type=int, default=40_960,
+                   help="agent steps of each timed run, rounded up to whole rollouts by both trainers (default 40960)")
+    p.add_argument("--n-envs", type=int, nargs="+", default=[2, 16, 64],
+                   help="training envs, the same on both sides; one comparison each (default: 2, the entry's, 16, 64)")
     p.add_argument("--before", default=BEFORE, help=f"commit of the 'before' trainer (default {BEFORE})")
     p.add_argument("--worktree", type=Path, default=Path(tempfile.gettempdir()) / "vcnc_before",
                    help="where the 'before' commit is checked out (default /tmp/vcnc_before)")
@@ -133,9 +134,11 @@ def main(argv=None) -> None:
         with tempfile.TemporaryDirectory(prefix="vcnc_train_throughput_") as tmp:
             tmp = Path(tmp)
             config_file = _heart_entry_file(tmp)
-            print(f"{ENV_ID}: {args.steps} agent steps per run, residual over {entry['env_wrapper'][0]}, "
-                  f"1 torch + 1 numba thread; before = {args.before}, after = working tree")
-            header = (f"{'n_envs':>6s} {'side':7s} {'VecEnv':7s} {'steps/s':>9s} {'periods/s':>10s} "
+            mode = entry["env_wrapper"][0]["agents.action_modes.ResidualAction"]
+            print(f"{ENV_ID}: {args.steps} agent steps per run (whole rollouts of n_steps {entry['n_steps']} x "
+                  f"n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
+                  f"{repeat}), 1 torch + 1 numba thread; before = {args.before}, after = the working tree")
+            header = (f"{'n_envs':>6s} {'side':7s} {'VecEnv':7s} {'steps':>7s} {'steps/s':>9s} {'periods/s':>10s} "
                       f"{'steps/s*':>9s} {'periods/s*':>11s}  code")
             print(header)
             for n in args.n_envs:
@@ -144,9 +147,9 @@ def main(argv=None) -> None:
                 rb, ra = _rates(before, repeat), _rates(after, repeat)
                 for side, r, rates in (("before", before, rb), ("after", after, ra)):
                     vec = r["vec_env"] or "dummy"
-                    print(f"{n:6d} {side:7s} {vec:7s} {rates[0]:9.0f} {rates[1]:10.0f} {rates[2]:9.0f} "
+                    print(f"{n:6d} {side:7s} {vec:7s} {r['steps']:7d} {rates[0]:9.0f} {rates[1]:10.0f} {rates[2]:9.0f} "
                           f"{rates[3]:11.0f}  {Path(r['agents']).parent}")
-                print(f"{n:6d} {'ratio':7s} {'':7s} {ra[0] / rb[0]:8.2f}x {ra[1] / rb[1]:9.2f}x "
+                print(f"{n:6d} {'ratio':7s} {'':7s} {'':7s} {ra[0] / rb[0]:8.2f}x {ra[1] / rb[1]:9.2f}x "
                       f"{ra[2] / rb[2]:8.2f}x {ra[3] / rb[3]:10.2f}x")
             print("steps/s, periods/s: as the trainer reports them (model.learn wall time, final checkpoint and "
                   "evaluation included); * without the final evaluation's time")
