@@ -36,6 +36,8 @@ from vcnc_gym.evaluation import run_episode
 
 OMEGA = "VCNC-Omega-v0"
 HEART = "VCNC-Heart-v0"
+CORNERS = "VCNC-Corners-v0"
+CORNERS_SMOOTH = "VCNC-CornersSmooth-v0"
 ROOT = Path(__file__).resolve().parents[1]
 OMEGA_ENTRY = load_hyperparameters(OMEGA)
 OMEGA_MODE = action_mode_of(OMEGA_ENTRY)
@@ -447,6 +449,8 @@ def test_bench_refuses_a_missing_or_mismatched_agent(omega_run, tmp_path, capsys
 @pytest.mark.parametrize("env_id", [
     pytest.param(HEART, id="heart-slow-2s"),  # 34000 control periods
     pytest.param(OMEGA, id="omega"),
+    pytest.param(CORNERS, id="corners-slow-2s"),  # 40100 control periods
+    pytest.param(CORNERS_SMOOTH, id="corners-smooth-slow-2s"),  # 41800 control periods
 ])
 def test_shipped_agent_completes_its_contour(env_id):
     folder = agents.TRAINED[env_id]
