@@ -16,7 +16,7 @@ import pytest
 import vcnc_gym
 from vcnc_gym.geometry import NurbsCurve
 
-OMEGA = "VCNC-Omega-v0"
+OMEGA = "VCNC-Omega-v1"
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -110,11 +110,11 @@ def test_far_contours_are_observed_without_clipping():
 
 def test_the_natural_length_follows_the_configuration_and_is_never_cut_silently():
     """feedrate=10 through gym.make: the episode runs to the end of the contour (no fixed TimeLimit)."""
-    env = gym.make("VCNC-Heart-v0", feedrate=10.0)
+    env = gym.make("VCNC-Heart-v1", feedrate=10.0)
     u = env.unwrapped
     assert env.spec.max_episode_steps is None
     assert u.episode_steps > 34_000 * 5  # ten times slower than the default 100 mm/s
-    assert u.task.max_episode_steps == u.episode_steps
+    assert u.task.max_episode_steps == u.task.time_limit_steps >= u.episode_steps
 
 
 def test_a_shorter_limit_of_the_env_warns():

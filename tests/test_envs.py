@@ -52,7 +52,7 @@ def test_sb3_check_env_without_warnings(env_id):
 
 def test_pd_controller_keeps_heart_contour_error_in_tens_of_micrometres():
     """A hand-written PD loop on the heart: a sanity check, not a tuned target."""
-    env = gym.make("VCNC-Heart-v0")
+    env = gym.make("VCNC-Heart-v1")
     infos, term, trunc = pd_episode(env)
     err = np.array([i["contour_error"] for i in infos])
     assert term and not trunc and not infos[-1]["diverged"]
@@ -67,7 +67,7 @@ def test_pd_controller_keeps_heart_contour_error_in_tens_of_micrometres():
 
 def test_pd_controller_completes_omega_without_divergence():
     """The omega's corners exceed the drives' acceleration: mm errors, no divergence."""
-    env = gym.make("VCNC-Omega-v0")
+    env = gym.make("VCNC-Omega-v1")
     infos, term, trunc = pd_episode(env)
     err = np.array([i["contour_error"] for i in infos])
     assert term and not trunc and not infos[-1]["diverged"]
@@ -77,7 +77,7 @@ def test_pd_controller_completes_omega_without_divergence():
 def test_contour_error_is_distance_to_contour_not_to_reference():
     """Standing still at the start, the table stays on the contour: zero contour
     error although the reference runs away (large tracking error)."""
-    env = gym.make("VCNC-Heart-v0")
+    env = gym.make("VCNC-Heart-v1")
     env.reset(seed=0)
     for _ in range(1000):
         _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
@@ -109,7 +109,7 @@ def test_standing_still_does_not_pay(env_id):
 def test_halving_the_substep_changes_the_contour_error_trace_by_under_one_percent():
     traces = []
     for substep in (1e-5, 0.5e-5):
-        env = gym.make("VCNC-Heart-v0", plant_options={"substep": substep})
+        env = gym.make("VCNC-Heart-v1", plant_options={"substep": substep})
         infos, _, _ = pd_episode(env)
         traces.append(np.array([i["contour_error"] for i in infos]))
     assert len(traces[0]) == len(traces[1])
@@ -136,7 +136,7 @@ def test_same_seed_same_actions_bit_identical(env_id):
 
 
 def test_randomize_draws_parameters_in_the_seed_intervals():
-    env = gym.make("VCNC-Heart-v0", randomize=True)
+    env = gym.make("VCNC-Heart-v1", randomize=True)
     drawn = []
     for seed in range(20):
         _, info = env.reset(seed=seed)
@@ -147,13 +147,13 @@ def test_randomize_draws_parameters_in_the_seed_intervals():
             for (lo, hi), value in zip(plant.PARAMETER_INTERVALS[name], info["parameters"][name]):
                 assert lo <= value <= hi
     assert len({d["r_g"] for d in drawn}) == 20
-    nominal = gym.make("VCNC-Heart-v0")
+    nominal = gym.make("VCNC-Heart-v1")
     assert nominal.reset(seed=0)[1]["parameters"] == nominal.reset(seed=1)[1]["parameters"]
 
 
 def test_parameters_option_sets_the_plant():
     vertex = plant.uncertainty_vertices()[63]
-    env = gym.make("VCNC-Omega-v0")
+    env = gym.make("VCNC-Omega-v1")
     _, info = env.reset(seed=0, options={"parameters": vertex})
     assert info["parameters"] == plant.parameters_to_dict(vertex)
     np.testing.assert_array_equal(env.unwrapped.parameters, vertex)
@@ -170,7 +170,7 @@ def test_parameters_option_sets_the_plant():
     ],
 )
 def test_bad_actions_raise(action, match):
-    env = gym.make("VCNC-Heart-v0")
+    env = gym.make("VCNC-Heart-v1")
     env.reset(seed=0)
     with pytest.raises(ValueError, match=match):
         env.unwrapped.step(action)
@@ -201,7 +201,7 @@ def test_bad_arguments_raise(kwargs, match):
 def test_out_of_range_actions_are_clipped_like_saturation():
     runs = []
     for scale in (1.0, 7.0):
-        env = gym.make("VCNC-Omega-v0")
+        env = gym.make("VCNC-Omega-v1")
         env.reset(seed=0)
         obs = [env.step(np.array([scale, -scale], dtype=np.float32))[0] for _ in range(50)]
         runs.append(np.array(obs))
@@ -209,7 +209,7 @@ def test_out_of_range_actions_are_clipped_like_saturation():
 
 
 def test_divergence_terminates_with_flag_and_penalty():
-    env = gym.make("VCNC-Heart-v0")
+    env = gym.make("VCNC-Heart-v1")
     env.reset(seed=0)
     steps = 0
     while True:
@@ -227,8 +227,8 @@ def test_divergence_terminates_with_flag_and_penalty():
 
 
 def test_action_repeat_runs_the_plant_at_the_control_period():
-    base = gym.make("VCNC-Omega-v0")
-    rep = gym.make("VCNC-Omega-v0", action_repeat=5)
+    base = gym.make("VCNC-Omega-v1")
+    rep = gym.make("VCNC-Omega-v1", action_repeat=5)
     base.reset(seed=0)
     rep.reset(seed=0)
     a = np.array([0.3, -0.2], dtype=np.float32)
@@ -237,11 +237,11 @@ def test_action_repeat_runs_the_plant_at_the_control_period():
     _, _, _, _, info_rep = rep.step(a)
     np.testing.assert_array_equal(info_base["position"], info_rep["position"])
     assert rep.unwrapped.decision_period == pytest.approx(5 * base.unwrapped.dt)
-    assert rep.unwrapped.episode_steps == -(-base.unwrapped.task.end_index // 5)
+    assert rep.unwrapped.episode_steps == -(-(len(base.unwrapped.reference.t) - 1) // 5)
 
 
 def test_step_info_fields_and_units():
-    env = gym.make("VCNC-Heart-v0")
+    env = gym.make("VCNC-Heart-v1")
     obs, info = env.reset(seed=0)
     assert set(info["parameters"]) == set(plant.PARAMETER_NAMES)
     obs, reward, _, _, info = env.step(np.array([0.5, 2.0], dtype=np.float32))
@@ -256,11 +256,11 @@ def test_step_info_fields_and_units():
 
 
 def test_effort_term_is_off_by_default_and_in_info_when_on():
-    env = gym.make("VCNC-Omega-v0", effort_weight=0.5)
+    env = gym.make("VCNC-Omega-v1", effort_weight=0.5)
     env.reset(seed=0)
     _, reward, _, _, info = env.step(np.array([0.2, 0.4], dtype=np.float32))
     assert info["reward_effort"] == pytest.approx(-0.5 * 0.5 * (0.2**2 + 0.4**2), rel=1e-6)
-    env0 = gym.make("VCNC-Omega-v0")
+    env0 = gym.make("VCNC-Omega-v1")
     env0.reset(seed=0)
     assert env0.step(np.array([0.2, 0.4], dtype=np.float32))[4]["reward_effort"] == 0.0
 
@@ -285,7 +285,7 @@ def test_random_action_sequences_keep_observations_finite_and_in_space(env_id, a
 
 
 def test_render_rgb_array():
-    env = gym.make("VCNC-Omega-v0", render_mode="rgb_array")
+    env = gym.make("VCNC-Omega-v1", render_mode="rgb_array")
     env.reset(seed=0)
     for _ in range(100):
         env.step(np.array([0.1, 0.1], dtype=np.float32))
@@ -299,7 +299,7 @@ def test_default_control_period_makes_seed_qft_loop_stable_on_every_vertex():
     """Seed 000 sec. 2c G(s) with the ZOH plant: stable at the env's dt, not at 1 ms."""
     control = pytest.importorskip("control")
     g = control.tf([22.36, 61.21], [0.0001, 1.326])
-    dt = gym.make("VCNC-Heart-v0").unwrapped.dt
+    dt = gym.make("VCNC-Heart-v1").unwrapped.dt
 
     def worst_pole(period):
         worst = 0.0

@@ -63,7 +63,7 @@ def test_a_reordered_layout_still_names_the_right_fields(monkeypatch):
     """The kernel writes by name: reversing the field order moves the fields, not their meaning."""
     reversed_names = tuple(reversed(layout_module.FIELD_NAMES))
     monkeypatch.setattr(layout_module, "FIELD_NAMES", reversed_names)
-    env = gym.make("VCNC-Omega-v0")
+    env = gym.make("VCNC-Omega-v1")
     lay = env.unwrapped.layout
     assert [f.name for f in lay.fields] == list(reversed_names)
     assert lay.offset("previous_action") == 0
@@ -71,7 +71,7 @@ def test_a_reordered_layout_still_names_the_right_fields(monkeypatch):
 
 
 def test_clipping_is_counted_in_info():
-    env = gym.make("VCNC-Omega-v0", tracking_bound=50.0, divergence_bound=50.0)
+    env = gym.make("VCNC-Omega-v1", tracking_bound=50.0, divergence_bound=50.0)
     env.reset(seed=0)
     clipped = 0
     for _ in range(3000):  # full command one way: the tracking error leaves its 10 mm bound

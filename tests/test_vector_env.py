@@ -67,7 +67,7 @@ def test_env_i_is_bit_identical_to_a_single_env_with_randomization(parallel):
     (max_episode_steps) that every env goes through an autoreset."""
     n, steps, seed = 4, 60, 7
     kwargs = dict(randomize=True, max_episode_steps=25)
-    layout = gym.make("VCNC-Omega-v0").unwrapped.layout
+    layout = gym.make("VCNC-Omega-v1").unwrapped.layout
 
     def acts(obs, t):  # the same deterministic policy in both: PD plus a time-dependent dither
         return _pd(layout, obs) + 0.1 * np.sin(0.3 * t)
@@ -87,7 +87,7 @@ def test_env_i_is_bit_identical_to_a_single_env_with_randomization(parallel):
         vec["trunc"].append(tr)
     assert np.any(vec["trunc"]), "the test should exercise an autoreset"
     for i in range(n):
-        single = _rollout_single("VCNC-Omega-v0", seed + i, steps, acts, **kwargs)
+        single = _rollout_single("VCNC-Omega-v1", seed + i, steps, acts, **kwargs)
         k = len(vec["rew"])
         np.testing.assert_array_equal(np.array(single["obs"][:k + 1]), np.array(vec["obs"])[:, i])
         np.testing.assert_array_equal(np.array(single["rew"][:k]), np.array(vec["rew"])[:, i])

@@ -64,7 +64,13 @@ class ContouringEnv(gym.Env):
     | 10    | normal_error           | mm     | tracking error along the path normal (eq. (3)) |
     | 11-12 | velocity               | mm/s   | table velocity                                 |
     | 13-18 | preview                | mm     | x_d 1, 5, 10 ms ahead minus the table position |
-    | 19-20 | previous_action        | 1      | the last action                                |
+    | 19-28 | contour_preview        | mm     | the contour 0.25, 0.5, 1, 2, 4 mm of arc beyond the table's closest point, minus the table position, along the tangent and normal there |
+    | 29-33 | contour_curvature      | 1/mm   | signed curvature of the contour at those points |
+    | 34-35 | previous_action        | 1      | the last action                                |
+
+    The contour preview reaches twice the ~1.9 mm that seed 000's drives need
+    to brake from 100 mm/s, so a policy can see a corner coming and slow
+    down for it (``contour_ahead=``, mm; ``()`` for none).
 
     The position bound is 1000 mm, or the contour's extent plus
     ``tracking_bound`` plus 100 mm if that is larger.  Values beyond the
@@ -91,8 +97,16 @@ class ContouringEnv(gym.Env):
 
     ## Episode End
 
-    - Terminated once the reference has reached the end of the contour and
-      ``settling_time`` has passed.
+    - Terminated once the table has reached the end of the contour: the
+      first control period, the reference's end or later, at which at most
+      ``completion_tolerance`` (20 um) of contour lies ahead of the table's
+      closest point.  ``info["completed"]`` is then True and
+      ``info["cycle_time"]`` (s) the time it arrived; ``info["progress"]``
+      (mm) is the arc length the table has passed at every step.
+    - Terminated at the completion time limit, ``completion_timeout`` (0.1 s)
+      after the reference's end, with ``info["completed"] = False`` and a
+      penalty of ``-(untraversed length) / reward_scale``
+      (``info["reward_incomplete"]``).
     - Terminated early with ``info["diverged"] = True`` when the contour
       error exceeds ``divergence_bound`` (default 5 mm), the tracking error
       exceeds ``tracking_bound`` (default 10 mm: the table has fallen that
@@ -102,16 +116,16 @@ class ContouringEnv(gym.Env):
       corners (radius 0.19 mm) ask 100 mm/s for 5.4e4 mm/s^2, twenty times what
       the +-5 V drives can give (~2.6e3 mm/s^2): a stable tracking controller
       is thrown millimetres off the contour there without diverging.
-    - The natural length, ``env.unwrapped.episode_steps`` decision steps,
-      follows the configuration (``dt``, ``feedrate``, ``ramp_time``,
-      ``settling_time``, ``action_repeat``): the ids register no fixed
+    - The natural length, ``env.unwrapped.episode_steps`` decision steps
+      (to the reference's end), follows the configuration (``dt``,
+      ``feedrate``, ``ramp_time``, ``action_repeat``): the ids register no fixed
       ``TimeLimit``.  ``max_episode_steps`` (an argument of the env, or of
       ``gym.make``) truncates earlier; the env warns when that cuts the
       contour short.
 
     ## Arguments
 
-    ``gym.make("VCNC-Heart-v0", **kwargs)`` with
+    ``gym.make("VCNC-Heart-v1", **kwargs)`` with
 
     - ``contour``: a name of ``vcnc_gym.geometry.SHAPES`` ("heart", "omega",
       "circle", "corners", "corners-smooth"), a :class:`NurbsCurve` or a
@@ -135,9 +149,14 @@ class ContouringEnv(gym.Env):
       force; not both.  ``reset(options={"parameters": p})`` sets it for one
       episode.
     - ``reward_scale`` (mm, 0.01), ``effort_weight`` (0.0),
-      ``divergence_bound`` (mm, 5.0), ``tracking_bound`` (mm, 10.0),
-      ``settling_time`` (s, 0.01).
+      ``divergence_bound`` (mm, 5.0), ``tracking_bound`` (mm, 10.0).
+    - ``episode_end`` ("tool"): "tool" as above, or "reference" (v0: the
+      episode ends ``settling_time``, s, default 0.01, after the
+      reference's end); ``completion_tolerance`` (mm, 0.02) and
+      ``completion_timeout`` (s, 0.1).
     - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods.
+    - ``contour_ahead`` ((0.25, 0.5, 1, 2, 4)): arc lengths, mm, of the
+      contour preview.
     - ``plant_options`` (None): the plant's own settings, e.g.
       ``{"substep": 1e-5}`` (s) for seed 000's integration substep.
     - ``max_episode_steps`` (None: the natural length): truncation, decisions.
@@ -145,10 +164,18 @@ class ContouringEnv(gym.Env):
 
     ## Version History
 
+    - v1: the episode ends when the table has reached the end of the
+      contour (or at a completion time limit, with a penalty for the
+      untraversed length), no longer 10 ms after the reference's end: a
+      table lagging the reference was scored only on the part it had
+      traversed.  The cycle time is in ``info``.  The observation gained the
+      contour ahead of the table ("contour_preview", "contour_curvature").
+      Seed 003's circle: contour shown 0.05-0.4 mm ahead, 2 um band, 1 s limit.
     - v0: initial release.  The plant became an argument, the step one
       batched kernel and the ids lost their fixed ``TimeLimit`` (the natural
       length now follows the configuration) without changing any episode of
-      the default configuration.
+      the default configuration.  Still registered (``episode_end=
+      "reference"``, ``contour_ahead=()``) for the agents trained on it.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
@@ -235,7 +262,7 @@ class ContouringEnv(gym.Env):
         flags = self._flags.tolist()
         terminated, truncated = flags[sk.FLAG_TERMINATED], flags[sk.FLAG_TRUNCATED]
         self._done = terminated or truncated
-        info = step_info(self._info, flags[sk.FLAG_DIVERGED], int(self._k[0]) * self._dt)
+        info = step_info(self._info, flags, int(self._k[0]) * self._dt)
         if self._history is not None:
             self._history["t"].append(info["time"])
             self._history["position"].append(info["position"].copy())
@@ -293,22 +320,21 @@ def check_actions(action, shape: tuple) -> np.ndarray:
     return a
 
 
-def step_info(info_arr: np.ndarray, diverged: bool, time: float) -> dict:
-    """The info dict of one env's step from its kernel info row (one copy; the arrays are views of it)."""
+_SCALARS = tuple((key, col) for key, (col, width) in sk.INFO_FIELDS.items() if width == 1)
+_VECTORS = tuple((key, col, col + width) for key, (col, width) in sk.INFO_FIELDS.items() if width > 1)
+
+
+def step_info(info_arr: np.ndarray, flags: list, time: float) -> dict:
+    """The info dict of one env's step from its kernel info row and flags (one copy; the arrays are views of it)."""
     row = info_arr.copy()
     values = row.tolist()
-    return {
-        "contour_error": values[sk.INFO_CONTOUR_ERROR],
-        "contour_error_max": values[sk.INFO_CONTOUR_ERROR_MAX],
-        "tracking_error": row[sk.INFO_TRACKING_ERROR:sk.INFO_TRACKING_ERROR + 2],
-        "position": row[sk.INFO_POSITION:sk.INFO_POSITION + 2],
-        "measured_position": row[sk.INFO_MEASURED_POSITION:sk.INFO_MEASURED_POSITION + 2],
-        "reference_position": row[sk.INFO_REFERENCE_POSITION:sk.INFO_REFERENCE_POSITION + 2],
-        "command": row[sk.INFO_COMMAND:sk.INFO_COMMAND + 2],
-        "time": time,
-        "reward_contour": values[sk.INFO_REWARD_CONTOUR],
-        "reward_effort": values[sk.INFO_REWARD_EFFORT],
-        "reward_divergence": values[sk.INFO_REWARD_DIVERGENCE],
-        "diverged": diverged,
-        "observation_clipped": int(values[sk.INFO_CLIPPED]),
-    }
+    info = {key: values[col] for key, col in _SCALARS}
+    for key, start, stop in _VECTORS:
+        info[key] = row[start:stop]
+    info["observation_clipped"] = int(info["observation_clipped"])
+    info["diverged"] = flags[sk.FLAG_DIVERGED]
+    info["completed"] = flags[sk.FLAG_COMPLETED]
+    if not info["completed"]:
+        del info["cycle_time"]  # only once the tool has arrived
+    info["time"] = time
+    return info

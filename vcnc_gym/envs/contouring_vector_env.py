@@ -1,6 +1,6 @@
 """ContouringVectorEnv: N contouring envs stepped by one numba call.
 
-``gym.make_vec("VCNC-Heart-v0", num_envs=N, vectorization_mode="vector_entry_point")``
+``gym.make_vec("VCNC-Heart-v1", num_envs=N, vectorization_mode="vector_entry_point")``
 returns this :class:`gymnasium.vector.VectorEnv`.  Its ``step`` is one call of
 the same compiled body the single :class:`~vcnc_gym.envs.ContouringEnv` runs,
 over all N envs at once and spread over the cores (numba ``prange``).  Each
@@ -29,20 +29,6 @@ __all__ = ["ContouringVectorEnv"]
 #: Below this many envs one thread steps them all (a parallel launch costs more than it saves).
 PARALLEL_MIN_ENVS = 16
 
-_INFO_FIELDS = {
-    # info key -> (first column of the kernel's info row, columns)
-    "contour_error": (sk.INFO_CONTOUR_ERROR, 1),
-    "contour_error_max": (sk.INFO_CONTOUR_ERROR_MAX, 1),
-    "position": (sk.INFO_POSITION, 2),
-    "measured_position": (sk.INFO_MEASURED_POSITION, 2),
-    "reference_position": (sk.INFO_REFERENCE_POSITION, 2),
-    "tracking_error": (sk.INFO_TRACKING_ERROR, 2),
-    "command": (sk.INFO_COMMAND, 2),
-    "reward_contour": (sk.INFO_REWARD_CONTOUR, 1),
-    "reward_effort": (sk.INFO_REWARD_EFFORT, 1),
-    "reward_divergence": (sk.INFO_REWARD_DIVERGENCE, 1),
-    "observation_clipped": (sk.INFO_CLIPPED, 1),
-}
 
 
 class ContouringVectorEnv(VectorEnv):
@@ -220,11 +206,14 @@ class ContouringVectorEnv(VectorEnv):
     def _info(self, valid: np.ndarray) -> dict:
         b = self._buffers
         info: dict[str, Any] = {}
-        for key, (col, width) in _INFO_FIELDS.items():
+        for key, (col, width) in sk.INFO_FIELDS.items():
             info[key] = b.info[:, col].copy() if width == 1 else b.info[:, col:col + width].copy()
             info["_" + key] = valid.copy()
         info["diverged"] = b.flags[:, sk.FLAG_DIVERGED].copy()
         info["_diverged"] = valid.copy()
+        info["completed"] = b.flags[:, sk.FLAG_COMPLETED].copy()
+        info["_completed"] = valid.copy()
+        info["_cycle_time"] = valid & info["completed"]  # only once the tool has arrived
         info["time"] = b.k * self.task.dt
         info["_time"] = valid.copy()
         return info

@@ -30,6 +30,8 @@ FIELD_NAMES = (
     "normal_error",
     "velocity",
     "preview",
+    "contour_preview",
+    "contour_curvature",
     "previous_action",
 )
 
@@ -58,6 +60,10 @@ class ObservationLayout:
     preview_steps : tuple of int
         Offsets, in control periods, of the upcoming reference points given
         relative to the tool (the "preview" field).
+    contour_ahead : tuple of float
+        Arc lengths in mm beyond the tool's closest point at which the
+        contour itself is shown (the "contour_preview" and
+        "contour_curvature" fields); empty: no such fields (the v0 ids).
     position_bound : float
         Bound in mm on every absolute and relative position field.
     velocity_bound, acceleration_bound, error_bound : float
@@ -66,10 +72,12 @@ class ObservationLayout:
     """
 
     preview_steps: tuple[int, ...] = (10, 50, 100)
+    contour_ahead: tuple[float, ...] = ()
     position_bound: float = 1000.0
     velocity_bound: float = 1000.0
     acceleration_bound: float = 1.0e6
     error_bound: float = 10.0
+    curvature_bound: float = 1.0e4
     fields: tuple[Field, ...] = field(init=False)
 
     def __post_init__(self):
@@ -84,6 +92,12 @@ class ObservationLayout:
             raise ValueError(f"preview_steps must be a non-empty tuple of integers >= 1 (control periods), "
                              f"got {steps!r}")
         object.__setattr__(self, "preview_steps", tuple(int(s) for s in steps))
+        ahead = self.contour_ahead
+        if (not isinstance(ahead, tuple)
+                or not all(isinstance(a, (int, float, np.integer, np.floating)) and not isinstance(a, bool)
+                           and np.isfinite(a) and a > 0 for a in ahead)):
+            raise ValueError(f"contour_ahead must be a tuple of positive finite arc lengths in mm, got {ahead!r}")
+        object.__setattr__(self, "contour_ahead", tuple(float(a) for a in ahead))
         by_name = {
             "reference_position": Field("reference_position", 2, "mm", pb, "reference point x_d (x, y)"),
             "reference_velocity": Field("reference_velocity", 2, "mm/s", vb, "reference velocity dx_d/dt"),
@@ -98,6 +112,12 @@ class ObservationLayout:
             "preview": Field("preview", 2 * len(self.preview_steps), "mm", pb,
                              f"reference points {list(self.preview_steps)} control periods ahead, "
                              f"minus the tool position"),
+            "contour_preview": Field("contour_preview", 2 * len(self.contour_ahead), "mm", pb,
+                                     f"contour points {list(self.contour_ahead)} mm of arc beyond the tool's "
+                                     f"closest point, minus the tool position, along the contour's tangent and "
+                                     f"normal there"),
+            "contour_curvature": Field("contour_curvature", len(self.contour_ahead), "1/mm", self.curvature_bound,
+                                       "signed curvature of the contour at those points (positive: turning left)"),
             "previous_action": Field("previous_action", 2, "1", 1.0, "last normalised action in [-1, 1]"),
         }
         object.__setattr__(self, "fields", tuple(by_name[n] for n in FIELD_NAMES))
@@ -166,6 +186,15 @@ class ObservationLayout:
         """Upcoming reference points minus the tool position in mm, (..., n_preview, 2)."""
         p = self.get(obs, "preview")
         return p.reshape(p.shape[:-1] + (len(self.preview_steps), 2))
+
+    def contour_preview(self, obs):
+        """Contour points ahead in the tool's frame (along, across the contour) in mm, (..., n_ahead, 2)."""
+        p = self.get(obs, "contour_preview")
+        return p.reshape(p.shape[:-1] + (len(self.contour_ahead), 2))
+
+    def contour_curvature(self, obs):
+        """Signed curvature of the contour at the points ahead in 1/mm, (..., n_ahead)."""
+        return self.get(obs, "contour_curvature")
 
     def previous_action(self, obs):
         """The previous normalised action, (..., 2)."""

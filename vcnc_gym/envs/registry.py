@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["SuiteEnv", "SUITE", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "register_envs", "suite_env"]
+__all__ = ["SuiteEnv", "SUITE", "LEGACY", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "register_envs", "suite_env"]
 
 _CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
 _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
@@ -35,28 +35,46 @@ class SuiteEnv:
         return self.entry_point == _CONTOURING
 
 
-#: Every env id of the suite.
+#: The circle of seed 003 is 1 mm across and driven at 1 mm/s: its contour is
+#: shown 50-400 um ahead, arrives within 2 um (twice its sensor's 1 um) and is
+#: given 1 s after the reference's end.
+_CIRCLE = {"contour": "circle", "plant": "nct_xy_table", "profile": "constant", "feedrate": 1.0, "dt": 1e-3,
+           "reward_scale": 1e-3, "tracking_bound": 0.5, "divergence_bound": 0.5}
+_CIRCLE_V1 = {"contour_ahead": (0.05, 0.1, 0.2, 0.4), "completion_tolerance": 0.002, "completion_timeout": 1.0}
+
+#: Every current env id of the suite (the contouring ids at v1: see ContouringEnv's Version History).
 SUITE: tuple[SuiteEnv, ...] = (
-    SuiteEnv("VCNC-Heart-v0", {"contour": "heart", "plant": "vcnc_feed_drive"},
+    SuiteEnv("VCNC-Heart-v1", {"contour": "heart", "plant": "vcnc_feed_drive"},
              "seed 000 'heart' (cubic NURBS, 310 mm) at 100 mm/s on seed 000's feed drives"),
-    SuiteEnv("VCNC-Omega-v0", {"contour": "omega", "plant": "vcnc_feed_drive"},
+    SuiteEnv("VCNC-Omega-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
              "seed 000 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on seed 000's feed drives"),
-    SuiteEnv("VCNC-Corners-v0",
+    SuiteEnv("VCNC-Corners-v1",
              {"contour": "corners", "plant": "current_feed_drive", "profile": "constant", "feedrate": 50.0},
              "seed 002 test path (corners of 30, 60, 90 deg, sharp) at a constant 50 mm/s on seed 002's drives"),
-    SuiteEnv("VCNC-CornersSmooth-v0",
+    SuiteEnv("VCNC-CornersSmooth-v1",
              {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0},
              "seed 002 test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s"),
-    SuiteEnv("VCNC-Circle-v0",
-             {"contour": "circle", "plant": "nct_xy_table", "profile": "constant", "feedrate": 1.0, "dt": 1e-3,
-              "reward_scale": 1e-3, "tracking_bound": 0.5, "divergence_bound": 0.5},
+    SuiteEnv("VCNC-Circle-v1", {**_CIRCLE, **_CIRCLE_V1},
              "seed 003 circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on seed 003's NCT-identified X-Y table"),
     SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
              "seed 001 step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
              entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
 )
 
-#: The registered ids, in the order of :data:`SUITE`.
+#: What made a contouring id v0: its episode ended 10 ms after the reference's
+#: end, and its observation had no contour preview.
+_V0 = {"episode_end": "reference", "contour_ahead": ()}
+
+#: The v0 contouring ids, still registered so that agents trained on them keep
+#: running (``agents/trained``); ``vcnc-bench`` runs the current ids.
+LEGACY: tuple[SuiteEnv, ...] = tuple(
+    SuiteEnv(e.id.replace("-v1", "-v0"),
+             {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
+             e.summary + " (v0: ends with the reference, no contour preview)")
+    for e in SUITE if e.contouring
+)
+
+#: The current ids, in the order of :data:`SUITE`.
 ENV_IDS: tuple[str, ...] = tuple(e.id for e in SUITE)
 
 #: The contour-following ids (ContouringEnv), a subset of :data:`ENV_IDS`.
@@ -67,16 +85,16 @@ VECTOR_IDS: tuple[str, ...] = tuple(e.id for e in SUITE if e.vector_entry_point 
 
 
 def suite_env(env_id: str) -> SuiteEnv:
-    """The :class:`SuiteEnv` of ``env_id``; ValueError naming the valid ids otherwise."""
-    for e in SUITE:
+    """The :class:`SuiteEnv` of ``env_id`` (current or :data:`LEGACY`); ValueError naming the valid ids otherwise."""
+    for e in SUITE + LEGACY:
         if e.id == env_id:
             return e
     raise ValueError(f"unknown env id {env_id!r}; valid ids are {', '.join(ENV_IDS)}")
 
 
 def register_envs() -> None:
-    """Register every id of :data:`SUITE` (once)."""
-    for e in SUITE:
+    """Register every id of :data:`SUITE` and :data:`LEGACY` (once)."""
+    for e in SUITE + LEGACY:
         if e.id not in registry:
             register(id=e.id, entry_point=e.entry_point, vector_entry_point=e.vector_entry_point,
                      kwargs=dict(e.kwargs))

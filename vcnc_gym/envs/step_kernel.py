@@ -50,7 +50,10 @@ REF_POSITION = 0  # x_d (2) mm
 REF_VELOCITY = 2  # dx_d/dt (2) mm/s
 REF_ACCELERATION = 4  # d2x_d/dt2 (2) mm/s^2
 REF_TANGENT = 6  # unit path tangent at x_d (2)
-REF_COLUMNS = 8
+REF_U = 8  # curve parameter u of x_d (non-decreasing)
+REF_ARC = 9  # arc length from the start of the contour to x_d, mm (non-decreasing)
+REF_CURVATURE = 10  # signed curvature of the contour at x_d, 1/mm (positive: turning left)
+REF_COLUMNS = 11
 
 # envs of a parallel step are cut in this many chunks (each unpacks the StepData once),
 # enough to balance a few threads
@@ -74,18 +77,49 @@ INFO_REWARD_EFFORT = 12
 INFO_REWARD_DIVERGENCE = 13
 INFO_CLIPPED = 14  # number of observation entries clipped to the space's bounds
 INFO_MEASURED_POSITION = 15  # (2) mm, the position sensor's reading (what the observation is computed from)
-INFO_SIZE = 17
+INFO_PROGRESS = 17  # mm, arc length of the contour the tool has passed (its closest point's, never decreasing)
+INFO_CYCLE_TIME = 18  # s, time at which the tool reached the end of the contour; NaN before
+INFO_REWARD_INCOMPLETE = 19
+INFO_SIZE = 20
+
+#: The info keys of a step, read from the kernel's info row: key -> (first column, columns).  Besides
+#: these, an env's step info has "diverged", "completed" (flags) and "time" (s); "cycle_time" is there only
+#: once the tool has arrived (completed).
+INFO_FIELDS = {
+    "contour_error": (INFO_CONTOUR_ERROR, 1),
+    "contour_error_mean": (INFO_CONTOUR_ERROR_MEAN, 1),
+    "contour_error_max": (INFO_CONTOUR_ERROR_MAX, 1),
+    "position": (INFO_POSITION, 2),
+    "measured_position": (INFO_MEASURED_POSITION, 2),
+    "reference_position": (INFO_REFERENCE_POSITION, 2),
+    "tracking_error": (INFO_TRACKING_ERROR, 2),
+    "command": (INFO_COMMAND, 2),
+    "progress": (INFO_PROGRESS, 1),
+    "cycle_time": (INFO_CYCLE_TIME, 1),
+    "reward_contour": (INFO_REWARD_CONTOUR, 1),
+    "reward_effort": (INFO_REWARD_EFFORT, 1),
+    "reward_divergence": (INFO_REWARD_DIVERGENCE, 1),
+    "reward_incomplete": (INFO_REWARD_INCOMPLETE, 1),
+    "observation_clipped": (INFO_CLIPPED, 1),
+}
 
 # flags of buffers.flags (N, FLAG_SIZE), bool
 FLAG_TERMINATED = 0
 FLAG_TRUNCATED = 1
 FLAG_DIVERGED = 2
-FLAG_SIZE = 3
+FLAG_COMPLETED = 3  # the tool has reached the end of the contour
+FLAG_SIZE = 4
+
+# how an episode ends, StepConfig.episode_end
+END_REFERENCE = 0  # once the reference has reached the end plus a settling time (the v0 ids)
+END_TOOL = 1  # once the tool has reached the end, or at the completion time limit (the v1 ids)
 
 #: The packed reference, shared by every env: ``samples`` (K, REF_COLUMNS)
-#: float64 (x_d, dx_d/dt, d2x_d/dt2, unit tangent; past the end the last
-#: sample holds) and ``preview_steps`` (n,) int64, offsets in control periods.
-ReferenceArrays = namedtuple("ReferenceArrays", ["samples", "preview_steps"])
+#: float64 (x_d, dx_d/dt, d2x_d/dt2, unit tangent, u, arc length, signed
+#: curvature; past the end the last sample holds), ``preview_steps`` (n,)
+#: int64, offsets in control periods, and ``contour_ahead`` (m,) float64,
+#: arc lengths in mm ahead of the tool's closest point.
+ReferenceArrays = namedtuple("ReferenceArrays", ["samples", "preview_steps", "contour_ahead"])
 
 #: The contour for the exact contour error: the NURBS arrays
 #: (:attr:`NurbsCurve.kernel_args`) and the projector's grid
@@ -97,25 +131,32 @@ ContourArrays = namedtuple("ContourArrays", [
 
 #: The scalars of a task: ``n_repeat`` control periods per decision;
 #: ``reward_scale`` mm; ``effort_weight``; ``divergence_bound`` and
-#: ``tracking_bound`` mm; ``end_index`` (the control period at which the
-#: episode ends); ``episode_steps`` (its natural length in decisions);
-#: ``max_steps`` (decisions after which it is truncated).
+#: ``tracking_bound`` mm; ``episode_end`` (END_REFERENCE or END_TOOL);
+#: ``end_index`` (the control period at which the episode ends: END_REFERENCE's
+#: end, END_TOOL's completion time limit); ``episode_steps`` (its natural
+#: length in decisions); ``max_steps`` (decisions after which it is
+#: truncated); ``completion_tolerance`` (mm of contour left at which the tool
+#: has reached the end); ``progress_window`` (mm: the farthest the tool's
+#: progress may jump ahead in one control period, so that a closest point on
+#: another branch of the contour is not taken for progress); ``dt`` (s).
 StepConfig = namedtuple("StepConfig", [
     "n_repeat", "reward_scale", "effort_weight", "divergence_bound", "tracking_bound",
-    "end_index", "episode_steps", "max_steps",
+    "episode_end", "end_index", "episode_steps", "max_steps", "completion_tolerance", "progress_window", "dt",
 ])
 
 #: Per-env arrays, first axis N: inputs ``mode`` (int8) and ``action``
 #: (N, 2) float64, normalised; memory ``k`` (control periods done),
 #: ``steps`` (decisions done), ``foot`` (the closest point's curve parameter
 #: of the last control period, the next search's warm start; NaN = none),
-#: ``input_limit`` (N, 2) in the plant's unit, ``previous_action`` (N, 2);
+#: ``input_limit`` (N, 2) in the plant's unit, ``previous_action`` (N, 2),
+#: ``progress`` (the reference sample at or before the tool's closest point,
+#: never decreasing), ``cycle_time`` (s, NaN until the tool reaches the end);
 #: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
 #: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
 #: float32; scratch ``sensed`` (N, SENSE_SIZE), ``der`` (N, 3, 2), ``work``
 #: (N, W).
 EnvBuffers = namedtuple("EnvBuffers", [
-    "mode", "action", "k", "steps", "foot", "input_limit", "previous_action",
+    "mode", "action", "k", "steps", "foot", "input_limit", "previous_action", "progress", "cycle_time",
     "obs", "reward", "flags", "info", "obs_high", "sensed", "der", "work",
 ])
 
@@ -186,6 +227,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
             c.grid_origin, c.cell_size, c.grid_shape, c.cell_start, c.cell_pieces, b.der[i], b.work[i])
         err_sum += err
         err_max = max(err_max, err)
+        _advance_progress(samples, cfg, b, i)
     if n > 0:
         b.steps[i] += 1
 
@@ -213,6 +255,11 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     info[INFO_TRACKING_ERROR + 1] = yd - y
     info[INFO_MEASURED_POSITION] = xm
     info[INFO_MEASURED_POSITION + 1] = ym
+    p = b.progress[i]
+    remaining = max(0.0, samples[last, REF_ARC] - samples[p, REF_ARC])
+    info[INFO_PROGRESS] = samples[p, REF_ARC]
+    info[INFO_CYCLE_TIME] = b.cycle_time[i]
+    completed = np.isfinite(b.cycle_time[i])
     for j in range(2):
         command[j] = min(b.input_limit[i, j], max(-b.input_limit[i, j], command[j]))
 
@@ -223,6 +270,14 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     r_contour = 0.0
     r_effort = 0.0
     r_div = 0.0
+    r_incomplete = 0.0
+    if cfg.episode_end == END_TOOL:
+        out_of_time = k >= cfg.end_index and not completed
+        terminated = diverged or completed or out_of_time
+        if n > 0 and out_of_time and not diverged:
+            r_incomplete = -remaining / cfg.reward_scale
+    else:
+        terminated = diverged or k >= cfg.end_index
     if n > 0:
         r_contour = -min(err_sum / n, cfg.divergence_bound) / cfg.reward_scale
         r_effort = -cfg.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
@@ -234,11 +289,12 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     info[INFO_REWARD_CONTOUR] = r_contour
     info[INFO_REWARD_EFFORT] = r_effort
     info[INFO_REWARD_DIVERGENCE] = r_div
-    b.reward[i] = r_contour + r_effort + r_div
-    terminated = diverged or k >= cfg.end_index
+    info[INFO_REWARD_INCOMPLETE] = r_incomplete
+    b.reward[i] = r_contour + r_effort + r_div + r_incomplete
     flags[FLAG_TERMINATED] = terminated
     flags[FLAG_TRUNCATED] = (not terminated) and b.steps[i] >= cfg.max_steps
     flags[FLAG_DIVERGED] = diverged
+    flags[FLAG_COMPLETED] = completed
 
     # observation, field by field through the layout's named offsets
     obs = b.obs[i]
@@ -262,6 +318,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
         kp = min(kr + preview[j], last)
         obs[o.preview + 2 * j] = samples[kp, REF_POSITION] - xm
         obs[o.preview + 2 * j + 1] = samples[kp, REF_POSITION + 1] - ym
+    _contour_preview(samples, reference.contour_ahead, p, xm, ym, obs, o)
     clipped = 0
     high = b.obs_high
     for j in range(obs.shape[0]):
@@ -276,6 +333,62 @@ def _step_env(plant, reference, c, cfg, o, b, i):
             obs[j] = -high[j]
             clipped += 1
     info[INFO_CLIPPED] = clipped
+
+
+@njit(cache=True, _nrt=False)
+def _last_at_or_below(samples, column, value, lo):
+    """Largest q >= lo with ``samples[q, column] <= value`` (the column non-decreasing, ``samples[lo, column] <=
+    value``): bisection."""
+    hi = samples.shape[0] - 1
+    if samples[hi, column] <= value:
+        return hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if samples[mid, column] <= value:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, _nrt=False)
+def _advance_progress(samples, cfg, b, i):
+    """Move env ``i``'s progress to the reference sample at or before its closest point (never back, at most
+    ``progress_window`` mm at once), and time its arrival at the end of the contour: the first control period,
+    the reference's end or later, with at most ``completion_tolerance`` mm of contour left."""
+    p = b.progress[i]
+    foot = b.foot[i]
+    if foot > samples[p, REF_U]:
+        q = _last_at_or_below(samples, REF_U, foot, p)
+        if samples[q, REF_ARC] - samples[p, REF_ARC] <= cfg.progress_window:
+            b.progress[i] = q
+            p = q
+    last = samples.shape[0] - 1
+    if (np.isnan(b.cycle_time[i]) and b.k[i] >= last
+            and samples[last, REF_ARC] - samples[p, REF_ARC] <= cfg.completion_tolerance):
+        b.cycle_time[i] = b.k[i] * cfg.dt
+
+
+@njit(cache=True, _nrt=False)
+def _contour_preview(samples, ahead, p, xm, ym, obs, o):
+    """The contour ``ahead`` (mm of arc length) beyond sample ``p``, in the tool's frame: points relative to the
+    measured position (xm, ym) along the contour's tangent and normal at ``p``, and their signed curvature."""
+    last = samples.shape[0] - 1
+    tx = samples[p, REF_TANGENT]
+    ty = samples[p, REF_TANGENT + 1]
+    s0 = samples[p, REF_ARC]
+    for j in range(ahead.shape[0]):
+        s = s0 + ahead[j]
+        q = _last_at_or_below(samples, REF_ARC, s, p)
+        r = q + 1 if q < last else q
+        span = samples[r, REF_ARC] - samples[q, REF_ARC]
+        w = min(1.0, (s - samples[q, REF_ARC]) / span) if span > 0.0 else 0.0
+        px = samples[q, REF_POSITION] + w * (samples[r, REF_POSITION] - samples[q, REF_POSITION]) - xm
+        py = samples[q, REF_POSITION + 1] + w * (samples[r, REF_POSITION + 1] - samples[q, REF_POSITION + 1]) - ym
+        obs[o.contour_preview + 2 * j] = tx * px + ty * py
+        obs[o.contour_preview + 2 * j + 1] = -ty * px + tx * py
+        obs[o.contour_curvature + j] = samples[q, REF_CURVATURE] + w * (
+            samples[r, REF_CURVATURE] - samples[q, REF_CURVATURE])
 
 
 @njit(cache=True)

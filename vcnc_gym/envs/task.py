@@ -25,7 +25,8 @@ from . import step_kernel as sk
 from ..validation import flag, integer, non_negative, positive
 from .layout import ObservationLayout
 
-__all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "make_contour", "make_profile"]
+__all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EPISODE_ENDS", "make_contour", "make_profile",
+           "reference_samples"]
 
 #: The feedrate profiles of ``profile=``: seed 000's S-curve (``feedrate``,
 #: ``ramp_time``), a constant feed from t = 0 (seed 002's linear case, seed
@@ -34,6 +35,27 @@ PROFILES = ("scurve", "constant", "jlap")
 
 #: S-curve ramp time when ``ramp_time`` is not given, s (seed 000, section 3).
 DEFAULT_RAMP_TIME = 0.12
+
+#: How an episode ends (``episode_end=``): "tool" once the tool has reached the
+#: end of the contour, or at the completion time limit (the v1 ids);
+#: "reference" once the reference has reached it plus ``settling_time`` (v0).
+EPISODE_ENDS = {"reference": sk.END_REFERENCE, "tool": sk.END_TOOL}
+
+#: Defaults of the episode end (ours, measured in docs/reproduction.md, "Episode
+#: ends"): the settling time after the reference's end of v0, s; the
+#: completion tolerance, mm of contour still ahead of the tool's closest point
+#: when it counts as arrived, an in-position band: seed 000's QFT loop comes to
+#: rest 11 um short of the heart's end (friction and the 3 um backlash), the
+#: other baselines of seeds 000 and 002 within 2.5 um; the completion time
+#: limit after the reference's end, s (QFT arrives 38 ms after it).
+DEFAULT_SETTLING_TIME = 0.01
+DEFAULT_COMPLETION_TOLERANCE = 0.02
+DEFAULT_COMPLETION_TIMEOUT = 0.1
+
+#: Arc lengths ahead of the tool's closest point at which the observation shows
+#: the contour, mm: out to 4 mm, twice the ~1.9 mm that seed 000's drives need
+#: to brake from 100 mm/s (+-5 V, ~2.6e3 mm/s^2).
+DEFAULT_CONTOUR_AHEAD = (0.25, 0.5, 1.0, 2.0, 4.0)
 
 #: The keys ``reset(options=...)`` understands.
 RESET_OPTIONS = ("parameters",)
@@ -103,8 +125,12 @@ class ContouringTask:
         effort_weight: float = 0.0,
         divergence_bound: float = 5.0,
         tracking_bound: float = 10.0,
-        settling_time: float = 0.01,
+        settling_time: float | None = None,
         preview_steps=(10, 50, 100),
+        contour_ahead=DEFAULT_CONTOUR_AHEAD,
+        episode_end: str = "tool",
+        completion_tolerance: float = DEFAULT_COMPLETION_TOLERANCE,
+        completion_timeout: float = DEFAULT_COMPLETION_TIMEOUT,
         max_episode_steps: int | None = None,
         plant_options: dict | None = None,
     ):
@@ -124,9 +150,19 @@ class ContouringTask:
         self.effort_weight = non_negative("effort_weight", effort_weight, "1")
         self.divergence_bound = positive("divergence_bound", divergence_bound, "mm")
         self.tracking_bound = positive("tracking_bound", tracking_bound, "mm")
-        self.settling_time = non_negative("settling_time", settling_time, "s")
-        if isinstance(preview_steps, (list, np.ndarray)):
-            preview_steps = tuple(preview_steps.tolist() if isinstance(preview_steps, np.ndarray) else preview_steps)
+        if episode_end not in EPISODE_ENDS:
+            raise ValueError(f"episode_end must be one of {list(EPISODE_ENDS)}, got {episode_end!r}")
+        self.episode_end = episode_end
+        if episode_end == "tool" and settling_time is not None:
+            raise ValueError("settling_time (s) is the wait after the reference's end of episode_end='reference'; "
+                             "with episode_end='tool' the episode ends when the tool arrives (completion_timeout "
+                             "bounds the wait)")
+        self.settling_time = non_negative("settling_time", DEFAULT_SETTLING_TIME if settling_time is None
+                                          else settling_time, "s")
+        self.completion_tolerance = positive("completion_tolerance", completion_tolerance, "mm")
+        self.completion_timeout = non_negative("completion_timeout", completion_timeout, "s")
+        preview_steps = _as_tuple(preview_steps)
+        contour_ahead = _as_tuple(contour_ahead)
 
         # the plant's parameters
         self.nominal_parameters = self.plant.nominal()
@@ -138,33 +174,47 @@ class ContouringTask:
         # reference, computed once
         self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
-        samples = np.ascontiguousarray(np.hstack([
-            self.reference.position, self.reference.velocity, self.reference.acceleration, self.reference.tangent,
-        ]))
+        samples = reference_samples(self.curve, self.reference)
         self.projector = ContourProjector(self.curve, margin=min(max(10.0, 2 * self.divergence_bound),
                                                                  _GRID_MARGIN_MAX))
-        self.end_index = len(self.reference.t) - 1 + math.ceil(self.settling_time / self.dt - 1e-9)
+        reference_end = len(self.reference.t) - 1
+        wait = self.settling_time if episode_end == "reference" else self.completion_timeout
+        self.end_index = reference_end + math.ceil(wait / self.dt - 1e-9)
+        """The control period at which the episode ends ("reference") or runs out of time ("tool")."""
         if self.action_repeat > self.end_index:
             raise ValueError(f"action_repeat={self.action_repeat} control periods is longer than the whole "
                              f"episode ({self.end_index} periods of {self.dt:g} s)")
-        self.episode_steps = math.ceil(self.end_index / self.action_repeat)
-        """Natural episode length in decision steps (without divergence)."""
-        self.max_episode_steps = (self.episode_steps if max_episode_steps is None
+        self.episode_steps = math.ceil((self.end_index if episode_end == "reference" else reference_end)
+                                       / self.action_repeat)
+        """Natural episode length in decision steps (without divergence): "reference", to its end; "tool", to
+        the reference's end (a tool that keeps up arrives within a few steps of it)."""
+        self.time_limit_steps = math.ceil(self.end_index / self.action_repeat)
+        """The most decision steps an episode can take (the completion time limit, or the end)."""
+        self.max_episode_steps = (self.time_limit_steps if max_episode_steps is None
                                   else integer("max_episode_steps", max_episode_steps, 1))
 
         # observation
         extent = float(np.max(np.abs(self.reference.position)))
         self.layout = ObservationLayout(
             preview_steps=preview_steps,
+            contour_ahead=contour_ahead,
             position_bound=max(_POSITION_BOUND, extent + self.tracking_bound + _POSITION_MARGIN),
         )
-        self.reference_arrays = sk.ReferenceArrays(samples, np.array(self.layout.preview_steps, dtype=np.int64))
+        self.reference_arrays = sk.ReferenceArrays(samples, np.array(self.layout.preview_steps, dtype=np.int64),
+                                                   np.array(self.layout.contour_ahead, dtype=np.float64))
         self.contour_arrays = sk.ContourArrays(*self.curve.kernel_args, *self.projector.arrays)
         self.config = sk.StepConfig(
             n_repeat=self.action_repeat, reward_scale=self.reward_scale, effort_weight=self.effort_weight,
             divergence_bound=self.divergence_bound, tracking_bound=self.tracking_bound,
-            end_index=self.end_index, episode_steps=self.episode_steps, max_steps=self.max_episode_steps,
+            episode_end=EPISODE_ENDS[episode_end], end_index=self.end_index, episode_steps=self.episode_steps,
+            max_steps=self.max_episode_steps, completion_tolerance=self.completion_tolerance,
+            progress_window=self.tracking_bound, dt=self.dt,
         )
+
+    @property
+    def contour_length(self) -> float:
+        """Arc length of the contour, mm (as the reference's samples measure it: the progress' scale)."""
+        return float(self.reference_arrays.samples[-1, sk.REF_ARC])
 
     @property
     def decision_period(self) -> float:
@@ -195,6 +245,28 @@ class ContouringTask:
         return self.nominal_parameters
 
 
+def _as_tuple(values):
+    """A list or array argument as a tuple (the layout checks the entries)."""
+    if isinstance(values, np.ndarray):
+        return tuple(values.tolist())
+    return tuple(values) if isinstance(values, list) else values
+
+
+def reference_samples(curve: NurbsCurve, reference) -> np.ndarray:
+    """The reference packed for the step kernel, (K, REF_COLUMNS): x_d, dx_d/dt, d2x_d/dt2, unit tangent, u,
+    arc length (the cumulative chord of the samples, mm: short of the arc by sum kappa^2 c^3 / 24, below 1e-6 mm
+    on the suite's contours) and signed curvature (x' y'' - y' x'') / |C'|^3 in 1/mm at u."""
+    der = curve.derivatives_array(reference.u, 2)
+    d1, d2 = der[:, 1], der[:, 2]
+    speed = np.hypot(d1[:, 0], d1[:, 1])
+    curvature = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed ** 3
+    arc = np.concatenate([[0.0], np.cumsum(reference.chord_lengths)])
+    return np.ascontiguousarray(np.column_stack([
+        reference.position, reference.velocity, reference.acceleration, reference.tangent, reference.u, arc,
+        curvature,
+    ]))
+
+
 class ContouringBatch:
     """The arrays of ``n_envs`` envs running one :class:`ContouringTask`, and the kernel call.
 
@@ -219,6 +291,8 @@ class ContouringBatch:
             foot=np.full(n, np.nan),
             input_limit=np.zeros((n, 2)),
             previous_action=np.zeros((n, 2)),
+            progress=np.zeros(n, dtype=np.int64),
+            cycle_time=np.full(n, np.nan),
             obs=np.zeros((n, layout.size), dtype=np.float32),
             reward=np.zeros(n),
             flags=np.zeros((n, sk.FLAG_SIZE), dtype=np.bool_),
@@ -242,6 +316,8 @@ class ContouringBatch:
         b.steps[i] = 0
         b.foot[i] = np.nan  # no previous foot: a global search
         b.previous_action[i] = 0.0
+        b.progress[i] = 0
+        b.cycle_time[i] = np.nan
         b.action[i] = 0.0
         b.mode[i] = sk.MODE_OBSERVE
 
