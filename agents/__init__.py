@@ -27,9 +27,9 @@ from .normalization import NormalizationStats
 from .policy import AgentPolicy, env_signature, load_agent
 from .training import RunWarning, TrainingResult, train
 
-#: Env id -> folder of the agent shipped for it.
-TRAINED = {env_id: Path(__file__).parent / "trained" / env_id
-           for env_id in ("VCNC-Heart-v0", "VCNC-Omega-v0", "VCNC-Corners-v0", "VCNC-CornersSmooth-v0")}
+#: Env id -> folder of the agent shipped for it (every folder of ``agents/trained`` named by an id).
+TRAINED = {folder.name: folder for folder in sorted((Path(__file__).parent / "trained").iterdir())
+           if folder.is_dir() and folder.name.startswith("VCNC-")}
 
 __all__ = ["train", "TrainingResult", "RunWarning", "load_agent", "AgentPolicy", "env_signature",
            "NormalizationStats", "ActionMode", "ResidualAction", "ACTION_MODES", "TRAINED"]

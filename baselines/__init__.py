@@ -13,7 +13,7 @@ The three controllers seed 000 compares (Jahanpour et al., 2014):
 Example
 -------
 >>> import gymnasium as gym, vcnc_gym, baselines
->>> env = gym.make("VCNC-Omega-v0")
+>>> env = gym.make("VCNC-Omega-v1")
 >>> policy = baselines.make("qft", env)
 >>> obs, info = env.reset()
 >>> action, _ = policy.predict(obs, episode_start=True)

@@ -82,14 +82,14 @@ def _seed002(ctx) -> list[str]:
                 ratio = res[ilc].max_contour_error_um / fb[e]
                 ref = f" ({paper / paper_fb:.2f})" if paper and paper_fb else ""
                 lines.append(f"  {e}: {ilc} (last trial) / contouring-fb = {ratio:.2f}{ref}")
-    if "VCNC-Corners-v0" in fb and "VCNC-CornersSmooth-v0" in fb:
-        paper = PAPER_SEED_002[("VCNC-CornersSmooth-v0", "contouring-fb")]["max_contour_error_um"] / \
-            PAPER_SEED_002[("VCNC-Corners-v0", "contouring-fb")]["max_contour_error_um"]
+    if "VCNC-Corners-v1" in fb and "VCNC-CornersSmooth-v1" in fb:
+        paper = PAPER_SEED_002[("VCNC-CornersSmooth-v1", "contouring-fb")]["max_contour_error_um"] / \
+            PAPER_SEED_002[("VCNC-Corners-v1", "contouring-fb")]["max_contour_error_um"]
         lines.append(f"  contouring-fb, smoothed / linear path = "
-                     f"{fb['VCNC-CornersSmooth-v0'] / fb['VCNC-Corners-v0']:.3f} ({paper:.2f})")
+                     f"{fb['VCNC-CornersSmooth-v1'] / fb['VCNC-Corners-v1']:.3f} ({paper:.2f})")
     durations = {e: ctx.envs[e].unwrapped.reference.duration for e in ran}
-    if "VCNC-Corners-v0" in durations and "VCNC-CornersSmooth-v0" in durations:
-        lin, smooth = durations["VCNC-Corners-v0"], durations["VCNC-CornersSmooth-v0"]
+    if "VCNC-Corners-v1" in durations and "VCNC-CornersSmooth-v1" in durations:
+        lin, smooth = durations["VCNC-Corners-v1"], durations["VCNC-CornersSmooth-v1"]
         lines.append(f"  cycle time (reference): linear {lin:.4f} s, smoothed {smooth:.4f} s: "
                      f"{100 * (smooth / lin - 1):+.2f} % "
                      f"(paper's experiment {PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT:+.2f} %)")

@@ -25,7 +25,7 @@ What is here
     is the first :data:`DEFAULT_TRANSIENT` s (our choice).
 :func:`run_circle`
     One pass of any SB3-style policy around the circle: an episode of
-    ``VCNC-Circle-v0`` (seed 003's table, its 1 um sensor, a constant feed
+    ``VCNC-Circle-v1`` (seed 003's table, its 1 um sensor, a constant feed
     R omega from t = 0) through the one evaluation loop.
 :func:`circle_reference`
     The exact sine/cosine reference, x = R sin(omega t), y = R cos(omega t),
@@ -247,7 +247,7 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
 
 def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
                **env_kwargs):
-    """One pass of ``policy`` around the sine/cosine circle: an episode of ``VCNC-Circle-v0``.
+    """One pass of ``policy`` around the sine/cosine circle: an episode of ``VCNC-Circle-v1``.
 
     The env of the registered id, with another radius (mm), frequency
     (rad/s: feed ``radius * omega`` mm/s from t = 0) or control period (s) if
@@ -265,7 +265,7 @@ def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OM
 
     radius = positive("radius", radius, "mm")
     omega = positive("omega", omega, "rad/s")
-    env = gym.make("VCNC-Circle-v0", contour=circle(radius), feedrate=radius * omega, dt=dt, **env_kwargs)
+    env = gym.make("VCNC-Circle-v1", contour=circle(radius), feedrate=radius * omega, dt=dt, **env_kwargs)
     try:
         return run_episode(policy, env, seed=0)
     finally:

@@ -90,7 +90,7 @@ Running K trials::
 
     import gymnasium as gym, vcnc_gym, baselines
     from baselines.ilc import run_trials
-    env = gym.make("VCNC-CornersSmooth-v0")
+    env = gym.make("VCNC-CornersSmooth-v1")
     policy = baselines.make("ilc", env)             # or "ilc-q" (20 Hz low-pass Q)
     results = run_trials(policy, env, 10)          # ten EpisodeResults, trial 1 first
     [r.max_contour_error_um for r in results]

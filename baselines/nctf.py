@@ -700,6 +700,6 @@ def main(argv=None) -> int:
               f"alpha {alpha:.4f}; h_s-res {c.h_s_res:.4g} mm/s, u_i-max {c.u_i_max:.4g}, "
               f"u_i-s-res {c.u_i_s_res:.4g} mm^2/s")
     run = cr.run_circle(policy, omega=args.omega, dt=args.dt)
-    print("\n".join(cr.bench_report({"nctf": run}, f"VCNC-Circle-v0, R = 1 mm, omega = {args.omega:g} rad/s",
+    print("\n".join(cr.bench_report({"nctf": run}, f"VCNC-Circle-v1, R = 1 mm, omega = {args.omega:g} rad/s",
                                     plot_path=args.plot)))
     return 0

@@ -3,7 +3,7 @@
 Run: ``python benchmarks/kill_and_resume.py`` (``--workdir DIR`` to keep the
 run folder, ``--mode residual`` for evaluations with finite scores and a best/).
 
-1. ``vcnc-train`` starts a small run on VCNC-Omega-v0 in a subprocess (a tiny
+1. ``vcnc-train`` starts a small run on VCNC-Omega-v1 in a subprocess (a tiny
    network, ``n_steps`` 128 x 2 envs = 256 agent steps per rollout,
    a checkpoint every 512 steps, an evaluation every 768);
 2. once a checkpoint at 1024 steps or more exists and an episode has been
@@ -40,7 +40,7 @@ import time
 from pathlib import Path
 
 _CONFIG = """\
-VCNC-Omega-v0:
+VCNC-Omega-v1:
   n_envs: 2
   n_timesteps: 4096
   policy: MlpPolicy
@@ -60,7 +60,7 @@ _MODES = {
 
 
 def write_config(folder: Path, mode: str = "direct") -> Path:
-    """A tiny hyperparameter file for VCNC-Omega-v0 in ``folder``."""
+    """A tiny hyperparameter file for VCNC-Omega-v1 in ``folder``."""
     path = folder / "tiny.yml"
     path.write_text(_CONFIG.format(mode=_MODES[mode]))
     return path
@@ -119,7 +119,7 @@ def kill_and_resume(workdir: Path, *, mode: str = "direct", timesteps: int = 819
     run_dir = workdir / "run"
     config = write_config(workdir, mode)
     common = ["--checkpoint-freq", "512", "--eval-freq", "768"]
-    first = subprocess.Popen(_command("--env", "VCNC-Omega-v0", "--config", str(config), "--output", str(run_dir),
+    first = subprocess.Popen(_command("--env", "VCNC-Omega-v1", "--config", str(config), "--output", str(run_dir),
                                       "--timesteps", str(timesteps), *common),
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + timeout

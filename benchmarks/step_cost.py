@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/step_cost.py`` (``--steps N`` to change the count).
 
-1. Steps ``gym.make("CartPole-v1")`` and ``gym.make("VCNC-Heart-v0")`` (both
+1. Steps ``gym.make("CartPole-v1")`` and ``gym.make("VCNC-Heart-v1")`` (both
    with the wrappers gym.make adds) in the same process and prints the cost
    per step and the ratio.  The VCNC env replays the commands of a PD
    controller recorded beforehand, so it follows the contour for real (plant
@@ -25,14 +25,14 @@ import time
 import numpy as np
 
 #: The envs timed: seed 000's, whose PD gains (V/mm) below fit their plant.
-ENV_IDS = ("VCNC-Heart-v0", "VCNC-Omega-v0")
+ENV_IDS = ("VCNC-Heart-v1", "VCNC-Omega-v1")
 
 START_UP = """
 import time
 t0 = time.perf_counter()
 import gymnasium as gym
 import vcnc_gym
-env = gym.make("VCNC-Heart-v0")
+env = gym.make("VCNC-Heart-v1")
 env.reset(seed=0)
 env.step(env.action_space.sample())
 print(time.perf_counter() - t0)
@@ -103,7 +103,7 @@ def main(argv=None):
     for env_id, cost in rows:
         print(f"{env_id:<16} {cost * 1e6:9.2f} {cost / cart_cost:11.2f}")
     print(f"(best of {args.repeats} x {args.steps} steps, gym.make wrappers included; "
-          f"plant substeps per step: {gym.make('VCNC-Heart-v0').unwrapped._batch.plant_arrays.n_substeps})")
+          f"plant substeps per step: {gym.make('VCNC-Heart-v1').unwrapped._batch.plant_arrays.n_substeps})")
     if not args.no_start_up:
         cold, warm = start_up_times()
         print(f"import + make + reset + first step: cold numba cache {cold:.2f} s, warm cache {warm:.2f} s")

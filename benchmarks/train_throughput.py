@@ -14,7 +14,7 @@ from, so the comparison cannot silently run the new code twice), and
 removed at the end (``--keep-worktree`` keeps it; its numba cache lands in
 it).
 
-Both sides train PPO with the same settings: VCNC-Heart-v0's shipped entry
+Both sides train PPO with the same settings: VCNC-Heart-v1's shipped entry
 of ``agents/hyperparams/ppo.yml`` (residual over seed 000's sliding-mode
 controller, correction 0.2 x 5 V = 1 V, a decision every 10 control periods)
 given to both as the same file, the same agent steps, n_envs and seed, one
@@ -47,7 +47,7 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-ENV_ID = "VCNC-Heart-v0"
+ENV_ID = "VCNC-Heart-v1"
 BEFORE = "e9abf30"
 
 #: The child: imports agents and vcnc_gym from the code root given first on sys.path, warms up, trains, reports.
@@ -91,7 +91,7 @@ print(json.dumps({"agents": agents.__file__, "vcnc_gym": vcnc_gym.__file__, "ste
 
 
 def _heart_entry_file(folder: Path) -> Path:
-    """The working tree's VCNC-Heart-v0 entry alone, as a hyperparameter file both trainers read."""
+    """The working tree's VCNC-Heart-v1 entry alone, as a hyperparameter file both trainers read."""
     entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENV_ID]
     path = folder / "ppo_heart.yml"
     path.write_text(yaml.safe_dump({ENV_ID: entry}, sort_keys=False))

@@ -57,7 +57,7 @@ def main(argv=None) -> None:
     cores = numba.config.NUMBA_NUM_THREADS
     print(f"numba threads available: {cores}; PD controller on every env; env-steps/s of step() alone")
     print(f"{'env':15s} {'vector env':32s} {'env-steps/s':>12s} {'x Sync(8)':>10s}")
-    for env_id in ("VCNC-Heart-v0", "VCNC-Omega-v0"):
+    for env_id in ("VCNC-Heart-v1", "VCNC-Omega-v1"):
         sync = gym.make_vec(env_id, num_envs=8, vectorization_mode="sync")
         base = env_steps_per_second(sync, args.seconds)
         sync.close()

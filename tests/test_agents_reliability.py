@@ -5,7 +5,7 @@ run data".  The payloads below would create a marker file if unpickled; each
 test first shows that the plain unpickling path does run them (so the test
 can fail), then that our loaders refuse or ignore them.
 
-Training runs are tiny (VCNC-Omega-v0 in direct mode deciding every 40
+Training runs are tiny (VCNC-Omega-v1 in direct mode deciding every 40
 control periods, 161 decisions an episode; n_steps 128 x 2 envs = 256 agent
 steps per rollout, a 16-unit network) and shared through module fixtures.
 An untrained direct agent does not move the table, so its evaluations
@@ -46,13 +46,13 @@ from agents.model_file import PPO_DATA_KEYS, read_model_data
 from agents.normalization import NormalizationStats
 from agents.training import RunWarning, latest_checkpoint, prepare_run, scan_checkpoints
 
-OMEGA = "VCNC-Omega-v0"
-HEART = "VCNC-Heart-v0"
+OMEGA = "VCNC-Omega-v1"
+HEART = "VCNC-Heart-v1"
 ROOT = Path(__file__).resolve().parents[1]
 ROLLOUT = 256  # n_steps 128 x n_envs 2
 
 TINY = """\
-VCNC-Omega-v0:
+VCNC-Omega-v1:
   n_envs: 2
   n_timesteps: 1024
   policy: MlpPolicy

@@ -21,8 +21,8 @@ import pytest
 import baselines
 
 vcnc_gym = pytest.importorskip("vcnc_gym")
-if "VCNC-Heart-v0" not in gym.envs.registry:  # pragma: no cover
-    pytest.skip("vcnc_gym does not register VCNC-Heart-v0", allow_module_level=True)
+if "VCNC-Heart-v1" not in gym.envs.registry:  # pragma: no cover
+    pytest.skip("vcnc_gym does not register VCNC-Heart-v1", allow_module_level=True)
 
 from vcnc_gym.plants import vcnc_feed_drive as plant  # noqa: E402
 
@@ -62,7 +62,7 @@ def rollout(name, env_id, parameters=None, **env_kwargs):
 @pytest.mark.parametrize("name", ["qft", "smc", "fuzzy"])
 def test_heart_completes(name, plant_name, record_property):
     """Measured (um, nominal / vertex 0 / vertex 63): qft 203/203/203, smc 10/21/13, fuzzy 31/46/22."""
-    err_um, diverged, terminated, _ = rollout(name, "VCNC-Heart-v0", PLANTS[plant_name])
+    err_um, diverged, terminated, _ = rollout(name, "VCNC-Heart-v1", PLANTS[plant_name])
     record_property("max_contour_error_um", err_um)
     print(f"heart {name} {plant_name}: max contour error {err_um:.1f} um")
     assert terminated and not diverged
@@ -73,7 +73,7 @@ def test_heart_completes(name, plant_name, record_property):
 @pytest.mark.parametrize("name", ["qft", "smc", "fuzzy"])
 def test_omega_completes(name, plant_name, record_property):
     """At 100 mm/s the omega's corners saturate every controller; it must still finish."""
-    err_um, diverged, terminated, _ = rollout(name, "VCNC-Omega-v0", PLANTS[plant_name])
+    err_um, diverged, terminated, _ = rollout(name, "VCNC-Omega-v1", PLANTS[plant_name])
     record_property("max_contour_error_um", err_um)
     print(f"omega {name} {plant_name}: max contour error {err_um:.1f} um")
     assert terminated and not diverged
@@ -82,9 +82,9 @@ def test_omega_completes(name, plant_name, record_property):
 @pytest.mark.parametrize("name", ["qft", "smc", "fuzzy"])
 def test_omega_at_a_feasible_feedrate(name, record_property):
     """Measured at 20 mm/s (um): qft 132, smc 11, fuzzy 26."""
-    env_id = "VCNC-Omega-v0"
-    steps = gym.make(env_id, feedrate=20.0).unwrapped.episode_steps
-    err_um, diverged, terminated, _ = rollout(name, env_id, feedrate=20.0, max_episode_steps=steps + 10)
+    env_id = "VCNC-Omega-v1"
+    steps = gym.make(env_id, feedrate=20.0).unwrapped.task.time_limit_steps
+    err_um, diverged, terminated, _ = rollout(name, env_id, feedrate=20.0, max_episode_steps=steps)
     record_property("max_contour_error_um", err_um)
     print(f"omega 20 mm/s {name}: max contour error {err_um:.1f} um")
     assert terminated and not diverged
@@ -97,7 +97,7 @@ def test_evaluate_policy_runs_and_resets_memory(name):
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.evaluation import evaluate_policy
 
-    vec = make_vec_env("VCNC-Omega-v0", n_envs=1, seed=0)
+    vec = make_vec_env("VCNC-Omega-v1", n_envs=1, seed=0)
     policy = baselines.make(name, vec)
     rewards, lengths = evaluate_policy(policy, vec, n_eval_episodes=2, deterministic=True,
                                        return_episode_rewards=True)
@@ -105,7 +105,7 @@ def test_evaluate_policy_runs_and_resets_memory(name):
     assert np.isfinite(rewards).all()
     assert rewards[0] == pytest.approx(rewards[1], rel=1e-12)
     # the same return as a hand-written rollout on a fresh env
-    env = gym.make("VCNC-Omega-v0")
+    env = gym.make("VCNC-Omega-v1")
     pol = baselines.make(name, env)
     obs, _ = env.reset(seed=0)
     total, start = 0.0, True
@@ -123,7 +123,7 @@ def test_evaluate_policy_batched_envs():
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.evaluation import evaluate_policy
 
-    vec = make_vec_env("VCNC-Omega-v0", n_envs=3, seed=0)
+    vec = make_vec_env("VCNC-Omega-v1", n_envs=3, seed=0)
     policy = baselines.make("fuzzy", vec)
     rewards, _ = evaluate_policy(policy, vec, n_eval_episodes=3, return_episode_rewards=True)
     assert len(rewards) == 3 and np.ptp(rewards) <= 1e-9 * abs(np.mean(rewards))
@@ -136,5 +136,5 @@ SEED_000 = [n for n in baselines.names() if "vcnc_feed_drive" in baselines.regis
 def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
     """All 64 corners of seed 000's box (the heart is run on vertices 0 and 63 above)."""
     for k, vertex in enumerate(VERTICES):
-        _, diverged, terminated, _ = rollout(name, "VCNC-Omega-v0", vertex)
+        _, diverged, terminated, _ = rollout(name, "VCNC-Omega-v1", vertex)
         assert terminated and not diverged, f"{name} on vertex {k}"

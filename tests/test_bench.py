@@ -15,7 +15,7 @@ import vcnc_bench as bench
 from vcnc_bench.policies import PolicyKind
 from vcnc_gym.evaluation import plot_contour_errors, plot_contours, run_episode, sharp_corners
 
-OMEGA = "VCNC-Omega-v0"
+OMEGA = "VCNC-Omega-v1"
 
 
 class PDPolicy:
@@ -204,10 +204,10 @@ def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path
 
 
 def test_paper_table_covers_every_env_and_baseline():
-    seed_000 = ("VCNC-Heart-v0", "VCNC-Omega-v0")
+    seed_000 = ("VCNC-Heart-v1", "VCNC-Omega-v1")
     assert set(bench.PAPER_TABLE_4) == {(e, p) for e in seed_000 for p in ("qft", "smc", "fuzzy")}
-    assert bench.PAPER_TABLE_4[("VCNC-Heart-v0", "qft")]["max_contour_error_um"] == 10.14
-    assert bench.PAPER_TABLE_4[("VCNC-Omega-v0", "fuzzy")]["max_contour_error_um"] == 44.19
+    assert bench.PAPER_TABLE_4[("VCNC-Heart-v1", "qft")]["max_contour_error_um"] == 10.14
+    assert bench.PAPER_TABLE_4[("VCNC-Omega-v1", "fuzzy")]["max_contour_error_um"] == 44.19
     baselines = pytest.importorskip("baselines")
     assert {p for _, p in bench.PAPER_TABLE_4} <= set(baselines.names())
 
@@ -247,10 +247,10 @@ def test_unknown_env_or_policy_exits_2_naming_the_valid_choices(argv, must_name,
 
 def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, capsys):
     out = tmp_path / "slow.json"
-    assert bench.main(["--env", "VCNC-Omega-v0", "--policy", "smc", "--feedrate", "20",
+    assert bench.main(["--env", "VCNC-Omega-v1", "--policy", "smc", "--feedrate", "20",
                        "--no-progress", "--json", str(out)]) == 0
     (record,) = json.loads(out.read_text())
     assert record["paper_max_contour_error_um"] is None
-    assert record["episode_steps"] == gym.make("VCNC-Omega-v0", feedrate=20.0).unwrapped.episode_steps
+    assert record["episode_steps"] == gym.make("VCNC-Omega-v1", feedrate=20.0).unwrapped.episode_steps
     assert not record["diverged"] and record["max_contour_error_um"] < 50.0  # feasible at 20 mm/s
     assert "at 20 mm/s" in capsys.readouterr().out

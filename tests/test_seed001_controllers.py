@@ -125,7 +125,7 @@ def test_policy_runs_the_discretised_controller(env, name):
 
 
 def test_policies_refuse_other_envs_and_plants():
-    contouring = gym.make("VCNC-Omega-v0")
+    contouring = gym.make("VCNC-Omega-v1")
     try:
         with pytest.raises(ValueError, match="designed for the plant"):
             baselines.make("pi", contouring)

@@ -109,10 +109,10 @@ def test_closed_loop_without_control_stays_at_the_start():
 
 
 def test_the_env_reference_is_the_sine_and_cosine():
-    """VCNC-Circle-v0's interpolated reference (constant feed on the NURBS circle) is x = R sin t, y = R cos t."""
+    """VCNC-Circle-v1's interpolated reference (constant feed on the NURBS circle) is x = R sin t, y = R cos t."""
     import gymnasium as gym
 
-    ref = gym.make("VCNC-Circle-v0").unwrapped.reference
+    ref = gym.make("VCNC-Circle-v1").unwrapped.reference
     t, exact, _, _ = cr.circle_reference(dt=1e-3)
     n = min(len(t), len(ref.t)) - 1
     np.testing.assert_allclose(ref.t[:n], t[:n], atol=1e-12)
@@ -138,8 +138,8 @@ def test_bench_report_lines_and_plot(tmp_path):
     from types import SimpleNamespace
 
     run = SimpleNamespace(time=t, position=ref * 1.002, reference_position=ref)
-    lines = cr.bench_report({"a": run}, "VCNC-Circle-v0", plot_path=tmp_path / "c.png")
+    lines = cr.bench_report({"a": run}, "VCNC-Circle-v1", plot_path=tmp_path / "c.png")
     text = "\n".join(lines)
-    assert "VCNC-Circle-v0" in text and "a:" in text
+    assert "VCNC-Circle-v1" in text and "a:" in text
     assert "RMS radial error" in text and "2.00 um" in text and "ratio  2.50" in text
     assert (tmp_path / "c.png").exists()

@@ -14,7 +14,7 @@ Example
 -------
 >>> import gymnasium as gym, vcnc_gym, baselines
 >>> from vcnc_gym.evaluation import run_episode
->>> env = gym.make("VCNC-Omega-v0")
+>>> env = gym.make("VCNC-Omega-v1")
 >>> result = run_episode(baselines.make("qft", env), env)   # doctest: +SKIP
 >>> result.max_contour_error_um                             # doctest: +SKIP
 """
@@ -67,6 +67,9 @@ class EpisodeResult:
         and not diverged (a contouring env: the end of the contour reached).
         A contouring episode cut by a time limit is not complete, and its
         metrics cover only the part of the contour it ran.
+    cycle_time_s : float
+        Time at which the table reached the end of the contour (the env's
+        ``info["cycle_time"]``), s; NaN if it did not.
     time : ndarray, (episode_steps,)
         Simulation time after each step, s.
     contour_error : ndarray, (episode_steps,)
@@ -87,6 +90,7 @@ class EpisodeResult:
     terminated: bool
     truncated: bool
     completed: bool
+    cycle_time_s: float
     time: np.ndarray = field(repr=False)
     contour_error: np.ndarray = field(repr=False)
     position: np.ndarray = field(repr=False)
@@ -104,6 +108,7 @@ class EpisodeResult:
             "diverged": self.diverged,
             "max_tracking_error_um": self.max_tracking_error_um,
             "completed": self.completed,
+            "cycle_time_s": self.cycle_time_s,
         }
 
 
@@ -178,6 +183,7 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
         if terminated or truncated:
             diverged = bool(info.get("diverged", False))
             completed = bool(info.get("completed", terminated and not diverged))
+            cycle_time = float(info.get("cycle_time", math.nan))
             break
     wall = time.perf_counter() - wall0
     if progress is not None and n > reported:
@@ -198,6 +204,7 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
         terminated=bool(terminated),
         truncated=bool(truncated),
         completed=completed,
+        cycle_time_s=cycle_time,
         time=t_tr[:n].copy(),
         contour_error=e_tr.copy(),
         position=p_tr[:n].copy(),

@@ -48,6 +48,11 @@ SUITE: tuple[SuiteEnv, ...] = (
              "seed 000 'heart' (cubic NURBS, 310 mm) at 100 mm/s on seed 000's feed drives"),
     SuiteEnv("VCNC-Omega-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
              "seed 000 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on seed 000's feed drives"),
+    SuiteEnv("VCNC-HeartLookahead-v1", {"contour": "heart", "plant": "vcnc_feed_drive", "profile": "lookahead"},
+             "the heart with a CNC look-ahead feed (100 mm/s, normal acceleration and jerk within seed 000's "
+             "drives' reach): the classical baselines on a feasible reference"),
+    SuiteEnv("VCNC-OmegaLookahead-v1", {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead"},
+             "the omega with a CNC look-ahead feed: its 0.19 mm corners at 10 mm/s, 0.99 s instead of 0.63 s"),
     SuiteEnv("VCNC-Corners-v1",
              {"contour": "corners", "plant": "current_feed_drive", "profile": "constant", "feedrate": 50.0},
              "seed 002 test path (corners of 30, 60, 90 deg, sharp) at a constant 50 mm/s on seed 002's drives"),
@@ -71,7 +76,7 @@ LEGACY: tuple[SuiteEnv, ...] = tuple(
     SuiteEnv(e.id.replace("-v1", "-v0"),
              {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
              e.summary + " (v0: ends with the reference, no contour preview)")
-    for e in SUITE if e.contouring
+    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead"
 )
 
 #: The current ids, in the order of :data:`SUITE`.

@@ -19,7 +19,7 @@ from ..contour import ContourProjector
 from ..geometry import SHAPES, NurbsCurve
 from ..geometry.corners import SmoothedPolyline
 from ..geometry.nurbs import workspace_size
-from ..motion import ConstantFeedrate, JlapPathFeedrate, SCurveFeedrate, interpolate
+from ..motion import ConstantFeedrate, JlapPathFeedrate, LookaheadFeedrate, SCurveFeedrate, interpolate
 from ..plants import PlantModel, contract, get_plant
 from . import step_kernel as sk
 from ..validation import flag, integer, non_negative, positive
@@ -30,8 +30,11 @@ __all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EP
 
 #: The feedrate profiles of ``profile=``: seed 000's S-curve (``feedrate``,
 #: ``ramp_time``), a constant feed from t = 0 (seed 002's linear case, seed
-#: 003's circle), seed 002's jerk-limited profile along a corner-smoothed path.
-PROFILES = ("scurve", "constant", "jlap")
+#: 003's circle), seed 002's jerk-limited profile along a corner-smoothed path,
+#: and a CNC look-ahead feed that keeps the path's normal acceleration and jerk
+#: within limits (:class:`~vcnc_gym.motion.LookaheadFeedrate`, its defaults:
+#: seed 000's drives).
+PROFILES = ("scurve", "constant", "jlap", "lookahead")
 
 #: S-curve ramp time when ``ramp_time`` is not given, s (seed 000, section 3).
 DEFAULT_RAMP_TIME = 0.12
@@ -87,7 +90,7 @@ def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | None]:
     raise ValueError(f"contour must be one of {sorted(SHAPES)}, a NurbsCurve or a SmoothedPolyline, got {contour!r}")
 
 
-def make_profile(profile: str, feedrate, ramp_time, path: SmoothedPolyline | None):
+def make_profile(profile: str, feedrate, ramp_time, curve: NurbsCurve, path: SmoothedPolyline | None):
     """The feedrate profile of ``profile=`` (one of :data:`PROFILES`)."""
     if profile not in PROFILES:
         raise ValueError(f"profile must be one of {list(PROFILES)}, got {profile!r}")
@@ -97,6 +100,8 @@ def make_profile(profile: str, feedrate, ramp_time, path: SmoothedPolyline | Non
         return SCurveFeedrate(feedrate=feedrate, ramp_time=DEFAULT_RAMP_TIME if ramp_time is None else ramp_time)
     if profile == "constant":
         return ConstantFeedrate(feedrate)
+    if profile == "lookahead":
+        return LookaheadFeedrate(curve, feedrate)
     if path is None:
         raise ValueError("profile='jlap' plans along a corner-smoothed path: give contour='corners-smooth' or a "
                          "SmoothedPolyline (geometry.smooth_polyline)")
@@ -172,7 +177,7 @@ class ContouringTask:
         self.fixed_parameters = None if parameters is None else self.check_parameters(parameters)
 
         # reference, computed once
-        self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.path)
+        self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.curve, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
         samples = reference_samples(self.curve, self.reference)
         self.projector = ContourProjector(self.curve, margin=min(max(10.0, 2 * self.divergence_bound),
