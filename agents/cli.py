@@ -5,6 +5,8 @@
     vcnc-train --env VCNC-Heart-v0 --action-mode residual --baseline qft --correction 0.3 --action-repeat 5
     vcnc-train --resume runs/omega3                      # from its newest intact checkpoint
     vcnc-train --resume runs/omega3 --timesteps 400000   # ... to a new total
+    vcnc-train --sweep agents/sweeps/omega.yml           # a Ray Tune sweep (runs/sweep_omega), local Ray
+    vcnc-train --sweep agents/sweeps/omega.yml --ray-address auto   # ... on an existing Ray cluster
 
 Every option, the hyperparameter file and the env arguments are checked
 before the run folder is created; a bad one exits with status 2 and a
@@ -36,6 +38,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--env", metavar="ID", help=f"env id: {', '.join(ENV_IDS)}")
     p.add_argument("--output", metavar="DIR", type=Path, help="run folder (default runs/ENV_seedSEED)")
     p.add_argument("--resume", metavar="DIR", type=Path, help="resume the run in DIR from its newest intact checkpoint")
+    p.add_argument("--sweep", metavar="FILE", type=Path,
+                   help="run the Ray Tune sweep of a sweep file (agents/sweeps/README.md); --output: the sweep's "
+                        "folder (default runs/sweep_NAME); needs pip install 'vcnc-gym[sweep]'")
+    p.add_argument("--ray-address", metavar="ADDR",
+                   help="with --sweep: the address of an existing Ray cluster (auto, HOST:PORT, ray://HOST:10001); "
+                        "default: a local Ray sized to this machine")
     p.add_argument("--timesteps", type=int, metavar="N",
                    help="total agent steps, rounded up to whole PPO rollouts (default: the config entry's)")
     p.add_argument("--seed", type=int, help="seed of the envs and of PPO, in [0, 2**32 - 1] (default 0)")
@@ -112,12 +120,52 @@ def _after_failure(run_dir: Path, checkpoint) -> str:
     return f"{run_dir} holds no checkpoint and was cleared: start again with the same command"
 
 
+def _sweep_conflict(args) -> str | None:
+    """What is wrong with combining ``--sweep`` with the other options, or None."""
+    if args.sweep is None:
+        return "--ray-address applies to --sweep FILE" if args.ray_address is not None else None
+    given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
+                                                  *_MODE_OPTIONS, "checkpoint_freq", "eval_freq", "threads")
+             if getattr(args, k) is not None]
+    given += ["--vec-env"] * (args.vec_env != "native")
+    return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
+
+
+def _sweep_main(parser, args) -> int:
+    """``vcnc-train --sweep FILE``: 0 done (a trial finished), 1 no trial finished, 2 bad options (nothing written)."""
+    from .sweep import check_output, import_ray, load_sweep, run_sweep
+
+    with _print_run_warnings():
+        try:  # every check, before anything is written
+            import_ray()
+            spec = load_sweep(args.sweep)
+            if args.output is not None:
+                check_output(args.output)
+            print(f"vcnc-train: sweep {args.sweep}: {spec.n_trials} trials on {spec.env_id}", flush=True)
+            result = run_sweep(spec, args.output, ray_address=args.ray_address, verbose=args.verbose)
+        except (ImportError, ValueError, FileNotFoundError, FileExistsError, ConnectionError) as exc:
+            parser.error(str(exc))
+    finished = sum(r["status"] == "finished" for r in result.rows)
+    print(f"{len(result.rows)} trials ({finished} finished) in {result.wall_s:.0f} s on {result.where}")
+    if result.best is not None:
+        b = result.best
+        print(f"best: {b['trial']}: max {b['max_um']:.2f} um, RMS {b['rms_um']:.2f} um, score {b['score_um']:.2f} um")
+        print(f"retrain it with: {b['command']}")
+    print(f"results: {result.sweep_dir / 'sweep_results.md'}, {result.sweep_dir / 'sweep_results.csv'}")
+    return 0 if result.best is not None else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``vcnc-train``: 0 done, 2 bad options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
     parser = _parser()
     args = parser.parse_args(argv)
+    conflict = _sweep_conflict(args)
+    if conflict is not None:
+        parser.error(conflict)
+    if args.sweep is not None:
+        return _sweep_main(parser, args)
     if args.resume is None and args.env is None:
-        parser.error("give --env ID for a new run, or --resume DIR")
+        parser.error("give --env ID for a new run, --resume DIR, or --sweep FILE")
     if args.resume is not None:
         if args.output is not None and args.output != args.resume:
             parser.error("--resume DIR is the run folder; --output does not apply")
