@@ -5,8 +5,8 @@
     import gymnasium as gym
     import vcnc_gym
 
-    env = gym.make("VCNC-Heart-v0")
-    envs = gym.make_vec("VCNC-Heart-v0", num_envs=1024, vectorization_mode="vector_entry_point")
+    env = gym.make("VCNC-Heart-v1")
+    envs = gym.make_vec("VCNC-Heart-v1", num_envs=1024, vectorization_mode="vector_entry_point")
 """
 
 from .envs import ENV_IDS, SUITE, ContouringEnv, ContouringVectorEnv, ObservationLayout, register_envs
