@@ -8,6 +8,32 @@ figures beside ours (:mod:`vcnc_bench.papers`)::
     vcnc-bench --env VCNC-Omega-v0 --policy qft --policy smc
     vcnc-bench --json bench.json --plots bench-plots
 
+With ``--plants N`` every policy runs instead on N plants drawn uniformly
+from the env's uncertainty box (``--plant-seed S``, default 0), plus the
+box's vertices when it has at most 64 (seed 000's feed drive: 64, seed
+001's and 003's tables: 16; seed 002's drive has 256: none), all plants of
+an env in one batch: one call of the env's compiled vector kernel and one
+batched ``predict`` per step (the positioning env, which has no vector env:
+a batch of single envs; :mod:`vcnc_bench.robust`).  The table gives per env
+and policy the nominal plant's max and RMS contour error (the ordinary
+table's figure), their median and 95th percentile over the N samples and
+their worst over samples and vertices (a diverged plant counts as an
+infinite error), the nominal, median and worst cycle time, and how many
+plants diverged or, without diverging, did not complete::
+
+    vcnc-bench --plants 100                     # every policy, every env: 100 plants (+ vertices) each
+    vcnc-bench --env VCNC-Omega-v1 --plants 100 --plant-seed 1 --json robust.json --plots robust-plots
+
+There ``--json`` writes ``{"settings": {...}, "robust": [one record per env
+and policy, with every plant's figures]}`` and ``--plots`` one
+``ENV_robust.png`` per env (box plots of max and RMS over the samples, the
+vertices and the nominal plant marked, log scale).  A policy that learns
+across episodes (ILC) runs its first trial unless ``--trials K`` is given
+(then K trials per plant, the last scored).  The kernel runs on one thread
+unless ``--parallel`` (on cores other processes share, a parallel step
+waits for both threads and is many times slower).  The papers' reports,
+which need the single episodes, are not printed.
+
 A policy is named by a spec (:mod:`vcnc_bench.policies`): a bare name such
 as ``qft``, or ``KIND:ARGUMENT`` such as ``ppo:runs/x/best``.  The kinds
 come from the packages that provide them (``baselines``, ``agents``); the
@@ -34,6 +60,7 @@ from vcnc_gym.envs import ENV_IDS, suite_env
 from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
 from .papers import paper_figures
+from . import robust
 from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label,
                        resolve_policy)
 
@@ -65,10 +92,11 @@ def _cell(value, fmt: str) -> str:
     return fmt.format(value)
 
 
-def format_table(records: list[dict]) -> str:
-    """The records as a fixed-width table in the shape of seed 000's Table 4 (errors in um)."""
+def format_table(records: list[dict], columns: list | None = None) -> str:
+    """The records as a fixed-width table in the shape of seed 000's Table 4 (errors in um); ``columns``
+    (header, width, record key, format) default to the ordinary bench's."""
     columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key in ("env", "policy") else w, key, fmt)
-               for h, w, key, fmt in _COLUMNS]
+               for h, w, key, fmt in (columns or _COLUMNS)]
     lines = [" ".join(f"{h:>{w}}" if i > 1 else f"{h:<{w}}" for i, (h, w, _, _) in enumerate(columns))]
     lines.append("-" * len(lines[0]))
     previous_env = None
@@ -124,9 +152,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
                    help="feedrate in mm/s (default: each env's own); with another value the paper's "
                         "columns stay empty")
-    p.add_argument("--trials", type=int, default=10, metavar="K",
+    p.add_argument("--trials", type=int, metavar="K",
                    help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
-                        "and the last, the JSON every one (default 10)")
+                        "and the last, the JSON every one (default 10; with --plants 1, the last scored)")
+    p.add_argument("--plants", type=int, metavar="N",
+                   help="robust evaluation instead: every policy on the nominal plant, N plants drawn uniformly "
+                        "from the env's uncertainty box and the box's vertices when it has at most "
+                        f"{robust.MAX_VERTICES}; median, p95 and worst of max and RMS contour error, cycle time, "
+                        "divergences")
+    p.add_argument("--plant-seed", type=int, default=0, metavar="S",
+                   help="seed of the plants drawn by --plants, >= 0 (default 0)")
+    p.add_argument("--parallel", action="store_true",
+                   help="with --plants: spread each batch of plants over numba's threads (faster on idle cores, "
+                        "far slower on cores other processes use; default one thread)")
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write ENV_contour.png and ENV_error.png per env into this directory")
@@ -167,8 +205,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.seed < 0:
         parser.error(f"--seed must be >= 0, got {args.seed}")
-    if args.trials < 1:
+    if args.trials is not None and args.trials < 1:
         parser.error(f"--trials must be >= 1, got {args.trials}")
+    if args.plants is not None and args.plants < 1:
+        parser.error(f"--plants must be >= 1, got {args.plants}")
+    if args.plant_seed < 0:
+        parser.error(f"--plant-seed must be >= 0, got {args.plant_seed}")
 
     env_ids = _unique(args.env or list(ENV_IDS))
     unknown = [e for e in env_ids if e not in ENV_IDS]
@@ -197,6 +239,15 @@ def main(argv: list[str] | None = None) -> int:
                 parser.error(f"cannot build policy {spec!r} for {env_id}: {exc}")
     if not runs:
         parser.error(f"no policies to run: {policy_choices()}")
+
+    if args.plants is not None:
+        code = _robust(args, envs, runs)
+        for env in envs.values():
+            env.close()
+        print(f"total wall time {time.perf_counter() - wall0:.1f} s")
+        return code
+    if args.trials is None:
+        args.trials = 10
 
     from tqdm import tqdm
 
@@ -262,6 +313,46 @@ def main(argv: list[str] | None = None) -> int:
     for env in envs.values():
         env.close()
     print(f"total wall time {time.perf_counter() - wall0:.1f} s")
+    return 0
+
+
+def _robust(args, envs: dict, runs: list) -> int:
+    """``--plants N``: every run on the nominal plant, N sampled plants and the vertices (vcnc_bench.robust)."""
+    from tqdm import tqdm
+
+    trials = args.trials or 1
+    kwargs = {} if args.feedrate is None else {"feedrate": args.feedrate}
+    with tqdm(total=len(runs), unit="run", file=sys.stderr, dynamic_ncols=True, leave=False,
+              disable=True if args.no_progress else None) as bar:
+        records, plant_sets = robust.evaluate([(e, policy_label(s), p) for e, s, p in runs], envs, args.plants,
+                                              plant_seed=args.plant_seed, seed=args.seed, trials=trials,
+                                              env_kwargs=kwargs, parallel=args.parallel, bar=bar)
+    print(f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "
+          f"{args.plants} plants drawn uniformly from the box (plant seed {args.plant_seed}), worst over them and "
+          f"the box's vertices where it has at most {robust.MAX_VERTICES}; cycle time in s; a diverged plant counts "
+          f"as an infinite error, a contour never finished as an infinite cycle time")
+    for env_id, plants in plant_sets.items():
+        wall = sum(r["wall_s"] for r in records if r["env"] == env_id)
+        print(f"  {env_id}: {len(plants.samples)} samples + {len(plants.vertices)} vertices"
+              + ("" if len(plants.vertices) else
+                 f" (the box has 2^{envs[env_id].unwrapped.plant.box()[0].size} > {robust.MAX_VERTICES})")
+              + f", every policy in {wall:.0f} s")
+    if any(r["trials"] > 1 for r in records):
+        print(f"  policies that learn across episodes: {trials} trials per plant, the last scored")
+    print(format_table(records, robust.ROBUST_COLUMNS))
+    nominal_bad = [f"{r['env']} {r['policy']}" for r in records if not r["nominal_completed"]]
+    if nominal_bad:
+        print(f"\nNOT COMPLETE on the nominal plant (diverged or cut short): {', '.join(nominal_bad)}")
+    if args.json is not None:
+        settings = {"plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
+                    "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate}
+        out = {"settings": settings, "robust": [_json_safe(r) for r in records]}
+        args.json.write_text(json.dumps(out, indent=2) + "\n")
+        print(f"\nwrote {len(records)} robust records to {args.json}")
+    if args.plots is not None:
+        for env_id in plant_sets:
+            robust.plot_robust([r for r in records if r["env"] == env_id], args.plots / f"{env_id}_robust.png")
+        print(f"wrote {len(plant_sets)} plots to {args.plots}")
     return 0
 
 
