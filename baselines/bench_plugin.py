@@ -67,7 +67,7 @@ def _seed002(ctx) -> list[str]:
     ran = _plant_envs(ctx, "current_feed_drive")
     if not ran:
         return []
-    from vcnc_bench.papers import PAPER_SEED_002, PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT
+    from vcnc_bench.papers import PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT, paper_figures
 
     lines = ["Seed 002, section IV: max contour error ratios, ours (paper)"]
     fb = {}
@@ -77,14 +77,14 @@ def _seed002(ctx) -> list[str]:
             fb[e] = res["contouring-fb"].max_contour_error_um
         for ilc in ("ilc", "ilc-q"):
             if "contouring-fb" in res and ilc in res:
-                paper = PAPER_SEED_002.get((e, "ilc"), {}).get("max_contour_error_um")
-                paper_fb = PAPER_SEED_002.get((e, "contouring-fb"), {}).get("max_contour_error_um")
+                paper = paper_figures(e, "ilc").get("max_contour_error_um")
+                paper_fb = paper_figures(e, "contouring-fb").get("max_contour_error_um")
                 ratio = res[ilc].max_contour_error_um / fb[e]
                 ref = f" ({paper / paper_fb:.2f})" if paper and paper_fb else ""
                 lines.append(f"  {e}: {ilc} (last trial) / contouring-fb = {ratio:.2f}{ref}")
     if "VCNC-Corners-v1" in fb and "VCNC-CornersSmooth-v1" in fb:
-        paper = PAPER_SEED_002[("VCNC-CornersSmooth-v1", "contouring-fb")]["max_contour_error_um"] / \
-            PAPER_SEED_002[("VCNC-Corners-v1", "contouring-fb")]["max_contour_error_um"]
+        paper = paper_figures("VCNC-CornersSmooth-v1", "contouring-fb")["max_contour_error_um"] / \
+            paper_figures("VCNC-Corners-v1", "contouring-fb")["max_contour_error_um"]
         lines.append(f"  contouring-fb, smoothed / linear path = "
                      f"{fb['VCNC-CornersSmooth-v1'] / fb['VCNC-Corners-v1']:.3f} ({paper:.2f})")
     durations = {e: ctx.envs[e].unwrapped.reference.duration for e in ran}

@@ -77,6 +77,7 @@ _COLUMNS = [
     ("rms_um", 10, "rms_contour_error_um", "{:.2f}"),
     ("paper_max_um", 12, "paper_max_contour_error_um", "{:.2f}"),
     ("ours/paper", 10, "ratio_to_paper", "{:.2f}"),
+    ("cycle_s", 7, "cycle_time_s", "{:.4f}"),
     ("steps", 7, "episode_steps", "{:d}"),
     ("wall_s", 7, "wall_s", "{:.2f}"),
     ("diverged", 8, "diverged", "{}"),
@@ -128,6 +129,7 @@ def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True
         "wall_s": result.wall_s,
         "diverged": result.diverged,
         "completed": result.completed,
+        "cycle_time_s": None if math.isnan(result.cycle_time_s) else result.cycle_time_s,
         "max_tracking_error_um": result.max_tracking_error_um,
     }
 

@@ -1,12 +1,16 @@
 """The source papers' headline figures the bench prints beside ours: the only copy of them.
 
-Keyed by (env id, policy label).  Units in the key names.  Seed 001's Table 2
+Keyed by (env name, policy label): the id without its version
+(:func:`vcnc_gym.envs.registry.env_name`), the task the paper ran (the
+versions differ in how an episode ends, not in the contour or the plant).  Units in the key names.  Seed 001's Table 2
 and seed 003's circle figures are printed in their own shape by the reports
 of :mod:`baselines.bench_plugin` (from ``baselines.seed001.report`` and
 ``baselines.circle_report``), which hold them.
 """
 
 from __future__ import annotations
+
+from vcnc_gym.envs.registry import env_name
 
 __all__ = ["PAPER_TABLE_4", "PAPER_SEED_002", "PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT", "PAPER_FEEDRATE",
            "paper_figures"]
@@ -16,12 +20,12 @@ __all__ = ["PAPER_TABLE_4", "PAPER_SEED_002", "PAPER_SEED_002_CYCLE_TIME_INCREAS
 #: error in um and the paper's "average contour error (%)", per contour and
 #: controller (FC = "fuzzy", SMC = "smc", QFT = "qft").
 PAPER_TABLE_4: dict[tuple[str, str], dict[str, float]] = {
-    ("VCNC-Heart-v0", "fuzzy"): {"max_contour_error_um": 35.5, "average_contour_error_percent": 18.54},
-    ("VCNC-Heart-v0", "smc"): {"max_contour_error_um": 13.16, "average_contour_error_percent": 3.25},
-    ("VCNC-Heart-v0", "qft"): {"max_contour_error_um": 10.14, "average_contour_error_percent": 3.34},
-    ("VCNC-Omega-v0", "fuzzy"): {"max_contour_error_um": 44.19, "average_contour_error_percent": 17.82},
-    ("VCNC-Omega-v0", "smc"): {"max_contour_error_um": 28.22, "average_contour_error_percent": 9.46},
-    ("VCNC-Omega-v0", "qft"): {"max_contour_error_um": 27.33, "average_contour_error_percent": 6.91},
+    ("VCNC-Heart", "fuzzy"): {"max_contour_error_um": 35.5, "average_contour_error_percent": 18.54},
+    ("VCNC-Heart", "smc"): {"max_contour_error_um": 13.16, "average_contour_error_percent": 3.25},
+    ("VCNC-Heart", "qft"): {"max_contour_error_um": 10.14, "average_contour_error_percent": 3.34},
+    ("VCNC-Omega", "fuzzy"): {"max_contour_error_um": 44.19, "average_contour_error_percent": 17.82},
+    ("VCNC-Omega", "smc"): {"max_contour_error_um": 28.22, "average_contour_error_percent": 9.46},
+    ("VCNC-Omega", "qft"): {"max_contour_error_um": 27.33, "average_contour_error_percent": 6.91},
 }
 
 #: Seed 002 (Simba et al.), section IV-B, simulation: maximum contour error in
@@ -29,10 +33,10 @@ PAPER_TABLE_4: dict[tuple[str, str], dict[str, float]] = {
 #: trials, on the linear (sharp) and the smoothed path.  The ILC figure is
 #: compared with the bench's last trial.
 PAPER_SEED_002: dict[tuple[str, str], dict[str, float]] = {
-    ("VCNC-Corners-v0", "contouring-fb"): {"max_contour_error_um": 97.74},
-    ("VCNC-Corners-v0", "ilc"): {"max_contour_error_um": 88.92},
-    ("VCNC-CornersSmooth-v0", "contouring-fb"): {"max_contour_error_um": 17.78},
-    ("VCNC-CornersSmooth-v0", "ilc"): {"max_contour_error_um": 6.88},
+    ("VCNC-Corners", "contouring-fb"): {"max_contour_error_um": 97.74},
+    ("VCNC-Corners", "ilc"): {"max_contour_error_um": 88.92},
+    ("VCNC-CornersSmooth", "contouring-fb"): {"max_contour_error_um": 17.78},
+    ("VCNC-CornersSmooth", "ilc"): {"max_contour_error_um": 6.88},
 }
 
 #: Seed 002, section IV-C (experiment): cycle time of the smoothed path against the linear one, %.
@@ -44,4 +48,5 @@ PAPER_FEEDRATE = 100.0
 
 def paper_figures(env_id: str, label: str) -> dict[str, float]:
     """The paper's figures for a policy on an env (empty if the paper has none)."""
-    return dict(PAPER_TABLE_4.get((env_id, label), PAPER_SEED_002.get((env_id, label), {})))
+    key = (env_name(env_id), label)
+    return dict(PAPER_TABLE_4.get(key, PAPER_SEED_002.get(key, {})))

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["SuiteEnv", "SUITE", "LEGACY", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "register_envs", "suite_env"]
+__all__ = ["SuiteEnv", "SUITE", "LEGACY", "env_name", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "register_envs", "suite_env"]
 
 _CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
 _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
@@ -87,6 +87,12 @@ CONTOURING_IDS: tuple[str, ...] = tuple(e.id for e in SUITE if e.contouring)
 
 #: The ids with a native vector env (``gym.make_vec(..., vectorization_mode="vector_entry_point")``).
 VECTOR_IDS: tuple[str, ...] = tuple(e.id for e in SUITE if e.vector_entry_point is not None)
+
+
+def env_name(env_id: str) -> str:
+    """The id without its version: ``"VCNC-Heart-v1"`` -> ``"VCNC-Heart"``."""
+    name, sep, version = env_id.rpartition("-v")
+    return name if sep and version.isdigit() else env_id
 
 
 def suite_env(env_id: str) -> SuiteEnv:
