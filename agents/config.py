@@ -253,21 +253,27 @@ def _refuse_unknown(where: str, keys, known) -> None:
 
 
 # -- the file ------------------------------------------------------------------------------------
+def read_yaml(what: str, path):
+    """The YAML document of the file ``path`` (``what`` names it in errors): FileNotFoundError if it is missing,
+    ValueError if it is not a YAML text file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} {str(path)!r} does not exist")
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{what} {str(path)!r} is not valid YAML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{what} {str(path)!r} is not a text file") from None
+
+
 def load_hyperparameters(env_id: str, path=DEFAULT_CONFIG) -> dict:
     """The entry of ``env_id`` in the YAML file ``path`` (a deep copy).
 
     Raises FileNotFoundError for a missing file and ValueError for a file
     that is not YAML or has no mapping for that entry (naming the ones it has).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"hyperparameter file {str(path)!r} does not exist")
-    try:
-        table = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ValueError(f"hyperparameter file {str(path)!r} is not valid YAML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"hyperparameter file {str(path)!r} is not a text file") from None
+    table = read_yaml("hyperparameter file", path)
     table = table or {}
     if not isinstance(table, dict) or env_id not in table:
         have = ", ".join(map(str, table)) if isinstance(table, dict) else "nothing (it is not a mapping)"

@@ -255,18 +255,11 @@ def load_sweep(path) -> SweepSpec:
     every combination of the action-mode values (:func:`agents.training.prepare_run`,
     which builds the env, the residual's baseline and the policy; nothing is written).
     """
-    from .config import DEFAULT_CONFIG, _refuse_unknown, count, ppo_arguments
+    from .config import DEFAULT_CONFIG, _refuse_unknown, count, ppo_arguments, read_yaml
     from .training import check_env_id, check_training_options
 
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"sweep file {str(path)!r} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise _error(path, f"not valid YAML: {exc}") from None
-    except UnicodeDecodeError:
-        raise _error(path, "not a text file") from None
+    data = read_yaml("sweep file", path)
     if not isinstance(data, dict):
         raise _error(path, f"must be a mapping of {', '.join(_FILE_KEYS)}, got {type(data).__name__}")
     try:

@@ -12,7 +12,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from geomdl import NURBS
+from geomdl_curve import geomdl_curve
 
 import baselines
 import vcnc_gym
@@ -23,12 +23,7 @@ class GeomdlPath:
     """A NurbsCurve rebuilt in geomdl, with an arc-length table from 500 samples per knot span."""
 
     def __init__(self, curve, per_span: int = 500):
-        kv = np.asarray(curve.knots, float)
-        self.a, self.b = float(kv[0]), float(kv[-1])
-        g = NURBS.Curve(normalize_kv=False)
-        g.degree = curve.degree
-        g.ctrlptsw = [[x * w, y * w, w] for (x, y), w in zip(curve.control_points.tolist(), curve.weights.tolist())]
-        g.knotvector = [(k - self.a) / (self.b - self.a) for k in kv.tolist()]
+        g, self.a, self.b = geomdl_curve(curve)
         self.g = g
         vk = np.unique(np.array(g.knotvector))
         self.v = np.concatenate([np.linspace(s, e, per_span + 1)[:-1] for s, e in zip(vk[:-1], vk[1:])] + [[1.0]])
