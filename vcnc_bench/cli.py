@@ -57,6 +57,10 @@ import gymnasium as gym
 
 import vcnc_gym  # noqa: F401  (registers the ids)
 from vcnc_gym.envs import ENV_IDS, suite_env
+from vcnc_gym.envs.registry import LEGACY
+
+#: The v0 ids, kept for agents trained on them: benchmarked when named.
+LEGACY_IDS = tuple(e.id for e in LEGACY)
 from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
 from .papers import paper_figures
@@ -146,7 +150,7 @@ def _parser() -> argparse.ArgumentParser:
                     "and compare with the source papers' figures.",
     )
     p.add_argument("--env", action="append", metavar="ID",
-                   help=f"env id, repeatable (default: all of {', '.join(ENV_IDS)})")
+                   help=f"env id, repeatable (default: all of {', '.join(ENV_IDS)}; the v0 ids when named)")
     p.add_argument("--policy", action="append", metavar="SPEC",
                    help="a baseline name, 'ppo' (the agent shipped for the env) or KIND:ARGUMENT such as "
                         "ppo:RUN/best, repeatable (default: every policy that applies to each env's plant)")
@@ -215,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--plant-seed must be >= 0, got {args.plant_seed}")
 
     env_ids = _unique(args.env or list(ENV_IDS))
-    unknown = [e for e in env_ids if e not in ENV_IDS]
+    unknown = [e for e in env_ids if e not in ENV_IDS + LEGACY_IDS]
     if unknown:
         parser.error(f"unknown env id(s) {', '.join(map(repr, unknown))}; valid ids are {', '.join(ENV_IDS)}")
     specs = _unique(args.policy or [])
