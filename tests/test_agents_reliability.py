@@ -48,6 +48,7 @@ from agents.training import RunWarning, latest_checkpoint, prepare_run, scan_che
 
 OMEGA = "VCNC-Omega-v1"
 HEART = "VCNC-Heart-v1"
+SHIPPED = "VCNC-Omega-v0"  # the shipped agent these tests open: a residual over QFT, as OMEGA's entry
 ROOT = Path(__file__).resolve().parents[1]
 ROLLOUT = 256  # n_steps 128 x n_envs 2
 
@@ -102,13 +103,13 @@ def test_the_payload_runs_when_unpickled(tmp_path):
 def omega_agent(tmp_path):
     """A copy of the shipped omega agent folder."""
     folder = tmp_path / "agent"
-    shutil.copytree(TRAINED[OMEGA], folder)
+    shutil.copytree(TRAINED[SHIPPED], folder)
     return folder
 
 
 # -- 1. safe loading ----------------------------------------------------------------------------
 def test_a_crafted_normalisation_file_does_not_run(omega_agent, tmp_path):
-    env = gym.make(OMEGA)
+    env = gym.make(SHIPPED)
     marker = tmp_path / "ran"
     # (a) an .npz whose obs_mean is an object array: np.savez pickles it
     good = dict(np.load(omega_agent / "vecnormalize.npz"))
@@ -151,7 +152,7 @@ def _serialized(marker: Path) -> dict:
 def test_a_crafted_model_zip_does_not_run(omega_agent, tmp_path):
     from stable_baselines3 import PPO
 
-    env = gym.make(OMEGA)
+    env = gym.make(SHIPPED)
     model_zip = omega_agent / "model.zip"
     # a payload in an entry SB3 unpickles (clip_range): SB3's own load runs it ...
     control = tmp_path / "control.zip"
@@ -171,13 +172,13 @@ def test_a_crafted_model_zip_does_not_run(omega_agent, tmp_path):
     for change, message in [(lambda d: d.update(n_steps=_serialized(marker)), "cannot rebuild"),
                             (lambda d: d.update(env=_serialized(marker)), "does not save"),
                             (lambda d: d.update(env="os:system"), "does not save")]:
-        shutil.copyfile(TRAINED[OMEGA] / "model.zip", model_zip)
+        shutil.copyfile(TRAINED[SHIPPED] / "model.zip", model_zip)
         _rewrite_data(model_zip, change)
         with pytest.raises(ValueError, match=message):
             load_agent(omega_agent, env)
         assert not marker.exists()
     # a tensor file holding a pickle payload: torch's weights-only reader refuses it
-    shutil.copyfile(TRAINED[OMEGA] / "model.zip", model_zip)
+    shutil.copyfile(TRAINED[SHIPPED] / "model.zip", model_zip)
     with zipfile.ZipFile(model_zip) as z:
         members = {n: z.read(n) for n in z.namelist()}
     buffer = io.BytesIO()
@@ -232,10 +233,10 @@ def test_policy_kwargs_parse_the_zoo_literal_subset():
 
 # -- 2. an agent checks the env it is given -----------------------------------------------------------
 def test_an_agent_refuses_another_env_configuration(omega_agent):
-    with pytest.raises(ValueError, match=f"trained on {OMEGA}, not {HEART}") as exc:
+    with pytest.raises(ValueError, match=f"trained on {SHIPPED}, not {HEART}") as exc:
         load_agent(omega_agent, gym.make(HEART))
     assert "contour: trained on omega" in str(exc.value)
-    slow = gym.make(OMEGA, feedrate=50.0)
+    slow = gym.make(SHIPPED, feedrate=50.0)
     with pytest.raises(ValueError, match=r"feedrate: trained on 100.0 mm/s, this env has 50.0 mm/s"):
         load_agent(omega_agent, slow)
     with pytest.warns(UserWarning, match="feedrate"):
@@ -246,17 +247,17 @@ def test_an_agent_refuses_another_env_configuration(omega_agent):
     NormalizationStats(**{**stats.__dict__, "obs_mean": stats.obs_mean[:-1], "obs_var": stats.obs_var[:-1]}).save(
         omega_agent / "vecnormalize.npz")
     with pytest.raises(ValueError, match="normalises 20 observation entries"):
-        load_agent(omega_agent, gym.make(OMEGA), allow_mismatch=True)
+        load_agent(omega_agent, gym.make(SHIPPED), allow_mismatch=True)
     with pytest.raises(ValueError, match="empty"):
-        load_agent("", gym.make(OMEGA))
+        load_agent("", gym.make(SHIPPED))
 
 
 def test_normalisation_round_trip_equals_vecnormalize():
     """The .npz statistics normalise exactly as SB3's VecNormalize does with the same numbers."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    stats = NormalizationStats.load(TRAINED[OMEGA] / "vecnormalize.npz")
-    venv = stats.vecnormalize(DummyVecEnv([lambda: gym.make(OMEGA)]), training=False)
+    stats = NormalizationStats.load(TRAINED[SHIPPED] / "vecnormalize.npz")
+    venv = stats.vecnormalize(DummyVecEnv([lambda: gym.make(SHIPPED)]), training=False)
     obs = np.random.default_rng(0).normal(stats.obs_mean, 3 * np.sqrt(stats.obs_var), (50, 21)).astype(np.float32)
     np.testing.assert_array_equal(venv.normalize_obs(obs), stats.normalize_obs(obs))
     assert NormalizationStats.from_vecnormalize(venv).__dict__.keys() == stats.__dict__.keys()
@@ -383,7 +384,7 @@ def test_timesteps_are_rounded_up_with_a_warning(base_run):
     assert config["n_timesteps"] == config["hyperparams"]["n_timesteps"] == 1024
     assert json.loads((run / "summary.json").read_text())["timesteps"] == 1024 and "1024 in all" in out
     assert (config["checkpoint_freq"], config["eval_freq"]) == (256, 512)
-    assert config["env"]["signature"]["observation_shape"] == [21]
+    assert config["env"]["signature"]["observation_shape"] == list(gym.make(OMEGA).observation_space.shape)
     assert _eval_steps(run) == [512, 1024] and _chain_breaks(run) == 0
     assert sorted(int(p.name.split("_")[2]) for p in (run / "checkpoints").glob("rl_model_*_steps.zip")) == [
         256, 512, 768, 1024]
@@ -597,10 +598,10 @@ def test_the_bench_runs_the_shipped_agent_only_on_its_own_configuration(capsys):
 
     from agents.policy import agent_mismatch
 
-    assert "ppo" in default_specs(gym.make(OMEGA))
-    slow = gym.make(OMEGA, feedrate=20.0)
-    assert "feedrate" in agent_mismatch(TRAINED[OMEGA], slow)
+    assert "ppo" in default_specs(gym.make(SHIPPED))
+    slow = gym.make(SHIPPED, feedrate=20.0)
+    assert "feedrate" in agent_mismatch(TRAINED[SHIPPED], slow)
     assert "ppo" not in default_specs(slow)  # vcnc-bench --feedrate 20 runs the baselines only
     with pytest.raises(SystemExit) as exc:
-        vcnc_bench.main(["--env", OMEGA, "--feedrate", "20", "--policy", "ppo", "--no-progress"])
+        vcnc_bench.main(["--env", SHIPPED, "--feedrate", "20", "--policy", "ppo", "--no-progress"])
     assert exc.value.code == 2 and "feedrate: trained on 100.0 mm/s" in capsys.readouterr().err
