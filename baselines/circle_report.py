@@ -245,6 +245,19 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     return lines
 
 
+#: The env of seed 003's circle.
+CIRCLE_ID = "VCNC-Circle-v1"
+
+
+def circle_layout():
+    """The observation layout of :data:`CIRCLE_ID` (what a policy built outside an env reads)."""
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401  (registers the ids)
+
+    return gym.make(CIRCLE_ID).unwrapped.layout
+
+
 def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
                **env_kwargs):
     """One pass of ``policy`` around the sine/cosine circle: an episode of ``VCNC-Circle-v1``.
@@ -265,7 +278,7 @@ def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OM
 
     radius = positive("radius", radius, "mm")
     omega = positive("omega", omega, "rad/s")
-    env = gym.make("VCNC-Circle-v1", contour=circle(radius), feedrate=radius * omega, dt=dt, **env_kwargs)
+    env = gym.make(CIRCLE_ID, contour=circle(radius), feedrate=radius * omega, dt=dt, **env_kwargs)
     try:
         return run_episode(policy, env, seed=0)
     finally:

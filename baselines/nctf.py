@@ -683,7 +683,6 @@ def main(argv=None) -> int:
     import argparse
 
     from baselines import circle_report as cr
-    from vcnc_gym.envs.layout import ObservationLayout
 
     parser = argparse.ArgumentParser(prog="baselines.nctf.main", description="NCTF design and circle figures")
     parser.add_argument("--omega", type=float, default=cr.DEFAULT_OMEGA, help="circle frequency, rad/s")
@@ -692,7 +691,7 @@ def main(argv=None) -> int:
     parser.add_argument("--plot", help="save the radial-error plot here (PNG)")
     args = parser.parse_args(argv)
     model = get_plant("nct_xy_table")
-    policy = NCTFPolicy(ObservationLayout(), args.dt, model.nominal(), zero_rate=args.zero_rate)
+    policy = NCTFPolicy(cr.circle_layout(), args.dt, model.nominal(), zero_rate=args.zero_rate)
     print(f"NCTF design at T = {args.dt:g} s (stepwise experiment on the nominal table, seed 003 eq. (4)):")
     for axis, (n, c) in enumerate(zip(policy.nct, policy.compensators)):
         K, alpha = n.model()

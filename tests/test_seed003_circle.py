@@ -8,7 +8,6 @@ import pytest
 
 from baselines.nctf import NCTFPolicy
 from baselines import circle_report as cr
-from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.geometry import SHAPES
 from vcnc_gym.geometry.shapes import circle
 from vcnc_gym.plants import get_plant
@@ -101,7 +100,7 @@ class _Still:
 
 
 def test_closed_loop_without_control_stays_at_the_start():
-    run = cr.run_circle(_Still(), dt=1e-2, tracking_bound=10.0, divergence_bound=10.0)
+    run = cr.run_circle(_Still(), dt=1e-2, tracking_bound=10.0, divergence_bound=10.0, completion_timeout=0.0)
     np.testing.assert_array_equal(run.position, np.tile([0.0, 1.0], (len(run.time), 1)))
     f = cr.circle_figures(run.time, run.position, run.reference_position)
     assert f.rms_x_um == pytest.approx(1e3 / np.sqrt(2), rel=2e-2)  # the whole sine is the error
@@ -120,7 +119,7 @@ def test_the_env_reference_is_the_sine_and_cosine():
 
 
 def test_nctf_tracks_the_circle_within_micrometres(tmp_path):
-    policy = NCTFPolicy(ObservationLayout(), cr.DEFAULT_DT, MODEL.nominal())
+    policy = NCTFPolicy(cr.circle_layout(), cr.DEFAULT_DT, MODEL.nominal())
     run = cr.run_circle(policy)
     assert run.completed and run.time[-1] == pytest.approx(2 * np.pi, abs=0.02)
     f = cr.circle_figures(run.time, run.position, run.reference_position)
