@@ -134,7 +134,12 @@ SEED_000 = [n for n in baselines.names() if "vcnc_feed_drive" in baselines.regis
 
 @pytest.mark.parametrize("name", SEED_000)
 def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
-    """All 64 corners of seed 000's box (the heart is run on vertices 0 and 63 above)."""
-    for k, vertex in enumerate(VERTICES):
-        _, diverged, terminated, _ = rollout(name, "VCNC-Omega-v1", vertex)
-        assert terminated and not diverged, f"{name} on vertex {k}"
+    """All 64 corners of seed 000's box, as one batch of the vector env, the policy's predict on the batch
+    (the heart is run on vertices 0 and 63 above)."""
+    from vcnc_bench.robust import make_batch, run_plants
+
+    env = gym.make("VCNC-Omega-v1")
+    runs = run_plants(baselines.make(name, env), make_batch("VCNC-Omega-v1", len(VERTICES)), np.array(VERTICES),
+                      decision_period=env.unwrapped.decision_period)
+    assert not runs.diverged.any(), f"{name} diverged on vertices {np.flatnonzero(runs.diverged).tolist()}"
+    assert np.all(runs.steps <= env.unwrapped.task.time_limit_steps)
