@@ -256,7 +256,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     info[INFO_MEASURED_POSITION] = xm
     info[INFO_MEASURED_POSITION + 1] = ym
     p = b.progress[i]
-    remaining = max(0.0, samples[last, REF_ARC] - samples[p, REF_ARC])
+    arc_left = max(0.0, samples[last, REF_ARC] - samples[p, REF_ARC])  # mm of contour ahead of the progress
     info[INFO_PROGRESS] = samples[p, REF_ARC]
     info[INFO_CYCLE_TIME] = b.cycle_time[i]
     completed = np.isfinite(b.cycle_time[i])
@@ -275,15 +275,15 @@ def _step_env(plant, reference, c, cfg, o, b, i):
         out_of_time = k >= cfg.end_index and not completed
         terminated = diverged or completed or out_of_time
         if n > 0 and out_of_time and not diverged:
-            r_incomplete = -remaining / cfg.reward_scale
+            r_incomplete = -arc_left / cfg.reward_scale
     else:
         terminated = diverged or k >= cfg.end_index
     if n > 0:
         r_contour = -min(err_sum / n, cfg.divergence_bound) / cfg.reward_scale
         r_effort = -cfg.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
         if diverged:
-            remaining = max(0, cfg.episode_steps - (k + cfg.n_repeat - 1) // cfg.n_repeat)
-            r_div = -remaining * cfg.divergence_bound / cfg.reward_scale
+            steps_left = max(0, cfg.episode_steps - (k + cfg.n_repeat - 1) // cfg.n_repeat)
+            r_div = -steps_left * cfg.divergence_bound / cfg.reward_scale
             if not np.isfinite(err):
                 info[INFO_CONTOUR_ERROR] = np.inf
     info[INFO_REWARD_CONTOUR] = r_contour
