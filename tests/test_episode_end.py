@@ -168,3 +168,17 @@ def test_the_vector_env_reports_cycle_times_only_for_arrived_envs():
         done |= terminated | truncated
     assert np.isfinite(cycle[[0, 2]]).all() and math.isnan(cycle[1])
     assert cycle[0] == cycle[2]
+
+
+def test_the_kernel_search_agrees_with_numpy():
+    """The progress' and preview's search (galloping, then bisection) against np.searchsorted, ties included."""
+    from vcnc_gym.envs.step_kernel import _last_at_or_below
+
+    rng = np.random.default_rng(0)
+    column = np.sort(np.round(rng.uniform(0, 50, 400), 1))  # many ties
+    samples = np.column_stack([column, column])
+    for _ in range(2000):
+        lo = int(rng.integers(0, len(column)))
+        value = float(column[lo] + rng.uniform(0, 60) * rng.integers(0, 2))
+        expected = np.searchsorted(column, value, side="right") - 1
+        assert _last_at_or_below(samples, 1, value, lo) == max(expected, lo)

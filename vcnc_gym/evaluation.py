@@ -215,16 +215,12 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
 
 # -- geometry for the plots ------------------------------------------------------
 def _reference_curvature(env) -> tuple[np.ndarray, np.ndarray]:
-    """Points (K, 2) in mm of the reference path and the curve's curvature there, 1/mm."""
-    u = env.unwrapped
-    pts = np.asarray(u.reference.position, dtype=float)
-    d = u.curve.derivatives_array(u.reference.u, 2)
-    d1, d2 = d[:, 1, :], d[:, 2, :]
-    speed = np.linalg.norm(d1, axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        kappa = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed**3
-    kappa[~np.isfinite(kappa)] = 0.0
-    return pts, kappa
+    """Points (K, 2) in mm of the reference path and the curve's curvature there, 1/mm (the env's packed
+    reference: :func:`vcnc_gym.envs.task.pack_reference`)."""
+    from .envs import step_kernel as sk
+
+    samples = env.unwrapped.task.reference_arrays.samples
+    return samples[:, sk.REF_POSITION:sk.REF_POSITION + 2], np.abs(samples[:, sk.REF_CURVATURE])
 
 
 def sharp_corners(env, n: int = 3, min_separation: float = 0.1) -> list[tuple[np.ndarray, float]]:

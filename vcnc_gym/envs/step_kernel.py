@@ -338,10 +338,19 @@ def _step_env(plant, reference, c, cfg, o, b, i):
 @njit(cache=True, _nrt=False)
 def _last_at_or_below(samples, column, value, lo):
     """Largest q >= lo with ``samples[q, column] <= value`` (the column non-decreasing, ``samples[lo, column] <=
-    value``): bisection."""
-    hi = samples.shape[0] - 1
-    if samples[hi, column] <= value:
-        return hi
+    value``): galloping from ``lo`` then bisection, O(log(q - lo)) (the progress moves a sample or two per
+    control period)."""
+    last = samples.shape[0] - 1
+    step = 1
+    hi = lo + 1
+    while hi <= last and samples[hi, column] <= value:
+        lo = hi
+        step *= 2
+        hi = lo + step
+    if hi > last:
+        if samples[last, column] <= value:
+            return last
+        hi = last
     while hi - lo > 1:
         mid = (lo + hi) // 2
         if samples[mid, column] <= value:

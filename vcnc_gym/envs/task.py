@@ -26,7 +26,7 @@ from ..validation import flag, integer, non_negative, positive
 from .layout import ObservationLayout
 
 __all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EPISODE_ENDS", "make_contour", "make_profile",
-           "reference_samples"]
+           "pack_reference"]
 
 #: The feedrate profiles of ``profile=``: seed 000's S-curve (``feedrate``,
 #: ``ramp_time``), a constant feed from t = 0 (seed 002's linear case, seed
@@ -179,7 +179,7 @@ class ContouringTask:
         # reference, computed once
         self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.curve, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
-        samples = reference_samples(self.curve, self.reference)
+        samples = pack_reference(self.curve, self.reference)
         self.projector = ContourProjector(self.curve, margin=min(max(10.0, 2 * self.divergence_bound),
                                                                  _GRID_MARGIN_MAX))
         reference_end = len(self.reference.t) - 1
@@ -257,7 +257,7 @@ def _as_tuple(values):
     return tuple(values) if isinstance(values, list) else values
 
 
-def reference_samples(curve: NurbsCurve, reference) -> np.ndarray:
+def pack_reference(curve: NurbsCurve, reference) -> np.ndarray:
     """The reference packed for the step kernel, (K, REF_COLUMNS): x_d, dx_d/dt, d2x_d/dt2, unit tangent, u,
     arc length (the cumulative chord of the samples, mm: short of the arc by sum kappa^2 c^3 / 24, below 1e-6 mm
     on the suite's contours) and signed curvature (x' y'' - y' x'') / |C'|^3 in 1/mm at u."""
