@@ -107,8 +107,10 @@ class ActionMode:
         return baselines.make(self.baseline, env, **self.baseline_params)
 
     def command(self, baseline_action: np.ndarray | None, agent_action: np.ndarray) -> np.ndarray:
-        """Normalised command (float32, clipped to [-1, 1]) from the baseline's and the agent's actions."""
-        a = np.clip(agent_action, -1.0, 1.0)
+        """Normalised command (float32, clipped to [-1, 1]) from the baseline's and the agent's actions, in float32
+        arithmetic (the agent's action is read as float32, the action space's dtype; the compiled residual step,
+        ``ContouringVectorEnv.step_controlled``, does the same operations)."""
+        a = np.clip(np.asarray(agent_action, dtype=np.float32), -1.0, 1.0)
         if self.mode == "residual":
             a = baseline_action + self.correction * a
         return np.clip(a, -1.0, 1.0).astype(np.float32)

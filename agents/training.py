@@ -62,6 +62,7 @@ import gymnasium as gym
 import yaml
 
 import vcnc_gym
+from vcnc_gym.envs.registry import suite_env
 
 from .action_modes import ActionMode
 from .config import (DEFAULT_CONFIG, action_mode_of, count, load_hyperparameters, normalize_kwargs,
@@ -135,10 +136,9 @@ class TrainingResult:
 
 # -- checks ------------------------------------------------------------------------
 def check_env_id(env_id: str) -> str:
-    """``env_id`` if it is a registered VCNC env; ValueError naming the valid ones otherwise."""
-    if env_id not in vcnc_gym.ENV_IDS:
-        raise ValueError(f"unknown env {env_id!r}; the VCNC envs are {', '.join(vcnc_gym.ENV_IDS)}")
-    return env_id
+    """``env_id`` if it is a VCNC env (a current id or a v0 id kept for its agents); ValueError naming the current
+    ones otherwise."""
+    return suite_env(env_id).id
 
 
 def _check_seed(seed) -> int:

@@ -5,10 +5,14 @@
 
 - **direct**: the agent's action is the plant command, held for the env's own
   ``action_repeat`` inside the compiled step;
-- **residual**: every control period the baseline's ``predict`` runs once on
-  the batch of N observations (no per-env Python loop), the command is
+- **residual**: every control period the baseline computes its command on
+  the N observations, the command is
   ``clip(u_baseline / u_max + correction * a, -1, 1)``, and the agent's
-  correction ``a`` is held for the mode's ``action_repeat`` periods.
+  correction ``a`` is held for the mode's ``action_repeat`` periods.  A
+  baseline with a compiled form (``BaselinePolicy.compiled``, e.g. SMC) runs
+  inside the kernel: a whole decision of N envs is one numba call
+  (``ContouringVectorEnv.step_controlled``).  Any other runs its batched
+  ``predict`` once per control period, the same commands to the bit.
 
 It gives what :class:`~agents.action_modes.ResidualAction` on a single env
 gives: the reward of a decision is the mean of the control periods' rewards
@@ -65,10 +69,14 @@ class VcncVecEnv(VecEnv):
         session), for the ``steps`` column.
     append : bool
         Append to existing monitor files (a resumed run) instead of starting them.
+    compiled : bool
+        Residual mode: run the baseline inside the kernel when it has a
+        compiled form (default); False calls its ``predict`` every period.
     """
 
     def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None,
-                 seed: int | None = None, *, monitor_dir=None, start_steps: int = 0, append: bool = False):
+                 seed: int | None = None, *, monitor_dir=None, start_steps: int = 0, append: bool = False,
+                 compiled: bool = True):
         kwargs = dict(env_kwargs or {})
         self.mode = mode
         residual = mode.mode == "residual"
@@ -82,6 +90,7 @@ class VcncVecEnv(VecEnv):
         self.env_id = env_id
         self.baseline = mode.make_baseline(self.venv)
         self.repeat = mode.action_repeat if residual else 1
+        self.controller = self.baseline.compiled(n_envs) if self.baseline is not None and compiled else None
         super().__init__(n_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._seed = seed
         self._obs = None
@@ -116,6 +125,13 @@ class VcncVecEnv(VecEnv):
     def step_wait(self):
         if self._obs is None:
             raise RuntimeError("step() called before reset()")
+        if self.controller is not None:
+            if self._start.any():
+                self.baseline.reset(mask=self._start)
+                self._start[:] = False
+            obs, total, terminated, truncated, last_info = self.venv.step_controlled(
+                self.controller, self._actions, self.mode.correction, self.repeat)
+            return self._finish(obs, total, terminated, truncated, last_info, last_info["contour_error_max"])
         n = self.num_envs
         a = self._actions
         total = np.zeros(n)
@@ -141,6 +157,12 @@ class VcncVecEnv(VecEnv):
             last_info = info if last_info is None else _merge(last_info, info, stepped)
             if done.all():
                 break
+        return self._finish(obs, total, terminated, truncated, last_info, peak)
+
+    def _finish(self, obs, total, terminated, truncated, last_info, peak):
+        """SB3's step outputs from a decision's: mean reward, per-env infos, episode ends reset."""
+        n = self.num_envs
+        done = terminated | truncated
         infos = [{} for _ in range(n)]
         for key in ("contour_error", "position", "reference_position", "tracking_error", "command", "time",
                     "diverged", "reward_contour", "reward_effort", "reward_divergence"):

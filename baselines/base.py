@@ -261,5 +261,16 @@ class BaselinePolicy:
         updates the memory."""
         raise NotImplementedError
 
+    def compiled(self, n_envs: int):
+        """The controller for the step kernel, or None if it has no compiled form.
+
+        A controller with one returns its module's namedtuple of gains and
+        memory (:mod:`vcnc_gym.envs.controller_contract`), the memory being
+        this policy's, allocated for ``n_envs`` and reset: the native vector
+        env then runs the controller inside its compiled step, with the same
+        commands, to the bit, as :meth:`predict`.
+        """
+        return None
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}(decision_period={self.decision_period:g} s)"

@@ -54,12 +54,17 @@ advanced by explicit Euler after the command is formed,
 
 from __future__ import annotations
 
-import numpy as np
+from collections import namedtuple
 
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import vcnc_feed_drive as feed_drive
 from .base import BaselinePolicy, check_per_axis
 
-__all__ = ["SMC_TABLE2", "SlidingModePolicy"]
+__all__ = ["SMC_TABLE2", "SlidingModePolicy", "SlidingModeArrays"]
 
 #: Seed 000, Table 2 (both axes unless a pair): lam rad/s, K_s V s/mm, rho V/mm, d-/d+ V (x, y).
 SMC_TABLE2 = {
@@ -144,3 +149,38 @@ class SlidingModePolicy(BaselinePolicy):
         u = self.m * (a_d + self.lam * e_dot) + self.c * v_d + d_hat + self.K_s * S
         np.clip(d_hat + self.rho * S * self.decision_period, self.d_minus, self.d_plus, out=d_hat)
         return u
+
+    def compiled(self, n_envs: int) -> SlidingModeArrays:
+        """The controller for the step kernel (:mod:`vcnc_gym.envs.controller_contract`), its memory this policy's
+        (allocated for ``n_envs`` and reset)."""
+        self.reset(n_envs=n_envs)
+        return SlidingModeArrays(self.m, self.c, self.lam, self.K_s, self.rho, self.d_minus, self.d_plus,
+                                 self.decision_period, self.u_max, self._state)
+
+
+#: The compiled controller's arrays: the gains of :class:`SlidingModePolicy` ((2,) each), its period T (s),
+#: u_max (V, (2,)) and the memory d_hat (N, 2) V.
+SlidingModeArrays = namedtuple("SlidingModeArrays",
+                               ["m", "c", "lam", "K_s", "rho", "d_minus", "d_plus", "period", "u_max", "d_hat"])
+
+
+@njit(cache=True, _nrt=False)
+def _smc_command(s, i, obs, o, out):
+    """:meth:`SlidingModePolicy._command` and ``predict``'s normalisation for env ``i``, in the same floating-point
+    operations (float64, as the layout reads the float32 observation)."""
+    for j in range(2):
+        e = np.float64(obs[o.tracking_error + j])
+        v_d = np.float64(obs[o.reference_velocity + j])
+        a_d = np.float64(obs[o.reference_acceleration + j])
+        e_dot = v_d - np.float64(obs[o.velocity + j])
+        S = s.lam[j] * e + e_dot
+        d_hat = s.d_hat[i, j]
+        u = s.m[j] * (a_d + s.lam[j] * e_dot) + s.c[j] * v_d + d_hat + s.K_s[j] * S
+        s.d_hat[i, j] = min(max(d_hat + s.rho[j] * S * s.period, s.d_minus[j]), s.d_plus[j])
+        out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
+
+
+@overload(controller_contract.command, jit_options={"cache": True})
+def _command(controller, i, obs, o, out):
+    if controller_contract.is_controller(controller, SlidingModeArrays):
+        return lambda controller, i, obs, o, out: _smc_command(controller, i, obs, o, out)

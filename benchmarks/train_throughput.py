@@ -14,8 +14,9 @@ from, so the comparison cannot silently run the new code twice), and
 removed at the end (``--keep-worktree`` keeps it; its numba cache lands in
 it).
 
-Both sides train PPO with the same settings: VCNC-Heart-v1's shipped entry
-of ``agents/hyperparams/ppo.yml`` (residual over seed 000's sliding-mode
+Both sides train PPO on ``VCNC-Heart-v0`` (the only heart the "before" code
+has) with the same settings: VCNC-Heart-v1's shipped entry of
+``agents/hyperparams/ppo.yml`` (residual over seed 000's sliding-mode
 controller, correction 0.2 x 5 V = 1 V, a decision every 10 control periods)
 given to both as the same file, the same agent steps, n_envs and seed, one
 torch thread and one numba thread (``NUMBA_NUM_THREADS=1``: the after side's
@@ -47,7 +48,10 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-ENV_ID = "VCNC-Heart-v1"
+#: Trained on both sides: the "before" code knows only the v0 ids, so both train the v0 heart, with the
+#: working tree's VCNC-Heart-v1 hyperparameters (ENTRY).
+ENV_ID = "VCNC-Heart-v0"
+ENTRY = "VCNC-Heart-v1"
 BEFORE = "e9abf30"
 
 #: The child: imports agents and vcnc_gym from the code root given first on sys.path, warms up, trains, reports.
@@ -91,8 +95,8 @@ print(json.dumps({"agents": agents.__file__, "vcnc_gym": vcnc_gym.__file__, "ste
 
 
 def _heart_entry_file(folder: Path) -> Path:
-    """The working tree's VCNC-Heart-v1 entry alone, as a hyperparameter file both trainers read."""
-    entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENV_ID]
+    """The working tree's ENTRY alone, keyed by ENV_ID, as a hyperparameter file both trainers read."""
+    entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENTRY]
     path = folder / "ppo_heart.yml"
     path.write_text(yaml.safe_dump({ENV_ID: entry}, sort_keys=False))
     return path
@@ -124,7 +128,7 @@ def main(argv=None) -> None:
     p.add_argument("--keep-worktree", action="store_true", help="leave the worktree (and its numba cache) in place")
     args = p.parse_args(argv)
 
-    entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENV_ID]
+    entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENTRY]
     repeat = entry["env_wrapper"][0]["agents.action_modes.ResidualAction"]["action_repeat"]
     made = not args.worktree.exists()
     if made:
@@ -135,8 +139,8 @@ def main(argv=None) -> None:
             tmp = Path(tmp)
             config_file = _heart_entry_file(tmp)
             mode = entry["env_wrapper"][0]["agents.action_modes.ResidualAction"]
-            print(f"{ENV_ID}: {args.steps} agent steps per run (whole rollouts of n_steps {entry['n_steps']} x "
-                  f"n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
+            print(f"{ENV_ID} with {ENTRY}'s hyperparameters: {args.steps} agent steps per run (whole rollouts "
+                  f"of n_steps {entry['n_steps']} x n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
                   f"{repeat}), 1 torch + 1 numba thread; before = {args.before}, after = the working tree")
             header = (f"{'n_envs':>6s} {'side':7s} {'VecEnv':7s} {'steps':>7s} {'steps/s':>9s} {'periods/s':>10s} "
                       f"{'steps/s*':>9s} {'periods/s*':>11s}  code")

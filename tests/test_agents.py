@@ -274,7 +274,7 @@ def test_residual_command_and_reward_against_a_hand_written_loop():
     start = np.array([True])
     rng = np.random.default_rng(0)
     for _ in range(60):
-        a = rng.uniform(-1, 1, size=2)
+        a = rng.uniform(-1, 1, size=2).astype(np.float32)  # the action space's dtype: what the command computes in
         obs_w, reward, term, trunc, info = w.step(a)
         rewards, peaks = [], []
         for _ in range(5):

@@ -19,7 +19,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..validation import flag
+from ..validation import flag, integer, positive
 from . import step_kernel as sk
 from .contouring_env import check_actions
 from .task import ContouringBatch, ContouringTask
@@ -179,6 +179,55 @@ class ContouringVectorEnv(VectorEnv):
             obs[done] = b.obs[done]
             self._autoreset[:] = False
         return obs, rewards, terminated, truncated, info
+
+    def step_controlled(self, controller, actions, correction: float, repeat: int):
+        """One decision of ``repeat`` control periods per env, a compiled controller in the loop: one kernel call.
+
+        Each control period env i commands ``clip(u_c / u_max + correction * a_i, -1, 1)`` (float32), u_c the
+        controller's command on the period's observation and ``a_i = clip(actions[i], -1, 1)`` held: the
+        residual action mode (``agents.action_modes``) without a Python call per period.  An env whose
+        episode ends inside the decision stops there.  Only with ``autoreset_mode=AutoresetMode.DISABLED``:
+        finished envs wait for ``reset(options={"reset_mask": ...})``.
+
+        Parameters
+        ----------
+        controller : namedtuple
+            A controller's compiled form, ``BaselinePolicy.compiled(num_envs)``
+            (:mod:`~vcnc_gym.envs.controller_contract`).
+        actions : array_like, (num_envs, 2)
+            The agent's corrections, finite (clipped to [-1, 1], then float32).
+        correction : float
+            Largest correction as a fraction of u_max, > 0.
+        repeat : int
+            Control periods per decision, >= 1.
+
+        Returns
+        -------
+        obs, rewards, terminated, truncated, info
+            As :meth:`step`, but ``rewards`` is the sum of the periods' rewards, ``info`` each env's last
+            period's, and ``info["contour_error_max"]`` the largest contour error of the decision (mm).
+        """
+        if self.autoreset_mode != AutoresetMode.DISABLED:
+            raise ValueError(f"step_controlled needs autoreset_mode=AutoresetMode.DISABLED, this env has "
+                             f"{self.autoreset_mode}")
+        if not self._started:
+            raise RuntimeError("step_controlled() called before reset()")
+        n = self.num_envs
+        agent = check_actions(actions, (n, 2)).astype(np.float32)
+        loop = sk.ControlLoop(agent, np.float32(positive("correction", correction, "fraction of u_max")),
+                              integer("repeat", repeat, 1), np.zeros((n, 2)), np.zeros(n), np.zeros(n))
+        b = self._buffers
+        b.mode[:] = sk.MODE_STEP
+        b.mode[self._autoreset] = sk.MODE_IDLE
+        self._batch.run_controlled(controller, loop, self.parallel)
+        stepped = ~self._autoreset
+        terminated = b.flags[:, sk.FLAG_TERMINATED] & stepped
+        truncated = b.flags[:, sk.FLAG_TRUNCATED] & stepped
+        rewards = np.where(stepped, loop.reward, 0.0)
+        info = self._info(stepped)
+        info["contour_error_max"] = loop.peak
+        self._autoreset = self._autoreset | terminated | truncated
+        return b.obs.copy(), rewards, terminated, truncated, info
 
     def close_extras(self, **kwargs):
         pass

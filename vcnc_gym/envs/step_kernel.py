@@ -31,6 +31,7 @@ from numba.experimental import structref
 
 from ..contour.projector import project_point_warm
 from ..plants import contract
+from . import controller_contract
 
 __all__ = [
     "StepData",
@@ -40,6 +41,9 @@ __all__ = [
     "EnvBuffers",
     "step_serial",
     "step_parallel",
+    "ControlLoop",
+    "step_controlled",
+    "step_controlled_serial",
     "MODE_IDLE",
     "MODE_STEP",
     "MODE_OBSERVE",
@@ -159,6 +163,13 @@ EnvBuffers = namedtuple("EnvBuffers", [
     "mode", "action", "k", "steps", "foot", "input_limit", "previous_action", "progress", "cycle_time",
     "obs", "reward", "flags", "info", "obs_high", "sensed", "der", "work",
 ])
+
+
+#: A decision of :func:`step_controlled`: ``agent`` (N, 2) float32, the agent's correction in [-1, 1] (clipped
+#: here); ``correction`` (float32), its scale as a fraction of u_max; ``repeat``, control periods per decision;
+#: scratch ``base`` (N, 2), the controller's command; outputs ``reward`` (N,), the sum of the periods' rewards,
+#: and ``peak`` (N,), the largest contour error of the decision, mm.
+ControlLoop = namedtuple("ControlLoop", ["agent", "correction", "repeat", "base", "reward", "peak"])
 
 
 @structref.register
@@ -422,3 +433,55 @@ def step_parallel(d):
     chunks = min(n, _CHUNKS)
     for c in prange(chunks):
         _step_range(d, c * n // chunks, (c + 1) * n // chunks)
+
+
+@njit(cache=True, _nrt=False)
+def _control_env(plant, reference, c, cfg, o, b, i, controller, loop):
+    """A decision of env ``i`` (in MODE_STEP) with a compiled controller in the loop: ``loop.repeat`` control
+    periods (fewer if the episode ends), each commanding ``clip(u_c / u_max + correction * a, -1, 1)`` in float32,
+    u_c the controller's command on the current observation (:mod:`~vcnc_gym.envs.controller_contract`), ``a``
+    the agent's held correction: the arithmetic of ``agents.action_modes.ActionMode.command``, to the bit."""
+    if b.mode[i] != MODE_STEP:
+        return
+    one = np.float32(1.0)
+    a0 = min(one, max(-one, loop.agent[i, 0]))
+    a1 = min(one, max(-one, loop.agent[i, 1]))
+    base = loop.base[i]
+    total = 0.0
+    peak = 0.0
+    for _ in range(loop.repeat):
+        controller_contract.command(controller, i, b.obs[i], o, base)
+        b.action[i, 0] = min(one, max(-one, np.float32(base[0]) + loop.correction * a0))
+        b.action[i, 1] = min(one, max(-one, np.float32(base[1]) + loop.correction * a1))
+        _step_env(plant, reference, c, cfg, o, b, i)
+        total += b.reward[i]
+        peak = max(peak, b.info[i, INFO_CONTOUR_ERROR_MAX])
+        if b.flags[i, FLAG_TERMINATED] or b.flags[i, FLAG_TRUNCATED]:
+            break
+    loop.reward[i] = total
+    loop.peak[i] = peak
+
+
+@njit(cache=True)
+def _control_range(d, controller, loop, start, stop):
+    """Envs ``start`` to ``stop - 1`` of ``d`` under ``controller``, the StepData's fields unpacked once."""
+    plant, reference, contour, config, offsets, buffers = d.plant, d.reference, d.contour, d.config, d.offsets, \
+        d.buffers
+    for i in range(start, stop):
+        _control_env(plant, reference, contour, config, offsets, buffers, i, controller, loop)
+
+
+@njit(cache=True)
+def step_controlled_serial(d, controller, loop):
+    """One decision of every env of ``d`` in MODE_STEP, a compiled controller and the agent's correction
+    commanding each control period (:class:`ControlLoop`), env after env."""
+    _control_range(d, controller, loop, 0, d.buffers.mode.shape[0])
+
+
+@njit(cache=True, parallel=True)
+def step_controlled(d, controller, loop):
+    """:func:`step_controlled_serial` spread over the cores (numba ``prange`` over chunks of envs)."""
+    n = d.buffers.mode.shape[0]
+    chunks = min(n, _CHUNKS)
+    for c in prange(chunks):
+        _control_range(d, controller, loop, c * n // chunks, (c + 1) * n // chunks)

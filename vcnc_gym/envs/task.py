@@ -329,3 +329,8 @@ class ContouringBatch:
     def run(self, parallel: bool = False) -> None:
         """One kernel call: every env in MODE_STEP steps, every env in MODE_OBSERVE observes."""
         (sk.step_parallel if parallel else sk.step_serial)(self.data)
+
+    def run_controlled(self, controller, loop: sk.ControlLoop, parallel: bool = False) -> None:
+        """One kernel call: every env in MODE_STEP makes one decision of ``loop.repeat`` control periods with
+        ``controller`` (:mod:`~vcnc_gym.envs.controller_contract`) in the loop."""
+        (sk.step_controlled if parallel else sk.step_controlled_serial)(self.data, controller, loop)

@@ -1,0 +1,45 @@
+"""The controller contract: a classical controller compiled into the step kernel.
+
+A controller that runs every control period (the residual action mode's
+baseline) costs a Python call per period when it runs as a policy's
+``predict``; compiled into the kernel, a whole decision of N envs (``repeat``
+control periods, each with the controller's command) is one numba call
+(:func:`vcnc_gym.envs.step_kernel.step_controlled`).  The core package names
+no controller: a controller's module (in :mod:`baselines`) declares
+
+- a ``namedtuple`` class holding its gains and its per-env memory (arrays
+  whose first axis is the env, shared with the Python policy, so that
+  resetting the policy's memory resets the compiled controller's);
+- a numba overload of :func:`command` for that class::
+
+      @overload(controller_contract.command, jit_options={"cache": True})
+      def _command(controller, i, obs, o, out):
+          if controller_contract.is_controller(controller, MyArrays):
+              return lambda controller, i, obs, o, out: ...
+
+Kernel
+------
+``command(controller, i, obs, o, out)``
+    The normalised command u / u_max of env ``i`` ((2,) written into ``out``,
+    float64 holding float32 values, clipped to [-1, 1]) from its observation
+    ``obs`` (float32, laid out by the offsets ``o``,
+    :data:`~vcnc_gym.envs.layout.ObservationOffsets`), advancing env ``i``'s
+    memory by one period: what the policy's ``predict`` returns for that
+    observation, to the bit.
+"""
+
+from __future__ import annotations
+
+from numba import types
+
+__all__ = ["command", "is_controller"]
+
+
+def command(controller, i, obs, o, out):  # pragma: no cover - compiled per controller through numba overloads
+    """Env ``i``'s normalised command into ``out``; see the module docstring."""
+    raise NotImplementedError("command() runs in numba code, implemented by each controller module's overload")
+
+
+def is_controller(numba_type, arrays_class) -> bool:
+    """True if ``numba_type`` (an overload's argument type) is ``arrays_class``, a controller's namedtuple."""
+    return isinstance(numba_type, types.BaseNamedTuple) and numba_type.instance_class is arrays_class
