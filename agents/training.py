@@ -280,7 +280,7 @@ def make_training_venv(config: dict, run_dir: Path, *, vec_env: str = "native", 
     mode = ActionMode(**config["action_mode"])
     env_kwargs = dict(config["hyperparams"].get("env_kwargs") or {})
     (run_dir / "monitor").mkdir(parents=True, exist_ok=True)
-    if vec_env == "native" and config["env_id"] not in vcnc_gym.envs.VECTOR_IDS:
+    if vec_env == "native" and suite_env(config["env_id"]).vector_entry_point is None:
         _note(f"{config['env_id']} has no native vector env: training on SB3's DummyVecEnv")
         vec_env = "dummy"
     if vec_env == "native":

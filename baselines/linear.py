@@ -42,9 +42,37 @@ def discretize(sys, dt: float, method: str = "tustin") -> control.StateSpace:
     return control.c2d(ss, dt, method=method)
 
 
+@njit(cache=True, _nrt=False)
+def lti_advance(A, B, C, D, x, u, y, xn):
+    """One step of one copy of a discrete LTI system: y = C x + D u, then x <- A x + B u.
+
+    ``x`` (nx,) is advanced in place, ``u`` (nu,) is the input, ``y`` (ny,) is
+    written, ``xn`` (nx,) is scratch.  Allocates nothing, so the step kernel
+    can run it (a compiled controller, :mod:`vcnc_gym.envs.controller_contract`).
+    """
+    nx = x.shape[0]
+    nu = u.shape[0]
+    for r in range(y.shape[0]):
+        acc = 0.0
+        for c in range(nx):
+            acc += C[r, c] * x[c]
+        for c in range(nu):
+            acc += D[r, c] * u[c]
+        y[r] = acc
+    for r in range(nx):
+        acc = 0.0
+        for c in range(nx):
+            acc += A[r, c] * x[c]
+        for c in range(nu):
+            acc += B[r, c] * u[c]
+        xn[r] = acc
+    for r in range(nx):
+        x[r] = xn[r]
+
+
 @njit(cache=True)
 def lti_step(A, B, C, D, x, u, y):
-    """One step of ``n`` independent copies of a discrete LTI system.
+    """One step of ``n`` independent copies of a discrete LTI system (:func:`lti_advance` for each).
 
     Parameters
     ----------
@@ -57,27 +85,9 @@ def lti_step(A, B, C, D, x, u, y):
     y : ndarray, (n, ny)
         Outputs y_k, written in place.
     """
-    n, nx = x.shape
-    nu = u.shape[1]
-    ny = y.shape[1]
-    xn = np.empty(nx)
-    for i in range(n):
-        for r in range(ny):
-            acc = 0.0
-            for c in range(nx):
-                acc += C[r, c] * x[i, c]
-            for c in range(nu):
-                acc += D[r, c] * u[i, c]
-            y[i, r] = acc
-        for r in range(nx):
-            acc = 0.0
-            for c in range(nx):
-                acc += A[r, c] * x[i, c]
-            for c in range(nu):
-                acc += B[r, c] * u[i, c]
-            xn[r] = acc
-        for r in range(nx):
-            x[i, r] = xn[r]
+    xn = np.empty(x.shape[1])
+    for i in range(x.shape[0]):
+        lti_advance(A, B, C, D, x[i], u[i], y[i], xn)
 
 
 class DiscreteLTI:

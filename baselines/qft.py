@@ -76,20 +76,25 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from collections import namedtuple
 
 import control
 import numpy as np
+from numba import njit
+from numba.extending import overload
 from scipy.optimize import minimize_scalar
 
+from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import vcnc_feed_drive as feed_drive
 from .base import BaselinePolicy, check_polynomial
-from .linear import DiscreteLTI, discretize
+from .linear import DiscreteLTI, discretize, lti_advance
 
 __all__ = [
     "QFT_CONTROLLER",
     "QFT_PREFILTER",
     "MU",
     "QFTPolicy",
+    "QFTArrays",
     "controller_tf",
     "prefilter_tf",
     "reference_velocity_filter_tf",
@@ -243,6 +248,37 @@ class QFTPolicy(BaselinePolicy):
         inputs = np.stack([v_r, e], axis=-1).reshape(n * 2, 2)
         x = self._state.reshape(n * 2, self._lti.nx)  # a view: advanced in place
         return self._lti.step(x, inputs).reshape(n, 2)
+
+    def compiled(self, n_envs: int) -> QFTArrays:
+        """The controller for the step kernel (:mod:`vcnc_gym.envs.controller_contract`), its memory this policy's
+        (allocated for ``n_envs`` and reset)."""
+        self.reset(n_envs=n_envs)
+        lti = self._lti
+        return QFTArrays(lti.A, lti.B, lti.C, lti.D, self.u_max, self._state, np.zeros((n_envs, 2)),
+                         np.zeros((n_envs, lti.ny)), np.zeros((n_envs, lti.nx)))
+
+
+#: The compiled controller's arrays: the (H, G) cascade's discrete state-space matrices, u_max (V, (2,)), the
+#: memory x (N, 2, nx) and per-env scratch (inputs (N, 2), output (N, 1), next state (N, nx)).
+QFTArrays = namedtuple("QFTArrays", ["A", "B", "C", "D", "u_max", "x", "inputs", "y", "xn"])
+
+
+@njit(cache=True, _nrt=False)
+def _qft_command(q, i, obs, o, out):
+    """:meth:`QFTPolicy._command` and ``predict``'s normalisation for env ``i``, in the same floating-point
+    operations (:func:`~baselines.linear.lti_advance` on the inputs (v_r, e) of each axis)."""
+    inputs = q.inputs[i]
+    for j in range(2):
+        inputs[0] = np.float64(obs[o.reference_velocity + j])
+        inputs[1] = np.float64(obs[o.tracking_error + j])
+        lti_advance(q.A, q.B, q.C, q.D, q.x[i, j], inputs, q.y[i], q.xn[i])
+        out[j] = np.float32(min(max(q.y[i, 0] / q.u_max[j], -1.0), 1.0))
+
+
+@overload(controller_contract.command, jit_options={"cache": True})
+def _command(controller, i, obs, o, out):
+    if controller_contract.is_controller(controller, QFTArrays):
+        return lambda controller, i, obs, o, out: _qft_command(controller, i, obs, o, out)
 
 
 # -- robustness analysis -------------------------------------------------------

@@ -11,11 +11,13 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from numba import njit
 from gymnasium.vector import AutoresetMode
 
 import baselines
 from agents.action_modes import ActionMode, ResidualAction
 from agents.vec_env import VcncVecEnv
+from vcnc_gym.envs import controller_contract
 
 ENV_ID = "VCNC-Omega-v1"
 N = 3
@@ -23,8 +25,8 @@ SEED = 7
 KEYS = ("contour_error", "contour_error_max", "position", "command", "time", "diverged")
 
 
-def _mode(correction):
-    return ActionMode(mode="residual", baseline="smc", correction=correction, action_repeat=10)
+def _mode(baseline, correction):
+    return ActionMode(mode="residual", baseline=baseline, correction=correction, action_repeat=10)
 
 
 def _actions(decisions):
@@ -34,8 +36,8 @@ def _actions(decisions):
     return np.repeat(held, 15, axis=0)[:decisions].astype(np.float32)
 
 
-def _run_vec(compiled, actions, correction, env_kwargs):
-    venv = VcncVecEnv(ENV_ID, N, _mode(correction), env_kwargs, seed=SEED, compiled=compiled)
+def _run_vec(compiled, actions, baseline, correction, env_kwargs):
+    venv = VcncVecEnv(ENV_ID, N, _mode(baseline, correction), env_kwargs, seed=SEED, compiled=compiled)
     assert (venv.controller is not None) == compiled
     rows = [(venv.reset(), None, None, None)]
     for a in actions:
@@ -46,10 +48,10 @@ def _run_vec(compiled, actions, correction, env_kwargs):
     return rows
 
 
-def _run_single(actions, correction, env_kwargs):
+def _run_single(actions, baseline, correction, env_kwargs):
     """N single envs in ResidualAction, reset as SB3 does (at once, the generator continuing)."""
-    envs = [ResidualAction(gym.make(ENV_ID, action_repeat=1, **env_kwargs), baseline="smc", correction=correction,
-                           action_repeat=10) for _ in range(N)]
+    envs = [ResidualAction(gym.make(ENV_ID, action_repeat=1, **env_kwargs), baseline=baseline,
+                           correction=correction, action_repeat=10) for _ in range(N)]
     obs = np.stack([e.reset(seed=SEED + i)[0] for i, e in enumerate(envs)])
     rows = [(obs, None, None, None)]
     for a in actions:
@@ -76,39 +78,43 @@ def _assert_same(a, b):
                     np.testing.assert_array_equal(p[key], q[key], err_msg=f"info[{key!r}] of env {i}, decision {k}")
 
 
-@pytest.mark.parametrize("randomize", [False, True])
-def test_compiled_baseline_gives_the_python_path_and_single_envs_to_the_bit(randomize):
+@pytest.mark.parametrize("baseline, randomize", [("smc", False), ("smc", True), ("qft", True)])
+def test_compiled_baseline_gives_the_python_path_and_single_envs_to_the_bit(baseline, randomize):
     actions = _actions(120)
     kwargs = {"divergence_bound": 0.05, "randomize": randomize}  # 50 um: corrections of 2 u_max end episodes
-    compiled = _run_vec(True, actions, 2.0, kwargs)
+    compiled = _run_vec(True, actions, baseline, 2.0, kwargs)
     assert sum(int(r[2].sum()) for r in compiled[1:]) >= 2, "no episode ended: the test would not cover resets"
-    _assert_same(compiled, _run_vec(False, actions, 2.0, kwargs))
-    _assert_same(compiled, _run_single(actions, 2.0, kwargs))
+    _assert_same(compiled, _run_vec(False, actions, baseline, 2.0, kwargs))
+    _assert_same(compiled, _run_single(actions, baseline, 2.0, kwargs))
 
 
-def test_compiled_smc_is_predict_to_the_bit():
+@njit
+def _commands(controller, obs, offsets, out):
+    for i in range(obs.shape[0]):
+        controller_contract.command(controller, i, obs[i], offsets, out[i])
+
+
+@pytest.mark.parametrize("name", ["smc", "qft"])
+def test_compiled_baseline_is_predict_to_the_bit(name):
+    """Through the contract, on random observations (spanning 1e-3 to 1e2) and a random memory."""
     env = gym.make(ENV_ID)
     layout = env.unwrapped.layout
-    policy = baselines.make("smc", env)
+    policy = baselines.make(name, env)
     rng = np.random.default_rng(1)
     n = 500
     obs = (rng.normal(size=(n, layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(n, layout.size)))
     obs = obs.astype(np.float32)
-    compiled = policy.compiled(n)
-    memory = rng.uniform(-0.3, 0.4, (n, 2))
-    from baselines.smc import _smc_command
-
-    compiled.d_hat[:] = memory
+    controller = policy.compiled(n)
+    memory = rng.uniform(-0.3, 0.3, policy.controller_state.shape)
+    policy.controller_state[:] = memory  # the compiled controller's memory is the policy's
     out = np.zeros((n, 2))
-    offsets = layout.offsets()
-    for i in range(n):
-        _smc_command(compiled, i, obs[i], offsets, out[i])
-    kernel_memory = compiled.d_hat.copy()
-    policy.reset(n_envs=n)
+    _commands(controller, obs, layout.offsets(), out)
+    kernel_memory = policy.controller_state.copy()
     policy.controller_state[:] = memory
     action, _ = policy.predict(obs)
     np.testing.assert_array_equal(out.astype(np.float32), action)
     np.testing.assert_array_equal(kernel_memory, policy.controller_state)
+    assert not np.array_equal(kernel_memory, memory)
 
 
 def test_step_controlled_refuses_bad_arguments():

@@ -255,8 +255,9 @@ class ContouringVectorEnv(VectorEnv):
     def _info(self, valid: np.ndarray) -> dict:
         b = self._buffers
         info: dict[str, Any] = {}
+        values = b.info.copy()  # one copy; the keys' arrays are views of it
         for key, (col, width) in sk.INFO_FIELDS.items():
-            info[key] = b.info[:, col].copy() if width == 1 else b.info[:, col:col + width].copy()
+            info[key] = values[:, col] if width == 1 else values[:, col:col + width]
             info["_" + key] = valid.copy()
         info["diverged"] = b.flags[:, sk.FLAG_DIVERGED].copy()
         info["_diverged"] = valid.copy()

@@ -397,9 +397,10 @@ def _contour_preview(samples, ahead, p, xm, ym, obs, o):
     tx = samples[p, REF_TANGENT]
     ty = samples[p, REF_TANGENT + 1]
     s0 = samples[p, REF_ARC]
+    q = p
     for j in range(ahead.shape[0]):
         s = s0 + ahead[j]
-        q = _last_at_or_below(samples, REF_ARC, s, p)
+        q = _last_at_or_below(samples, REF_ARC, s, q if j > 0 and ahead[j] >= ahead[j - 1] else p)
         r = q + 1 if q < last else q
         span = samples[r, REF_ARC] - samples[q, REF_ARC]
         w = min(1.0, (s - samples[q, REF_ARC]) / span) if span > 0.0 else 0.0
