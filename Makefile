@@ -1,6 +1,7 @@
 # The two commands of the README: `make bench` (the main job) and `make test`.
 # Both create .venv, install the CPU build of PyTorch from the pinned file
-# first (an unpinned torch pulls gigabytes of CUDA packages), then the project.
+# first (an unpinned torch pulls gigabytes of CUDA packages), then the project,
+# then compile its numba kernels once (python -m vcnc_gym.warmup).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -14,6 +15,7 @@ $(BIN)/python:
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/pip install -q torch==2.13.0
 	$(BIN)/pip install -q -e ".[dev]"
+	$(BIN)/python -m vcnc_gym.warmup
 	touch $@
 
 install: $(VENV)/.installed

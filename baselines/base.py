@@ -21,6 +21,7 @@ import numbers
 
 import numpy as np
 
+from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import get_plant
 
 __all__ = ["BaselinePolicy"]
@@ -144,6 +145,8 @@ class BaselinePolicy:
         self.nominal_parameters = self.plant.validate(p)[0]
         self.u_max = self.plant.input_limits(self.nominal_parameters).copy()
         self._state = None  # (n_envs, *state_shape), allocated on the first predict
+        self._compiled = None  # (the memory it wraps, the compiled form) once predict has built it
+        self._offsets = layout.offsets() if hasattr(layout, "offsets") else None
 
     # -- construction from an env -------------------------------------------
     @classmethod
@@ -252,8 +255,20 @@ class BaselinePolicy:
             self.reset(n_envs=n)
         elif start is not None and start.any():
             self.reset(mask=start)
-        u = self._command(obs2)
-        action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
+        if obs2.dtype == np.float32 and self._compiled is not None and self._compiled[0] is self._state:
+            form = self._compiled[1]
+        elif obs2.dtype == np.float32:
+            form = self._compiled_arrays()
+            self._compiled = (self._state, form)
+        else:
+            form = None
+        if form is not None:  # the compiled law: the same numbers as _command's, ~10x faster
+            out = np.empty((n, 2))
+            controller_contract.commands(form, np.ascontiguousarray(obs2), self._offsets, out)
+            action = out.astype(np.float32)
+        else:
+            u = self._command(obs2)
+            action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
         return (action[0] if single else action), state
 
     def _command(self, obs: np.ndarray) -> np.ndarray:
@@ -269,6 +284,18 @@ class BaselinePolicy:
         this policy's, allocated for ``n_envs`` and reset: the native vector
         env then runs the controller inside its compiled step, with the same
         commands, to the bit, as :meth:`predict`.
+        """
+        self.reset(n_envs=n_envs)
+        return self._compiled_arrays()
+
+    def _compiled_arrays(self):
+        """The compiled form around the current memory, or None (the default: no compiled form).
+
+        A subclass with one states its law twice: :meth:`_command` in NumPy,
+        the readable statement, and a numba ``controller_contract.command``
+        overload doing the same floating-point operations, which
+        :meth:`predict` runs on float32 observations (a test holds the two
+        equal to the bit).
         """
         return None
 

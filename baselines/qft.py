@@ -249,13 +249,12 @@ class QFTPolicy(BaselinePolicy):
         x = self._state.reshape(n * 2, self._lti.nx)  # a view: advanced in place
         return self._lti.step(x, inputs).reshape(n, 2)
 
-    def compiled(self, n_envs: int) -> QFTArrays:
-        """The controller for the step kernel (:mod:`vcnc_gym.envs.controller_contract`), its memory this policy's
-        (allocated for ``n_envs`` and reset)."""
-        self.reset(n_envs=n_envs)
+    def _compiled_arrays(self) -> QFTArrays:
+        """The compiled form (:mod:`vcnc_gym.envs.controller_contract`) around the current memory."""
         lti = self._lti
-        return QFTArrays(lti.A, lti.B, lti.C, lti.D, self.u_max, self._state, np.zeros((n_envs, 2)),
-                         np.zeros((n_envs, lti.ny)), np.zeros((n_envs, lti.nx)))
+        n = self._state.shape[0]
+        return QFTArrays(lti.A, lti.B, lti.C, lti.D, self.u_max, self._state, np.zeros((n, 2)), np.zeros((n, lti.ny)),
+                         np.zeros((n, lti.nx)))
 
 
 #: The compiled controller's arrays: the (H, G) cascade's discrete state-space matrices, u_max (V, (2,)), the

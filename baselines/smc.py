@@ -150,10 +150,8 @@ class SlidingModePolicy(BaselinePolicy):
         np.clip(d_hat + self.rho * S * self.decision_period, self.d_minus, self.d_plus, out=d_hat)
         return u
 
-    def compiled(self, n_envs: int) -> SlidingModeArrays:
-        """The controller for the step kernel (:mod:`vcnc_gym.envs.controller_contract`), its memory this policy's
-        (allocated for ``n_envs`` and reset)."""
-        self.reset(n_envs=n_envs)
+    def _compiled_arrays(self) -> SlidingModeArrays:
+        """The compiled form (:mod:`vcnc_gym.envs.controller_contract`) around the current memory."""
         return SlidingModeArrays(self.m, self.c, self.lam, self.K_s, self.rho, self.d_minus, self.d_plus,
                                  self.decision_period, self.u_max, self._state)
 

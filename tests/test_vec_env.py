@@ -11,7 +11,6 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from numba import njit
 from gymnasium.vector import AutoresetMode
 
 import baselines
@@ -88,15 +87,10 @@ def test_compiled_baseline_gives_the_python_path_and_single_envs_to_the_bit(base
     _assert_same(compiled, _run_single(actions, baseline, 2.0, kwargs))
 
 
-@njit
-def _commands(controller, obs, offsets, out):
-    for i in range(obs.shape[0]):
-        controller_contract.command(controller, i, obs[i], offsets, out[i])
-
-
 @pytest.mark.parametrize("name", ["smc", "qft"])
-def test_compiled_baseline_is_predict_to_the_bit(name):
-    """Through the contract, on random observations (spanning 1e-3 to 1e2) and a random memory."""
+def test_compiled_law_is_the_numpy_law_to_the_bit(name):
+    """predict runs the compiled law on float32 observations and the NumPy statement of it (``_command``) on
+    float64 ones: the same commands and memory, on random observations (1e-3 to 1e2) and a random memory."""
     env = gym.make(ENV_ID)
     layout = env.unwrapped.layout
     policy = baselines.make(name, env)
@@ -106,15 +100,18 @@ def test_compiled_baseline_is_predict_to_the_bit(name):
     obs = obs.astype(np.float32)
     controller = policy.compiled(n)
     memory = rng.uniform(-0.3, 0.3, policy.controller_state.shape)
-    policy.controller_state[:] = memory  # the compiled controller's memory is the policy's
+    policy.controller_state[:] = memory  # the compiled form's memory is the policy's
     out = np.zeros((n, 2))
-    _commands(controller, obs, layout.offsets(), out)
-    kernel_memory = policy.controller_state.copy()
+    controller_contract.commands(controller, obs, layout.offsets(), out)
+    compiled_memory = policy.controller_state.copy()
+    assert not np.array_equal(compiled_memory, memory)
+    policy.controller_state[:] = memory
+    numpy_action, _ = policy.predict(obs.astype(np.float64))
+    np.testing.assert_array_equal(out.astype(np.float32), numpy_action)
+    np.testing.assert_array_equal(compiled_memory, policy.controller_state)
     policy.controller_state[:] = memory
     action, _ = policy.predict(obs)
-    np.testing.assert_array_equal(out.astype(np.float32), action)
-    np.testing.assert_array_equal(kernel_memory, policy.controller_state)
-    assert not np.array_equal(kernel_memory, memory)
+    np.testing.assert_array_equal(action, numpy_action)
 
 
 def test_step_controlled_refuses_bad_arguments():

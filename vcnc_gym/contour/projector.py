@@ -55,7 +55,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import _basis_derivatives, find_span, workspace_size
+from ..geometry.nurbs import SECOND, _basis_derivatives, find_span, workspace_size
 
 __all__ = ["ContourProjector", "NO_FOOT", "project_point", "project_point_warm"]
 
@@ -72,6 +72,10 @@ _ISOLATION = 12  # lower bound (mm) on the distance from piece i to every piece 
 _POLY = 13  # first of the 3 (p + 1) coefficients of piece i's homogeneous polynomials
 _ISOLATION_CELLS = 1.0  # isolation radii are computed out to this many grid cells
 _NEAR_CELLS = 4.0  # a best distance within this many grid cells is certified without the chord rings first
+# the empty range of pieces already refined, for _search (numpy ints: numba compiles a function once per integer
+# literal argument, so literals 0 and -1 would compile a second _search and _certify)
+_NONE_LO = np.int64(0)
+_NONE_HI = np.int64(-1)
 
 
 @njit(cache=True)
@@ -541,7 +545,7 @@ def project_point(
     """
     if not (abs(qx) < np.inf and abs(qy) < np.inf):
         return _not_finite(qx, qy)
-    return _search(qx, qy, np.inf, piece_u[0], 0, -1, degree, piece_u, piece_table, piece_sag,
+    return _search(qx, qy, np.inf, piece_u[0], _NONE_LO, _NONE_HI, degree, piece_u, piece_table, piece_sag,
                    grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der)
 
 
@@ -651,7 +655,7 @@ def _project_points(qs, u_prev, carry, control_points, weights, knots, degree, p
     trajectory; only ``u_prev[0]`` is read), else ``u_prev[k]`` per point.
     """
     der = np.empty((3, 2))
-    work = np.empty(workspace_size(degree, 2))
+    work = np.empty(workspace_size(degree, SECOND))
     u = u_prev[0]
     for k in range(qs.shape[0]):
         if not carry:

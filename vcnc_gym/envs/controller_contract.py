@@ -30,9 +30,9 @@ Kernel
 
 from __future__ import annotations
 
-from numba import types
+from numba import njit, types
 
-__all__ = ["command", "is_controller"]
+__all__ = ["command", "commands", "is_controller"]
 
 
 def command(controller, i, obs, o, out):  # pragma: no cover - compiled per controller through numba overloads
@@ -43,3 +43,10 @@ def command(controller, i, obs, o, out):  # pragma: no cover - compiled per cont
 def is_controller(numba_type, arrays_class) -> bool:
     """True if ``numba_type`` (an overload's argument type) is ``arrays_class``, a controller's namedtuple."""
     return isinstance(numba_type, types.BaseNamedTuple) and numba_type.instance_class is arrays_class
+
+
+@njit(cache=True)
+def commands(controller, obs, o, out):
+    """:func:`command` for every env of a batch: ``obs`` (N, D) float32, ``out`` (N, 2) (a policy's ``predict``)."""
+    for i in range(obs.shape[0]):
+        command(controller, i, obs[i], o, out[i])

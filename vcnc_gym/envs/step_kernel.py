@@ -58,6 +58,10 @@ REF_U = 8  # curve parameter u of x_d (non-decreasing)
 REF_ARC = 9  # arc length from the start of the contour to x_d, mm (non-decreasing)
 REF_CURVATURE = 10  # signed curvature of the contour at x_d, 1/mm (positive: turning left)
 REF_COLUMNS = 11
+# the columns _last_at_or_below searches, as numpy ints: numba compiles a function once per integer literal
+# argument, once for int64
+_U_COLUMN = np.int64(REF_U)
+_ARC_COLUMN = np.int64(REF_ARC)
 
 # envs of a parallel step are cut in this many chunks (each unpacks the StepData once),
 # enough to balance a few threads
@@ -379,7 +383,7 @@ def _advance_progress(samples, cfg, b, i):
     p = b.progress[i]
     foot = b.foot[i]
     if foot > samples[p, REF_U]:
-        q = _last_at_or_below(samples, REF_U, foot, p)
+        q = _last_at_or_below(samples, _U_COLUMN, foot, p)
         if samples[q, REF_ARC] - samples[p, REF_ARC] <= cfg.progress_window:
             b.progress[i] = q
             p = q
@@ -400,7 +404,7 @@ def _contour_preview(samples, ahead, p, xm, ym, obs, o):
     q = p
     for j in range(ahead.shape[0]):
         s = s0 + ahead[j]
-        q = _last_at_or_below(samples, REF_ARC, s, q if j > 0 and ahead[j] >= ahead[j - 1] else p)
+        q = _last_at_or_below(samples, _ARC_COLUMN, s, q if j > 0 and ahead[j] >= ahead[j - 1] else p)
         r = q + 1 if q < last else q
         span = samples[r, REF_ARC] - samples[q, REF_ARC]
         w = min(1.0, (s - samples[q, REF_ARC]) / span) if span > 0.0 else 0.0

@@ -127,6 +127,13 @@ def _basis_derivatives(span, u, degree, order, knots, work, out):
         factor *= p - k
 
 
+#: Derivative orders for jitted callers of :func:`curve_derivatives_into` and :func:`workspace_size`: numba
+#: compiles a specialisation of its own for an integer literal argument (a 1 or a 2 written in the call), while
+#: numpy ints are typed int64, so that one compiled function serves every caller (fewer cold-start compiles).
+FIRST = np.int64(1)
+SECOND = np.int64(2)
+
+
 @njit(cache=True)
 def workspace_size(degree, order):
     """Length of the scratch array :func:`curve_derivatives_into` needs."""
@@ -323,7 +330,7 @@ class NurbsCurve:
         """Derivatives for an array of u, shape (len(us), order+1, 2)."""
         if not _is_integer(order) or order < 0:
             raise ValueError(f"order must be a non-negative integer, got {order!r}")
-        uu = np.ascontiguousarray(us, dtype=np.float64).reshape(-1)
+        uu = np.array(us, dtype=np.float64).reshape(-1)  # a writable copy: one compiled batch for every caller
         self._check_u(uu)
         out = np.empty((uu.size, int(order) + 1, 2))
         _curve_derivatives_batch(

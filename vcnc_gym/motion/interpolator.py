@@ -65,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import NurbsCurve, curve_derivatives_into, find_span, workspace_size
+from ..geometry.nurbs import FIRST, SECOND, NurbsCurve, curve_derivatives_into, find_span, workspace_size
 from ..validation import integer, positive, real
 from .feedrate import FeedratePlan
 from .profile import plan_arrays, plan_state
@@ -142,7 +142,7 @@ def _gauss_arc(control_points, weights, knots, degree, a, b, ders, work):
     total = 0.0
     for i in range(_GL_X.shape[0]):
         x = min(max(mid + half * _GL_X[i], a), below_b)
-        curve_derivatives_into(control_points, weights, knots, degree, x, 1, ders, work)
+        curve_derivatives_into(control_points, weights, knots, degree, x, FIRST, ders, work)
         total += _GL_W[i] * math.sqrt(ders[1, 0] * ders[1, 0] + ders[1, 1] * ders[1, 1])
     return half * total
 
@@ -310,7 +310,7 @@ def _arc_step(control_points, weights, knots, degree, u0, speed0, target, u_end,
         else:
             hi = u
             arc_hi = arc_u
-        curve_derivatives_into(control_points, weights, knots, degree, u, 1, ders, work)
+        curve_derivatives_into(control_points, weights, knots, degree, u, FIRST, ders, work)
         speed = _speed(ders)
         u = u - f / speed if speed > 0.0 else 0.5 * (lo + hi)
     if abs(arc_lo - target) < abs(best_arc - target):
@@ -398,7 +398,7 @@ def taylor_interpolate_kernel(
     ders = np.empty((3, 2))
     nxt = np.empty((3, 2))
     scratch = np.empty((3, 2))
-    work = np.empty(workspace_size(degree, 2))
+    work = np.empty(workspace_size(degree, SECOND))
     stack = np.empty((3, _ARC_STACK))
     result = np.empty(3)
     info[0] = -1.0  # no end yet
@@ -409,7 +409,7 @@ def taylor_interpolate_kernel(
     u = u_start
     s = 0.0  # arc length travelled, mm
     k = 0
-    curve_derivatives_into(control_points, weights, knots, degree, u, 2, ders, work)
+    curve_derivatives_into(control_points, weights, knots, degree, u, SECOND, ders, work)
     while True:
         t = k * dt
         c1x = ders[1, 0]
@@ -457,7 +457,7 @@ def taylor_interpolate_kernel(
             u_taylor = u_next
             if u_next > u_end:
                 u_next = u_end
-            curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
+            curve_derivatives_into(control_points, weights, knots, degree, u_next, SECOND, nxt, work)
             step = _step_arc(control_points, weights, knots, degree, u, u_next, ders, nxt, 1e-6 * tol, scratch,
                              work, stack)
             kept = abs(step - (s_next - s_now)) <= (1.0 - _ARC_SLACK) * tol
@@ -468,7 +468,7 @@ def taylor_interpolate_kernel(
                 step = result[1]
                 u_taylor = u_next
                 info[4] += 1.0
-                curve_derivatives_into(control_points, weights, knots, degree, u_next, 2, nxt, work)
+                curve_derivatives_into(control_points, weights, knots, degree, u_next, SECOND, nxt, work)
                 if abs(step - (s_next - s_now)) > (1.0 - _ARC_SLACK) * tol and result[2] == 0.0:
                     # no u meets the tolerance (u cannot resolve the step): stop here
                     info[0] = _END_FAILED
@@ -491,7 +491,7 @@ def taylor_interpolate_kernel(
         s += step
         if info[0] >= 0.0:  # the end: the next sample is u_end
             k += 1
-            curve_derivatives_into(control_points, weights, knots, degree, u_end, 1, scratch, work)
+            curve_derivatives_into(control_points, weights, knots, degree, u_end, FIRST, scratch, work)
             sp = _speed(scratch)
             t_out[k] = t_next
             u_out[k] = u_end

@@ -148,7 +148,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import NurbsCurve, curve_derivatives_into, workspace_size
+from ..geometry.nurbs import FIRST, SECOND, NurbsCurve, curve_derivatives_into, workspace_size
 from ..validation import positive
 from .interpolator import _curvature, _gauss_arc, _speed
 from .jlap import JlapPlan, JlapSection, _bisect_increasing, _PieceWriter, _transition_pieces, transition_distance
@@ -196,13 +196,13 @@ def _limit_samples(control_points, weights, knots, degree, u_arc, u_eval, s_out,
     """Arc length from u_arc[0] to every u_arc[i] (mm; 5-point Gauss-Legendre between neighbours,
     which never straddle a knot) into ``s_out``, the curvature at u_eval[i] (1/mm) into ``kappa_out``."""
     ders = np.empty((3, 2))
-    work = np.empty(workspace_size(degree, 2))
+    work = np.empty(workspace_size(degree, SECOND))
     s = 0.0
     for i in range(u_arc.shape[0]):
         if i > 0 and u_arc[i] > u_arc[i - 1]:
             s += _gauss_arc(control_points, weights, knots, degree, u_arc[i - 1], u_arc[i], ders, work)
         s_out[i] = s
-        curve_derivatives_into(control_points, weights, knots, degree, u_eval[i], 2, ders, work)
+        curve_derivatives_into(control_points, weights, knots, degree, u_eval[i], SECOND, ders, work)
         kappa_out[i] = _curvature(ders, _speed(ders))
 
 

@@ -1,0 +1,70 @@
+"""Compile the suite's numba kernels once, ahead of use: ``python -m vcnc_gym.warmup``.
+
+numba compiles a kernel the first time it runs and keeps the machine code in
+its cache (``cache=True``, ``__pycache__`` beside the sources).  A fresh
+install has no cache, so the first ``gym.make`` + ``reset`` + ``step`` of an
+env compiles the reference builder, the contour projector and the step
+kernel for its plant: 20-30 s on this project's 2-core machines, against
+about 2 s once cached (``benchmarks/step_cost.py`` prints both).  ``make
+install`` runs this module once, the way an extension module is compiled at
+install time, so that a new user's first env starts warm.
+
+For every current id it makes the env, resets it and steps it once, and
+does the same with the native vector env at 16 envs (its parallel kernel),
+one fresh process per id, ``--jobs`` at a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+from .envs.registry import SUITE
+
+_ONE = """
+import gymnasium as gym, numpy as np, vcnc_gym
+from vcnc_gym.envs.registry import suite_env
+e = suite_env({id!r})
+env = gym.make(e.id)
+env.reset(seed=0)
+env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+if e.vector_entry_point is not None:
+    envs = gym.make_vec(e.id, num_envs=16, vectorization_mode="vector_entry_point")
+    envs.reset(seed=0)
+    envs.step(np.zeros(envs.action_space.shape, dtype=np.float32))
+"""
+
+
+def _warm(env_id: str) -> tuple[str, float, str]:
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _ONE.format(id=env_id)], capture_output=True, text=True)
+    return env_id, time.perf_counter() - t0, "" if proc.returncode == 0 else proc.stderr[-2000:]
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="processes at a time (default: the cores)")
+    args = p.parse_args(argv)
+    if args.jobs < 1:
+        p.error(f"--jobs must be >= 1, got {args.jobs}")
+    ids = [e.id for e in SUITE]
+    print(f"vcnc_gym.warmup: compiling the kernels of {len(ids)} envs, {args.jobs} at a time", flush=True)
+    t0 = time.perf_counter()
+    failed = []
+    with ThreadPoolExecutor(args.jobs) as pool:
+        for env_id, seconds, error in pool.map(_warm, ids):
+            print(f"  {env_id:26s} {seconds:6.1f} s{'  FAILED' if error else ''}", flush=True)
+            if error:
+                failed.append((env_id, error))
+    print(f"vcnc_gym.warmup: done in {time.perf_counter() - t0:.0f} s", flush=True)
+    for env_id, error in failed:
+        print(f"\n{env_id} failed:\n{error}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
