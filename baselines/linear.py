@@ -43,6 +43,17 @@ def discretize(sys, dt: float, method: str = "tustin") -> control.StateSpace:
 
 
 @njit(cache=True, _nrt=False)
+def _row(M, N, r, x, u):
+    """Row ``r`` of M x + N u, summed in that order."""
+    acc = 0.0
+    for c in range(x.shape[0]):
+        acc += M[r, c] * x[c]
+    for c in range(u.shape[0]):
+        acc += N[r, c] * u[c]
+    return acc
+
+
+@njit(cache=True, _nrt=False)
 def lti_advance(A, B, C, D, x, u, y, xn):
     """One step of one copy of a discrete LTI system: y = C x + D u, then x <- A x + B u.
 
@@ -50,23 +61,11 @@ def lti_advance(A, B, C, D, x, u, y, xn):
     written, ``xn`` (nx,) is scratch.  Allocates nothing, so the step kernel
     can run it (a compiled controller, :mod:`vcnc_gym.envs.controller_contract`).
     """
-    nx = x.shape[0]
-    nu = u.shape[0]
     for r in range(y.shape[0]):
-        acc = 0.0
-        for c in range(nx):
-            acc += C[r, c] * x[c]
-        for c in range(nu):
-            acc += D[r, c] * u[c]
-        y[r] = acc
-    for r in range(nx):
-        acc = 0.0
-        for c in range(nx):
-            acc += A[r, c] * x[c]
-        for c in range(nu):
-            acc += B[r, c] * u[c]
-        xn[r] = acc
-    for r in range(nx):
+        y[r] = _row(C, D, r, x, u)
+    for r in range(x.shape[0]):
+        xn[r] = _row(A, B, r, x, u)
+    for r in range(x.shape[0]):
         x[r] = xn[r]
 
 

@@ -253,13 +253,13 @@ class QFTPolicy(BaselinePolicy):
         """The compiled form (:mod:`vcnc_gym.envs.controller_contract`) around the current memory."""
         lti = self._lti
         n = self._state.shape[0]
-        return QFTArrays(lti.A, lti.B, lti.C, lti.D, self.u_max, self._state, np.zeros((n, 2)), np.zeros((n, lti.ny)),
+        return QFTArrays(self._state, lti.A, lti.B, lti.C, lti.D, self.u_max, np.zeros((n, 2)), np.zeros((n, lti.ny)),
                          np.zeros((n, lti.nx)))
 
 
-#: The compiled controller's arrays: the (H, G) cascade's discrete state-space matrices, u_max (V, (2,)), the
-#: memory x (N, 2, nx) and per-env scratch (inputs (N, 2), output (N, 1), next state (N, nx)).
-QFTArrays = namedtuple("QFTArrays", ["A", "B", "C", "D", "u_max", "x", "inputs", "y", "xn"])
+#: The compiled controller's arrays: the memory x (N, 2, nx), the (H, G) cascade's discrete state-space
+#: matrices, u_max (V, (2,)) and per-env scratch (inputs (N, 2), output (N, 1), next state (N, nx)).
+QFTArrays = namedtuple("QFTArrays", ["x", "A", "B", "C", "D", "u_max", "inputs", "y", "xn"])
 
 
 @njit(cache=True, _nrt=False)

@@ -152,14 +152,14 @@ class SlidingModePolicy(BaselinePolicy):
 
     def _compiled_arrays(self) -> SlidingModeArrays:
         """The compiled form (:mod:`vcnc_gym.envs.controller_contract`) around the current memory."""
-        return SlidingModeArrays(self.m, self.c, self.lam, self.K_s, self.rho, self.d_minus, self.d_plus,
-                                 self.decision_period, self.u_max, self._state)
+        return SlidingModeArrays(self._state, self.m, self.c, self.lam, self.K_s, self.rho, self.d_minus, self.d_plus,
+                                 self.decision_period, self.u_max)
 
 
-#: The compiled controller's arrays: the gains of :class:`SlidingModePolicy` ((2,) each), its period T (s),
-#: u_max (V, (2,)) and the memory d_hat (N, 2) V.
+#: The compiled controller's arrays: the memory d_hat (N, 2) V, the gains of :class:`SlidingModePolicy` ((2,)
+#: each), its period T (s) and u_max (V, (2,)).
 SlidingModeArrays = namedtuple("SlidingModeArrays",
-                               ["m", "c", "lam", "K_s", "rho", "d_minus", "d_plus", "period", "u_max", "d_hat"])
+                               ["d_hat", "m", "c", "lam", "K_s", "rho", "d_minus", "d_plus", "period", "u_max"])
 
 
 @njit(cache=True, _nrt=False)

@@ -125,6 +125,10 @@ def test_step_controlled_refuses_bad_arguments():
                           ((np.zeros((2, 2)), 0.0, 10), "correction"), ((np.zeros((2, 2)), 0.2, 0), "repeat")]:
         with pytest.raises(ValueError, match=message):
             venv.unwrapped.step_controlled(controller, *args)
+    for wrong, message in [(None, "compiled controller"), ((np.zeros((2, 2)),), "compiled controller"),
+                           (baselines.make("smc", venv).compiled(3), "must have 2 rows")]:
+        with pytest.raises(ValueError, match=message):
+            venv.unwrapped.step_controlled(wrong, np.zeros((2, 2)), 0.2, 10)
     other = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")
     other.reset(seed=0)
     with pytest.raises(ValueError, match="AutoresetMode.DISABLED"):

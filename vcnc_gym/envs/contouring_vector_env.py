@@ -20,6 +20,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..validation import flag, integer, positive
+from . import controller_contract
 from . import step_kernel as sk
 from .contouring_env import check_actions
 from .task import ContouringBatch, ContouringTask
@@ -213,6 +214,7 @@ class ContouringVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("step_controlled() called before reset()")
         n = self.num_envs
+        controller_contract.check_controller(controller, n)
         agent = check_actions(actions, (n, 2)).astype(np.float32)
         loop = sk.ControlLoop(agent, np.float32(positive("correction", correction, "fraction of u_max")),
                               integer("repeat", repeat, 1), np.zeros((n, 2)), np.zeros(n), np.zeros(n))

@@ -7,9 +7,10 @@ control periods, each with the controller's command) is one numba call
 (:func:`vcnc_gym.envs.step_kernel.step_controlled`).  The core package names
 no controller: a controller's module (in :mod:`baselines`) declares
 
-- a ``namedtuple`` class holding its gains and its per-env memory (arrays
+- a ``namedtuple`` class holding its per-env memory, first (an array
   whose first axis is the env, shared with the Python policy, so that
-  resetting the policy's memory resets the compiled controller's);
+  resetting the policy's memory resets the compiled controller's), then its
+  gains and any per-env scratch;
 - a numba overload of :func:`command` for that class::
 
       @overload(controller_contract.command, jit_options={"cache": True})
@@ -32,7 +33,7 @@ from __future__ import annotations
 
 from numba import njit, types
 
-__all__ = ["command", "commands", "is_controller"]
+__all__ = ["command", "commands", "is_controller", "check_controller"]
 
 
 def command(controller, i, obs, o, out):  # pragma: no cover - compiled per controller through numba overloads
@@ -50,3 +51,17 @@ def commands(controller, obs, o, out):
     """:func:`command` for every env of a batch: ``obs`` (N, D) float32, ``out`` (N, 2) (a policy's ``predict``)."""
     for i in range(obs.shape[0]):
         command(controller, i, obs[i], o, out[i])
+
+
+def check_controller(controller, n_envs: int):
+    """``controller`` if it is a compiled controller for ``n_envs`` envs (a namedtuple whose first field, the
+    memory, has ``n_envs`` rows); ValueError otherwise (the kernels index it unchecked)."""
+    fields = getattr(controller, "_fields", None)
+    if not isinstance(controller, tuple) or not fields:
+        raise ValueError(f"controller must be a compiled controller (BaselinePolicy.compiled(n_envs), a namedtuple), "
+                         f"got {type(controller).__name__}")
+    memory = controller[0]
+    if not hasattr(memory, "shape") or memory.ndim < 1 or memory.shape[0] != n_envs:
+        raise ValueError(f"controller's memory {fields[0]!r} must have {n_envs} rows (one per env), got shape "
+                         f"{getattr(memory, 'shape', None)}")
+    return controller
