@@ -182,10 +182,12 @@ class ILCPolicy(ContouringFBPolicy):
         self._record_e = None  # (n, cap, 2) its e_vn, mm
         self._learned = None  # (n, cap, 2) Q[v_j - x_d'' + L e_vn,j] for the running trial, mm/s^2
         self._learned_len = None  # (n,) T_j: how much of it is defined
+        self._ended = None  # (n,) bool: the env's episode has ended, its calls until the next start are not recorded
         self.trials_done = np.zeros(0, dtype=np.int64)
 
     def _allocate(self, n: int) -> None:
         self._t = np.zeros(n, dtype=np.int64)
+        self._ended = np.zeros(n, dtype=bool)
         self._record_w = np.zeros((n, _INITIAL_CAPACITY, 2))
         self._record_e = np.zeros((n, _INITIAL_CAPACITY, 2))
         self._learned = np.zeros((n, _INITIAL_CAPACITY, 2))
@@ -205,10 +207,17 @@ class ILCPolicy(ContouringFBPolicy):
                 self._end_trial(i)
         super().reset(n_envs, mask)
 
+    def end_episodes(self, mask) -> None:
+        """The episodes of the envs where ``mask`` is True have ended: until their next ``episode_start``, calls
+        for them (a batch running on for its other envs, ``vcnc_bench.robust``) are not part of their trial."""
+        if self._ended is not None:
+            self._ended |= np.asarray(mask, dtype=bool)
+
     def _end_trial(self, i: int) -> None:
         """Turn env i's finished trial into the learned input of its next one (eqs. (9)-(11))."""
         T = int(self._t[i])
         self._t[i] = 0
+        self._ended[i] = False
         if T == 0:
             return
         w = self._record_w[i, :T]
@@ -280,9 +289,10 @@ class ILCPolicy(ContouringFBPolicy):
         w[known] += self._learned[rows[known], t[known]]
         velocity = self.layout.velocity(obs)
         current = self.linearising_current(a_d + w, velocity)
-        self._record_w[rows, t] = self.applied_acceleration(current, velocity) - a_d
-        self._record_e[rows, t] = self.normal_error_vector(theta, e_w)
-        self._t += 1
+        live = ~self._ended
+        self._record_w[rows[live], t[live]] = (self.applied_acceleration(current, velocity) - a_d)[live]
+        self._record_e[rows[live], t[live]] = self.normal_error_vector(theta, e_w)[live]
+        self._t[live] += 1
         return current
 
 

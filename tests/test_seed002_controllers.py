@@ -265,6 +265,27 @@ def test_batched_trials_are_per_env():
     assert batch.trials_done.tolist() == [1, 2]
 
 
+def test_calls_after_an_ended_episode_are_not_part_of_the_trial():
+    """A batch runs on after env 0's episode ended (vcnc_bench.robust): what env 0 learns is what a policy
+    that saw only its episode learns."""
+    seqs = [_sequence(30, 5), _sequence(30, 6)]
+    batch = baselines.make("ilc", fake_env())
+    single = baselines.make("ilc", fake_env())
+    for trial in range(2):
+        for k in range(30):
+            obs = np.stack([seqs[0][min(k, 19)], seqs[1][k]])  # env 0's episode is 20 calls long
+            a, _ = batch.predict(obs, episode_start=k == 0)
+            if k < 20:
+                np.testing.assert_array_equal(a[0], single.predict(obs[0], episode_start=k == 0)[0])
+            if k == 19:
+                batch.end_episodes(np.array([True, False]))
+    batch.predict(np.stack([seqs[0][0], seqs[1][0]]), episode_start=True)
+    single.predict(seqs[0][0], episode_start=True)
+    assert batch.trials_done.tolist() == [2, 2] and single.trials_done.tolist() == [2]
+    np.testing.assert_array_equal(batch._learned_len, [20, 30])
+    np.testing.assert_array_equal(batch._learned[0, :20], single._learned[0, :20])
+
+
 def test_learning_gain_against_python_control():
     """S_i of the sampled eq. (7) loop from python-control; Table I's q = 1 grows content above 38 Hz,
     the 20 Hz low-pass of ``ilc-q`` makes every frequency converge."""

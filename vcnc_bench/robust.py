@@ -27,9 +27,10 @@ observation until every plant has ended (its action is ignored).
 A policy that learns across episodes (``learns_across_episodes``: ILC)
 runs ``trials`` episodes in a row on the same batch, each plant its own
 sequence of trials, and is scored on the last; by default one (the first
-trial, the plain feedback).  Caveat for ``trials > 1``: a plant whose
-trial ended before the batch's last keeps being called with its last
-observation, and such a policy records those calls as part of its trial.
+trial, the plain feedback).  A plant whose trial ended before the batch's
+last keeps being called with its last observation; the policy's
+``end_episodes(mask)`` is told when, so that it does not record those calls
+as part of the trial.
 
 Per plant, over the decision steps of the (last) episode: max and RMS of
 ``info["contour_error"]`` (um; on the positioning env the distance to the
@@ -243,6 +244,8 @@ def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float,
             steps[active] += 1
             ended = active & (terminated | truncated)
             if ended.any():
+                if hasattr(policy, "end_episodes"):  # a learning policy: the calls that follow are not its trial
+                    policy.end_episodes(ended)
                 diverged[ended] = info["diverged"][ended]
                 completed[ended] = (info["completed"][ended] if "completed" in info
                                     else terminated[ended] & ~diverged[ended])
