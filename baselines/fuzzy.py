@@ -163,6 +163,7 @@ def fuzzy_infer(e_n, de_n, rules, centres, half_width, grid, out):
     mu_e = np.empty(n_sets)
     mu_d = np.empty(n_sets)
     w = np.empty(n_sets)
+    active = np.empty(n_sets, dtype=np.int64)  # the output sets with w > 0
     for i in range(e_n.size):
         input_memberships(e_n[i], centres, half_width, mu_e)
         input_memberships(de_n[i], centres, half_width, mu_d)
@@ -176,21 +177,35 @@ def fuzzy_infer(e_n, de_n, rules, centres, half_width, grid, out):
                 o = rules[j, k]
                 if a > w[o]:
                     w[o] = a
+        # the aggregate is 0 outside the active sets' supports [lo, hi], and a segment between two zeros adds
+        # exactly 0 to either sum: integrate from one grid point before the last at or below lo to one after the
+        # first at or above hi (the same sums, to the bit, as over the whole grid)
+        lo = np.inf
+        hi = -np.inf
+        n_active = 0
+        for o in range(n_sets):
+            if w[o] > 0.0:
+                lo = min(lo, centres[o] - half_width)
+                hi = max(hi, centres[o] + half_width)
+                active[n_active] = o
+                n_active += 1
+        first = max(np.searchsorted(grid, lo, side="right") - 2, 0)
+        last = min(np.searchsorted(grid, hi, side="left") + 1, grid.size - 1)
         num = 0.0
         den = 0.0
         x_prev = 0.0
         y_prev = 0.0
-        for g in range(grid.size):
+        for g in range(first, last + 1):
             x = grid[g]
             y = 0.0
-            for o in range(n_sets):
-                if w[o] > 0.0:
-                    t = 1.0 - abs(x - centres[o]) / half_width
-                    if t > 0.0:
-                        v = t if t < w[o] else w[o]
-                        if v > y:
-                            y = v
-            if g > 0:
+            for a in range(n_active):
+                o = active[a]
+                t = 1.0 - abs(x - centres[o]) / half_width
+                if t > 0.0:
+                    v = t if t < w[o] else w[o]
+                    if v > y:
+                        y = v
+            if g > first:
                 h = x - x_prev
                 den += 0.5 * h * (y_prev + y)
                 num += h / 6.0 * (x_prev * (2.0 * y_prev + y) + x * (y_prev + 2.0 * y))
