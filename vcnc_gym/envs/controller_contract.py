@@ -4,7 +4,7 @@ A controller that runs every control period (the residual action mode's
 baseline) costs a Python call per period when it runs as a policy's
 ``predict``; compiled into the kernel, a whole decision of N envs (``repeat``
 control periods, each with the controller's command) is one numba call
-(:func:`vcnc_gym.envs.step_kernel.step_controlled`).  The core package names
+(:func:`vcnc_gym.envs.step_kernel.step_controlled_parallel`).  The core package names
 no controller: a controller's module (in :mod:`baselines`) declares
 
 - a ``namedtuple`` class holding its per-env memory, first (an array

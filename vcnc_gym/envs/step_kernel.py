@@ -18,6 +18,12 @@ structures:
 - ``offsets``: the layout's :data:`~vcnc_gym.envs.layout.ObservationOffsets`;
 - ``buffers``: :data:`EnvBuffers`, per-env inputs, memory and outputs.
 
+:func:`step_controlled_serial` and :func:`step_controlled_parallel` run a
+whole decision of ``repeat`` control periods of that body per env with a
+compiled controller commanding each period (the residual action mode,
+:mod:`~vcnc_gym.envs.controller_contract`), its arguments the StepData, the
+controller and a :data:`ControlLoop`.
+
 No validation here: the env checks its inputs before calling.
 """
 
@@ -42,7 +48,7 @@ __all__ = [
     "step_serial",
     "step_parallel",
     "ControlLoop",
-    "step_controlled",
+    "step_controlled_parallel",
     "step_controlled_serial",
     "MODE_IDLE",
     "MODE_STEP",
@@ -169,7 +175,7 @@ EnvBuffers = namedtuple("EnvBuffers", [
 ])
 
 
-#: A decision of :func:`step_controlled`: ``agent`` (N, 2) float32, the agent's correction in [-1, 1] (clipped
+#: A decision of :func:`step_controlled_serial`: ``agent`` (N, 2) float32, the agent's correction in [-1, 1] (clipped
 #: here); ``correction`` (float32), its scale as a fraction of u_max; ``repeat``, control periods per decision;
 #: scratch ``base`` (N, 2), the controller's command; outputs ``reward`` (N,), the sum of the periods' rewards,
 #: and ``peak`` (N,), the largest contour error of the decision, mm.
@@ -484,7 +490,7 @@ def step_controlled_serial(d, controller, loop):
 
 
 @njit(cache=True, parallel=True)
-def step_controlled(d, controller, loop):
+def step_controlled_parallel(d, controller, loop):
     """:func:`step_controlled_serial` spread over the cores (numba ``prange`` over chunks of envs)."""
     n = d.buffers.mode.shape[0]
     chunks = min(n, _CHUNKS)

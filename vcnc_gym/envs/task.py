@@ -333,4 +333,4 @@ class ContouringBatch:
     def run_controlled(self, controller, loop: sk.ControlLoop, parallel: bool = False) -> None:
         """One kernel call: every env in MODE_STEP makes one decision of ``loop.repeat`` control periods with
         ``controller`` (:mod:`~vcnc_gym.envs.controller_contract`) in the loop."""
-        (sk.step_controlled if parallel else sk.step_controlled_serial)(self.data, controller, loop)
+        (sk.step_controlled_parallel if parallel else sk.step_controlled_serial)(self.data, controller, loop)
