@@ -61,7 +61,7 @@ from pathlib import Path
 import gymnasium as gym
 import yaml
 
-import vcnc_gym
+import vcnc_gym  # noqa: F401  (registers the VCNC ids with Gymnasium)
 from vcnc_gym.envs.registry import suite_env
 
 from .action_modes import ActionMode
