@@ -12,7 +12,12 @@ import numbers
 
 import numpy as np
 
-__all__ = ["real", "positive", "non_negative", "integer", "flag"]
+__all__ = ["real", "positive", "non_negative", "integer", "flag", "size", "available_memory", "MEMORY_FRACTION"]
+
+#: Share of the memory available when a size is checked that one request may
+#: plan to fill (ours): the rest is left to the interpreter, the other
+#: arrays of the run and the other processes of the machine.
+MEMORY_FRACTION = 0.5
 
 
 def real(name: str, value, unit: str) -> float:
@@ -61,3 +66,83 @@ def flag(name: str, value) -> bool:
     return bool(value)
 
 
+
+
+def available_memory() -> int:
+    """Bytes of memory a new allocation can get now without swapping.
+
+    ``MemAvailable`` of ``/proc/meminfo`` (Linux: free memory plus the page
+    cache that can be dropped); elsewhere the free physical pages
+    (``os.sysconf``); 2**63 - 1 if neither can be read.
+    """
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import os
+
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, OSError, ValueError):
+        return 2**63 - 1
+
+
+def _bytes(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000.0 or unit == "TB":
+            return f"{n:.3g} {unit}"
+        n /= 1000.0
+    return f"{n:.3g} TB"  # pragma: no cover
+
+
+def size(name: str, value, *, bytes_each: float | None = None, ceiling: int | None = None, why: str = "",
+         minimum: int = 1) -> int:
+    """``value`` as an int in [minimum, limit]: a size a user gives (envs, plants, trials, steps, samples).
+
+    The limit is the smaller of ``ceiling`` (a documented bound; ``why`` says
+    where it comes from) and, with ``bytes_each``, the count whose memory
+    fits in :data:`MEMORY_FRACTION` of :func:`available_memory`.  Checked
+    before anything of that size is built.
+
+    Parameters
+    ----------
+    name : str
+        The argument as the user wrote it (``"num_envs"``, ``"--plants"``).
+    value : int
+        The size asked for.
+    bytes_each : float, optional
+        Memory that one unit of the size costs, bytes (e.g. one env's rows of
+        the batch arrays).
+    ceiling : int, optional
+        A fixed upper bound.
+    why : str
+        What the ceiling or ``bytes_each`` is, for the message ("each env
+        holds 2.1 kB of batch arrays").
+    minimum : int
+        Smallest valid value.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, the limit and why, if ``value`` is not an integer in
+        [minimum, limit].
+    """
+    v = integer(name, value, minimum)
+    limits = []
+    if ceiling is not None:
+        limits.append((int(ceiling), why or "a documented ceiling"))
+    if bytes_each is not None and bytes_each > 0:
+        free = available_memory()
+        fit = int(MEMORY_FRACTION * free // bytes_each)
+        reason = (f"{why + ': ' if why and ceiling is None else ''}{_bytes(bytes_each)} each, against "
+                  f"{MEMORY_FRACTION:.0%} of the {_bytes(free)} of memory this machine has available")
+        limits.append((max(fit, 0), reason))
+    if not limits:
+        return v
+    limit, reason = min(limits, key=lambda item: item[0])
+    if v > limit:
+        raise ValueError(f"{name} must be at most {limit:,} ({reason}), got {v:,}")
+    return v
