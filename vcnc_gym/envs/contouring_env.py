@@ -171,6 +171,12 @@ class ContouringEnv(gym.Env):
       traversed.  The cycle time is in ``info``.  The observation gained the
       contour ahead of the table ("contour_preview", "contour_curvature").
       Seed 003's circle: contour shown 0.05-0.4 mm ahead, 2 um band, 1 s limit.
+      Fixes that change no episode a valid configuration can reach (issue
+      23), so no new version: a non-finite plant state is rewarded with the
+      divergence penalty (was NaN); a preview beyond the contour's end, a
+      ``max_episode_steps`` beyond the time limit, a contour that turns back
+      on itself and plant parameters outside their physical range are
+      refused (were clamped or accepted).
     - v0: initial release.  The plant became an argument, the step one
       batched kernel and the ids lost their fixed ``TimeLimit`` (the natural
       length now follows the configuration) without changing any episode of

@@ -69,7 +69,7 @@ class ContouringVectorEnv(VectorEnv):
         if render_mode is not None:
             raise ValueError("the vector env does not render; make a single env with render_mode= to watch one")
         self.task = ContouringTask(**kwargs)
-        self._batch = ContouringBatch(self.task, num_envs)
+        self._batch = ContouringBatch(self.task, num_envs, argument="num_envs")
         self.num_envs = self._batch.n_envs
         try:
             self.autoreset_mode = AutoresetMode(autoreset_mode)

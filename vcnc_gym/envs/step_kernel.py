@@ -300,7 +300,10 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     else:
         terminated = diverged or k >= cfg.end_index
     if n > 0:
-        r_contour = -min(err_sum / n, cfg.divergence_bound) / cfg.reward_scale
+        mean_err = err_sum / n
+        if not mean_err < cfg.divergence_bound:  # beyond the bound, or NaN (a non-finite state): the bound
+            mean_err = cfg.divergence_bound
+        r_contour = -mean_err / cfg.reward_scale
         r_effort = -cfg.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
         if diverged:
             steps_left = max(0, cfg.episode_steps - (k + cfg.n_repeat - 1) // cfg.n_repeat)

@@ -22,7 +22,7 @@ from ..geometry.nurbs import workspace_size
 from ..motion import ConstantFeedrate, JlapPathFeedrate, LookaheadFeedrate, SCurveFeedrate, interpolate
 from ..plants import PlantModel, contract, get_plant
 from . import step_kernel as sk
-from ..validation import flag, integer, non_negative, positive
+from ..validation import flag, integer, non_negative, positive, size
 from .layout import ObservationLayout
 
 __all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EPISODE_ENDS", "make_contour", "make_profile",
@@ -59,6 +59,10 @@ DEFAULT_COMPLETION_TIMEOUT = 0.1
 #: the contour, mm: out to 4 mm, twice the ~1.9 mm that seed 000's drives need
 #: to brake from 100 mm/s (+-5 V, ~2.6e3 mm/s^2).
 DEFAULT_CONTOUR_AHEAD = (0.25, 0.5, 1.0, 2.0, 4.0)
+
+#: Memory of one env beyond its rows of the batch arrays, bytes: its numpy
+#: Generator in the vector env (860 B measured with tracemalloc, numpy 2).
+ENV_OVERHEAD_BYTES = 1024
 
 #: The keys ``reset(options=...)`` understands.
 RESET_OPTIONS = ("parameters",)
@@ -140,6 +144,7 @@ class ContouringTask:
         plant_options: dict | None = None,
     ):
         self.curve, self.path = make_contour(contour)
+        self.curve.check_regular()  # no cusp, no turn back (NurbsCurve.check_regular), before the feed is planned
         self.contour_name = contour if isinstance(contour, str) else "custom"
         self.plant: PlantModel = get_plant(plant)
         if plant_options is not None and not isinstance(plant_options, dict):
@@ -195,10 +200,22 @@ class ContouringTask:
         the reference's end (a tool that keeps up arrives within a few steps of it)."""
         self.time_limit_steps = math.ceil(self.end_index / self.action_repeat)
         """The most decision steps an episode can take (the completion time limit, or the end)."""
-        self.max_episode_steps = (self.time_limit_steps if max_episode_steps is None
-                                  else integer("max_episode_steps", max_episode_steps, 1))
+        self.max_episode_steps = (self.time_limit_steps if max_episode_steps is None else size(
+            "max_episode_steps", max_episode_steps, ceiling=self.time_limit_steps,
+            why=f"the episode ends at its completion time limit, {self.time_limit_steps} decisions, anyway"))
 
-        # observation
+        # observation: nothing shown beyond the contour's end (it would be its end point, silently)
+        if isinstance(preview_steps, tuple):
+            for s in preview_steps:
+                size("preview_steps", s, ceiling=reference_end,
+                     why=f"the reference's length in control periods of {self.dt:g} s: a point further ahead "
+                         "is past the contour's end")
+        length = float(samples[-1, sk.REF_ARC])
+        if isinstance(contour_ahead, tuple):
+            for a in contour_ahead:
+                if isinstance(a, (int, float, np.integer, np.floating)) and not isinstance(a, bool) and a > length:
+                    raise ValueError(f"contour_ahead must be at most {length:.6g} mm (the contour's length: a "
+                                     f"point further ahead is past its end), got {a!r}")
         extent = float(np.max(np.abs(self.reference.position)))
         self.layout = ObservationLayout(
             preview_steps=preview_steps,
@@ -282,9 +299,11 @@ class ContouringBatch:
         Number of envs (machines), >= 1.
     """
 
-    def __init__(self, task: ContouringTask, n_envs: int):
+    def __init__(self, task: ContouringTask, n_envs: int, *, argument: str = "n_envs"):
         self.task = task
-        n = self.n_envs = integer("n_envs", n_envs, 1)
+        n = self.n_envs = size(argument, n_envs, bytes_each=self.bytes_per_env(task),
+                               why="each env's rows of the batch arrays, twice (the copies step returns), and "
+                                   "its random generator")
         layout = task.layout
         self.plant_arrays = task.plant.arrays(n, task.dt, **task.plant_options)
         self.parameters = np.repeat(task.nominal_parameters[None], n, axis=0)
@@ -309,6 +328,17 @@ class ContouringBatch:
         )
         self.data = sk.StepData(self.plant_arrays, task.reference_arrays, task.contour_arrays, task.config,
                                 layout.offsets(), self.buffers)
+
+    @staticmethod
+    def bytes_per_env(task: ContouringTask) -> int:
+        """Memory one env of a batch costs, bytes: twice its rows of the batch and plant arrays (the buffers,
+        and the copies ``step`` returns), plus :data:`ENV_OVERHEAD_BYTES`."""
+        arrays = task.plant.arrays(1, task.dt, **task.plant_options)
+        rows = sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
+        layout = task.layout
+        rows += layout.size * 4 + (sk.INFO_SIZE + contract.SENSE_SIZE + 6 + 2 * 5 + 4) * 8 + sk.FLAG_SIZE + 1
+        rows += workspace_size(task.curve.degree, 2) * 8
+        return 2 * rows + ENV_OVERHEAD_BYTES
 
     def reset_env(self, i: int, parameters: np.ndarray) -> None:
         """Env ``i`` at the start of the contour, at rest, with plant ``parameters`` (2, P); marks it to observe."""
