@@ -20,20 +20,20 @@ Example
 """
 
 from .base import BaselinePolicy
-from .contouring_fb import ContouringFBPolicy
-from .fuzzy import DEFAULT_SCALING, FuzzyPolicy, FuzzyScaling
-from .qft import (
+from .coupling.contouring_fb import ContouringFBPolicy
+from .feedback.fuzzy import DEFAULT_SCALING, FuzzyPolicy, FuzzyScaling
+from .feedback.qft import (
     MU,
     QFTPolicy,
     robust_stability_peak,
     sampled_loop_spectral_radius,
     sampled_loop_stable,
 )
-from .ilc import ILCPolicy, run_trials
-from .nctf import NCTFPolicy
+from .feedback.nctf import NCTFPolicy
+from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
+from .feedback.smc import SlidingModePolicy
+from .learning.ilc import ILCPolicy, run_trials
 from .registry import make, names
-from .seed001 import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
-from .smc import SlidingModePolicy
 
 __all__ = [
     "make",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from vcnc_bench.policies import PolicyKind
 
-from . import qft
+from .feedback import qft
 from .registry import make, names, policy_class
 
 __all__ = ["KIND", "applies"]
@@ -42,7 +42,7 @@ def _seed001(ctx) -> list[str]:
     ran = _plant_envs(ctx, "cncmt_axis")
     if not ran:
         return []
-    from .seed001 import report
+    from vcnc_bench.reports import yadav2020 as report
 
     lines = ["Seed 001, section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)", "",
              report.format_kharitonov()]
@@ -100,7 +100,7 @@ def _seed003(ctx) -> list[str]:
     """Seed 003's circle figures of every policy that ran on its table, and the radial-error plot."""
     lines = []
     for e in _plant_envs(ctx, "nct_xy_table"):
-        from . import circle_report
+        from vcnc_bench.reports import circle as circle_report
 
         path = ctx.plots / f"{e}_radial_error.png" if ctx.plots is not None else None
         lines += circle_report.bench_report(ctx.results.get(e, {}), label=e, plot_path=path)

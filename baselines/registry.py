@@ -10,13 +10,13 @@ from __future__ import annotations
 import inspect
 
 from .base import BaselinePolicy
-from .contouring_fb import ContouringFBPolicy
-from .fuzzy import FuzzyPolicy
-from .ilc import ILCPolicy
-from .nctf import NCTFPolicy
-from .qft import QFTPolicy
-from .seed001 import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
-from .smc import SlidingModePolicy
+from .coupling.contouring_fb import ContouringFBPolicy
+from .feedback.fuzzy import FuzzyPolicy
+from .feedback.nctf import NCTFPolicy
+from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
+from .feedback.qft import QFTPolicy
+from .feedback.smc import SlidingModePolicy
+from .learning.ilc import ILCPolicy
 
 __all__ = ["make", "names", "policy_class", "REGISTRY", "VARIANTS"]
 
@@ -41,7 +41,7 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     # the contour error that the seed's F(s) causes (docs/reproduction.md).
     "qft-g": ("qft", {"prefilter": ((1.0,), (1.0,))}),
     # seed 002's ILC with a 20 Hz zero-phase low-pass Q: monotone convergence
-    # where Table I's q = 1 lets the ringing above 38.5 Hz grow (baselines/ilc.py).
+    # where Table I's q = 1 lets the ringing above 38.5 Hz grow (baselines/learning/ilc.py).
     "ilc-q": ("ilc", {"q_cutoff": 20.0}),
 }
 

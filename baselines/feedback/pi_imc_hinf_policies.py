@@ -6,7 +6,7 @@ Each axis runs the unity-feedback loop of seed 001 (Figs. 3(b) and 4(b)),
 
 with ``e`` the observation's ``position_error`` field (set-point minus the
 measured position, mm) and ``C(z)`` the controller of
-:func:`~baselines.seed001.controllers.controller_tf` (V/mm) discretised once
+:func:`~baselines.feedback.pi_imc_hinf.controller_tf` (V/mm) discretised once
 by :func:`control.c2d` (Tustin by default) at the env's decision period and
 stepped by :func:`baselines.linear.lti_step`.  The controller's state starts
 at zero at every episode start (the loop at rest before the step).
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..base import BaselinePolicy
 from ..linear import DiscreteLTI, discretize
-from .controllers import CONTROLLER_SOURCES, controller_tf
+from .pi_imc_hinf import CONTROLLER_SOURCES, controller_tf
 
 __all__ = ["Seed001Policy", "PIPolicy", "IMCPolicy", "HinfPolicy", "HinfReducedPolicy"]
 
@@ -42,7 +42,7 @@ class Seed001Policy(BaselinePolicy):
 
     name = "seed001"
     plants = ("cncmt_axis",)
-    #: Which of seed 001's controllers (:func:`~baselines.seed001.controllers.controller_names`); set by subclasses.
+    #: Which of seed 001's controllers (:func:`~baselines.feedback.pi_imc_hinf.controller_names`); set by subclasses.
     controller_name = ""
 
     def __init__(self, layout, decision_period: float, nominal_parameters, plant=None, method: str = "tustin"):

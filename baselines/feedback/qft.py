@@ -86,8 +86,8 @@ from scipy.optimize import minimize_scalar
 
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import vcnc_feed_drive as feed_drive
-from .base import BaselinePolicy, check_polynomial
-from .linear import DiscreteLTI, discretize, lti_advance
+from ..base import BaselinePolicy, check_polynomial
+from ..linear import DiscreteLTI, discretize, lti_advance
 
 __all__ = [
     "QFT_CONTROLLER",

@@ -62,7 +62,7 @@ from numba.extending import overload
 
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import vcnc_feed_drive as feed_drive
-from .base import BaselinePolicy, check_per_axis
+from ..base import BaselinePolicy, check_per_axis
 
 __all__ = ["SMC_TABLE2", "SlidingModePolicy", "SlidingModeArrays"]
 

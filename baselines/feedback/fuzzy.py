@@ -65,7 +65,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
-from .base import BaselinePolicy, check_scalar
+from ..base import BaselinePolicy, check_scalar
 
 __all__ = [
     "LABELS",

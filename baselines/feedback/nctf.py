@@ -102,7 +102,7 @@ from numba import njit
 from vcnc_gym.plants import contract, get_plant
 from vcnc_gym.plants import nct_xy_table  # noqa: F401  (registers the plant's contract kernels)
 
-from .base import BaselinePolicy, check_scalar
+from ..base import BaselinePolicy, check_scalar
 
 __all__ = [
     "LABELS",
@@ -678,13 +678,13 @@ class NCTFPolicy(BaselinePolicy):
 def main(argv=None) -> int:
     """The NCTF design on seed 003's nominal table and its circle figures, printed.
 
-    ``python -c "import baselines.nctf as m; m.main()" [--omega W] [--dt T] [--zero-rate nct|sample] [--plot PNG]``
+    ``python -c "import baselines.feedback.nctf as m; m.main()" [--omega W] [--dt T] [--zero-rate nct|sample] [--plot PNG]``
     """
     import argparse
 
-    from baselines import circle_report as cr
+    from vcnc_bench.reports import circle as cr
 
-    parser = argparse.ArgumentParser(prog="baselines.nctf.main", description="NCTF design and circle figures")
+    parser = argparse.ArgumentParser(prog="baselines.feedback.nctf.main", description="NCTF design and circle figures")
     parser.add_argument("--omega", type=float, default=cr.DEFAULT_OMEGA, help="circle frequency, rad/s")
     parser.add_argument("--dt", type=float, default=cr.DEFAULT_DT, help="control period, s")
     parser.add_argument("--zero-rate", choices=("nct", "sample"), default=DEFAULT_SETTINGS.zero_rate)

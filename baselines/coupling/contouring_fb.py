@@ -66,7 +66,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .base import BaselinePolicy, check_per_axis
+from ..base import BaselinePolicy, check_per_axis
 
 __all__ = ["TABLE_I_FB", "MIN_SPEED", "ContouringFBPolicy", "contouring_feedback"]
 

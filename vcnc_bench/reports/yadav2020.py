@@ -7,7 +7,7 @@ and computes the stability margin of eq. (5) from them; Table 2 gives the
 overshoot, settling and rise time of the step response for the nominal plant
 and for 10 plants across the box.
 
-Everything here is computed from :func:`~baselines.seed001.controllers.controller_tf`
+Everything here is computed from :func:`~baselines.feedback.pi_imc_hinf.controller_tf`
 and the plant's box (:mod:`vcnc_gym.plants.cncmt_axis`), with the generic
 tools of :mod:`vcnc_gym.analysis`:
 
@@ -25,7 +25,7 @@ tools of :mod:`vcnc_gym.analysis`:
   episodes of the registered policies on ``VCNC-Step-v0``;
   :func:`plot_step_responses`: the step responses.
 
-``python -m baselines.seed001.report`` prints the margins and Table 2
+``python -m vcnc_bench.reports.yadav2020`` prints the margins and Table 2
 without and with the dead time.
 """
 
@@ -48,7 +48,7 @@ from vcnc_gym.analysis import (
 from vcnc_gym.plants import cncmt_axis
 from vcnc_gym.plants.cncmt_axis import IDX_A, IDX_B, IDX_T_D, MODEL
 
-from .controllers import controller_names, controller_tf
+from baselines.feedback.pi_imc_hinf import controller_names, controller_tf
 
 __all__ = [
     "PAPER_TABLE_2",
@@ -164,7 +164,7 @@ def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.
     Parameters
     ----------
     controller : str
-        One of :func:`~baselines.seed001.controllers.controller_names`.
+        One of :func:`~baselines.feedback.pi_imc_hinf.controller_names`.
     a, b : float
         The plant [1/s], [mm/(V s^2)].
     dead_time : float
@@ -436,7 +436,7 @@ def plot_step_responses(traces: dict, path=None, setpoint: float = 10.0):
 # -- command line ------------------------------------------------------------------------------
 def main(argv=None) -> int:
     """Print section 3.5's margins and Table 2 (no dead time, then the stated 0.1 s), ours beside the seed's."""
-    parser = argparse.ArgumentParser(prog="python -m baselines.seed001.report", description=main.__doc__)
+    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.yadav2020", description=main.__doc__)
     parser.add_argument("--plants", type=int, default=10, help="plants across the box (default 10)")
     parser.add_argument("--dead-time", type=float, default=None,
                         help="only this dead time in s (default: 0, then 0.1 sampled at 1 ms)")
