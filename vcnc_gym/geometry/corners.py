@@ -95,7 +95,7 @@ from numba import njit
 
 from ..validation import positive as _positive
 
-from .nurbs import NurbsCurve
+from .nurbs import TURN_BACK_ANGLE, NurbsCurve, interior_angle
 
 __all__ = [
     "CornerDesign",
@@ -116,8 +116,17 @@ __all__ = [
 BEZIER_DEGREE = 5
 
 #: Interior angles closer than this to 0 (a U-turn) or pi (straight on), rad,
-#: are rejected: no corner to blend, or a blend that folds on itself.
-ANGLE_TOLERANCE = 1e-9
+#: are rejected: no corner to blend, or a blend that folds on itself.  The
+#: U-turn side is the rule every contour source shares,
+#: :data:`~vcnc_gym.geometry.nurbs.TURN_BACK_ANGLE`.
+ANGLE_TOLERANCE = TURN_BACK_ANGLE
+
+#: The sharpest corner :func:`design_corner` blends, rad (1.2767 deg, found by
+#: bisection to 1e-8 deg; tests/test_reliability_round2.py checks either side):
+#: below it the optimal length ratio n = l_1 / l_2 of eqs. (16), (19), (20)
+#: (about 0.0085 per degree of interior angle) falls below the search range's
+#: lower end _N_RANGE[0] = 0.01.
+MIN_BLEND_ANGLE = math.radians(1.2766656)
 
 #: Search range of the length ratio n = l_1 / l_2 and the grid sizes.
 _N_RANGE = (1e-2, 1e2)
@@ -169,19 +178,17 @@ def _check_vertices(vertices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 f"vertices {k}, {k + 1}, {k + 2} are collinear (straight on at vertex {k + 1}): "
                 f"remove vertex {k + 1}"
             )
-        if theta <= ANGLE_TOLERANCE:
+        if theta <= TURN_BACK_ANGLE:
             raise ValueError(
-                f"vertices {k}, {k + 1}, {k + 2} are collinear (the path turns back on itself at vertex {k + 1})"
+                f"vertices {k}, {k + 1}, {k + 2} are collinear (the path turns back on itself at vertex {k + 1}: "
+                f"interior angle {theta:.3g} rad <= TURN_BACK_ANGLE = {TURN_BACK_ANGLE:g} rad)"
             )
     return pts, lengths, dirs
 
 
 def _interior_angles(dirs: np.ndarray) -> np.ndarray:
     """Interior angle (rad) at each inner vertex from the unit directions of its legs."""
-    d_in, d_out = dirs[:-1], dirs[1:]
-    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
-    dot = np.sum(d_in * d_out, axis=1)
-    return math.pi - np.arctan2(np.abs(cross), dot)
+    return interior_angle(dirs[:-1], dirs[1:])
 
 
 def interior_angles(vertices) -> np.ndarray:
@@ -563,7 +570,8 @@ def _log_n_search(objective) -> float:
     values = [objective(x) for x in xs]
     i = int(np.argmax(values))
     if i == 0 or i == _N_GRID - 1:
-        raise RuntimeError(f"the optimal length ratio left the search range {_N_RANGE}")
+        raise RuntimeError(f"the optimal length ratio left the search range {_N_RANGE} (a corner sharper than "
+                           f"MIN_BLEND_ANGLE = {math.degrees(MIN_BLEND_ANGLE):.4g} deg?)")
     a, b = xs[i - 1], xs[i + 1]
     x1, x2 = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
     f1, f2 = objective(x1), objective(x2)
@@ -604,6 +612,9 @@ def design_corner(theta: float, epsilon: float, a_max: float, j_max: float) -> C
         If an argument is out of range (message names it and its unit).
     """
     theta = _angle("theta", theta)
+    if theta < MIN_BLEND_ANGLE:
+        raise ValueError(f"theta = {math.degrees(theta):.4g} deg is sharper than MIN_BLEND_ANGLE = "
+                         f"{math.degrees(MIN_BLEND_ANGLE):.4g} deg, the sharpest corner the blend design reaches")
     epsilon = _positive("epsilon", epsilon, "mm")
     a_max = _positive("a_max", a_max, "mm/s^2")
     j_max = _positive("j_max", j_max, "mm/s^3")
@@ -733,6 +744,14 @@ def smooth_polyline(vertices, epsilon: float, a_max: float, j_max: float) -> Smo
     a_max = _positive("a_max", a_max, "mm/s^2")
     j_max = _positive("j_max", j_max, "mm/s^3")
     thetas = _interior_angles(dirs)
+    for k, theta in enumerate(thetas):
+        if theta < MIN_BLEND_ANGLE:
+            raise ValueError(
+                f"the corner at vertex {k + 1} ({pts[k + 1].tolist()} mm) is too sharp to blend: interior angle "
+                f"{math.degrees(theta):.4g} deg, below MIN_BLEND_ANGLE = {math.degrees(MIN_BLEND_ANGLE):.4g} deg, "
+                "where seed 002's optimal length ratio n (eqs. (16)-(20)) leaves the design's search range; the "
+                "path nearly turns back on itself there: open the corner or split the path at it"
+            )
     designs = tuple(design_corner(t, epsilon, a_max, j_max) for t in thetas)
 
     side = np.zeros(len(pts))  # l_s at each vertex (0 at both ends)

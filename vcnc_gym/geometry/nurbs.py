@@ -19,6 +19,8 @@ __all__ = [
     "NurbsCurve",
     "SPAN_LENGTH_TOLERANCE",
     "SPEED_TOLERANCE",
+    "TURN_BACK_ANGLE",
+    "interior_angle",
     "curve_derivatives",
     "curve_derivatives_into",
     "find_span",
@@ -37,7 +39,43 @@ SPAN_LENGTH_TOLERANCE = 1e-9
 #: a repeated control point gives ~1e-16, a true cusp ~1e-10 or less.
 SPEED_TOLERANCE = 1e-6
 
+#: A curve turns back on itself where its tangent reverses: at a corner
+#: whose interior angle (between the reversed incoming and the outgoing
+#: tangent: pi straight on, 0 a U-turn) is at most this, rad.  The one rule
+#: of every contour source: :meth:`NurbsCurve.check_regular` (every curve an
+#: env or the interpolator takes), :func:`~vcnc_gym.geometry.corners.polyline`
+#: and :func:`~vcnc_gym.geometry.corners.smooth_polyline` refuse such a
+#: point; there the reference would reverse at full feed (its acceleration
+#: 2 V / dt in one sample).
+TURN_BACK_ANGLE = 1e-9
+
 _GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
+
+
+def interior_angle(d_in, d_out):
+    """Interior angle between incoming and outgoing directions ``d_in``, ``d_out`` (..., 2), rad in [0, pi]:
+    pi for a straight continuation, 0 for a U-turn (seed 002 Fig. 3's theta).  Turns back where it is at most
+    :data:`TURN_BACK_ANGLE`."""
+    d_in, d_out = np.asarray(d_in, dtype=np.float64), np.asarray(d_out, dtype=np.float64)
+    cross = d_in[..., 0] * d_out[..., 1] - d_in[..., 1] * d_out[..., 0]
+    dot = d_in[..., 0] * d_out[..., 0] + d_in[..., 1] * d_out[..., 1]
+    return math.pi - np.arctan2(np.abs(cross), dot)
+
+
+def _real_array(name: str, value, unit: str) -> np.ndarray:
+    """``value`` as a float64 array; ValueError naming ``name`` if it holds anything but real numbers."""
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{name} must be an array of real numbers ({unit}), got the string {value!r}")
+    try:
+        out = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of real numbers ({unit}), got {value!r}: {exc}") from None
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
+        return out
+    raw = np.asarray(value, dtype=object) if out.size else out
+    if any(isinstance(v, (bool, np.bool_, str, bytes, complex)) for v in np.ravel(raw)):
+        raise ValueError(f"{name} must be an array of real numbers ({unit}), got {value!r}")
+    return out
 
 
 @njit(cache=True)
@@ -252,9 +290,9 @@ class NurbsCurve:
     """
 
     def __init__(self, control_points, weights, knots, degree: int):
-        pts = np.array(control_points, dtype=np.float64)
-        w = np.array(weights, dtype=np.float64)
-        kv = np.array(knots, dtype=np.float64)
+        pts = _real_array("control_points", control_points, "mm")
+        w = _real_array("weights", weights, "1")
+        kv = _real_array("knots", knots, "units of u")
         if not _is_integer(degree):
             raise ValueError(f"degree must be an integer, got {degree!r}")
         p = int(degree)
@@ -410,7 +448,13 @@ class NurbsCurve:
            degrees across it, else as a *near-zero derivative* (a stalled
            parametrization, e.g. coincident control points).
 
-        A corner at a knot of multiplicity p (one-sided tangents both
+        4. at every interior knot the one-sided tangents (the left one from
+           the span before it) do not reverse: an interior angle at most
+           ``TURN_BACK_ANGLE`` is a curve that *turns back on itself* (a
+           180-degree corner), the rule :func:`~vcnc_gym.geometry.polyline`
+           applies to its vertices.
+
+        Any other corner at a knot of multiplicity p (one-sided tangents both
         non-zero) is regular.  The outcome is cached: the curve's arrays are
         read-only.
 
@@ -447,6 +491,20 @@ class NurbsCurve:
                 "(near-)zero-length span (coincident control points?) over which the curve stands still and "
                 "its tangent is undefined"
             )
+        inner = knots[1:-1]
+        if inner.size:  # one-sided tangents at every breakpoint: the left from its span, the right from its own
+            left = self.derivatives_array(np.nextafter(inner, lo), 1)[:, 1, :]
+            right = self.derivatives_array(inner, 1)[:, 1, :]
+            theta = interior_angle(left, right)
+            back = np.flatnonzero(theta <= TURN_BACK_ANGLE)
+            if back.size:
+                j = int(back[0])
+                return (
+                    f"curve turns back on itself at the knot u = {inner[j]:.10g} (point "
+                    f"{np.round(self.derivatives(float(inner[j]), 0)[0], 9).tolist()} mm): its tangent reverses "
+                    f"there, interior angle {theta[j]:.3g} rad <= TURN_BACK_ANGLE = {TURN_BACK_ANGLE:g} rad (a "
+                    "180-degree corner); the reference would reverse at full feed"
+                )
         u_min, speed, span = self._slowest_points(starts, ends)
         ratio = speed / (lengths[span] / (ends[span] - starts[span]))
         j = int(np.argmin(ratio))
