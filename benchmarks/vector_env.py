@@ -1,7 +1,8 @@
 """Throughput of the native vector env against Gymnasium's SyncVectorEnv, in one run.
 
 Run: ``python benchmarks/vector_env.py`` (``--seconds S`` per measurement,
-``--envs N`` for the native env's size).
+``--envs N`` for the native env's size, ``--ids`` for the envs, ``--no-load``
+to skip the loaded half).
 
 For each env id (heart, omega) it times, with a PD tracking controller
 driving every env (so the tables follow the contour for real: friction,
@@ -9,16 +10,27 @@ backlash, exact contour error), only the ``step`` calls of
 
 1. ``gym.make_vec(id, num_envs=8, vectorization_mode="sync")`` (SyncVectorEnv);
 2. ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
-   (the native vector env) with 1 and with 2 numba threads,
+   (the native vector env) with 1 numba thread, with 2 (its default
+   ``parallel=None``: the serial or the parallel kernel, whichever is faster,
+   :class:`~vcnc_gym.envs.contouring_vector_env.KernelPath`), and with 2
+   forced onto the parallel kernel (``parallel=True``, the behaviour before
+   issue 21),
 
-and prints env-steps/s and the ratio of each native figure to SyncVectorEnv
-at N = 8.  Episodes end and reset inside the timed loop.
+first on the machine as it is ("idle"), then again while a busy loop this
+script starts (``--load-nice``, default 0: a normal-priority process such as
+another engineer's test run) holds a core ("loaded").  It prints env-steps/s,
+the ratio of each native figure to SyncVectorEnv at N = 8 (same load) and to
+the native env at 1 thread (same load).  Episodes end and reset inside the
+timed loop.
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
 import time
+from contextlib import contextmanager
 
 import gymnasium as gym
 import numba
@@ -49,27 +61,57 @@ def env_steps_per_second(envs, seconds: float) -> float:
     return steps * envs.num_envs / stepping
 
 
+@contextmanager
+def busy_core(nice: int | None):
+    """A busy loop in a child process at priority ``nice`` while the block runs (nothing for None)."""
+    if nice is None:
+        yield
+        return
+    proc = subprocess.Popen(["nice", "-n", str(nice), sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.3)
+        yield
+    finally:
+        proc.kill()
+        proc.wait()
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seconds", type=float, default=3.0, help="stepping time per measurement, s")
     p.add_argument("--envs", type=int, default=1024, help="envs in the native vector env")
+    p.add_argument("--ids", nargs="+", default=["VCNC-Heart-v1", "VCNC-Omega-v1"], help="env ids")
+    p.add_argument("--load-nice", type=int, default=0, help="nice level of the busy loop of the loaded half")
+    p.add_argument("--no-load", action="store_true", help="measure only the machine as it is")
     args = p.parse_args(argv)
     cores = numba.config.NUMBA_NUM_THREADS
+    threads = min(2, cores)
     print(f"numba threads available: {cores}; PD controller on every env; env-steps/s of step() alone")
-    print(f"{'env':15s} {'vector env':32s} {'env-steps/s':>12s} {'x Sync(8)':>10s}")
-    for env_id in ("VCNC-Heart-v1", "VCNC-Omega-v1"):
+    loads = [("idle", None)] + ([] if args.no_load else [(f"loaded (busy loop, nice {args.load_nice})",
+                                                          args.load_nice)])
+    print(f"{'env':15s} {'load':28s} {'vector env':40s} {'env-steps/s':>12s} {'x Sync(8)':>10s} {'x 1 thread':>10s}")
+    for env_id in args.ids:
         sync = gym.make_vec(env_id, num_envs=8, vectorization_mode="sync")
-        base = env_steps_per_second(sync, args.seconds)
-        sync.close()
-        print(f"{env_id:15s} {'SyncVectorEnv, N = 8':32s} {base:12,.0f} {1.0:10.2f}")
-        native = gym.make_vec(env_id, num_envs=args.envs, vectorization_mode="vector_entry_point")
-        for threads in sorted({1, min(2, cores)}):
-            numba.set_num_threads(threads)
-            rate = env_steps_per_second(native, args.seconds)
-            label = f"native, N = {args.envs}, {threads} thread{'s' if threads > 1 else ''}"
-            print(f"{env_id:15s} {label:32s} {rate:12,.0f} {rate / base:10.2f}")
-        numba.set_num_threads(cores)
-        native.close()
+        auto = gym.make_vec(env_id, num_envs=args.envs, vectorization_mode="vector_entry_point")
+        forced = gym.make_vec(env_id, num_envs=args.envs, vectorization_mode="vector_entry_point", parallel=True)
+        for load, nice in loads:
+            with busy_core(nice):
+                base = env_steps_per_second(sync, args.seconds)
+                print(f"{env_id:15s} {load:28s} {'SyncVectorEnv, N = 8':40s} {base:12,.0f} {1.0:10.2f}")
+                rows = [(f"native, N = {args.envs}, 1 thread", auto, 1),
+                        (f"native, N = {args.envs}, {threads} threads (default)", auto, threads),
+                        (f"native, N = {args.envs}, {threads} threads, parallel=True", forced, threads)]
+                one = None
+                for label, envs, t in rows:
+                    numba.set_num_threads(t)
+                    rate = env_steps_per_second(envs, args.seconds)
+                    one = rate if one is None else one
+                    print(f"{env_id:15s} {load:28s} {label:40s} {rate:12,.0f} {rate / base:10.2f} {rate / one:10.2f}",
+                          flush=True)
+                numba.set_num_threads(cores)
+        for envs in (sync, auto, forced):
+            envs.close()
+    print(f"numba threading layer: {numba.threading_layer()}")
 
 
 if __name__ == "__main__":

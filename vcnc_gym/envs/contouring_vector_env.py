@@ -11,8 +11,10 @@ single env (``tests/test_vector_env.py``).
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
+import numba
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
@@ -25,11 +27,72 @@ from . import step_kernel as sk
 from .contouring_env import check_actions
 from .task import ContouringBatch, ContouringTask
 
-__all__ = ["ContouringVectorEnv"]
+__all__ = ["ContouringVectorEnv", "KernelPath"]
 
 #: Below this many envs one thread steps them all (a parallel launch costs more than it saves).
 PARALLEL_MIN_ENVS = 16
+#: The automatic choice (``parallel=None``) tries the path it is not using once its calls have taken this many
+#: times the other path's last known call time: at most ~1/PROBE_RATIO of the time goes to probing a stalled path.
+PROBE_RATIO = 50.0
+#: Weight of a new call's time in the running estimate of its path's cost.
+COST_WEIGHT = 0.5
 
+
+class KernelPath:
+    """The serial or the parallel kernel, whichever recently took less time per env control period.
+
+    A parallel kernel call is a fork-join over numba's threads: it ends when
+    the last thread does.  When another process holds a core, the thread
+    waiting for it stalls every call by up to a scheduler time slice
+    (milliseconds, against 0.05-1 ms of work per call): on a loaded 2-core
+    machine 2 threads ran 2-20x slower than 1 (``benchmarks/vector_env.py``).
+    So the vector env times its kernel calls, keeps a running cost per path
+    (seconds per env control period, weight :data:`COST_WEIGHT`) and uses the
+    cheaper; the other path is tried again once the calls since its last try
+    took :data:`PROBE_RATIO` times its last known call time, so a machine that
+    became idle (or busy) is noticed within a few such tries at a cost of
+    about 2 %.  Both paths run the same body env by env, so the results do not
+    depend on the path.  With one numba thread (``numba.set_num_threads(1)``)
+    the serial path runs, without a parallel launch.
+    """
+
+    def __init__(self):
+        self.cost = [None, None]  # seconds per env control period: serial, parallel (None: not yet timed)
+        self._seen = [False, False]  # the first call of a path (compilation, cache load) is not timed
+        self._since_probe = 0.0  # wall time of the timed calls since the other path was last tried
+        self._work = 1.0
+
+    def choose(self, work: float) -> bool:
+        """True for the parallel path for a call of ``work`` env control periods."""
+        if numba.get_num_threads() == 1:
+            return False
+        self._work = work
+        serial, parallel = self.cost
+        if serial is None or parallel is None:
+            return serial is not None  # time the serial path first, then the parallel one
+        best = parallel < serial
+        other = self.cost[not best] * work
+        if self._since_probe >= PROBE_RATIO * other:
+            self._since_probe = 0.0
+            return not best
+        return best
+
+    def best(self) -> bool:
+        """True when the parallel path is the cheaper one so far (for untimed calls: resets)."""
+        serial, parallel = self.cost
+        return numba.get_num_threads() > 1 and serial is not None and parallel is not None and parallel < serial
+
+    def record(self, parallel: bool, seconds: float) -> None:
+        """Account a call of the path :meth:`choose` returned that took ``seconds``."""
+        if numba.get_num_threads() == 1:
+            return
+        if not self._seen[parallel]:
+            self._seen[parallel] = True
+            return
+        cost = seconds / self._work
+        old = self.cost[parallel]
+        self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (cost - old)
+        self._since_probe += seconds
 
 
 class ContouringVectorEnv(VectorEnv):
@@ -47,7 +110,10 @@ class ContouringVectorEnv(VectorEnv):
         ``info["final_info"]``) or ``DISABLED`` (reset finished envs with
         ``reset(options={"reset_mask": mask})``).
     parallel : bool, optional
-        Spread the envs over numba's threads; default when N >= 16.
+        True: spread the envs over numba's threads on every call; False: one
+        thread.  Default (None): one thread below 16 envs, else whichever of
+        the two recently stepped faster (:class:`KernelPath`: on a core
+        another process uses, a parallel call waits for its thread).
     **kwargs
         The arguments of :class:`~vcnc_gym.envs.ContouringEnv` (contour,
         plant, feedrate, dt, action_repeat, randomize, parameters, ...).
@@ -78,6 +144,7 @@ class ContouringVectorEnv(VectorEnv):
                              f"got {autoreset_mode!r}") from None
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.parallel = self.num_envs >= PARALLEL_MIN_ENVS if parallel is None else flag("parallel", parallel)
+        self._path = KernelPath() if parallel is None and self.parallel else None
         b = self._batch.buffers
         self._buffers = b
         high = b.obs_high
@@ -132,7 +199,7 @@ class ContouringVectorEnv(VectorEnv):
             if parameters is not None:
                 opts["parameters"] = per_env[i]
             self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None))
-        self._batch.run(self.parallel)
+        self._batch.run(self._observe_parallel())
         self._autoreset[mask] = False
         self._started = True
         return b.obs.copy(), self._info(mask)
@@ -149,7 +216,7 @@ class ContouringVectorEnv(VectorEnv):
                 self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
         elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
             b.mode[self._autoreset] = sk.MODE_IDLE
-        self._batch.run(self.parallel)
+        self._run(1)
 
         terminated = b.flags[:, sk.FLAG_TERMINATED].copy()
         truncated = b.flags[:, sk.FLAG_TRUNCATED].copy()
@@ -176,7 +243,7 @@ class ContouringVectorEnv(VectorEnv):
             b.mode[:] = sk.MODE_IDLE
             for i in np.flatnonzero(done):
                 self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
-            self._batch.run(self.parallel)
+            self._batch.run(self._observe_parallel())
             obs[done] = b.obs[done]
             self._autoreset[:] = False
         return obs, rewards, terminated, truncated, info
@@ -221,7 +288,7 @@ class ContouringVectorEnv(VectorEnv):
         b = self._buffers
         b.mode[:] = sk.MODE_STEP
         b.mode[self._autoreset] = sk.MODE_IDLE
-        self._batch.run_controlled(controller, loop, self.parallel)
+        self._run(loop.repeat, controller, loop)
         stepped = ~self._autoreset
         terminated = b.flags[:, sk.FLAG_TERMINATED] & stepped
         truncated = b.flags[:, sk.FLAG_TRUNCATED] & stepped
@@ -235,6 +302,22 @@ class ContouringVectorEnv(VectorEnv):
         pass
 
     # -- helpers --------------------------------------------------------------------
+    def _run(self, repeat: int, controller=None, loop=None) -> None:
+        """One stepping kernel call (with ``controller`` in the loop if given) on the path of ``self._path``."""
+        path = self._path
+        parallel = self.parallel if path is None else path.choose(self.num_envs * repeat)
+        t0 = time.perf_counter()
+        if controller is None:
+            self._batch.run(parallel)
+        else:
+            self._batch.run_controlled(controller, loop, parallel)
+        if path is not None:
+            path.record(parallel, time.perf_counter() - t0)
+
+    def _observe_parallel(self) -> bool:
+        """The path of an untimed call (observations after resets): the forced one, or the cheaper so far."""
+        return self.parallel if self._path is None else self._path.best()
+
     def _seeds(self, seed) -> list:
         n = self.num_envs
         if seed is None:
