@@ -157,14 +157,22 @@ TABLE_1 = {
 PARAMETERS = (
     Parameter("a", "1/s", nominal=(9.7, 9.7), interval=((7.5, 11.9), (7.5, 11.9)),
               source=f"{_EQ_2}; lower bound alpha_1 of {_SEC_35}; upper bound ours (7.5 mirrored about 9.7)",
-              description="velocity-loop pole K_1 K_2 n H_2 / (p^2 m + n^2 I_m), eq. (30)"),
+              description="velocity-loop pole K_1 K_2 n H_2 / (p^2 m + n^2 I_m), eq. (30)",
+              physical_range=(0.001, 10000),
+              range_source="ours: velocity-loop poles from 0.1 ms to 1000 s"),
     Parameter("b", "mm/(V s^2)", nominal=(4850.0, 4850.0), interval=((3000.0, 6000.0), (3000.0, 6000.0)),
               source=f"{_EQ_2} (4.85 m/(V s^2)); interval 3-6 m/(V s^2) of {_SEC_35}",
-              description="gain K_1 K_2 n p / (p^2 m + n^2 I_m), eq. (30)"),
+              description="gain K_1 K_2 n p / (p^2 m + n^2 I_m), eq. (30)",
+              physical_range=(1, 1e+07),
+              range_source="ours: 1 mm/(V s^2) to 10 km/(V s^2), 2000 times the seed's 4.85 m/(V s^2) either way"),
     Parameter("T_d", "s", nominal=(0.1, 0.1), source=f"{_EQ_2} (T_d = 0.1 s 'for simulation')", sign="nonnegative",
-              description="input dead time, a whole number of control periods"),
+              description="input dead time, a whole number of control periods",
+              physical_range=(0, 10),
+              range_source="ours: a dead time beyond 10 s is no servo axis"),
     Parameter("u_max", "V", nominal=(10.0, 10.0), source="ours (+-10 V servo command; seed 001 gives no limit)",
-              description="amplifier command saturation"),
+              description="amplifier command saturation",
+              physical_range=(0.1, 100),
+              range_source="ours: amplifier commands are +-10 V in industry, +-100 V at most"),
 )
 IDX_A, IDX_B, IDX_T_D, IDX_U_MAX = range(len(PARAMETERS))
 

@@ -38,6 +38,7 @@ Kernels
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -46,6 +47,7 @@ from numba import types
 
 __all__ = [
     "Parameter",
+    "ParameterWarning",
     "PlantModel",
     "advance",
     "sense",
@@ -108,6 +110,14 @@ class Parameter:
         what :meth:`PlantModel.validate` requires.
     description : str
         What it is.
+    physical_range : (lo, hi) or None
+        The values a machine of this kind can physically have, on both axes
+        (containing the nominal values and the interval): outside it
+        :meth:`PlantModel.validate` refuses a value (e.g. an inertia of
+        1e-300 kg m^2); outside the interval but inside the range it warns
+        (:class:`ParameterWarning`).  None: the sign rule only.
+    range_source : str
+        Why the range is what it is.
     """
 
     name: str
@@ -118,6 +128,8 @@ class Parameter:
     source: str = ""
     sign: str = "positive"
     description: str = ""
+    physical_range: tuple | None = None
+    range_source: str = ""
 
     def __post_init__(self):
         if self.sign not in ("positive", "nonnegative", "nonpositive", "any"):
@@ -132,10 +144,20 @@ class Parameter:
                     raise ValueError(f"parameter {self.name}: interval ({lo}, {hi}) is empty")
             if self.shared and tuple(self.interval[0]) != tuple(self.interval[1]):
                 raise ValueError(f"shared parameter {self.name} needs the same interval on both axes")
+        if self.physical_range is not None:
+            lo, hi = self.physical_range
+            inside = list(self.nominal) + [v for iv in (self.interval or ()) for v in iv]
+            if not (lo < hi and all(lo <= v <= hi for v in inside)):
+                raise ValueError(f"parameter {self.name}: physical range ({lo}, {hi}) must hold its nominal values "
+                                 f"and its interval")
 
     @property
     def uncertain(self) -> bool:
         return self.interval is not None
+
+
+class ParameterWarning(UserWarning):
+    """A plant parameter outside its uncertainty interval but inside its physical range: accepted, said."""
 
 
 @dataclass(frozen=True)
@@ -291,7 +313,14 @@ class PlantModel:
         ValueError
             On a wrong shape or dtype, a non-finite entry, a sign rule of
             :class:`Parameter` broken, shared parameters that differ between
-            the axes, or the plant's own checks.
+            the axes, a value outside its parameter's ``physical_range``, or
+            the plant's own checks.
+
+        Warns
+        -----
+        ParameterWarning
+            For a value outside its parameter's uncertainty interval but
+            inside its physical range.
         """
         raw = np.asarray(params)
         if raw.dtype.kind not in "iuf" or raw.dtype == bool:
@@ -324,9 +353,36 @@ class PlantModel:
                                  f"got {np.unique(p[..., j])}")
             if par.shared and np.any(p[:, 0, j] != p[:, 1, j]):
                 raise ValueError(f"{par.name} is shared by both axes of a machine ({par.source})")
+        self._check_ranges(p, lim if allow_infinite_limit else None)
         if self.check is not None:
             self.check(p)
         return p
+
+    def _check_ranges(self, p: np.ndarray, infinite_column: int | None) -> None:
+        """ValueError for a value outside its parameter's physical range; ParameterWarning for one outside
+        its uncertainty interval but inside the range (``infinite_column``: an input limit allowed to be +inf)."""
+        for j, par in enumerate(self.parameters):
+            v = p[..., j]
+            if j == infinite_column:
+                v = np.where(np.isposinf(v), par.nominal[0], v)
+            if par.physical_range is not None:
+                lo, hi = par.physical_range
+                bad = (v < lo) | (v > hi)
+                if bad.any():
+                    raise ValueError(
+                        f"{self.name} parameter {par.name} must lie in its physical range [{lo:g}, {hi:g}] "
+                        f"{par.unit} ({par.range_source or 'the plant module'}), got {np.unique(v[bad])[:4]}")
+            if par.uncertain:
+                for a in range(2):
+                    ilo, ihi = par.interval[a]
+                    slack = 1e-12 * max(abs(ilo), abs(ihi))
+                    out = (v[:, a] < ilo - slack) | (v[:, a] > ihi + slack)
+                    if out.any():
+                        warnings.warn(
+                            f"{self.name} parameter {par.name} = {np.unique(v[:, a][out])[:4]} {par.unit} on the "
+                            f"{AXES[a]} axis is outside its uncertainty interval [{ilo:g}, {ihi:g}] ({par.source}) "
+                            f"but inside its physical range: accepted", ParameterWarning, stacklevel=3)
+                        break
 
     def to_dict(self, params) -> dict:
         """One machine's parameters as plain Python: shared ones floats, others (x, y) tuples."""

@@ -107,14 +107,22 @@ def _interval(x_value: float, y_value: float) -> tuple:
 PARAMETERS = (
     Parameter("K", "mm/s per u_r", nominal=(50.7, 53.1), interval=_interval(50.7, 53.1),
               source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
-              description="velocity gain K = h_max / u_r, eq. (3)"),
+              description="velocity gain K = h_max / u_r, eq. (3)",
+              physical_range=(0.01, 10000),
+              range_source="ours: 0.01 mm/s to 10 m/s at the rated input"),
     Parameter("alpha", "1/s", nominal=(1.475, 3.156), interval=_interval(1.475, 3.156),
               source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
-              description="velocity pole alpha = -m, eq. (3)"),
+              description="velocity pole alpha = -m, eq. (3)",
+              physical_range=(0.001, 10000),
+              range_source="ours: velocity-loop poles from 1 ms to 1000 s"),
     Parameter("u_r", "u_r", nominal=(1.0, 1.0), source="seed 003, sections II-B and III (no number given)",
-              description="rated motor input: the input limit, the unit of the input"),
+              description="rated motor input: the input limit, the unit of the input",
+              physical_range=(0.001, 1000),
+              range_source="ours: a rated input in V or in per-unit"),
     Parameter("resolution", "mm", nominal=(0.001, 0.001), source="seed 003, section III (1 um sensor)",
-              description="position sensor resolution"),
+              description="position sensor resolution",
+              physical_range=(1e-07, 1),
+              range_source="ours: position sensors resolve 0.1 nm (interferometers) to 1 mm"),
 )
 IDX_K, IDX_ALPHA, IDX_U_R, IDX_RESOLUTION = range(len(PARAMETERS))
 
