@@ -63,6 +63,8 @@ from vcnc_gym.envs.registry import LEGACY
 LEGACY_IDS = tuple(e.id for e in LEGACY)
 from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
+from vcnc_gym.validation import size
+
 from .papers import paper_figures
 from . import robust
 from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label,
@@ -204,6 +206,33 @@ def _check_writable(path: Path, parser, what: str) -> None:
         parser.error(f"--json {path} is a directory; give a file name")
 
 
+#: Most trials (--trials) of a policy that learns across episodes (ours): such controllers converge within tens
+#: of trials, and 10 000 trials of one episode each are hours of wall time at the bench's ~1 s per episode.
+MAX_TRIALS = 10_000
+
+#: Bytes a single episode's traces take per decision step (vcnc_gym.evaluation.run_episode: time, contour error,
+#: position, reference and command, 8 float64); the bench keeps every trial's.
+TRACE_BYTES_PER_STEP = 64
+
+
+def _check_sizes(args, envs: dict, parser) -> None:
+    """--plants and --trials against this machine's memory and MAX_TRIALS, before any episode runs."""
+    try:
+        if args.plants is not None:
+            for env in envs.values():
+                robust.check_plants(args.plants, env)
+        if args.trials is not None:
+            steps = max(int(env.unwrapped.episode_steps) for env in envs.values())
+            size("--trials", args.trials, ceiling=MAX_TRIALS,
+                 why="a learning controller converges within tens of trials; 10 000 episodes are hours")
+            if args.plants is None:
+                size("--trials", args.trials, bytes_each=2 * steps * TRACE_BYTES_PER_STEP,
+                     why=f"every trial's traces are kept, {steps} steps of the longest env's episode (twice, "
+                         "for one that runs to its time limit)")
+    except ValueError as exc:
+        parser.error(str(exc))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``vcnc-bench``; returns the exit code (argument errors exit with 2)."""
     wall0 = time.perf_counter()
@@ -217,6 +246,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--plants must be >= 1, got {args.plants}")
     if args.plant_seed < 0:
         parser.error(f"--plant-seed must be >= 0, got {args.plant_seed}")
+    if args.parallel and args.plants is None:
+        parser.error("--parallel spreads the batch of --plants N over threads; without --plants each episode "
+                     "runs on one env and there is nothing to spread: add --plants N or drop --parallel")
 
     env_ids = _unique(args.env or list(ENV_IDS))
     unknown = [e for e in env_ids if e not in ENV_IDS + LEGACY_IDS]
@@ -235,6 +267,7 @@ def main(argv: list[str] | None = None) -> int:
 
     # build every env and policy first, so a bad spec fails before any run
     envs = {env_id: _make_env(env_id, args.feedrate, parser) for env_id in env_ids}
+    _check_sizes(args, envs, parser)
     compare = args.feedrate is None
     runs = []
     for env_id, env in envs.items():

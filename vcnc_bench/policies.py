@@ -169,6 +169,9 @@ def check_policy_spec(spec: str) -> None:
     kinds = policy_kinds()
     if kind not in kinds:
         raise ValueError(f"unknown policy {spec!r}; valid policies are {policy_choices()}")
+    if ":" in spec and not arg.strip():
+        raise ValueError(f"policy {spec!r} has nothing after ':' (an unset variable?); give {kind}:ARGUMENT, or "
+                         f"the bare {kind!r} for its default")
     if ":" in spec and kinds[kind].names() and arg not in kinds[kind].names():
         raise ValueError(f"unknown policy {spec!r}; valid policies are {policy_choices()}")
 

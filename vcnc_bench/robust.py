@@ -61,13 +61,43 @@ import gymnasium as gym
 import numpy as np
 
 from vcnc_gym.envs import suite_env
-from vcnc_gym.validation import integer
+from vcnc_gym.validation import integer, size
 
 __all__ = ["MAX_VERTICES", "PlantSet", "PlantRuns", "SingleEnvBatch", "plant_set", "make_batch", "run_plants",
            "summarize", "evaluate", "ROBUST_COLUMNS", "plot_robust"]
 
 #: The vertices of the box join the plants when there are at most this many (2^6: at most 6 uncertain coordinates).
 MAX_VERTICES = 64
+
+#: Memory of one plant of a batch of single envs (an env without a vector
+#: env: the positioning env), bytes: 32 kB measured with tracemalloc for
+#: VCNC-Step-v0 (its env, wrappers and arrays), rounded up.
+SINGLE_ENV_BYTES = 40_000
+
+
+def bytes_per_plant(env) -> int:
+    """Memory one plant of ``--plants`` costs in ``env``'s batch, bytes: its env's rows of the vector env's
+    arrays (:meth:`~vcnc_gym.envs.task.ContouringBatch.bytes_per_env`) or a whole single env
+    (:data:`SINGLE_ENV_BYTES`), plus its parameters drawn and kept, its observation and action in ``predict``
+    and its figures (12 floats)."""
+    u = env.unwrapped
+    task = getattr(u, "task", None)
+    if task is not None and suite_env(u.spec.id).vector_entry_point is not None:
+        from vcnc_gym.envs.task import ContouringBatch
+
+        rows = ContouringBatch.bytes_per_env(task)
+    else:
+        rows = SINGLE_ENV_BYTES
+    p = u.plant.n_parameters
+    d = int(np.prod(env.observation_space.shape))
+    return rows + 3 * 2 * p * 8 + 2 * (4 * d + 16) + 12 * 8
+
+
+def check_plants(n_plants: int, env, argument: str = "--plants") -> int:
+    """``n_plants`` if the plants of ``env`` fit in memory (:func:`vcnc_gym.validation.size`), else a
+    ValueError naming ``argument``, the limit and why."""
+    return size(argument, n_plants, bytes_each=bytes_per_plant(env),
+                why=f"each plant of {env.unwrapped.spec.id} is one env of its batch and its figures")
 
 
 @dataclass
