@@ -223,7 +223,11 @@ def main(argv: list[str] | None = None) -> int:
     if result.best is not None:
         b = result.best
         print(f"best evaluation at {int(b['steps'])} steps: max {b['max_um']:.2f} um, RMS {b['rms_um']:.2f} um")
-    print(f"run folder: {result.run_dir}  (agents: {result.run_dir / 'best'}, {result.run_dir / 'final'})")
+    agents = [str(result.run_dir / name) for name in ("best", "final") if (result.run_dir / name).is_dir()]
+    if result.best is None:
+        agents.append("no best/: " + ("every evaluation diverged" if (result.run_dir / "evaluations.csv").is_file()
+                                      else "no evaluation ran"))
+    print(f"run folder: {result.run_dir}  (agents: {', '.join(agents) or 'none'})")
     return 0
 
 

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["load_ppo", "read_model_data", "check_model_data", "recorded_shape", "model_timesteps",
-           "PPO_DATA_KEYS", "check_torch"]
+           "PPO_DATA_KEYS", "check_torch", "check_tensor_files"]
 
 #: The attributes a PPO model.zip may hold in ``data``; anything else is refused.
 PPO_DATA_KEYS = frozenset({
@@ -195,6 +195,30 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
     except (RuntimeError, KeyError, ValueError, AssertionError) as exc:
         raise ValueError(f"{path} does not load as the PPO its config.yml describes "
                          f"({type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''})") from None
+
+
+def check_tensor_files(path) -> None:
+    """ValueError unless every ``.pth`` member of the model.zip at ``path`` reads with torch's weights-only
+    unpickler (tensors, numbers, containers: no code runs); what :func:`load_ppo` will meet, checked first."""
+    import io
+
+    import torch
+
+    check_torch()
+    try:
+        with zipfile.ZipFile(path) as z:
+            for name in z.namelist():
+                if name.endswith(".pth"):
+                    try:
+                        torch.load(io.BytesIO(z.read(name)), map_location="cpu", weights_only=True)
+                    except pickle.UnpicklingError as exc:
+                        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+                        raise ValueError(f"{path}: {name} holds more than tensors and is refused by torch's "
+                                         f"weights-only reader ({reason})") from None
+                    except (RuntimeError, EOFError) as exc:
+                        raise ValueError(f"{path}: {name} is not a torch tensor file ({type(exc).__name__})") from None
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise ValueError(f"{path} is not a readable model.zip ({type(exc).__name__}: {exc})") from None
 
 
 def model_timesteps(path) -> int:

@@ -8,7 +8,8 @@ Everything of one run lives in one folder::
       checkpoints/        rl_model_<steps>_steps.zip + rl_model_vecnormalize_<steps>_steps.npz
       best/               model.zip, vecnormalize.npz, config.yml: best deterministic evaluation
       final/              the same three at the end of training
-      evaluations.csv     steps, max / mean / RMS contour error (um) of each evaluation
+      evaluations.csv     steps, max / mean / RMS contour error (um) of each evaluation (inf when
+                          it diverged), score, diverged
       monitor/            SB3 Monitor files of the training envs, one row per episode: return r,
                           length l (agent steps), t (s since the session's start) and
                           steps (the run's agent-step count at the episode's end)
@@ -63,11 +64,12 @@ import yaml
 
 import vcnc_gym  # noqa: F401  (registers the VCNC ids with Gymnasium)
 from vcnc_gym.envs.registry import suite_env
+from vcnc_gym.validation import size
 
 from .action_modes import ActionMode
 from .config import (DEFAULT_CONFIG, action_mode_of, count, load_hyperparameters, normalize_kwargs,
                      ppo_arguments, with_action_mode)
-from .model_file import check_model_data, load_ppo, read_model_data, recorded_shape
+from .model_file import check_model_data, check_tensor_files, load_ppo, read_model_data, recorded_shape
 from .normalization import NormalizationStats, atomic_write_bytes
 from .policy import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, AgentPolicy, check_signature, env_signature
 
@@ -80,6 +82,18 @@ _CHECKPOINT = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
 DEFAULT_CHECKPOINT_FREQ = 50_000
 DEFAULT_EVAL_FREQ = 20_000
 _SEED_MAX = 2**32 - 1
+
+#: Most agent steps a run may ask for (ours): 20 days at the 5 630 steps/s measured on this project's 2 cores
+#: (README, ``benchmarks/train_throughput.py``); a run meant to be longer is resumed with a larger total.
+MAX_TIMESTEPS = 10**10
+
+#: Files a training process keeps open besides its envs' Monitor files (torch, numba, tensorboard, the
+#: interpreter), subtracted from ``ulimit -n``: the native vector env keeps one Monitor file open per env.
+RESERVED_FILES = 256
+
+#: Memory of one training env besides its share of PPO's rollout buffer, bytes: its Monitor file's 8 kB
+#: write buffer and its rows of the vector env's arrays (3-4 kB, ``ContouringBatch.bytes_per_env``).
+ENV_BYTES = 12_000
 #: Entries a run folder may hold; a folder holding others is not ours to clear.
 _RUN_ENTRIES = {CONFIG_FILE, "checkpoints", "best", "final", "evaluations.csv", "monitor", "tb", "summary.json",
                 ".lock"}
@@ -221,10 +235,20 @@ def scan_checkpoints(run_dir, n_envs: int | None = None) -> tuple[list, list]:
 def latest_checkpoint(run_dir, n_envs: int | None = None) -> tuple[int, Path, Path] | None:
     """(steps, model zip, normalisation npz) of the newest intact checkpoint of a run, or None.
 
-    A damaged checkpoint newer than it is skipped with a :class:`RunWarning`.
+    A damaged checkpoint newer than it is skipped with a :class:`RunWarning`; so is one whose tensor files
+    (``policy.pth``, ...) do not read with torch's weights-only reader (a pickled object), the newest being
+    read before it is resumed from.
     """
     intact, damaged = scan_checkpoints(run_dir, n_envs)
-    newest = intact[0] if intact else None
+    newest = None
+    for steps, model_zip, norm in intact:
+        try:
+            check_tensor_files(model_zip)
+        except ValueError as exc:
+            damaged.append((steps, model_zip, str(exc)))
+            continue
+        newest = (steps, model_zip, norm)
+        break
     for steps, model_zip, reason in damaged:
         if newest is None or steps > newest[0]:
             fallback = f"falling back to the one at {newest[0]} steps" if newest else "no intact checkpoint is left"
@@ -605,8 +629,12 @@ def _make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose
             policy = AgentPolicy(self.model, stats, self.mode, self.env)
             r = run_episode(policy, self.env, seed=0)
             score = math.inf if r.diverged else evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
-            row = {"steps": int(n), "max_um": float(r.max_contour_error_um), "mean_um": float(r.mean_contour_error_um),
-                   "rms_um": float(r.rms_contour_error_um), "score_um": float(score), "diverged": bool(r.diverged)}
+            # a diverged episode's errors cover only the part before it left the bounds (a table that never
+            # moved has 0.0 um there): written as inf, the bench's figure for a diverged plant, never as perfect
+            figures = ((math.inf,) * 3 if r.diverged else
+                       (r.max_contour_error_um, r.mean_contour_error_um, r.rms_contour_error_um))
+            row = {"steps": int(n), "max_um": float(figures[0]), "mean_um": float(figures[1]),
+                   "rms_um": float(figures[2]), "score_um": float(score), "diverged": bool(r.diverged)}
             new = not self.csv.exists()
             with open(self.csv, "a", newline="") as f:
                 w = csv.DictWriter(f, fieldnames=_EVAL_FIELDS)
@@ -621,8 +649,9 @@ def _make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose
                 _save_agent(run_dir / "best", self.model, stats, config, n, row)
             if self.verbose:
                 best = f"{self.best['score_um']:.2f}" if self.best else "-"
-                print(f"eval at {n} steps: max {r.max_contour_error_um:.2f} um, "
-                      f"RMS {r.rms_contour_error_um:.2f} um, diverged {r.diverged} (best score {best})")
+                print(f"eval at {n} steps: " + ("diverged" if r.diverged else
+                                                  f"max {r.max_contour_error_um:.2f} um, "
+                                                  f"RMS {r.rms_contour_error_um:.2f} um") + f" (best score {best})")
 
     return RunCallback()
 
@@ -711,13 +740,36 @@ def _rollout(config: dict) -> int:
     return kwargs.get("n_steps", 2048) * config["n_envs"]
 
 
+def _check_timesteps(n_timesteps: int) -> int:
+    return size("n_timesteps", n_timesteps, ceiling=MAX_TIMESTEPS,
+                why="MAX_TIMESTEPS, 20 days at the 5 630 steps/s measured on 2 cores; resume a run to go further")
+
+
+def _check_n_envs(n_envs: int, n_steps: int | None = None, observation_size: int | None = None) -> int:
+    """``n_envs`` within the open-file limit (one Monitor file per env) and, with the rollout's size, memory."""
+    import resource
+
+    soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    if soft != resource.RLIM_INFINITY:
+        size("n_envs", n_envs, ceiling=max(1, soft - RESERVED_FILES),
+             why=f"each env keeps its Monitor file open and this process may open {soft} files (ulimit -n), "
+                 f"{RESERVED_FILES} kept for the rest")
+    if n_steps is not None and observation_size is not None:
+        rollout = n_steps * (observation_size + 2 + 6) * 4  # float32 observation, action and 6 scalars per step
+        size("n_envs", n_envs, bytes_each=rollout + ENV_BYTES,
+             why=f"each env fills n_steps = {n_steps} rows of PPO's rollout buffer ({observation_size} observation "
+                 "entries, 2 actions, 6 scalars in float32) and holds its Monitor file and batch rows")
+    return n_envs
+
+
 def _new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, checkpoint_freq, eval_freq) -> dict:
     h = load_hyperparameters(env_id, config_file)
     ppo_arguments(h)  # refuse a bad entry before anything else
     mode = action_mode if action_mode is not None else action_mode_of(h)
     h = with_action_mode(h, mode)
     n_timesteps = count("n_timesteps", n_timesteps if n_timesteps is not None else h.get("n_timesteps", 0))
-    n_envs = count("n_envs", n_envs if n_envs is not None else h.get("n_envs", 1))
+    n_envs = _check_n_envs(count("n_envs", n_envs if n_envs is not None else h.get("n_envs", 1)))
+    n_timesteps = _check_timesteps(n_timesteps)
     seed = _check_seed(seed)
     _, kwargs = ppo_arguments(h)
     rollout = kwargs.get("n_steps", 2048) * n_envs
@@ -726,11 +778,28 @@ def _new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, 
     n_timesteps = _round_to_rollouts("n_timesteps", n_timesteps, rollout)
     h["n_timesteps"], h["n_envs"] = n_timesteps, n_envs
     env = _check_envs(env_id, h, mode, kwargs)
+    _check_n_envs(n_envs, kwargs.get("n_steps", 2048), math.prod(env["signature"]["observation_shape"]))
     return {"env_id": env_id, "seed": seed, "n_envs": n_envs, "n_timesteps": n_timesteps,
             "checkpoint_freq": DEFAULT_CHECKPOINT_FREQ if checkpoint_freq is None else checkpoint_freq,
             "eval_freq": DEFAULT_EVAL_FREQ if eval_freq is None else eval_freq,
             "action_mode": mode.to_dict(), "env": env, "hyperparams": h,
             "config_file": "agents/hyperparams/ppo.yml" if Path(config_file) == DEFAULT_CONFIG else str(config_file)}
+
+
+def check_output_folder(run_dir: Path) -> None:
+    """ValueError naming ``run_dir`` unless a folder can be made there: a probe folder is made and removed in
+    its nearest existing ancestor (``--output /proc/run``: procfs takes no new folder)."""
+    import tempfile
+
+    run_dir = Path(run_dir)
+    ancestor = run_dir if run_dir.is_dir() else next((p for p in run_dir.absolute().parents if p.exists()), None)
+    if ancestor is None or not ancestor.is_dir():
+        raise ValueError(f"cannot make the run folder {run_dir}: {ancestor} is not a folder")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".vcnc-train-probe-", dir=ancestor))
+    except OSError as exc:
+        raise ValueError(f"cannot make the run folder {run_dir}: no folder can be made in {ancestor} "
+                         f"({exc.strerror or type(exc).__name__}); choose another --output") from None
 
 
 def _stale_run(run_dir: Path) -> bool:
@@ -797,7 +866,8 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
             check_signature(recorded, env["signature"], what=f"the run in {run_dir}")
         config["env"] = env
         if n_timesteps is not None:
-            total = _round_to_rollouts("n_timesteps", count("n_timesteps", n_timesteps), _rollout(config))
+            total = _round_to_rollouts("n_timesteps", _check_timesteps(count("n_timesteps", n_timesteps)),
+                                       _rollout(config))
             config["hyperparams"] = dict(config["hyperparams"], n_timesteps=total)
             config["n_timesteps"] = total
         if checkpoint[0] >= config["n_timesteps"]:
@@ -810,6 +880,7 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
     run_dir = Path(run_dir) if run_dir is not None else Path("runs") / f"{env_id}_seed{config['seed']}"
     if run_dir.exists() and not run_dir.is_dir():
         raise FileExistsError(f"{run_dir} is a file, not a run folder")
+    check_output_folder(run_dir)
     if run_dir.exists() and any(p.name != _LOCK for p in run_dir.iterdir()):
         with _run_lock(run_dir, probe=True):
             pass
@@ -941,7 +1012,8 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, tensorboard, vec_
                          ppo_kwargs=kwargs, device=device, tensorboard_log=tb_dir, verbose=verbose)
         probe.close()
         # the checkpoint loads: from here on the run folder changes
-        _, damaged = scan_checkpoints(run_dir, config["n_envs"])
+        intact, damaged = scan_checkpoints(run_dir, config["n_envs"])
+        damaged += [c for c in intact if c[0] > done]  # passed over by latest_checkpoint: tensors unreadable
         rolled_back = _roll_back(run_dir, config, done, damaged)
         if rolled_back["evaluations"] or rolled_back["episodes"]:
             _note(f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
