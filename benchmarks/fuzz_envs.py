@@ -1,6 +1,6 @@
-"""Fuzz the contouring env: random valid curves, random settings, random and PD policies.
+"""Fuzz the contouring env: random valid curves, random settings, random and PD policies; then every id.
 
-Run: ``python benchmarks/fuzz_envs.py --episodes 1000`` (``--seed S``).
+Run: ``python benchmarks/fuzz_envs.py --episodes 1000`` (``--seed S``; ``--id-episodes K`` per id).
 
 Each episode draws a random NURBS (degree 1-5, 4-12 control points within
 +-60 mm, weights in [0.3, 3], random clamped knots), random settings
@@ -17,7 +17,17 @@ actions, full saturation, or a PD loop), builds the env and runs up to
 
 and, per episode, exceptions other than a ``ValueError`` at construction
 (which is the env refusing a curve or a setting with a message: counted and
-listed by kind, not a failure).  It exits 1 if any failure was seen.
+listed by kind, not a failure).
+
+Then every current id (``vcnc_gym.envs.ENV_IDS``), as registered, single and
+(where it has one) as a native vector env of 3, plants drawn from the box,
+under random and saturating actions, with the same counts; and in every
+other episode the **NaN check**: at a random step the plant's state is
+overwritten with NaN (the way a plant that blew up would leave it) and that
+step must end the episode flagged ``diverged`` with a finite observation
+inside the space and a finite reward at most the divergence penalty
+(-divergence_bound / reward_scale); anything else is counted under "NaN
+state not ended as a divergence".  It exits 1 if any failure was seen.
 """
 
 from __future__ import annotations
@@ -31,7 +41,10 @@ import traceback
 
 import numpy as np
 
+import gymnasium as gym
+
 import vcnc_gym
+from vcnc_gym.envs import ENV_IDS, VECTOR_IDS
 from vcnc_gym.geometry import NurbsCurve
 
 #: Plants with a contouring configuration here: name -> (feedrate range mm/s, dt range s).
@@ -39,6 +52,7 @@ PLANTS = {
     "vcnc_feed_drive": ((5.0, 200.0), (5e-5, 5e-4)),
     "current_feed_drive": ((5.0, 100.0), (5e-5, 5e-4)),
     "nct_xy_table": ((0.5, 20.0), (1e-4, 2e-3)),
+    "cncmt_axis": ((5.0, 100.0), (1e-4, 2e-3)),
 }
 
 
@@ -153,12 +167,85 @@ def fuzz(episodes: int, steps: int, seed: int, progress: bool = True) -> dict:
 FAILURE_KEYS = ("non-finite observation", "non-finite reward", "positive reward", "observation outside the space",
                 "observation clipped", "exceptions")
 
+#: What the per-id fuzz counts as a failure besides :data:`FAILURE_KEYS`.
+ID_FAILURE_KEYS = FAILURE_KEYS + ("NaN state not ended as a divergence",)
+
+
+def _plant_state(env):
+    """The plant's state array (N, 2, S) of a single or vector env (where the NaN check writes)."""
+    u = env.unwrapped if hasattr(env, "unwrapped") else env
+    batch = getattr(u, "_batch", None)
+    return batch.plant_arrays.state if batch is not None else u._plant.state
+
+
+def _penalty(env) -> float:
+    u = env.unwrapped if hasattr(env, "unwrapped") else env
+    task = getattr(u, "task", u)
+    return -task.divergence_bound / task.reward_scale
+
+
+def fuzz_ids(episodes: int, steps: int, seed: int, ids=ENV_IDS, progress: bool = True) -> dict:
+    """``episodes`` episodes per id of ``ids`` (half as native vector envs of 3 where the id has one), every
+    other one with the NaN check; returns the counts per id and in all (module docstring)."""
+    rng = np.random.default_rng(seed)
+    counts, per_id, failures = collections.Counter(), {}, []
+    t0 = time.perf_counter()
+    for env_id in ids:
+        c = per_id[env_id] = collections.Counter()
+        for ep in range(episodes):
+            vector = env_id in VECTOR_IDS and ep % 4 >= 2
+            poison = ep % 2 == 1
+            kwargs = {"randomize": True} if env_id in VECTOR_IDS else {}
+            try:
+                env = (gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kwargs) if vector
+                       else gym.make(env_id, **kwargs))
+                space = env.single_observation_space if vector else env.observation_space
+                obs, _ = env.reset(seed=int(rng.integers(0, 2**31)))
+                at = int(rng.integers(0, steps)) if poison else -1
+                c["episodes"] += 1
+                for k in range(steps):
+                    if k == at:
+                        _plant_state(env)[0] = np.nan
+                    shape = (3, 2) if vector else (2,)
+                    action = (rng.uniform(-1.0, 1.0, shape) if ep % 3 else np.sign(rng.normal(size=shape)))
+                    obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
+                    c["steps"] += 1
+                    rows = obs if vector else obs[None]
+                    rewards = np.atleast_1d(reward)
+                    c["non-finite observation"] += int(not np.all(np.isfinite(rows)))
+                    c["non-finite reward"] += int(not np.all(np.isfinite(rewards)))
+                    c["positive reward"] += int(np.any(rewards > 0.0))
+                    c["observation outside the space"] += int(not all(space.contains(o) for o in rows))
+                    diverged = np.atleast_1d(info["diverged"])
+                    c["diverged steps"] += int(diverged.any())
+                    clipped = np.atleast_1d(info.get("observation_clipped", 0))
+                    c["observation clipped"] += int(np.any((clipped > 0) & ~diverged))
+                    if k == at:
+                        ok = (bool(np.atleast_1d(terminated)[0]) and bool(diverged[0])
+                              and np.isfinite(rewards[0]) and rewards[0] <= _penalty(env)
+                              and np.all(np.isfinite(rows[0])) and space.contains(rows[0]))
+                        c["NaN checks"] += 1
+                        c["NaN state not ended as a divergence"] += int(not ok)
+                    if not vector and (terminated or truncated):
+                        break
+                    if vector and k > at and np.all(np.atleast_1d(terminated) | np.atleast_1d(truncated)):
+                        break
+                env.close()
+            except Exception:  # noqa: BLE001 - a crash is what the fuzz looks for
+                c["exceptions"] += 1
+                failures.append((env_id, traceback.format_exc(limit=3)))
+        counts.update(c)
+        if progress:
+            print(f"  {env_id}: {c['episodes']} episodes, {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    return {"counts": counts, "per_id": per_id, "failures": failures, "wall_s": time.perf_counter() - t0}
+
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--episodes", type=int, default=1000)
     p.add_argument("--steps", type=int, default=300, help="decisions per episode at most")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--id-episodes", type=int, default=20, help="episodes per registered id (0: none)")
     args = p.parse_args(argv)
     out = fuzz(args.episodes, args.steps, args.seed)
     c = out["counts"]
@@ -173,7 +260,20 @@ def main(argv=None) -> int:
     print(f"(not failures: observation clipped on the diverging step itself: {c['observation clipped at a divergence']})")
     for where, settings, tb in out["failures"][:5]:
         print(f"--- {where} with {settings}\n{tb}")
-    return 1 if any(c[k] for k in FAILURE_KEYS) else 0
+    failed = any(c[k] for k in FAILURE_KEYS)
+    if args.id_episodes > 0:
+        ids = fuzz_ids(args.id_episodes, args.steps, args.seed)
+        ci = ids["counts"]
+        print(f"\nevery id ({len(ids['per_id'])}), {args.id_episodes} episodes each (half of the vector ids' as "
+              f"vector envs of 3): {ci['episodes']} episodes, {ci['steps']} steps, {ci['NaN checks']} NaN checks, "
+              f"in {ids['wall_s']:.0f} s")
+        print(f"  {'id':<26}{'episodes':>9}{'steps':>8}" + "".join(f"{k[:14]:>16}" for k in ID_FAILURE_KEYS))
+        for env_id, c in ids["per_id"].items():
+            print(f"  {env_id:<26}{c['episodes']:>9}{c['steps']:>8}" + "".join(f"{c[k]:>16}" for k in ID_FAILURE_KEYS))
+        for env_id, tb in ids["failures"][:5]:
+            print(f"--- {env_id}\n{tb}")
+        failed = failed or any(ci[k] for k in ID_FAILURE_KEYS)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
