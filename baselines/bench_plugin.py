@@ -17,9 +17,24 @@ __all__ = ["KIND", "applies"]
 
 
 def applies(name: str, env) -> bool:
-    """True if baseline ``name`` was designed for the plant of ``env``."""
-    plant = getattr(env.unwrapped, "plant", None)
-    return plant is not None and plant.name in policy_class(name).plants
+    """True if baseline ``name`` was designed for the plant of ``env`` (and, for a controller that follows a
+    contour's reference, ``env`` has one)."""
+    cls = policy_class(name)
+    u = env.unwrapped
+    plant = getattr(u, "plant", None)
+    if getattr(cls, "needs_reference", False) and not hasattr(getattr(u, "task", None), "reference_arrays"):
+        return False
+    return plant is not None and plant.name in cls.plants
+
+
+def _oracle(ctx) -> list[str]:
+    """The oracle's wall time (its offline solve plus the episode) per env, when it ran."""
+    rows = [(e, r.wall_s) for e in ctx.env_ids for label, r in ctx.results.get(e, {}).items()
+            if label.startswith("oracle")]
+    if not rows:
+        return []
+    return ["oracle (non-causal floor: ILC on the exact plant, baselines/optimal/oracle.py), solve + episode:"] + \
+        [f"  {e}: {wall:.2f} s" for e, wall in rows]
 
 
 def _qft_stability(ctx) -> list[str]:
@@ -114,6 +129,6 @@ KIND = PolicyKind(
     make=lambda arg, env: make(arg, env),
     names=names,
     defaults=lambda env: [n for n in names() if applies(n, env)],
-    report=lambda ctx: _qft_stability(ctx) + _seed001(ctx) + _seed002(ctx) + _seed003(ctx),
+    report=lambda ctx: _qft_stability(ctx) + _seed001(ctx) + _seed002(ctx) + _seed003(ctx) + _oracle(ctx),
     description="the papers' classical controllers (baselines.names())",
 )

@@ -10,13 +10,17 @@ from __future__ import annotations
 import inspect
 
 from .base import BaselinePolicy
+from .coupling.ccc import CrossCoupledPolicy, FeedforwardCrossCoupledPolicy
 from .coupling.contouring_fb import ContouringFBPolicy
+from .feedforward.ff_pid import FeedforwardPIDPolicy
+from .feedforward.zpetc import ZPETCPolicy
 from .feedback.fuzzy import FuzzyPolicy
 from .feedback.nctf import NCTFPolicy
 from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
 from .feedback.qft import QFTPolicy
 from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy
+from .optimal.oracle import OraclePolicy
 
 __all__ = ["make", "names", "policy_class", "REGISTRY", "VARIANTS"]
 
@@ -32,6 +36,11 @@ REGISTRY: dict[str, type[BaselinePolicy]] = {
     "contouring-fb": ContouringFBPolicy,  # seed 002, eq. (7)
     "ilc": ILCPolicy,  # seed 002, eqs. (8)-(11)
     "nctf": NCTFPolicy,  # seed 003, Fig. 1(a), Table I, eqs. (1)-(2)
+    "ff-pid": FeedforwardPIDPolicy,  # inverse-model feedforward + PID, every plant
+    "zpetc": ZPETCPolicy,  # Tomizuka (1987), every plant
+    "ccc": CrossCoupledPolicy,  # Koren (1980), every plant
+    "ff-ccc": FeedforwardCrossCoupledPolicy,  # feedforward + Koren and Lo (1991)'s variable-gain CCC
+    "oracle": OraclePolicy,  # non-causal floor: ILC to convergence on the exact plant
 }
 
 #: Name -> (registered class name, parameters it fixes): a controller of the
@@ -43,9 +52,11 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     # seed 002's ILC with a 20 Hz zero-phase low-pass Q: monotone convergence
     # where Table I's q = 1 lets the ringing above 38.5 Hz grow (baselines/learning/ilc.py).
     "ilc-q": ("ilc", {"q_cutoff": 20.0}),
+    # Koren and Lo (1991)'s variable-gain CCC, without feedforward.
+    "vgccc": ("ccc", {"variable": True}),
 }
 
-_FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant")
+_FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant", "reference", "dt")
 
 
 def names() -> list[str]:

@@ -18,9 +18,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import baselines
-from baselines import fuzzy as fz
-from baselines import qft
-from baselines.smc import SlidingModePolicy
+from baselines.feedback import fuzzy as fz
+from baselines.feedback import qft
+from baselines.feedback.smc import SlidingModePolicy
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.plants import vcnc_feed_drive as plant
 

@@ -1,4 +1,4 @@
-"""Seed 001's controllers (baselines.seed001): transfer functions, discretisation, policies.
+"""Seed 001's controllers (baselines.feedback.pi_imc_hinf): transfer functions, discretisation, policies.
 
 Independent references: python-control's continuous frequency responses,
 its discrete simulation (``forced_response``) of the c2d system, and the
@@ -13,7 +13,7 @@ import vcnc_gym  # noqa: F401  (registers the ids)
 
 control = pytest.importorskip("control")
 baselines = pytest.importorskip("baselines")
-from baselines.seed001 import controllers as ctl  # noqa: E402
+from baselines.feedback import pi_imc_hinf as ctl  # noqa: E402
 
 NAMES = ctl.controller_names()
 

@@ -19,7 +19,7 @@ from vcnc_gym.envs.registry import suite_env
 from vcnc_gym.plants import cncmt_axis as c
 
 baselines = pytest.importorskip("baselines")
-report = pytest.importorskip("baselines.seed001.report")
+report = pytest.importorskip("vcnc_bench.reports.yadav2020")
 from vcnc_gym.evaluation import run_episode  # noqa: E402
 
 

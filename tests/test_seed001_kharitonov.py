@@ -1,4 +1,4 @@
-"""Kharitonov polynomials and stability margins (vcnc_gym.analysis.kharitonov, baselines.seed001.report).
+"""Kharitonov polynomials and stability margins (vcnc_gym.analysis.kharitonov, vcnc_bench.reports.yadav2020).
 
 Independent references: numpy's polynomial roots (eigenvalues of the
 companion matrix) instead of the Routh array, python-control's closed loops
@@ -20,8 +20,8 @@ from vcnc_gym.analysis import (
 )
 
 control = pytest.importorskip("control")
-report = pytest.importorskip("baselines.seed001.report")
-from baselines.seed001.controllers import controller_names, controller_tf  # noqa: E402
+report = pytest.importorskip("vcnc_bench.reports.yadav2020")
+from baselines.feedback.pi_imc_hinf import controller_names, controller_tf  # noqa: E402
 
 
 def roots_stable(poly) -> bool:

@@ -1,4 +1,4 @@
-"""Seed 001's Table 2 in our numbers (baselines.seed001.report) against the seed's own numbers.
+"""Seed 001's Table 2 in our numbers (vcnc_bench.reports.yadav2020) against the seed's own numbers.
 
 The seed's nominal row is reproduced by the continuous loop without the dead
 time (section 4 evidently neglects it: with it the robust PI loop is
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip("control")
-report = pytest.importorskip("baselines.seed001.report")
+report = pytest.importorskip("vcnc_bench.reports.yadav2020")
 
 
 @pytest.fixture(scope="module")

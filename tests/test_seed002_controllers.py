@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import baselines
-from baselines.contouring_fb import ContouringFBPolicy, contouring_feedback
-from baselines.ilc import ILCPolicy, run_trials
+from baselines.coupling.contouring_fb import ContouringFBPolicy, contouring_feedback
+from baselines.learning.ilc import ILCPolicy, run_trials
 from vcnc_gym.envs import ContouringEnv
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.evaluation import run_episode

@@ -1,13 +1,13 @@
 """Seed 003's circle: the exact NURBS (geomdl), the sine/cosine reference, the paper's figures,
-the stand-alone closed loop and the radial-error plot (baselines.circle_report)."""
+the stand-alone closed loop and the radial-error plot (vcnc_bench.reports.circle)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from baselines.nctf import NCTFPolicy
-from baselines import circle_report as cr
+from baselines.feedback.nctf import NCTFPolicy
+from vcnc_bench.reports import circle as cr
 from vcnc_gym.geometry import SHAPES
 from vcnc_gym.geometry.shapes import circle
 from vcnc_gym.plants import get_plant

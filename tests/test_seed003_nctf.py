@@ -1,4 +1,4 @@
-"""Seed 003's fuzzy NCTF controller (baselines/nctf.py): the NCT from the plant's own open-loop
+"""Seed 003's fuzzy NCTF controller (baselines/feedback/nctf.py): the NCT from the plant's own open-loop
 response, the membership design of eqs. (1)-(2), Table I's inference against scikit-fuzzy, the policy."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import baselines
-from baselines import nctf
-from baselines.nctf import NCTFPolicy
+from baselines.feedback import nctf
+from baselines.feedback.nctf import NCTFPolicy
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.plants import get_plant
 from vcnc_gym.plants import nct_xy_table as nt

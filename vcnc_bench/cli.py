@@ -119,6 +119,12 @@ def format_table(records: list[dict], columns: list | None = None) -> str:
     return "\n".join(lines)
 
 
+def _label(spec: str, policy) -> str:
+    """A policy's label in the tables and the JSON: a non-causal floor (``causal = False``, the baselines'
+    oracle) is marked so wherever it appears, never to be read as a controller."""
+    return policy_label(spec) + (" (non-causal)" if getattr(policy, "causal", True) is False else "")
+
+
 def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True, trial: int | None = None) -> dict:
     paper = paper_figures(env_id, label).get("max_contour_error_um") if compare else None
     ratio = result.max_contour_error_um / paper if paper else None
@@ -299,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
     with tqdm(total=total, unit="step", file=sys.stderr, dynamic_ncols=True, leave=False,
               disable=True if args.no_progress else None) as bar:
         for env_id, spec, policy in runs:
-            label = policy_label(spec)
+            label = _label(spec, policy)
             k = trials_of(policy)
             trials = []
             for trial in range(1, k + 1):
@@ -363,7 +369,7 @@ def _robust(args, envs: dict, runs: list) -> int:
     kwargs = {} if args.feedrate is None else {"feedrate": args.feedrate}
     with tqdm(total=len(runs), unit="run", file=sys.stderr, dynamic_ncols=True, leave=False,
               disable=True if args.no_progress else None) as bar:
-        records, plant_sets = robust.evaluate([(e, policy_label(s), p) for e, s, p in runs], envs, args.plants,
+        records, plant_sets = robust.evaluate([(e, _label(s, p), p) for e, s, p in runs], envs, args.plants,
                                               plant_seed=args.plant_seed, seed=args.seed, trials=trials,
                                               env_kwargs=kwargs, parallel=args.parallel, bar=bar)
     print(f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "

@@ -4,8 +4,8 @@ Keyed by (env name, policy label): the id without its version
 (:func:`vcnc_gym.envs.registry.env_name`), the task the paper ran (the
 versions differ in how an episode ends, not in the contour or the plant).  Units in the key names.  Seed 001's Table 2
 and seed 003's circle figures are printed in their own shape by the reports
-of :mod:`baselines.bench_plugin` (from ``baselines.seed001.report`` and
-``baselines.circle_report``), which hold them.
+of :mod:`baselines.bench_plugin` (from ``vcnc_bench.reports.yadav2020`` and
+``vcnc_bench.reports.circle``), which hold them.
 """
 
 from __future__ import annotations

@@ -257,6 +257,8 @@ def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float,
     wall0 = time.perf_counter()
     for trial in range(1, trials + 1):
         obs, _ = batch.reset(seed=seed, options={"parameters": parameters})
+        if hasattr(policy, "plan"):  # a non-causal floor (baselines' oracle) plans with the plants it now runs on
+            policy.plan(batch)
         active = np.ones(m, dtype=bool)
         start, not_start = np.ones(m, dtype=bool), np.zeros(m, dtype=bool)
         steps = np.zeros(m, dtype=np.int64)

@@ -156,6 +156,8 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
 
     wall0 = time.perf_counter()
     obs, _ = env.reset(seed=seed)
+    if hasattr(policy, "plan"):  # a non-causal floor (baselines' oracle) plans with the plant it now runs on
+        policy.plan(env)
     predict = policy.predict
     step = env.step
     state = None

@@ -25,7 +25,7 @@ amplifier gain ``K_1`` is in V/V (Table 1) and Appendix A, eq. (36), writes
 nomenclature gives the lead-screw pitch ``p`` in m, so ``x_0 = p theta_0``
 (eq. (44)) and eq. (2) are in m: ``b = 4.85 m/(V s^2)``.  The suite works in
 mm, so ``b`` is stored as 4850 mm/(V s^2) and the seed's controllers (V/m)
-are divided by 1000 to act on mm (``baselines.seed001``).
+are divided by 1000 to act on mm (``baselines.feedback.pi_imc_hinf``).
 
 Saturation
 ----------
@@ -304,6 +304,10 @@ def _reset_machine(arrays: CncmtArrays, k: int, position) -> None:
 
 
 #: This plant, as the envs and baselines see it.
+def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
+    """Eq. (2) of Yadav, Pathak and Gaur (2020) inverted: ``u(t) = (a_x(t + T_d) + a v(t + T_d)) / b`` V."""
+    return contract.InverseDynamics.from_linear(MODEL, params)
+
 MODEL = PlantModel(
     name="cncmt_axis",
     source="seed 001, eq. (2) and section 3.5",
@@ -316,6 +320,7 @@ MODEL = PlantModel(
     reset_machine=_reset_machine,
     linear_coefficients=_linear_coefficients,
     delay=_delay,
+    inverse_dynamics=_inverse_dynamics,
 )
 
 

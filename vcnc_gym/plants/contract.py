@@ -49,6 +49,8 @@ __all__ = [
     "Parameter",
     "ParameterWarning",
     "PlantModel",
+    "InverseDynamics",
+    "INVERSE_ORDER",
     "advance",
     "sense",
     "is_plant",
@@ -198,6 +200,11 @@ class PlantModel:
         the seed has a linear model.
     delay : callable (params (2, P), axis) -> float, optional
         Input dead time in s of the linear model (``exp(-delay s)``), if any.
+    inverse_dynamics : callable (params (2, P)) -> InverseDynamics, optional
+        The plant's inverse dynamics (:class:`InverseDynamics`): the input
+        that makes the model with these parameters follow a given motion,
+        friction and backlash included; what model-based feedforward
+        controllers read (with the nominal parameters, never the true ones).
     """
 
     name: str
@@ -212,6 +219,7 @@ class PlantModel:
     check: Callable | None = None
     linear_coefficients: Callable | None = None
     delay: Callable | None = None
+    inverse_dynamics: Callable | None = None
     _index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -437,6 +445,15 @@ class PlantModel:
         p = self.nominal() if params is None else self.validate(params, allow_infinite_limit=True)[0]
         return float(self.delay(p, axis))
 
+    def inverse(self, params=None) -> "InverseDynamics":
+        """The plant's inverse dynamics (:class:`InverseDynamics`) at ``params`` ((2, P), default nominal).
+
+        Raises NotImplementedError for a plant that declares none."""
+        if self.inverse_dynamics is None:
+            raise NotImplementedError(f"plant {self.name} declares no inverse dynamics")
+        p = self.nominal() if params is None else self.validate(params, allow_infinite_limit=True)[0]
+        return self.inverse_dynamics(p)
+
     # -- arrays ----------------------------------------------------------------
     def arrays(self, n_machines: int, dt: float, params=None, **options):
         """The plant's arrays for ``n_machines`` at ``dt`` s, with ``params`` ((2, P) or (N, 2, P)) set.
@@ -468,3 +485,89 @@ class PlantModel:
                                                   "; ".join(f"[{lo:g}, {hi:g}]" for lo, hi in p.interval))
             rows.append(f"| {p.name} | {p.unit} | {p.nominal[0]:g}, {p.nominal[1]:g} | {iv} | {p.source} |")
         return "\n".join(rows)
+
+
+#: Highest derivative of the position an :class:`InverseDynamics` weighs (1 velocity ... 4 snap).
+INVERSE_ORDER = 4
+
+
+@dataclass(frozen=True)
+class InverseDynamics:
+    """A plant's inverse dynamics for one machine: the input that makes its model follow a motion.
+
+    Every plant of the suite, per axis, is a linear part plus the
+    nonlinearities that a CNC's feedforward pre-compensates:
+
+    .. math::
+
+        u(t) = \\sum_{n=1}^{4} c_n \\, x^{(n)}(t + T_d)
+               + f^{+} \\text{ if } \\dot x > 0, \\; f^{-} \\text{ if } \\dot x < 0,
+
+    with ``x`` the table position (mm) the input must produce, ``T_d`` the
+    input dead time, ``f`` the Coulomb friction levels in input units, and
+    a backlash of width ``D_b`` (mm) between the drive and the table: the
+    drive runs ``D_b / 2`` ahead of the table in the direction of motion and
+    crosses the gap at a reversal (``backlash``).  The linear part is the
+    inverse of the plant's linear model ``num / den`` with a constant
+    numerator, ``c_n = den_n / num`` (a check against python-control's
+    ``forced_response`` is in ``tests/test_feedforward.py``).
+
+    Attributes
+    ----------
+    coefficients : ndarray, (2, 4)
+        ``c_1 .. c_4`` per axis, input unit per mm/s, mm/s^2, mm/s^3, mm/s^4.
+    coulomb : ndarray, (2, 2)
+        ``(f+, f-)`` per axis in input units, ``f- <= 0 <= f+``.
+    backlash : ndarray, (2,)
+        ``D_b`` per axis, mm (0 for none).
+    delay : ndarray, (2,)
+        ``T_d`` per axis, s (0 for none).
+    """
+
+    coefficients: np.ndarray
+    coulomb: np.ndarray
+    backlash: np.ndarray
+    delay: np.ndarray
+
+    def __post_init__(self):
+        shapes = {"coefficients": (2, INVERSE_ORDER), "coulomb": (2, 2), "backlash": (2,), "delay": (2,)}
+        for name, shape in shapes.items():
+            value = np.array(getattr(self, name), dtype=np.float64)
+            if value.shape != shape or not np.all(np.isfinite(value)):
+                raise ValueError(f"InverseDynamics.{name} must be finite with shape {shape}, got {value!r}")
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        if np.any(self.coulomb[:, 0] < 0) or np.any(self.coulomb[:, 1] > 0):
+            raise ValueError(f"InverseDynamics.coulomb must be (f+ >= 0, f- <= 0) per axis, got {self.coulomb}")
+        if np.any(self.backlash < 0) or np.any(self.delay < 0):
+            raise ValueError("InverseDynamics.backlash and delay must be >= 0")
+
+    @classmethod
+    def from_linear(cls, plant: "PlantModel", params, coulomb=((0.0, 0.0), (0.0, 0.0)), backlash=(0.0, 0.0)):
+        """The inverse of ``plant``'s linear model at ``params`` (2, P) (constant numerator, denominator of
+        degree <= 4, ``den[-1] = 0``: an integrator to position), its dead time, plus the given friction
+        and backlash."""
+        rows = []
+        for axis in (0, 1):
+            num, den = (np.atleast_1d(np.asarray(c, dtype=np.float64)) for c in plant.linear_coefficients(params, axis))
+            num = np.trim_zeros(num, "f")
+            if num.size != 1 or den.size - 1 > INVERSE_ORDER or den[-1] != 0.0:
+                raise ValueError(f"plant {plant.name}: InverseDynamics.from_linear needs a constant numerator and "
+                                 f"a denominator s (...) of degree <= {INVERSE_ORDER}, got {num}, {den}")
+            row = np.zeros(INVERSE_ORDER)
+            ascending = den[::-1] / num[0]  # coefficient of s^n at n
+            row[:ascending.size - 1] = ascending[1:]
+            rows.append(row)
+        delay = [plant.delay(params, a) if plant.delay is not None else 0.0 for a in (0, 1)]
+        return cls(np.array(rows), np.array(coulomb, dtype=np.float64), np.array(backlash, dtype=np.float64),
+                   np.array(delay, dtype=np.float64))
+
+    @property
+    def mass(self) -> np.ndarray:
+        """``c_2`` per axis (input unit per mm/s^2): the equivalent mass of the pole-placement rules."""
+        return self.coefficients[:, 1]
+
+    @property
+    def damping(self) -> np.ndarray:
+        """``c_1`` per axis (input unit per mm/s)."""
+        return self.coefficients[:, 0]

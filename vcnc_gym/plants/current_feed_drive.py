@@ -313,6 +313,11 @@ def _reset_machine(arrays: CurrentFeedDriveArrays, k: int, position) -> None:
 
 
 #: This plant, as the envs and baselines see it.
+def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
+    """Eq. (1) of Simba et al. inverted: ``i = (m a + c v + f_c sgn(v)) / k_f`` A (Table I)."""
+    level = params[:, IDX_F_C] / params[:, IDX_K_F]
+    return contract.InverseDynamics.from_linear(MODEL, params, np.column_stack([level, -level]))
+
 MODEL = PlantModel(
     name="current_feed_drive",
     source="seed 002, eq. (1) and Table I",
@@ -324,4 +329,5 @@ MODEL = PlantModel(
     make_arrays=_make_arrays,
     reset_machine=_reset_machine,
     linear_coefficients=linear_transfer_function_coefficients,
+    inverse_dynamics=_inverse_dynamics,
 )

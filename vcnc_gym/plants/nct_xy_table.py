@@ -156,6 +156,10 @@ def _reset_machine(arrays: NctTableArrays, k: int, position) -> None:
 
 
 #: This plant, as the envs and baselines see it.
+def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
+    """Eq. (3) of Purtojo et al. inverted: ``u = (a / alpha + v) / K`` in units of u_r (no friction term)."""
+    return contract.InverseDynamics.from_linear(MODEL, params)
+
 MODEL = PlantModel(
     name="nct_xy_table",
     source="seed 003, eqs. (3)-(4) and section III",
@@ -167,6 +171,7 @@ MODEL = PlantModel(
     make_arrays=_make_arrays,
     reset_machine=_reset_machine,
     linear_coefficients=_linear_coefficients,
+    inverse_dynamics=_inverse_dynamics,
 )
 
 

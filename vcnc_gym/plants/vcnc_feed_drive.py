@@ -321,6 +321,14 @@ def _reset_machine(arrays: FeedDriveArrays, k: int, position) -> None:
 
 
 #: This plant, as the envs and baselines see it (:class:`~vcnc_gym.plants.contract.PlantModel`).
+def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
+    """Eq. (1) of Jahanpour et al. (2014) inverted: ``u = (J a + B v) / (r_g K_t K_a) + T_coul / (K_t K_a)`` V,
+    the Coulomb level of the direction of motion (Table 3), and the backlash ``D_b`` the drive must cross at a
+    reversal (Table 3).  Static friction (break-away) is left to the feedback."""
+    volts_to_torque = params[:, IDX_K_T] * params[:, IDX_K_A]  # N m per V
+    coulomb = np.column_stack([params[:, IDX_T_COUL_POS], params[:, IDX_T_COUL_NEG]]) / volts_to_torque[:, None]
+    return contract.InverseDynamics.from_linear(MODEL, params, coulomb, params[:, IDX_BACKLASH])
+
 MODEL = PlantModel(
     name="vcnc_feed_drive",
     source="seed 000, eq. (1), section 2c and Table 3",
@@ -333,6 +341,7 @@ MODEL = PlantModel(
     reset_machine=_reset_machine,
     check=_check_friction,
     linear_coefficients=linear_transfer_function_coefficients,
+    inverse_dynamics=_inverse_dynamics,
 )
 
 

@@ -1,0 +1,68 @@
+"""Zero-phase-error tracking control (Tomizuka 1987) of the discretised closed loop (``zpetc``).
+
+Each axis runs the PID loop ``u_k = K_p (r_k - x_k) + K_d (\\Delta r_k / T - v_k) + K_i I_k`` (gains by the same pole
+placement as ``ff-pid``) plus the nominal Coulomb-friction and backlash pre-compensation, and its loop reference ``r``
+is ZPETC's: the discretised closed loop ``G_c(z^-1) = z^-d B_a B_u / A`` (the nominal axis under
+zero-order hold, its dead time a whole number of samples) inverted except for its unacceptable zeros,
+whose phase is cancelled by their mirror image (:func:`baselines.feedforward.tables.zpetc_filter`).  The
+inverse of the loop is not causal (the delay ``d`` and the preview ``s`` of the mirrored zeros) and not
+stable (the zero-order hold's sampling zero near -1): ZPETC reads the reference ``d + s`` samples ahead,
+from the table computed when the controller is built.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..base import check_scalar
+from ..servo import BANDWIDTH, OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, pid_gains, reference_table
+from vcnc_gym.envs import step_kernel as sk
+from .tables import closed_loop, inverse_feedforward, zpetc_filter, zpetc_reference
+
+__all__ = ["ZPETCPolicy"]
+
+
+class ZPETCPolicy(ServoPolicy):
+    """ZPETC on the PID loop of each axis, with friction pre-compensation.
+
+    Parameters
+    ----------
+    layout, decision_period, nominal_parameters, plant, reference, dt
+        As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
+    bandwidth : float, optional
+        Closed-loop pole of the PID design, rad/s; default the plant's :data:`~baselines.servo.BANDWIDTH`.
+    friction_time, backlash_time : float
+        s; see :func:`~baselines.feedforward.tables.inverse_feedforward`.
+
+    Attributes
+    ----------
+    filters : list of (b, a, preview)
+        Per axis, ZPETC's filter in powers of z^-1 and its preview in control periods.
+    loops : list of control.TransferFunction
+        Per axis, the discretised closed loop it inverts.
+    """
+
+    name = "zpetc"
+
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
+                 friction_time: float = 1e-3, backlash_time: float = 16e-3):
+        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
+        if self.stride != 1:
+            raise ValueError(f"zpetc is designed at the control period: it needs decision_period = dt "
+                             f"({self.dt} s), got {self.decision_period} s")
+        self.bandwidth = check_scalar("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth,
+                                      positive=True)
+        kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth)
+        self.loops = [closed_loop(self.inverse, j, self.dt, kp[j], kd[j], ki[j]) for j in range(2)]
+        self.filters = [zpetc_filter(loop) for loop in self.loops]
+        x_d = self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2]
+        table = reference_table(self.reference)
+        r = zpetc_reference(self.filters, x_d)
+        r_rate = np.diff(r, axis=0, prepend=r[:1]) / self.dt  # (r_k - r_{k-1}) / T, as the closed loop models it
+        table[:, OFFSET:OFFSET + 2] = r - x_d
+        table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = r_rate - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+        table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
+            self.inverse, self.reference, self.dt, motion=False,
+            friction_time=check_scalar("friction_time", friction_time, nonnegative=True),
+            backlash_time=check_scalar("backlash_time", backlash_time, nonnegative=True))
+        self._set_law(table, ServoGains(kp, kd, ki))

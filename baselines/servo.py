@@ -1,0 +1,298 @@
+"""The servo law of the model-based controllers: a table read from the reference ahead, PID, cross-coupling.
+
+Every controller of the feedforward, coupling and optimal families (``ff-pid``, ``zpetc``, ``ccc``, ``ff-ccc``,
+``oracle``) is this one law with its own table and gains, so one compiled form serves them all.  Per control
+period ``k`` (the controller's own count of its calls since the episode's start, times the control periods of
+a call) and axis ``j``:
+
+.. math::
+
+    e_j &= (x_{d,j}[k] - x_j) + \\delta_j[k]                           && \\text{mm}\\\\
+    \\dot e_j &= (v_{d,j}[k] - v_j) + \\delta'_j[k]                  && \\text{mm/s}\\\\
+    u_j &= u_{ff,j}[k] + K_{p,j} e_j + K_{d,j} \\dot e_j + K_{i,j} I_j + c_j  && \\text{input unit}\\\\
+    I_j &\\leftarrow \\mathrm{clip}(I_j + e_j T, \\pm I_{lim,j})
+
+with ``x``, ``v`` the measured position and table velocity of the observation, ``T`` the call period, and the
+table row ``k`` holding the feedforward input ``u_ff``, the loop's reference offsets ``delta`` (mm) and
+``delta'`` (mm/s) (zero for plain feedforward; ZPETC's modified reference minus ``x_d``), and the reference's
+unit tangent and signed curvature.
+
+The cross-coupled correction ``c`` (Koren 1980; the variable gains of Koren and Lo 1991, ``variable = 1``)
+acts on the contour error estimated from the measured tracking error ``E = x_d - x``:
+
+.. math::
+
+    \\varepsilon &= -E_x C_x + E_y C_y, \\quad
+    C_x = \\sin\\theta - g \\kappa E_x / 2, \\quad C_y = \\cos\\theta + g \\kappa E_y / 2\\\\
+    w &= K_c \\varepsilon + K_{ci} J, \\qquad J \\leftarrow J + \\varepsilon T\\\\
+    c &= (-C_x w, \\; C_y w)
+
+with ``theta`` the reference tangent's angle, ``kappa`` its signed curvature (1/mm, positive turning left),
+``g`` 0 (Koren's fixed gains, ``epsilon`` the normal error) or 1 (Koren and Lo's: the second-order term of a
+circle of radius ``1/kappa``).
+
+Where the reference comes from
+------------------------------
+The table is computed once, when the controller is built, from the env's reference
+(``env.unwrapped.task.reference_arrays.samples``: the interpolator's output, which a CNC computes ahead of
+its servo loop) and the plant's *nominal* inverse dynamics (:meth:`vcnc_gym.plants.PlantModel.inverse`).
+No causal controller here reads the plant's true (randomised) parameters; only the non-causal ``oracle``
+does, and it is marked so in every table.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from vcnc_gym.envs import controller_contract
+from vcnc_gym.envs import step_kernel as sk
+from .base import BaselinePolicy, check_per_axis, check_scalar
+
+__all__ = ["BANDWIDTH", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
+           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table"]
+
+#: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
+#: (2, mm), its velocity offset (2, mm/s), the reference's unit tangent (2) and signed curvature (1/mm).
+U_FF, OFFSET, VELOCITY_OFFSET, TANGENT, CURVATURE = 0, 2, 4, 6, 8
+TABLE_COLUMNS = 9
+
+#: Default closed-loop bandwidth (rad/s) of the axis PID per plant: the pole-placement rule's one free number,
+#: chosen by ``python benchmarks/tune_servo.py`` (the best max contour error of ff-pid on the nominal plant over
+#: a grid, on the plant's ids; docs/reproduction.md).  The dead time of Yadav et al.'s axis (0.1 s) bounds its
+#: loop to a few rad/s (phase margin ~60 deg at w T_d ~ 0.25 with the triple pole's lag).
+BANDWIDTH = {
+    "vcnc_feed_drive": 1000.0,
+    "current_feed_drive": 2000.0,
+    "nct_xy_table": 30.0,
+    "cncmt_axis": 1.0,
+}
+
+#: Memory columns per env: the control period k of the next call, the axes' integrals (mm s) and the coupling's (mm s).
+_M_K, _M_I, _M_J = 0, 1, 3
+_MEMORY = 4
+
+
+@dataclass(frozen=True)
+class ServoGains:
+    """The feedback gains of the servo law.
+
+    Attributes
+    ----------
+    kp, kd, ki : ndarray, (2,)
+        Per axis, input unit per mm, per mm/s and per mm s.
+    kc, kci : float
+        Cross-coupling gains, input unit per mm and per mm s (0: no coupling).
+    variable : float
+        0: Koren's fixed coupling gains; 1: Koren and Lo's variable gains.
+    integral_limit : ndarray, (2,)
+        Bound of each axis integral, mm s (anti-windup: ``K_i I_lim = u_max``).
+    """
+
+    kp: np.ndarray
+    kd: np.ndarray
+    ki: np.ndarray
+    kc: float = 0.0
+    kci: float = 0.0
+    variable: float = 0.0
+    integral_limit: np.ndarray = None
+
+
+def pid_gains(mass, damping, bandwidth, integral: bool = True):
+    """Pole placement on the nominal axis ``m s^2 + c s`` (input unit per mm/s^2 and mm/s).
+
+    PID: the closed loop ``m s^3 + (c + K_d) s^2 + K_p s + K_i`` with a triple pole at ``-bandwidth``:
+    ``K_d = 3 m w - c``, ``K_p = 3 m w^2``, ``K_i = m w^3``.  PD (``integral=False``): a double pole,
+    ``K_d = 2 m w - c``, ``K_p = m w^2``, ``K_i = 0``.  ``K_d`` is floored at 0 (a plant damped beyond the
+    bandwidth needs no damping).
+
+    Returns
+    -------
+    (kp, kd, ki) : ndarrays, (2,)
+    """
+    m, c, w = (np.asarray(v, dtype=np.float64) for v in (mass, damping, bandwidth))
+    if integral:
+        return 3.0 * m * w**2, np.maximum(3.0 * m * w - c, 0.0), m * w**3
+    return m * w**2, np.maximum(2.0 * m * w - c, 0.0), np.zeros_like(m * w)
+
+
+def reference_table(samples: np.ndarray) -> np.ndarray:
+    """A servo table (K, TABLE_COLUMNS) with the reference's tangent and curvature and no feedforward."""
+    table = np.zeros((samples.shape[0], TABLE_COLUMNS))
+    table[:, TANGENT:TANGENT + 2] = samples[:, sk.REF_TANGENT:sk.REF_TANGENT + 2]
+    table[:, CURVATURE] = samples[:, sk.REF_CURVATURE]
+    return table
+
+
+class ServoPolicy(BaselinePolicy):
+    """The servo law as a policy (see the module docstring); subclasses build the table and the gains.
+
+    Parameters
+    ----------
+    layout, decision_period, nominal_parameters, plant
+        As :class:`~baselines.base.BaselinePolicy`.
+    reference : ndarray, (K, REF_COLUMNS)
+        The env's packed reference samples (:data:`vcnc_gym.envs.step_kernel.REF_POSITION` ...), one per
+        control period; :meth:`from_env` reads ``env.unwrapped.task.reference_arrays.samples``.
+    dt : float
+        The env's control period, s.
+
+    Notes
+    -----
+    Subclasses call :meth:`_set_law` with the table ((K, TABLE_COLUMNS), or (N, K, TABLE_COLUMNS): one per
+    env of a batch) and a :class:`ServoGains`.  Calls after the reference's last sample read its last row.
+    """
+
+    plants = ("vcnc_feed_drive", "current_feed_drive", "nct_xy_table", "cncmt_axis")
+    state_shape = (_MEMORY,)
+    #: It follows a contour's reference: only contouring envs (vcnc_bench's ``applies``).
+    needs_reference = True
+
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt):
+        super().__init__(layout, decision_period, nominal_parameters, plant)
+        samples = np.asarray(reference, dtype=np.float64)
+        if samples.ndim != 2 or samples.shape[1] != sk.REF_COLUMNS or samples.shape[0] < 2:
+            raise ValueError(f"reference must be the env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), "
+                             f"got shape {samples.shape}")
+        self.reference = samples
+        self.dt = check_scalar("dt", dt, positive=True)
+        stride = self.decision_period / self.dt
+        if abs(stride - round(stride)) > 1e-9 * stride:
+            raise ValueError(f"decision_period {self.decision_period} s is not a whole number of control periods "
+                             f"dt = {self.dt} s")
+        self.stride = int(round(stride))
+        self.inverse = self.plant.inverse(self.nominal_parameters)
+        self.table = None
+        self.gains = None
+        self._record = np.zeros((0, 0, 4))
+
+    @classmethod
+    def from_env(cls, env, **params):
+        """As :meth:`BaselinePolicy.from_env`, plus the env's reference samples and control period."""
+        if hasattr(env, "get_attr") and hasattr(env, "env_method"):  # an SB3 VecEnv
+            task = env.get_attr("task")[0]
+        else:
+            task = getattr(getattr(env, "unwrapped", env), "task", None)
+        if task is None or not hasattr(task, "reference_arrays"):
+            raise ValueError(f"baseline {cls.name!r} follows a contour's reference: it needs a contouring env "
+                             f"(env.unwrapped.task.reference_arrays), got {type(env).__name__}")
+        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
+
+    # -- the law -------------------------------------------------------------
+    def _set_law(self, table: np.ndarray, gains: ServoGains) -> None:
+        table = np.ascontiguousarray(table, dtype=np.float64)
+        if table.ndim == 2:
+            table = table[None]
+        if table.ndim != 3 or table.shape[2] != TABLE_COLUMNS or not np.all(np.isfinite(table)):
+            raise ValueError(f"servo table must be finite, (K, {TABLE_COLUMNS}) or (N, K, {TABLE_COLUMNS}), "
+                             f"got shape {table.shape}")
+        limit = gains.integral_limit
+        if limit is None:  # anti-windup: the integral alone never asks more than the input limit
+            with np.errstate(divide="ignore"):
+                limit = np.where(gains.ki > 0, self.u_max / np.where(gains.ki > 0, gains.ki, 1.0), 0.0)
+        self.gains = ServoGains(check_per_axis("kp", gains.kp, nonnegative=True),
+                                check_per_axis("kd", gains.kd, nonnegative=True),
+                                check_per_axis("ki", gains.ki, nonnegative=True),
+                                check_scalar("kc", gains.kc, nonnegative=True),
+                                check_scalar("kci", gains.kci, nonnegative=True),
+                                check_scalar("variable", gains.variable, nonnegative=True),
+                                check_per_axis("integral_limit", limit, nonnegative=True))
+        self.table = table
+        self._compiled = None
+
+    def record(self, n_envs: int, steps: int) -> np.ndarray:
+        """Record the next episodes' calls: returns the (n_envs, steps, 4) array the law writes into, row k:
+        the measured tracking error (2, mm) and the command it returned (2, input unit, clipped to the
+        limit) at control period k (the trials of the oracle's learning read it)."""
+        self._record = np.zeros((n_envs, steps, 4))
+        self._compiled = None
+        return self._record
+
+    def _initial_state(self) -> np.ndarray:
+        return np.zeros(_MEMORY)
+
+    def _command(self, obs):
+        """The servo law in NumPy for a batch (the readable statement; the compiled form repeats its operations)."""
+        g, table, mem = self.gains, self.table, self._state
+        n = obs.shape[0]
+        k = mem[:, _M_K].astype(np.int64)
+        rows = table[np.arange(n) if table.shape[0] > 1 else np.zeros(n, dtype=np.int64),
+                     np.minimum(k, table.shape[1] - 1)]
+        E = self.layout.tracking_error(obs)
+        Ed = self.layout.reference_velocity(obs) - self.layout.velocity(obs)
+        e = E + rows[:, OFFSET:OFFSET + 2]
+        ed = Ed + rows[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2]
+        half = g.variable * rows[:, CURVATURE] * 0.5
+        cx = rows[:, TANGENT + 1] - half * E[:, 0]
+        cy = rows[:, TANGENT] + half * E[:, 1]
+        eps = -E[:, 0] * cx + E[:, 1] * cy
+        w = g.kc * eps + g.kci * mem[:, _M_J]
+        coupling = np.column_stack([-cx * w, cy * w])
+        integral = mem[:, _M_I:_M_I + 2]
+        u = rows[:, U_FF:U_FF + 2] + g.kp * e + g.kd * ed + g.ki * integral + coupling
+        mem[:, _M_I:_M_I + 2] = np.minimum(np.maximum(integral + e * self.decision_period, -g.integral_limit),
+                                           g.integral_limit)
+        mem[:, _M_J] = mem[:, _M_J] + eps * self.decision_period
+        if self._record.shape[0]:
+            rows = np.flatnonzero((k < self._record.shape[1]) & (np.arange(n) < self._record.shape[0]))
+            self._record[rows, k[rows], :2] = E[rows]
+            self._record[rows, k[rows], 2:] = np.clip(u[rows] / self.u_max, -1.0, 1.0).astype(np.float32) * self.u_max
+        mem[:, _M_K] = mem[:, _M_K] + self.stride
+        return u
+
+    def _compiled_arrays(self) -> ServoArrays:
+        g = self.gains
+        return ServoArrays(self._state, self.table, g.kp, g.kd, g.ki, g.integral_limit, g.kc, g.kci, g.variable,
+                           self.decision_period, float(self.stride), self.u_max, self._record)
+
+
+#: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((2,) or
+#: float), the call period (s), control periods per call, u_max (2,), the record (N_r, K_r, 4) (ServoPolicy.record).
+ServoArrays = namedtuple("ServoArrays", ["memory", "table", "kp", "kd", "ki", "integral_limit", "kc", "kci",
+                                         "variable", "period", "stride", "u_max", "record"])
+
+
+@njit(cache=True, _nrt=False)
+def _servo_command(s, i, obs, o, out):
+    """:meth:`ServoPolicy._command` and ``predict``'s normalisation for env ``i``, the same floating-point
+    operations."""
+    mem = s.memory[i]
+    k = np.int64(mem[_M_K])
+    t = s.table[i if s.table.shape[0] > 1 else 0, min(k, s.table.shape[1] - 1)]
+    Ex = np.float64(obs[o.tracking_error])
+    Ey = np.float64(obs[o.tracking_error + 1])
+    Edx = np.float64(obs[o.reference_velocity]) - np.float64(obs[o.velocity])
+    Edy = np.float64(obs[o.reference_velocity + 1]) - np.float64(obs[o.velocity + 1])
+    recording = i < s.record.shape[0] and k < s.record.shape[1]
+    if recording:
+        s.record[i, k, 0] = Ex
+        s.record[i, k, 1] = Ey
+    half = s.variable * t[CURVATURE] * 0.5
+    cx = t[TANGENT + 1] - half * Ex
+    cy = t[TANGENT] + half * Ey
+    eps = -Ex * cx + Ey * cy
+    w = s.kc * eps + s.kci * mem[_M_J]
+    for j in range(2):
+        E = Ex if j == 0 else Ey
+        Ed = Edx if j == 0 else Edy
+        coupling = -cx * w if j == 0 else cy * w
+        e = E + t[OFFSET + j]
+        ed = Ed + t[VELOCITY_OFFSET + j]
+        integral = mem[_M_I + j]
+        u = t[U_FF + j] + s.kp[j] * e + s.kd[j] * ed + s.ki[j] * integral + coupling
+        mem[_M_I + j] = min(max(integral + e * s.period, -s.integral_limit[j]), s.integral_limit[j])
+        out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
+        if recording:
+            s.record[i, k, 2 + j] = out[j] * s.u_max[j]
+    mem[_M_J] = mem[_M_J] + eps * s.period
+    mem[_M_K] = mem[_M_K] + s.stride
+
+
+@overload(controller_contract.command, jit_options={"cache": True})
+def _command(controller, i, obs, o, out):
+    if controller_contract.is_controller(controller, ServoArrays):
+        return lambda controller, i, obs, o, out: _servo_command(controller, i, obs, o, out)
