@@ -157,7 +157,7 @@ def test_bad_actions_raise(bad, message):
 
 @pytest.mark.parametrize("num_envs", [0, -1, 1.5, True, "2"])
 def test_bad_num_envs_raise(num_envs):
-    with pytest.raises(ValueError, match="n_envs"):
+    with pytest.raises(ValueError, match="num_envs"):
         ContouringVectorEnv(num_envs, contour="omega")
 
 
