@@ -247,6 +247,13 @@ def test_case_10_preview_steps_and_contour_ahead_past_the_end_are_refused():
         vcnc_gym.ContouringEnv(contour="omega", max_episode_steps=10**9)
 
 
+def test_the_positioning_env_s_episode_length_has_a_ceiling():
+    with pytest.raises(ValueError, match=r"duration / dt must be at most 2,000,000 .*got 100,000,000,000"):
+        gym.make("VCNC-Step-v0", duration=1e9)
+    with pytest.raises(ValueError, match=r"duration / dt must be at most 2,000,000"):
+        gym.make("VCNC-Step-v0", dt=1e-9)
+
+
 # -- case 11: a corner too sharp to blend ------------------------------------------------------------------------
 def test_case_11_a_corner_too_sharp_to_blend_is_named():
     with pytest.raises(ValueError, match=r"corner at vertex 1 \(\[10.0, 0.0\] mm\) is too sharp.*0.01 deg.*MIN_BLEND"):

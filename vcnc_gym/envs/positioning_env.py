@@ -13,7 +13,8 @@ from numba import njit
 
 from ..analysis.step_metrics import step_metrics
 from ..plants import PlantModel, contract, get_plant
-from ..validation import flag, integer, positive
+from ..motion.interpolator import MAX_REFERENCE_SAMPLES
+from ..validation import flag, integer, positive, size
 from .contouring_env import check_actions
 from .layout import Field
 
@@ -298,6 +299,9 @@ class PositioningEnv(gym.Env):
         self.fixed_parameters = None if parameters is None else self._check_parameters(parameters)
         self.parameters = self.nominal_parameters if self.fixed_parameters is None else self.fixed_parameters
 
+        size("duration / dt", math.ceil(self.duration / self.dt - 1e-9), ceiling=MAX_REFERENCE_SAMPLES,
+             why=f"the control periods of an episode, at most MAX_REFERENCE_SAMPLES as for a contour's reference; "
+                 f"duration = {self.duration:g} s at dt = {self.dt:g} s")
         self.episode_steps = math.ceil(self.duration / self.decision_period - 1e-9)
         """Natural episode length in decisions."""
         self.max_episode_steps = (self.episode_steps if max_episode_steps is None
@@ -307,7 +311,10 @@ class PositioningEnv(gym.Env):
         self._plant = self.plant.arrays(1, self.dt, **(plant_options or {}))
         self._set_plant(self.parameters)
         dead_time = max(self.plant.dead_time(self.parameters, axis) for axis in (0, 1))
-        n_pending = math.ceil(dead_time / self.decision_period - 1e-9)
+        n_pending = size("dead time / (dt * action_repeat)", math.ceil(dead_time / self.decision_period - 1e-9),
+                         minimum=0, ceiling=MAX_REFERENCE_SAMPLES,
+                         why=f"decisions held in flight by the {dead_time:g} s dead time, at most "
+                             "MAX_REFERENCE_SAMPLES")
         self.layout = PositioningLayout(n_pending=n_pending,
                                         position_bound=float(np.max(np.abs(r))) + self.divergence_bound)
         high = self.layout.high()
