@@ -54,7 +54,7 @@ from vcnc_gym.envs import step_kernel as sk
 from .base import BaselinePolicy, check_per_axis, check_scalar
 
 __all__ = ["BANDWIDTH", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
-           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table"]
+           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate"]
 
 #: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
 #: (2, mm), its velocity offset (2, mm/s), the reference's unit tangent (2) and signed curvature (1/mm).
@@ -126,6 +126,19 @@ def reference_table(samples: np.ndarray) -> np.ndarray:
     table[:, TANGENT:TANGENT + 2] = samples[:, sk.REF_TANGENT:sk.REF_TANGENT + 2]
     table[:, CURVATURE] = samples[:, sk.REF_CURVATURE]
     return table
+
+
+def coupling_estimate(E, tangent, curvature, variable):
+    """The cross-coupled contour-error estimate and gains, Koren (1980) (``variable = 0``) and Koren and Lo
+    (1991) (``variable = 1``), for tracking errors ``E`` (..., 2) mm at reference points with unit
+    ``tangent`` (..., 2) = (cos theta, sin theta) and signed ``curvature`` (...) 1/mm.
+
+    Returns ``(epsilon, C_x, C_y)``: ``C_x = sin(theta) - g kappa E_x / 2``, ``C_y = cos(theta) + g kappa E_y / 2``,
+    ``epsilon = -E_x C_x + E_y C_y`` (mm; positive when the tool lies right of the path)."""
+    half = variable * curvature * 0.5
+    cx = tangent[..., 1] - half * E[..., 0]
+    cy = tangent[..., 0] + half * E[..., 1]
+    return -E[..., 0] * cx + E[..., 1] * cy, cx, cy
 
 
 class ServoPolicy(BaselinePolicy):
@@ -226,10 +239,7 @@ class ServoPolicy(BaselinePolicy):
         Ed = self.layout.reference_velocity(obs) - self.layout.velocity(obs)
         e = E + rows[:, OFFSET:OFFSET + 2]
         ed = Ed + rows[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2]
-        half = g.variable * rows[:, CURVATURE] * 0.5
-        cx = rows[:, TANGENT + 1] - half * E[:, 0]
-        cy = rows[:, TANGENT] + half * E[:, 1]
-        eps = -E[:, 0] * cx + E[:, 1] * cy
+        eps, cx, cy = coupling_estimate(E, rows[:, TANGENT:TANGENT + 2], rows[:, CURVATURE], g.variable)
         w = g.kc * eps + g.kci * mem[:, _M_J]
         coupling = np.column_stack([-cx * w, cy * w])
         integral = mem[:, _M_I:_M_I + 2]

@@ -113,38 +113,28 @@ def closed_loop(inverse: InverseDynamics, axis: int, dt: float, kp: float, kd: f
     """The discretised closed loop from the loop reference r to the position x of one axis, a python-control
     discrete transfer function (sample time ``dt``).
 
-    The nominal axis ``m x'' + c x' = u(t - T_d)`` (zero-order hold, the dead time a whole number of
-    samples) under the servo law of :mod:`baselines.servo` with ZPETC's offsets:
-    ``u_k = K_p (r_k - x_k) + K_d ((r_k - r_{k-1}) / T - v_k) + K_i I_k``, ``I_{k+1} = I_k + T (r_k - x_k)``."""
+    The nominal axis ``m x'' + c x' = u(t - T_d)`` under zero-order hold (its dead time ``n_d`` whole samples):
+    ``x = N_x / (D z^n_d) u`` and ``v = N_v (z - 1) / (D z^n_d) u`` (python-control's ``c2d`` of
+    ``1 / (m s^2 + c s)`` and ``1 / (m s + c)``), under the servo law of :mod:`baselines.servo` with ZPETC's
+    offsets, ``u_k = K_p (r_k - x_k) + K_d ((r_k - r_{k-1}) / T - v_k) + K_i I_k``,
+    ``I_{k+1} = I_k + T (r_k - x_k)``.  With ``C = K_p (z - 1) + K_i T``, by polynomial algebra (a state-space
+    conversion loses the coefficients of a long dead time)::
+
+        x / r = N_x (C T z + K_d (z - 1)^2) / (T z ((z - 1) D z^n_d + C N_x + K_d N_v (z - 1)^2))
+    """
     m, c = inverse.mass[axis], inverse.damping[axis]
-    plant = control.c2d(control.ss([[0.0, 1.0], [0.0, -c / m]], [[0.0], [1.0 / m]], np.eye(2), 0.0), dt, "zoh")
     nd = int(round(inverse.delay[axis] / dt))
-    # states: x, v, the delay line (nd held inputs, oldest first), the integral I, r_{k-1}
-    n = 2 + nd + 2
-    i_int, i_prev = n - 2, n - 1
-    Ap, Bp = np.asarray(plant.A), np.asarray(plant.B)[:, 0]
-    gain = np.zeros(n)  # u_k = gain . state + b_r r_k
-    gain[0], gain[1], gain[i_int], gain[i_prev] = -kp, -kd, ki, -kd / dt
-    b_r = kp + kd / dt
-    A = np.zeros((n, n))
-    B = np.zeros(n)
-    A[:2, :2] = Ap
-    if nd:
-        A[:2, 2] += Bp  # the plant receives the oldest held input
-        for q in range(nd - 1):
-            A[2 + q, 3 + q] = 1.0
-        A[2 + nd - 1] = gain
-        B[2 + nd - 1] = b_r
-    else:
-        A[:2] += np.outer(Bp, gain)
-        B[:2] = Bp * b_r
-    A[i_int, 0] = -dt  # I_{k+1} = I_k + T (r_k - x_k)
-    A[i_int, i_int] = 1.0
-    B[i_int] = dt
-    B[i_prev] = 1.0  # r_{k-1} <- r_k
-    C = np.zeros((1, n))
-    C[0, 0] = 1.0
-    return control.ss2tf(control.ss(A, B[:, None], C, 0.0, dt))
+    position = control.c2d(control.tf([1.0], [m, c, 0.0]), dt, "zoh")
+    velocity = control.c2d(control.tf([1.0], [m, c]), dt, "zoh")
+    nx, d = (np.asarray(a, dtype=float) for a in (position.num[0][0], position.den[0][0]))
+    nv = np.asarray(velocity.num[0][0], dtype=float)  # over (z - e^{-c T / m}); D = (z - 1)(z - e^{-c T / m})
+    one = np.array([1.0, -1.0])  # z - 1
+    C = np.polyadd(kp * one, [ki * dt])
+    delayed = np.concatenate([d, np.zeros(nd)])  # D z^n_d
+    num = np.polymul(nx, np.polyadd(dt * np.polymul(C, [1.0, 0.0]), kd * np.polymul(one, one)))
+    den = np.polyadd(np.polyadd(np.polymul(one, delayed), np.polymul(C, nx)), kd * np.polymul(nv, np.polymul(one, one)))
+    den = dt * np.polymul([1.0, 0.0], den)
+    return control.tf(np.trim_zeros(num, "f"), den, dt)
 
 
 def split_zeros(zeros: np.ndarray, radius: float = 0.5):
