@@ -64,7 +64,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default="native",
                    help="native: the vector env steps every env in one compiled call (default); dummy: SB3's "
                         "DummyVecEnv, one env after another; subproc: one process per env")
-    p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's)")
+    p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's; the lean trainer: 1)")
+    p.add_argument("--trainer", choices=("sb3", "lean"),
+                   help="sb3: Stable-Baselines3's PPO (default); lean: the same PPO and agent files over the native "
+                        "vector env without SB3's per-step work (agents.lean_ppo); --resume: the run's")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs even if it is installed")
     p.add_argument("-v", "--verbose", action="count", default=0, help="SB3 verbosity and evaluation lines")
@@ -127,7 +130,7 @@ def _sweep_conflict(args) -> str | None:
     given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
                                                   *_MODE_OPTIONS, "checkpoint_freq", "eval_freq", "threads")
              if getattr(args, k) is not None]
-    given += ["--vec-env"] * (args.vec_env != "native")
+    given += ["--vec-env"] * (args.vec_env != "native") + ["--trainer"] * (args.trainer is not None)
     return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
 
 
@@ -176,6 +179,8 @@ def main(argv: list[str] | None = None) -> int:
                          f"drop {', '.join(fixed)}")
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads must be positive, got {args.threads}")
+    if args.trainer == "lean" and args.vec_env != "native":
+        parser.error("the lean trainer steps the native vector env: drop --vec-env")
 
     from .config import DEFAULT_CONFIG
     from .training import check_env_id, check_training_options, learn, prepare_run
@@ -199,13 +204,20 @@ def main(argv: list[str] | None = None) -> int:
         except (ValueError, FileNotFoundError, FileExistsError) as exc:
             parser.error(str(exc))
 
-        if args.threads is not None:
+        trainer = args.trainer or config.get("trainer", "sb3")
+        if args.threads is not None or trainer == "lean":
             import torch
 
-            torch.set_num_threads(args.threads)
+            torch.set_num_threads(args.threads or 1)
         try:
-            result = learn(run_dir, config, checkpoint, progress_bar=not args.no_progress, tensorboard=tensorboard,
-                           vec_env=args.vec_env, verbose=args.verbose)
+            if trainer == "lean":
+                from .lean_ppo import learn as learn_lean
+
+                result = learn_lean(run_dir, config, checkpoint, progress_bar=not args.no_progress,
+                                    verbose=args.verbose)
+            else:
+                result = learn(run_dir, config, checkpoint, progress_bar=not args.no_progress, tensorboard=tensorboard,
+                               vec_env=args.vec_env, verbose=args.verbose)
         except KeyboardInterrupt:  # a second Ctrl-C
             print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
             return 130

@@ -11,6 +11,7 @@ single env (``tests/test_vector_env.py``).
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Any
 
@@ -31,6 +32,15 @@ __all__ = ["ContouringVectorEnv", "KernelPath"]
 
 #: Below this many envs one thread steps them all (a parallel launch costs more than it saves).
 PARALLEL_MIN_ENVS = 16
+#: numba's threading layer for the parallel kernels unless NUMBA_THREADING_LAYER names one.  numba's default here is
+#: GNU OpenMP, and torch's wheel loads its own libgomp.so.1 under the same name: in one process (training, an agent
+#: benchmarked) both run on one OpenMP runtime, and after a parallel kernel call torch's forward pass of a 64x64 MLP
+#: on 256 observations took 3-13 ms instead of 0.5 (``python benchmarks/numba_torch_threads.py``).  numba's own
+#: workqueue pool shares nothing with torch.  It refuses parallel launches from two Python threads at once (this
+#: package makes none).  Set before the first parallel launch, when numba reads it.
+THREADING_LAYER = "workqueue"
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = THREADING_LAYER
 #: The automatic choice (``parallel=None``) tries the path it is not using once its calls have taken this many
 #: times the other path's last known call time: at most ~1/PROBE_RATIO of the time goes to probing a stalled path.
 PROBE_RATIO = 50.0
@@ -248,7 +258,7 @@ class ContouringVectorEnv(VectorEnv):
             self._autoreset[:] = False
         return obs, rewards, terminated, truncated, info
 
-    def step_controlled(self, controller, actions, correction: float, repeat: int):
+    def step_controlled(self, controller, actions, correction: float, repeat: int, active=None):
         """One decision of ``repeat`` control periods per env, a compiled controller in the loop: one kernel call.
 
         Each control period env i commands ``clip(u_c / u_max + correction * a_i, -1, 1)`` (float32), u_c the
@@ -268,6 +278,8 @@ class ContouringVectorEnv(VectorEnv):
             Largest correction as a fraction of u_max, > 0.
         repeat : int
             Control periods per decision, >= 1.
+        active : array_like of bool, (num_envs,), optional
+            Step only these envs; the others hold (reward 0, no flags), as finished ones do.
 
         Returns
         -------
@@ -285,11 +297,11 @@ class ContouringVectorEnv(VectorEnv):
         agent = check_actions(actions, (n, 2)).astype(np.float32)
         loop = sk.ControlLoop(agent, np.float32(positive("correction", correction, "fraction of u_max")),
                               integer("repeat", repeat, 1), np.zeros((n, 2)), np.zeros(n), np.zeros(n))
+        stepped = ~self._autoreset if active is None else ~self._autoreset & self._check_mask(active, "active")
         b = self._buffers
         b.mode[:] = sk.MODE_STEP
-        b.mode[self._autoreset] = sk.MODE_IDLE
+        b.mode[~stepped] = sk.MODE_IDLE
         self._run(loop.repeat, controller, loop)
-        stepped = ~self._autoreset
         terminated = b.flags[:, sk.FLAG_TERMINATED] & stepped
         truncated = b.flags[:, sk.FLAG_TRUNCATED] & stepped
         rewards = np.where(stepped, loop.reward, 0.0)
@@ -331,10 +343,10 @@ class ContouringVectorEnv(VectorEnv):
             raise ValueError(f"seed must be an int or a sequence of {n} seeds, got {len(seeds)}")
         return seeds
 
-    def _check_mask(self, mask) -> np.ndarray:
+    def _check_mask(self, mask, name: str = "reset_mask") -> np.ndarray:
         m = np.asarray(mask)
         if m.shape != (self.num_envs,) or m.dtype != np.bool_:
-            raise ValueError(f"reset_mask must be a ({self.num_envs},) bool array, got {m.dtype} {m.shape}")
+            raise ValueError(f"{name} must be a ({self.num_envs},) bool array, got {m.dtype} {m.shape}")
         return m
 
     def _info(self, valid: np.ndarray) -> dict:

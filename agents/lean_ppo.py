@@ -1,0 +1,691 @@
+"""A lean PPO over the native vector env: ``vcnc-train --trainer lean`` (issue 21).
+
+Stable-Baselines3's PPO spends, per agent decision, a few hundred
+microseconds of Python whatever the number of envs (per-env info dicts,
+``VecNormalize``, the rollout buffer's per-step copies, callbacks) and its
+update walks small minibatches; the native vector env makes a decision of N
+envs in one numba call (``ContouringVectorEnv.step_controlled``).  This
+trainer keeps SB3's PPO -- the same :class:`ActorCriticPolicy` network and
+optimiser, the same loss, advantage estimate (GAE), time-limit bootstrap and
+``VecNormalize`` statistics (Schulman et al. 2017; SB3's
+``OnPolicyAlgorithm.collect_rollouts`` and ``PPO.train``) -- and drops the
+rest: the rollout is preallocated torch tensors filled from the env's arrays,
+the policy's forward pass is written out (Gaussian with a state-independent
+log std), and the envs' statistics are kept as arrays.
+
+What it writes is what ``vcnc-train`` writes (``agents.training``): the run
+folder with config.yml (plus ``trainer: lean``), checkpoints (SB3
+``model.zip`` + data-only ``vecnormalize.npz``), best/, final/,
+evaluations.csv, monitor/ and summary.json; an agent is an SB3 PPO file that
+:func:`agents.load_agent` and ``vcnc-bench --policy ppo:PATH`` load without
+unpickling anything.  ``vcnc-train --resume`` goes on with the trainer the run
+was started with.
+
+Two things differ from SB3's trainer on purpose:
+
+- **Staggered starts** (residual mode with a compiled baseline, ``stagger``):
+  before training, env i runs ``floor(i L / N)`` decisions of the baseline
+  alone (L: the episode's length in decisions), so the N envs are spread
+  along the contour.  Started together, N identical envs (nominal plant) are
+  in phase: every rollout holds one stretch of the path, and a budget of B
+  agent steps visits only its first B / N decisions.  The time is counted in
+  the run's wall time (``stagger_s`` in summary.json), not its agent steps.
+- Threads: numba steps the envs on all its threads (the vector env's
+  :class:`~vcnc_gym.envs.contouring_vector_env.KernelPath` falls back to one
+  when a core is taken) and torch runs the network on ``torch.get_num_threads()``.
+
+Time is accounted per phase (summary.json ``time_shares``): env (the kernel
+calls and resets), forward (the policy during the rollout), update (PPO's
+epochs) and other (normalisation, GAE, logging, checkpoints, evaluation).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+
+from .action_modes import ActionMode
+from .config import normalize_kwargs, ppo_arguments
+from .normalization import NormalizationStats
+
+__all__ = ["TRAINERS", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
+
+#: The trainers of ``vcnc-train --trainer``: SB3's PPO (agents.training) and this module's.
+TRAINERS = ("sb3", "lean")
+
+
+# -- the envs, as arrays -----------------------------------------------------------------------------------------
+class DecisionEnv:
+    """N envs of a run, one agent decision per :meth:`step`, everything as arrays (no per-env dicts).
+
+    Residual mode with a compiled baseline runs a decision in one kernel call
+    (``ContouringVectorEnv.step_controlled``); a baseline without a compiled
+    form calls its batched ``predict`` every control period; direct mode is
+    one ``step`` with the env's own action repeat.  An ended env is reset at
+    once (its last observation returned apart) and a Monitor row written.
+
+    Parameters
+    ----------
+    env_id : str
+        A registered VCNC id with a native vector env.
+    n_envs : int
+        Number of envs.
+    mode : ActionMode
+        The run's action mode.
+    env_kwargs : dict
+        The env arguments of the run.
+    seed : int
+        Env i is seeded ``seed + i``.
+    monitor_dir : path, optional
+        SB3 Monitor files ``<i>.monitor.csv`` (columns r, l, t, steps), as ``agents.vec_env.VcncVecEnv`` writes.
+    start_steps : int
+        The run's agent steps when this session starts (the monitor's ``steps`` column).
+    append : bool
+        Append to existing monitor files (a resumed run).
+    """
+
+    def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict, seed: int, *,
+                 monitor_dir=None, start_steps: int = 0, append: bool = False):
+        kwargs = dict(env_kwargs or {})
+        residual = mode.mode == "residual"
+        kwargs["action_repeat"] = 1 if residual else mode.action_repeat
+        self.venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+                                 autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
+        self.mode = mode
+        self.n = n_envs
+        self.repeat = mode.action_repeat if residual else 1
+        self.baseline = mode.make_baseline(self.venv)
+        self.controller = self.baseline.compiled(n_envs) if self.baseline is not None else None
+        self.observation_space = self.venv.single_observation_space
+        self.action_space = self.venv.single_action_space
+        self._seed = seed
+        self._start = np.ones(n_envs, dtype=bool)
+        self.steps = int(start_steps)
+        self._returns = np.zeros(n_envs)
+        self._lengths = np.zeros(n_envs, dtype=np.int64)
+        self._t0 = time.time()
+        self._writers = None
+        if monitor_dir is not None:
+            from stable_baselines3.common.monitor import ResultsWriter
+
+            Path(monitor_dir).mkdir(parents=True, exist_ok=True)
+            self._writers = [ResultsWriter(str(Path(monitor_dir) / f"{i}"),
+                                           header={"t_start": self._t0, "env_id": env_id},
+                                           extra_keys=("steps",), override_existing=not append)
+                             for i in range(n_envs)]
+
+    @property
+    def decisions_per_episode(self) -> int:
+        """The episode's natural length in agent decisions."""
+        return max(1, int(self.venv.episode_steps) // self.repeat)
+
+    def reset(self) -> np.ndarray:
+        obs, _ = self.venv.reset(seed=self._seed)
+        self._start[:] = True
+        return obs
+
+    def _decide(self, actions: np.ndarray, active=None):
+        """(obs, summed rewards, terminated, truncated) of one decision of the envs (all, or ``active``)."""
+        if self.controller is not None:
+            if self._start.any():
+                self.baseline.reset(mask=self._start)
+                self._start[:] = False
+            obs, total, te, tr, _ = self.venv.step_controlled(self.controller, actions, self.mode.correction,
+                                                              self.repeat, active=active)
+            return obs, total, te, tr
+        if active is not None:
+            raise ValueError("only a compiled residual baseline steps a subset of the envs")
+        n = self.n
+        total, te_all, tr_all = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        obs = self._obs
+        for _ in range(self.repeat):
+            base = None
+            if self.baseline is not None:
+                base, _ = self.baseline.predict(obs, episode_start=self._start)
+                self._start[:] = False
+            obs, r, te, tr, _ = self.venv.step(self.mode.command(base, actions))
+            total += r
+            te_all |= te
+            tr_all |= tr
+            if (te_all | tr_all).all():
+                break
+        return obs, total, te_all, tr_all
+
+    def stagger(self, obs: np.ndarray) -> np.ndarray:
+        """Spread the envs along the episode: env i runs ``floor(i L / N)`` decisions of the baseline alone."""
+        self._obs = obs
+        if self.controller is None or self.n == 1:
+            return obs
+        ahead = (np.arange(self.n) * self.decisions_per_episode) // self.n
+        zero = np.zeros((self.n, 2), dtype=np.float32)
+        for k in range(int(ahead.max())):
+            obs, _, te, tr = self._decide(zero, active=ahead > k)
+            done = te | tr
+            if done.any():  # an episode shorter than its natural length: start it again
+                obs, _ = self.venv.reset(options={"reset_mask": done})
+                self._start[done] = True
+        self._obs = obs
+        return obs
+
+    def step(self, actions: np.ndarray):
+        """One decision: (obs, rewards (mean over the decision's control periods, float32), terminated,
+        truncated, terminal observations (rows of the ended envs, in index order))."""
+        obs, total, te, tr = self._decide(actions)
+        rewards = (total / self.repeat).astype(np.float32)
+        self.steps += self.n
+        self._returns += rewards
+        self._lengths += 1
+        done = te | tr
+        terminal = None
+        if done.any():
+            terminal = obs[done].copy()
+            for i in np.flatnonzero(done):
+                if self._writers is not None:
+                    self._writers[i].write_row({"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
+                                                "t": round(time.time() - self._t0, 6), "steps": self.steps})
+            self._returns[done] = 0.0
+            self._lengths[done] = 0
+            obs, _ = self.venv.reset(options={"reset_mask": done})
+            self._start[done] = True
+        self._obs = obs
+        return obs, rewards, te, tr, terminal
+
+    def close(self) -> None:
+        if self._writers is not None:
+            for w in self._writers:
+                w.close()
+        self.venv.close()
+
+
+# -- VecNormalize's statistics ----------------------------------------------------------------------------------
+class RunningNormalizer:
+    """What SB3's ``VecNormalize`` does to observations and rewards in training, on arrays.
+
+    Observations: ``clip((obs - mean) / sqrt(var + eps), +-clip_obs)`` with the
+    running mean and variance of every observation seen (updated before
+    normalising, as VecNormalize does); rewards: divided by the running standard
+    deviation of the discounted return, clipped to ``+-clip_reward``.
+
+    Parameters
+    ----------
+    stats : NormalizationStats
+        The statistics to start from (a resumed run's, or :meth:`fresh`'s).
+    n_envs : int
+        Number of envs (one discounted return each).
+    """
+
+    def __init__(self, stats: NormalizationStats, n_envs: int):
+        from stable_baselines3.common.running_mean_std import RunningMeanStd
+
+        self.norm_obs, self.norm_reward = stats.norm_obs, stats.norm_reward
+        self.clip_obs, self.clip_reward, self.epsilon, self.gamma = (stats.clip_obs, stats.clip_reward,
+                                                                     stats.epsilon, stats.gamma)
+        self.obs_rms = RunningMeanStd(shape=stats.obs_mean.shape)
+        self.obs_rms.mean, self.obs_rms.var, self.obs_rms.count = stats.obs_mean.copy(), stats.obs_var.copy(), \
+            stats.obs_count
+        self.ret_rms = RunningMeanStd(shape=())
+        self.ret_rms.mean, self.ret_rms.var, self.ret_rms.count = (np.float64(stats.ret_mean),
+                                                                   np.float64(stats.ret_var), stats.ret_count)
+        self.returns = np.zeros(n_envs)
+
+    @classmethod
+    def fresh(cls, hyperparams: dict, obs_size: int, n_envs: int) -> "RunningNormalizer":
+        """Statistics of a new run from the entry's ``normalize`` (VecNormalize's defaults)."""
+        kw = normalize_kwargs(hyperparams)
+        kw = {"norm_obs": False, "norm_reward": False} if kw is None else kw
+        return cls(NormalizationStats(
+            norm_obs=bool(kw.get("norm_obs", True)), norm_reward=bool(kw.get("norm_reward", True)),
+            obs_mean=np.zeros(obs_size), obs_var=np.ones(obs_size), obs_count=1e-4, ret_mean=0.0, ret_var=1.0,
+            ret_count=1e-4, clip_obs=float(kw.get("clip_obs", 10.0)), clip_reward=float(kw.get("clip_reward", 10.0)),
+            epsilon=float(kw.get("epsilon", 1e-8)), gamma=float(kw.get("gamma", 0.99))), n_envs)
+
+    def stats(self) -> NormalizationStats:
+        return NormalizationStats(
+            norm_obs=self.norm_obs, norm_reward=self.norm_reward, obs_mean=np.array(self.obs_rms.mean, dtype=float),
+            obs_var=np.array(self.obs_rms.var, dtype=float), obs_count=float(self.obs_rms.count),
+            ret_mean=float(self.ret_rms.mean), ret_var=float(self.ret_rms.var), ret_count=float(self.ret_rms.count),
+            clip_obs=self.clip_obs, clip_reward=self.clip_reward, epsilon=self.epsilon, gamma=self.gamma)
+
+    def observe(self, obs: np.ndarray, update: bool = True) -> np.ndarray:
+        """Normalised observations (float32); ``update`` adds them to the statistics first."""
+        if not self.norm_obs:
+            return obs.astype(np.float32)
+        if update:
+            self.obs_rms.update(obs)
+        return np.clip((obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon),
+                       -self.clip_obs, self.clip_obs).astype(np.float32)
+
+    def reward(self, rewards: np.ndarray, done: np.ndarray) -> np.ndarray:
+        """Normalised rewards (float32) of a decision; the returns of ended episodes restart."""
+        if self.norm_reward:
+            self.returns = self.returns * self.gamma + rewards
+            self.ret_rms.update(self.returns)
+            rewards = np.clip(rewards / np.sqrt(self.ret_rms.var + self.epsilon), -self.clip_reward, self.clip_reward)
+        self.returns[done] = 0.0
+        return rewards.astype(np.float32)
+
+
+# -- the time of each phase --------------------------------------------------------------------------------------
+class PhaseClock:
+    """Wall time per phase: ``with clock("env"): ...``; :meth:`shares` as fractions of the measured total."""
+
+    PHASES = ("env", "forward", "update", "other")
+
+    def __init__(self):
+        self.seconds = dict.fromkeys(self.PHASES, 0.0)
+        self._phase = None
+
+    def __call__(self, phase: str):
+        self._phase = phase
+        return self
+
+    def __enter__(self):
+        self._t0 = time.perf_counter()
+
+    def __exit__(self, *exc):
+        self.seconds[self._phase] += time.perf_counter() - self._t0
+
+    def shares(self, wall: float) -> dict:
+        """{phase: fraction of ``wall``}; "other" is whatever the named phases do not cover."""
+        wall = max(wall, 1e-9)
+        named = {k: self.seconds[k] / wall for k in ("env", "forward", "update")}
+        named["other"] = max(0.0, 1.0 - sum(named.values()))
+        return {k: round(v, 4) for k, v in named.items()}
+
+
+# -- PPO ---------------------------------------------------------------------------------------------------------
+def _spaces_only(observation_space, action_space, n_envs: int):
+    """An SB3 VecEnv that holds only the spaces and the env count: what PPO needs to build its policy and to be
+    saved (the lean trainer steps its :class:`DecisionEnv` itself)."""
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+    class SpacesOnly(VecEnv):
+        def _refuse(self, *args, **kwargs):
+            raise RuntimeError("the lean trainer steps the envs itself")
+
+        reset = step_async = step_wait = set_attr = env_method = _refuse
+
+        def close(self):
+            pass
+
+        def get_attr(self, attr_name, indices=None):
+            return [None for _ in self._get_indices(indices)]
+
+        def env_is_wrapped(self, wrapper_class, indices=None):
+            return [False for _ in self._get_indices(indices)]
+
+    return SpacesOnly(n_envs, observation_space, action_space)
+
+
+@dataclass
+class _Rollout:
+    obs: "object"
+    actions: "object"
+    logp: "object"
+    values: "object"
+    rewards: np.ndarray
+    starts: np.ndarray
+
+
+def _gae(rewards, values, starts, last_values, last_done, gamma, lam):
+    """Advantages and returns of a rollout (T, N), as SB3's ``RolloutBuffer.compute_returns_and_advantage``."""
+    t_len = rewards.shape[0]
+    adv = np.zeros_like(rewards)
+    last = np.zeros(rewards.shape[1], dtype=np.float32)
+    for t in reversed(range(t_len)):
+        if t == t_len - 1:
+            nonterminal, next_values = 1.0 - last_done, last_values
+        else:
+            nonterminal, next_values = 1.0 - starts[t + 1], values[t + 1]
+        delta = rewards[t] + gamma * next_values * nonterminal - values[t]
+        last = delta + gamma * lam * nonterminal * last
+        adv[t] = last
+    return adv, adv + values
+
+
+class LeanPPO:
+    """SB3's PPO update on SB3's policy, the rollout collected from a :class:`DecisionEnv` as arrays.
+
+    Parameters
+    ----------
+    model : stable_baselines3.PPO
+        Holds the policy, its optimiser and the hyperparameters (n_steps,
+        batch_size, n_epochs, gamma, gae_lambda, clip_range, ent_coef,
+        vf_coef, max_grad_norm, target_kl, normalize_advantage, lr schedule).
+    env : DecisionEnv
+    normalizer : RunningNormalizer
+    total_timesteps : int
+        The run's total, for the schedules' progress.
+    """
+
+    def __init__(self, model, env: DecisionEnv, normalizer: RunningNormalizer, total_timesteps: int,
+                 clock: PhaseClock):
+        import torch
+        from stable_baselines3.common.distributions import DiagGaussianDistribution
+
+        from stable_baselines3.common.torch_layers import FlattenExtractor
+
+        policy = model.policy
+        if not isinstance(policy.action_dist, DiagGaussianDistribution) or not isinstance(
+                policy.pi_features_extractor, FlattenExtractor):
+            raise ValueError("the lean trainer runs MlpPolicy's Gaussian policies (no state-dependent exploration)")
+        self.torch = torch
+        self.model, self.policy, self.env, self.norm = model, policy, env, normalizer
+        self.total = int(total_timesteps)
+        self.clock = clock
+        self.n_steps, self.n = model.n_steps, env.n
+        obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
+        self.buf = _Rollout(obs=torch.zeros((self.n_steps, self.n, obs_dim)),
+                            actions=torch.zeros((self.n_steps, self.n, act_dim)),
+                            logp=torch.zeros((self.n_steps, self.n)), values=torch.zeros((self.n_steps, self.n)),
+                            rewards=np.zeros((self.n_steps, self.n), dtype=np.float32),
+                            starts=np.zeros((self.n_steps, self.n), dtype=np.float32))
+        self.last_obs = None  # normalised, float32
+        self.last_starts = np.ones(self.n, dtype=np.float32)
+        self.stats = {}
+
+    def _forward(self, obs_t):
+        """(mean action, value) of normalised observations, no gradient."""
+        p = self.policy
+        latent_pi, latent_vf = p.mlp_extractor(obs_t)  # MlpPolicy's features extractor flattens: a no-op here
+        return p.action_net(latent_pi), p.value_net(latent_vf).flatten()
+
+    def start(self, obs: np.ndarray) -> None:
+        self.last_obs = self.norm.observe(obs)
+
+    def collect(self) -> None:
+        """One rollout of ``n_steps`` decisions of every env (SB3's ``collect_rollouts``)."""
+        torch, p, b, clock = self.torch, self.policy, self.buf, self.clock
+        p.set_training_mode(False)
+        log_std = p.log_std.detach()
+        std = log_std.exp()
+        logp_const = -(log_std.sum() + 0.5 * math.log(2 * math.pi) * log_std.numel())
+        low, high = self.env.action_space.low, self.env.action_space.high
+        for t in range(self.n_steps):
+            with clock("forward"), torch.no_grad():
+                obs_t = torch.from_numpy(self.last_obs)
+                mean, value = self._forward(obs_t)
+                noise = torch.randn_like(mean)
+                action = mean + std * noise
+                logp = logp_const - 0.5 * (noise * noise).sum(dim=1)
+            b.obs[t] = obs_t
+            b.actions[t] = action
+            b.logp[t] = logp
+            b.values[t] = value
+            b.starts[t] = self.last_starts
+            a = np.clip(action.numpy(), low, high)
+            with clock("env"):
+                obs, rewards, te, tr, terminal = self.env.step(a)
+            done = te | tr
+            rewards = self.norm.reward(rewards, done)
+            if terminal is not None:
+                late = tr[done] & ~te[done]  # time limits: bootstrap the value of the last observation
+                if late.any():
+                    idx = np.flatnonzero(done)[late]
+                    with clock("forward"), torch.no_grad():
+                        v = self._forward(torch.from_numpy(self.norm.observe(terminal[late], update=False)))[1]
+                    rewards[idx] += self.model.gamma * v.numpy()
+            b.rewards[t] = rewards
+            self.last_obs = self.norm.observe(obs)
+            self.last_starts = done.astype(np.float32)
+        with clock("forward"), torch.no_grad():
+            last_values = self._forward(torch.from_numpy(self.last_obs))[1].numpy()
+        adv, ret = _gae(b.rewards, b.values.numpy(), b.starts, last_values, self.last_starts, self.model.gamma,
+                        self.model.gae_lambda)
+        self.advantages, self.returns = torch.from_numpy(adv), torch.from_numpy(ret.astype(np.float32))
+
+    def update(self, num_timesteps: int) -> None:
+        """PPO's epochs over the rollout (SB3's ``PPO.train``)."""
+        torch, p, m = self.torch, self.policy, self.model
+        progress = 1.0 - num_timesteps / self.total
+        lr = m.lr_schedule(progress)
+        for group in p.optimizer.param_groups:
+            group["lr"] = lr
+        clip = m.clip_range(progress)
+        clip_vf = m.clip_range_vf(progress) if m.clip_range_vf is not None else None
+        p.set_training_mode(True)
+        size = self.n_steps * self.n
+        obs = self.buf.obs.reshape(size, -1)
+        actions = self.buf.actions.reshape(size, -1)
+        old_logp, old_values = self.buf.logp.reshape(size), self.buf.values.reshape(size)
+        advantages, returns = self.advantages.reshape(size), self.returns.reshape(size)
+        batch = min(m.batch_size, size)
+        pg_losses, clip_fractions, kls = [], [], []
+        go_on = True
+        for _ in range(m.n_epochs):
+            order = torch.randperm(size)
+            for start in range(0, size, batch):
+                idx = order[start:start + batch]
+                values, logp, entropy = p.evaluate_actions(obs[idx], actions[idx])
+                values = values.flatten()
+                adv = advantages[idx]
+                if m.normalize_advantage and len(idx) > 1:
+                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                ratio = torch.exp(logp - old_logp[idx])
+                pg_loss = -torch.min(adv * ratio, adv * torch.clamp(ratio, 1 - clip, 1 + clip)).mean()
+                if clip_vf is not None:
+                    values = old_values[idx] + torch.clamp(values - old_values[idx], -clip_vf, clip_vf)
+                value_loss = torch.nn.functional.mse_loss(returns[idx], values)
+                entropy_loss = -torch.mean(-logp) if entropy is None else -torch.mean(entropy)
+                loss = pg_loss + m.ent_coef * entropy_loss + m.vf_coef * value_loss
+                with torch.no_grad():
+                    log_ratio = logp - old_logp[idx]
+                    kl = torch.mean((torch.exp(log_ratio) - 1) - log_ratio).item()
+                pg_losses.append(pg_loss.item())
+                clip_fractions.append(torch.mean((torch.abs(ratio - 1) > clip).float()).item())
+                kls.append(kl)
+                if m.target_kl is not None and kl > 1.5 * m.target_kl:
+                    go_on = False
+                    break
+                p.optimizer.zero_grad()
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(p.parameters(), m.max_grad_norm)
+                p.optimizer.step()
+            if not go_on:
+                break
+        m._n_updates += m.n_epochs
+        self.stats = {"policy_loss": float(np.mean(pg_losses)), "clip_fraction": float(np.mean(clip_fractions)),
+                      "approx_kl": float(np.mean(kls)), "learning_rate": float(lr)}
+
+
+# -- the run -----------------------------------------------------------------------------------------------------
+def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True, device: str = "cpu",
+          verbose: int = 0, stagger: bool = True):
+    """Train the run :func:`agents.training.prepare_run` set up with the lean trainer (from ``checkpoint`` if
+    not None); the run folder, its guarantees and the returned :class:`agents.training.TrainingResult` are
+    those of :func:`agents.training.learn`.
+
+    Parameters
+    ----------
+    run_dir, config, checkpoint
+        As :func:`agents.training.prepare_run` returns them.
+    progress_bar : bool
+        A tqdm bar of agent steps.
+    device : str
+        Torch device.
+    verbose : int
+        1: a line per evaluation.
+    stagger : bool
+        Spread the envs along the episode before training (see the module docstring).
+    """
+    from . import training as tr
+
+    if config.get("trainer", "lean") != "lean":
+        raise ValueError(f"{run_dir} was trained with the {config['trainer']!r} trainer, not 'lean'")
+    config = dict(config, trainer="lean")
+    fresh = checkpoint is None
+    created = fresh and not run_dir.exists()
+    run_dir.mkdir(parents=True, exist_ok=True)
+    stop = tr._Stop()
+    with tr._run_lock(run_dir), tr._stop_on_signals(stop):
+        try:
+            return _learn(run_dir, config, checkpoint, stop, progress_bar=progress_bar, device=device,
+                          verbose=verbose, stagger=stagger)
+        except BaseException:
+            if fresh and not tr.scan_checkpoints(run_dir)[0]:
+                tr._clear_new_run(run_dir, created)
+            raise
+
+
+def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, stagger):
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.utils import set_random_seed
+
+    from . import training as tr
+    from .model_file import load_ppo
+    from .policy import AgentPolicy
+
+    h = config["hyperparams"]
+    policy_name, kwargs = ppo_arguments(h)
+    mode = ActionMode(**config["action_mode"])
+    n_envs, total = config["n_envs"], config["n_timesteps"]
+    clock = PhaseClock()
+    rolled_back = None
+    if checkpoint is None:
+        if run_dir.exists():
+            tr._clear_new_run(run_dir, created=False)
+        run_dir.mkdir(parents=True, exist_ok=True)
+        tr._write_yaml(run_dir / tr.CONFIG_FILE, config)
+        done = 0
+    else:
+        done, model_zip, norm_file = checkpoint
+    env = DecisionEnv(config["env_id"], n_envs, mode, h.get("env_kwargs") or {}, config["seed"] + done,
+                      monitor_dir=run_dir / "monitor", start_steps=done, append=checkpoint is not None)
+    eval_env = tr._eval_env(config)
+    try:
+        stub = _spaces_only(env.observation_space, env.action_space, n_envs)
+        if checkpoint is None:
+            model = PPO(policy_name, stub, seed=config["seed"], device=device, **kwargs)
+            norm = RunningNormalizer.fresh(h, env.observation_space.shape[0], n_envs)
+        else:
+            model = load_ppo(model_zip, observation_space=env.observation_space, action_space=env.action_space,
+                             ppo_kwargs=kwargs, device=device)
+            norm = RunningNormalizer(NormalizationStats.load(norm_file), n_envs)
+            _, damaged = tr.scan_checkpoints(run_dir, n_envs)
+            rolled_back = tr._roll_back(run_dir, config, done, damaged)
+            set_random_seed(config["seed"] + done)
+            tr._write_yaml(run_dir / tr.CONFIG_FILE, config)
+        model.num_timesteps = done
+        ppo = LeanPPO(model, env, norm, total, clock)
+        rows = tr._read_evaluations(run_dir / "evaluations.csv")
+        best = tr._best_of(rows)
+        last_eval = max((r["steps"] for r in rows), default=done)
+        last_checkpoint = done
+        session = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done, "wall_s": 0.0,
+                   "steps_per_s": 0.0, "control_periods_per_s": 0.0, "n_envs": n_envs, "vec_env": "native",
+                   "trainer": "lean", "status": "running"}
+        if rolled_back is not None:
+            session["rolled_back"] = rolled_back
+        repeat = config["action_mode"]["action_repeat"]
+
+        def save_checkpoint(n):
+            nonlocal last_checkpoint
+            model_zip_, norm_ = tr._checkpoint_files(run_dir / "checkpoints", n)
+            model_zip_.parent.mkdir(parents=True, exist_ok=True)
+            norm.stats().save(norm_)
+            model.num_timesteps = n
+            tr._save_model(model, model_zip_)
+            last_checkpoint = n
+            session.update(end_timesteps=n, **_session_rates(session, n, wall0, clock, repeat))
+            tr._record_session(run_dir, session, best)
+
+        def evaluate(n):
+            nonlocal best, last_eval
+            from vcnc_gym.evaluation import run_episode
+
+            last_eval = n
+            stats = norm.stats()
+            r = run_episode(AgentPolicy(model, stats, mode, eval_env), eval_env, seed=0)
+            score = math.inf if r.diverged else tr.evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
+            row = {"steps": int(n), "max_um": float(r.max_contour_error_um),
+                   "mean_um": float(r.mean_contour_error_um), "rms_um": float(r.rms_contour_error_um),
+                   "score_um": float(score), "diverged": bool(r.diverged)}
+            rows.append(row)
+            tr._write_evaluations(run_dir / "evaluations.csv", rows)
+            if math.isfinite(score) and (best is None or score < best["score_um"]):
+                best = row
+                tr._save_agent(run_dir / "best", model, stats, config, n, row)
+            if verbose:
+                print(f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, "
+                      f"diverged {row['diverged']}")
+
+        wall0 = t0 = time.perf_counter()  # set-up excluded, as agents.training.learn's wall time
+        with clock("env"):
+            obs = env.reset()
+            if stagger and checkpoint is None:
+                obs = env.stagger(obs)
+        session["stagger_s"] = round(time.perf_counter() - t0, 3)
+        ppo.start(obs)
+        bar = _progress(progress_bar, total, done)
+        n = done
+        interrupted = None
+        checkpoint_freq, eval_freq = config["checkpoint_freq"], config["eval_freq"]
+        while n < total:
+            ppo.collect()
+            if stop.signum is not None:  # the rollout is not trained: the checkpoint is the model as of n
+                interrupted = signal.Signals(stop.signum).name
+                break
+            with clock("update"):
+                ppo.update(n)
+            n += ppo.n_steps * n_envs
+            model.num_timesteps = n
+            if bar is not None:
+                bar.update(ppo.n_steps * n_envs)
+            due_eval = eval_freq > 0 and n // eval_freq > last_eval // eval_freq and n < total
+            if n < total and (due_eval or n // checkpoint_freq > last_checkpoint // checkpoint_freq):
+                save_checkpoint(n)
+            if due_eval:
+                evaluate(n)
+        if bar is not None:
+            bar.close()
+        wall = time.perf_counter() - wall0
+        save_checkpoint(n)
+        if interrupted is None:
+            if n != last_eval or not rows:
+                evaluate(n)
+            tr._save_agent(run_dir / "final", model, norm.stats(), config, n)
+        wall = time.perf_counter() - wall0
+    finally:
+        env.close()
+        eval_env.close()
+    session.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
+                   **_session_rates(session, n, wall0, clock, repeat))
+    tr._record_session(run_dir, session, best)
+    return tr.TrainingResult(run_dir=run_dir, timesteps=n, session_timesteps=n - done, wall_s=wall,
+                             steps_per_s=session["steps_per_s"], control_periods_per_s=session["control_periods_per_s"],
+                             best=best, interrupted=interrupted, rolled_back=rolled_back)
+
+
+def _session_rates(session: dict, n: int, wall0: float, clock: PhaseClock, repeat: int) -> dict:
+    wall = max(time.perf_counter() - wall0, 1e-9)
+    steps = n - session["start_timesteps"]
+    return {"wall_s": wall, "steps_per_s": steps / wall, "control_periods_per_s": steps * repeat / wall,
+            "time_shares": clock.shares(wall), "phase_s": {k: round(v, 3) for k, v in clock.seconds.items()
+                                                           if k != "other"}}
+
+
+def _progress(enabled: bool, total: int, done: int):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=done, unit="step", desc="lean PPO")
+
+
+def train_lean(env_id: str | None = None, run_dir=None, *, progress_bar: bool = True, device: str = "cpu",
+               verbose: int = 0, stagger: bool = True, **options):
+    """:func:`agents.training.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
+    resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`agents.training.TrainingResult`."""
+    from .training import prepare_run
+
+    run_dir, config, checkpoint = prepare_run(env_id, run_dir, **options)
+    return learn(run_dir, config, checkpoint, progress_bar=progress_bar, device=device, verbose=verbose,
+                 stagger=stagger)

@@ -1,0 +1,202 @@
+"""agents.lean_ppo: the lean PPO's pieces against Stable-Baselines3's own, and a short run that vcnc-bench loads.
+
+The pieces are checked against SB3 (which no one here wrote): the advantage
+estimate against ``RolloutBuffer.compute_returns_and_advantage``, the
+normalisation against ``VecNormalize`` on the same stream, the written-out
+log-probability against ``ActorCriticPolicy.evaluate_actions``.  One short
+run through ``vcnc-train --trainer lean`` on the heart (a few hundred agent
+steps) is shared by the rest.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+import yaml
+
+import vcnc_bench as bench
+import vcnc_gym  # noqa: F401
+from agents import load_agent
+from agents.cli import main as train_main
+from agents.config import load_hyperparameters
+from agents.lean_ppo import DecisionEnv, LeanPPO, PhaseClock, RunningNormalizer, _gae
+from agents.action_modes import ActionMode
+from agents.model_file import model_timesteps
+
+HEART = "VCNC-Heart-v1"
+N_ENVS, N_STEPS = 4, 32
+ROLLOUT = N_ENVS * N_STEPS
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_torch_thread():
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+@pytest.fixture(scope="module")
+def small_entry(tmp_path_factory):
+    """The shipped heart entry with rollouts of 4 envs x 32 decisions, minibatches of 64, 2 epochs."""
+    entry = load_hyperparameters(HEART)
+    entry.update(n_envs=N_ENVS, n_steps=N_STEPS, batch_size=64, n_epochs=2)
+    path = tmp_path_factory.mktemp("lean_cfg") / "ppo.yml"
+    path.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def lean_run(tmp_path_factory, small_entry):
+    run_dir = tmp_path_factory.mktemp("lean") / "run"
+    assert train_main(["--env", HEART, "--trainer", "lean", "--config", str(small_entry), "--timesteps",
+                       str(3 * ROLLOUT), "--eval-freq", "0", "--checkpoint-freq", str(ROLLOUT),
+                       "--output", str(run_dir), "--no-progress"]) == 0
+    return run_dir
+
+
+# -- the pieces against SB3 ------------------------------------------------------------------------------------
+def test_advantages_and_returns_equal_sb3_rollout_buffer():
+    from stable_baselines3.common.buffers import RolloutBuffer
+
+    rng = np.random.default_rng(0)
+    t_len, n, gamma, lam = 7, 3, 0.98, 0.95
+    rewards = rng.normal(size=(t_len, n)).astype(np.float32)
+    values = rng.normal(size=(t_len, n)).astype(np.float32)
+    starts = (rng.random((t_len, n)) < 0.25).astype(np.float32)
+    last_values = rng.normal(size=n).astype(np.float32)
+    last_done = np.array([1.0, 0.0, 0.0], dtype=np.float32)
+    space = gym.spaces.Box(-1, 1, (1,))
+    buf = RolloutBuffer(t_len, space, space, n_envs=n, gamma=gamma, gae_lambda=lam)
+    for t in range(t_len):
+        buf.add(np.zeros((n, 1)), np.zeros((n, 1)), rewards[t], starts[t], torch.tensor(values[t]),
+                torch.zeros(n))
+    buf.compute_returns_and_advantage(torch.tensor(last_values), last_done)
+    adv, ret = _gae(rewards, values, starts, last_values, last_done, gamma, lam)
+    np.testing.assert_allclose(adv, buf.advantages, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(ret, buf.returns, rtol=1e-5, atol=1e-6)
+
+
+def test_normalizer_equals_vecnormalize_on_the_same_stream():
+    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+    rng = np.random.default_rng(1)
+    n, d = 3, 5
+    stream = [(rng.normal(3.0, 2.0, (n, d)), rng.normal(size=n), rng.random(n) < 0.2) for _ in range(30)]
+
+    class Replay(VecEnv):  # replays the stream: what VecNormalize wraps
+        def __init__(self):
+            super().__init__(n, gym.spaces.Box(-np.inf, np.inf, (d,)), gym.spaces.Box(-1, 1, (1,)))
+            self.k = 0
+
+        def reset(self):
+            return stream[0][0]
+
+        def step_async(self, actions):
+            pass
+
+        def step_wait(self):
+            self.k += 1
+            obs, r, done = stream[self.k]
+            return obs, r, done, [{} for _ in range(n)]
+
+        def close(self):
+            pass
+
+        get_attr = set_attr = env_method = env_is_wrapped = lambda self, *a, **k: [None] * n
+
+    vec = VecNormalize(Replay(), gamma=0.9)
+    ours = RunningNormalizer.fresh({"normalize": True, "gamma": 0.9}, d, n)
+    np.testing.assert_allclose(ours.observe(stream[0][0]), vec.reset(), rtol=1e-6)
+    for k in range(1, len(stream) - 1):
+        obs, r, done, _ = vec.step(np.zeros((n, 1)))
+        np.testing.assert_allclose(ours.observe(stream[k][0]), obs, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(ours.reward(stream[k][1], stream[k][2]), r, rtol=1e-6, atol=1e-6)
+    stats = ours.stats()
+    np.testing.assert_allclose(stats.obs_mean, vec.obs_rms.mean)
+    assert stats.ret_var == pytest.approx(float(vec.ret_rms.var))
+
+
+def test_written_out_log_probability_equals_the_policy_s(small_entry):
+    """The rollout's actions and log-probabilities are those of SB3's Gaussian policy on the same draws."""
+    env = DecisionEnv(HEART, 3, ActionMode("residual", 10, "smc", 0.2), {}, seed=0)
+    from stable_baselines3 import PPO
+
+    from agents.lean_ppo import _spaces_only
+
+    model = PPO("MlpPolicy", _spaces_only(env.observation_space, env.action_space, 3), n_steps=4, batch_size=6,
+                policy_kwargs=dict(log_std_init=-1.5), seed=0)
+    ppo = LeanPPO(model, env, RunningNormalizer.fresh({"normalize": True}, env.observation_space.shape[0], 3),
+                  100, PhaseClock())
+    ppo.start(env.reset())
+    ppo.collect()
+    b = ppo.buf
+    with torch.no_grad():
+        values, logp, _ = model.policy.evaluate_actions(b.obs.reshape(12, -1), b.actions.reshape(12, -1))
+    np.testing.assert_allclose(b.logp.reshape(12).numpy(), logp.numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(b.values.reshape(12).numpy(), values.flatten().numpy(), rtol=1e-6, atol=1e-6)
+    env.close()
+
+
+def test_stagger_spreads_the_envs_along_the_episode():
+    n = 4
+    env = DecisionEnv(HEART, n, ActionMode("residual", 10, "smc", 0.2), {}, seed=0)
+    obs = env.stagger(env.reset())
+    length = env.decisions_per_episode
+    assert length == env.venv.episode_steps // 10
+    expected = (np.arange(n) * length // n) * 10 * env.venv.dt  # s: k_i decisions of 10 control periods
+    np.testing.assert_allclose(env.venv._buffers.k * env.venv.dt, expected, atol=1e-12)
+    assert obs.shape == (n, env.observation_space.shape[0])
+    env.close()
+
+
+# -- a run ------------------------------------------------------------------------------------------------------
+def test_a_lean_run_writes_the_run_folder_of_vcnc_train(lean_run):
+    for folder in ("best", "final"):
+        for name in ("model.zip", "vecnormalize.npz", "config.yml"):
+            assert (lean_run / folder / name).is_file()
+    assert model_timesteps(lean_run / "final" / "model.zip") == 3 * ROLLOUT
+    config = yaml.safe_load((lean_run / "config.yml").read_text())
+    assert config["trainer"] == "lean" and config["n_envs"] == N_ENVS
+    summary = json.loads((lean_run / "summary.json").read_text())
+    s = summary["sessions"][-1]
+    assert s["status"] == "finished" and s["trainer"] == "lean" and s["end_timesteps"] == 3 * ROLLOUT
+    assert set(s["time_shares"]) == {"env", "forward", "update", "other"}
+    assert sum(s["time_shares"].values()) == pytest.approx(1.0, abs=1e-3)
+    rows = (lean_run / "evaluations.csv").read_text().splitlines()
+    assert [int(r.split(",")[0]) for r in rows[1:]] == [3 * ROLLOUT]  # --eval-freq 0: at the end only
+    assert sorted(p.name for p in (lean_run / "checkpoints").glob("*.zip")) == [
+        f"rl_model_{k * ROLLOUT}_steps.zip" for k in (1, 2, 3)]
+    monitor = list((lean_run / "monitor").glob("*.monitor.csv"))
+    assert len(monitor) == N_ENVS
+
+
+def test_the_agent_loads_as_data_and_runs_in_vcnc_bench(lean_run, tmp_path):
+    env = gym.make(HEART)
+    policy = load_agent(lean_run / "best", env)  # no unpickling: agents.model_file.load_ppo
+    assert policy.action_mode == ActionMode("residual", 10, "smc", 0.2)
+    out = tmp_path / "bench.json"
+    spec = f"ppo:{lean_run / 'best'}"
+    assert bench.main(["--env", HEART, "--policy", spec, "--no-progress", "--json", str(out)]) == 0
+    record = json.loads(out.read_text())[0]
+    best = yaml.safe_load((lean_run / "best" / "config.yml").read_text())["agent"]["evaluation"]
+    assert record["diverged"] is False and math.isfinite(record["max_contour_error_um"])
+    assert record["max_contour_error_um"] == pytest.approx(best["max_um"], rel=1e-9)
+
+
+def test_a_lean_run_resumes_from_its_last_checkpoint(lean_run, tmp_path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(lean_run, run)
+    assert train_main(["--resume", str(run), "--timesteps", str(4 * ROLLOUT), "--no-progress"]) == 0
+    assert model_timesteps(run / "final" / "model.zip") == 4 * ROLLOUT
+    sessions = json.loads((run / "summary.json").read_text())["sessions"]
+    assert [s["trainer"] for s in sessions] == ["lean", "lean"]
+    assert sessions[-1]["start_timesteps"] == 3 * ROLLOUT
