@@ -535,7 +535,6 @@ def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True,
 
 
 def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, stagger):
-    import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.utils import set_random_seed
 

@@ -15,7 +15,7 @@ import pytest
 from geomdl_curve import geomdl_curve
 
 import baselines
-import vcnc_gym
+import vcnc_gym  # noqa: F401  (registers the ids)
 from vcnc_gym.envs.registry import LEGACY, SUITE
 
 

@@ -33,7 +33,6 @@ def test_inverse_dynamics_is_the_linear_model_inverted(plant):
     inverse = model.inverse()
     for axis in (0, 1):
         tf = model.linear_model(axis=axis)
-        num, den = np.asarray(tf.num[0][0], dtype=float), np.asarray(tf.den[0][0], dtype=float)
         s = 2j * np.pi * np.array([0.3, 3.0, 30.0])
         inverse_response = sum(inverse.coefficients[axis, n - 1] * s**n for n in range(1, 5))
         np.testing.assert_allclose(inverse_response * tf(s), 1.0, rtol=1e-12)

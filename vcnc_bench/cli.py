@@ -58,9 +58,6 @@ import gymnasium as gym
 import vcnc_gym  # noqa: F401  (registers the ids)
 from vcnc_gym.envs import ENV_IDS, suite_env
 from vcnc_gym.envs.registry import LEGACY
-
-#: The v0 ids, kept for agents trained on them: benchmarked when named.
-LEGACY_IDS = tuple(e.id for e in LEGACY)
 from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
 from vcnc_gym.validation import size
@@ -69,6 +66,9 @@ from .papers import paper_figures
 from . import robust
 from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label,
                        resolve_policy)
+
+#: The v0 ids, kept for agents trained on them: benchmarked when named.
+LEGACY_IDS = tuple(e.id for e in LEGACY)
 
 __all__ = ["format_table", "main"]
 

@@ -885,7 +885,7 @@ def interpolate(
     t, u, pos, vel, acc, tan, feed = (a[:n].copy() for a in (t, u, pos, vel, acc, tan, feed))
     _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed)
 
-    u_taylor, t_e, s_planned = float(info[1]), float(info[2]), float(info[3])
+    u_taylor, s_planned = float(info[1]), float(info[3])
     end_gap_u = u_end - u_taylor
     if info[0] == _END_PROFILE and u_taylor < u_end:
         travelled_left = float(curve.arc_length(max(u_taylor, u_start), u_end))

@@ -148,7 +148,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import FIRST, SECOND, NurbsCurve, curve_derivatives_into, workspace_size
+from ..geometry.nurbs import SECOND, NurbsCurve, curve_derivatives_into, workspace_size
 from ..validation import positive
 from .interpolator import _curvature, _gauss_arc, _speed
 from .jlap import JlapPlan, JlapSection, _bisect_increasing, _PieceWriter, _transition_pieces, transition_distance
