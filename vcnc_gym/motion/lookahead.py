@@ -337,9 +337,10 @@ def _critical_points(v_lim: np.ndarray, feedrate: float) -> list[int]:
 
 
 def _schedule(arc: np.ndarray, v_lim: np.ndarray, length: float, feedrate: float, a: float, j: float,
-              max_rounds: int = 100_000) -> JlapPlan:
-    """Sections 2 and 3 of the module docstring: cuts, scans, check, cuts at the violations."""
-    cuts = [0] + _critical_points(v_lim, feedrate) + [v_lim.size - 1]
+              max_rounds: int = 100_000, extra_cuts=()) -> JlapPlan:
+    """Sections 2 and 3 of the module docstring: cuts, scans, check, cuts at the violations; ``extra_cuts``
+    (grid indices) are cut too (where a G-code program's feed changes between blocks)."""
+    cuts = sorted(set([0] + _critical_points(v_lim, feedrate) + [int(c) for c in extra_cuts] + [v_lim.size - 1]))
     bounded = [False] * (len(cuts) - 1)  # True: the section's cap is the least v_lim inside it
     for _ in range(max_rounds):
         caps = [float(v_lim[c0 : c1 + 1].min() if low else v_lim[c0 : c1 + 1].max())
@@ -541,6 +542,16 @@ class LookaheadFeedrate:
             return np.minimum.reduce([np.full_like(k, self.feedrate), np.sqrt(self.normal_acceleration / k),
                                       np.cbrt(self.normal_jerk / k**2)])
 
+    def feed_limit(self, arc: np.ndarray) -> np.ndarray:
+        """The programmed feed at arc lengths ``arc`` (mm), mm/s: F everywhere here; a G-code program's
+        feed per block in :class:`vcnc_gym.gcode.feeds.ProgramFeedrate`."""
+        return np.full_like(arc, self.feedrate)
+
+    def feed_cuts(self, arc: np.ndarray) -> tuple:
+        """Grid indices the plan must cut at besides the minima of v_lim: none here; where a G-code
+        program's feed changes between blocks in :class:`vcnc_gym.gcode.feeds.ProgramFeedrate`."""
+        return ()
+
     def plan(self, length: float) -> LookaheadPlan:
         """The look-ahead plan over the curve, whose arc length ``length`` (mm) must be.
 
@@ -555,10 +566,11 @@ class LookaheadFeedrate:
                              f"not a {length:.6g} mm one")
         if self._plan is None or self._plan.length != length:
             arc = self._arc * (length / self._arc[-1])
-            v_lim = self.speed_limit(self._kappa_samples)
+            v_lim = np.minimum(self.speed_limit(self._kappa_samples), self.feed_limit(arc))
             knot = np.flatnonzero(arc[1:] == arc[:-1])  # both sides of a knot: the lower limit
             v_lim[knot] = v_lim[knot + 1] = np.minimum(v_lim[knot], v_lim[knot + 1])
-            plan = _schedule(arc, v_lim, length, self.feedrate, self.tangential_acceleration, self.tangential_jerk)
+            plan = _schedule(arc, v_lim, length, self.feedrate, self.tangential_acceleration, self.tangential_jerk,
+                             extra_cuts=self.feed_cuts(arc))
             for a in (arc, v_lim):
                 a.flags.writeable = False
             self._plan = LookaheadPlan(length=plan.length, breaks=plan.breaks, coeffs=plan.coeffs,

@@ -1,0 +1,95 @@
+"""G-code part programs (RS-274 as CNCs run it) as contours of the suite.
+
+``read_program(program, tolerance=...)`` reads a program (its text or a file
+path) in three steps, one module each:
+
+1. :mod:`~vcnc_gym.gcode.lexer`: the text into blocks of words (pygcode; the
+   module says why that library);
+2. :mod:`~vcnc_gym.gcode.interpreter`: the blocks into moves (modal state,
+   units, arcs from I/J or R, feeds; what is ignored is listed);
+3. :mod:`~vcnc_gym.gcode.toolpath`: the moves into one NURBS contour (G01 as
+   straight segments, G02/G03 as exact rational quadratic arcs,
+   :mod:`~vcnc_gym.gcode.arcs`), seed 002's corner blends at the tolerance,
+   and the feed plan (:mod:`~vcnc_gym.gcode.feeds`: look-ahead with each
+   block's feed, exact stops at the corners left sharp).
+
+Bad programs raise :class:`GCodeError` (a ValueError) naming the line and the word.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .interpreter import ARC_RADIUS_TOLERANCE, MM_PER_INCH, Move, Program, interpret, read_program_text
+from .lexer import GCodeError, lex
+from .toolpath import PROFILES, Joint, Toolpath, build_toolpath
+
+__all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move", "PATH_LIMITS", "PROFILES", "Program",
+           "Toolpath", "build_toolpath", "interpret", "lex", "load_text", "path_limits", "read_program",
+           "read_program_text"]
+
+#: Path acceleration (mm/s^2) and jerk (mm/s^3) limits by plant: those the suite already plans with for
+#: the plant's seed (seed 000: motion.lookahead's SEED000_PATH_*; seed 002: motion.jlap's SEED002_*).
+PATH_LIMITS = {"vcnc_feed_drive": (1000.0, 3.0e4), "current_feed_drive": (4000.0, 1.6e5)}
+
+#: File suffixes read as program files when ``program`` is a one-line string.
+SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".txt")
+
+
+def path_limits(plant: str, acceleration: float | None = None, jerk: float | None = None) -> tuple[float, float]:
+    """(acceleration mm/s^2, jerk mm/s^3) for ``plant``: those given, else :data:`PATH_LIMITS`'s."""
+    if acceleration is not None and jerk is not None:
+        return float(acceleration), float(jerk)
+    name = plant if isinstance(plant, str) else getattr(plant, "name", str(plant))
+    if name not in PATH_LIMITS:
+        raise ValueError(f"no path acceleration and jerk limits are known for plant {name!r} (known: "
+                         f"{sorted(PATH_LIMITS)}); pass acceleration= (mm/s^2) and jerk= (mm/s^3)")
+    a, j = PATH_LIMITS[name]
+    return float(a if acceleration is None else acceleration), float(j if jerk is None else jerk)
+
+
+def load_text(program) -> tuple[str, str]:
+    """(text, name) of ``program``: a path (``os.PathLike``, or a one-line str naming a file or ending in
+    one of :data:`SUFFIXES`), or the program's text itself."""
+    if isinstance(program, os.PathLike) or (isinstance(program, str) and "\n" not in program
+                                            and (program.lower().endswith(SUFFIXES) or Path(program).is_file())):
+        path = Path(program)
+        if not path.is_file():
+            raise FileNotFoundError(f"program file {str(path)!r} not found")
+        return path.read_text(), path.stem
+    if not isinstance(program, str):
+        raise TypeError(f"program must be G-code text or a path to a file, got {type(program).__name__}")
+    return program, "program"
+
+
+def read_program(program, tolerance: float | None = 0.01, *, acceleration: float = 1000.0, jerk: float = 3.0e4,
+                 arc_tolerance: float = ARC_RADIUS_TOLERANCE) -> Toolpath:
+    """A part program as a :class:`Toolpath` (contour and feeds).
+
+    Parameters
+    ----------
+    program : str or os.PathLike
+        The program's text, or a path to it.
+    tolerance : float or None, default 0.01
+        Corner blending tolerance, mm (seed 002's blends between G01 moves); None: sharp corners with
+        exact stops.
+    acceleration, jerk : float
+        Path limits of the blends and the look-ahead, mm/s^2 and mm/s^3 (default seed 000's drives').
+    arc_tolerance : float
+        Largest difference of an I/J arc's two radii, mm (default LinuxCNC's 0.0283 mm).
+
+    Raises
+    ------
+    GCodeError
+        A bad program, naming the line and the word.
+    """
+    text, name = load_text(program)
+    if tolerance is not None:
+        if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not tolerance > 0 \
+                or tolerance != tolerance or tolerance == float("inf"):
+            raise ValueError(f"tolerance must be a corner blending tolerance > 0 in mm, or None for sharp "
+                             f"corners, got {tolerance!r}")
+        tolerance = float(tolerance)
+    return build_toolpath(read_program_text(text, arc_tolerance=arc_tolerance, name=name), tolerance,
+                          float(acceleration), float(jerk))

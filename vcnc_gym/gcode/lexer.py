@@ -1,0 +1,174 @@
+"""Lexing G-code text into blocks of words, through pygcode.
+
+A part program is read line by line; each line is one block (RS-274/NGC,
+Kramer, Proctor and Messina 2000, NIST IR 6556, section 3.3: an optional
+block delete ``/``, an optional line number ``N``, words, comments).  The
+lexing itself is pygcode's (``pygcode.Line``): it splits a line into its
+block and comments (``( ... )`` and ``;`` to the end of the line, also in
+the middle of a block), turns every word into a letter and a number
+(``X10.``, ``X.5``, ``N0010``, ``G17.1`` all as written), and rejects what
+RS-274/NGC rejects at this stage: a letter without a number, a number
+without a letter, two numbers run together (``X1.2.3``), an unclosed
+comment, two codes of one modal group in one block (``G17 G18``,
+``G01 G02``) and a word given twice (``X1 X2``).
+
+Why pygcode
+-----------
+Candidates tried on the same lines (arcs with R and I/J, comments in the
+middle and at the end of a block, N numbers, Fanuc's trailing decimal point
+``X10.``, malformed numbers):
+
+- **gcodeparser** 0.3.0 (MIT, 2025): drops every word after a mid-block
+  comment without a word (``G1 X1 (c) Y2`` gives only X1), reads
+  ``G17.1`` as G17, gives ``True`` for a letter without a number and a
+  TypeError-like crash for ``X10.``.  A reader that must never skip anything
+  silently cannot sit on it.
+- **GcodeTools** 0.3.2 (MIT, 2026): 3D-printer oriented, refuses R arcs
+  outright (``NotImplementedError``).
+- **nc-gcode-interpreter** 0.1.9 (Sinumerik dialect, pulls polars):
+  comments only with ``;``, radius as ``CR=``; not RS-274's ``( )`` and R.
+- **pygcode** 0.2.1 (GPL-3.0, 2017): every case above lexed as written or
+  rejected with a message, modal groups known (LinuxCNC's table), two codes
+  of one group in a block rejected.  Its one gap for RS-274 is an explicit
+  plus sign (``Y+3``, legal in RS-274/NGC 3.3.2.1): we drop a ``+`` that
+  directly follows a word's letter before handing the line over.
+
+pygcode is the choice.  It is GPL-3.0 while vcnc-gym is MIT, so it is an
+optional extra (``pip install vcnc-gym[gcode]``) imported only when a
+program is read: the rest of the suite does not link it.  It has had no
+release since 2017; the lexing surface we use (``Line``, ``Word``) is small
+and covered by our tests, so a fork or a replacement is a one-module change.
+
+What this module does not do: it gives no meaning to the words (that is
+:mod:`vcnc_gym.gcode.interpreter`).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+__all__ = ["GCodeError", "Block", "Word", "lex"]
+
+
+class GCodeError(ValueError):
+    """A program that cannot be run, with the line (1-based, of the text) and the word at fault.
+
+    Attributes
+    ----------
+    line : int or None
+        Line of the program text, 1-based (None for the program as a whole).
+    word : str or None
+        The word or text at fault, as written.
+    """
+
+    def __init__(self, message: str, line: int | None = None, word: str | None = None, text: str | None = None):
+        where = "" if line is None else f"line {line}" + (f" ({text.strip()!r})" if text else "") + ": "
+        super().__init__(where + message)
+        self.line = line
+        self.word = word
+
+
+@dataclass(frozen=True)
+class Word:
+    """One word of a block: its letter (upper case) and number, and the text it was written as."""
+
+    letter: str
+    value: float
+    text: str
+
+
+@dataclass(frozen=True)
+class Block:
+    """One line of the program with words.
+
+    Attributes
+    ----------
+    line : int
+        Line of the program text, 1-based.
+    text : str
+        The line as written.
+    words : tuple of Word
+        In the order written (comments removed).
+    comment : str or None
+        The line's comments, as pygcode joins them.
+    """
+
+    line: int
+    text: str
+    words: tuple
+    comment: str | None
+
+    def get(self, letter: str) -> Word | None:
+        """The word with ``letter`` (upper case), or None (a block has each letter once but G and M)."""
+        for w in self.words:
+            if w.letter == letter:
+                return w
+        return None
+
+    def all(self, letter: str) -> list[Word]:
+        """Every word with ``letter`` (G and M may appear several times, from different modal groups)."""
+        return [w for w in self.words if w.letter == letter]
+
+
+# a "+" right after a word's letter (RS-274/NGC 3.3.2.1 allows it; pygcode's number pattern does not)
+_PLUS = re.compile(r"(?<=[A-Za-z])(\s*)\+")
+# the program start/end marker of a tape, "%" alone on a line (RS-274/NGC 3.3.1)
+_PERCENT = re.compile(r"^\s*%\s*$")
+
+
+def _pygcode():
+    try:
+        import pygcode
+    except ImportError:  # pragma: no cover - the extra is in dev
+        raise ImportError("reading G-code needs pygcode: pip install 'vcnc-gym[gcode]'") from None
+    return pygcode
+
+
+def lex(text: str) -> list[Block]:
+    """The blocks of a program text (lines with words; blank, comment-only and ``%`` lines are skipped).
+
+    Raises
+    ------
+    GCodeError
+        For a line pygcode cannot lex: the message names the line, its text
+        and pygcode's diagnosis (the word or the text left over).
+    """
+    if not isinstance(text, str):
+        raise TypeError(f"program text must be a str, got {type(text).__name__}")
+    pygcode = _pygcode()
+    blocks = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        if not raw.strip() or _PERCENT.match(raw):
+            continue
+        cleaned = _PLUS.sub(r"\1", raw)
+        depth = 0
+        for ch in cleaned.split(";", 1)[0]:
+            depth += (ch == "(") - (ch == ")")
+            if depth not in (0, 1):
+                break
+        if depth:
+            raise GCodeError("unbalanced comment parentheses", number, "(" if depth > 0 else ")", raw)
+        try:
+            parsed = pygcode.Line(cleaned)
+        except (pygcode.exceptions.GCodeWordStrError, pygcode.exceptions.GCodeParameterError,
+                pygcode.exceptions.GCodeBlockFormatError, AssertionError, ValueError) as e:
+            detail = str(e)
+            m = re.search(r"word '(\w)'|remaining '([^']*)'|-> (\w\S*)", detail)
+            codes = re.findall(r": (\w[\d.]*)>", detail)
+            word = (m.group(1) or m.group(2) or m.group(3)).strip() if m else (" ".join(codes) or None)
+            raise GCodeError(f"cannot be lexed: {detail} (pygcode)", number, word, raw) from None
+        if parsed.macro:
+            raise GCodeError(f"'%' inside a block is not RS-274 (got {parsed.macro!r})", number, parsed.macro, raw)
+        words = []
+        for w in parsed.block.words:
+            try:
+                value = float(w.value)
+            except ValueError:  # O and T keep pygcode's text
+                raise GCodeError(f"word {w.letter} needs a number, got {w.value!r}", number, str(w), raw) from None
+            words.append(Word(w.letter, value, str(w)))
+        words = tuple(words)
+        comment = None if parsed.comment is None else str(parsed.comment.text)
+        if words:
+            blocks.append(Block(number, raw, words, comment))
+    return blocks

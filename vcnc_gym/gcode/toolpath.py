@@ -1,0 +1,275 @@
+"""A part program as the suite's contour: one NURBS, corner blends, the feed plan.
+
+:func:`build_toolpath` turns the moves of :mod:`vcnc_gym.gcode.interpreter`
+into
+
+- one :class:`~vcnc_gym.geometry.NurbsCurve`: G01 moves as straight Bezier
+  segments, G02/G03 as exact rational quadratic arcs
+  (:mod:`vcnc_gym.gcode.arcs`); interior knots of full multiplicity (every
+  segment a Bezier piece), knot spans equal to the segments' arc lengths, so
+  u is close to the arc length in mm;
+- at every corner between two G01 moves, with a ``tolerance`` (mm), seed 002's
+  quintic Bezier blend (Simba et al., eqs. (12)-(23),
+  :func:`vcnc_gym.geometry.corners.smooth_polyline`): the path passes the
+  corner at ``tolerance`` from the programmed vertex, like a CNC's
+  path-blending tolerance (G64 P on LinuxCNC, "smoothing tolerance" on others).
+  The blend is designed for the look-ahead's acceleration and jerk.  With
+  blends the whole curve is raised to degree 5 (arcs elevated exactly);
+  without, it is of degree 2;
+- an exact stop (the feed down to zero, :mod:`vcnc_gym.gcode.feeds`) at every
+  other corner: all of them with ``tolerance=None`` (sharp), and, with a
+  tolerance, the corners where an arc meets a line or another arc (seed 002's
+  blend joins two straight legs), and U-turns;
+- the feed of every segment: its block's F; over a blend the lower F of its two blocks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.corners import smooth_polyline
+from ..geometry.nurbs import NurbsCurve
+from . import arcs
+from .feeds import TANGENT_ANGLE, ProgramFeedrate, ProgramProfile
+from .interpreter import Move, Program
+from .lexer import GCodeError
+
+__all__ = ["Joint", "Toolpath", "build_toolpath", "PROFILES"]
+
+#: Feed profiles a toolpath can be run with: the look-ahead with every block's feed and exact stops
+#: (default), or, for a program with one feed, seed 000's S-curve or a constant feed from t = 0 (no stops).
+PROFILES = ("lookahead", "scurve", "constant")
+
+
+@dataclass(frozen=True)
+class Joint:
+    """Where one move ends and the next begins.
+
+    Attributes
+    ----------
+    lines : (int, int)
+        Program lines of the two moves.
+    angle : float
+        How far the tangent turns there, rad (0: tangent, pi: a U-turn).
+    kind : str
+        ``"tangent"`` (<= TANGENT_ANGLE, run through), ``"blend"`` (seed 002's blend) or ``"stop"`` (exact stop).
+    """
+
+    lines: tuple
+    angle: float
+    kind: str
+
+
+@dataclass(frozen=True)
+class _Segment:
+    points: np.ndarray  # homogeneous (k + 1, 3)
+    length: float  # arc length, mm
+    feed: float  # mm/s
+    move: int  # index of the move (the first of the two for a blend)
+    blend: bool
+    radius: float = math.inf  # an arc's radius, mm
+
+
+@dataclass(frozen=True)
+class Toolpath:
+    """A program ready to run: its contour, corners and feeds.
+
+    Attributes
+    ----------
+    program : Program
+        The interpreted program.
+    curve : NurbsCurve
+        The whole contour, mm.
+    tolerance : float or None
+        The corner blending tolerance, mm (None: sharp, exact stops).
+    joints : tuple of Joint
+        One per pair of consecutive moves.
+    edges : (n + 1,) array
+        Arc lengths of the segment boundaries along the contour, mm (the curve's knots).
+    feeds : (n,) array
+        Programmed feed of each segment, mm/s.
+    stops : tuple of int
+        Indices into ``edges`` of the exact stops.
+    acceleration, jerk : float
+        Path acceleration (mm/s^2) and jerk (mm/s^3) limits of the blends and the look-ahead.
+    """
+
+    program: Program
+    curve: NurbsCurve
+    tolerance: float | None
+    joints: tuple
+    edges: np.ndarray
+    feeds: np.ndarray
+    stops: tuple
+    acceleration: float
+    jerk: float
+    _sections: tuple
+
+    @property
+    def name(self) -> str:
+        return self.program.name
+
+    @property
+    def length(self) -> float:
+        """Arc length of the contour, mm."""
+        return float(self.edges[-1])
+
+    @property
+    def feed(self) -> float | None:
+        """The program's one feed (mm/s), or None when it has several."""
+        values = np.unique(self.feeds)
+        return float(values[0]) if values.size == 1 else None
+
+    def feedrate_profile(self, profile: str = "lookahead", ramp_time: float | None = None):
+        """The feed profile of ``profile`` (:data:`PROFILES`) for this program."""
+        from ..motion import ConstantFeedrate, SCurveFeedrate
+
+        if profile not in PROFILES:
+            raise ValueError(f"profile must be one of {list(PROFILES)} for a G-code program, got {profile!r}")
+        if profile != "scurve" and ramp_time is not None:
+            raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
+        if profile == "lookahead":
+            return ProgramProfile([ProgramFeedrate(curve, edges, feeds, self.acceleration, self.jerk, cuts)
+                                   for curve, edges, feeds, cuts in self._sections])
+        if self.feed is None:
+            raise ValueError(f"profile={profile!r} runs one feed; this program has several "
+                             f"({sorted(set(self.feeds.tolist()))} mm/s): use profile='lookahead'")
+        if profile == "constant":
+            return ConstantFeedrate(self.feed)
+        return SCurveFeedrate(self.feed, 0.12 if ramp_time is None else ramp_time)
+
+
+def _turn(a: np.ndarray, b: np.ndarray) -> float:
+    return float(math.atan2(abs(a[0] * b[1] - a[1] * b[0]), float(np.dot(a, b))))
+
+
+def _arc_pieces(m: Move) -> list[tuple[np.ndarray, float]]:
+    a0 = math.atan2(m.start[1] - m.centre[1], m.start[0] - m.centre[0])
+    segs = arcs.arc_segments(m.centre, m.radius, a0, m.sweep)
+    each = m.radius * abs(m.sweep) / len(segs)
+    return [(s, each) for s in segs]
+
+
+def build_toolpath(program: Program, tolerance: float | None, acceleration: float, jerk: float) -> Toolpath:
+    """The contour and feeds of an interpreted program (module docstring).
+
+    Parameters
+    ----------
+    program : Program
+    tolerance : float or None
+        Corner blending tolerance, mm (> 0), or None for sharp corners with exact stops.
+    acceleration, jerk : float
+        Path acceleration (mm/s^2) and jerk (mm/s^3) limits: of the blends' design and of the look-ahead.
+
+    Raises
+    ------
+    GCodeError
+        If a blend does not fit (the tolerance is too large for a move), naming the move's line.
+    """
+    moves = program.moves
+    joints = []
+    for k in range(len(moves) - 1):
+        a, b = moves[k], moves[k + 1]
+        angle = _turn(a.tangent(True), b.tangent(False))
+        if angle <= TANGENT_ANGLE:
+            kind = "tangent"
+        elif tolerance is not None and a.kind == b.kind == "line" and angle < math.pi - 1e-6:
+            kind = "blend"
+        else:
+            kind = "stop"
+        joints.append(Joint((a.line, b.line), angle, kind))
+
+    segments: list[_Segment] = []
+    stop_after: list[int] = []  # segment counts at which an exact stop falls
+    k = 0
+    while k < len(moves):
+        m = moves[k]
+        if m.kind == "arc":
+            segments += [_Segment(p, length, m.feed, k, False, m.radius) for p, length in _arc_pieces(m)]
+            k += 1
+        else:
+            run = [k]  # lines joined by blends
+            while run[-1] < len(joints) and joints[run[-1]].kind == "blend":
+                run.append(run[-1] + 1)
+            segments += _lines(moves, run, tolerance, acceleration, jerk)
+            k = run[-1] + 1
+        if k - 1 < len(joints) and joints[k - 1].kind == "stop":
+            stop_after.append(len(segments))
+
+    degree = max(s.points.shape[0] - 1 for s in segments)
+    degree = 5 if degree > 2 else 2
+    lengths = np.array([s.length for s in segments])
+    edges = np.concatenate([[0.0], np.cumsum(lengths)])
+    curve = _curve([s.points for s in segments], edges, degree)
+    feeds = np.array([s.feed for s in segments])
+    cuts = [0] + stop_after + [len(segments)]
+    sections = []
+    for c0, c1 in zip(cuts[:-1], cuts[1:]):
+        local = edges[c0 : c1 + 1] - edges[c0]
+        sections.append((_curve([s.points for s in segments[c0:c1]], local, degree), local, feeds[c0:c1],
+                         _cuts(segments[c0:c1], acceleration, jerk)))
+    for a in (edges, feeds):
+        a.flags.writeable = False
+    return Toolpath(program=program, curve=curve, tolerance=tolerance, joints=tuple(joints), edges=edges,
+                    feeds=feeds, stops=tuple(stop_after), acceleration=acceleration, jerk=jerk,
+                    _sections=tuple(sections))
+
+
+def _cuts(segments: list, acceleration: float, jerk: float) -> np.ndarray:
+    """Edges where the look-ahead must cut (:class:`~vcnc_gym.gcode.feeds.ProgramFeedrate`): the feed changes,
+    or one side is an arc (not the same arc's next quarter) whose curvature holds the feed below its F."""
+    cuts = np.zeros(len(segments) + 1, dtype=bool)
+
+    def slow(s):
+        k = 1.0 / s.radius
+        return k > 0 and min(math.sqrt(acceleration / k), (jerk / k**2) ** (1.0 / 3.0)) < s.feed
+
+    for e in range(1, len(segments)):
+        a, b = segments[e - 1], segments[e]
+        same_arc = a.move == b.move and math.isfinite(a.radius)
+        cuts[e] = a.feed != b.feed or (not same_arc and (slow(a) or slow(b)))
+    return cuts
+
+
+def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> list[_Segment]:
+    """Segments of consecutive G01 moves ``run`` joined by blends (one move: a straight segment)."""
+    if len(run) == 1:
+        m = moves[run[0]]
+        return [_Segment(arcs.line_segment(m.start, m.end), m.length, m.feed, run[0], False)]
+    vertices = [moves[run[0]].start] + [moves[i].end for i in run]
+    try:
+        path = smooth_polyline(vertices, tolerance, acceleration, jerk)
+    except ValueError as e:
+        import re
+
+        match = re.search(r"segment (\d+)", str(e))
+        m = moves[run[int(match.group(1))]] if match else moves[run[0]]
+        raise GCodeError(f"the corner blends do not fit: {e}", m.line, f"tolerance={tolerance!r}") from None
+    ctrl, knots = path.curve.control_points, path.curve.knots
+    u_edges = np.unique(knots)
+    out = []
+    for piece in range(len(u_edges) - 1):
+        pts = ctrl[5 * piece : 5 * piece + 6]
+        if piece % 2 == 0:  # a line's part
+            move = run[piece // 2]
+            length = float(np.hypot(*(pts[-1] - pts[0])))
+            out.append(_Segment(arcs.homogeneous(pts, np.ones(6)), length, moves[move].feed, move, False))
+        else:
+            corner = path.corners[piece // 2]
+            move = run[piece // 2]
+            feed = min(moves[move].feed, moves[move + 1].feed)
+            out.append(_Segment(arcs.homogeneous(pts, np.ones(6)), corner.s_arc, feed, move, True))
+    return out
+
+
+def _curve(pieces: list[np.ndarray], edges: np.ndarray, degree: int) -> NurbsCurve:
+    """One NURBS of Bezier ``pieces`` (homogeneous), knot spans ``edges``' differences."""
+    hom = [arcs.elevate(p, degree) for p in pieces]
+    control = np.concatenate([hom[0]] + [h[1:] for h in hom[1:]])
+    knots = np.concatenate([np.full(degree + 1, edges[0])] + [np.full(degree, u) for u in edges[1:-1]]
+                           + [np.full(degree + 1, edges[-1])])
+    w = control[:, 2]
+    return NurbsCurve(control[:, :2] / w[:, None], w, knots, degree)
