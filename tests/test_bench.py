@@ -42,19 +42,6 @@ class PDPolicy:
         return np.clip(u / 5.0, -1.0, 1.0).astype(np.float32), self._last_state
 
 
-def pd_infos(env, kp=300.0, kd=1.0, seed=0):
-    """The same PD loop written out by hand (no run_episode): the list of infos."""
-    layout = env.unwrapped.layout
-    obs, _ = env.reset(seed=seed)
-    infos = []
-    while True:
-        u = kp * layout.tracking_error(obs) + kd * (layout.reference_velocity(obs) - layout.velocity(obs))
-        obs, _, term, trunc, info = env.step(np.clip(u / 5.0, -1.0, 1.0).astype(np.float32))
-        infos.append(info)
-        if term or trunc:
-            return infos
-
-
 @pytest.fixture(scope="module")
 def omega_pd():
     env = gym.make(OMEGA)
@@ -87,9 +74,9 @@ def test_run_episode_metrics_match_the_traces(omega_pd):
     assert res.wall_s > 0
 
 
-def test_run_episode_records_what_a_hand_written_loop_sees(omega_pd):
+def test_run_episode_records_what_a_hand_written_loop_sees(omega_pd, pd_episode):
     env, _, res = omega_pd
-    infos = pd_infos(env)
+    infos = pd_episode(env)[0]  # the same PD loop written out by hand (tests/conftest.py), no run_episode
     assert len(infos) == res.episode_steps
     np.testing.assert_array_equal(res.contour_error, [i["contour_error"] for i in infos])
     np.testing.assert_array_equal(res.position, [i["position"] for i in infos])

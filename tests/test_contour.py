@@ -453,7 +453,13 @@ def test_bad_projector_parameters_raise(kw):
 
 
 def test_zz_report_worst_deviations():
-    """Prints the largest |ours - oracle| per test group (run with -s to see it)."""
+    """Prints the largest |ours - oracle| per test group (run with -s to see it).
+
+    A report of what the tests above recorded (each asserts its own bound):
+    run alone or with those deselected, it has nothing to report and skips.
+    """
+    if not WORST:
+        pytest.skip("no deviation recorded: run it with the oracle tests of this module (it reports theirs)")
     for k, v in sorted(WORST.items()):
         print(f"{k:45s} {v:.3e} mm")
     assert all(v < TOL for v in WORST.values())

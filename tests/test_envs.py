@@ -17,19 +17,6 @@ from vcnc_gym.plants import vcnc_feed_drive as plant
 ENV_IDS = list(vcnc_gym.envs.CONTOURING_IDS)
 
 
-def pd_episode(env, kp=300.0, kd=1.0, seed=0):
-    """Run a PD tracking controller (V/mm, V s/mm) for one episode; return infos."""
-    layout = env.unwrapped.layout
-    obs, _ = env.reset(seed=seed)
-    infos = []
-    while True:
-        u = kp * layout.tracking_error(obs) + kd * (layout.reference_velocity(obs) - layout.velocity(obs))
-        obs, _, term, trunc, info = env.step(np.clip(u / 5.0, -1.0, 1.0))
-        infos.append(info)
-        if term or trunc:
-            return infos, term, trunc
-
-
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_gymnasium_check_env_without_warnings(env_id):
     from gymnasium.utils.env_checker import check_env
@@ -50,7 +37,7 @@ def test_sb3_check_env_without_warnings(env_id):
         check_env(env, warn=True)
 
 
-def test_pd_controller_keeps_heart_contour_error_in_tens_of_micrometres():
+def test_pd_controller_keeps_heart_contour_error_in_tens_of_micrometres(pd_episode):
     """A hand-written PD loop on the heart: a sanity check, not a tuned target."""
     env = gym.make("VCNC-Heart-v1")
     infos, term, trunc = pd_episode(env)
@@ -65,7 +52,7 @@ def test_pd_controller_keeps_heart_contour_error_in_tens_of_micrometres():
     assert len(infos) == env.unwrapped.episode_steps
 
 
-def test_pd_controller_completes_omega_without_divergence():
+def test_pd_controller_completes_omega_without_divergence(pd_episode):
     """The omega's corners exceed the drives' acceleration: mm errors, no divergence."""
     env = gym.make("VCNC-Omega-v1")
     infos, term, trunc = pd_episode(env)
@@ -86,7 +73,7 @@ def test_contour_error_is_distance_to_contour_not_to_reference():
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_standing_still_does_not_pay(env_id):
+def test_standing_still_does_not_pay(env_id, pd_episode):
     """A table that never moves stays on the contour, but falls behind the
     reference: the episode ends as diverged with the terminal penalty."""
     env = gym.make(env_id)
@@ -106,7 +93,7 @@ def test_standing_still_does_not_pay(env_id):
     assert total < pd_return
 
 
-def test_halving_the_substep_changes_the_contour_error_trace_by_under_one_percent():
+def test_halving_the_substep_changes_the_contour_error_trace_by_under_one_percent(pd_episode):
     traces = []
     for substep in (1e-5, 0.5e-5):
         env = gym.make("VCNC-Heart-v1", plant_options={"substep": substep})

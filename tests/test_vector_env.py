@@ -13,12 +13,6 @@ from vcnc_gym.envs import ContouringVectorEnv
 IDS = list(vcnc_gym.envs.VECTOR_IDS)
 
 
-def _pd(layout, obs):
-    """A PD tracking loop (300 V/mm, 1 V s/mm) as normalised actions, batched or not."""
-    u = 300.0 * layout.tracking_error(obs) + 1.0 * (layout.reference_velocity(obs) - layout.velocity(obs))
-    return np.clip(u / 5.0, -1.0, 1.0)
-
-
 def _make_vec(env_id, n, **kwargs):
     return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
 
@@ -60,7 +54,7 @@ def _rollout_single(env_id, seed, n_steps, actions_of, **kwargs):
 
 
 @pytest.mark.parametrize("parallel", [False, True])
-def test_env_i_is_bit_identical_to_a_single_env_with_randomization(parallel):
+def test_env_i_is_bit_identical_to_a_single_env_with_randomization(parallel, pd_action):
     """Same seeds: env i of the vector env gives the single env's observations, rewards, flags, plants.
 
     Randomized plants, a different seed per env, and episodes short enough
@@ -70,7 +64,7 @@ def test_env_i_is_bit_identical_to_a_single_env_with_randomization(parallel):
     layout = gym.make("VCNC-Omega-v1").unwrapped.layout
 
     def acts(obs, t):  # the same deterministic policy in both: PD plus a time-dependent dither
-        return _pd(layout, obs) + 0.1 * np.sin(0.3 * t)
+        return pd_action(layout, obs) + 0.1 * np.sin(0.3 * t)
 
     envs = ContouringVectorEnv(n, contour="omega", parallel=parallel, **kwargs)
     obs, _ = envs.reset(seed=seed)
