@@ -143,7 +143,9 @@ def lex(text: str) -> list[Block]:
             continue
         cleaned = _PLUS.sub(r"\1", raw)
         depth = 0
-        for ch in cleaned.split(";", 1)[0]:
+        for ch in cleaned:
+            if ch == ";" and depth == 0:
+                break  # the rest of the line is a comment
             depth += (ch == "(") - (ch == ")")
             if depth not in (0, 1):
                 break
