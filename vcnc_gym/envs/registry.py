@@ -17,6 +17,8 @@ __all__ = ["SuiteEnv", "SUITE", "LEGACY", "env_name", "ENV_IDS", "CONTOURING_IDS
 
 _CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
 _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
+_GCODE = "vcnc_gym.envs.gcode_env:GCodeEnv"
+_GCODE_VECTOR = "vcnc_gym.envs.gcode_env:GCodeVectorEnv"
 
 
 @dataclass(frozen=True)
@@ -32,7 +34,7 @@ class SuiteEnv:
     @property
     def contouring(self) -> bool:
         """True for a contour-following env (ContouringEnv): reward = -contour error along a contour."""
-        return self.entry_point == _CONTOURING
+        return self.entry_point in (_CONTOURING, _GCODE)
 
 
 #: The circle of seed 003 is 1 mm across and driven at 1 mm/s: its contour is
@@ -61,6 +63,19 @@ SUITE: tuple[SuiteEnv, ...] = (
              "seed 002 test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s"),
     SuiteEnv("VCNC-Circle-v1", {**_CIRCLE, **_CIRCLE_V1},
              "seed 003 circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on seed 003's NCT-identified X-Y table"),
+    SuiteEnv("VCNC-GCode-v1", {"program": "iso230-4-ccw"},
+             "a G-code part program (program=, text or path; default the ISO 230-4 circle, 50 mm at 3000 mm/min) "
+             "on seed 000's feed drives: G01/G02/G03, seed 002 corner blends at tolerance= mm, look-ahead feeds",
+             entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+    SuiteEnv("VCNC-ISO230Circle-v1", {"program": "iso230-4-ccw"},
+             "ISO 230-4 circular test, 50 mm diameter at 3000 mm/min counter-clockwise (the CW run: program="
+             "'iso230-4-cw'), on seed 000's feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+    SuiteEnv("VCNC-CircleDiamondSquare-v1", {"program": "circle-diamond-square"},
+             "NAS 979 / ISO 10791-7 circle-diamond-square (60 mm square, 6000 mm/min, 10 um blends) on seed 000's "
+             "feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+    SuiteEnv("VCNC-Butterfly-v1", {"program": "butterfly"},
+             "butterfly free-form as G-code biarcs (78 mm, 3000 mm/min) on seed 000's feed drives",
+             entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
     SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
              "seed 001 step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
              entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
@@ -76,7 +91,7 @@ LEGACY: tuple[SuiteEnv, ...] = tuple(
     SuiteEnv(e.id.replace("-v1", "-v0"),
              {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
              e.summary + " (v0: ends with the reference, no contour preview)")
-    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead"
+    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead" and e.entry_point != _GCODE
 )
 
 #: The current ids, in the order of :data:`SUITE`.

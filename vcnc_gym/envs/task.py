@@ -19,6 +19,7 @@ from ..contour import ContourProjector
 from ..geometry import SHAPES, NurbsCurve
 from ..geometry.corners import SmoothedPolyline
 from ..geometry.nurbs import workspace_size
+from ..gcode.toolpath import Toolpath
 from ..motion import ConstantFeedrate, JlapPathFeedrate, LookaheadFeedrate, SCurveFeedrate, interpolate
 from ..plants import PlantModel, contract, get_plant
 from . import step_kernel as sk
@@ -83,10 +84,12 @@ _POSITION_MARGIN = 100.0
 
 
 def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | None]:
-    """The contour given by name (``geometry.SHAPES``), as a NurbsCurve or as a SmoothedPolyline:
-    (the curve, the smoothed path or None)."""
+    """The contour given by name (``geometry.SHAPES``), as a NurbsCurve, as a SmoothedPolyline or as a
+    G-code program's :class:`~vcnc_gym.gcode.Toolpath`: (the curve, the smoothed path or toolpath, or None)."""
     if isinstance(contour, str) and contour in SHAPES:
         contour = SHAPES[contour]()
+    if isinstance(contour, Toolpath):
+        return contour.curve, contour
     if isinstance(contour, SmoothedPolyline):
         return contour.curve, contour
     if isinstance(contour, NurbsCurve):
@@ -100,6 +103,8 @@ def make_profile(profile: str, feedrate, ramp_time, curve: NurbsCurve, path: Smo
         raise ValueError(f"profile must be one of {list(PROFILES)}, got {profile!r}")
     if profile != "scurve" and ramp_time is not None:
         raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
+    if isinstance(path, Toolpath):  # a G-code program: its blocks' feeds
+        return path.feedrate_profile(profile, ramp_time)
     if profile == "scurve":
         return SCurveFeedrate(feedrate=feedrate, ramp_time=DEFAULT_RAMP_TIME if ramp_time is None else ramp_time)
     if profile == "constant":
@@ -145,7 +150,7 @@ class ContouringTask:
     ):
         self.curve, self.path = make_contour(contour)
         self.curve.check_regular()  # no cusp, no turn back (NurbsCurve.check_regular), before the feed is planned
-        self.contour_name = contour if isinstance(contour, str) else "custom"
+        self.contour_name = contour if isinstance(contour, str) else getattr(self.path, "name", "custom")
         self.plant: PlantModel = get_plant(plant)
         if plant_options is not None and not isinstance(plant_options, dict):
             raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
