@@ -181,7 +181,7 @@ class ServoPolicy(BaselinePolicy):
         self.inverse = self.plant.inverse(self.nominal_parameters)
         self.table = None
         self.gains = None
-        self._record = np.zeros((0, 0, 4))
+        self._record = np.zeros((0, 0, 2))
 
     @classmethod
     def from_env(cls, env, **params):
@@ -218,10 +218,10 @@ class ServoPolicy(BaselinePolicy):
         self._compiled = None
 
     def record(self, n_envs: int, steps: int) -> np.ndarray:
-        """Record the next episodes' calls: returns the (n_envs, steps, 4) array the law writes into, row k:
-        the measured tracking error (2, mm) and the command it returned (2, input unit, clipped to the
-        limit) at control period k (the trials of the oracle's learning read it)."""
-        self._record = np.zeros((n_envs, steps, 4))
+        """Record the next episodes' commands: returns the (n_envs, steps, 2) array the law writes into, row k
+        the command of control period k in the input unit, clipped to the limit (what the plant received: the
+        oracle's learning reads it)."""
+        self._record = np.zeros((n_envs, steps, 2))
         self._compiled = None
         return self._record
 
@@ -249,8 +249,7 @@ class ServoPolicy(BaselinePolicy):
         mem[:, _M_J] = mem[:, _M_J] + eps * self.decision_period
         if self._record.shape[0]:
             rows = np.flatnonzero((k < self._record.shape[1]) & (np.arange(n) < self._record.shape[0]))
-            self._record[rows, k[rows], :2] = E[rows]
-            self._record[rows, k[rows], 2:] = np.clip(u[rows] / self.u_max, -1.0, 1.0).astype(np.float32) * self.u_max
+            self._record[rows, k[rows]] = np.clip(u[rows] / self.u_max, -1.0, 1.0).astype(np.float32) * self.u_max
         mem[:, _M_K] = mem[:, _M_K] + self.stride
         return u
 
@@ -261,7 +260,7 @@ class ServoPolicy(BaselinePolicy):
 
 
 #: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((2,) or
-#: float), the call period (s), control periods per call, u_max (2,), the record (N_r, K_r, 4) (ServoPolicy.record).
+#: float), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2) (ServoPolicy.record).
 ServoArrays = namedtuple("ServoArrays", ["memory", "table", "kp", "kd", "ki", "integral_limit", "kc", "kci",
                                          "variable", "period", "stride", "u_max", "record"])
 
@@ -278,9 +277,6 @@ def _servo_command(s, i, obs, o, out):
     Edx = np.float64(obs[o.reference_velocity]) - np.float64(obs[o.velocity])
     Edy = np.float64(obs[o.reference_velocity + 1]) - np.float64(obs[o.velocity + 1])
     recording = i < s.record.shape[0] and k < s.record.shape[1]
-    if recording:
-        s.record[i, k, 0] = Ex
-        s.record[i, k, 1] = Ey
     half = s.variable * t[CURVATURE] * 0.5
     cx = t[TANGENT + 1] - half * Ex
     cy = t[TANGENT] + half * Ey
@@ -297,7 +293,7 @@ def _servo_command(s, i, obs, o, out):
         mem[_M_I + j] = min(max(integral + e * s.period, -s.integral_limit[j]), s.integral_limit[j])
         out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
         if recording:
-            s.record[i, k, 2 + j] = out[j] * s.u_max[j]
+            s.record[i, k, j] = out[j] * s.u_max[j]
     mem[_M_J] = mem[_M_J] + eps * s.period
     mem[_M_K] = mem[_M_K] + s.stride
 
