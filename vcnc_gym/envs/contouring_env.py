@@ -242,7 +242,7 @@ class ContouringEnv(gym.Env):
         """Start a pass along the contour; ``options={"parameters": array}`` sets the plant for this episode."""
         super().reset(seed=seed)
         self.parameters = self.task.parameters_for_reset(self.np_random, options)
-        self._batch.reset_env(0, self.parameters)
+        self._batch.reset_env(0, self.parameters, self.np_random)
         self._done = False
         self._check_time_limit()
         self._batch.run()

@@ -208,7 +208,7 @@ class ContouringVectorEnv(VectorEnv):
             opts = dict(options)
             if parameters is not None:
                 opts["parameters"] = per_env[i]
-            self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None))
+            self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None), self._rngs[i])
         self._batch.run(self._observe_parallel())
         self._autoreset[mask] = False
         self._started = True
@@ -223,7 +223,7 @@ class ContouringVectorEnv(VectorEnv):
         b.mode[:] = sk.MODE_STEP
         if resetting is not None and resetting.any():
             for i in np.flatnonzero(resetting):
-                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
+                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None), self._rngs[i])
         elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
             b.mode[self._autoreset] = sk.MODE_IDLE
         self._run(1)
@@ -252,7 +252,7 @@ class ContouringVectorEnv(VectorEnv):
                 info["final_obs"][i] = obs[i].copy()
             b.mode[:] = sk.MODE_IDLE
             for i in np.flatnonzero(done):
-                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
+                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None), self._rngs[i])
             self._batch.run(self._observe_parallel())
             obs[done] = b.obs[done]
             self._autoreset[:] = False

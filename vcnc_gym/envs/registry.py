@@ -44,6 +44,12 @@ _CIRCLE = {"contour": "circle", "plant": "nct_xy_table", "profile": "constant", 
            "reward_scale": 1e-3, "tracking_bound": 0.5, "divergence_bound": 0.5}
 _CIRCLE_V1 = {"contour_ahead": (0.05, 0.1, 0.2, 0.4), "completion_tolerance": 0.002, "completion_timeout": 1.0}
 
+#: Seed 003's table on the shop floor (vcnc_gym.plants.shop_floor): its own 1 um sensor with 0.2 um of noise; no
+#: cutting force (1 N is 1.3 u_r on its 10 kg carriage, beyond the motor's rating: a plotting or engraving table);
+#: Stribeck friction of 0.05 N (7 % of the rated input), fading over 0.5 mm/s.
+_CIRCLE_SHOP = {"encoder_resolution": 1e-3, "noise_std": 2e-4, "cutting_force": 0.0, "cutting_ripple": 0.0,
+                "stribeck_force": 0.05, "stribeck_velocity": 0.5}
+
 #: Every current env id of the suite (the contouring ids at v1: see ContouringEnv's Version History).
 SUITE: tuple[SuiteEnv, ...] = (
     SuiteEnv("VCNC-Heart-v1", {"contour": "heart", "plant": "vcnc_feed_drive"},
@@ -63,6 +69,19 @@ SUITE: tuple[SuiteEnv, ...] = (
              "seed 002 test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s"),
     SuiteEnv("VCNC-Circle-v1", {**_CIRCLE, **_CIRCLE_V1},
              "seed 003 circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on seed 003's NCT-identified X-Y table"),
+    SuiteEnv("VCNC-HeartShop-v1", {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True},
+             "the heart on seed 000's drives on the shop floor: 0.1 um encoder with noise, a period of delay, a "
+             "150 Hz mode, a milling force and Stribeck friction (vcnc_gym.plants.shop_floor's defaults)"),
+    SuiteEnv("VCNC-OmegaLookaheadShop-v1",
+             {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead", "shop_floor": True},
+             "the look-ahead omega on seed 000's drives on the shop floor (the defaults)"),
+    SuiteEnv("VCNC-CornersSmoothShop-v1",
+             {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0,
+              "shop_floor": True},
+             "seed 002's smoothed corners on its drives on the shop floor (the defaults)"),
+    SuiteEnv("VCNC-CircleShop-v1", {**_CIRCLE, **_CIRCLE_V1, "shop_floor": _CIRCLE_SHOP},
+             "seed 003's circle on its X-Y table with a noisy 1 um sensor, a period of delay, a 150 Hz mode and "
+             "Stribeck friction, no cutting force (a light table: see _CIRCLE_SHOP)"),
     SuiteEnv("VCNC-GCode-v1", {"program": "iso230-4-ccw"},
              "a G-code part program (program=, text or path; default the ISO 230-4 circle, 50 mm at 3000 mm/min) "
              "on seed 000's feed drives: G01/G02/G03, seed 002 corner blends at tolerance= mm, look-ahead feeds",
@@ -91,7 +110,7 @@ LEGACY: tuple[SuiteEnv, ...] = tuple(
     SuiteEnv(e.id.replace("-v1", "-v0"),
              {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
              e.summary + " (v0: ends with the reference, no contour preview)")
-    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead" and e.entry_point != _GCODE
+    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead" and e.entry_point != _GCODE and "shop_floor" not in e.kwargs
 )
 
 #: The current ids, in the order of :data:`SUITE`.

@@ -147,11 +147,16 @@ class ContouringTask:
         completion_timeout: float = DEFAULT_COMPLETION_TIMEOUT,
         max_episode_steps: int | None = None,
         plant_options: dict | None = None,
+        shop_floor: dict | bool | None = None,
     ):
         self.curve, self.path = make_contour(contour)
         self.curve.check_regular()  # no cusp, no turn back (NurbsCurve.check_regular), before the feed is planned
         self.contour_name = contour if isinstance(contour, str) else getattr(self.path, "name", "custom")
         self.plant: PlantModel = get_plant(plant)
+        if shop_floor is not None and shop_floor is not False:  # the machine with its sensor, delays, mode, forces
+            from ..plants.shop_floor import shop_floor as on_the_shop_floor
+
+            self.plant = on_the_shop_floor(self.plant, shop_floor)
         if plant_options is not None and not isinstance(plant_options, dict):
             raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
         self.plant_options = dict(plant_options or {})
@@ -345,12 +350,15 @@ class ContouringBatch:
         rows += workspace_size(task.curve.degree, 2) * 8
         return 2 * rows + ENV_OVERHEAD_BYTES
 
-    def reset_env(self, i: int, parameters: np.ndarray) -> None:
-        """Env ``i`` at the start of the contour, at rest, with plant ``parameters`` (2, P); marks it to observe."""
+    def reset_env(self, i: int, parameters: np.ndarray, rng: np.random.Generator | None = None) -> None:
+        """Env ``i`` at the start of the contour, at rest, with plant ``parameters`` (2, P); marks it to observe.
+        ``rng``, the env's generator, seeds the plant's random state (``PlantModel.seed_machine``), if it has one."""
         b = self.buffers
         self.parameters[i] = parameters
         self.plant_arrays.params[i] = parameters
         self.task.plant.reset_machine(self.plant_arrays, i, self.task.reference_arrays.samples[0, :2])
+        if rng is not None and self.task.plant.seed_machine is not None:
+            self.task.plant.seed_machine(self.plant_arrays, i, rng)
         b.input_limit[i] = self.task.plant.input_limits(parameters)
         b.k[i] = 0
         b.steps[i] = 0

@@ -15,7 +15,7 @@ from .contract import Parameter, PlantModel
 
 __all__ = ["Parameter", "PlantModel", "get_plant", "plant_names"]
 
-_NOT_PLANTS = {"contract"}
+_NOT_PLANTS = {"contract", "shop_floor"}  # shop_floor wraps a plant: shop_floor.shop_floor(name)
 
 
 def plant_names() -> list[str]:

@@ -205,6 +205,13 @@ class PlantModel:
         that makes the model with these parameters follow a given motion,
         friction and backlash included; what model-based feedforward
         controllers read (with the nominal parameters, never the true ones).
+    force_gain : callable (params (2, P)) -> ndarray (2,), optional
+        The input, per axis, equivalent to a force of 1 N on the table (input
+        unit per N): how a process force enters as an input disturbance
+        (:mod:`vcnc_gym.plants.shop_floor`).
+    seed_machine : callable (arrays, k, rng) -> None, optional
+        Draw machine ``k``'s random state (sensor noise) from the env's
+        ``numpy.random.Generator``; the envs call it after ``reset_machine``.
     """
 
     name: str
@@ -220,6 +227,8 @@ class PlantModel:
     linear_coefficients: Callable | None = None
     delay: Callable | None = None
     inverse_dynamics: Callable | None = None
+    force_gain: Callable | None = None
+    seed_machine: Callable | None = None
     _index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):

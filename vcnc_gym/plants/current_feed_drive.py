@@ -318,6 +318,13 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     level = params[:, IDX_F_C] / params[:, IDX_K_F]
     return contract.InverseDynamics.from_linear(MODEL, params, np.column_stack([level, -level]))
 
+
+def _force_gain(params: np.ndarray) -> np.ndarray:
+    """Amperes per newton of force on the table, per axis: ``1 / k_f`` (seed 002, eq. (1): the force is
+    ``k_f i_a``)."""
+    return 1.0 / params[:, MODEL.index("k_f")]
+
+
 MODEL = PlantModel(
     name="current_feed_drive",
     source="seed 002, eq. (1) and Table I",
@@ -330,4 +337,5 @@ MODEL = PlantModel(
     reset_machine=_reset_machine,
     linear_coefficients=linear_transfer_function_coefficients,
     inverse_dynamics=_inverse_dynamics,
+    force_gain=_force_gain,
 )

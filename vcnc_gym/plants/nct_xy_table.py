@@ -160,6 +160,19 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     """Eq. (3) of Purtojo et al. inverted: ``u = (a / alpha + v) / K`` in units of u_r (no friction term)."""
     return contract.InverseDynamics.from_linear(MODEL, params)
 
+#: Moving mass of one axis of the X-Y table, kg: seed 003 identifies no mass (its model is velocity over
+#: motor input), so this is ours, a small laboratory X-Y table's carriage; used only to convert a force on the
+#: table into the motor input that produces it (:func:`_force_gain`).
+MOVING_MASS = 10.0
+
+
+def _force_gain(params: np.ndarray) -> np.ndarray:
+    """Rated inputs per newton on the table, per axis: a force F [N] accelerates the carriage by 1000 F / M
+    mm/s^2 (``MOVING_MASS``), which eq. (3)'s ``dv/dt = alpha (K u - v)`` produces from ``1000 / (M alpha K)``
+    u_r per N."""
+    return 1e3 / (MOVING_MASS * params[:, MODEL.index("alpha")] * params[:, MODEL.index("K")])
+
+
 MODEL = PlantModel(
     name="nct_xy_table",
     source="seed 003, eqs. (3)-(4) and section III",
@@ -172,6 +185,7 @@ MODEL = PlantModel(
     reset_machine=_reset_machine,
     linear_coefficients=_linear_coefficients,
     inverse_dynamics=_inverse_dynamics,
+    force_gain=_force_gain,
 )
 
 

@@ -276,7 +276,9 @@ def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
     Parameters
     ----------
     params : array_like
-        Shape ``(2, N_PARAMETERS)`` (one machine).
+        Shape ``(2, N_PARAMETERS)`` (one machine); columns beyond those (a
+        shop-floor plant's effects, :mod:`vcnc_gym.plants.shop_floor`) are
+        not part of the linear model and are ignored.
     axis : int
         0 for x, 1 for y.
 
@@ -288,7 +290,7 @@ def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
         ``control.tf(num, den)``.
     """
     p = np.asarray(params, dtype=np.float64)
-    if p.shape != (2, N_PARAMETERS):
+    if p.ndim != 2 or p.shape[0] != 2 or p.shape[1] < N_PARAMETERS:
         raise ValueError(f"params must have shape (2, {N_PARAMETERS}), got {p.shape}")
     if axis not in (0, 1):
         raise ValueError(f"axis must be 0 (x) or 1 (y), got {axis!r}")
@@ -329,6 +331,13 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     coulomb = np.column_stack([params[:, IDX_T_COUL_POS], params[:, IDX_T_COUL_NEG]]) / volts_to_torque[:, None]
     return contract.InverseDynamics.from_linear(MODEL, params, coulomb, params[:, IDX_BACKLASH])
 
+def _force_gain(params: np.ndarray) -> np.ndarray:
+    """Volts per newton of force on the table, per axis: a force F [N] on the table is a torque F r_g / 1000
+    [N m] on the motor (r_g in mm/rad), which the amplifier produces from ``r_g / (1000 K_t K_a)`` V per N
+    (seed 000, eq. (1): the cutting torque T_c enters beside K_t K_a U_a)."""
+    return 1e-3 * params[:, IDX_R_G] / (params[:, IDX_K_T] * params[:, IDX_K_A])
+
+
 MODEL = PlantModel(
     name="vcnc_feed_drive",
     source="seed 000, eq. (1), section 2c and Table 3",
@@ -342,6 +351,7 @@ MODEL = PlantModel(
     check=_check_friction,
     linear_coefficients=linear_transfer_function_coefficients,
     inverse_dynamics=_inverse_dynamics,
+    force_gain=_force_gain,
 )
 
 
