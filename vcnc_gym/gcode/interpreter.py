@@ -224,14 +224,6 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
         ended = False
         motion_word = None
         used = {"G", "N"}
-        for w in block.words:
-            if w.letter in _LISTED_LETTERS:
-                ignored.append((block.line, w.text, _LISTED_LETTERS[w.letter]))
-                if w.letter == "M" and w.value in (2.0, 30.0):
-                    ended = True
-            elif w.letter not in _USED_LETTERS:
-                raise err(f"word {w.text}: the letter {w.letter} is not supported (read: G, N, F, X, Y, I, J, R, "
-                          f"and M, T, S, O, Z listed as ignored)", w)
         # 1. feed, 2. units (table 8 puts feed mode and feed before units; F is converted with the block's units)
         for g in block.all("G"):
             if g.value in (20.0, 21.0):
@@ -252,6 +244,14 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
             else:
                 raise err(f"{g.text} is not supported (read: G00-G03, G17, G20, G21, G90, G91, G94; "
                           f"G40, G49, G54, G80 listed as ignored)", g)
+        for w in block.words:
+            if w.letter in _LISTED_LETTERS:
+                ignored.append((block.line, w.text, _LISTED_LETTERS[w.letter]))
+                if w.letter == "M" and w.value in (2.0, 30.0):
+                    ended = True
+            elif w.letter not in _USED_LETTERS:
+                raise err(f"word {w.text}: the letter {w.letter} is not supported (read: G, N, F, X, Y, I, J, R, "
+                          f"and M, T, S, O, Z listed as ignored)", w)
         f = block.get("F")
         if f is not None:
             if not f.value > 0:

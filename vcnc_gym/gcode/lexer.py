@@ -31,7 +31,10 @@ middle and at the end of a block, N numbers, Fanuc's trailing decimal point
   rejected with a message, modal groups known (LinuxCNC's table), two codes
   of one group in a block rejected.  Its one gap for RS-274 is an explicit
   plus sign (``Y+3``, legal in RS-274/NGC 3.3.2.1): we drop a ``+`` that
-  directly follows a word's letter before handing the line over.
+  directly follows a word's letter before handing the line over.  And it
+  skips text it cannot read when another word follows (``X1.2.3 F10`` gives
+  X1.2 F10), so every block is checked to be words and nothing else after
+  pygcode has read it (``_check_covered``).
 
 pygcode is the choice.  It is GPL-3.0 while vcnc-gym is MIT, so it is an
 optional extra (``pip install vcnc-gym[gcode]``) imported only when a
@@ -117,6 +120,31 @@ _PLUS = re.compile(r"(?<=[A-Za-z])(\s*)\+")
 _PERCENT = re.compile(r"^\s*%\s*$")
 
 
+# one word as RS-274/NGC writes it (after the "+" is dropped): a letter, a number
+_WORD = re.compile(r"\s*([A-Za-z])\s*(-?(?:\d+\.?\d*|\.\d+))")
+
+
+def _check_covered(block, number: int, raw: str) -> None:
+    """GCodeError unless the block's text (comments removed) is words and nothing else: pygcode reads
+    ``X1.2.3 F10`` as X1.2 F10, skipping text between two words that it would reject at the end."""
+    text = (block._raw_text or "").strip()
+    if text.startswith("/"):  # block delete: run (the switch is off)
+        text = text[1:]
+    pos, count = 0, 0
+    while pos < len(text):
+        m = _WORD.match(text, pos)
+        if m is None:
+            rest = text[pos:].strip()
+            if not rest:
+                break
+            raise GCodeError(f"cannot be lexed: {rest!r} is not a word (a letter and a number)", number,
+                             rest.split()[0], raw)
+        pos = m.end()
+        count += 1
+    if count != len(block.words):
+        raise GCodeError(f"cannot be lexed: {count} words written, pygcode read {len(block.words)}", number, None, raw)
+
+
 def _pygcode():
     try:
         import pygcode
@@ -157,9 +185,10 @@ def lex(text: str) -> list[Block]:
                 pygcode.exceptions.GCodeBlockFormatError, AssertionError, ValueError) as e:
             detail = str(e)
             m = re.search(r"word '(\w)'|remaining '([^']*)'|-> (\w\S*)", detail)
-            codes = re.findall(r": (\w[\d.]*)>", detail)
+            codes = re.findall(r": (\w[\d.]*)[{>]", detail)
             word = (m.group(1) or m.group(2) or m.group(3)).strip() if m else (" ".join(codes) or None)
             raise GCodeError(f"cannot be lexed: {detail} (pygcode)", number, word, raw) from None
+        _check_covered(parsed.block, number, raw)
         if parsed.macro:
             raise GCodeError(f"'%' inside a block is not RS-274 (got {parsed.macro!r})", number, parsed.macro, raw)
         words = []

@@ -19,7 +19,8 @@ into
 - an exact stop (the feed down to zero, :mod:`vcnc_gym.gcode.feeds`) at every
   other corner: all of them with ``tolerance=None`` (sharp), and, with a
   tolerance, the corners where an arc meets a line or another arc (seed 002's
-  blend joins two straight legs), and U-turns;
+  blend joins two straight legs); a path that turns back on itself (a
+  180-degree corner) is an error naming the line;
 - the feed of every segment: its block's F; over a blend the lower F of its two blocks.
 """
 
@@ -42,6 +43,10 @@ __all__ = ["Joint", "Toolpath", "build_toolpath", "PROFILES"]
 #: Feed profiles a toolpath can be run with: the look-ahead with every block's feed and exact stops
 #: (default), or, for a program with one feed, seed 000's S-curve or a constant feed from t = 0 (no stops).
 PROFILES = ("lookahead", "scurve", "constant")
+
+
+#: A joint whose tangent turns by more than pi minus this (rad) turns back on itself: an error.
+U_TURN_ANGLE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,10 @@ class Toolpath:
         Programmed feed of each segment, mm/s.
     stops : tuple of int
         Indices into ``edges`` of the exact stops.
+    segment_moves : (n,) int array
+        The move (index into ``program.moves``) of each segment; for a blend, the first of its two moves.
+    segment_blends : (n,) bool array
+        True for the corner blends.
     acceleration, jerk : float
         Path acceleration (mm/s^2) and jerk (mm/s^3) limits of the blends and the look-ahead.
     """
@@ -104,6 +113,8 @@ class Toolpath:
     edges: np.ndarray
     feeds: np.ndarray
     stops: tuple
+    segment_moves: np.ndarray
+    segment_blends: np.ndarray
     acceleration: float
     jerk: float
     _sections: tuple
@@ -122,6 +133,11 @@ class Toolpath:
         """The program's one feed (mm/s), or None when it has several."""
         values = np.unique(self.feeds)
         return float(values[0]) if values.size == 1 else None
+
+    def move_range(self, k: int) -> tuple[float, float]:
+        """The parameter (u) range of move ``k``'s own segments on ``curve`` (blends excluded)."""
+        mine = np.flatnonzero((self.segment_moves == k) & ~self.segment_blends)
+        return float(self.edges[mine[0]]), float(self.edges[mine[-1] + 1])
 
     def feedrate_profile(self, profile: str = "lookahead", ramp_time: float | None = None):
         """The feed profile of ``profile`` (:data:`PROFILES`) for this program."""
@@ -174,9 +190,12 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
     for k in range(len(moves) - 1):
         a, b = moves[k], moves[k + 1]
         angle = _turn(a.tangent(True), b.tangent(False))
+        if angle >= math.pi - U_TURN_ANGLE:
+            raise GCodeError(f"the path turns back on itself where the move of line {a.line} ends (a "
+                             f"180-degree corner: no contour to follow through it)", b.line, b.code, None)
         if angle <= TANGENT_ANGLE:
             kind = "tangent"
-        elif tolerance is not None and a.kind == b.kind == "line" and angle < math.pi - 1e-6:
+        elif tolerance is not None and a.kind == b.kind == "line":
             kind = "blend"
         else:
             kind = "stop"
@@ -211,10 +230,13 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
         local = edges[c0 : c1 + 1] - edges[c0]
         sections.append((_curve([s.points for s in segments[c0:c1]], local, degree), local, feeds[c0:c1],
                          _cuts(segments[c0:c1], acceleration, jerk)))
-    for a in (edges, feeds):
+    segment_moves = np.array([s.move for s in segments])
+    segment_blends = np.array([s.blend for s in segments])
+    for a in (edges, feeds, segment_moves, segment_blends):
         a.flags.writeable = False
     return Toolpath(program=program, curve=curve, tolerance=tolerance, joints=tuple(joints), edges=edges,
-                    feeds=feeds, stops=tuple(stop_after), acceleration=acceleration, jerk=jerk,
+                    feeds=feeds, stops=tuple(stop_after), segment_moves=segment_moves,
+                    segment_blends=segment_blends, acceleration=acceleration, jerk=jerk,
                     _sections=tuple(sections))
 
 
