@@ -20,6 +20,12 @@ def _check_fields(env, n_steps=400):
     obs, _ = env.reset(seed=3)
     rng = np.random.default_rng(0)
     prev_pos = None
+    prev_measured = None
+    shop = getattr(u.plant, "inner", None) is not None  # on the shop floor (vcnc_gym.plants.shop_floor)
+    sensor_error = 0.5e-3  # seed 003's 1 um encoder; a shop-floor sensor's half count plus 6 sigma of noise
+    if shop:
+        p = u.plant.nominal()[0]
+        sensor_error = 0.5 * p[u.plant.index("encoder_resolution")] + 6.0 * p[u.plant.index("noise_std")]
     for t in range(n_steps):
         e = lay.tracking_error(obs)
         a = np.clip((300 * e + (lay.reference_velocity(obs) - lay.velocity(obs))) / 5.0, -1, 1)
@@ -34,7 +40,7 @@ def _check_fields(env, n_steps=400):
         # the observation sees the sensor (quantised on seed 003's table); info's tracking error is the truth
         measured_error = info["reference_position"] - info["measured_position"]
         np.testing.assert_array_equal(lay.tracking_error(obs), f32(measured_error))
-        assert np.all(np.abs(info["measured_position"] - info["position"]) <= 0.5e-3 + 1e-12)
+        assert np.all(np.abs(info["measured_position"] - info["position"]) <= sensor_error + 1e-12)
         np.testing.assert_array_equal(lay.contour_error(obs)[0], np.float32(info["contour_error"]))
         tangent = ref[k, 6:8]
         ex, ey = measured_error
@@ -44,8 +50,12 @@ def _check_fields(env, n_steps=400):
         for j, s in enumerate(lay.preview_steps):
             kp = min(k + s, ref.shape[0] - 1)
             np.testing.assert_allclose(lay.preview(obs)[j], ref[kp, 0:2] - info["measured_position"], atol=1e-5)
+        if shop and prev_measured is not None:  # a shop-floor sensor: the readings' difference (no sensor delay)
+            np.testing.assert_allclose(lay.velocity(obs), (info["measured_position"] - prev_measured) / u.dt,
+                                       rtol=1e-6, atol=1e-3)
+        prev_measured = info["measured_position"].copy()
         # the velocity field is the table's: it matches the position's finite difference on average
-        if prev_pos is not None and t > 50:
+        if prev_pos is not None and t > 50 and not shop:
             fd = (info["position"] - prev_pos) / u.decision_period
             assert np.all(np.abs(lay.velocity(obs) - fd) <= 0.05 * np.abs(fd) + 2.0)
         prev_pos = info["position"].copy()

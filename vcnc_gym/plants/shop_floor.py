@@ -49,7 +49,8 @@ Per control period ``dt`` of machine ``k`` (:func:`contract.advance`):
    and Altintas 2012, ch. 6, model the first axial mode of a ball-screw drive
    this way as a second-order lightly damped mode in series with the rigid
    body).  The contour error is measured on this table position.
-5. **The position sensor**: the table position plus white Gaussian noise of
+5. **The position sensor** (replacing the inner plant's own, e.g. seed
+   003's 1 um encoder, unless both its settings are 0): the table position plus white Gaussian noise of
    standard deviation ``noise_std`` (a per-machine splitmix64 generator,
    seeded from the env's generator at every reset:
    ``PlantModel.seed_machine``), quantised to ``encoder_resolution`` (the
@@ -358,11 +359,12 @@ def _reset_machine(model: ShopFloorModel, arrays: ShopFloorArrays, k: int, posit
     arrays.memory[k, :, M_TABLE] = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
     arrays.commands[k] = 0.0
     arrays.readings[k, :, 0:2] = sensed[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2]
-    perfect = e[0, E_RESOLUTION] == 0.0 and e[0, E_NOISE] == 0.0
-    if not perfect and e[0, E_RESOLUTION] > 0.0:
-        r = e[0, E_RESOLUTION]
-        arrays.readings[k, :, 0:2] = r * np.floor(arrays.readings[k, :, 0:2] / r + 0.5)
     arrays.readings[k, :, 2:4] = sensed[contract.SENSE_VELOCITY:contract.SENSE_VELOCITY + 2]
+    if e[0, E_RESOLUTION] > 0.0 or e[0, E_NOISE] > 0.0:  # this sensor, at rest: the true position's count
+        r = e[0, E_RESOLUTION]
+        x = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
+        arrays.readings[k, :, 0:2] = r * np.floor(x / r + 0.5) if r > 0.0 else x
+        arrays.readings[k, :, 2:4] = 0.0
     arrays.heads[k] = 0
     arrays.rng[k] = np.uint64(k)
     arrays.phase[k] = 0.0
@@ -488,7 +490,8 @@ def _advance_shop(plant, k, command):
         memory[k, i, M_DRIVE] = x_d
         memory[k, i, M_TABLE] = x_t
         memory[k, i, M_TABLE_VELOCITY] = v_t
-        if not perfect:
+        if not perfect:  # this sensor replaces the plant's own
+            reading = x_t
             if sigma > 0.0:
                 reading += sigma * (n0 if i == 0 else n1)
             if r > 0.0:
