@@ -274,3 +274,24 @@ def test_gcode_env_runs_a_program_text_and_checks():
     vec = gym.make_vec("VCNC-GCode-v1", num_envs=2, vectorization_mode="vector_entry_point", program=text)
     o, _ = vec.reset(seed=0)
     np.testing.assert_array_equal(o[0], obs)
+
+
+def test_iso230_4_figures_against_a_known_path():
+    """An ellipse-like path r = R + a cos 2 theta, shifted by (dx, dy): G = 2 a about its own centre, and the
+    radial deviation about the nominal circle includes the shift; two directions together (G(b))."""
+    from vcnc_gym.gcode.circular import circular_figures, least_squares_circle
+
+    theta = np.linspace(0, 2 * np.pi, 3601)[:-1]
+    R, a, shift = 25.0, 0.004, np.array([0.002, -0.001])
+    pts = (R + a * np.cos(2 * theta))[:, None] * np.column_stack([np.cos(theta), np.sin(theta)]) + shift
+    c, r = least_squares_circle(pts)
+    np.testing.assert_allclose(c, shift, atol=1e-12)
+    assert abs(r - R) < 1e-12
+    fig = circular_figures(pts, [0, 0], R)
+    assert fig.circular_deviation_um == pytest.approx(2 * a * 1e3, rel=1e-6)
+    nominal = np.hypot(*pts.T) - R
+    assert fig.radial_deviation_max_um == pytest.approx(1e3 * nominal.max(), rel=1e-12)
+    # both directions: the second path 1 um larger all round
+    both = circular_figures(np.vstack([pts, pts + 0.001 * (pts - shift) / np.hypot(*(pts - shift).T)[:, None]]),
+                            [0, 0], R)
+    assert both.circular_deviation_um == pytest.approx(2 * a * 1e3 + 1.0, rel=1e-3)

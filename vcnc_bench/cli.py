@@ -63,7 +63,7 @@ from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contour
 from vcnc_gym.validation import size
 
 from .papers import paper_figures
-from . import robust
+from . import programs, robust
 from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label,
                        resolve_policy)
 
@@ -179,6 +179,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--parallel", action="store_true",
                    help="with --plants: spread each batch of plants over numba's threads (faster on idle cores, "
                         "far slower on cores other processes use; default one thread)")
+    p.add_argument("--program", action="append", metavar="PART",
+                   help="a G-code part program (a file, a test piece of vcnc_gym.gcode.pieces.PIECES, or "
+                        "'iso230-4': the circular test both ways) run as VCNC-GCode-v1, repeatable; with no --env "
+                        "only the programs run (vcnc_bench.programs)")
+    p.add_argument("--tolerance", metavar="MM", default="0.01",
+                   help="with --program: corner blending tolerance in mm, or 'sharp' (exact stops; default 0.01)")
+    p.add_argument("--circle", nargs=2, type=float, metavar=("D_MM", "F_MM_PER_MIN"),
+                   help="with --program iso230-4: the circle's diameter (mm) and feed (mm/min)")
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write ENV_contour.png and ENV_error.png per env into this directory")
@@ -256,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--parallel spreads the batch of --plants N over threads; without --plants each episode "
                      "runs on one env and there is nothing to spread: add --plants N or drop --parallel")
 
-    env_ids = _unique(args.env or list(ENV_IDS))
+    env_ids = _unique(args.env or ([] if args.program else list(ENV_IDS)))
     unknown = [e for e in env_ids if e not in ENV_IDS + LEGACY_IDS]
     if unknown:
         parser.error(f"unknown env id(s) {', '.join(map(repr, unknown))}; valid ids are {', '.join(ENV_IDS)}")
@@ -273,6 +281,15 @@ def main(argv: list[str] | None = None) -> int:
 
     # build every env and policy first, so a bad spec fails before any run
     envs = {env_id: _make_env(env_id, args.feedrate, parser) for env_id in env_ids}
+    if args.program:
+        if args.feedrate is not None:
+            parser.error("--feedrate does not apply to --program: a program's F words set its feeds")
+        try:
+            tolerance = None if args.tolerance == "sharp" else float(args.tolerance)
+            envs.update(programs.make_program_envs(programs.expand_programs(args.program, args.circle), tolerance))
+        except ValueError as exc:
+            parser.error(str(exc))
+        env_ids = list(envs)
     _check_sizes(args, envs, parser)
     compare = args.feedrate is None
     runs = []
@@ -338,13 +355,18 @@ def main(argv: list[str] | None = None) -> int:
                 print()
                 print("\n".join(lines))
 
+    circular_lines, circular_rows = programs.circular_report(ctx.results, envs)
+    if circular_lines:
+        print()
+        print("\n".join(circular_lines))
+        records += [{"table": "iso230-4", **r} for r in circular_rows]
     if args.json is not None:
         args.json.write_text(json.dumps([_json_safe(r) for r in records], indent=2) + "\n")
         print(f"\nwrote {len(records)} records to {args.json}")
     if args.plots is not None:
         written = 0
         for env_id, by_policy in ctx.results.items():
-            if not suite_env(env_id).contouring:
+            if not (programs.is_program(env_id) or suite_env(env_id).contouring):
                 continue
             plot_contours(by_policy, envs[env_id], args.plots / f"{env_id}_contour.png")
             plot_contour_errors(by_policy, envs[env_id], args.plots / f"{env_id}_error.png")

@@ -116,6 +116,11 @@ class ProgramProfile:
         self._plan = None
 
     @property
+    def feedrate(self) -> float:
+        """The program's highest feed, mm/s."""
+        return float(max(np.max(p.feeds) for p in self.sections))
+
+    @property
     def lengths(self) -> np.ndarray:
         """Each section's length, mm."""
         return np.array([float(p.edges[-1]) for p in self.sections])
