@@ -17,76 +17,13 @@ environment whose ``episode_start`` is True.  The ``state`` argument of SB3
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import get_plant
+from vcnc_gym.validation import positive
 
 __all__ = ["BaselinePolicy"]
-
-
-# -- parameter validation helpers ---------------------------------------------
-def _is_real_scalar(x) -> bool:
-    return isinstance(x, numbers.Real) and not isinstance(x, bool)
-
-
-def check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False) -> float:
-    """A finite real scalar, optionally > 0 or >= 0; anything else raises ValueError."""
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value.item()
-    if not _is_real_scalar(value):
-        raise ValueError(f"{name} must be a real number, got {value!r} of type {type(value).__name__}")
-    value = float(value)
-    if not np.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value}")
-    if positive and value <= 0.0:
-        raise ValueError(f"{name} must be > 0, got {value}")
-    if nonnegative and value < 0.0:
-        raise ValueError(f"{name} must be >= 0, got {value}")
-    return value
-
-
-def check_per_axis(name: str, value, *, positive: bool = False, nonnegative: bool = False) -> np.ndarray:
-    """A scalar or a length-2 sequence (x, y) of finite reals, returned as a (2,) array."""
-    if isinstance(value, str) or isinstance(value, bool):
-        raise ValueError(f"{name} must be a real number or a pair (x, y) of them, got {value!r}")
-    if _is_real_scalar(value) or (isinstance(value, np.ndarray) and value.ndim == 0):
-        v = check_scalar(name, value, positive=positive, nonnegative=nonnegative)
-        return np.array([v, v])
-    try:
-        items = list(value)
-    except TypeError:
-        raise ValueError(f"{name} must be a real number or a pair (x, y) of them, got {value!r}") from None
-    if len(items) != 2:
-        raise ValueError(f"{name} must be a scalar or have one value per axis (2), got {len(items)} values")
-    return np.array([check_scalar(f"{name}[{a}]", v, positive=positive, nonnegative=nonnegative)
-                     for a, v in zip("xy", items)])
-
-
-def check_polynomial(name: str, coeffs) -> np.ndarray:
-    """Polynomial coefficients, highest power first: 1-D, finite, real, leading term non-zero."""
-    if isinstance(coeffs, (str, bytes)) or _is_real_scalar(coeffs):
-        if _is_real_scalar(coeffs):
-            coeffs = [coeffs]
-        else:
-            raise ValueError(f"{name} must be a sequence of real coefficients, got {coeffs!r}")
-    try:
-        c = np.asarray(coeffs)
-    except Exception as exc:  # pragma: no cover - numpy rarely refuses
-        raise ValueError(f"{name}: cannot read coefficients {coeffs!r}: {exc}") from None
-    if c.dtype == bool or c.dtype.kind not in "iuf":
-        raise ValueError(f"{name} must hold real numbers, got {coeffs!r}")
-    c = np.atleast_1d(c.astype(float))
-    if c.ndim != 1 or c.size == 0:
-        raise ValueError(f"{name} must be a 1-D sequence of coefficients, got shape {c.shape}")
-    if not np.all(np.isfinite(c)):
-        raise ValueError(f"{name} must be finite, got {c}")
-    c = np.trim_zeros(c, "f")
-    if c.size == 0:
-        raise ValueError(f"{name} is the zero polynomial")
-    return c
 
 
 class BaselinePolicy:
@@ -128,7 +65,7 @@ class BaselinePolicy:
             if not hasattr(layout, attr):
                 raise ValueError(f"layout must be an ObservationLayout (missing {attr!r}), got {type(layout).__name__}")
         self.layout = layout
-        self.decision_period = check_scalar("decision_period", decision_period, positive=True)
+        self.decision_period = positive("decision_period", decision_period, "s")
         if plant is None:
             if not self.plants:
                 raise ValueError(f"{type(self).__name__} declares no plant; pass plant=")

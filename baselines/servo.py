@@ -51,7 +51,8 @@ from numba.extending import overload
 
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.envs import step_kernel as sk
-from .base import BaselinePolicy, check_per_axis, check_scalar
+from vcnc_gym.validation import positive, non_negative, per_axis
+from .base import BaselinePolicy
 
 __all__ = ["BANDWIDTH", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
            "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate"]
@@ -172,7 +173,7 @@ class ServoPolicy(BaselinePolicy):
             raise ValueError(f"reference must be the env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), "
                              f"got shape {samples.shape}")
         self.reference = samples
-        self.dt = check_scalar("dt", dt, positive=True)
+        self.dt = positive("dt", dt)
         stride = self.decision_period / self.dt
         if abs(stride - round(stride)) > 1e-9 * stride:
             raise ValueError(f"decision_period {self.decision_period} s is not a whole number of control periods "
@@ -207,13 +208,13 @@ class ServoPolicy(BaselinePolicy):
         if limit is None:  # anti-windup: the integral alone never asks more than the input limit
             with np.errstate(divide="ignore"):
                 limit = np.where(gains.ki > 0, self.u_max / np.where(gains.ki > 0, gains.ki, 1.0), 0.0)
-        self.gains = ServoGains(check_per_axis("kp", gains.kp, nonnegative=True),
-                                check_per_axis("kd", gains.kd, nonnegative=True),
-                                check_per_axis("ki", gains.ki, nonnegative=True),
-                                check_scalar("kc", gains.kc, nonnegative=True),
-                                check_scalar("kci", gains.kci, nonnegative=True),
-                                check_scalar("variable", gains.variable, nonnegative=True),
-                                check_per_axis("integral_limit", limit, nonnegative=True))
+        self.gains = ServoGains(per_axis("kp", gains.kp, rule=non_negative),
+                                per_axis("kd", gains.kd, rule=non_negative),
+                                per_axis("ki", gains.ki, rule=non_negative),
+                                non_negative("kc", gains.kc),
+                                non_negative("kci", gains.kci),
+                                non_negative("variable", gains.variable),
+                                per_axis("integral_limit", limit, rule=non_negative))
         self.table = table
         self._compiled = None
 

@@ -12,7 +12,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["real", "positive", "non_negative", "integer", "flag", "size", "available_memory", "MEMORY_FRACTION"]
+__all__ = ["real", "positive", "non_negative", "per_axis", "polynomial", "integer", "flag", "size", "available_memory",
+           "MEMORY_FRACTION"]
 
 #: Share of the memory available when a size is checked that one request may
 #: plan to fill (ours): the rest is left to the interpreter, the other
@@ -20,32 +21,76 @@ __all__ = ["real", "positive", "non_negative", "integer", "flag", "size", "avail
 MEMORY_FRACTION = 0.5
 
 
-def real(name: str, value, unit: str) -> float:
+def _in(unit: str) -> str:
+    return f" ({unit})" if unit else ""
+
+
+def real(name: str, value, unit: str = "") -> float:
     """``value`` as a float; ValueError naming ``name`` and ``unit`` unless it is a finite real number."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a real number ({unit}), got {value!r} of type {type(value).__name__}")
+        raise ValueError(f"{name} must be a real number{_in(unit)}, got {value!r} of type {type(value).__name__}")
     v = float(value)
     if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite ({unit}), got {value!r}")
+        raise ValueError(f"{name} must be finite{_in(unit)}, got {value!r}")
     return v
 
 
-def positive(name: str, value, unit: str) -> float:
+def positive(name: str, value, unit: str = "") -> float:
     """``value`` as a float; ValueError naming ``name`` and ``unit`` unless it is a finite real > 0."""
     v = real(name, value, unit)
     if v <= 0.0:
-        raise ValueError(f"{name} must be > 0 ({unit}), got {value!r}")
+        raise ValueError(f"{name} must be > 0{_in(unit)}, got {value!r}")
     return v
 
 
-def non_negative(name: str, value, unit: str) -> float:
+def non_negative(name: str, value, unit: str = "") -> float:
     """``value`` as a float; ValueError naming ``name`` and ``unit`` unless it is a finite real >= 0."""
     v = real(name, value, unit)
     if v < 0.0:
-        raise ValueError(f"{name} must be >= 0 ({unit}), got {value!r}")
+        raise ValueError(f"{name} must be >= 0{_in(unit)}, got {value!r}")
     return v
+
+
+def per_axis(name: str, value, unit: str = "", *, rule=real) -> np.ndarray:
+    """A scalar or a pair (x, y), each checked by ``rule`` (:func:`real`, :func:`positive`, :func:`non_negative`),
+    as a (2,) float array: a controller gain given for both axes or per axis."""
+    if isinstance(value, (str, bytes, bool)):
+        raise ValueError(f"{name} must be a real number or a pair (x, y) of them{_in(unit)}, got {value!r}")
+    if isinstance(value, numbers.Real) or (isinstance(value, np.ndarray) and value.ndim == 0):
+        v = rule(name, value, unit)
+        return np.array([v, v])
+    try:
+        items = list(value)
+    except TypeError:
+        raise ValueError(f"{name} must be a real number or a pair (x, y) of them{_in(unit)}, got {value!r}") from None
+    if len(items) != 2:
+        raise ValueError(f"{name} must be a scalar or have one value per axis (2), got {len(items)} values")
+    return np.array([rule(f"{name}[{a}]", v, unit) for a, v in zip("xy", items)])
+
+
+def polynomial(name: str, coeffs) -> np.ndarray:
+    """Polynomial coefficients, highest power first: 1-D, finite, real, leading zeros dropped, not all zero."""
+    if isinstance(coeffs, (str, bytes)):
+        raise ValueError(f"{name} must be a sequence of real coefficients, got {coeffs!r}")
+    if isinstance(coeffs, numbers.Real) and not isinstance(coeffs, bool):
+        coeffs = [coeffs]
+    try:
+        c = np.asarray(coeffs)
+    except Exception as exc:  # pragma: no cover - numpy rarely refuses
+        raise ValueError(f"{name}: cannot read coefficients {coeffs!r}: {exc}") from None
+    if c.dtype == bool or c.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must hold real numbers, got {coeffs!r}")
+    c = np.atleast_1d(c.astype(float))
+    if c.ndim != 1 or c.size == 0:
+        raise ValueError(f"{name} must be a 1-D sequence of coefficients, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"{name} must be finite, got {c}")
+    c = np.trim_zeros(c, "f")
+    if c.size == 0:
+        raise ValueError(f"{name} is the zero polynomial")
+    return c
 
 
 def integer(name: str, value, minimum: int = 1, maximum: int | None = None) -> int:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import check_scalar
+from vcnc_gym.validation import non_negative
 from ..feedforward.ff_pid import FeedforwardPIDPolicy
 from ..servo import ServoGains
 
@@ -47,7 +47,7 @@ class CrossCoupledPolicy(FeedforwardPIDPolicy):
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
                  integral: bool = True, feedforward: bool = False, coupling: float = 0.1, variable: bool = False,
                  friction_time: float = 1e-3, backlash_time: float = 16e-3):
-        self.coupling = check_scalar("coupling", coupling, nonnegative=True)
+        self.coupling = non_negative("coupling", coupling)
         self.variable = bool(variable)
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt,
                          bandwidth=bandwidth, integral=integral, feedforward=feedforward,

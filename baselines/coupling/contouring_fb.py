@@ -66,7 +66,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ..base import BaselinePolicy, check_per_axis
+from vcnc_gym.validation import per_axis, positive
+from ..base import BaselinePolicy
 
 __all__ = ["TABLE_I_FB", "MIN_SPEED", "ContouringFBPolicy", "contouring_feedback"]
 
@@ -171,8 +172,8 @@ class ContouringFBPolicy(BaselinePolicy):
     def __init__(self, layout, decision_period, nominal_parameters, plant=None,
                  k_p=TABLE_I_FB["k_p"], k_d=TABLE_I_FB["k_d"]):
         super().__init__(layout, decision_period, nominal_parameters, plant)
-        self.k_p = check_per_axis("k_p", k_p, positive=True)
-        self.k_d = check_per_axis("k_d", k_d, positive=True)
+        self.k_p = per_axis("k_p", k_p, rule=positive)
+        self.k_d = per_axis("k_d", k_d, rule=positive)
         p = self.nominal_parameters
         self.m, self.c, self.f_c, self.k_f = (p[:, self.plant.index(n)] for n in ("m", "c", "f_c", "k_f"))
         lay = layout

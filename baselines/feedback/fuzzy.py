@@ -65,7 +65,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
-from ..base import BaselinePolicy, check_scalar
+from vcnc_gym.validation import positive
+from ..base import BaselinePolicy
 
 __all__ = [
     "LABELS",
@@ -247,7 +248,7 @@ class FuzzyPolicy(BaselinePolicy):
                  error_scale=DEFAULT_SCALING.error_scale, rate_scale=DEFAULT_SCALING.rate_scale,
                  output_scale=DEFAULT_SCALING.output_scale):
         super().__init__(layout, decision_period, nominal_parameters, plant)
-        self.scaling = FuzzyScaling(**{f.name: check_scalar(f.name, v, positive=True) for f, v in
+        self.scaling = FuzzyScaling(**{f.name: positive(f.name, v) for f, v in
                                        zip(fields(FuzzyScaling), (error_scale, rate_scale, output_scale))})
 
     def surface(self, e, e_dot) -> np.ndarray:

@@ -102,7 +102,8 @@ from numba import njit
 from vcnc_gym.plants import contract, get_plant
 from vcnc_gym.plants import nct_xy_table  # noqa: F401  (registers the plant's contract kernels)
 
-from ..base import BaselinePolicy, check_scalar
+from vcnc_gym.validation import positive
+from ..base import BaselinePolicy
 
 __all__ = [
     "LABELS",
@@ -244,9 +245,9 @@ def stepwise_experiment(parameters=None, dt: float = 1e-3, settings: NCTFSetting
     StepwiseExperiment
     """
     model = get_plant(plant)
-    dt = check_scalar("dt", dt, positive=True)
-    on = int(round(check_scalar("on_time", settings.on_time, positive=True) / dt))
-    off = int(round(check_scalar("off_time", settings.off_time, positive=True) / dt))
+    dt = positive("dt", dt)
+    on = int(round(positive("on_time", settings.on_time) / dt))
+    off = int(round(positive("off_time", settings.off_time) / dt))
     if on < 2 or off < 2:
         raise ValueError(f"on_time and off_time must span at least 2 sample periods of {dt} s")
     arrays = model.arrays(1, dt, model.nominal() if parameters is None else parameters)
@@ -329,11 +330,11 @@ def construct_nct(experiment: StepwiseExperiment, axis: int,
     """
     if axis not in (0, 1):
         raise ValueError(f"axis must be 0 (x) or 1 (y), got {axis!r}")
-    fraction = check_scalar("fit_fraction", settings.fit_fraction, positive=True)
+    fraction = positive("fit_fraction", settings.fit_fraction)
     if fraction > 1.0:
         raise ValueError(f"fit_fraction must be in (0, 1], got {fraction}")
     ex = experiment
-    w = max(1, int(round(check_scalar("velocity_window", settings.velocity_window, positive=True) / ex.dt)))
+    w = max(1, int(round(positive("velocity_window", settings.velocity_window) / ex.dt)))
     s = ex.switch_index
     q = ex.position[:, axis]
     if s < w or q.size - s <= 2 * w:
@@ -422,11 +423,11 @@ def design_compensator(nct: NominalCharacteristicTrajectory, resolution: float, 
     settings : NCTFSettings
         ``zero_rate`` and ``integral_gain``.
     """
-    a = check_scalar("resolution", resolution, positive=True)
-    T = check_scalar("sample_period", sample_period, positive=True)
+    a = positive("resolution", resolution)
+    T = positive("sample_period", sample_period)
     h_s_res = float(abs(nct.rate(a))) if settings.zero_rate == "nct" else a / T
-    k_i = nct.h_max if settings.integral_gain is None else check_scalar(
-        "integral_gain", settings.integral_gain, positive=True)
+    k_i = nct.h_max if settings.integral_gain is None else positive(
+        "integral_gain", settings.integral_gain)
     return FuzzyCompensator(h_max=nct.h_max, h_s_res=h_s_res, u_i_max=0.5 * nct.A * nct.h_max,
                             u_i_s_res=4.0 * a * h_s_res, a_s_res=a, u_r=nct.u_r, integral_gain=k_i)
 
@@ -637,13 +638,13 @@ class NCTFPolicy(BaselinePolicy):
                  velocity_window=DEFAULT_SETTINGS.velocity_window, zero_rate=DEFAULT_SETTINGS.zero_rate):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         if integral_gain is not None:
-            integral_gain = check_scalar("integral_gain", integral_gain, positive=True)
+            integral_gain = positive("integral_gain", integral_gain)
         self.settings = NCTFSettings(
             integral_gain=integral_gain,
-            on_time=check_scalar("on_time", on_time, positive=True),
-            off_time=check_scalar("off_time", off_time, positive=True),
-            fit_fraction=check_scalar("fit_fraction", fit_fraction, positive=True),
-            velocity_window=check_scalar("velocity_window", velocity_window, positive=True),
+            on_time=positive("on_time", on_time),
+            off_time=positive("off_time", off_time),
+            fit_fraction=positive("fit_fraction", fit_fraction),
+            velocity_window=positive("velocity_window", velocity_window),
             zero_rate=zero_rate)
         self.experiment = stepwise_experiment(self.nominal_parameters, self.decision_period, self.settings,
                                               self.plant)

@@ -86,7 +86,8 @@ from scipy.optimize import minimize_scalar
 
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import vcnc_feed_drive as feed_drive
-from ..base import BaselinePolicy, check_polynomial
+from vcnc_gym.validation import polynomial
+from ..base import BaselinePolicy
 from ..linear import DiscreteLTI, discretize, lti_advance
 
 __all__ = [
@@ -129,8 +130,8 @@ def _as_tf(name: str, value) -> control.TransferFunction:
         except (TypeError, ValueError):
             raise ValueError(f"{name} must be a (numerator, denominator) pair or a TransferFunction, "
                              f"got {value!r}") from None
-    num = check_polynomial(f"{name} numerator", num)
-    den = check_polynomial(f"{name} denominator", den)
+    num = polynomial(f"{name} numerator", num)
+    den = polynomial(f"{name} denominator", den)
     if num.size > den.size:
         raise ValueError(f"{name} must be proper (numerator degree {num.size - 1} > denominator degree {den.size - 1})")
     return control.tf(num, den)

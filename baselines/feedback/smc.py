@@ -62,7 +62,8 @@ from numba.extending import overload
 
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.plants import vcnc_feed_drive as feed_drive
-from ..base import BaselinePolicy, check_per_axis
+from vcnc_gym.validation import non_negative, per_axis, positive
+from ..base import BaselinePolicy
 
 __all__ = ["SMC_TABLE2", "SlidingModePolicy", "SlidingModeArrays"]
 
@@ -112,11 +113,11 @@ class SlidingModePolicy(BaselinePolicy):
                  K_s=SMC_TABLE2["K_s"], rho=SMC_TABLE2["rho"], d_minus=SMC_TABLE2["d_minus"],
                  d_plus=SMC_TABLE2["d_plus"]):
         super().__init__(layout, decision_period, nominal_parameters, plant)
-        self.lam = check_per_axis("lam", lam, positive=True)
-        self.K_s = check_per_axis("K_s", K_s, nonnegative=True)
-        self.rho = check_per_axis("rho", rho, nonnegative=True)
-        self.d_minus = check_per_axis("d_minus", d_minus)
-        self.d_plus = check_per_axis("d_plus", d_plus)
+        self.lam = per_axis("lam", lam, rule=positive)
+        self.K_s = per_axis("K_s", K_s, rule=non_negative)
+        self.rho = per_axis("rho", rho, rule=non_negative)
+        self.d_minus = per_axis("d_minus", d_minus)
+        self.d_plus = per_axis("d_plus", d_plus)
         if np.any(self.d_minus > 0) or np.any(self.d_plus < 0):
             raise ValueError(f"need d_minus <= 0 <= d_plus (the estimate starts at 0), "
                              f"got d_minus={self.d_minus}, d_plus={self.d_plus}")

@@ -10,7 +10,7 @@ the measured tracking error (derivative on ``v_d - v``), its gains by pole place
 
 from __future__ import annotations
 
-from ..base import check_scalar
+from vcnc_gym.validation import non_negative, positive
 from ..servo import BANDWIDTH, ServoGains, ServoPolicy, U_FF, pid_gains, reference_table
 from .tables import inverse_feedforward
 
@@ -41,15 +41,14 @@ class FeedforwardPIDPolicy(ServoPolicy):
                  integral: bool = True, feedforward: bool = True, friction_time: float = 1e-3,
                  backlash_time: float = 16e-3):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
-        self.bandwidth = check_scalar("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth,
-                                      positive=True)
+        self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
         self.feedforward = bool(feedforward)
         table = reference_table(self.reference)
         if self.feedforward:
             table[:, U_FF:U_FF + 2] = inverse_feedforward(
                 self.inverse, self.reference, self.dt,
-                friction_time=check_scalar("friction_time", friction_time, nonnegative=True),
-                backlash_time=check_scalar("backlash_time", backlash_time, nonnegative=True))
+                friction_time=non_negative("friction_time", friction_time),
+                backlash_time=non_negative("backlash_time", backlash_time))
         kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth, integral=bool(integral))
         self._set_law(table, self._gains(kp, kd, ki))
 

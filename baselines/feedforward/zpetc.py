@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import check_scalar
+from vcnc_gym.validation import non_negative, positive
 from ..servo import BANDWIDTH, OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, pid_gains, reference_table
 from vcnc_gym.envs import step_kernel as sk
 from .tables import closed_loop, inverse_feedforward, zpetc_filter, zpetc_reference
@@ -50,8 +50,7 @@ class ZPETCPolicy(ServoPolicy):
         if self.stride != 1:
             raise ValueError(f"zpetc is designed at the control period: it needs decision_period = dt "
                              f"({self.dt} s), got {self.decision_period} s")
-        self.bandwidth = check_scalar("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth,
-                                      positive=True)
+        self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
         kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth)
         self.loops = [closed_loop(self.inverse, j, self.dt, kp[j], kd[j], ki[j]) for j in range(2)]
         self.filters = [zpetc_filter(loop) for loop in self.loops]
@@ -63,6 +62,6 @@ class ZPETCPolicy(ServoPolicy):
         table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = r_rate - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
         table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
             self.inverse, self.reference, self.dt, motion=False,
-            friction_time=check_scalar("friction_time", friction_time, nonnegative=True),
-            backlash_time=check_scalar("backlash_time", backlash_time, nonnegative=True))
+            friction_time=non_negative("friction_time", friction_time),
+            backlash_time=non_negative("backlash_time", backlash_time))
         self._set_law(table, ServoGains(kp, kd, ki))

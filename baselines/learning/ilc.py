@@ -106,7 +106,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import check_scalar
+from vcnc_gym.validation import positive, non_negative
 from ..coupling.contouring_fb import TABLE_I_FB, ContouringFBPolicy
 
 __all__ = ["TABLE_I_ILC", "ILCPolicy", "run_trials"]
@@ -157,17 +157,17 @@ class ILCPolicy(ContouringFBPolicy):
                  k_dl=TABLE_I_ILC["k_dl"], alpha=TABLE_I_ILC["alpha"], beta=TABLE_I_ILC["beta"],
                  q=TABLE_I_ILC["q"], q_cutoff=None):
         super().__init__(layout, decision_period, nominal_parameters, plant, k_p=k_p, k_d=k_d)
-        self.k_pl = check_scalar("k_pl (1/s^2)", k_pl, nonnegative=True)
-        self.k_il = check_scalar("k_il (1/s^3)", k_il, nonnegative=True)
-        self.k_dl = check_scalar("k_dl (1/s)", k_dl, nonnegative=True)
-        self.alpha = check_scalar("alpha", alpha, positive=True)
+        self.k_pl = non_negative("k_pl (1/s^2)", k_pl)
+        self.k_il = non_negative("k_il (1/s^3)", k_il)
+        self.k_dl = non_negative("k_dl (1/s)", k_dl)
+        self.alpha = positive("alpha", alpha)
         if self.alpha <= 1.0:
             raise ValueError(f"alpha must be > 1 (psi = 1 - sat(e/beta)/alpha stays positive), got {self.alpha}")
-        self.beta = check_scalar("beta (mm)", beta, positive=True)
-        self.q = check_scalar("q", q, positive=True)
+        self.beta = positive("beta (mm)", beta)
+        self.q = positive("q", q)
         if self.q > 1.0:
             raise ValueError(f"q must be in (0, 1], got {self.q}")
-        self.q_cutoff = None if q_cutoff is None else check_scalar("q_cutoff (Hz)", q_cutoff, positive=True)
+        self.q_cutoff = None if q_cutoff is None else positive("q_cutoff (Hz)", q_cutoff)
         if self.q_cutoff is not None and self.q_cutoff >= 0.5 / self.decision_period:
             raise ValueError(f"q_cutoff must be below the Nyquist frequency {0.5 / self.decision_period:g} Hz, "
                              f"got {self.q_cutoff:g} Hz")

@@ -40,7 +40,7 @@ from scipy import signal
 
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.envs.task import ContouringBatch
-from ..base import check_scalar
+from vcnc_gym.validation import positive, non_negative
 from ..servo import BANDWIDTH, U_FF, ServoGains, ServoPolicy, pid_gains, reference_table
 from ..feedforward.tables import inverse_feedforward, linear_inverse
 
@@ -95,17 +95,16 @@ class OraclePolicy(ServoPolicy):
         if isinstance(iterations, bool) or int(iterations) != iterations or iterations < 0:
             raise ValueError(f"iterations must be an integer >= 0, got {iterations!r}")
         self.iterations = int(iterations)
-        self.gain = check_scalar("gain", gain, positive=True)
+        self.gain = positive("gain", gain)
         if self.gain > 1.0:
             raise ValueError(f"gain must be in (0, 1], got {self.gain}")
         nyquist = 0.5 / self.dt
-        self.q_cutoff = check_scalar("q_cutoff", 0.05 / self.dt if q_cutoff is None else q_cutoff, positive=True)
+        self.q_cutoff = positive("q_cutoff", 0.05 / self.dt if q_cutoff is None else q_cutoff)
         if self.q_cutoff >= nyquist:
             raise ValueError(f"q_cutoff must be below the Nyquist frequency {nyquist:g} Hz, got {self.q_cutoff:g}")
-        self.bandwidth = check_scalar("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth,
-                                      positive=True)
+        self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
         self.normal_only = bool(normal_only)
-        self.backlash_window = check_scalar("backlash_window", backlash_window, nonnegative=True)
+        self.backlash_window = non_negative("backlash_window", backlash_window)
         self.slow_speed = SLOW_SPEED
         kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth)
         self._gains = ServoGains(kp, kd, ki, kc=COUPLING * float(np.mean(kp)), kci=COUPLING * float(np.mean(ki)),

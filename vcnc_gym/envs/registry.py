@@ -19,6 +19,7 @@ _CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
 _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
 _GCODE = "vcnc_gym.envs.gcode_env:GCodeEnv"
 _GCODE_VECTOR = "vcnc_gym.envs.gcode_env:GCodeVectorEnv"
+_RANDOM = "vcnc_gym.envs.random_contour_env:RandomContourEnv"
 
 
 @dataclass(frozen=True)
@@ -34,7 +35,7 @@ class SuiteEnv:
     @property
     def contouring(self) -> bool:
         """True for a contour-following env (ContouringEnv): reward = -contour error along a contour."""
-        return self.entry_point in (_CONTOURING, _GCODE)
+        return self.entry_point in (_CONTOURING, _GCODE, _RANDOM)
 
 
 #: The circle of seed 003 is 1 mm across and driven at 1 mm/s: its contour is
@@ -95,6 +96,10 @@ SUITE: tuple[SuiteEnv, ...] = (
     SuiteEnv("VCNC-Butterfly-v1", {"program": "butterfly"},
              "butterfly free-form as G-code biarcs (78 mm, 3000 mm/min) on seed 000's feed drives",
              entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+    SuiteEnv("VCNC-RandomContour-v1", {},
+             "a new contour at every reset (random G-code: lines with seed 002 blends, arcs; 33-100 mm/s look-ahead) "
+             "on seed 000's feed drives; make_vec gives SyncVectorEnv, each env its own contours",
+             entry_point=_RANDOM, vector_entry_point=None),
     SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
              "seed 001 step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
              entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
@@ -110,7 +115,7 @@ LEGACY: tuple[SuiteEnv, ...] = tuple(
     SuiteEnv(e.id.replace("-v1", "-v0"),
              {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
              e.summary + " (v0: ends with the reference, no contour preview)")
-    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead" and e.entry_point != _GCODE and "shop_floor" not in e.kwargs
+    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead" and e.entry_point == _CONTOURING and "shop_floor" not in e.kwargs
 )
 
 #: The current ids, in the order of :data:`SUITE`.
