@@ -295,3 +295,46 @@ def test_iso230_4_figures_against_a_known_path():
     both = circular_figures(np.vstack([pts, pts + 0.001 * (pts - shift) / np.hypot(*(pts - shift).T)[:, None]]),
                             [0, 0], R)
     assert both.circular_deviation_um == pytest.approx(2 * a * 1e3 + 1.0, rel=1e-3)
+
+
+def test_random_contour_env_is_reproducible_and_each_vector_env_has_its_own():
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401
+
+    env = gym.make("VCNC-RandomContour-v1")
+    obs1, info1 = env.reset(seed=3)
+    obs2, info2 = env.reset(seed=4)
+    obs3, info3 = env.reset(seed=3)
+    assert info1["program"] == info3["program"] != info2["program"]
+    np.testing.assert_array_equal(obs1, obs3)
+    tp = env.unwrapped.toolpath if hasattr(env.unwrapped, "toolpath") else env.unwrapped.task.path
+    assert 4 <= len(tp.program.moves) <= 8
+    vec = gym.make_vec("VCNC-RandomContour-v1", num_envs=2)
+    _, infos = vec.reset(seed=3)
+    assert infos["program"][0] == info1["program"] and infos["program"][1] == info2["program"]
+
+
+@settings(max_examples=12, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_random_programs_follow_their_distributions(seed):
+    from vcnc_gym.gcode.random_contour import RandomContourSpec, random_program
+
+    spec = RandomContourSpec()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tp = read_program(random_program(np.random.default_rng(seed), spec), 0.01)
+    moves = tp.program.moves
+    assert spec.moves_min <= len(moves) <= spec.moves_max
+    for m in moves:
+        if m.kind == "line":
+            assert spec.line_min - 1e-5 <= m.length <= spec.line_max + 1e-5
+        else:
+            assert spec.radius_min - 1e-5 <= m.radius <= spec.radius_max + 1e-5
+            assert math.radians(spec.sweep_min) - 1e-5 <= abs(m.sweep) <= math.radians(spec.sweep_max) + 1e-5
+    for j, (a, b) in zip(tp.joints, zip(moves[:-1], moves[1:])):
+        if a.kind == b.kind == "line":
+            assert j.kind == "blend" and math.radians(spec.turn_min) - 1e-5 <= j.angle <= math.radians(spec.turn_max) + 1e-5
+        else:
+            assert j.kind == "tangent"
+    assert 2000 / 60 - 1e-9 <= tp.feeds[0] <= 6000 / 60 + 1e-9

@@ -1,0 +1,89 @@
+"""VCNC-RandomContour-v1: a new contour at every reset, drawn from the reset's seed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..gcode import path_limits, read_program
+from ..gcode.random_contour import RandomContourSpec, random_program
+from .contouring_env import ContouringEnv
+
+__all__ = ["RandomContourEnv"]
+
+
+class RandomContourEnv(ContouringEnv):
+    r"""Contour following on a contour drawn anew at every reset (:mod:`vcnc_gym.gcode.random_contour`).
+
+    Each reset draws a random part program (4 to 8 moves: G01 lines of 5 to
+    30 mm with corners of 20 to 120 degrees, G02/G03 arcs of radius 2 to 20
+    mm, log-uniform, and sweep 30 to 180 degrees; one feed of 2000 to 6000
+    mm/min; the distributions are
+    :class:`~vcnc_gym.gcode.random_contour.RandomContourSpec`'s) from the
+    env's generator, so ``reset(seed=s)`` gives the same contour for the same
+    s, and reads it as ``VCNC-GCode-v1`` does: seed 002's corner blends at
+    ``tolerance`` mm, exact arcs, the look-ahead feed within the plant's path
+    limits.  The program is in the reset info (``info["program"]``).  The
+    plant (nominal, fixed or drawn with ``randomize=True``) is drawn after
+    the contour, from the same generator.
+
+    Everything else (observation, action, reward, episode end) is
+    :class:`~vcnc_gym.envs.ContouringEnv`'s; the observation space does not
+    change from contour to contour (the contours stay within +-240 mm, inside
+    the layout's 1000 mm position bound).  ``episode_steps`` follows the
+    contour of the current episode.
+
+    ``gym.make_vec("VCNC-RandomContour-v1", num_envs=N)`` is Gymnasium's
+    ``SyncVectorEnv``: env i, seeded s + i, draws its own contours.  The
+    native vector env shares one contour between its N envs (one packed
+    reference and projector grid read by the compiled step); per-env contours
+    there would need per-env reference and contour arrays in the kernel.
+
+    ## Arguments
+
+    ``tolerance`` (mm, 0.01), ``spec`` (a RandomContourSpec), ``plant``
+    ("vcnc_feed_drive"), ``acceleration`` / ``jerk`` (the path limits, as
+    :class:`~vcnc_gym.envs.gcode_env.GCodeEnv`), and every other argument of
+    ContouringEnv but ``contour``, ``feedrate`` and ``profile``.
+
+    ## Version History
+
+    - v1: initial release.
+    """
+
+    def __init__(self, tolerance=0.01, spec: RandomContourSpec | None = None, *, plant="vcnc_feed_drive",
+                 acceleration=None, jerk=None, render_mode=None, **kwargs):
+        for key in ("contour", "feedrate", "profile", "program"):
+            if key in kwargs:
+                raise ValueError(f"{key}= is drawn at every reset in VCNC-RandomContour-v1; "
+                                 f"shape the draws with spec= (vcnc_gym.gcode.random_contour.RandomContourSpec)")
+        if spec is not None and not isinstance(spec, RandomContourSpec):
+            raise ValueError(f"spec must be a RandomContourSpec, got {spec!r}")
+        self._spec = spec or RandomContourSpec()
+        self._tolerance = tolerance
+        self._limits = path_limits(plant, acceleration, jerk)
+        self._kwargs = {"plant": plant, "profile": "lookahead", **kwargs}
+        self._render = render_mode
+        self.program_text = random_program(np.random.default_rng(0), self._spec)
+        super().__init__(render_mode=render_mode, contour=self._toolpath(self.program_text), **self._kwargs)
+
+    def _toolpath(self, text: str):
+        a, j = self._limits
+        return read_program(text, self._tolerance, acceleration=a, jerk=j)
+
+    def reset(self, *, seed: int | None = None, options=None):
+        """A new contour from the env's generator (seeded by ``seed``), then ContouringEnv's reset."""
+        import gymnasium as gym
+
+        gym.Env.reset(self, seed=seed)
+        text = random_program(self.np_random, self._spec)
+        space = self.observation_space
+        spec, rng = self.spec, self._np_random
+        ContouringEnv.__init__(self, render_mode=self._render, contour=self._toolpath(text), **self._kwargs)
+        self.spec, self._np_random = spec, rng
+        if self.observation_space != space:  # the layout's bound: contours beyond ~900 mm
+            raise RuntimeError("the drawn contour changed the observation space; narrow the spec's lengths")
+        self.observation_space = space
+        self.program_text = text
+        obs, info = super().reset(seed=None, options=options)
+        info["program"] = text
+        return obs, info

@@ -1,0 +1,112 @@
+"""Random part programs: a new contour at every reset, from documented distributions.
+
+:func:`random_program` draws a G-code program (so every drawn contour is a
+program a user could run, and ``info["program"]`` shows it) from a numpy
+``Generator``; it is then read like any program (:func:`vcnc_gym.gcode.read_program`):
+seed 002's blends at the corners between two G01 moves, exact arcs, the
+look-ahead feed.
+
+The distributions (:class:`RandomContourSpec`, defaults):
+
+- moves per program: uniform integer in [``moves_min``, ``moves_max``] = [4, 8];
+- each move a G01 line with probability ``line_probability`` = 0.6, else a
+  G02/G03 arc (each direction with probability 1/2);
+- line length: uniform in [``line_min``, ``line_max``] = [5, 30] mm;
+- between two lines a corner: the heading turns by an angle uniform in
+  [``turn_min``, ``turn_max``] = [20, 120] degrees, left or right with
+  probability 1/2 (seed 002's test path turns by 90 to 150 degrees); a move
+  after or before an arc continues tangentially (no corner: arcs join their
+  neighbours smoothly, as a CAM system writes them);
+- arc radius: log-uniform in [``radius_min``, ``radius_max``] = [2, 20] mm;
+  sweep uniform in [``sweep_min``, ``sweep_max``] = [30, 180] degrees;
+- feed: one per program, uniform in [``feed_min``, ``feed_max``] =
+  [2000, 6000] mm/min (33 to 100 mm/s, seed 000's 100 mm/s at the top);
+- start at the origin, initial heading uniform in [0, 360) degrees.
+
+Coordinates are written to 1e-6 mm (6 decimals), arcs with I/J.  The path
+may cross itself (the contour error is the distance to the whole contour, so
+a crossing costs nothing but a possibly shorter distance near it).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["RandomContourSpec", "random_program"]
+
+
+@dataclass(frozen=True)
+class RandomContourSpec:
+    """The distributions of :func:`random_program` (module docstring); lengths mm, angles degrees, feeds mm/min."""
+
+    moves_min: int = 4
+    moves_max: int = 8
+    line_probability: float = 0.6
+    line_min: float = 5.0
+    line_max: float = 30.0
+    turn_min: float = 20.0
+    turn_max: float = 120.0
+    radius_min: float = 2.0
+    radius_max: float = 20.0
+    sweep_min: float = 30.0
+    sweep_max: float = 180.0
+    feed_min: float = 2000.0
+    feed_max: float = 6000.0
+
+    def __post_init__(self):
+        pairs = [("moves", self.moves_min, self.moves_max), ("line", self.line_min, self.line_max),
+                 ("turn", self.turn_min, self.turn_max), ("radius", self.radius_min, self.radius_max),
+                 ("sweep", self.sweep_min, self.sweep_max), ("feed", self.feed_min, self.feed_max)]
+        for name, lo, hi in pairs:
+            if not (0 < lo <= hi) or not math.isfinite(hi):
+                raise ValueError(f"{name}_min and {name}_max must satisfy 0 < min <= max < inf, got {lo!r}, {hi!r}")
+        if self.turn_max >= 180.0 or self.sweep_max > 360.0:
+            raise ValueError("turn_max must be < 180 degrees (no U-turn) and sweep_max <= 360 degrees")
+        if not 0.0 <= self.line_probability <= 1.0:
+            raise ValueError(f"line_probability must be in [0, 1], got {self.line_probability!r}")
+
+
+def _n(x: float) -> str:
+    s = f"{x:.6f}".rstrip("0")
+    s = s + "0" if s.endswith(".") else s
+    return "0.0" if s == "-0.0" else s
+
+
+def random_program(rng: np.random.Generator, spec: RandomContourSpec = RandomContourSpec()) -> str:
+    """A random program text drawn from ``rng`` (module docstring)."""
+    n = int(rng.integers(spec.moves_min, spec.moves_max + 1))
+    heading = rng.uniform(0.0, 2.0 * math.pi)
+    feed = rng.uniform(spec.feed_min, spec.feed_max)
+    pos = np.zeros(2)
+    lines = ["(random contour, vcnc_gym.gcode.random_contour)", "G21 G17 G90 G94", "G00 X0.0 Y0.0"]
+    previous = None
+    for k in range(n):
+        is_line = rng.random() < spec.line_probability
+        feed_word = f" F{feed:.1f}" if k == 0 else ""
+        if is_line:
+            if previous == "line":
+                turn = math.radians(rng.uniform(spec.turn_min, spec.turn_max)) * (1 if rng.random() < 0.5 else -1)
+                heading += turn
+            length = rng.uniform(spec.line_min, spec.line_max)
+            pos = pos + length * np.array([math.cos(heading), math.sin(heading)])
+            lines.append(f"G01 X{_n(pos[0])} Y{_n(pos[1])}{feed_word}")
+            previous = "line"
+        else:
+            radius = math.exp(rng.uniform(math.log(spec.radius_min), math.log(spec.radius_max)))
+            sweep = math.radians(rng.uniform(spec.sweep_min, spec.sweep_max))
+            ccw = rng.random() < 0.5
+            side = 1.0 if ccw else -1.0  # centre on the left (ccw) or the right (cw) of the heading
+            centre = pos + side * radius * np.array([-math.sin(heading), math.cos(heading)])
+            a0 = math.atan2(pos[1] - centre[1], pos[0] - centre[0])
+            a1 = a0 + side * sweep
+            end = centre + radius * np.array([math.cos(a1), math.sin(a1)])
+            lines.append(f"{'G03' if ccw else 'G02'} X{_n(end[0])} Y{_n(end[1])} I{_n(centre[0] - pos[0])} "
+                         f"J{_n(centre[1] - pos[1])}{feed_word}")
+            pos = end
+            heading += side * sweep
+            previous = "arc"
+    lines.append("M30")
+    return "\n".join(lines) + "\n"
