@@ -22,26 +22,34 @@ from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy
 from .optimal.oracle import OraclePolicy
 
-__all__ = ["make", "names", "policy_class", "REGISTRY", "VARIANTS"]
+__all__ = ["make", "names", "policy_class", "CONTROLLERS", "REGISTRY", "VARIANTS"]
 
-#: Name -> policy class, one entry per classical controller of seed 000.
-REGISTRY: dict[str, type[BaselinePolicy]] = {
-    "qft": QFTPolicy,
-    "smc": SlidingModePolicy,
-    "fuzzy": FuzzyPolicy,
-    "pi": PIPolicy,  # seed 001, section 3.2
-    "imc": IMCPolicy,  # seed 001, eq. (23)
-    "hinf": HinfPolicy,  # seed 001, eq. (28)
-    "hinf-reduced": HinfReducedPolicy,  # seed 001, eq. (29)
-    "contouring-fb": ContouringFBPolicy,  # seed 002, eq. (7)
-    "ilc": ILCPolicy,  # seed 002, eqs. (8)-(11)
-    "nctf": NCTFPolicy,  # seed 003, Fig. 1(a), Table I, eqs. (1)-(2)
-    "ff-pid": FeedforwardPIDPolicy,  # inverse-model feedforward + PID, every plant
-    "zpetc": ZPETCPolicy,  # Tomizuka (1987), every plant
-    "ccc": CrossCoupledPolicy,  # Koren (1980), every plant
-    "ff-ccc": FeedforwardCrossCoupledPolicy,  # feedforward + Koren and Lo (1991)'s variable-gain CCC
-    "oracle": OraclePolicy,  # non-causal floor: ILC to convergence on the exact plant
-}
+#: The controllers, by family (each class names itself: its ``name`` attribute is its registry key).
+CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
+    # feedback
+    QFTPolicy,  # Jahanpour et al. (2014), section 2c
+    SlidingModePolicy,  # Altintas, Erkorkmaz and Zhu (2000), Jahanpour et al.'s Table 2
+    FuzzyPolicy,  # Jahanpour et al.'s Table 1
+    PIPolicy,  # Yadav, Pathak and Gaur (2020), section 3.2
+    IMCPolicy,  # their eq. (23)
+    HinfPolicy,  # their eq. (28)
+    HinfReducedPolicy,  # their eq. (29)
+    NCTFPolicy,  # Purtojo et al., Fig. 1(a), Table I, eqs. (1)-(2)
+    # feedforward
+    FeedforwardPIDPolicy,  # inverse-model feedforward + PID, every plant
+    ZPETCPolicy,  # Tomizuka (1987), every plant
+    # coupling
+    ContouringFBPolicy,  # Simba et al., eq. (7)
+    CrossCoupledPolicy,  # Koren (1980), every plant
+    FeedforwardCrossCoupledPolicy,  # feedforward + Koren and Lo (1991)'s variable-gain CCC
+    # learning
+    ILCPolicy,  # Simba et al., eqs. (8)-(11)
+    # optimal (non-causal)
+    OraclePolicy,  # ILC to convergence on the exact plant
+)
+
+#: Name -> policy class.
+REGISTRY: dict[str, type[BaselinePolicy]] = {cls.name: cls for cls in CONTROLLERS}
 
 #: Name -> (registered class name, parameters it fixes): a controller of the
 #: registry with some of its parameters changed, benchmarked under its own name.

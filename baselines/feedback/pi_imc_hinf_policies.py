@@ -42,8 +42,11 @@ class Seed001Policy(BaselinePolicy):
 
     name = "seed001"
     plants = ("cncmt_axis",)
-    #: Which of seed 001's controllers (:func:`~baselines.feedback.pi_imc_hinf.controller_names`); set by subclasses.
-    controller_name = ""
+    @property
+    def controller_name(self) -> str:
+        """Which of Yadav et al.'s controllers (:func:`~baselines.feedback.pi_imc_hinf.controller_names`): the
+        subclass's registry ``name``."""
+        return self.name
 
     def __init__(self, layout, decision_period: float, nominal_parameters, plant=None, method: str = "tustin"):
         super().__init__(layout, decision_period, nominal_parameters, plant)
@@ -73,25 +76,21 @@ class PIPolicy(Seed001Policy):
     """Robust PI, ``K_P + K_I / s`` with K_P = 38.33 V/m, K_I = 45.65 V/(m s) (seed 001, section 3.2)."""
 
     name = "pi"
-    controller_name = "pi"
 
 
 class IMCPolicy(Seed001Policy):
     """IMC, ``(0.21 s + 2) / (s + 2)`` V/m (seed 001, eq. (23))."""
 
     name = "imc"
-    controller_name = "imc"
 
 
 class HinfPolicy(Seed001Policy):
     """Fourth-order H-infinity controller (seed 001, eq. (28))."""
 
     name = "hinf"
-    controller_name = "hinf"
 
 
 class HinfReducedPolicy(Seed001Policy):
     """First-order reduced H-infinity controller, ``20.97 / (s + 5.5)`` V/m (seed 001, eq. (29))."""
 
     name = "hinf-reduced"
-    controller_name = "hinf-reduced"
