@@ -18,13 +18,13 @@ from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
 
 from vcnc_gym.geometry.corners import blend_curvature, smooth_polyline
 from vcnc_gym.geometry.shapes import corners_vertices
+from vcnc_bench.reports.simba import corners_cycle_times
 from vcnc_gym.motion.jlap import (
     SEED002_A_MAX,
     SEED002_FEEDRATE,
     SEED002_J_MAX,
     JlapFeedrate,
     constant_feedrate,
-    corners_cycle_times,
     jlap_state,
     transition_time,
 )

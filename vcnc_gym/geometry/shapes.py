@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from ..plants.current_feed_drive import SEED002_A_MAX, SEED002_J_MAX
 from ..validation import positive
 from .corners import polyline, smooth_polyline
 from .nurbs import NurbsCurve
@@ -81,16 +82,13 @@ def corners_path(smooth: bool = True, epsilon: float = 0.05, a_max: float | None
     epsilon : float
         Corner tolerance, mm (seed 002 section IV-A: 50 um).
     a_max, j_max : float or None
-        Limits the blends are designed for, mm/s^2 and mm/s^3; None: seed
-        002's drives (:mod:`vcnc_gym.motion.jlap`).
+        Limits the blends are designed for, mm/s^2 and mm/s^3; None: Simba et al.'s
+        drives (:mod:`vcnc_gym.plants.current_feed_drive`).
     """
     if not smooth:
         return polyline(corners_vertices())
-    if a_max is None or j_max is None:
-        from ..motion import jlap  # imported here: vcnc_gym.motion imports this package
-
-        a_max = jlap.SEED002_A_MAX if a_max is None else a_max
-        j_max = jlap.SEED002_J_MAX if j_max is None else j_max
+    a_max = SEED002_A_MAX if a_max is None else a_max
+    j_max = SEED002_J_MAX if j_max is None else j_max
     return smooth_polyline(corners_vertices(), epsilon, a_max, j_max).curve
 
 
@@ -120,9 +118,7 @@ def corners_smooth(epsilon: float = 0.05):
     """Seed 002's test path with its corners smoothed (eqs. (12)-(23), epsilon = 50 um), as the
     :class:`~vcnc_gym.geometry.corners.SmoothedPolyline` (curve and corner zones, which the
     jerk-limited feedrate plans along)."""
-    from ..motion import jlap  # imported here: vcnc_gym.motion imports this package
-
-    return smooth_polyline(corners_vertices(), epsilon, jlap.SEED002_A_MAX, jlap.SEED002_J_MAX)
+    return smooth_polyline(corners_vertices(), epsilon, SEED002_A_MAX, SEED002_J_MAX)
 
 
 SHAPES = {

@@ -94,6 +94,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..plants.current_feed_drive import SEED002_A_MAX, SEED002_FEEDRATE, SEED002_J_MAX  # limits beside their plant
 from ..validation import positive as _positive
 
 __all__ = [
@@ -104,7 +105,6 @@ __all__ = [
     "JlapPlan",
     "JlapSection",
     "constant_feedrate",
-    "corners_cycle_times",
     "jlap_acceleration",
     "jlap_distance",
     "jlap_piece",
@@ -114,12 +114,6 @@ __all__ = [
     "transition_time",
 ]
 
-#: Programmed feed of seed 002's experiments, mm/s (section IV-A).
-SEED002_FEEDRATE = 50.0
-#: Path acceleration limit for seed 002's drives, mm/s^2 (module docstring).
-SEED002_A_MAX = 4000.0
-#: Path jerk limit for seed 002's drives, mm/s^3 (module docstring).
-SEED002_J_MAX = 1.6e5
 
 
 # --------------------------------------------------------------------------
@@ -607,37 +601,3 @@ class JlapFeedrate:
 
     def __repr__(self) -> str:
         return f"JlapFeedrate(feedrate={self.feedrate:g}, a_max={self.a_max:g}, j_max={self.j_max:g})"
-
-
-def corners_cycle_times(epsilon: float = 0.05) -> dict:
-    """Cycle times of seed 002's test path: sharp at constant feed, smoothed with JLAPs.
-
-    Seed 002 section IV-C reports +1.36 % for the smoothed path (experiment).
-
-    Parameters
-    ----------
-    epsilon : float
-        Corner tolerance, mm (seed 002: 0.05).
-
-    Returns
-    -------
-    dict with ``linear_length`` (mm), ``linear_time`` (s, length / 50 mm/s),
-    ``smooth_length`` (mm), ``smooth_time`` (s, the JLAP plan's duration),
-    ``increase`` (relative, smooth / linear - 1) and ``corner_speeds`` (mm/s).
-    """
-    from ..geometry.corners import smooth_polyline
-    from ..geometry.shapes import corners_vertices
-
-    vertices = corners_vertices()
-    path = smooth_polyline(vertices, epsilon, SEED002_A_MAX, SEED002_J_MAX)
-    linear_length = float(np.sum(np.hypot(*np.diff(vertices, axis=0).T)))
-    linear = constant_feedrate(linear_length, SEED002_FEEDRATE)
-    smooth = JlapFeedrate().plan_path(path)
-    return {
-        "linear_length": linear_length,
-        "linear_time": linear.duration,
-        "smooth_length": path.length,
-        "smooth_time": smooth.duration,
-        "increase": smooth.duration / linear.duration - 1.0,
-        "corner_speeds": path.corner_speeds.tolist(),
-    }
