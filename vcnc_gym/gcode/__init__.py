@@ -64,7 +64,7 @@ def load_text(program) -> tuple[str, str]:
 
 
 def read_program(program, tolerance: float | None = 0.01, *, acceleration: float = 1000.0, jerk: float = 3.0e4,
-                 arc_tolerance: float = ARC_RADIUS_TOLERANCE) -> Toolpath:
+                 arc_tolerance: float = ARC_RADIUS_TOLERANCE, spacing: float = 0.01) -> Toolpath:
     """A part program as a :class:`Toolpath` (contour and feeds).
 
     Parameters
@@ -78,6 +78,8 @@ def read_program(program, tolerance: float | None = 0.01, *, acceleration: float
         Path limits of the blends and the look-ahead, mm/s^2 and mm/s^3 (default seed 000's drives').
     arc_tolerance : float
         Largest difference of an I/J arc's two radii, mm (default LinuxCNC's 0.0283 mm).
+    spacing : float
+        Arc length between the look-ahead's curvature samples, mm (its default, 0.01).
 
     Raises
     ------
@@ -92,4 +94,4 @@ def read_program(program, tolerance: float | None = 0.01, *, acceleration: float
                              f"corners, got {tolerance!r}")
         tolerance = float(tolerance)
     return build_toolpath(read_program_text(text, arc_tolerance=arc_tolerance, name=name), tolerance,
-                          float(acceleration), float(jerk))
+                          float(acceleration), float(jerk), float(spacing))

@@ -30,6 +30,7 @@ import numpy as np
 from ..geometry.nurbs import NurbsCurve
 from ..motion import LookaheadFeedrate
 from ..motion.jlap import JlapPlan, JlapSection
+from ..motion.lookahead import DEFAULT_SPACING
 
 __all__ = ["TANGENT_ANGLE", "ProgramFeedrate", "ProgramProfile"]
 
@@ -53,17 +54,20 @@ class ProgramFeedrate(LookaheadFeedrate):
         Programmed feed of each piece between two edges, mm/s.
     acceleration, jerk : float
         A_n = A_t (mm/s^2) and J_n = J_t (mm/s^3).
+    spacing : float
+        Arc length between the look-ahead's curvature samples, mm (LookaheadFeedrate's).
     cuts : (n + 1,) bool array or None
         Edges the plan cuts at (a section boundary of the look-ahead, acceleration zero there): where
         the feed changes, and at the ends of an arc whose curvature holds the feed below F.  On such a
         plateau of v_lim the look-ahead would otherwise find its end one grid point per round.
     """
 
-    def __init__(self, curve: NurbsCurve, edges, feeds, acceleration: float, jerk: float, cuts=None):
+    def __init__(self, curve: NurbsCurve, edges, feeds, acceleration: float, jerk: float, cuts=None,
+                 spacing: float = DEFAULT_SPACING):
         self.edges = np.asarray(edges, dtype=np.float64)
         self.feeds = np.asarray(feeds, dtype=np.float64)
         self.cuts = np.zeros(self.edges.size, dtype=bool) if cuts is None else np.asarray(cuts, dtype=bool)
-        super().__init__(curve, float(np.max(self.feeds)), acceleration, jerk, acceleration, jerk)
+        super().__init__(curve, float(np.max(self.feeds)), acceleration, jerk, acceleration, jerk, spacing=spacing)
 
     def _check_corners(self) -> None:
         curve = self.curve

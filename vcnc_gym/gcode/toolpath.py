@@ -34,6 +34,7 @@ import numpy as np
 from ..geometry.corners import smooth_polyline
 from ..geometry.nurbs import NurbsCurve
 from . import arcs
+from ..motion.lookahead import DEFAULT_SPACING
 from .feeds import TANGENT_ANGLE, ProgramFeedrate, ProgramProfile
 from .interpreter import Move, Program
 from .lexer import GCodeError
@@ -104,6 +105,8 @@ class Toolpath:
         True for the corner blends.
     acceleration, jerk : float
         Path acceleration (mm/s^2) and jerk (mm/s^3) limits of the blends and the look-ahead.
+    spacing : float
+        The look-ahead's curvature sample spacing, mm.
     """
 
     program: Program
@@ -118,6 +121,7 @@ class Toolpath:
     acceleration: float
     jerk: float
     _sections: tuple
+    spacing: float = DEFAULT_SPACING
 
     @property
     def name(self) -> str:
@@ -148,7 +152,7 @@ class Toolpath:
         if profile != "scurve" and ramp_time is not None:
             raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
         if profile == "lookahead":
-            return ProgramProfile([ProgramFeedrate(curve, edges, feeds, self.acceleration, self.jerk, cuts)
+            return ProgramProfile([ProgramFeedrate(curve, edges, feeds, self.acceleration, self.jerk, cuts, self.spacing)
                                    for curve, edges, feeds, cuts in self._sections])
         if self.feed is None:
             raise ValueError(f"profile={profile!r} runs one feed; this program has several "
@@ -169,7 +173,8 @@ def _arc_pieces(m: Move) -> list[tuple[np.ndarray, float]]:
     return [(s, each) for s in segs]
 
 
-def build_toolpath(program: Program, tolerance: float | None, acceleration: float, jerk: float) -> Toolpath:
+def build_toolpath(program: Program, tolerance: float | None, acceleration: float, jerk: float,
+                   spacing: float = DEFAULT_SPACING) -> Toolpath:
     """The contour and feeds of an interpreted program (module docstring).
 
     Parameters
@@ -236,7 +241,7 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
         a.flags.writeable = False
     return Toolpath(program=program, curve=curve, tolerance=tolerance, joints=tuple(joints), edges=edges,
                     feeds=feeds, stops=tuple(stop_after), segment_moves=segment_moves,
-                    segment_blends=segment_blends, acceleration=acceleration, jerk=jerk,
+                    segment_blends=segment_blends, acceleration=acceleration, jerk=jerk, spacing=spacing,
                     _sections=tuple(sections))
 
 
