@@ -21,7 +21,6 @@ import numpy as np
 
 import vcnc_gym  # noqa: F401
 from vcnc_gym.gcode import read_program
-from vcnc_gym.gcode.random_contour import random_program
 
 
 def main() -> None:

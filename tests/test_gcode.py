@@ -205,7 +205,7 @@ def test_blend_that_does_not_fit_names_the_line():
 _WORDS = st.one_of(
     st.sampled_from(["G0", "G1", "G2", "G3", "G17", "G18", "G20", "G21", "G90", "G91", "G94", "G40", "G64", "M3",
                      "M30", "T1", "S100", "N5", "(c)", ";c", "%", "(", ")", "#1", "G1.5", "X", "E3", "+", "..", "-"]),
-    st.builds(lambda l, v: f"{l}{v}", st.sampled_from("XYIJRFZ"),
+    st.builds(lambda letter, v: f"{letter}{v}", st.sampled_from("XYIJRFZ"),
               st.one_of(st.integers(-60, 60), st.floats(-60, 60, allow_nan=False).map(lambda x: f"{x:.3f}"))),
 )
 _LINES = st.lists(st.lists(_WORDS, min_size=0, max_size=6).map(" ".join), min_size=1, max_size=12)
