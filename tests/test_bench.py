@@ -187,7 +187,7 @@ def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path
     # two different gains, two different runs: each row is its own policy's
     assert records[0]["max_contour_error_um"] != pytest.approx(records[1]["max_contour_error_um"], rel=1e-3)
 
-    for kind in ("contour", "error"):
+    for kind in ("contour", "error", "deviation"):
         _assert_png(plots / f"{OMEGA}_{kind}.png")
 
 

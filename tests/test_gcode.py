@@ -338,3 +338,52 @@ def test_random_programs_follow_their_distributions(seed):
         else:
             assert j.kind == "tangent"
     assert 2000 / 60 - 1e-9 <= tp.feeds[0] <= 6000 / 60 + 1e-9
+
+
+def test_deviation_plot_signs_and_magnifies_against_a_known_path(tmp_path):
+    """On the ISO 230-4 circle (counter-clockwise, left normal inwards) a path r = R + a cos 2 theta has the signed
+    deviation -a cos 2 theta (1e-9 mm); the magnification is of the 1-2-5 series; the plot is written."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401
+    from vcnc_gym.deviation_plot import contour_corners, magnification, plot_deviation, signed_deviation
+
+    env = gym.make("VCNC-ISO230Circle-v1")
+    theta = np.linspace(0.0, 2 * np.pi, 721)
+    a = 0.0029
+    p = (25.0 + a * np.cos(2 * theta))[:, None] * np.column_stack([np.cos(theta), np.sin(theta)])
+    _, _, e = signed_deviation(env, p)
+    np.testing.assert_allclose(e, -a * np.cos(2 * theta), atol=1e-9)
+    assert magnification(0.003, 50.0) == 1000.0 and magnification(0.02, 50.0) == 100.0
+    assert contour_corners(env) == []
+    m = plot_deviation({"synthetic": SimpleNamespace(position=p)}, env, tmp_path / "dev.png")
+    assert m == 1000.0 and (tmp_path / "dev.png").stat().st_size > 1000
+    cds = gym.make("VCNC-CircleDiamondSquare-v1")
+    assert len(contour_corners(cds)) == 8  # 9 line corners and the link to the circle, capped at MAX_INSETS
+
+
+def test_bench_runs_programs_and_reports_iso230_4(monkeypatch, tmp_path, capsys):
+    """vcnc-bench --program iso230-4 --circle D F: both directions run, the ISO table is printed and in the JSON
+    (G(b) on both rows), the deviation plots are written; a missing program file is an argument error."""
+    import json
+
+    from test_bench import _install_pd
+
+    import vcnc_bench as bench
+
+    _install_pd(monkeypatch)
+    out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
+    assert bench.main(["--program", "iso230-4", "--circle", "10", "1200", "--policy", "pd:300", "--json",
+                       str(out_json), "--plots", str(plots), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "ISO 230-4 circular test" in out
+    iso = [r for r in json.loads(out_json.read_text()) if r.get("table") == "iso230-4"]
+    assert {r["direction"] for r in iso} == {"ccw", "cw"}
+    for r in iso:
+        assert r["bidirectional_circular_deviation_um"] >= 0.9 * r["circular_deviation_um"] > 0
+        assert r["radial_deviation_min_um"] <= r["radial_deviation_max_um"]
+    assert (plots / "GCode:iso230-4-ccw-D10-F1200_deviation.png").stat().st_size > 1000
+    with pytest.raises(SystemExit):
+        bench.main(["--program", str(tmp_path / "missing.nc"), "--no-progress"])

@@ -60,6 +60,7 @@ from vcnc_gym.envs import ENV_IDS, suite_env
 from vcnc_gym.envs.registry import LEGACY
 from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
+from vcnc_gym.deviation_plot import plot_deviation
 from vcnc_gym.validation import size
 
 from .papers import paper_figures
@@ -189,7 +190,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="with --program iso230-4: the circle's diameter (mm) and feed (mm/min)")
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
     p.add_argument("--plots", metavar="DIR", type=Path,
-                   help="write ENV_contour.png and ENV_error.png per env into this directory")
+                   help="write ENV_contour.png, ENV_error.png and ENV_deviation.png (the deviation magnified along "
+                        "the contour's normal, an inset at every corner) per env into this directory")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     return p
 
@@ -370,7 +372,8 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             plot_contours(by_policy, envs[env_id], args.plots / f"{env_id}_contour.png")
             plot_contour_errors(by_policy, envs[env_id], args.plots / f"{env_id}_error.png")
-            written += 2
+            plot_deviation(by_policy, envs[env_id], args.plots / f"{env_id}_deviation.png")
+            written += 3
         for (env_id, label), trials in ctx.trials_of.items():
             plot_trials(trials, args.plots / f"{env_id}_{label}_trials.png",
                         title=f"{env_id}: {label}, max contour error per trial")
