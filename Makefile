@@ -1,4 +1,5 @@
-# The two commands of the README: `make bench` (the main job) and `make test`.
+# The two commands of the README: `make bench` (the main job) and `make test`
+# (what CI runs: `make lint`, `make docs`, then pytest).
 # Both create .venv, install the CPU build of PyTorch from the pinned file
 # first (an unpinned torch pulls gigabytes of CUDA packages), then the project,
 # then compile its numba kernels once (python -m vcnc_gym.warmup).
@@ -6,7 +7,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install test bench
+.PHONY: install test bench lint docs
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -20,7 +21,14 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 
 install: $(VENV)/.installed
 
-test: install
+lint: install
+	$(BIN)/ruff check --no-cache .
+
+# The documentation site (docs/), warnings as errors, no network: docs/_build/html/index.html
+docs: install
+	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
+
+test: lint docs
 	$(BIN)/python -m pytest -q
 
 bench: install

@@ -1,0 +1,98 @@
+"""The documentation's code runs: every Python block of the guides and of the getting-started page.
+
+A page's blocks run in order as one script, in a fresh interpreter (a guide
+registers a controller or compiles a plant: nothing leaks into this process),
+from a temporary folder.  A block captioned with a file name
+(```` ```{code-block} python ```` with ``:caption: name.py``) is that
+module: it is written beside the script, under a name carrying a hash of its
+text (no clash with an installed module), and imported as ``name``; nothing
+numba compiles for its types is cached (``_HEAD``).  ``diff`` and ``bash``
+blocks are shown, not run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+
+#: ```python ... ``` or ```{code-block} python ... ``` with its :option: lines
+_FENCE = re.compile(r"^```(?:python|\{code-block\} python)[ \t]*\n((?::[\w-]+:[^\n]*\n)*)(.*?)^```[ \t]*$",
+                    re.MULTILINE | re.DOTALL)
+
+PAGES = ["getting-started.md", "guides/add-a-plant.md", "guides/add-a-contour.md", "guides/add-a-controller.md"]
+
+
+def code_blocks(page: Path) -> list[tuple[str | None, str]]:
+    """(module file name or None, code) of every Python block of ``page``, in order."""
+    blocks = []
+    for options, code in _FENCE.findall(page.read_text()):
+        caption = re.search(r"^:caption:\s*(\S+\.py)\s*$", options, re.MULTILINE)
+        blocks.append((caption.group(1) if caption else None, code))
+    return blocks
+
+
+def test_the_block_reader_finds_both_fence_kinds(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("intro\n```python\nx = 1\n```\n\n```{code-block} python\n:caption: mod.py\n\ny = 2\n```\n"
+                    "```diff\n+z\n```\n```bash\nmake\n```\n")
+    assert code_blocks(page) == [(None, "x = 1\n"), ("mod.py", "\ny = 2\n")]
+
+
+#: Run before a page's code.  numba keeps one cache index per compiled function, shared by every
+#: signature: a step kernel compiled for a guide's plant class, saved there, would name a module that no
+#: other process can import, and every later load of that kernel would fail.  So nothing compiled for a
+#: type of the guide's modules is saved (it compiles in the page's process only).
+_HEAD = """import importlib, pickle, sys
+sys.path.insert(0, ".")
+import numba.core.caching as _caching
+
+_GUIDE_MODULES = tuple(hashed.encode() for _, hashed in {modules!r})
+_save_overload = _caching.Cache.save_overload
+
+
+def _save_unless_guide_type(self, sig, data):
+    try:
+        blob = pickle.dumps(sig)
+    except Exception:
+        return
+    if not any(name in blob for name in _GUIDE_MODULES):
+        _save_overload(self, sig, data)
+
+
+_caching.Cache.save_overload = _save_unless_guide_type
+"""
+
+
+def _script(page: Path, folder: Path) -> Path:
+    modules, body = [], []
+    for name, code in code_blocks(page):
+        if name is None:
+            body.append(code)
+            continue
+        stem = Path(name).stem
+        hashed = f"{stem}_{hashlib.sha1(code.encode()).hexdigest()[:12]}"
+        (folder / f"{hashed}.py").write_text(code)
+        modules.append((stem, hashed))
+    assert body, f"{page} has no Python block to run"
+    head = _HEAD.format(modules=tuple(modules)) + "\n".join(
+        f"sys.modules[{stem!r}] = importlib.import_module({hashed!r})" for stem, hashed in modules) + "\n"
+    script = folder / "page.py"
+    script.write_text(head + "\n".join(body))
+    return script
+
+
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if "plant" in p else p for p in PAGES])
+def test_page_code_runs(page, tmp_path):
+    script = _script(DOCS / page, tmp_path)
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, f"{page}'s code failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-6000:]}"
