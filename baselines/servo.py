@@ -92,6 +92,8 @@ class ServoGains:
         0: Koren's fixed coupling gains; 1: Koren and Lo's variable gains.
     integral_limit : ndarray, (2,)
         Bound of each axis integral, mm s (anti-windup: ``K_i I_lim = u_max``).
+
+    A policy holds them stacked, (G, 2) and (G,), G = 1 or one row per env (:meth:`ServoPolicy._set_law`).
     """
 
     kp: np.ndarray
@@ -197,26 +199,36 @@ class ServoPolicy(BaselinePolicy):
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     # -- the law -------------------------------------------------------------
-    def _set_law(self, table: np.ndarray, gains: ServoGains) -> None:
+    def _set_law(self, table: np.ndarray, gains) -> None:
+        """Set the table ((K, C), or (N, K, C): one per env) and the gains (a :class:`ServoGains`, or a sequence
+        of N: one per env)."""
         table = np.ascontiguousarray(table, dtype=np.float64)
         if table.ndim == 2:
             table = table[None]
         if table.ndim != 3 or table.shape[2] != TABLE_COLUMNS or not np.all(np.isfinite(table)):
             raise ValueError(f"servo table must be finite, (K, {TABLE_COLUMNS}) or (N, K, {TABLE_COLUMNS}), "
                              f"got shape {table.shape}")
-        limit = gains.integral_limit
-        if limit is None:  # anti-windup: the integral alone never asks more than the input limit
-            with np.errstate(divide="ignore"):
-                limit = np.where(gains.ki > 0, self.u_max / np.where(gains.ki > 0, gains.ki, 1.0), 0.0)
-        self.gains = ServoGains(per_axis("kp", gains.kp, rule=non_negative),
-                                per_axis("kd", gains.kd, rule=non_negative),
-                                per_axis("ki", gains.ki, rule=non_negative),
-                                non_negative("kc", gains.kc),
-                                non_negative("kci", gains.kci),
-                                non_negative("variable", gains.variable),
-                                per_axis("integral_limit", limit, rule=non_negative))
+        rows = [self._checked(g) for g in ([gains] if isinstance(gains, ServoGains) else gains)]
+        self.gains = ServoGains(*(np.ascontiguousarray(np.stack([getattr(r, f) for r in rows]))
+                                  for f in ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit")))
         self.table = table
         self._compiled = None
+
+    def _gains_row(self, i: int) -> ServoGains:
+        """The gains of env ``i`` (row 0 when all envs share them)."""
+        g = self.gains
+        r = i if g.kp.shape[0] > 1 else 0
+        return ServoGains(g.kp[r], g.kd[r], g.ki[r], g.kc[r], g.kci[r], g.variable[r], g.integral_limit[r])
+
+    def _checked(self, gains: ServoGains) -> ServoGains:
+        limit = gains.integral_limit
+        if limit is None:  # anti-windup: the integral alone never asks more than the input limit
+            ki = np.asarray(gains.ki, dtype=np.float64)
+            limit = np.where(ki > 0, self.u_max / np.where(ki > 0, ki, 1.0), 0.0)
+        return ServoGains(per_axis("kp", gains.kp, rule=non_negative), per_axis("kd", gains.kd, rule=non_negative),
+                          per_axis("ki", gains.ki, rule=non_negative), non_negative("kc", gains.kc),
+                          non_negative("kci", gains.kci), non_negative("variable", gains.variable),
+                          per_axis("integral_limit", limit, rule=non_negative))
 
     def record(self, n_envs: int, steps: int) -> np.ndarray:
         """Record the next episodes' commands: returns the (n_envs, steps, 2) array the law writes into, row k
@@ -231,11 +243,14 @@ class ServoPolicy(BaselinePolicy):
 
     def _command(self, obs):
         """The servo law in NumPy for a batch (the readable statement; the compiled form repeats its operations)."""
-        g, table, mem = self.gains, self.table, self._state
+        table, mem = self.table, self._state
         n = obs.shape[0]
+        own, first = np.arange(n), np.zeros(n, dtype=np.int64)
+        g = ServoGains(*(a[own if a.shape[0] > 1 else first] for a in (
+            self.gains.kp, self.gains.kd, self.gains.ki, self.gains.kc, self.gains.kci, self.gains.variable,
+            self.gains.integral_limit)))
         k = mem[:, _M_K].astype(np.int64)
-        rows = table[np.arange(n) if table.shape[0] > 1 else np.zeros(n, dtype=np.int64),
-                     np.minimum(k, table.shape[1] - 1)]
+        rows = table[own if table.shape[0] > 1 else first, np.minimum(k, table.shape[1] - 1)]
         E = self.layout.tracking_error(obs)
         Ed = self.layout.reference_velocity(obs) - self.layout.velocity(obs)
         e = E + rows[:, OFFSET:OFFSET + 2]
@@ -260,8 +275,8 @@ class ServoPolicy(BaselinePolicy):
                            self.decision_period, float(self.stride), self.u_max, self._record)
 
 
-#: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((2,) or
-#: float), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2) (ServoPolicy.record).
+#: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((1 or N, 2)
+#: or (1 or N,)), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2) (ServoPolicy.record).
 ServoArrays = namedtuple("ServoArrays", ["memory", "table", "kp", "kd", "ki", "integral_limit", "kc", "kci",
                                          "variable", "period", "stride", "u_max", "record"])
 
@@ -273,16 +288,17 @@ def _servo_command(s, i, obs, o, out):
     mem = s.memory[i]
     k = np.int64(mem[_M_K])
     t = s.table[i if s.table.shape[0] > 1 else 0, min(k, s.table.shape[1] - 1)]
+    g = i if s.kp.shape[0] > 1 else 0
     Ex = np.float64(obs[o.tracking_error])
     Ey = np.float64(obs[o.tracking_error + 1])
     Edx = np.float64(obs[o.reference_velocity]) - np.float64(obs[o.velocity])
     Edy = np.float64(obs[o.reference_velocity + 1]) - np.float64(obs[o.velocity + 1])
     recording = i < s.record.shape[0] and k < s.record.shape[1]
-    half = s.variable * t[CURVATURE] * 0.5
+    half = s.variable[g] * t[CURVATURE] * 0.5
     cx = t[TANGENT + 1] - half * Ex
     cy = t[TANGENT] + half * Ey
     eps = -Ex * cx + Ey * cy
-    w = s.kc * eps + s.kci * mem[_M_J]
+    w = s.kc[g] * eps + s.kci[g] * mem[_M_J]
     for j in range(2):
         E = Ex if j == 0 else Ey
         Ed = Edx if j == 0 else Edy
@@ -290,8 +306,8 @@ def _servo_command(s, i, obs, o, out):
         e = E + t[OFFSET + j]
         ed = Ed + t[VELOCITY_OFFSET + j]
         integral = mem[_M_I + j]
-        u = t[U_FF + j] + s.kp[j] * e + s.kd[j] * ed + s.ki[j] * integral + coupling
-        mem[_M_I + j] = min(max(integral + e * s.period, -s.integral_limit[j]), s.integral_limit[j])
+        u = t[U_FF + j] + s.kp[g, j] * e + s.kd[g, j] * ed + s.ki[g, j] * integral + coupling
+        mem[_M_I + j] = min(max(integral + e * s.period, -s.integral_limit[g, j]), s.integral_limit[g, j])
         out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
         if recording:
             s.record[i, k, j] = out[j] * s.u_max[j]
