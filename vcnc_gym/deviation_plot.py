@@ -84,6 +84,25 @@ def contour_corners(env) -> list[np.ndarray]:
     return corners
 
 
+def _curve_near(u_env, point, radius: float) -> list[np.ndarray]:
+    """The contour within ``radius`` mm of ``point``, densely sampled (2000 points per pass near it): the
+    reference samples near the point give the parameter ranges."""
+    from .envs import step_kernel as sk
+
+    samples = u_env.task.reference_arrays.samples
+    near = np.flatnonzero(np.hypot(*(samples[:, sk.REF_POSITION:sk.REF_POSITION + 2] - point).T) < radius)
+    if not near.size:
+        return []
+    runs = np.split(near, np.flatnonzero(np.diff(near) > 1) + 1)
+    lo_u, hi_u = u_env.curve.u_range
+    out = []
+    for run in runs:
+        a = samples[max(run[0] - 1, 0), sk.REF_U]
+        b = samples[min(run[-1] + 1, len(samples) - 1), sk.REF_U]
+        out.append(u_env.curve.points(np.linspace(max(a, lo_u), min(b, hi_u), 2000)))
+    return out
+
+
 def plot_deviation(results_by_policy: Mapping, env, path, *, title: str | None = None):
     """The magnified deviation of every policy along ``env``'s contour, with an inset at every corner.
 
@@ -140,8 +159,8 @@ def plot_deviation(results_by_policy: Mapping, env, path, *, title: str | None =
             if close.any():
                 near = max(near, float(np.max(np.abs(e[close]))))
         half = max(4.0 * near, 0.01)
-        window = np.hypot(*(ref - c).T) < 2 * half * 1.5
-        ins.plot(1e3 * (ref[window, 0] - c[0]), 1e3 * (ref[window, 1] - c[1]), color="0.6", lw=2.0)
+        for piece in _curve_near(u_env, c, 3.0 * half):
+            ins.plot(1e3 * (piece[:, 0] - c[0]), 1e3 * (piece[:, 1] - c[1]), color="0.6", lw=2.0)
         for i, (p, *_rest) in enumerate(drawn.values()):
             sel = np.hypot(*(p - c).T) < 2 * half * 1.5
             ins.plot(1e3 * (p[sel, 0] - c[0]), 1e3 * (p[sel, 1] - c[1]), lw=0.8, color=f"C{i % 10}")
