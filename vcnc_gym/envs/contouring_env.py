@@ -159,11 +159,23 @@ class ContouringEnv(gym.Env):
       contour preview.
     - ``plant_options`` (None): the plant's own settings, e.g.
       ``{"substep": 1e-5}`` (s) for seed 000's integration substep.
+    - ``shop_floor`` (None): the machine as it is on the shop floor
+      (:mod:`vcnc_gym.plants.shop_floor`): True for the documented defaults
+      or a dict of effect parameters (encoder resolution and noise, command
+      and sensor delays, the first structural mode, the cutting force,
+      Stribeck friction) over them; their parameters are appended to the
+      plant's (``randomize`` draws them), the observation shows the
+      quantised, noisy, delayed reading and ``info`` keeps the true contour
+      error.  The ``...Shop-v1`` ids set it.
     - ``max_episode_steps`` (None: the natural length): truncation, decisions.
     - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
 
     ## Version History
 
+    - The ``...Shop-v1`` ids (``VCNC-HeartShop-v1``, ``VCNC-OmegaLookaheadShop-v1``,
+      ``VCNC-CornersSmoothShop-v1``, ``VCNC-CircleShop-v1``) start at v1: the v1 env
+      of their ideal id with ``shop_floor`` set (issue 20); the ideal ids do
+      not change.
     - v1: the episode ends when the table has reached the end of the
       contour (or at a completion time limit, with a penalty for the
       untraversed length), no longer 10 ms after the reference's end: a

@@ -181,8 +181,8 @@ M_DISTURBANCE = 4  # the input disturbance of the last period, input units
 M_SIZE = 5
 
 #: The arrays of N shop-floor machines (the contract's plant namedtuple): ``inner`` (the inner plant's arrays),
-#: ``state`` (= ``inner.state``), ``params`` (N, 2, P + E), ``dt`` (s), ``n_inner`` (P), ``delays`` (N, 2) int64
-#: (command, sensor delay in periods), ``derived`` (N, 2, D_SIZE), ``memory`` (N, 2, M_SIZE), ``commands`` (N,
+#: ``state`` (= ``inner.state``), ``params`` (N, 2, P + E), ``dt`` (s), ``n_inner`` (P), ``delays`` (N, 3) int64
+#: (command, sensor delay in periods; 1 if a process force acts), ``derived`` (N, 2, D_SIZE), ``memory`` (N, 2, M_SIZE), ``commands`` (N,
 #: MAX_DELAY + 1, 2) and ``readings`` (N, MAX_DELAY + 1, 4) (position x, y and velocity x, y as read) ring
 #: buffers, ``heads`` (N,) int64 (their write position), ``rng`` (N,) uint64 (the noise generators' states),
 #: ``phase`` (N,) rad, scratch ``applied`` (N, 2) and ``sensed`` (N, SENSE_SIZE).
@@ -238,11 +238,18 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
             if len(pair) != 2 or not all(math.isfinite(v) for v in pair):
                 raise ValueError(f"shop-floor setting {p.name} [{p.unit}] must be a finite number or an (x, y) "
                                  f"pair, got {value!r}")
+            if p.physical_range is not None and not all(p.physical_range[0] <= v <= p.physical_range[1]
+                                                        for v in pair):
+                raise ValueError(f"shop-floor setting {p.name} = {value!r} {p.unit} is outside its physical range "
+                                 f"[{p.physical_range[0]:g}, {p.physical_range[1]:g}] ({p.range_source})")
             interval = p.interval
             if interval is not None and not all(lo <= v <= hi for v, (lo, hi) in zip(pair, interval)):
                 # the default's relative spread around the new value; none around 0 (off) or a default of 0
+                # (within the physical range)
+                top = math.inf if p.physical_range is None else p.physical_range[1]
                 interval = (None if min(pair) <= 0 or min(p.nominal) <= 0 else
-                            tuple((v * lo / n, v * hi / n) for v, n, (lo, hi) in zip(pair, p.nominal, interval)))
+                            tuple((v * lo / n, min(v * hi / n, max(v, top)))
+                                  for v, n, (lo, hi) in zip(pair, p.nominal, interval)))
             p = Parameter(p.name, p.unit, nominal=pair, interval=interval,
                           shared=p.shared, source=p.source, sign=p.sign, description=p.description,
                           physical_range=p.physical_range, range_source=p.range_source)
@@ -315,7 +322,7 @@ def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -
     n = n_machines
     out = ShopFloorArrays(
         inner=arrays, state=arrays.state, params=params, dt=float(dt), n_inner=P,
-        delays=np.zeros((n, 2), dtype=np.int64), derived=np.zeros((n, 2, D_SIZE)), memory=np.zeros((n, 2, M_SIZE)),
+        delays=np.zeros((n, 3), dtype=np.int64), derived=np.zeros((n, 2, D_SIZE)), memory=np.zeros((n, 2, M_SIZE)),
         commands=np.zeros((n, MAX_DELAY + 1, 2)), readings=np.zeros((n, MAX_DELAY + 1, 4)),
         heads=np.zeros(n, dtype=np.int64), rng=np.zeros(n, dtype=np.uint64), phase=np.zeros(n),
         applied=np.zeros((n, 2)), sensed=np.zeros((n, contract.SENSE_SIZE)))
@@ -346,6 +353,7 @@ def _reset_machine(model: ShopFloorModel, arrays: ShopFloorArrays, k: int, posit
     gain = inner.force_gain(arrays.params[k, :, :P]) if inner.force_gain is not None else np.zeros(2)
     arrays.delays[k, 0] = int(math.floor(e[0, E_COMMAND_DELAY] + 0.5))
     arrays.delays[k, 1] = int(math.floor(e[0, E_SENSOR_DELAY] + 0.5))
+    arrays.delays[k, 2] = int(max(e[0, E_CUTTING_FORCE], e[0, E_CUTTING_RIPPLE], *e[:, E_STRIBECK_FORCE]) > 0.0)
     for i in range(2):
         arrays.derived[k, i, D_GAIN] = gain[i]
         f = e[i, E_MODE_FREQUENCY]
@@ -416,7 +424,7 @@ def _sense_inner(inner, k, out):
     contract.sense(inner, k, out)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _advance_shop(plant, k, command):
     """One control period of shop-floor machine ``k`` (module docstring, steps 1-5)."""
     P = plant.n_inner
@@ -433,25 +441,23 @@ def _advance_shop(plant, k, command):
     applied[0] = plant.commands[k, slot, 0]
     applied[1] = plant.commands[k, slot, 1]
     # 2. process forces, N, as input
-    f_cut = params[k, 0, P + E_CUTTING_FORCE]
-    f_rip = params[k, 0, P + E_CUTTING_RIPPLE]
-    vx = memory[k, 0, M_MEAN_VELOCITY]
-    vy = memory[k, 1, M_MEAN_VELOCITY]
-    speed = math.hypot(vx, vy)
-    cutting = 0.0
-    if (f_cut > 0.0 or f_rip > 0.0) and speed > 0.0:
-        cutting = (f_cut + f_rip * math.cos(plant.phase[k])) / speed
-    plant.phase[k] += plant.derived[k, 0, D_PHASE_STEP]
-    for i in range(2):
-        v = memory[k, i, M_MEAN_VELOCITY]
-        force = -cutting * v
-        s = params[k, i, P + E_STRIBECK_FORCE]
-        if s > 0.0:
-            vs = params[k, i, P + E_STRIBECK_VELOCITY]
-            force -= s * math.exp(-(v / vs) ** 2) * math.tanh(v / (STRIBECK_SIGN_WIDTH * vs))
-        d = plant.derived[k, i, D_GAIN] * force
-        memory[k, i, M_DISTURBANCE] = d
-        if d != 0.0:
+    if plant.delays[k, 2]:
+        f_cut = params[k, 0, P + E_CUTTING_FORCE]
+        f_rip = params[k, 0, P + E_CUTTING_RIPPLE]
+        speed = math.hypot(memory[k, 0, M_MEAN_VELOCITY], memory[k, 1, M_MEAN_VELOCITY])
+        cutting = 0.0
+        if (f_cut > 0.0 or f_rip > 0.0) and speed > 0.0:
+            cutting = (f_cut + f_rip * math.cos(plant.phase[k])) / speed
+        plant.phase[k] += plant.derived[k, 0, D_PHASE_STEP]
+        for i in range(2):
+            v = memory[k, i, M_MEAN_VELOCITY]
+            force = -cutting * v
+            s = params[k, i, P + E_STRIBECK_FORCE]
+            if s > 0.0:
+                vs = params[k, i, P + E_STRIBECK_VELOCITY]
+                force -= s * math.exp(-(v / vs) ** 2) * math.tanh(v / (STRIBECK_SIGN_WIDTH * vs))
+            d = plant.derived[k, i, D_GAIN] * force
+            memory[k, i, M_DISTURBANCE] = d
             applied[i] += d
     # 3. the drive
     contract.advance(plant.inner, k, applied)
@@ -501,7 +507,7 @@ def _advance_shop(plant, k, command):
         plant.readings[k, head, 2 + i] = v_t
 
 
-@overload(contract.advance, jit_options={"cache": True})
+@overload(contract.advance, inline="always", jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, ShopFloorArrays):
         def impl(plant, k, command):
@@ -509,7 +515,7 @@ def _advance(plant, k, command):
         return impl
 
 
-@overload(contract.sense, jit_options={"cache": True})
+@overload(contract.sense, inline="always", jit_options={"cache": True})
 def _sense(plant, k, out):
     if contract.is_plant(plant, ShopFloorArrays):
         def impl(plant, k, out):
