@@ -12,6 +12,7 @@ import numba
 import numpy as np
 import pytest
 
+from vcnc_gym.plants import exact_zoh
 from vcnc_gym.plants import vcnc_feed_drive as fd
 
 control = pytest.importorskip("control")
@@ -276,15 +277,15 @@ def test_series_helpers_against_decimal():
         d = Decimal(z)
         phi1 = (d.exp() - 1) / d
         phi2 = (d.exp() - 1 - d) / (d * d)
-        assert fd._phi1(z) == pytest.approx(float(phi1), rel=1e-14)
-        assert fd._phi2(z) == pytest.approx(float(phi2), rel=1e-14)
+        assert exact_zoh.phi1(z) == pytest.approx(float(phi1), rel=1e-14)
+        assert exact_zoh.phi2(z) == pytest.approx(float(phi2), rel=1e-14)
     for x in [1e-12, 1e-7, 3e-4, 0.0099, 0.0101, 0.3, 5.0, 1e3]:
         d = Decimal(x)
         ln = (1 + d).ln()
-        assert fd._log1p_ratio(x) == pytest.approx(float(ln / d), rel=1e-14)
-        assert fd._log1p_rest(x) == pytest.approx(float((d - ln) / (d * d)), rel=1e-13)
-    assert fd._phi1(0.0) == 1.0 and fd._phi2(0.0) == 0.5
-    assert fd._log1p_ratio(0.0) == 1.0 and fd._log1p_rest(0.0) == 0.5
+        assert exact_zoh.log1p_ratio(x) == pytest.approx(float(ln / d), rel=1e-14)
+        assert exact_zoh.log1p_rest(x) == pytest.approx(float((d - ln) / (d * d)), rel=1e-13)
+    assert exact_zoh.phi1(0.0) == 1.0 and exact_zoh.phi2(0.0) == 0.5
+    assert exact_zoh.log1p_ratio(0.0) == 1.0 and exact_zoh.log1p_rest(0.0) == 0.5
 
 
 # ---------------------------------------------------------------- backlash

@@ -111,6 +111,7 @@ from numba.extending import overload
 
 from . import contract
 from .contract import Parameter, PlantModel
+from .exact_zoh import first_order
 
 __all__ = [
     "PARAMETERS",
@@ -331,28 +332,9 @@ MODEL = PlantModel(
 
 @numba.njit(cache=True)
 def zoh_coefficients(a, dt):
-    """Exact ZOH coefficients of ``v' = -a v + w``, ``x' = v`` over ``dt`` (``w`` held).
-
-    Returns ``(E, g, q)`` with ``v1 = E v0 + g w`` and ``x1 = x0 + g v0 + q w``:
-    ``E = exp(-a dt)``, ``g = (1 - E) / a``, ``q = (dt - g) / a``; a Taylor
-    series for ``a dt < 0.1``, where ``dt - g`` would cancel.
-    """
-    z = a * dt
-    e = math.exp(-z)
-    if z < 0.1:
-        # g / dt = sum_n (-z)^n / (n + 1)!,  q / dt^2 = sum_n (-z)^n / (n + 2)!
-        s1 = 1.0
-        s2 = 0.5
-        t1 = 1.0
-        t2 = 0.5
-        for n in range(1, 12):
-            t1 *= -z / (n + 1)
-            t2 *= -z / (n + 2)
-            s1 += t1
-            s2 += t2
-        return e, dt * s1, dt * dt * s2
-    g = -math.expm1(-z) / a
-    return e, g, (dt - g) / a
+    """Exact ZOH coefficients of ``v' = -a v + w``, ``x' = v`` over ``dt`` (``w`` held):
+    ``(E, g, q)`` with ``v1 = E v0 + g w`` and ``x1 = x0 + g v0 + q w`` (:func:`~vcnc_gym.plants.exact_zoh.first_order`)."""
+    return first_order(a, dt)
 
 
 @numba.njit(cache=True)

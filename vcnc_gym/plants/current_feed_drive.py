@@ -88,9 +88,7 @@ from numba.extending import overload
 from . import contract
 from .contract import Parameter, PlantModel
 
-# The closed-form first-order helpers live in seed 000's plant module for now;
-# they are plant-independent and could move to a shared module.
-from .vcnc_feed_drive import _coefficients, _log1p_ratio, _log1p_rest
+from .exact_zoh import first_order, log1p_ratio, log1p_rest
 
 __all__ = [
     "PARAMETERS",
@@ -199,7 +197,7 @@ def advance_axis(x, v, force, m, c, f_c, h):
     a = c * inv_m
     if v != 0.0:
         net = force - f_c if v > 0.0 else force + f_c  # N, constant while v keeps its sign
-        e, g, q = _coefficients(a, h)
+        e, g, q = first_order(a, h)
         alpha = net * inv_m
         v_new = e * v + g * alpha
         if (v > 0.0 and v_new > 0.0) or (v < 0.0 and v_new < 0.0):
@@ -207,8 +205,8 @@ def advance_axis(x, v, force, m, c, f_c, h):
         # the net force opposes v (-net has the sign of v): the table stops inside h
         tau = m * v / (-net)  # > 0: the stop time without viscous friction
         z = c * v / (-net)  # >= 0
-        t_stop = tau * _log1p_ratio(z)
-        x += tau * v * _log1p_rest(z)
+        t_stop = tau * log1p_ratio(z)
+        x += tau * v * log1p_rest(z)
         h -= t_stop
         if h <= 0.0:
             return x, 0.0
@@ -219,7 +217,7 @@ def advance_axis(x, v, force, m, c, f_c, h):
         alpha = (force + f_c) * inv_m
     else:
         return x, 0.0
-    _, g, q = _coefficients(a, h)
+    _, g, q = first_order(a, h)
     return x + q * alpha, g * alpha
 
 

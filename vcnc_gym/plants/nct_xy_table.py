@@ -75,6 +75,7 @@ from numba.extending import overload
 
 from . import contract
 from .contract import Parameter, PlantModel
+from .exact_zoh import first_order
 
 __all__ = [
     "PARAMETERS",
@@ -204,27 +205,11 @@ def quantise(x, resolution):
 def zoh_coefficients(alpha, dt):
     """Exact ZOH coefficients of ``v' = alpha (K u - v)``, ``x' = v`` over ``dt``.
 
-    Returns ``(E, g, q)`` with ``v1 = E v0 + alpha g K u`` and
-    ``x1 = x0 + g v0 + q K u``: ``E = exp(-alpha dt)``,
-    ``g = (1 - E) / alpha``, ``q = dt - g`` (series for small ``alpha dt``,
-    where ``dt - g`` would cancel).
+    Returns ``(E, g, q)`` with ``v1 = E v0 + alpha g K u`` and ``x1 = x0 + g v0 + q K u``:
+    :func:`~vcnc_gym.plants.exact_zoh.first_order`'s ``E`` and ``g``, and ``q = alpha (dt - g) / alpha``.
     """
-    z = alpha * dt
-    e = math.exp(-z)
-    if z < 0.1:
-        # (1 - e^-z) / z = sum (-z)^n / (n + 1)!,  (z - 1 + e^-z) / z^2 = sum (-z)^n / (n + 2)!
-        s1 = 1.0
-        s2 = 0.5
-        t1 = 1.0
-        t2 = 0.5
-        for n in range(1, 10):
-            t1 *= -z / (n + 1)
-            t2 *= -z / (n + 2)
-            s1 += t1
-            s2 += t2
-        return e, dt * s1, dt * z * s2
-    g = -math.expm1(-z) / alpha
-    return e, g, dt - g
+    e, g, q = first_order(alpha, dt)
+    return e, g, alpha * q
 
 
 @numba.njit(cache=True)

@@ -90,6 +90,7 @@ from numba.extending import overload
 
 from . import contract
 from .contract import Parameter, PlantModel
+from .exact_zoh import first_order, log1p_ratio, log1p_rest
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -453,75 +454,6 @@ def validate_parameters(params, n_machines: int | None = None) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _phi1(z):
-    """(e^z - 1) / z, = 1 at z = 0."""
-    if z == 0.0:
-        return 1.0
-    return math.expm1(z) / z
-
-
-@numba.njit(cache=True)
-def _phi2(z):
-    """(e^z - 1 - z) / z^2, accurate for small |z|."""
-    if abs(z) < 0.1:
-        # Taylor series: sum_k z^k / (k + 2)!
-        return (
-            1.0 / 2.0
-            + z
-            * (
-                1.0 / 6.0
-                + z
-                * (
-                    1.0 / 24.0
-                    + z
-                    * (
-                        1.0 / 120.0
-                        + z
-                        * (
-                            1.0 / 720.0
-                            + z * (1.0 / 5040.0 + z * (1.0 / 40320.0 + z * (1.0 / 362880.0 + z / 3628800.0)))
-                        )
-                    )
-                )
-            )
-        )
-    return (math.expm1(z) - z) / (z * z)
-
-
-@numba.njit(cache=True)
-def _log1p_ratio(x):
-    """log(1 + x) / x for x >= 0, = 1 at x = 0."""
-    if x == 0.0:
-        return 1.0
-    return math.log1p(x) / x
-
-
-@numba.njit(cache=True)
-def _log1p_rest(x):
-    """(x - log(1 + x)) / x^2 for x >= 0, accurate for small x."""
-    if x < 0.01:
-        # sum_k (-1)^k x^k / (k + 2)
-        return 0.5 + x * (
-            -1.0 / 3.0
-            + x * (0.25 + x * (-0.2 + x * (1.0 / 6.0 + x * (-1.0 / 7.0 + x * (0.125 + x * (-1.0 / 9.0))))))
-        )
-    return (x - math.log1p(x)) / (x * x)
-
-
-@numba.njit(cache=True)
-def _coefficients(a, h):
-    """Exact one-substep coefficients of w' = alpha - a w over time h.
-
-    w(h) = E w0 + g alpha ;  int_0^h w = g w0 + q alpha.
-    """
-    z = -a * h
-    e = math.exp(z)
-    g = h * _phi1(z)
-    q = h * h * _phi2(z)
-    return e, g, q
-
-
-@numba.njit(cache=True)
 def _clip_play(x_t, x_m, half):
     lo = x_m - half
     if x_t < lo:
@@ -605,7 +537,7 @@ def step_machine(state, k, voltage, params, dt, n_substeps):
         t_m = kt_ka * u
         inv_j = 1.0 / jj
         a = bb * inv_j
-        e, g, q = _coefficients(a, h)
+        e, g, q = first_order(a, h)
 
         x_m = state[k, i, 0]
         w = state[k, i, 1]
@@ -637,8 +569,8 @@ def step_machine(state, k, voltage, params, dt, n_substeps):
                     # opposes w, so -torque has the sign of w)
                     tau = jj * w / (-torque)  # > 0, stop time if B = 0
                     x = bb * w / (-torque)  # >= 0
-                    t_stop = tau * _log1p_ratio(x)
-                    x_m += r_g * (tau * w * _log1p_rest(x))
+                    t_stop = tau * log1p_ratio(x)
+                    x_m += r_g * (tau * w * log1p_rest(x))
                     w = 0.0
                     x_t = _clip_play(x_t, x_m, half)
                     rest = h - t_stop
@@ -649,7 +581,7 @@ def step_machine(state, k, voltage, params, dt, n_substeps):
                             alpha = (t_m - tc_n) * inv_j
                         else:
                             continue
-                        _, g_r, q_r = _coefficients(a, rest)
+                        _, g_r, q_r = first_order(a, rest)
                         w = alpha * g_r
                         x_m += r_g * (alpha * q_r)
             x_t = _clip_play(x_t, x_m, half)
