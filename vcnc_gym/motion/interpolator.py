@@ -65,6 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..geometry.arclength import ARC_STACK, arc_between, curve_curvature, curve_speed
 from ..geometry.nurbs import FIRST, SECOND, NurbsCurve, curve_derivatives_into, find_span, workspace_size
 from ..validation import integer, positive, real
 from .feedrate import FeedratePlan
@@ -119,103 +120,11 @@ _END_SINGULAR = 2.0  # |C'(u)| = 0 (or not finite) met: eq. (9) undefined
 _END_FAILED = 3.0  # a corrected step still missed the tolerance: stopped after it
 _END_UNRESOLVED = 4.0  # one floating-point step of u moves too far at a sample: stopped there
 
-# 5-point Gauss-Legendre rule on [-1, 1], for arc lengths of single steps
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
-_ARC_STACK = 64  # depth of the adaptive quadrature's stack (bisections of one step)
 
 
 # --------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------
-
-
-@njit(cache=True)
-def _gauss_arc(control_points, weights, knots, degree, a, b, ders, work):
-    """Arc length from a to b (one knot span) by 5-point Gauss-Legendre on |C'(u)|, mm.
-
-    A node that rounds onto b (a piece a few ulps wide) is moved just below
-    it: at a knot the evaluator takes the span on the right.
-    """
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    below_b = np.nextafter(b, a)
-    total = 0.0
-    for i in range(_GL_X.shape[0]):
-        x = min(max(mid + half * _GL_X[i], a), below_b)
-        curve_derivatives_into(control_points, weights, knots, degree, x, FIRST, ders, work)
-        total += _GL_W[i] * math.sqrt(ders[1, 0] * ders[1, 0] + ders[1, 1] * ders[1, 1])
-    return half * total
-
-
-@njit(cache=True)
-def _arc_within_span(control_points, weights, knots, degree, a, b, tol, ders, work, stack):
-    """Arc length from a to b inside one knot span (|C'| smooth), adaptive Gauss-Legendre, mm.
-
-    A piece is accepted when its 5-point value and the sum over its two
-    halves agree to ``tol`` mm (or to 1e-13 relative); otherwise its halves
-    are pushed on ``stack`` (shape (3, _ARC_STACK)): at most ~60 bisections
-    deep, far below the resolution of u.
-    """
-    total = 0.0
-    top = 0
-    stack[0, 0] = a
-    stack[1, 0] = b
-    stack[2, 0] = _gauss_arc(control_points, weights, knots, degree, a, b, ders, work)
-    top = 1
-    while top > 0:
-        top -= 1
-        lo = stack[0, top]
-        hi = stack[1, top]
-        whole = stack[2, top]
-        mid = 0.5 * (lo + hi)
-        left = _gauss_arc(control_points, weights, knots, degree, lo, mid, ders, work)
-        right = _gauss_arc(control_points, weights, knots, degree, mid, hi, ders, work)
-        halves = left + right
-        if abs(halves - whole) <= max(tol, 1e-13 * halves) or top >= _ARC_STACK - 2 or not (lo < mid < hi):
-            total += halves
-        else:
-            stack[0, top] = lo
-            stack[1, top] = mid
-            stack[2, top] = left
-            stack[0, top + 1] = mid
-            stack[1, top + 1] = hi
-            stack[2, top + 1] = right
-            top += 2
-    return total
-
-
-@njit(cache=True)
-def arc_between(control_points, weights, knots, degree, a, b, tol, ders, work, stack):
-    """Arc length of the curve from u = a to u = b >= a in mm, cut at the knots between.
-
-    Adaptive Gauss-Legendre per knot span (see :func:`_arc_within_span`),
-    accurate to about ``tol`` mm per span.  ``ders`` (>= (2, 2)), ``work``
-    (``workspace_size(degree, 1)``) and ``stack`` ((3, 64)) are scratch.
-    """
-    n = control_points.shape[0] - 1
-    j = find_span(n, degree, a, knots) + 1
-    lo = a
-    total = 0.0
-    while j <= n and knots[j] < b:
-        if knots[j] > lo:
-            total += _arc_within_span(control_points, weights, knots, degree, lo, knots[j], tol, ders, work, stack)
-            lo = knots[j]
-        j += 1
-    if b > lo:
-        total += _arc_within_span(control_points, weights, knots, degree, lo, b, tol, ders, work, stack)
-    return total
-
-
-@njit(cache=True)
-def _speed(ders):
-    return math.sqrt(ders[1, 0] * ders[1, 0] + ders[1, 1] * ders[1, 1])
-
-
-@njit(cache=True)
-def _curvature(ders, speed):
-    """|C' x C''| / |C'|^3, 1/mm, in an order that neither overflows nor underflows early."""
-    cross = abs(ders[1, 0] * ders[2, 1] - ders[1, 1] * ders[2, 0])
-    return cross / speed / speed / speed
 
 
 @njit(cache=True)
@@ -235,8 +144,8 @@ def _step_arc(control_points, weights, knots, degree, u0, u1, d0, d1, tol, ders,
         return 0.0
     span = find_span(n, degree, u0, knots)
     if u1 < knots[span + 1]:
-        s0 = _speed(d0)
-        s1 = _speed(d1)
+        s0 = curve_speed(d0)
+        s1 = curve_speed(d1)
         if s0 > 0.0 and s1 > 0.0:
             h = u1 - u0
             g0 = (d0[1, 0] * d0[2, 0] + d0[1, 1] * d0[2, 1]) / s0
@@ -245,7 +154,7 @@ def _step_arc(control_points, weights, knots, degree, u0, u1, d0, d1, tol, ders,
             dx = d1[0, 0] - d0[0, 0]
             dy = d1[0, 1] - d0[0, 1]
             c = math.sqrt(dx * dx + dy * dy)
-            kappa = 0.5 * (_curvature(d0, s0) + _curvature(d1, s1))
+            kappa = 0.5 * (curve_curvature(d0, s0) + curve_curvature(d1, s1))
             chordal = c * (1.0 + kappa * kappa * c * c / 24.0)
             if abs(trapezoid - chordal) <= tol:
                 return trapezoid
@@ -311,7 +220,7 @@ def _arc_step(control_points, weights, knots, degree, u0, speed0, target, u_end,
             hi = u
             arc_hi = arc_u
         curve_derivatives_into(control_points, weights, knots, degree, u, FIRST, ders, work)
-        speed = _speed(ders)
+        speed = curve_speed(ders)
         u = u - f / speed if speed > 0.0 else 0.5 * (lo + hi)
     if abs(arc_lo - target) < abs(best_arc - target):
         best_u = lo
@@ -399,7 +308,7 @@ def taylor_interpolate_kernel(
     nxt = np.empty((3, 2))
     scratch = np.empty((3, 2))
     work = np.empty(workspace_size(degree, SECOND))
-    stack = np.empty((3, _ARC_STACK))
+    stack = np.empty((3, ARC_STACK))
     result = np.empty(3)
     info[0] = -1.0  # no end yet
     info[4] = 0.0
@@ -492,7 +401,7 @@ def taylor_interpolate_kernel(
         if info[0] >= 0.0:  # the end: the next sample is u_end
             k += 1
             curve_derivatives_into(control_points, weights, knots, degree, u_end, FIRST, scratch, work)
-            sp = _speed(scratch)
+            sp = curve_speed(scratch)
             t_out[k] = t_next
             u_out[k] = u_end
             pos_out[k, 0] = scratch[0, 0]

@@ -148,9 +148,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..geometry.arclength import curve_curvature, curve_speed, gauss_arc
 from ..geometry.nurbs import SECOND, NurbsCurve, curve_derivatives_into, workspace_size
 from ..validation import positive
-from .interpolator import _curvature, _gauss_arc, _speed
 from .jlap import JlapPlan, JlapSection, _bisect_increasing, _PieceWriter, _transition_pieces, transition_distance
 from .profile import plan_arrays
 
@@ -200,10 +200,10 @@ def _limit_samples(control_points, weights, knots, degree, u_arc, u_eval, s_out,
     s = 0.0
     for i in range(u_arc.shape[0]):
         if i > 0 and u_arc[i] > u_arc[i - 1]:
-            s += _gauss_arc(control_points, weights, knots, degree, u_arc[i - 1], u_arc[i], ders, work)
+            s += gauss_arc(control_points, weights, knots, degree, u_arc[i - 1], u_arc[i], ders, work)
         s_out[i] = s
         curve_derivatives_into(control_points, weights, knots, degree, u_eval[i], SECOND, ders, work)
-        kappa_out[i] = _curvature(ders, _speed(ders))
+        kappa_out[i] = curve_curvature(ders, curve_speed(ders))
 
 
 @njit(cache=True)
