@@ -55,7 +55,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import SECOND, _basis_derivatives, find_span, workspace_size
+from ..geometry.nurbs import SECOND, basis_derivatives, find_span, workspace_size
 
 __all__ = ["ContourProjector", "NO_FOOT", "project_point", "project_point_warm"]
 
@@ -95,7 +95,7 @@ def _piece_polynomials(control_points, weights, knots, degree, piece_u, table):
     work = np.empty(out + q * q)
     for i in range(piece_u.shape[0] - 1):
         span = find_span(n, p, piece_u[i], knots)
-        _basis_derivatives(span, piece_u[i], p, p, knots, work, out)
+        basis_derivatives(span, piece_u[i], p, p, knots, work, out)
         factorial = 1.0
         for k in range(q):
             if k > 0:

@@ -17,6 +17,7 @@ from numba import njit
 
 __all__ = [
     "NurbsCurve",
+    "basis_derivatives",
     "SPAN_LENGTH_TOLERANCE",
     "SPEED_TOLERANCE",
     "TURN_BACK_ANGLE",
@@ -110,7 +111,7 @@ def find_span(n, degree, u, knots):
 
 
 @njit(cache=True)
-def _basis_derivatives(span, u, degree, order, knots, work, out):
+def basis_derivatives(span, u, degree, order, knots, work, out):
     """Basis functions N_{span-p..span, p} and derivatives up to ``order`` (A2.3).
 
     Writes d^k/du^k N_{span-p+j, p}(u) to work[out + k (p+1) + j] for
@@ -195,7 +196,7 @@ def curve_derivatives_into(control_points, weights, knots, degree, u, order, out
     nders = q * q + 4 * q  # N^(k)_j -> work[nders + k q + j]
     aders = nders + (du + 1) * q  # A^(k) (x, y) -> work[aders + 2 k], work[aders + 2 k + 1]
     wders = aders + 2 * (order + 1)  # w^(k) -> work[wders + k]
-    _basis_derivatives(span, u, p, du, knots, work, nders)
+    basis_derivatives(span, u, p, du, knots, work, nders)
     # homogeneous derivatives A^(k) = sum N^(k) w P and w^(k) = sum N^(k) w
     for k in range(order + 1):
         ax = 0.0

@@ -98,6 +98,7 @@ from ..plants.current_feed_drive import SEED002_A_MAX, SEED002_FEEDRATE, SEED002
 from ..validation import positive as _positive
 
 __all__ = [
+    "PieceWriter",
     "SEED002_A_MAX",
     "SEED002_FEEDRATE",
     "SEED002_J_MAX",
@@ -110,7 +111,9 @@ __all__ = [
     "jlap_piece",
     "jlap_state",
     "jlap_velocity",
+    "bisect_increasing",
     "transition_distance",
+    "transition_pieces",
     "transition_time",
 ]
 
@@ -227,7 +230,7 @@ def transition_distance(v0: float, v1: float, a_max: float, j_max: float) -> flo
     return 0.5 * (v0 + v1) * transition_time(v1 - v0, a_max, j_max)
 
 
-def _transition_pieces(v0: float, v1: float, a_max: float, j_max: float) -> list[tuple[float, float]]:
+def transition_pieces(v0: float, v1: float, a_max: float, j_max: float) -> list[tuple[float, float]]:
     """(duration s, jerk mm/s^3) of the constant-jerk pieces of one feed change."""
     dv = v1 - v0
     if dv == 0.0:
@@ -242,7 +245,7 @@ def _transition_pieces(v0: float, v1: float, a_max: float, j_max: float) -> list
     return [(t_j, sign * j_max), (t_j, -sign * j_max)]
 
 
-def _bisect_increasing(f, lo: float, hi: float) -> float:
+def bisect_increasing(f, lo: float, hi: float) -> float:
     """Largest x in [lo, hi] with f(x) <= 0 for f increasing and f(lo) <= 0 (to machine precision)."""
     if f(hi) <= 0.0:
         return hi
@@ -368,7 +371,7 @@ class JlapPlan:
         return self._column(t, 3)
 
 
-class _PieceWriter:
+class PieceWriter:
     """Collects constant-jerk pieces, integrating (s, v, a) exactly piece by piece."""
 
     def __init__(self):
@@ -414,7 +417,7 @@ def constant_feedrate(length: float, feedrate: float = SEED002_FEEDRATE) -> Jlap
     """
     length = _positive("length", length, "mm")
     feedrate = _positive("feedrate", feedrate, "mm/s")
-    writer = _PieceWriter()
+    writer = PieceWriter()
     writer.add(length / feedrate, 0.0, 0.0, feedrate, 0.0)
     section = JlapSection("constant", 0.0, length / feedrate, 0.0, length, feedrate, feedrate, feedrate)
     return writer.finish(length, [section])
@@ -498,7 +501,7 @@ class JlapFeedrate:
     def _reach(self, v0: float, distance: float) -> float:
         """Highest feed (<= feedrate) one JLAP change from v0 reaches within ``distance`` mm."""
         a, j = self.a_max, self.j_max
-        return _bisect_increasing(lambda v: transition_distance(v0, v, a, j) - distance, v0, self.feedrate)
+        return bisect_increasing(lambda v: transition_distance(v0, v, a, j) - distance, v0, self.feedrate)
 
     def plan(self, length: float, corners=()) -> JlapPlan:
         """Plan a rest-to-rest motion over ``length`` mm holding corner feeds.
@@ -549,7 +552,7 @@ class JlapFeedrate:
         for i in reversed(range(len(gaps))):  # backward pass
             held[i] = min(held[i], self._reach(held[i + 1], gaps[i]))
 
-        writer = _PieceWriter()
+        writer = PieceWriter()
         sections = []
         for i, gap in enumerate(gaps):
             v0, v1 = held[i], held[i + 1]
@@ -558,16 +561,16 @@ class JlapFeedrate:
             if cruise >= 0.0:
                 peak = self.feedrate
             else:  # no room for the feedrate: the highest peak whose two changes fill the gap, no cruise
-                peak = _bisect_increasing(
+                peak = bisect_increasing(
                     lambda v: transition_distance(v0, v, a, j) + transition_distance(v, v1, a, j) - gap,
                     max(v0, v1), self.feedrate,
                 )
                 cruise = 0.0
             s, v, acc = starts[i], v0, 0.0
-            for d, jerk in _transition_pieces(v0, peak, a, j):
+            for d, jerk in transition_pieces(v0, peak, a, j):
                 s, v, acc = writer.add(d, jerk, s, v, acc)
             s, v, acc = writer.add(cruise / peak, 0.0, s, peak, 0.0)
-            for d, jerk in _transition_pieces(peak, v1, a, j):
+            for d, jerk in transition_pieces(peak, v1, a, j):
                 s, v, acc = writer.add(d, jerk, s, v, acc)
             sections.append(JlapSection("straight", t0, writer.t, starts[i], ends[i], v0, v1, peak))
             if i < len(spans):

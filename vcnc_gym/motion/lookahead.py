@@ -151,7 +151,7 @@ from numba import njit
 from ..geometry.arclength import curve_curvature, curve_speed, gauss_arc
 from ..geometry.nurbs import SECOND, NurbsCurve, curve_derivatives_into, workspace_size
 from ..validation import positive
-from .jlap import JlapPlan, JlapSection, _bisect_increasing, _PieceWriter, _transition_pieces, transition_distance
+from .jlap import JlapPlan, JlapSection, bisect_increasing, PieceWriter, transition_pieces, transition_distance
 from .profile import plan_arrays
 
 __all__ = [
@@ -273,8 +273,8 @@ class LookaheadPlan(JlapPlan):
         return result.reshape(ss.shape)
 
 
-def _add(writer: _PieceWriter, duration: float, jerk: float, s: float, v: float, a: float):
-    """:meth:`_PieceWriter.add`, skipping a piece too short to move the clock (rounding leftovers)."""
+def _add(writer: PieceWriter, duration: float, jerk: float, s: float, v: float, a: float):
+    """:meth:`PieceWriter.add`, skipping a piece too short to move the clock (rounding leftovers)."""
     if writer.t + duration <= writer.t:
         return s, v, a
     return writer.add(duration, jerk, s, v, a)
@@ -282,12 +282,12 @@ def _add(writer: _PieceWriter, duration: float, jerk: float, s: float, v: float,
 
 def _reach(v0: float, distance: float, cap: float, a: float, j: float) -> float:
     """Highest feed (<= cap) one JLAP change from v0 reaches within ``distance`` mm."""
-    return _bisect_increasing(lambda v: transition_distance(v0, v, a, j) - distance, v0, max(v0, cap))
+    return bisect_increasing(lambda v: transition_distance(v0, v, a, j) - distance, v0, max(v0, cap))
 
 
 def _write(cuts_s, speeds, caps, a: float, j: float, length: float) -> JlapPlan:
     """One JLAP straight section per pair of cuts: change, cruise, change, the peak <= its cap."""
-    writer = _PieceWriter()
+    writer = PieceWriter()
     sections = []
     for i, cap in enumerate(caps):
         s0, s1, v0, v1 = cuts_s[i], cuts_s[i + 1], speeds[i], speeds[i + 1]
@@ -297,17 +297,17 @@ def _write(cuts_s, speeds, caps, a: float, j: float, length: float) -> JlapPlan:
         if cruise >= 0.0:
             peak = cap
         else:  # no room for the cap: the highest peak whose two changes fill the gap
-            peak = _bisect_increasing(
+            peak = bisect_increasing(
                 lambda v: transition_distance(v0, v, a, j) + transition_distance(v, v1, a, j) - gap,
                 max(v0, v1), max(v0, v1, cap),
             )
             cruise = 0.0
         s, v, acc = s0, v0, 0.0
-        for d, jerk in _transition_pieces(v0, peak, a, j):
+        for d, jerk in transition_pieces(v0, peak, a, j):
             s, v, acc = _add(writer, d, jerk, s, v, acc)
         if cruise > 0.0:
             s, v, acc = _add(writer, cruise / peak, 0.0, s, peak, 0.0)
-        for d, jerk in _transition_pieces(peak, v1, a, j):
+        for d, jerk in transition_pieces(peak, v1, a, j):
             s, v, acc = _add(writer, d, jerk, s, v, acc)
         sections.append(JlapSection("straight", t0, writer.t, s0, s1, v0, v1, peak))
     return writer.finish(length, sections)
