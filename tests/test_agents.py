@@ -446,6 +446,7 @@ def test_bench_refuses_a_missing_or_mismatched_agent(omega_run, tmp_path, capsys
 
 
 # -- 7. the shipped agents --------------------------------------------------------------------------
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 @pytest.mark.parametrize("env_id", sorted(agents.TRAINED))
 def test_shipped_agent_completes_its_contour(env_id):
     folder = agents.TRAINED[env_id]
@@ -458,6 +459,7 @@ def test_shipped_agent_completes_its_contour(env_id):
 
 
 # -- 8. hyperparameters -----------------------------------------------------------------------------
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_every_env_has_an_entry_that_prepares_a_run(tmp_path):
     """vcnc-train --env ID works for every registered id: its entry passes every check (env, action mode,
     baseline, policy network) and nothing is written before training."""
@@ -539,6 +541,7 @@ def test_ppo_arguments_evaluate_schedules_and_policy_kwargs():
 
 
 # -- 9. RL Zoo ---------------------------------------------------------------------------------------
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 @pytest.mark.skipif(importlib.util.find_spec("rl_zoo3") is None, reason="rl_zoo3 is not installed")
 def test_rl_zoo_trains_with_the_shipped_hyperparameters(tmp_path):
     """The YAML is in the Zoo's format: its train script runs one rollout and saves model and VecNormalize."""

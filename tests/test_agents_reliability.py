@@ -574,6 +574,7 @@ def test_two_sessions_never_write_one_run_folder(base_run, tmp_path):
 
 
 # -- 5. SIGKILL mid-run and resume, in subprocesses --------------------------------------------------
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_kill_and_resume_loses_and_duplicates_no_row(tmp_path):
     import importlib.util
 

@@ -10,6 +10,7 @@ import importlib.util
 import pathlib
 
 import numpy as np
+import pytest
 
 import vcnc_gym
 
@@ -19,6 +20,7 @@ fuzz_envs = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(fuzz_envs)
 
 
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_random_curves_and_settings_give_clean_episodes():
     out = fuzz_envs.fuzz(episodes=30, steps=80, seed=1, progress=False)
     c = out["counts"]

@@ -54,6 +54,7 @@ def tiny(tmp_path_factory):
     return out, rows
 
 
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_tiny_sweep_writes_one_row_per_trial(tiny):
     out, rows = tiny
     assert len(rows) == 2 and list(rows[0]) == list(RESULT_FIELDS)
@@ -71,6 +72,7 @@ def test_tiny_sweep_writes_one_row_per_trial(tiny):
             assert r["baseline"] == r["correction"] == ""
 
 
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_tiny_sweep_figures_are_the_runs_best_evaluations(tiny):
     out, rows = tiny
     for r in rows:
@@ -87,6 +89,7 @@ def test_tiny_sweep_figures_are_the_runs_best_evaluations(tiny):
     assert scores == sorted(scores)  # best first
 
 
+@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_tiny_sweep_retrain_command_is_the_trials_run(tiny, tmp_path):
     out, rows = tiny
     text = (out / "sweep_results.md").read_text()
