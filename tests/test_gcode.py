@@ -387,3 +387,20 @@ def test_bench_runs_programs_and_reports_iso230_4(monkeypatch, tmp_path, capsys)
     assert (plots / "GCode:iso230-4-ccw-D10-F1200_deviation.png").stat().st_size > 1000
     with pytest.raises(SystemExit):
         bench.main(["--program", str(tmp_path / "missing.nc"), "--no-progress"])
+
+
+def test_blends_are_seed_002s_smooth_polyline():
+    """The reader's blends (designs cached by angle) lie on smooth_polyline's path to 1e-7 mm and back."""
+    from vcnc_gym.contour import ContourProjector
+    from vcnc_gym.geometry.corners import smooth_polyline
+
+    vertices = [[0, 0], [30, 0], [30, 20], [5, 27.5], [12, 3.25]]
+    text = "G0 X0 Y0\n" + "".join(f"G1 X{x} Y{y} F3000\n" for x, y in vertices[1:])
+    tp = read_program(text, 0.02, acceleration=1000.0, jerk=3e4)
+    ref = smooth_polyline(vertices, 0.02, 1000.0, 3e4).curve
+    ours = tp.curve
+    for a, b in ((ref, ours), (ours, ref)):
+        pts = a.points(np.linspace(*a.u_range, 20001))
+        d, _ = ContourProjector(b).project(pts)
+        assert np.max(d) < 1e-7
+    assert abs(ours.arc_length() - ref.arc_length()) < 1e-7

@@ -12,9 +12,11 @@ The distributions (:class:`RandomContourSpec`, defaults):
 - each move a G01 line with probability ``line_probability`` = 0.6, else a
   G02/G03 arc (each direction with probability 1/2);
 - line length: uniform in [``line_min``, ``line_max``] = [5, 30] mm;
-- between two lines a corner: the heading turns by an angle uniform in
-  [``turn_min``, ``turn_max``] = [20, 120] degrees, left or right with
-  probability 1/2 (seed 002's test path turns by 90 to 150 degrees); a move
+- between two lines a corner: the heading turns by a whole number of
+  degrees uniform in [``turn_min``, ``turn_max``] = [20, 120], left or right
+  with probability 1/2 (seed 002's test path turns by 90 to 150 degrees;
+  whole degrees so that seed 002's corner designs, cached by angle in
+  :mod:`vcnc_gym.gcode.toolpath`, are made once per angle); a move
   after or before an arc continues tangentially (no corner: arcs join their
   neighbours smoothly, as a CAM system writes them);
 - arc radius: log-uniform in [``radius_min``, ``radius_max``] = [2, 20] mm;
@@ -88,7 +90,8 @@ def random_program(rng: np.random.Generator, spec: RandomContourSpec = RandomCon
         feed_word = f" F{feed:.1f}" if k == 0 else ""
         if is_line:
             if previous == "line":
-                turn = math.radians(rng.uniform(spec.turn_min, spec.turn_max)) * (1 if rng.random() < 0.5 else -1)
+                degrees = rng.integers(math.ceil(spec.turn_min), math.floor(spec.turn_max) + 1)
+                turn = math.radians(float(degrees)) * (1 if rng.random() < 0.5 else -1)
                 heading += turn
             length = rng.uniform(spec.line_min, spec.line_max)
             pos = pos + length * np.array([math.cos(heading), math.sin(heading)])

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.corners import smooth_polyline
+from ..geometry.corners import bezier_arc_length, blend_control_points, corner_length, design_corner
 from ..geometry.nurbs import NurbsCurve
 from . import arcs
 from ..motion.lookahead import DEFAULT_SPACING
@@ -233,7 +233,8 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
     sections = []
     for c0, c1 in zip(cuts[:-1], cuts[1:]):
         local = edges[c0 : c1 + 1] - edges[c0]
-        sections.append((_curve([s.points for s in segments[c0:c1]], local, degree), local, feeds[c0:c1],
+        section = curve if len(cuts) == 2 else _curve([s.points for s in segments[c0:c1]], local, degree)
+        sections.append((section, local, feeds[c0:c1],  # one section: the curve itself (its checks are cached)
                          _cuts(segments[c0:c1], acceleration, jerk)))
     segment_moves = np.array([s.move for s in segments])
     segment_blends = np.array([s.blend for s in segments])
@@ -261,34 +262,66 @@ def _cuts(segments: list, acceleration: float, jerk: float) -> np.ndarray:
     return cuts
 
 
+#: Seed 002's corner designs (the optimal length ratio n of eqs. (16)-(20), a golden-section search of ~0.15 s)
+#: are cached by the interior angle rounded to this many rad: the design is made at the rounded angle, the
+#: blend itself at the exact one (l_t of eq. (13) from the exact angle: the path passes the corner at exactly
+#: the tolerance); n is at an optimum, so a 5e-6 rad shift of its angle changes the corner speed by nothing
+#: measurable.  Programs with many equal corners (a square's four) and random contours (angles drawn on a grid)
+#: design each angle once.
+ANGLE_QUANTUM = 1e-5
+_DESIGNS: dict = {}
+_MAX_DESIGNS = 100_000
+
+
+def _design(theta: float, tolerance: float, acceleration: float, jerk: float):
+    key = (round(theta / ANGLE_QUANTUM), tolerance, acceleration, jerk)
+    design = _DESIGNS.get(key)
+    if design is None:
+        if len(_DESIGNS) >= _MAX_DESIGNS:
+            _DESIGNS.clear()
+        design = _DESIGNS[key] = design_corner(key[0] * ANGLE_QUANTUM, tolerance, acceleration, jerk)
+    return design
+
+
 def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> list[_Segment]:
-    """Segments of consecutive G01 moves ``run`` joined by blends (one move: a straight segment)."""
+    """Segments of consecutive G01 moves ``run`` joined by seed 002's blends (one move: a straight segment).
+
+    As :func:`vcnc_gym.geometry.corners.smooth_polyline` builds them (eqs. (12)-(23): control points on the
+    legs, l_t from eq. (13), the corner segments' side l_s of eq. (22) must fit in every line), with the
+    designs cached (``ANGLE_QUANTUM``)."""
     if len(run) == 1:
         m = moves[run[0]]
         return [_Segment(arcs.line_segment(m.start, m.end), m.length, m.feed, run[0], False)]
     vertices = [moves[run[0]].start] + [moves[i].end for i in run]
-    try:
-        path = smooth_polyline(vertices, tolerance, acceleration, jerk)
-    except ValueError as e:
-        import re
-
-        match = re.search(r"segment (\d+)", str(e))
-        m = moves[run[int(match.group(1))]] if match else moves[run[0]]
-        raise GCodeError(f"the corner blends do not fit: {e}", m.line, f"tolerance={tolerance!r}") from None
-    ctrl, knots = path.curve.control_points, path.curve.knots
-    u_edges = np.unique(knots)
+    dirs = [moves[i].tangent(False) for i in run]
+    blends, sides = [], [0.0]
+    for k in range(len(run) - 1):
+        d_in, d_out = dirs[k], dirs[k + 1]
+        theta = math.pi - _turn(d_in, d_out)  # the interior angle of seed 002 Fig. 3
+        design = _design(theta, tolerance, acceleration, jerk)
+        l_t = corner_length(theta, tolerance, design.n)
+        l_s = max(l_t, corner_length(theta, tolerance, max(design.n_a, design.n_j)))
+        ctrl = blend_control_points(vertices[k + 1], d_in, d_out, l_t, design.n)
+        blends.append((ctrl, bezier_arc_length(ctrl)))
+        sides.append(l_s)
+    sides.append(0.0)
+    for k, i in enumerate(run):
+        need = sides[k] + sides[k + 1]
+        if need >= moves[i].length:
+            raise GCodeError(f"the corner blends do not fit: tolerance = {tolerance:g} mm is too large for this "
+                             f"{moves[i].length:.6g} mm move; its corner segments take {need:.6g} mm (side l_s of "
+                             "seed 002 eq. (22))", moves[i].line, f"tolerance={tolerance!r}")
     out = []
-    for piece in range(len(u_edges) - 1):
-        pts = ctrl[5 * piece : 5 * piece + 6]
-        if piece % 2 == 0:  # a line's part
-            move = run[piece // 2]
-            length = float(np.hypot(*(pts[-1] - pts[0])))
-            out.append(_Segment(arcs.homogeneous(pts, np.ones(6)), length, moves[move].feed, move, False))
-        else:
-            corner = path.corners[piece // 2]
-            move = run[piece // 2]
-            feed = min(moves[move].feed, moves[move + 1].feed)
-            out.append(_Segment(arcs.homogeneous(pts, np.ones(6)), corner.s_arc, feed, move, True))
+    start = np.asarray(vertices[0], dtype=np.float64)
+    for k, i in enumerate(run):
+        end = blends[k][0][0] if k < len(blends) else np.asarray(vertices[-1], dtype=np.float64)
+        out.append(_Segment(arcs.line_segment(start, end), float(np.hypot(*(end - start))), moves[i].feed, i,
+                            False))
+        if k < len(blends):
+            ctrl, s_arc = blends[k]
+            out.append(_Segment(arcs.homogeneous(ctrl, np.ones(6)), s_arc, min(moves[i].feed, moves[i + 1].feed),
+                                i, True))
+            start = ctrl[-1]
     return out
 
 
