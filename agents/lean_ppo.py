@@ -397,6 +397,16 @@ class LeanPPO:
         latent_pi, latent_vf = p.mlp_extractor(obs_t)  # MlpPolicy's features extractor flattens: a no-op here
         return p.action_net(latent_pi), p.value_net(latent_vf).flatten()
 
+    def evaluate(self, obs, actions):
+        """(values, log-probabilities, entropies) of ``actions`` at normalised ``obs``, with gradients: the
+        policy's ``evaluate_actions`` with the Gaussian's log-density and entropy written out."""
+        p = self.policy
+        mean, values = self._forward(obs)
+        z = (actions - mean) * self.torch.exp(-p.log_std)
+        logp = -0.5 * (z * z).sum(dim=1) - p.log_std.sum() - 0.5 * math.log(2 * math.pi) * z.shape[1]
+        entropy = (0.5 + 0.5 * math.log(2 * math.pi) + p.log_std).sum().expand(len(logp))
+        return values, logp, entropy
+
     def start(self, obs: np.ndarray) -> None:
         self.last_obs = self.norm.observe(obs)
 
@@ -463,8 +473,7 @@ class LeanPPO:
             order = torch.randperm(size)
             for start in range(0, size, batch):
                 idx = order[start:start + batch]
-                values, logp, entropy = p.evaluate_actions(obs[idx], actions[idx])
-                values = values.flatten()
+                values, logp, entropy = self.evaluate(obs[idx], actions[idx])
                 adv = advantages[idx]
                 if m.normalize_advantage and len(idx) > 1:
                     adv = (adv - adv.mean()) / (adv.std() + 1e-8)

@@ -16,7 +16,9 @@ or load their caches).
 Candidates (``--candidates``), ``TRAINER[:key=value,...]``:
 
 - ``sb3``: ``vcnc-train`` as configured today (SB3's PPO, native vector
-  env, torch's own thread count);
+  env, torch's own thread count; ``sb3:threads=1``, the first default, with
+  one torch thread as ``benchmarks/train_throughput.py`` runs it: on a shared
+  2-core machine torch's second thread mostly waits);
 - ``sb3:...``, ``lean:...``, ``sbx:...``: SB3's PPO, the lean trainer
   (``vcnc-train --trainer lean``, ``agents/lean_ppo.py``) or SBX's PPO (SB3's
   JAX port, ``pip install sbx-rl jax``, over the same ``VcncVecEnv`` and
@@ -30,7 +32,10 @@ lean trainer's staggered start left out: the start is printed apart, a
 one-off cost of about N x L / 2 decisions of the baseline, L = 3 221
 decisions per episode), the share of that time in the env (the vector env's
 calls), the policy's forward pass during the rollout, the PPO update and the
-rest, and the final evaluation's max and RMS contour error (um).
+rest, the process's CPU time per agent step (every thread; the staggered
+start included, the final evaluation not: 1e6 / it is what one core given
+to the run alone would reach at most, whatever the host's load), and
+the final evaluation's max and RMS contour error (um).
 """
 
 from __future__ import annotations
@@ -49,9 +54,10 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 ENV_ID = "VCNC-Heart-v1"
 REPEAT = 10
-DEFAULT_CANDIDATES = ["sb3", "sb3:rollout=16384,batch_size=2048,n_epochs=5,threads=1",
-                      "sbx:rollout=16384,batch_size=2048,n_epochs=5",
-                      "lean:rollout=16384,batch_size=2048,n_epochs=5,threads=1"]
+#: Rollouts of 16 384 agent steps, minibatches of 4 096, 3 epochs, learning rate 1e-3: the lean entry
+#: (agents/hyperparams/ppo_lean.yml), chosen with this script (a lower error than 2 048 x 5 epochs at 3e-4, faster).
+BIG = "rollout=16384,batch_size=4096,n_epochs=3,learning_rate=0.001"
+DEFAULT_CANDIDATES = ["sb3:threads=1", f"sb3:{BIG},threads=1", f"sbx:{BIG}", f"lean:{BIG},threads=1"]
 
 #: The child: trains one candidate, prints one JSON line.
 _CHILD = r"""
@@ -68,15 +74,21 @@ import vcnc_gym.evaluation as evaluation
 from agents.config import load_hyperparameters, ppo_arguments, normalize_kwargs, action_mode_of
 from agents.vec_env import VcncVecEnv
 
-clock = {"env": 0.0, "forward": 0.0, "update": 0.0, "eval": 0.0}
+clock = {"env": 0.0, "forward": 0.0, "update": 0.0, "eval": 0.0, "eval_cpu": 0.0}
+def cpu():  # CPU seconds of this process, every thread
+    import resource
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
 def timed(owner, name, phase):
     original = getattr(owner, name)
     def wrapper(*args, **kwargs):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu() if phase == "eval" else 0.0
         try:
             return original(*args, **kwargs)
         finally:
             clock[phase] += time.perf_counter() - t0
+            if phase == "eval":
+                clock["eval_cpu"] += cpu() - c0
     setattr(owner, name, wrapper)
 timed(evaluation, "run_episode", "eval")
 h = load_hyperparameters(env_id, config_file)
@@ -97,7 +109,9 @@ if trainer in ("sb3", "lean"):
     run(f"{out_dir}/warmup", rollout)  # compiles or loads the caches
     for k in clock:
         clock[k] = 0.0
+    cpu0 = cpu()
     r = run(f"{out_dir}/run", steps)
+    cpu_s = cpu() - cpu0
     session = json.load(open(f"{out_dir}/run/summary.json"))["sessions"][-1]
     if trainer == "lean":
         clock.update({k: session["phase_s"][k] for k in ("env", "forward", "update")})
@@ -129,10 +143,12 @@ else:  # SBX over the same VecEnv and VecNormalize as vcnc-train
     run(rollout)
     for k in clock:
         clock[k] = 0.0
+    cpu0 = cpu()
     wall, done, res = run(steps)
+    cpu_s = cpu() - cpu0
     stagger = 0.0
     result = {"wall_s": wall, "steps": done, "max_um": res.max_contour_error_um, "rms_um": res.rms_contour_error_um}
-result.update(clock, stagger_s=stagger, threads=torch.get_num_threads())
+result.update(clock, stagger_s=stagger, threads=torch.get_num_threads(), cpu_s=cpu_s)
 print(json.dumps(result))
 """
 
@@ -196,7 +212,7 @@ def main(argv=None) -> None:
     print(f"{ENV_ID}, residual over SMC (correction 0.2, action repeat {REPEAT}), n_envs {args.n_envs}, "
           f"{steps} agent steps per candidate, seed 0; rates of training without the final evaluation")
     print(f"{'candidate':58s} {'agent st/s':>10s} {'env st/s':>10s} {'env':>5s} {'fwd':>5s} {'upd':>5s} "
-          f"{'other':>5s} {'stagger':>7s} {'max um':>7s} {'RMS um':>7s}")
+          f"{'other':>5s} {'stagger':>7s} {'CPU us/st':>9s} {'max um':>7s} {'RMS um':>7s}")
     records = []
     with tempfile.TemporaryDirectory(prefix="vcnc_ppo_trainers_") as tmp:
         for k, spec in enumerate(args.candidates):
@@ -206,13 +222,15 @@ def main(argv=None) -> None:
             r["env"] -= r["stagger_s"]
             shares = {ph: r[ph] / train_s for ph in ("env", "forward", "update")}
             shares["other"] = 1.0 - sum(shares.values())
+            cpu_us = 1e6 * (r["cpu_s"] - r["eval_cpu"]) / r["steps"]  # the staggered start included
             records.append({"candidate": spec, "n_envs": args.n_envs, "steps": r["steps"], "agent_steps_per_s": rate,
+                            "cpu_us_per_agent_step": cpu_us,
                             "env_steps_per_s": rate * REPEAT, "train_s": train_s, "stagger_s": r["stagger_s"],
                             "shares": shares, "max_um": r["max_um"], "rms_um": r["rms_um"], "entry": r["entry"],
                             "torch_threads": r["threads"]})
             print(f"{spec:58s} {rate:10,.0f} {rate * REPEAT:10,.0f} " +
                   " ".join(f"{shares[ph]:5.2f}" for ph in ("env", "forward", "update", "other")) +
-                  f" {r['stagger_s']:6.1f}s {r['max_um']:7.2f} {r['rms_um']:7.2f}", flush=True)
+                  f" {r['stagger_s']:6.1f}s {cpu_us:9.1f} {r['max_um']:7.2f} {r['rms_um']:7.2f}", flush=True)
     base = records[0]
     for rec in records[1:]:
         print(f"{rec['candidate']:58s} {rec['agent_steps_per_s'] / base['agent_steps_per_s']:9.2f}x of "

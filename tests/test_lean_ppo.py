@@ -141,6 +141,15 @@ def test_written_out_log_probability_equals_the_policy_s(small_entry):
         values, logp, _ = model.policy.evaluate_actions(b.obs.reshape(12, -1), b.actions.reshape(12, -1))
     np.testing.assert_allclose(b.logp.reshape(12).numpy(), logp.numpy(), rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(b.values.reshape(12).numpy(), values.flatten().numpy(), rtol=1e-6, atol=1e-6)
+    # the update's written-out form, on other actions, gradients included
+    actions = torch.randn(12, 2, generator=torch.Generator().manual_seed(0))
+    v1, l1, e1 = model.policy.evaluate_actions(b.obs.reshape(12, -1), actions)
+    v2, l2, e2 = ppo.evaluate(b.obs.reshape(12, -1), actions)
+    for x, y in ((v1.flatten(), v2), (l1, l2), (e1, e2)):
+        torch.testing.assert_close(x, y, rtol=1e-5, atol=1e-5)
+    g1 = torch.autograd.grad(l1.sum() + e1.sum(), model.policy.log_std)[0]
+    g2 = torch.autograd.grad(l2.sum() + e2.sum(), model.policy.log_std)[0]
+    torch.testing.assert_close(g1, g2, rtol=1e-5, atol=1e-5)
     env.close()
 
 
@@ -200,3 +209,13 @@ def test_a_lean_run_resumes_from_its_last_checkpoint(lean_run, tmp_path):
     sessions = json.loads((run / "summary.json").read_text())["sessions"]
     assert [s["trainer"] for s in sessions] == ["lean", "lean"]
     assert sessions[-1]["start_timesteps"] == 3 * ROLLOUT
+
+
+def test_the_lean_entries_are_valid_hyperparameters():
+    from agents.config import DEFAULT_CONFIG, ppo_arguments
+
+    lean = DEFAULT_CONFIG.with_name("ppo_lean.yml")
+    for env_id in ("VCNC-Heart-v1", "VCNC-HeartLookahead-v1"):
+        h = load_hyperparameters(env_id, lean)
+        _, kwargs = ppo_arguments(h)
+        assert (kwargs["n_steps"] * h["n_envs"]) % kwargs["batch_size"] == 0  # whole minibatches per rollout
