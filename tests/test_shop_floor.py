@@ -250,3 +250,15 @@ def test_shop_ids_are_registered_with_a_vector_env():
         obs, *_ = envs.step(a)
         o1, *_ = single.step(a[1])
     np.testing.assert_array_equal(obs[1], o1)
+
+
+@pytest.mark.parametrize("baseline", ["smc", "ff-ccc"])
+def test_compiled_baselines_run_on_a_shop_id_as_their_python_path(baseline, monkeypatch):
+    """The residual mode's compiled controller on VCNC-HeartShop-v1 (randomised: the effects drawn too) gives
+    its per-period Python path to the bit: the controllers read the observation only."""
+    import test_vec_env as tv
+
+    monkeypatch.setattr(tv, "ENV_ID", "VCNC-HeartShop-v1")
+    actions = tv._actions(60)
+    compiled = tv._run_vec(True, actions, baseline, 0.2, {"randomize": True})
+    tv._assert_same(compiled, tv._run_vec(False, actions, baseline, 0.2, {"randomize": True}))
