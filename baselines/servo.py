@@ -159,8 +159,11 @@ class ServoPolicy(BaselinePolicy):
 
     Notes
     -----
-    Subclasses call :meth:`_set_law` with the table ((K, TABLE_COLUMNS), or (N, K, TABLE_COLUMNS): one per
-    env of a batch) and a :class:`ServoGains`.  Calls after the reference's last sample read its last row.
+    Subclasses implement :meth:`_build`, which calls :meth:`_set_law` with the table ((K, TABLE_COLUMNS), or
+    (N, K, TABLE_COLUMNS): one per env of a batch) and the gains (a :class:`ServoGains`, or one per env), from
+    :attr:`reference` and :attr:`inverse`.  Calls after the reference's last sample read its last row.  An env
+    whose contour changes at reset (``VCNC-RandomContour-v1``) is followed through :meth:`plan`, which the
+    evaluation loops call after every reset.
     """
 
     plants = ("vcnc_feed_drive", "current_feed_drive", "nct_xy_table", "cncmt_axis")
@@ -197,6 +200,23 @@ class ServoPolicy(BaselinePolicy):
             raise ValueError(f"baseline {cls.name!r} follows a contour's reference: it needs a contouring env "
                              f"(env.unwrapped.task.reference_arrays), got {type(env).__name__}")
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
+
+    def plan(self, env) -> None:
+        """Rebuild the table if ``env``'s reference is not the one it was built from (a contour drawn at reset):
+        what a CNC's interpolator does when a new part program is loaded.  Called by the evaluation loops after
+        every reset; with the same reference it does nothing."""
+        task = getattr(getattr(env, "unwrapped", env), "task", None)
+        samples = getattr(getattr(task, "reference_arrays", None), "samples", None)
+        if samples is None or samples is self.reference:
+            return
+        if task.dt != self.dt:
+            raise ValueError(f"baseline {self.name!r} was built for dt = {self.dt} s, the env has {task.dt} s")
+        self.reference = np.asarray(samples, dtype=np.float64)
+        self._build()
+
+    def _build(self) -> None:
+        """Compute the table and the gains from :attr:`reference` and :attr:`inverse` (:meth:`_set_law`)."""
+        raise NotImplementedError
 
     # -- the law -------------------------------------------------------------
     def _set_law(self, table: np.ndarray, gains) -> None:

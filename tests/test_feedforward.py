@@ -195,3 +195,14 @@ def test_servo_controllers_refuse_a_positioning_env():
     env = gym.make("VCNC-Step-v0")
     with pytest.raises(ValueError, match="contouring env"):
         baselines.make("ff-pid", env)
+
+
+def test_servo_controller_follows_a_contour_drawn_at_reset():
+    """VCNC-RandomContour-v1 draws its contour at reset: plan() (called by run_episode) rebuilds the table from
+    the new reference, and ff-ccc follows every contour to within a few micrometres."""
+    env = gym.make("VCNC-RandomContour-v1")
+    policy = baselines.make("ff-ccc", env)
+    for seed in (3, 4):
+        result = run_episode(policy, env, seed=seed)
+        assert policy.reference is env.unwrapped.task.reference_arrays.samples
+        assert result.completed and result.max_contour_error_um < 10.0, (seed, result.max_contour_error_um)

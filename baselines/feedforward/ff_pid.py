@@ -43,13 +43,18 @@ class FeedforwardPIDPolicy(ServoPolicy):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
         self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
         self.feedforward = bool(feedforward)
+        self.integral = bool(integral)
+        self.friction_time = non_negative("friction_time", friction_time, "s")
+        self.backlash_time = non_negative("backlash_time", backlash_time, "s")
+        self._build()
+
+    def _build(self) -> None:
         table = reference_table(self.reference)
         if self.feedforward:
-            table[:, U_FF:U_FF + 2] = inverse_feedforward(
-                self.inverse, self.reference, self.dt,
-                friction_time=non_negative("friction_time", friction_time),
-                backlash_time=non_negative("backlash_time", backlash_time))
-        kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth, integral=bool(integral))
+            table[:, U_FF:U_FF + 2] = inverse_feedforward(self.inverse, self.reference, self.dt,
+                                                          friction_time=self.friction_time,
+                                                          backlash_time=self.backlash_time)
+        kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth, integral=self.integral)
         self._set_law(table, self._gains(kp, kd, ki))
 
     def _gains(self, kp, kd, ki) -> ServoGains:

@@ -51,6 +51,11 @@ class ZPETCPolicy(ServoPolicy):
             raise ValueError(f"zpetc is designed at the control period: it needs decision_period = dt "
                              f"({self.dt} s), got {self.decision_period} s")
         self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
+        self.friction_time = non_negative("friction_time", friction_time, "s")
+        self.backlash_time = non_negative("backlash_time", backlash_time, "s")
+        self._build()
+
+    def _build(self) -> None:
         kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth)
         self.loops = [closed_loop(self.inverse, j, self.dt, kp[j], kd[j], ki[j]) for j in range(2)]
         self.filters = [zpetc_filter(loop) for loop in self.loops]
@@ -61,7 +66,6 @@ class ZPETCPolicy(ServoPolicy):
         table[:, OFFSET:OFFSET + 2] = r - x_d
         table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = r_rate - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
         table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
-            self.inverse, self.reference, self.dt, motion=False,
-            friction_time=non_negative("friction_time", friction_time),
-            backlash_time=non_negative("backlash_time", backlash_time))
+            self.inverse, self.reference, self.dt, motion=False, friction_time=self.friction_time,
+            backlash_time=self.backlash_time)
         self._set_law(table, ServoGains(kp, kd, ki))
