@@ -137,7 +137,8 @@ def test_v0_ids_keep_their_episode_and_observation():
     and the observation has no contour preview; their shared fields equal v1's."""
     assert {e.id for e in LEGACY} == {e.id.replace("-v1", "-v0") for e in SUITE
                                       if e.contouring and e.kwargs.get("profile") != "lookahead"
-                                      and "shop_floor" not in e.kwargs}  # the shop-floor ids began at v1
+                                      and "shop_floor" not in e.kwargs  # the shop-floor ids began at v1
+                                      and "program" not in e.kwargs}  # so did the G-code ids
     v0 = gym.make("VCNC-Omega-v0").unwrapped
     v1 = gym.make("VCNC-Omega-v1").unwrapped
     assert v0.observation_space.shape == (21,) and v0.layout.contour_ahead == ()

@@ -56,7 +56,7 @@ from pathlib import Path
 import gymnasium as gym
 
 import vcnc_gym  # noqa: F401  (registers the ids)
-from vcnc_gym.envs import ENV_IDS, suite_env
+from vcnc_gym.envs import ENV_IDS, ContouringEnv
 from vcnc_gym.envs.registry import LEGACY
 from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
 
@@ -368,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.plots is not None:
         written = 0
         for env_id, by_policy in ctx.results.items():
-            if not (programs.is_program(env_id) or suite_env(env_id).contouring):
+            if not isinstance(envs[env_id].unwrapped, ContouringEnv):  # a G-code program's, a random contour's too
                 continue
             plot_contours(by_policy, envs[env_id], args.plots / f"{env_id}_contour.png")
             plot_contour_errors(by_policy, envs[env_id], args.plots / f"{env_id}_error.png")
