@@ -430,6 +430,7 @@ def _advance_shop(plant, k, command):
     P = plant.n_inner
     params = plant.params
     dt = plant.dt
+    inv_dt = 1.0 / dt
     L = MAX_DELAY + 1
     head = plant.heads[k]
     memory = plant.memory
@@ -437,7 +438,9 @@ def _advance_shop(plant, k, command):
     # 1. the command FIFO
     plant.commands[k, head, 0] = command[0]
     plant.commands[k, head, 1] = command[1]
-    slot = (head - plant.delays[k, 0]) % L
+    slot = head - plant.delays[k, 0]  # the ring's index arithmetic without a modulo (a division)
+    if slot < 0:
+        slot += L
     applied[0] = plant.commands[k, slot, 0]
     applied[1] = plant.commands[k, slot, 1]
     # 2. process forces, N, as input
@@ -464,7 +467,9 @@ def _advance_shop(plant, k, command):
     sensed = plant.sensed[k]
     contract.sense(plant.inner, k, sensed)
     # 4. the structural mode; 5. the sensor
-    head = (head + 1) % L
+    head += 1
+    if head == L:
+        head = 0
     plant.heads[k] = head
     r = params[k, 0, P + E_RESOLUTION]
     sigma = params[k, 0, P + E_NOISE]
@@ -473,7 +478,7 @@ def _advance_shop(plant, k, command):
     n1 = 0.0
     if sigma > 0.0:
         n0, n1 = normal_pair(plant.rng, k)
-    previous = (head - 1) % L
+    previous = head - 1 if head > 0 else L - 1
     for i in range(2):
         x_d = sensed[contract.SENSE_POSITION + i]
         x_d0 = memory[k, i, M_DRIVE]
@@ -492,7 +497,7 @@ def _advance_shop(plant, k, command):
             x_t = x_d
             v_t = sensed[contract.SENSE_VELOCITY + i]
             reading = sensed[contract.SENSE_MEASURED + i]
-        memory[k, i, M_MEAN_VELOCITY] = (x_t - x_t0) / dt
+        memory[k, i, M_MEAN_VELOCITY] = (x_t - x_t0) * inv_dt
         memory[k, i, M_DRIVE] = x_d
         memory[k, i, M_TABLE] = x_t
         memory[k, i, M_TABLE_VELOCITY] = v_t
@@ -519,7 +524,9 @@ def _advance(plant, k, command):
 def _sense(plant, k, out):
     if contract.is_plant(plant, ShopFloorArrays):
         def impl(plant, k, out):
-            slot = (plant.heads[k] - plant.delays[k, 1]) % (MAX_DELAY + 1)
+            slot = plant.heads[k] - plant.delays[k, 1]
+            if slot < 0:
+                slot += MAX_DELAY + 1
             for i in range(2):
                 out[contract.SENSE_POSITION + i] = plant.memory[k, i, M_TABLE]
                 out[contract.SENSE_MEASURED + i] = plant.readings[k, slot, i]
