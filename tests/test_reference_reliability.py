@@ -46,6 +46,7 @@ FUZZ_MAX_SAMPLES = 20_000  # keeps the oracle fast; a longer reference is refuse
 # the defects interpolate names, and how a message says so
 MESSAGE_KINDS = {
     "cusp": re.compile(r"curve has a cusp at u = "),
+    "turns back": re.compile(r"curve turns back on itself at the knot u = .*TURN_BACK_ANGLE"),
     "near-zero derivative": re.compile(r"near-zero derivative C'\(u\) at (its (start|end), )?u = "),
     "zero-length span": re.compile(r"knot span \[.*\] is .* mm long, below SPAN_LENGTH_TOLERANCE"),
     "zero-length curve": re.compile(r"curve has \(near-\)zero length"),
