@@ -79,6 +79,7 @@ derived constants (set by ``reset_machine`` from ``params``) and memory.
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections import namedtuple
 from dataclasses import dataclass
@@ -265,16 +266,14 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
     def inner_part(params):
         return np.asarray(params)[..., :n_inner]
 
-    def check(p):
+    def check(p):  # the effects' own rules are their Parameters' (sign, physical range)
         if inner.check is not None:
             inner.check(p[..., :n_inner])
-        if p.shape[-1] > n_inner + E_COMMAND_DELAY and np.any(p[..., n_inner + E_STRIBECK_VELOCITY] <= 0):
-            raise ValueError("shop-floor parameter stribeck_velocity [mm/s] must be positive")
 
     def make_arrays(n_machines, dt, **options):
         return _make_arrays(model, n_machines, dt, **options)
 
-    make_arrays.__signature__ = _signature_with(inner.make_arrays)
+    make_arrays.__signature__ = inspect.signature(inner.make_arrays)  # its options are the inner plant's
 
     model = ShopFloorModel(
         name=inner.name,
@@ -301,15 +300,7 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
 
 def effects_off(plant) -> ShopFloorModel:
     """``plant`` wrapped with every effect off (:data:`OFF`): the inner plant, through the wrapper."""
-    model = shop_floor(plant, dict(OFF))
-    return model
-
-
-def _signature_with(inner_make_arrays):
-    """The signature of the inner plant's ``make_arrays`` (its options are the wrapper's)."""
-    import inspect
-
-    return inspect.signature(inner_make_arrays)
+    return shop_floor(plant, dict(OFF))
 
 
 def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -> ShopFloorArrays:
