@@ -628,7 +628,7 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
         wall0 = t0 = time.perf_counter()  # set-up excluded, as agents.training.learn's wall time
         with clock("env"):
             obs = env.reset()
-            if stagger and checkpoint is None:
+            if stagger:  # every session: a resumed one starts its envs afresh, in phase
                 obs = env.stagger(obs)
         session["stagger_s"] = round(time.perf_counter() - t0, 3)
         ppo.start(obs)

@@ -20,8 +20,10 @@ first on the machine as it is ("idle"), then again while a busy loop this
 script starts (``--load-nice``, default 0: a normal-priority process such as
 another engineer's test run) holds a core ("loaded").  It prints env-steps/s,
 the ratio of each native figure to SyncVectorEnv at N = 8 (same load) and to
-the native env at 1 thread (same load).  Episodes end and reset inside the
-timed loop.
+the native env at 1 thread (same load), and the share of the default's
+calls that ran the parallel kernel.  The rows of one load take turns in
+slices of 0.2 s (``--seconds`` each in all), so other processes' load falls
+on all of them alike.  Episodes end and reset inside the timed loop.
 """
 
 from __future__ import annotations
@@ -46,19 +48,35 @@ def _pd(layout, obs):
 
 def env_steps_per_second(envs, seconds: float) -> float:
     """Env-steps per second of ``envs.step`` alone, under a PD controller, over ``seconds`` of stepping."""
-    layout = envs.unwrapped.layout if hasattr(envs.unwrapped, "layout") else envs.unwrapped.envs[0].unwrapped.layout
-    obs, _ = envs.reset(seed=0)
-    for _ in range(20):  # compile and warm up
-        obs, *_ = envs.step(_pd(layout, obs))
-    stepping = 0.0
-    steps = 0
-    while stepping < seconds:
-        action = _pd(layout, obs)
-        t0 = time.perf_counter()
-        obs, *_ = envs.step(action)
-        stepping += time.perf_counter() - t0
-        steps += 1
-    return steps * envs.num_envs / stepping
+    return Stepper(envs).run(seconds).rate
+
+
+class Stepper:
+    """Steps ``envs`` under the PD controller in slices, accumulating the time of the ``step`` calls alone."""
+
+    def __init__(self, envs):
+        self.envs = envs
+        u = envs.unwrapped
+        self.layout = u.layout if hasattr(u, "layout") else u.envs[0].unwrapped.layout
+        self.obs, _ = envs.reset(seed=0)
+        for _ in range(20):  # compile and warm up
+            self.obs, *_ = envs.step(_pd(self.layout, self.obs))
+        self.stepping = 0.0
+        self.steps = 0
+
+    def run(self, seconds: float) -> "Stepper":
+        until = self.stepping + seconds
+        while self.stepping < until:
+            action = _pd(self.layout, self.obs)
+            t0 = time.perf_counter()
+            self.obs, *_ = self.envs.step(action)
+            self.stepping += time.perf_counter() - t0
+            self.steps += 1
+        return self
+
+    @property
+    def rate(self) -> float:
+        return self.steps * self.envs.num_envs / self.stepping
 
 
 @contextmanager
@@ -96,19 +114,27 @@ def main(argv=None) -> None:
         forced = gym.make_vec(env_id, num_envs=args.envs, vectorization_mode="vector_entry_point", parallel=True)
         for load, nice in loads:
             with busy_core(nice):
-                base = env_steps_per_second(sync, args.seconds)
-                print(f"{env_id:15s} {load:28s} {'SyncVectorEnv, N = 8':40s} {base:12,.0f} {1.0:10.2f}")
-                rows = [(f"native, N = {args.envs}, 1 thread", auto, 1),
-                        (f"native, N = {args.envs}, {threads} threads (default)", auto, threads),
-                        (f"native, N = {args.envs}, {threads} threads, parallel=True", forced, threads)]
-                one = None
-                for label, envs, t in rows:
-                    numba.set_num_threads(t)
-                    rate = env_steps_per_second(envs, args.seconds)
-                    one = rate if one is None else one
-                    print(f"{env_id:15s} {load:28s} {label:40s} {rate:12,.0f} {rate / base:10.2f} {rate / one:10.2f}",
-                          flush=True)
+                # the rows take turns in slices of 0.2 s, so a change of the host's load falls on all of them
+                rows = [("SyncVectorEnv, N = 8", Stepper(sync), None),
+                        (f"native, N = {args.envs}, 1 thread", Stepper(auto), 1),
+                        (f"native, N = {args.envs}, {threads} threads (default)", Stepper(auto), threads),
+                        (f"native, N = {args.envs}, {threads} threads, parallel=True", Stepper(forced), threads)]
+                path = auto.unwrapped._path
+                calls0 = list(path.calls) if path is not None else None
+                for _ in range(max(1, round(args.seconds / 0.2))):
+                    for _, stepper, t in rows:
+                        numba.set_num_threads(t or cores)
+                        stepper.run(0.2)
                 numba.set_num_threads(cores)
+                base, one = rows[0][1].rate, rows[1][1].rate
+                for label, stepper, t in rows:
+                    rate = stepper.rate
+                    note = ""
+                    if t == threads and stepper.envs is auto and path is not None:
+                        serial, parallel = (c - c0 for c, c0 in zip(path.calls, calls0))
+                        note = f"  parallel kernel on {parallel / max(1, serial + parallel):.0%} of calls"
+                    print(f"{env_id:15s} {load:28s} {label:40s} {rate:12,.0f} {rate / base:10.2f} "
+                          f"{'' if t is None else f'{rate / one:10.2f}'}{note}", flush=True)
         for envs in (sync, auto, forced):
             envs.close()
     print(f"numba threading layer: {numba.threading_layer()}")

@@ -46,6 +46,8 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
 PROBE_RATIO = 50.0
 #: Weight of a new call's time in the running estimate of its path's cost.
 COST_WEIGHT = 0.5
+#: Calls of a try of the other path; its first is not timed (threads asleep since the last try wake up late).
+PROBE_CALLS = 4
 
 
 class KernelPath:
@@ -58,10 +60,11 @@ class KernelPath:
     machine 2 threads ran 2-20x slower than 1 (``benchmarks/vector_env.py``).
     So the vector env times its kernel calls, keeps a running cost per path
     (seconds per env control period, weight :data:`COST_WEIGHT`) and uses the
-    cheaper; the other path is tried again once the calls since its last try
-    took :data:`PROBE_RATIO` times its last known call time, so a machine that
-    became idle (or busy) is noticed within a few such tries at a cost of
-    about 2 %.  Both paths run the same body env by env, so the results do not
+    cheaper; the other path is tried again (:data:`PROBE_CALLS` calls, the
+    first not timed: threads asleep since the last try wake up late) once the
+    calls since its last try took :data:`PROBE_RATIO` times the try's
+    expected time, so a machine that became idle (or busy) is noticed within
+    a few tries at a cost of about 2 %.  Both paths run the same body env by env, so the results do not
     depend on the path.  With one numba thread (``numba.set_num_threads(1)``)
     the serial path runs, without a parallel launch.
     """
@@ -71,6 +74,9 @@ class KernelPath:
         self._seen = [False, False]  # the first call of a path (compilation, cache load) is not timed
         self._since_probe = 0.0  # wall time of the timed calls since the other path was last tried
         self._work = 1.0
+        self.calls = [0, 0]  # calls made on each path: serial, parallel
+        self._trying = 0  # calls left of the current try of the other path
+        self._untimed = False  # the next call is not timed (the first of a try)
 
     def choose(self, work: float) -> bool:
         """True for the parallel path for a call of ``work`` env control periods."""
@@ -81,9 +87,12 @@ class KernelPath:
         if serial is None or parallel is None:
             return serial is not None  # time the serial path first, then the parallel one
         best = parallel < serial
-        other = self.cost[not best] * work
-        if self._since_probe >= PROBE_RATIO * other:
+        if self._trying:
+            self._trying -= 1
+            return not best
+        if self._since_probe >= PROBE_RATIO * PROBE_CALLS * self.cost[not best] * work:
             self._since_probe = 0.0
+            self._trying, self._untimed = PROBE_CALLS - 1, True
             return not best
         return best
 
@@ -96,8 +105,11 @@ class KernelPath:
         """Account a call of the path :meth:`choose` returned that took ``seconds``."""
         if numba.get_num_threads() == 1:
             return
-        if not self._seen[parallel]:
+        self.calls[parallel] += 1
+        if not self._seen[parallel] or self._untimed:
             self._seen[parallel] = True
+            self._untimed = False
+            self._since_probe += seconds
             return
         cost = seconds / self._work
         old = self.cost[parallel]
