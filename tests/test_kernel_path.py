@@ -34,13 +34,14 @@ def test_the_first_call_of_each_path_is_not_timed_and_the_cheaper_path_is_kept(t
     assert path.cost == pytest.approx([1e-6, 0.5e-6])
 
 
-def test_a_stalling_parallel_path_is_left_and_probed_at_about_two_percent_of_the_time(two_threads):
+def test_a_stalling_parallel_path_is_left_and_tried_at_most_two_percent_of_the_time(two_threads):
     path = cve.KernelPath()
     # a loaded core: parallel calls wait 5 ms for their thread, serial calls take 1 ms
     chosen = _drive(path, lambda par, k: 5e-3 if par else 1e-3, 3000)
     serial_time = np.sum(~chosen[10:]) * 1e-3
     parallel_time = np.sum(chosen[10:]) * 5e-3
-    assert parallel_time / (serial_time + parallel_time) == pytest.approx(1 / cve.PROBE_RATIO, rel=0.2)
+    share = parallel_time / (serial_time + parallel_time)
+    assert 0.5 / (cve.PROBE_RATIO + 1) < share < 1.1 / (cve.PROBE_RATIO + 1)
 
 
 def test_the_parallel_path_is_taken_again_when_the_load_goes(two_threads):
@@ -48,10 +49,8 @@ def test_the_parallel_path_is_taken_again_when_the_load_goes(two_threads):
     loaded = 1000  # parallel stalls (5 ms) for the first 1000 calls, then takes 0.5 ms; serial 1 ms
     chosen = _drive(path, lambda par, k: (5e-3 if k < loaded else 0.5e-3) if par else 1e-3, 4000)
     assert chosen[loaded - 100:loaded].mean() < 0.1
-    # the next try comes after PROBE_RATIO x PROBE_CALLS x 5 ms = 1 s of serial calls (1000), then it stays
-    back = loaded + int(np.argmax(chosen[loaded:]))
-    assert back <= loaded + 1100
-    assert chosen[back + 400:].mean() > 0.95, "back on the parallel path once it is cheaper (a try or two)"
+    # tries come at most PROBE_RATIO x (a try's time, 4 x 5 ms) = 1 s of serial calls (1000) apart
+    assert chosen[loaded + 1100:].mean() > 0.95, "back on the parallel path once it is cheaper (a try or two)"
 
 
 def test_one_numba_thread_runs_the_serial_path_untimed(monkeypatch):

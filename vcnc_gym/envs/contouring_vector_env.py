@@ -41,8 +41,8 @@ PARALLEL_MIN_ENVS = 16
 THREADING_LAYER = "workqueue"
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = THREADING_LAYER
-#: The automatic choice (``parallel=None``) tries the path it is not using once its calls have taken this many
-#: times the other path's last known call time: at most ~1/PROBE_RATIO of the time goes to probing a stalled path.
+#: The automatic choice (``parallel=None``) tries the path it is not using once the calls since its last try took
+#: this many times as long as that try: 1/(PROBE_RATIO + 1) of the time goes to trying a stalled path.
 PROBE_RATIO = 50.0
 #: Weight of a new call's time in the running estimate of its path's cost.
 COST_WEIGHT = 0.5
@@ -62,21 +62,23 @@ class KernelPath:
     (seconds per env control period, weight :data:`COST_WEIGHT`) and uses the
     cheaper; the other path is tried again (:data:`PROBE_CALLS` calls, the
     first not timed: threads asleep since the last try wake up late) once the
-    calls since its last try took :data:`PROBE_RATIO` times the try's
-    expected time, so a machine that became idle (or busy) is noticed within
-    a few tries at a cost of about 2 %.  Both paths run the same body env by env, so the results do not
+    calls since the last try took :data:`PROBE_RATIO` times as long as it
+    did, so a machine that became idle (or busy) is noticed within a few
+    tries, which take 1/(PROBE_RATIO + 1), about 2 %, of the time.  Both paths run the same body env by env, so the results do not
     depend on the path.  With one numba thread (``numba.set_num_threads(1)``)
     the serial path runs, without a parallel launch.
     """
 
     def __init__(self):
         self.cost = [None, None]  # seconds per env control period: serial, parallel (None: not yet timed)
-        self._seen = [False, False]  # the first call of a path (compilation, cache load) is not timed
-        self._since_probe = 0.0  # wall time of the timed calls since the other path was last tried
-        self._work = 1.0
         self.calls = [0, 0]  # calls made on each path: serial, parallel
-        self._trying = 0  # calls left of the current try of the other path
-        self._untimed = False  # the next call is not timed (the first of a try)
+        self._seen = [False, False]  # the first call of a path (compilation, cache load) is not timed
+        self._since_probe = 0.0  # wall time of the calls on the cheaper path since the last try ended
+        self._wait = None  # _since_probe that starts the next try: PROBE_RATIO x the last try's time
+        self._trying = 0  # calls left of the current try
+        self._try_path = False
+        self._try_time = 0.0
+        self._work = 1.0
 
     def choose(self, work: float) -> bool:
         """True for the parallel path for a call of ``work`` env control periods."""
@@ -86,13 +88,12 @@ class KernelPath:
         serial, parallel = self.cost
         if serial is None or parallel is None:
             return serial is not None  # time the serial path first, then the parallel one
-        best = parallel < serial
         if self._trying:
-            self._trying -= 1
-            return not best
-        if self._since_probe >= PROBE_RATIO * PROBE_CALLS * self.cost[not best] * work:
-            self._since_probe = 0.0
-            self._trying, self._untimed = PROBE_CALLS - 1, True
+            return self._try_path
+        best = parallel < serial
+        wait = self._wait if self._wait is not None else PROBE_RATIO * PROBE_CALLS * self.cost[not best] * work
+        if self._since_probe >= wait:
+            self._trying, self._try_path, self._try_time = PROBE_CALLS, not best, 0.0
             return not best
         return best
 
@@ -106,15 +107,24 @@ class KernelPath:
         if numba.get_num_threads() == 1:
             return
         self.calls[parallel] += 1
-        if not self._seen[parallel] or self._untimed:
-            self._seen[parallel] = True
-            self._untimed = False
-            self._since_probe += seconds
+        if self._trying:
+            self._trying -= 1
+            self._try_time += seconds
+            if self._trying < PROBE_CALLS - 1:  # the try's first call is not timed
+                self._update(parallel, seconds)
+            if not self._trying:
+                self._since_probe, self._wait = 0.0, PROBE_RATIO * self._try_time
             return
+        if not self._seen[parallel]:
+            self._seen[parallel] = True
+            return
+        self._update(parallel, seconds)
+        self._since_probe += seconds
+
+    def _update(self, parallel: bool, seconds: float) -> None:
         cost = seconds / self._work
         old = self.cost[parallel]
         self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (cost - old)
-        self._since_probe += seconds
 
 
 class ContouringVectorEnv(VectorEnv):
