@@ -7,7 +7,7 @@ a call) and axis ``j``:
 
 .. math::
 
-    e_j &= (x_{d,j}[k] - x_j) + \\delta_j[k]                           && \\text{mm}\\\\
+    e_j &= \\mathrm{clip}((x_{d,j}[k] - x_j) + \\delta_j[k], \\pm 2 u_{max,j} / K_{p,j})  && \\text{mm}\\\\
     \\dot e_j &= (v_{d,j}[k] - v_j) + \\delta'_j[k]                  && \\text{mm/s}\\\\
     u_j &= u_{ff,j}[k] + K_{p,j} e_j + K_{d,j} \\dot e_j + K_{i,j} I_j + c_j  && \\text{input unit}\\\\
     I_j &\\leftarrow \\mathrm{clip}(I_j + e_j T, \\pm I_{lim,j})
@@ -77,6 +77,12 @@ BANDWIDTH = {
 _M_K, _M_I, _M_J = 0, 1, 3
 _MEMORY = 4
 
+#: The position error the PID acts on is bounded at ``ERROR_LIMIT u_max / K_p`` per axis (a saturated-error PD):
+#: an error that alone asks twice the input limit asks no more, so the derivative term keeps the authority to brake.  On a feasible reference it never acts (the heart's figures are the same to 4 digits); on
+#: an infeasible one (the S-curve omega's 0.19 mm corners at 100 mm/s) it keeps the overshoot within the
+#: divergence bound on every vertex of the box (ff-pid 3.1 -> 2.2 mm, ccc 5.0 -> 1.2 mm nominal).
+ERROR_LIMIT = 2.0
+
 
 @dataclass(frozen=True)
 class ServoGains:
@@ -92,6 +98,8 @@ class ServoGains:
         0: Koren's fixed coupling gains; 1: Koren and Lo's variable gains.
     integral_limit : ndarray, (2,)
         Bound of each axis integral, mm s (anti-windup: ``K_i I_lim = u_max``).
+    coupling_limit : float
+        Bound of the coupling's integral, mm s (anti-windup: ``K_ci J_lim = min(u_max)``).
 
     A policy holds them stacked, (G, 2) and (G,), G = 1 or one row per env (:meth:`ServoPolicy._set_law`).
     """
@@ -103,6 +111,7 @@ class ServoGains:
     kci: float = 0.0
     variable: float = 0.0
     integral_limit: np.ndarray = None
+    coupling_limit: float = None
 
 
 def pid_gains(mass, damping, bandwidth, integral: bool = True):
@@ -230,7 +239,8 @@ class ServoPolicy(BaselinePolicy):
                              f"got shape {table.shape}")
         rows = [self._checked(g) for g in ([gains] if isinstance(gains, ServoGains) else gains)]
         self.gains = ServoGains(*(np.ascontiguousarray(np.stack([getattr(r, f) for r in rows]))
-                                  for f in ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit")))
+                                  for f in ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit",
+                                            "coupling_limit")))
         self.table = table
         self._compiled = None
 
@@ -238,17 +248,22 @@ class ServoPolicy(BaselinePolicy):
         """The gains of env ``i`` (row 0 when all envs share them)."""
         g = self.gains
         r = i if g.kp.shape[0] > 1 else 0
-        return ServoGains(g.kp[r], g.kd[r], g.ki[r], g.kc[r], g.kci[r], g.variable[r], g.integral_limit[r])
+        return ServoGains(g.kp[r], g.kd[r], g.ki[r], g.kc[r], g.kci[r], g.variable[r], g.integral_limit[r],
+                          g.coupling_limit[r])
 
     def _checked(self, gains: ServoGains) -> ServoGains:
         limit = gains.integral_limit
         if limit is None:  # anti-windup: the integral alone never asks more than the input limit
             ki = np.asarray(gains.ki, dtype=np.float64)
             limit = np.where(ki > 0, self.u_max / np.where(ki > 0, ki, 1.0), 0.0)
-        return ServoGains(per_axis("kp", gains.kp, rule=non_negative), per_axis("kd", gains.kd, rule=non_negative),
-                          per_axis("ki", gains.ki, rule=non_negative), non_negative("kc", gains.kc),
-                          non_negative("kci", gains.kci), non_negative("variable", gains.variable),
-                          per_axis("integral_limit", limit, rule=non_negative))
+        kci = non_negative("kci", gains.kci)
+        coupling_limit = gains.coupling_limit
+        if coupling_limit is None:
+            coupling_limit = float(np.min(self.u_max)) / kci if kci > 0 else 0.0
+        return ServoGains(per_axis("kp", gains.kp, rule=positive), per_axis("kd", gains.kd, rule=non_negative),
+                          per_axis("ki", gains.ki, rule=non_negative), non_negative("kc", gains.kc), kci,
+                          non_negative("variable", gains.variable), per_axis("integral_limit", limit, rule=non_negative),
+                          non_negative("coupling_limit", coupling_limit))
 
     def record(self, n_envs: int, steps: int) -> np.ndarray:
         """Record the next episodes' commands: returns the (n_envs, steps, 2) array the law writes into, row k
@@ -268,12 +283,13 @@ class ServoPolicy(BaselinePolicy):
         own, first = np.arange(n), np.zeros(n, dtype=np.int64)
         g = ServoGains(*(a[own if a.shape[0] > 1 else first] for a in (
             self.gains.kp, self.gains.kd, self.gains.ki, self.gains.kc, self.gains.kci, self.gains.variable,
-            self.gains.integral_limit)))
+            self.gains.integral_limit, self.gains.coupling_limit)))
         k = mem[:, _M_K].astype(np.int64)
         rows = table[own if table.shape[0] > 1 else first, np.minimum(k, table.shape[1] - 1)]
         E = self.layout.tracking_error(obs)
         Ed = self.layout.reference_velocity(obs) - self.layout.velocity(obs)
-        e = E + rows[:, OFFSET:OFFSET + 2]
+        limit = ERROR_LIMIT * self.u_max / g.kp
+        e = np.minimum(np.maximum(E + rows[:, OFFSET:OFFSET + 2], -limit), limit)
         ed = Ed + rows[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2]
         eps, cx, cy = coupling_estimate(E, rows[:, TANGENT:TANGENT + 2], rows[:, CURVATURE], g.variable)
         w = g.kc * eps + g.kci * mem[:, _M_J]
@@ -282,7 +298,8 @@ class ServoPolicy(BaselinePolicy):
         u = rows[:, U_FF:U_FF + 2] + g.kp * e + g.kd * ed + g.ki * integral + coupling
         mem[:, _M_I:_M_I + 2] = np.minimum(np.maximum(integral + e * self.decision_period, -g.integral_limit),
                                            g.integral_limit)
-        mem[:, _M_J] = mem[:, _M_J] + eps * self.decision_period
+        mem[:, _M_J] = np.minimum(np.maximum(mem[:, _M_J] + eps * self.decision_period, -g.coupling_limit),
+                                  g.coupling_limit)
         if self._record.shape[0]:
             rows = np.flatnonzero((k < self._record.shape[1]) & (np.arange(n) < self._record.shape[0]))
             self._record[rows, k[rows]] = np.clip(u[rows] / self.u_max, -1.0, 1.0).astype(np.float32) * self.u_max
@@ -292,13 +309,13 @@ class ServoPolicy(BaselinePolicy):
     def _compiled_arrays(self) -> ServoArrays:
         g = self.gains
         return ServoArrays(self._state, self.table, g.kp, g.kd, g.ki, g.integral_limit, g.kc, g.kci, g.variable,
-                           self.decision_period, float(self.stride), self.u_max, self._record)
+                           g.coupling_limit, self.decision_period, float(self.stride), self.u_max, self._record)
 
 
 #: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((1 or N, 2)
 #: or (1 or N,)), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2) (ServoPolicy.record).
 ServoArrays = namedtuple("ServoArrays", ["memory", "table", "kp", "kd", "ki", "integral_limit", "kc", "kci",
-                                         "variable", "period", "stride", "u_max", "record"])
+                                         "variable", "coupling_limit", "period", "stride", "u_max", "record"])
 
 
 @njit(cache=True, _nrt=False)
@@ -323,7 +340,8 @@ def _servo_command(s, i, obs, o, out):
         E = Ex if j == 0 else Ey
         Ed = Edx if j == 0 else Edy
         coupling = -cx * w if j == 0 else cy * w
-        e = E + t[OFFSET + j]
+        limit = ERROR_LIMIT * s.u_max[j] / s.kp[g, j]
+        e = min(max(E + t[OFFSET + j], -limit), limit)
         ed = Ed + t[VELOCITY_OFFSET + j]
         integral = mem[_M_I + j]
         u = t[U_FF + j] + s.kp[g, j] * e + s.kd[g, j] * ed + s.ki[g, j] * integral + coupling
@@ -331,7 +349,7 @@ def _servo_command(s, i, obs, o, out):
         out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
         if recording:
             s.record[i, k, j] = out[j] * s.u_max[j]
-    mem[_M_J] = mem[_M_J] + eps * s.period
+    mem[_M_J] = min(max(mem[_M_J] + eps * s.period, -s.coupling_limit[g]), s.coupling_limit[g])
     mem[_M_K] = mem[_M_K] + s.stride
 
 

@@ -139,7 +139,7 @@ class OraclePolicy(ServoPolicy):
                      for p in params]
             self._set_law(np.stack([c.table[0] for c in built]), [c._gains_row(0) for c in built])
             peak, mean = self._score(batch, params)
-            better = (peak < best_peak) | ((peak == best_peak) & (mean < best_mean))
+            better = (peak < best_peak) | ((peak == best_peak) & (mean < best_mean)) | np.array([g is None for g in gains])
             for i in np.flatnonzero(better):
                 table[i], gains[i] = built[i].table[0], built[i]._gains_row(0)
             best_peak[better], best_mean[better] = peak[better], mean[better]
