@@ -77,10 +77,11 @@ BANDWIDTH = {
 _M_K, _M_I, _M_J = 0, 1, 3
 _MEMORY = 4
 
-#: The position error the PID acts on is bounded at ``ERROR_LIMIT u_max / K_p`` per axis (a saturated-error PD):
-#: an error that alone asks twice the input limit asks no more, so the derivative term keeps the authority to brake.  On a feasible reference it never acts (the heart's figures are the same to 4 digits); on
-#: an infeasible one (the S-curve omega's 0.19 mm corners at 100 mm/s) it keeps the overshoot within the
-#: divergence bound on every vertex of the box (ff-pid 3.1 -> 2.2 mm, ccc 5.0 -> 1.2 mm nominal).
+#: The position error the PID acts on is bounded at ``ERROR_LIMIT u_max / K_p`` per axis (a saturated-error PD): an
+#: error that alone asks twice the input limit asks no more, so the derivative term keeps the authority to brake.  On
+#: a feasible reference it never acts (the heart's figures are the same to 4 digits); on an infeasible one (the
+#: S-curve omega's 0.19 mm corners at 100 mm/s) it keeps the overshoot within the divergence bound on every vertex of
+#: the box (ff-pid 3.1 -> 2.2 mm, ccc 5.0 -> 1.2 mm nominal).
 ERROR_LIMIT = 2.0
 
 
