@@ -45,9 +45,9 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
 #: this many times as long as that try: 1/(PROBE_RATIO + 1) of the time goes to trying a stalled path.
 PROBE_RATIO = 50.0
 #: Weight of a new call's time in the running estimate of its path's cost.
-COST_WEIGHT = 0.5
+COST_WEIGHT = 0.2
 #: Calls of a try of the other path; its first is not timed (threads asleep since the last try wake up late).
-PROBE_CALLS = 4
+PROBE_CALLS = 8
 
 
 class KernelPath:
@@ -122,9 +122,11 @@ class KernelPath:
         self._since_probe += seconds
 
     def _update(self, parallel: bool, seconds: float) -> None:
+        """Running cost of a path; a call above twice the estimate counts as twice it (a call the OS preempted
+        once must not send the choice to the other path, a path whose every call stalls still climbs)."""
         cost = seconds / self._work
         old = self.cost[parallel]
-        self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (cost - old)
+        self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (min(cost, 2.0 * old) - old)
 
 
 class ContouringVectorEnv(VectorEnv):
