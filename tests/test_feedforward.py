@@ -206,3 +206,19 @@ def test_servo_controller_follows_a_contour_drawn_at_reset():
         result = run_episode(policy, env, seed=seed)
         assert policy.reference is env.unwrapped.task.reference_arrays.samples
         assert result.completed and result.max_contour_error_um < 10.0, (seed, result.max_contour_error_um)
+
+
+def test_oracle_is_at_or_below_the_model_based_controllers_on_every_plant():
+    """On plants drawn from the box (one batch, the bench's robust path), the oracle, which starts from the best of
+    ff-pid, zpetc and ff-ccc designed with the nominal and with the exact plant, is at or below each of them."""
+    from vcnc_bench import robust
+
+    env = gym.make("VCNC-Circle-v1")
+    plants = robust.plant_set(env.unwrapped.plant, 3, seed=5, max_vertices=0)
+    runs = {}
+    for name in ("oracle", "ff-pid", "zpetc", "ff-ccc"):
+        batch = robust.make_batch("VCNC-Circle-v1", len(plants.kinds))
+        runs[name] = robust.run_plants(baselines.make(name, env), batch, plants.parameters,
+                                       decision_period=env.unwrapped.decision_period)
+    for name in ("ff-pid", "zpetc", "ff-ccc"):
+        assert np.all(runs["oracle"].max_um <= runs[name].max_um + 1e-9), name

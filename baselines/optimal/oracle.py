@@ -5,7 +5,8 @@ convergence on that exact plant (its true, possibly randomised, parameters: what
 read) over the whole reference, within the input limits:
 
 - it starts from the best, per env (max contour error, then mean), of the causal model-based designs
-  (:data:`CANDIDATES`: ``ff-pid``, ``zpetc``, ``ff-ccc``) built with the *exact* plant;
+  (:data:`CANDIDATES`: ``ff-pid``, ``zpetc``, ``ff-ccc``) built with the nominal plant (as they run) and with
+  the *exact* plant;
 - after trial ``j`` (true tracking error ``e_j``, which the oracle reads from the simulation, not through the
   sensor; applied input ``u_j``; both per control period),
   ``U_{j+1} = U_j + gain * Q(u_j - U_j + P^{-1} e_j)``, with ``P^{-1}`` the exact plant's linear inverse read ahead as
@@ -15,7 +16,7 @@ read) over the whole reference, within the input limits:
   friction, backlash and saturation are what the further trials learn;
 - a trial's table replaces the best one where it is no worse in max and in mean contour error, and runs
   with its design's loop (the feedback only corrects what the deterministic replay does not reproduce).
-  So on the nominal plant the oracle is at or below ``ff-pid``, ``zpetc`` and ``ff-ccc`` by construction.
+  So on every plant the oracle is at or below ``ff-pid``, ``zpetc`` and ``ff-ccc`` by construction.
 
 What the learning reaches (``python benchmarks/oracle_convergence.py``, docs/reproduction.md): on Simba et
 al.'s current-driven drive it converges (VCNC-CornersSmooth-v1: 0.015 -> 0.003 um); on Jahanpour et al.'s
@@ -52,7 +53,8 @@ from ..servo import TABLE_COLUMNS, U_FF, ServoPolicy
 #: the gap's crossing), as is the backlash window around each of its reversals.
 SLOW_SPEED = 2.0
 
-#: The causal model-based designs the learning starts from, each built with the exact plant (per env, the best).
+#: The causal model-based designs the learning starts from, each built with the nominal plant (as the causal
+#: controllers run) and with the exact plant: per env, the best of the six.
 CANDIDATES = (FeedforwardPIDPolicy, ZPETCPolicy, FeedforwardCrossCoupledPolicy)
 
 __all__ = ["OraclePolicy"]
@@ -134,9 +136,10 @@ class OraclePolicy(ServoPolicy):
         best_peak, best_mean = np.full(n, np.inf), np.full(n, np.inf)
         table = np.zeros((n, K, TABLE_COLUMNS))
         gains = [None] * n
-        for design in CANDIDATES:
-            built = [design(self.layout, self.decision_period, p, self.plant, reference=self.reference, dt=self.dt)
-                     for p in params]
+        for design, exact in [(d, e) for d in CANDIDATES for e in (False, True)]:
+            built = [design(self.layout, self.decision_period, p if exact else self.nominal_parameters, self.plant,
+                            reference=self.reference, dt=self.dt) for p in (params if exact else params[:1])]
+            built = built if exact else built * n
             self._set_law(np.stack([c.table[0] for c in built]), [c._gains_row(0) for c in built])
             peak, mean = self._score(batch, params)
             better = (peak < best_peak) | ((peak == best_peak) & (mean < best_mean)) | np.array([g is None for g in gains])
