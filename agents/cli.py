@@ -16,84 +16,16 @@ status 130 or 143, printing the command that resumes the run.
 
 from __future__ import annotations
 
-import argparse
 import signal
 import sys
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
+from .arguments import MODE_OPTIONS, action_mode
+from .arguments import parser as make_parser
+
 __all__ = ["main"]
-
-_MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat")
-
-
-def _parser() -> argparse.ArgumentParser:
-    from vcnc_gym import ENV_IDS
-
-    from .action_modes import ACTION_MODES
-    from .training import DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ
-
-    p = argparse.ArgumentParser(prog="vcnc-train", description="Train Stable-Baselines3 PPO on a VCNC env.")
-    p.add_argument("--env", metavar="ID", help=f"env id: {', '.join(ENV_IDS)}")
-    p.add_argument("--output", metavar="DIR", type=Path, help="run folder (default runs/ENV_seedSEED)")
-    p.add_argument("--resume", metavar="DIR", type=Path, help="resume the run in DIR from its newest intact checkpoint")
-    p.add_argument("--sweep", metavar="FILE", type=Path,
-                   help="run the Ray Tune sweep of a sweep file (agents/sweeps/README.md); --output: the sweep's "
-                        "folder (default runs/sweep_NAME); needs pip install 'vcnc-gym[sweep]'")
-    p.add_argument("--ray-address", metavar="ADDR",
-                   help="with --sweep: the address of an existing Ray cluster (auto, HOST:PORT, ray://HOST:10001); "
-                        "default: a local Ray sized to this machine")
-    p.add_argument("--timesteps", type=int, metavar="N",
-                   help="total agent steps, rounded up to whole PPO rollouts (default: the config entry's)")
-    p.add_argument("--seed", type=int, help="seed of the envs and of PPO, in [0, 2**32 - 1] (default 0)")
-    p.add_argument("--n-envs", type=int, metavar="N", help="parallel training envs (default: the config entry's)")
-    p.add_argument("--config", type=Path, metavar="YAML",
-                   help="hyperparameters in RL Zoo's format (default: the shipped agents/hyperparams/ppo.yml)")
-    g = p.add_argument_group("action mode (default: the config entry's)")
-    g.add_argument("--action-mode", choices=sorted(ACTION_MODES),
-                   help="; ".join(f"{k}: {v}" for k, v in ACTION_MODES.items()))
-    g.add_argument("--baseline", help="residual mode: the baseline corrected (e.g. smc, qft)")
-    g.add_argument("--correction", type=float, help="residual mode: largest correction, fraction of u_max")
-    g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
-    p.add_argument("--checkpoint-freq", type=int, metavar="N",
-                   help=f"agent steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ}; resume: the run's)")
-    p.add_argument("--eval-freq", type=int, metavar="N",
-                   help=f"agent steps between deterministic evaluations on the nominal plant, 0: only at the end "
-                        f"(default {DEFAULT_EVAL_FREQ}; resume: the run's)")
-    p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default="native",
-                   help="native: the vector env steps every env in one compiled call (default); dummy: SB3's "
-                        "DummyVecEnv, one env after another; subproc: one process per env")
-    p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's; the lean trainer: 1)")
-    p.add_argument("--trainer", choices=("sb3", "lean"),
-                   help="sb3: Stable-Baselines3's PPO (default); lean: the same PPO and agent files over the native "
-                        "vector env without SB3's per-step work (agents.lean_ppo); --resume: the run's")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs even if it is installed")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="SB3 verbosity and evaluation lines")
-    return p
-
-
-def _action_mode(args, config_file):
-    """The action mode the options ask for (None: the entry's); ValueError for a bad combination."""
-    from .action_modes import ActionMode
-    from .config import action_mode_of, load_hyperparameters
-
-    given = {k: getattr(args, k) for k in _MODE_OPTIONS}
-    if all(v is None for v in given.values()):
-        return None
-    # start from the config entry's mode and change what the options name
-    base = action_mode_of(load_hyperparameters(args.env, config_file)).to_dict()
-    mode = given["action_mode"] or base["mode"]
-    d = {"mode": mode,
-         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base["action_repeat"]}
-    if mode == "residual":
-        d["baseline"] = given["baseline"] or base.get("baseline", "smc")
-        d["correction"] = given["correction"] if given["correction"] is not None else base.get("correction", 0.2)
-    elif given["baseline"] is not None or given["correction"] is not None:
-        raise ValueError("--baseline and --correction apply to --action-mode residual")
-    return ActionMode(**d)
-
 
 @contextmanager
 def _print_run_warnings():
@@ -128,7 +60,7 @@ def _sweep_conflict(args) -> str | None:
     if args.sweep is None:
         return "--ray-address applies to --sweep FILE" if args.ray_address is not None else None
     given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
-                                                  *_MODE_OPTIONS, "checkpoint_freq", "eval_freq", "threads")
+                                                  *MODE_OPTIONS, "checkpoint_freq", "eval_freq", "threads")
              if getattr(args, k) is not None]
     given += ["--vec-env"] * (args.vec_env != "native") + ["--trainer"] * (args.trainer is not None)
     return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
@@ -160,7 +92,7 @@ def _sweep_main(parser, args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``vcnc-train``: 0 done, 2 bad options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
-    parser = _parser()
+    parser = make_parser()
     args = parser.parse_args(argv)
     conflict = _sweep_conflict(args)
     if conflict is not None:
@@ -172,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.resume is not None:
         if args.output is not None and args.output != args.resume:
             parser.error("--resume DIR is the run folder; --output does not apply")
-        fixed = [f"--{k.replace('_', '-')}" for k in (*_MODE_OPTIONS, "n_envs", "seed", "config")
+        fixed = [f"--{k.replace('_', '-')}" for k in (*MODE_OPTIONS, "n_envs", "seed", "config")
                  if getattr(args, k) is not None]
         if fixed:
             parser.error(f"a resumed run keeps its action mode, n_envs, seed and hyperparameters (see its config.yml); "
@@ -195,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
                 config_file = args.config if args.config is not None else DEFAULT_CONFIG
                 run_dir, config, checkpoint = prepare_run(
                     args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
-                    n_envs=args.n_envs, config_file=config_file, action_mode=_action_mode(args, config_file),
+                    n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
                     checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
             else:
                 run_dir, config, checkpoint = prepare_run(

@@ -353,12 +353,12 @@ def trial_argv(spec: SweepSpec, settings: dict, config_file, output) -> list[str
 
 def _train_kwargs(argv: list[str]) -> dict:
     """The arguments of :func:`agents.training.prepare_run` that ``vcnc-train ARGV`` runs with."""
-    from .cli import _action_mode, _parser
+    from .arguments import action_mode, parser
 
-    args = _parser().parse_args(argv)
+    args = parser().parse_args(argv)
     return {"env_id": args.env, "run_dir": args.output, "n_timesteps": args.timesteps,
             "seed": 0 if args.seed is None else args.seed, "n_envs": args.n_envs, "config_file": args.config,
-            "action_mode": _action_mode(args, args.config), "checkpoint_freq": args.checkpoint_freq,
+            "action_mode": action_mode(args, args.config), "checkpoint_freq": args.checkpoint_freq,
             "eval_freq": args.eval_freq}
 
 

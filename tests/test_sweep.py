@@ -19,7 +19,8 @@ import vcnc_gym
 
 pytest.importorskip("ray.tune", reason="the sweep needs Ray Tune: pip install 'vcnc-gym[sweep]'")
 
-from agents.cli import _parser, main  # noqa: E402
+from agents.arguments import parser as _parser  # noqa: E402
+from agents.cli import main  # noqa: E402
 from agents.sweep import RESULT_FIELDS, _train_kwargs, load_sweep  # noqa: E402
 from agents.training import evaluation_score, prepare_run  # noqa: E402
 

@@ -1,0 +1,81 @@
+"""The command line of ``vcnc-train``: its parser and the action mode its options ask for.
+
+One home for both, read by :mod:`agents.cli` (the command) and :mod:`agents.sweep` (each trial runs what the
+parser makes of its command line), so that neither imports the other.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["parser", "action_mode", "MODE_OPTIONS"]
+
+MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat")
+
+
+def parser() -> argparse.ArgumentParser:
+    from vcnc_gym import ENV_IDS
+
+    from .action_modes import ACTION_MODES
+    from .training import DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ
+
+    p = argparse.ArgumentParser(prog="vcnc-train", description="Train Stable-Baselines3 PPO on a VCNC env.")
+    p.add_argument("--env", metavar="ID", help=f"env id: {', '.join(ENV_IDS)}")
+    p.add_argument("--output", metavar="DIR", type=Path, help="run folder (default runs/ENV_seedSEED)")
+    p.add_argument("--resume", metavar="DIR", type=Path, help="resume the run in DIR from its newest intact checkpoint")
+    p.add_argument("--sweep", metavar="FILE", type=Path,
+                   help="run the Ray Tune sweep of a sweep file (agents/sweeps/README.md); --output: the sweep's "
+                        "folder (default runs/sweep_NAME); needs pip install 'vcnc-gym[sweep]'")
+    p.add_argument("--ray-address", metavar="ADDR",
+                   help="with --sweep: the address of an existing Ray cluster (auto, HOST:PORT, ray://HOST:10001); "
+                        "default: a local Ray sized to this machine")
+    p.add_argument("--timesteps", type=int, metavar="N",
+                   help="total agent steps, rounded up to whole PPO rollouts (default: the config entry's)")
+    p.add_argument("--seed", type=int, help="seed of the envs and of PPO, in [0, 2**32 - 1] (default 0)")
+    p.add_argument("--n-envs", type=int, metavar="N", help="parallel training envs (default: the config entry's)")
+    p.add_argument("--config", type=Path, metavar="YAML",
+                   help="hyperparameters in RL Zoo's format (default: the shipped agents/hyperparams/ppo.yml)")
+    g = p.add_argument_group("action mode (default: the config entry's)")
+    g.add_argument("--action-mode", choices=sorted(ACTION_MODES),
+                   help="; ".join(f"{k}: {v}" for k, v in ACTION_MODES.items()))
+    g.add_argument("--baseline", help="residual mode: the baseline corrected (e.g. smc, qft)")
+    g.add_argument("--correction", type=float, help="residual mode: largest correction, fraction of u_max")
+    g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
+    p.add_argument("--checkpoint-freq", type=int, metavar="N",
+                   help=f"agent steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ}; resume: the run's)")
+    p.add_argument("--eval-freq", type=int, metavar="N",
+                   help=f"agent steps between deterministic evaluations on the nominal plant, 0: only at the end "
+                        f"(default {DEFAULT_EVAL_FREQ}; resume: the run's)")
+    p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default="native",
+                   help="native: the vector env steps every env in one compiled call (default); dummy: SB3's "
+                        "DummyVecEnv, one env after another; subproc: one process per env")
+    p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's; the lean trainer: 1)")
+    p.add_argument("--trainer", choices=("sb3", "lean"),
+                   help="sb3: Stable-Baselines3's PPO (default); lean: the same PPO and agent files over the native "
+                        "vector env without SB3's per-step work (agents.lean_ppo); --resume: the run's")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs even if it is installed")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="SB3 verbosity and evaluation lines")
+    return p
+
+
+def action_mode(args, config_file):
+    """The action mode the options ask for (None: the entry's); ValueError for a bad combination."""
+    from .action_modes import ActionMode
+    from .config import action_mode_of, load_hyperparameters
+
+    given = {k: getattr(args, k) for k in MODE_OPTIONS}
+    if all(v is None for v in given.values()):
+        return None
+    # start from the config entry's mode and change what the options name
+    base = action_mode_of(load_hyperparameters(args.env, config_file)).to_dict()
+    mode = given["action_mode"] or base["mode"]
+    d = {"mode": mode,
+         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base["action_repeat"]}
+    if mode == "residual":
+        d["baseline"] = given["baseline"] or base.get("baseline", "smc")
+        d["correction"] = given["correction"] if given["correction"] is not None else base.get("correction", 0.2)
+    elif given["baseline"] is not None or given["correction"] is not None:
+        raise ValueError("--baseline and --correction apply to --action-mode residual")
+    return ActionMode(**d)
