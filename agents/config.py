@@ -114,7 +114,7 @@ def count(name: str, value, minimum: int = 1) -> int:
     return integer(name, value, minimum)
 
 
-def _number(name: str, value, *, low=None, high=None, low_open=False, high_open=False, none=False):
+def number(name: str, value, *, low=None, high=None, low_open=False, high_open=False, none=False):
     """A finite real in the given interval (a numeric string such as "3e-4" is read as a float)."""
     if value is None and none:
         return None
@@ -152,7 +152,7 @@ def _rate(name: str, value, none: bool = False):
         if not math.isfinite(initial) or initial <= 0:
             raise ValueError(f"{name}: a linear schedule needs a positive start, got {value!r}")
         return _linear(initial)
-    return _number(name, value, low=0.0, low_open=True)
+    return number(name, value, low=0.0, low_open=True)
 
 
 #: Every PPO argument an entry may set and its check (value -> converted value).
@@ -161,17 +161,17 @@ _PPO_RULES = {
     "n_steps": lambda v: count("n_steps", v),
     "batch_size": lambda v: count("batch_size", v, 2),
     "n_epochs": lambda v: count("n_epochs", v),
-    "gamma": lambda v: _number("gamma", v, low=0.0, high=1.0, low_open=True),
-    "gae_lambda": lambda v: _number("gae_lambda", v, low=0.0, high=1.0),
+    "gamma": lambda v: number("gamma", v, low=0.0, high=1.0, low_open=True),
+    "gae_lambda": lambda v: number("gae_lambda", v, low=0.0, high=1.0),
     "clip_range": lambda v: _rate("clip_range", v),
     "clip_range_vf": lambda v: _rate("clip_range_vf", v, none=True),
     "normalize_advantage": lambda v: flag("normalize_advantage", v),
-    "ent_coef": lambda v: _number("ent_coef", v, low=0.0),
-    "vf_coef": lambda v: _number("vf_coef", v, low=0.0),
-    "max_grad_norm": lambda v: _number("max_grad_norm", v, low=0.0, low_open=True),
+    "ent_coef": lambda v: number("ent_coef", v, low=0.0),
+    "vf_coef": lambda v: number("vf_coef", v, low=0.0),
+    "max_grad_norm": lambda v: number("max_grad_norm", v, low=0.0, low_open=True),
     "use_sde": lambda v: flag("use_sde", v),
     "sde_sample_freq": lambda v: count("sde_sample_freq", v, -1),
-    "target_kl": lambda v: _number("target_kl", v, low=0.0, low_open=True, none=True),
+    "target_kl": lambda v: number("target_kl", v, low=0.0, low_open=True, none=True),
     "stats_window_size": lambda v: count("stats_window_size", v),
     "policy_kwargs": lambda v: parse_policy_kwargs(v),
 }
@@ -238,11 +238,11 @@ def parse_policy_kwargs(value) -> dict:
 
     known = set(inspect.signature(ActorCriticPolicy.__init__).parameters) - {
         "self", "observation_space", "action_space", "lr_schedule", "features_extractor_class"}
-    _refuse_unknown("policy_kwargs", kwargs, known)
+    refuse_unknown("policy_kwargs", kwargs, known)
     return kwargs
 
 
-def _refuse_unknown(where: str, keys, known) -> None:
+def refuse_unknown(where: str, keys, known) -> None:
     unknown = sorted(set(keys) - set(known))
     if unknown:
         hints = []
@@ -357,17 +357,17 @@ def normalize_kwargs(hyperparams: dict) -> dict | None:
     if value is not True and not isinstance(value, dict):
         raise ValueError(f"normalize must be a bool or a dict literal, got {value!r}")
     kwargs = {} if value is True else dict(value)
-    _refuse_unknown("normalize", kwargs, _NORMALIZE_KEYS)
+    refuse_unknown("normalize", kwargs, _NORMALIZE_KEYS)
     for key in ("norm_obs", "norm_reward"):
         if key in kwargs:
             flag(f"normalize: {key}", kwargs[key])
     for key in ("clip_obs", "clip_reward", "epsilon"):
         if key in kwargs:
-            kwargs[key] = _number(f"normalize: {key}", kwargs[key], low=0.0, low_open=True)
+            kwargs[key] = number(f"normalize: {key}", kwargs[key], low=0.0, low_open=True)
     if "gamma" in hyperparams:
         kwargs["gamma"] = hyperparams["gamma"]
     if "gamma" in kwargs:
-        kwargs["gamma"] = _number("gamma", kwargs["gamma"], low=0.0, high=1.0, low_open=True)
+        kwargs["gamma"] = number("gamma", kwargs["gamma"], low=0.0, high=1.0, low_open=True)
     return kwargs
 
 
@@ -385,7 +385,7 @@ def ppo_arguments(hyperparams: dict) -> tuple[str, dict[str, Any]]:
     if unsupported:
         raise ValueError(f"vcnc-train does not support the hyperparameter(s) {unsupported} "
                          "(it sets the seed, device, logging and buffers itself)")
-    _refuse_unknown("the hyperparameters", hyperparams, set(_PPO_RULES) | set(_ZOO_KEYS))
+    refuse_unknown("the hyperparameters", hyperparams, set(_PPO_RULES) | set(_ZOO_KEYS))
     policy = hyperparams.get("policy", "MlpPolicy")
     if policy != "MlpPolicy":
         raise ValueError(f"policy must be 'MlpPolicy' (the observation is a flat vector), got {policy!r}")

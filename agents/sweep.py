@@ -160,7 +160,7 @@ def _value_rules():
 
     from .action_modes import ACTION_MODES, ActionMode
     from .config import count, ppo_arguments
-    from .training import _check_seed
+    from .training import check_seed
 
     def one_of(name, allowed):
         def check(v):
@@ -173,7 +173,7 @@ def _value_rules():
         ppo_arguments({"learning_rate": v})
         return v
 
-    return {"seed": _check_seed,
+    return {"seed": check_seed,
             "learning_rate": learning_rate,
             "action_mode": one_of("action_mode", ACTION_MODES),
             "baseline": one_of("baseline", baselines.names()),
@@ -185,7 +185,7 @@ def _value_rules():
 
 def _typed(key: str, v):
     """A value of the parameter's kind (a YAML string "1e-4" read as a float); ValueError otherwise."""
-    from .config import _number
+    from .config import number
 
     kind = SEARCH_KEYS[key]
     if kind == "str":
@@ -193,7 +193,7 @@ def _typed(key: str, v):
             raise ValueError(f"{key} must be a string, got {v!r}")
         return v
     if kind == "float":
-        return _number(key, v)
+        return number(key, v)
     if isinstance(v, float) and v.is_integer():
         v = int(v)
     if isinstance(v, bool) or not isinstance(v, int):
@@ -255,7 +255,7 @@ def load_sweep(path) -> SweepSpec:
     every combination of the action-mode values (:func:`agents.training.prepare_run`,
     which builds the env, the residual's baseline and the policy; nothing is written).
     """
-    from .config import DEFAULT_CONFIG, _refuse_unknown, count, ppo_arguments, read_yaml
+    from .config import DEFAULT_CONFIG, refuse_unknown, count, ppo_arguments, read_yaml
     from .training import check_env_id, check_training_options
 
     path = Path(path)
@@ -263,7 +263,7 @@ def load_sweep(path) -> SweepSpec:
     if not isinstance(data, dict):
         raise _error(path, f"must be a mapping of {', '.join(_FILE_KEYS)}, got {type(data).__name__}")
     try:
-        _refuse_unknown("the sweep file", data, _FILE_KEYS)
+        refuse_unknown("the sweep file", data, _FILE_KEYS)
         if "env" not in data:
             raise ValueError("env (the env id) is required")
         env_id = check_env_id(data["env"])
@@ -275,7 +275,7 @@ def load_sweep(path) -> SweepSpec:
         search = data.get("search")
         if not isinstance(search, dict) or not search:
             raise ValueError(f"search must be a mapping of some of {', '.join(SEARCH_KEYS)}, got {search!r}")
-        _refuse_unknown("search", search, SEARCH_KEYS)
+        refuse_unknown("search", search, SEARCH_KEYS)
         twice = [f"{k} (search: {s})" for s, k in _ENTRY_KEYS.items() if s in search and k in overrides]
         if twice:
             raise ValueError(f"overrides set {', '.join(twice)}, which the search sets: keep one")

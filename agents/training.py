@@ -155,7 +155,7 @@ def check_env_id(env_id: str) -> str:
     return suite_env(env_id).id
 
 
-def _check_seed(seed) -> int:
+def check_seed(seed) -> int:
     """``seed`` as an int in [0, 2**32 - 1] (what numpy and SB3 accept); ValueError otherwise."""
     v = count("seed", seed, 0)
     if v > _SEED_MAX:
@@ -770,7 +770,7 @@ def _new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, 
     n_timesteps = count("n_timesteps", n_timesteps if n_timesteps is not None else h.get("n_timesteps", 0))
     n_envs = _check_n_envs(count("n_envs", n_envs if n_envs is not None else h.get("n_envs", 1)))
     n_timesteps = _check_timesteps(n_timesteps)
-    seed = _check_seed(seed)
+    seed = check_seed(seed)
     _, kwargs = ppo_arguments(h)
     rollout = kwargs.get("n_steps", 2048) * n_envs
     if rollout < 2:
