@@ -79,9 +79,11 @@ class ContouringEnv(gym.Env):
 
     ## Rewards
 
-    ``reward = -contour_error / reward_scale - effort_weight * mean(action**2)``,
-    with the contour error averaged over the step's control periods and
-    ``reward_scale`` = 0.01 mm (10 um), so typical values are of order one.
+    ``reward = -min(contour_error, divergence_bound) / reward_scale - effort_weight * mean(action**2)``,
+    with the contour error averaged over the step's control periods (clipped at
+    the divergence bound: a step never costs more than one at the bound, the
+    rest is the divergence penalty's) and ``reward_scale`` = 0.01 mm (10 um),
+    so typical values are of order one.
     The effort term is off by default.  On divergence a terminal penalty of
     ``-(divergence_bound / reward_scale)`` per remaining decision step of the
     contour is added, so ending an episode early never pays.  Every term is in
@@ -106,7 +108,12 @@ class ContouringEnv(gym.Env):
     - Terminated at the completion time limit, ``completion_timeout`` (0.1 s)
       after the reference's end, with ``info["completed"] = False`` and a
       penalty of ``-(untraversed length) / reward_scale``
-      (``info["reward_incomplete"]``).
+      (``info["reward_incomplete"]``).  Terminated, not truncated, on
+      purpose: the limit is part of the task (a part has a cycle time, and
+      running out of it ends the task at the cost of what is left), so a
+      learner must not bootstrap past it; Gymnasium's truncation is for
+      limits outside the task, such as ``max_episode_steps``, which sets
+      ``truncated``.
     - Terminated early with ``info["diverged"] = True`` when the contour
       error exceeds ``divergence_bound`` (default 5 mm), the tracking error
       exceeds ``tracking_bound`` (default 10 mm: the table has fallen that
