@@ -34,8 +34,8 @@ __all__ = ["ContouringVectorEnv", "KernelPath"]
 PARALLEL_MIN_ENVS = 16
 #: numba's threading layer for the parallel kernels unless NUMBA_THREADING_LAYER names one.  numba's default here is
 #: GNU OpenMP, and torch's wheel loads its own libgomp.so.1 under the same name: in one process (training, an agent
-#: benchmarked) both run on one OpenMP runtime, and after a parallel kernel call torch's forward pass of a 64x64 MLP
-#: on 256 observations took 3-13 ms instead of 0.5 (``python benchmarks/numba_torch_threads.py``).  numba's own
+#: benchmarked) both run on one OpenMP runtime, and after parallel kernel calls torch's forward pass of a 64x64 MLP
+#: on 256 observations ran 7-88x slower (``python benchmarks/numba_torch_threads.py``).  numba's own
 #: workqueue pool shares nothing with torch.  It refuses parallel launches from two Python threads at once (this
 #: package makes none).  Set before the first parallel launch, when numba reads it.
 THREADING_LAYER = "workqueue"
