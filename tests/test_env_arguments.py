@@ -134,3 +134,16 @@ def test_an_episode_cut_by_a_time_limit_is_reported_incomplete():
 
     res = run_episode(Zero(), gym.make(OMEGA, max_episode_steps=50))
     assert res.truncated and not res.completed and res.episode_steps == 50
+
+
+def test_profile_accepts_a_profile_object():
+    """profile= takes any object with plan(length): the interpolator reads only the plan."""
+    from vcnc_gym.motion import ConstantFeedrate
+
+    own = gym.make("VCNC-Heart-v1", profile=ConstantFeedrate(80.0)).unwrapped.reference
+    named = gym.make("VCNC-Heart-v1", profile="constant", feedrate=80.0).unwrapped.reference
+    np.testing.assert_array_equal(own.position, named.position)
+    with pytest.raises(ValueError, match="profile must be one of"):
+        gym.make("VCNC-Heart-v1", profile=3)
+    with pytest.raises(ValueError, match="ramp_time"):
+        gym.make("VCNC-Heart-v1", profile=ConstantFeedrate(80.0), ramp_time=0.1)

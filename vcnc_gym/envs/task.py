@@ -97,10 +97,17 @@ def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | None]:
     raise ValueError(f"contour must be one of {sorted(SHAPES)}, a NurbsCurve or a SmoothedPolyline, got {contour!r}")
 
 
-def make_profile(profile: str, feedrate, ramp_time, curve: NurbsCurve, path: SmoothedPolyline | None):
-    """The feedrate profile of ``profile=`` (one of :data:`PROFILES`)."""
+def make_profile(profile, feedrate, ramp_time, curve: NurbsCurve, path: SmoothedPolyline | None):
+    """The feedrate profile of ``profile=``: one of :data:`PROFILES`, or a profile object of the user's own (any
+    object with ``plan(length_mm) -> plan``, as :mod:`vcnc_gym.motion`'s profiles; its plan sets the feed, so
+    ``feedrate`` and ``ramp_time`` do not apply)."""
+    if not isinstance(profile, str) and callable(getattr(profile, "plan", None)):
+        if ramp_time is not None:
+            raise ValueError("ramp_time (s) shapes the S-curve of profile='scurve'; a profile object plans its own feed")
+        return profile
     if profile not in PROFILES:
-        raise ValueError(f"profile must be one of {list(PROFILES)}, got {profile!r}")
+        raise ValueError(f"profile must be one of {list(PROFILES)} or a profile object with plan(length), "
+                         f"got {profile!r}")
     if profile != "scurve" and ramp_time is not None:
         raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
     if isinstance(path, Toolpath):  # a G-code program: its blocks' feeds
