@@ -113,14 +113,14 @@ def audit_run(run_dir: Path, monitors: dict[str, list[dict]] | None = None, eval
 
 
 def kill_and_resume(workdir: Path, *, mode: str = "direct", timesteps: int = 8192, kill_after: int = 1024,
-                    max_wait: float = 3.0, timeout: float = 600.0) -> dict:
+                    max_wait: float = 3.0, timeout: float = 600.0, trainer: str = "sb3") -> dict:
     """Run, SIGKILL, resume and audit; returns the figures (see :func:`main` for their print-out)."""
     workdir.mkdir(parents=True, exist_ok=True)
     run_dir = workdir / "run"
     config = write_config(workdir, mode)
     common = ["--checkpoint-freq", "512", "--eval-freq", "768"]
     first = subprocess.Popen(_command("--env", "VCNC-Omega-v1", "--config", str(config), "--output", str(run_dir),
-                                      "--timesteps", str(timesteps), *common),
+                                      "--timesteps", str(timesteps), "--trainer", trainer, *common),
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + timeout
     def newest_checkpoint() -> int:
@@ -204,13 +204,14 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--workdir", type=Path, help="where to put the run (default: a temporary folder)")
     p.add_argument("--mode", choices=sorted(_MODES), default="direct")
+    p.add_argument("--trainer", choices=("sb3", "lean"), default="sb3", help="vcnc-train --trainer (default sb3)")
     args = p.parse_args(argv)
     if args.workdir is not None:
-        report = kill_and_resume(args.workdir, mode=args.mode)
+        report = kill_and_resume(args.workdir, mode=args.mode, trainer=args.trainer)
         _print(report)
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            report = kill_and_resume(Path(tmp), mode=args.mode)
+            report = kill_and_resume(Path(tmp), mode=args.mode, trainer=args.trainer)
             _print(report)
     a = report["audit"]
     ok = (report["pre_checkpoint_rows_unchanged"] and a["evaluations"]["increasing"]
