@@ -23,7 +23,7 @@ __all__ = ["ZPETCPolicy"]
 
 
 class ZPETCPolicy(ServoPolicy):
-    """ZPETC on the PID loop of each axis, with friction pre-compensation.
+    """ZPETC on the PID loop of each axis, with friction and backlash pre-compensation.
 
     Parameters
     ----------
