@@ -4,9 +4,10 @@ For each env and each plant instance, the oracle runs model-inversion iterative 
 convergence on that exact plant (its true, possibly randomised, parameters: what no causal controller may
 read) over the whole reference, within the input limits:
 
-- it starts from the best, per env (max contour error, then mean), of the causal model-based designs
-  (:data:`CANDIDATES`: ``ff-pid``, ``zpetc``, ``ff-ccc``) built with the nominal plant (as they run) and with
-  the *exact* plant;
+- it scores the causal model-based designs (:data:`CANDIDATES`: ``ff-pid``, ``zpetc``, ``ff-ccc``) built
+  with the nominal plant (as they run) and with the *exact* plant, and keeps the best per env (max contour
+  error, then mean); the learning starts from ``ff-pid`` with the exact plant, whose table is the whole
+  feedforward input the update writes;
 - after trial ``j`` (true tracking error ``e_j``, which the oracle reads from the simulation, not through the
   sensor; applied input ``u_j``; both per control period),
   ``U_{j+1} = U_j + gain * Q(u_j - U_j + P^{-1} e_j)``, with ``P^{-1}`` the exact plant's linear inverse read ahead as
@@ -14,8 +15,8 @@ read) over the whole reference, within the input limits:
   zero-phase low-pass (Butterworth, ``filtfilt``) at ``q_cutoff``.  For a linear plant ``P``, folding the
   trial's whole input (feedforward and feedback) in makes ``gain = 1`` the exact inverse in one step; the
   friction, backlash and saturation are what the further trials learn;
-- a trial's table replaces the best one where it is no worse in max and in mean contour error, and runs
-  with its design's loop (the feedback only corrects what the deterministic replay does not reproduce).
+- a trial's table replaces the best one where it is no worse in max and in mean contour error, and
+  everything runs with its design's loop (the feedback only corrects what the deterministic replay does not reproduce).
   So on every plant the oracle is at or below ``ff-pid``, ``zpetc`` and ``ff-ccc`` by construction.
 
 What the learning reaches (``python benchmarks/oracle_convergence.py``, docs/reproduction.md): on Simba et
@@ -132,21 +133,25 @@ class OraclePolicy(ServoPolicy):
         steps = task.end_index + 2
         batch = ContouringBatch(task, n)
         K = self.reference.shape[0]
-        # the causal model-based designs, each with the exact plant: the best per env is the learning's start
+        # the causal model-based designs, with the nominal and with the exact plant: the best per env is the floor
+        # to beat; the learning starts from ff-pid with the exact plant (its table is the whole feedforward input,
+        # what the learning update writes)
         best_peak, best_mean = np.full(n, np.inf), np.full(n, np.inf)
-        table = np.zeros((n, K, TABLE_COLUMNS))
-        gains = [None] * n
+        best = np.zeros((n, K, TABLE_COLUMNS))
+        best_gains = [None] * n
         for design, exact in [(d, e) for d in CANDIDATES for e in (False, True)]:
             built = [design(self.layout, self.decision_period, p if exact else self.nominal_parameters, self.plant,
                             reference=self.reference, dt=self.dt) for p in (params if exact else params[:1])]
             built = built if exact else built * n
             self._set_law(np.stack([c.table[0] for c in built]), [c._gains_row(0) for c in built])
+            if design is FeedforwardPIDPolicy and exact:
+                table, gains = self.table.copy(), [c._gains_row(0) for c in built]
             peak, mean = self._score(batch, params)
-            better = (peak < best_peak) | ((peak == best_peak) & (mean < best_mean)) | np.array([g is None for g in gains])
+            better = (peak < best_peak) | ((peak == best_peak) & (mean < best_mean)) | np.array(
+                [g is None for g in best_gains])
             for i in np.flatnonzero(better):
-                table[i], gains[i] = built[i].table[0], built[i]._gains_row(0)
+                best[i], best_gains[i] = built[i].table[0], built[i]._gains_row(0)
             best_peak[better], best_mean[better] = peak[better], mean[better]
-        best = table.copy()
         b, a = signal.butter(2, self.q_cutoff, fs=1.0 / self.dt)
         inverses = [task.plant.inverse(p) for p in params]
         u_max = task.plant.input_limits(params)  # (N, 2): a table beyond the limit learns nothing
@@ -167,7 +172,8 @@ class OraclePolicy(ServoPolicy):
             peak, mean = self._trial(batch, params, errors)
             history.append(peak * 1e3)
             better = (peak <= best_peak) & (mean <= best_mean)  # no worse in either figure
-            best[better] = table[better]
+            for i in np.flatnonzero(better):
+                best[i], best_gains[i] = table[i], gains[i]
             best_peak[better], best_mean[better] = peak[better], mean[better]
             if trial == self.iterations:
                 break
@@ -180,7 +186,7 @@ class OraclePolicy(ServoPolicy):
                 if np.any(inv.backlash > 0):  # no learning through the gap, nor through stick-slip from low speeds
                     update *= coupled
                 table[i, :, U_FF:U_FF + 2] = np.clip(current + update, -u_max[i], u_max[i])
-        self._set_law(best, gains)
+        self._set_law(best, best_gains)
         self._record = np.zeros((0, 0, 2))
         self._compiled = None
         self.history_um = np.array(history)
