@@ -166,7 +166,6 @@ def test_strongest_causal_controller_reaches_2_um_on_the_heart(heart):
     assert best <= 2.0
 
 
-@pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_oracle_is_at_or_below_every_causal_baseline_on_the_circle():
     """The oracle is the floor: on VCNC-Circle-v1's nominal plant, every causal baseline that applies lies at or
     above it (max contour error), and it is marked non-causal."""
