@@ -20,13 +20,15 @@ read) over the whole reference, within the input limits:
   So on every plant the oracle is at or below ``ff-pid``, ``zpetc`` and ``ff-ccc`` by construction.
 
 What the learning reaches (``python benchmarks/oracle_convergence.py``, docs/reproduction.md): on Simba et
-al.'s current-driven drive it converges (VCNC-CornersSmooth-v1: 0.015 -> 0.003 um); on Jahanpour et al.'s
+al.'s current-driven drive it converges (VCNC-CornersSmooth-v1: 0.015 -> 0.006 um); on Jahanpour et al.'s
 drive the largest errors sit at the axis reversals, where the drive must cross its 3 um backlash gap while
 saturated at 5 V, and the linear inverse cannot learn through the gap or through stick-slip from low speeds
 (those stretches are left out of the learning: ``backlash_window``, :data:`SLOW_SPEED`), so the floor there is
 the best causal design with the exact plant; on Purtojo et al.'s table the loop's velocity, a 1 um encoder's count
 difference, keeps its noise in every trial, and the floor improves little.  A loose floor where it does not
-converge, said so.
+converge, said so.  It is no floor against the papers' feedback controllers where they lead, on references the
+drives cannot follow (the S-curve omega: QFT; the sharp corners: Simba et al.'s contouring FB): those are not
+among its starting designs.
 
 It is **non-causal** (:attr:`OraclePolicy.causal` is False): it reads the plant it runs on through
 :meth:`OraclePolicy.plan`, which the evaluation loops (:func:`vcnc_gym.evaluation.run_episode`,
