@@ -54,6 +54,7 @@ from gymnasium.vector import AutoresetMode
 from .action_modes import ActionMode
 from .config import normalize_kwargs, ppo_arguments
 from .normalization import NormalizationStats
+from .vec_env import monitor_writers
 
 __all__ = ["TRAINERS", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
 
@@ -111,15 +112,7 @@ class DecisionEnv:
         self._returns = np.zeros(n_envs)
         self._lengths = np.zeros(n_envs, dtype=np.int64)
         self._t0 = time.time()
-        self._writers = None
-        if monitor_dir is not None:
-            from stable_baselines3.common.monitor import ResultsWriter
-
-            Path(monitor_dir).mkdir(parents=True, exist_ok=True)
-            self._writers = [ResultsWriter(str(Path(monitor_dir) / f"{i}"),
-                                           header={"t_start": self._t0, "env_id": env_id},
-                                           extra_keys=("steps",), override_existing=not append)
-                             for i in range(n_envs)]
+        self._writers = monitor_writers(monitor_dir, n_envs, env_id, self._t0, append)
 
     @property
     def decisions_per_episode(self) -> int:

@@ -100,15 +100,7 @@ class VcncVecEnv(VecEnv):
         self._returns = np.zeros(n_envs)
         self._lengths = np.zeros(n_envs, dtype=np.int64)
         self._t0 = time.time()
-        self._writers = None
-        if monitor_dir is not None:
-            from stable_baselines3.common.monitor import ResultsWriter
-
-            Path(monitor_dir).mkdir(parents=True, exist_ok=True)
-            self._writers = [ResultsWriter(str(Path(monitor_dir) / f"{i}"),
-                                           header={"t_start": self._t0, "env_id": env_id},
-                                           extra_keys=("steps",), override_existing=not append)
-                             for i in range(n_envs)]
+        self._writers = monitor_writers(monitor_dir, n_envs, env_id, self._t0, append)
 
     # -- SB3 VecEnv API ---------------------------------------------------------------
     def reset(self):
@@ -229,3 +221,15 @@ def _merge(previous: dict, info: dict, stepped: np.ndarray) -> dict:
         mask = stepped.reshape((-1,) + (1,) * (np.ndim(value) - 1))
         out[key] = np.where(mask, value, previous[key])
     return out
+
+
+def monitor_writers(monitor_dir, n_envs: int, env_id: str, t0: float, append: bool):
+    """One SB3 Monitor file per env in ``monitor_dir`` (``0.monitor.csv`` ...), each row with the run's step count
+    (``steps``); appended to when ``append`` (a resumed run).  None without a folder."""
+    if monitor_dir is None:
+        return None
+    from stable_baselines3.common.monitor import ResultsWriter
+
+    Path(monitor_dir).mkdir(parents=True, exist_ok=True)
+    return [ResultsWriter(str(Path(monitor_dir) / f"{i}"), header={"t_start": t0, "env_id": env_id},
+                          extra_keys=("steps",), override_existing=not append) for i in range(n_envs)]
