@@ -70,15 +70,9 @@ class ProgramFeedrate(LookaheadFeedrate):
         super().__init__(curve, float(np.max(self.feeds)), acceleration, jerk, acceleration, jerk, spacing=spacing)
 
     def _check_corners(self) -> None:
-        curve = self.curve
-        lo, hi = curve.u_range
-        inner = np.unique(curve.knots[(curve.knots > lo) & (curve.knots < hi)])
+        inner, angle = self.curve.knot_turns()
         if not inner.size:
             return
-        before = curve.derivatives_array(np.nextafter(inner, lo), 1)[:, 1]
-        after = curve.derivatives_array(inner, 1)[:, 1]
-        cross = before[:, 0] * after[:, 1] - before[:, 1] * after[:, 0]
-        angle = np.arctan2(np.abs(cross), np.sum(before * after, axis=1))
         if np.max(angle) > TANGENT_ANGLE:  # the toolpath puts stops there: a bug if reached
             raise ValueError(f"section with a corner of {math.degrees(float(np.max(angle))):.4g} degrees")
 

@@ -427,6 +427,18 @@ class NurbsCurve:
             whole = np.concatenate([left[keep], right[keep]])
         return total + float(np.sum(whole))
 
+    def knot_turns(self) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct knots strictly inside the curve's range, and the angle (rad, in [0, pi]) by which the
+        tangent turns across each: 0 where it is smooth, pi where it reverses; from the one-sided derivatives
+        (the left one from the span before the knot)."""
+        lo, hi = self.u_range
+        inner = np.unique(self.knots[(self.knots > lo) & (self.knots < hi)])
+        if not inner.size:
+            return inner, np.zeros(0)
+        before = self.derivatives_array(np.nextafter(inner, lo), 1)[:, 1]
+        after = self.derivatives_array(inner, 1)[:, 1]
+        return inner, math.pi - interior_angle(before, after)
+
     def check_regular(self) -> None:
         """Raise ``ValueError`` where the curve's tangent C'(u) / |C'(u)| is undefined.
 

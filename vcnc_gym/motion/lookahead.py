@@ -460,15 +460,9 @@ class LookaheadFeedrate:
         self._plan = None
 
     def _check_corners(self) -> None:
-        curve = self.curve
-        lo, hi = curve.u_range
-        inner = np.unique(curve.knots[(curve.knots > lo) & (curve.knots < hi)])
+        inner, angle = self.curve.knot_turns()
         if not inner.size:
             return
-        before = curve.derivatives_array(np.nextafter(inner, lo), 1)[:, 1]
-        after = curve.derivatives_array(inner, 1)[:, 1]
-        cross = before[:, 0] * after[:, 1] - before[:, 1] * after[:, 0]
-        angle = np.arctan2(np.abs(cross), np.sum(before * after, axis=1))
         k = int(np.argmax(angle))
         if angle[k] > _CORNER_ANGLE:
             raise ValueError(
