@@ -50,3 +50,14 @@ def pd_action():
 def pd_episode():
     """``pd_episode(env, kp=300, kd=1, seed=0)``: one PD episode, (infos, terminated, truncated)."""
     return _pd_episode
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """Torch on one thread for a module (the agents' networks are tiny: one thread is several times faster than
+    threads fighting over 2 cores); the previous count restored after it."""
+    torch = pytest.importorskip("torch")
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)

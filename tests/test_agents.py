@@ -45,13 +45,8 @@ ROLLOUT = OMEGA_ENTRY["n_steps"] * 2  # agent steps of one PPO rollout of the Om
 AGENT_FILES = ("model.zip", "vecnormalize.npz", "config.yml")
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread():
-    """The networks are tiny: one torch thread is several times faster than threads fighting over 2 cores."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+#: Every test of this module runs torch on one thread (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")

@@ -69,12 +69,8 @@ VCNC-Omega-v1:
 """
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+#: Every test of this module runs torch on one thread (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 # -- payloads that run code when unpickled ------------------------------------------------------

@@ -33,12 +33,8 @@ N_ENVS, N_STEPS = 4, 32
 ROLLOUT = N_ENVS * N_STEPS
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+#: Every test of this module runs torch on one thread (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")
