@@ -54,7 +54,7 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import positive, non_negative, per_axis
 from .base import BaselinePolicy
 
-__all__ = ["BANDWIDTH", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
+__all__ = ["BANDWIDTH", "FRICTION_TIME", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
            "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate"]
 
 #: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
@@ -71,6 +71,20 @@ BANDWIDTH = {
     "current_feed_drive": 2000.0,
     "nct_xy_table": 30.0,
     "cncmt_axis": 1.0,
+}
+
+#: Default duration (s) over which the feedforward's Coulomb level changes sign at a velocity reversal of the
+#: reference (``friction_time`` of :func:`~baselines.feedforward.tables.inverse_feedforward`), per plant: the
+#: best max contour error of ``zpetc``, ``ff-pid`` and ``ff-ccc`` on the plant's nominal ids over a grid of
+#: 0 to 4 ms (``python benchmarks/tune_servo.py --transitions``; docs/reproduction.md).  On Simba et al.'s drive
+#: a switch at the reversal itself (0) halves the smoothed corners' max against 1 ms (zpetc 4.3 nm against
+#: 12.9 nm); on Jahanpour et al.'s drive the grid's spread (1.84 to 2.02 um on the heart, and no consistent
+#: optimum on the look-ahead omega) leaves 1 ms; the other plants have no Coulomb term.
+FRICTION_TIME = {
+    "vcnc_feed_drive": 1e-3,
+    "current_feed_drive": 0.0,
+    "nct_xy_table": 1e-3,
+    "cncmt_axis": 1e-3,
 }
 
 #: Memory columns per env: the control period k of the next call, the axes' integrals (mm s) and the coupling's (mm s).

@@ -1,12 +1,17 @@
-"""The one free number of the model-based controllers' design rule: the PID's closed-loop pole, per plant.
+"""The free numbers of the model-based controllers' design rule, per plant: the PID's closed-loop pole and the
+feedforward's friction transition.
 
 ``baselines.servo.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
 ``ff-pid`` and ``ff-ccc`` on the nominal plant of each plant's contouring ids over a grid of bandwidths (and of
 coupling gains for ``ff-ccc``) and prints max / RMS contour error, the figures behind
-``baselines.servo.BANDWIDTH`` and ``baselines.coupling.ccc``'s default coupling (docs/reproduction.md)::
+``baselines.servo.BANDWIDTH`` and ``baselines.coupling.ccc``'s default coupling (docs/reproduction.md).
+``--transitions`` runs ``zpetc``, ``ff-pid`` and ``ff-ccc`` over a grid of the durations over which the
+feedforward's Coulomb level (``friction_time``) and the backlash crossing (``backlash_time``) change at a
+reversal, the figures behind ``baselines.servo.FRICTION_TIME``::
 
     python benchmarks/tune_servo.py            # every plant's grid, a few minutes on 2 cores
     python benchmarks/tune_servo.py --env VCNC-Heart-v1
+    python benchmarks/tune_servo.py --transitions
 """
 
 from __future__ import annotations
@@ -27,11 +32,36 @@ GRID = {
 }
 COUPLINGS = (0.1, 0.3, 1.0)
 
+#: Friction transitions tried (s; 0 switches at the reversal) and backlash transitions (s, on plants with backlash).
+FRICTION_TIMES = (0.0, 0.2e-3, 0.3e-3, 0.5e-3, 0.7e-3, 1e-3, 1.5e-3, 2e-3, 3e-3, 4e-3)
+BACKLASH_TIMES = (8e-3, 16e-3, 32e-3)
+
+
+def transitions(env_ids) -> None:
+    """Print the transition grid (max / RMS contour error, um, nominal plant) of the model-based controllers."""
+    print(f"{'env':26s} {'controller':8s} {'friction ms':>11s} {'backlash ms':>11s} {'max um':>8s} {'rms um':>8s}")
+    for plant, (_, ids) in GRID.items():
+        for env_id in ids:
+            if env_ids and env_id not in env_ids:
+                continue
+            env = gym.make(env_id)
+            backlash = BACKLASH_TIMES if plant == "vcnc_feed_drive" else (16e-3,)
+            for name in ("zpetc", "ff-pid", "ff-ccc"):
+                for ft in FRICTION_TIMES:
+                    for bt in backlash:
+                        r = run_episode(baselines.make(name, env, friction_time=ft, backlash_time=bt), env)
+                        print(f"{env_id:26s} {name:8s} {ft * 1e3:11g} {bt * 1e3:11g} "
+                              f"{r.max_contour_error_um:8.4f} {r.rms_contour_error_um:8.5f}", flush=True)
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", action="append", help="only these ids")
+    parser.add_argument("--transitions", action="store_true", help="the friction and backlash transition grid")
     args = parser.parse_args()
+    if args.transitions:
+        transitions(args.env)
+        return
     print(f"{'env':26s} {'controller':8s} {'bandwidth':>9s} {'coupling':>8s} {'max um':>8s} {'rms um':>8s}")
     for plant, (bandwidths, env_ids) in GRID.items():
         for env_id in env_ids:

@@ -47,7 +47,7 @@ class CrossCoupledPolicy(FeedforwardPIDPolicy):
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
                  integral: bool = True, feedforward: bool = False, coupling: float = 0.1, variable: bool = False,
-                 friction_time: float = 1e-3, backlash_time: float = 16e-3):
+                 friction_time: float | None = None, backlash_time: float = 16e-3):
         self.coupling = non_negative("coupling", coupling)
         self.variable = bool(variable)
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt,
@@ -65,8 +65,8 @@ class FeedforwardCrossCoupledPolicy(CrossCoupledPolicy):
     name = "ff-ccc"
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
-                 integral: bool = True, coupling: float = 0.1, variable: bool = True, friction_time: float = 1e-3,
-                 backlash_time: float = 16e-3):
+                 integral: bool = True, coupling: float = 0.1, variable: bool = True,
+                 friction_time: float | None = None, backlash_time: float = 16e-3):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt,
                          bandwidth=bandwidth, integral=integral, feedforward=True, coupling=coupling,
                          variable=variable, friction_time=friction_time, backlash_time=backlash_time)

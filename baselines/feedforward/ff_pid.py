@@ -11,7 +11,7 @@ the measured tracking error (derivative on ``v_d - v``), its gains by pole place
 from __future__ import annotations
 
 from vcnc_gym.validation import non_negative, positive
-from ..servo import BANDWIDTH, ServoGains, ServoPolicy, U_FF, pid_gains, reference_table
+from ..servo import BANDWIDTH, FRICTION_TIME, ServoGains, ServoPolicy, U_FF, pid_gains, reference_table
 from .tables import inverse_feedforward
 
 __all__ = ["FeedforwardPIDPolicy"]
@@ -31,20 +31,23 @@ class FeedforwardPIDPolicy(ServoPolicy):
     feedforward : bool
         Add the inverse-model input (True, default); False leaves the PID alone (the coupling controller
         ``ccc`` builds on that).
-    friction_time, backlash_time : float
-        s; see :func:`~baselines.feedforward.tables.inverse_feedforward`.
+    friction_time : float, optional
+        s, the Coulomb level's change at a reversal; default the plant's :data:`~baselines.servo.FRICTION_TIME`.
+    backlash_time : float
+        s; both as :func:`~baselines.feedforward.tables.inverse_feedforward`.
     """
 
     name = "ff-pid"
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
-                 integral: bool = True, feedforward: bool = True, friction_time: float = 1e-3,
+                 integral: bool = True, feedforward: bool = True, friction_time: float | None = None,
                  backlash_time: float = 16e-3):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
         self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
         self.feedforward = bool(feedforward)
         self.integral = bool(integral)
-        self.friction_time = non_negative("friction_time", friction_time, "s")
+        self.friction_time = non_negative(
+            "friction_time", FRICTION_TIME[self.plant.name] if friction_time is None else friction_time, "s")
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         self._build()
 
