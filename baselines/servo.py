@@ -54,7 +54,7 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import positive, non_negative, per_axis
 from .base import BaselinePolicy
 
-__all__ = ["BANDWIDTH", "FRICTION_TIME", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
+__all__ = ["Commissioning", "COMMISSIONING", "commissioning", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
            "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate"]
 
 #: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
@@ -62,30 +62,46 @@ __all__ = ["BANDWIDTH", "FRICTION_TIME", "ServoGains", "ServoPolicy", "ServoArra
 U_FF, OFFSET, VELOCITY_OFFSET, TANGENT, CURVATURE = 0, 2, 4, 6, 8
 TABLE_COLUMNS = 9
 
-#: Default closed-loop bandwidth (rad/s) of the axis PID per plant: the pole-placement rule's one free number,
-#: chosen by ``python benchmarks/tune_servo.py`` (the best max contour error of ff-pid on the nominal plant over
-#: a grid, on the plant's ids; docs/reproduction.md).  The dead time of Yadav et al.'s axis (0.1 s) bounds its
-#: loop to a few rad/s (phase margin ~60 deg at w T_d ~ 0.25 with the triple pole's lag).
-BANDWIDTH = {
-    "vcnc_feed_drive": 1000.0,
-    "current_feed_drive": 2000.0,
-    "nct_xy_table": 30.0,
-    "cncmt_axis": 1.0,
+@dataclass(frozen=True)
+class Commissioning:
+    """The free numbers of the model-based controllers' design rule on one machine: what commissioning a drive
+    sets.  ``bandwidth``: the PID's triple closed-loop pole, rad/s (:func:`pid_gains`); ``friction_time``: the
+    duration over which the feedforward's Coulomb level changes sign at a velocity reversal of the reference, s
+    (0: at the reversal; :func:`~baselines.feedforward.tables.inverse_feedforward`)."""
+
+    bandwidth: float
+    friction_time: float
+
+
+#: Per plant and shop floor (False: the papers' machine, True: the same machine on the shop floor,
+#: :mod:`vcnc_gym.plants.shop_floor`), each the best max contour error of ``ff-pid``, ``zpetc`` and ``ff-ccc`` on
+#: the nominal plant of the machine's ids over a grid (``python benchmarks/tune_servo.py`` and
+#: ``--transitions``/``--shop-floor``; the figures in docs/reproduction.md).  The dead time of Yadav et al.'s
+#: axis (0.1 s) bounds its loop to a few rad/s (phase margin ~60 deg at w T_d ~ 0.25 with the triple pole's
+#: lag).  On Simba et al.'s drive a Coulomb switch at the reversal (0) halves the smoothed corners' max against
+#: 1 ms (zpetc 4.3 nm against 12.9 nm); on Jahanpour et al.'s drive the transition grid's spread (1.84 to
+#: 2.02 um on the heart, no consistent optimum on the look-ahead omega) leaves 1 ms.  On the shop floor the
+#: cutting force and the 150 Hz mode call for a stiffer loop on Jahanpour et al.'s drive (1500 rad/s: 60 um
+#: max on the heart against 65 um, 43 against 53 um on the look-ahead omega), and for 1 ms on Simba et al.'s
+#: drive, whose Stribeck friction the Coulomb switch does not model (166 um against 181 um).
+COMMISSIONING = {
+    ("vcnc_feed_drive", False): Commissioning(bandwidth=1000.0, friction_time=1e-3),
+    ("vcnc_feed_drive", True): Commissioning(bandwidth=1500.0, friction_time=1e-3),
+    ("current_feed_drive", False): Commissioning(bandwidth=2000.0, friction_time=0.0),
+    ("current_feed_drive", True): Commissioning(bandwidth=2000.0, friction_time=1e-3),
+    ("nct_xy_table", False): Commissioning(bandwidth=30.0, friction_time=1e-3),
+    ("nct_xy_table", True): Commissioning(bandwidth=30.0, friction_time=1e-3),
+    ("cncmt_axis", False): Commissioning(bandwidth=1.0, friction_time=1e-3),
+    ("cncmt_axis", True): Commissioning(bandwidth=1.0, friction_time=1e-3),
 }
 
-#: Default duration (s) over which the feedforward's Coulomb level changes sign at a velocity reversal of the
-#: reference (``friction_time`` of :func:`~baselines.feedforward.tables.inverse_feedforward`), per plant: the
-#: best max contour error of ``zpetc``, ``ff-pid`` and ``ff-ccc`` on the plant's nominal ids over a grid of
-#: 0 to 4 ms (``python benchmarks/tune_servo.py --transitions``; docs/reproduction.md).  On Simba et al.'s drive
-#: a switch at the reversal itself (0) halves the smoothed corners' max against 1 ms (zpetc 4.3 nm against
-#: 12.9 nm); on Jahanpour et al.'s drive the grid's spread (1.84 to 2.02 um on the heart, and no consistent
-#: optimum on the look-ahead omega) leaves 1 ms; the other plants have no Coulomb term.
-FRICTION_TIME = {
-    "vcnc_feed_drive": 1e-3,
-    "current_feed_drive": 0.0,
-    "nct_xy_table": 1e-3,
-    "cncmt_axis": 1e-3,
-}
+
+def commissioning(plant) -> Commissioning:
+    """The :data:`COMMISSIONING` of ``plant`` (a PlantModel, on the shop floor or not)."""
+    from vcnc_gym.plants.shop_floor import ShopFloorModel
+
+    return COMMISSIONING[(plant.name, isinstance(plant, ShopFloorModel))]
+
 
 #: Memory columns per env: the control period k of the next call, the axes' integrals (mm s) and the coupling's (mm s).
 _M_K, _M_I, _M_J = 0, 1, 3

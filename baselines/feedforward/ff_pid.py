@@ -11,7 +11,7 @@ the measured tracking error (derivative on ``v_d - v``), its gains by pole place
 from __future__ import annotations
 
 from vcnc_gym.validation import non_negative, positive
-from ..servo import BANDWIDTH, FRICTION_TIME, ServoGains, ServoPolicy, U_FF, pid_gains, reference_table
+from ..servo import ServoGains, ServoPolicy, commissioning, U_FF, pid_gains, reference_table
 from .tables import inverse_feedforward
 
 __all__ = ["FeedforwardPIDPolicy"]
@@ -25,14 +25,14 @@ class FeedforwardPIDPolicy(ServoPolicy):
     layout, decision_period, nominal_parameters, plant, reference, dt
         As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
     bandwidth : float, optional
-        Closed-loop pole of the PID design, rad/s; default the plant's :data:`~baselines.servo.BANDWIDTH`.
+        Closed-loop pole of the PID design, rad/s; default the machine's :func:`~baselines.servo.commissioning`.
     integral : bool
         PID (True, default) or PD.
     feedforward : bool
         Add the inverse-model input (True, default); False leaves the PID alone (the coupling controller
         ``ccc`` builds on that).
     friction_time : float, optional
-        s, the Coulomb level's change at a reversal; default the plant's :data:`~baselines.servo.FRICTION_TIME`.
+        s, the Coulomb level's change at a reversal; default the machine's :func:`~baselines.servo.commissioning`.
     backlash_time : float
         s; both as :func:`~baselines.feedforward.tables.inverse_feedforward`.
     """
@@ -43,11 +43,13 @@ class FeedforwardPIDPolicy(ServoPolicy):
                  integral: bool = True, feedforward: bool = True, friction_time: float | None = None,
                  backlash_time: float = 16e-3):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
-        self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
+        design = commissioning(self.plant)
+        self.bandwidth = positive(
+            "bandwidth", design.bandwidth if bandwidth is None else bandwidth, "rad/s")
         self.feedforward = bool(feedforward)
         self.integral = bool(integral)
         self.friction_time = non_negative(
-            "friction_time", FRICTION_TIME[self.plant.name] if friction_time is None else friction_time, "s")
+            "friction_time", design.friction_time if friction_time is None else friction_time, "s")
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         self._build()
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from vcnc_gym.validation import non_negative, positive
-from ..servo import BANDWIDTH, FRICTION_TIME, OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, pid_gains, reference_table
+from ..servo import OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, commissioning, pid_gains, reference_table
 from vcnc_gym.envs import step_kernel as sk
 from .tables import closed_loop, inverse_feedforward, zpetc_filter, zpetc_reference
 
@@ -30,9 +30,9 @@ class ZPETCPolicy(ServoPolicy):
     layout, decision_period, nominal_parameters, plant, reference, dt
         As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
     bandwidth : float, optional
-        Closed-loop pole of the PID design, rad/s; default the plant's :data:`~baselines.servo.BANDWIDTH`.
+        Closed-loop pole of the PID design, rad/s; default the machine's :func:`~baselines.servo.commissioning`.
     friction_time : float, optional
-        s, the Coulomb level's change at a reversal; default the plant's :data:`~baselines.servo.FRICTION_TIME`.
+        s, the Coulomb level's change at a reversal; default the machine's :func:`~baselines.servo.commissioning`.
     backlash_time : float
         s; both as :func:`~baselines.feedforward.tables.inverse_feedforward`.
 
@@ -52,9 +52,11 @@ class ZPETCPolicy(ServoPolicy):
         if self.stride != 1:
             raise ValueError(f"zpetc is designed at the control period: it needs decision_period = dt "
                              f"({self.dt} s), got {self.decision_period} s")
-        self.bandwidth = positive("bandwidth", BANDWIDTH[self.plant.name] if bandwidth is None else bandwidth, "rad/s")
+        design = commissioning(self.plant)
+        self.bandwidth = positive(
+            "bandwidth", design.bandwidth if bandwidth is None else bandwidth, "rad/s")
         self.friction_time = non_negative(
-            "friction_time", FRICTION_TIME[self.plant.name] if friction_time is None else friction_time, "s")
+            "friction_time", design.friction_time if friction_time is None else friction_time, "s")
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         self._build()
 
