@@ -80,13 +80,15 @@ class Commissioning:
 #: axis (0.1 s) bounds its loop to a few rad/s (phase margin ~60 deg at w T_d ~ 0.25 with the triple pole's
 #: lag).  On Simba et al.'s drive a Coulomb switch at the reversal (0) halves the smoothed corners' max against
 #: 1 ms (zpetc 4.3 nm against 12.9 nm); on Jahanpour et al.'s drive the transition grid's spread (1.84 to
-#: 2.02 um on the heart, no consistent optimum on the look-ahead omega) leaves 1 ms.  On the shop floor the
-#: cutting force and the 150 Hz mode call for a stiffer loop on Jahanpour et al.'s drive (1500 rad/s: 60 um
-#: max on the heart against 65 um, 43 against 53 um on the look-ahead omega), and for 1 ms on Simba et al.'s
-#: drive, whose Stribeck friction the Coulomb switch does not model (166 um against 181 um).
+#: 2.02 um on the heart, no consistent optimum on the look-ahead omega) leaves 1 ms.  On the shop floor Simba et
+#: al.'s drive keeps 1 ms: the Coulomb switch does not model its Stribeck friction (ff-ccc 166 um against
+#: 181 um).  Jahanpour et al.'s drive keeps 1000 rad/s there: 1500 rad/s lowers the nominal plant's max (the
+#: heart 60 against 65 um, the look-ahead omega 43 against 53 um) but not over the box: zpetc and ff-pid diverge
+#: on 3 of its 100 plants on the heart, and ff-ccc's worst max rises from 706 to 768 um (the heart) and from
+#: 549 to 727 um (the omega) (``vcnc-bench --plants 100``; docs/reproduction.md).
 COMMISSIONING = {
     ("vcnc_feed_drive", False): Commissioning(bandwidth=1000.0, friction_time=1e-3),
-    ("vcnc_feed_drive", True): Commissioning(bandwidth=1500.0, friction_time=1e-3),
+    ("vcnc_feed_drive", True): Commissioning(bandwidth=1000.0, friction_time=1e-3),
     ("current_feed_drive", False): Commissioning(bandwidth=2000.0, friction_time=0.0),
     ("current_feed_drive", True): Commissioning(bandwidth=2000.0, friction_time=1e-3),
     ("nct_xy_table", False): Commissioning(bandwidth=30.0, friction_time=1e-3),
