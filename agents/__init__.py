@@ -10,14 +10,15 @@
   the plain env, what ``vcnc-bench --policy ppo:PATH`` runs; it runs no code
   from the agent's files and checks the env is the one it was trained for.
 - :class:`NormalizationStats`: VecNormalize statistics as a data-only ``.npz``.
-- ``agents/trained/<env id>/``: the shipped agents.
+- ``agents/trained/<env id>/``: the shipped agents, one per current contouring id (the specialists), and
+  ``agents/trained/generalist-<plant>/``: agents trained on random contours (:data:`GENERALISTS`).
 
 Example
 -------
 >>> import gymnasium as gym, vcnc_gym
 >>> from agents import load_agent, TRAINED
->>> env = gym.make("VCNC-Heart-v0")
->>> agent = load_agent(TRAINED["VCNC-Heart-v0"], env)      # doctest: +SKIP
+>>> env = gym.make("VCNC-Heart-v1")
+>>> agent = load_agent(TRAINED["VCNC-Heart-v1"], env)      # doctest: +SKIP
 """
 
 from pathlib import Path
@@ -27,9 +28,15 @@ from .normalization import NormalizationStats
 from .policy import AgentPolicy, env_signature, load_agent
 from .training import RunWarning, TrainingResult, train
 
+_SHIPPED = sorted(p for p in (Path(__file__).parent / "trained").iterdir() if p.is_dir())
+
 #: Env id -> folder of the agent shipped for it (every folder of ``agents/trained`` named by an id).
-TRAINED = {folder.name: folder for folder in sorted((Path(__file__).parent / "trained").iterdir())
-           if folder.is_dir() and folder.name.startswith("VCNC-")}
+TRAINED = {folder.name: folder for folder in _SHIPPED if folder.name.startswith("VCNC-")}
+
+#: Plant name -> folder of the generalist shipped for it (``agents/trained/generalist-<plant>``): trained on
+#: ``VCNC-RandomContour-v1``, it runs on any contouring env of that plant (:data:`agents.policy.ANY_CONTOUR_IDS`).
+GENERALISTS = {folder.name.removeprefix("generalist-"): folder for folder in _SHIPPED
+               if folder.name.startswith("generalist-")}
 
 __all__ = ["train", "TrainingResult", "RunWarning", "load_agent", "AgentPolicy", "env_signature",
-           "NormalizationStats", "ActionMode", "ResidualAction", "ACTION_MODES", "TRAINED"]
+           "NormalizationStats", "ActionMode", "ResidualAction", "ACTION_MODES", "TRAINED", "GENERALISTS"]

@@ -182,6 +182,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def reset(self, **kwargs):
         obs, info = self.env.reset(**kwargs)
+        if hasattr(self.baseline, "plan"):  # a model-based baseline reads the reference: a new contour, a new table
+            self.baseline.plan(self.env)
         self._obs = obs
         self._start = np.array([True])
         return obs, info

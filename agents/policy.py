@@ -99,6 +99,12 @@ class AgentPolicy:
         self._count = None  # control periods since the last decision, per env
         self._held = None   # the agent's held action, per env
 
+    def plan(self, env) -> None:
+        """Hand ``env``'s reference to the residual's baseline (a model-based baseline rebuilds its table for a
+        contour drawn at reset; the evaluation loops call this after every reset)."""
+        if hasattr(self.baseline, "plan"):
+            self.baseline.plan(env)
+
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         """Normalised amplifier command for one observation (obs_dim,) or a batch (n_envs, obs_dim).
 
@@ -190,17 +196,30 @@ def _same(a, b) -> bool:
     return a == b
 
 
+#: Ids whose contour and feed are drawn anew at every reset: an agent trained there (a generalist) runs on any
+#: contour and feed of the same machine, so only the :data:`MACHINE_FIELDS` of its signature are compared.
+ANY_CONTOUR_IDS = ("VCNC-RandomContour-v1",)
+
+#: The signature fields that describe the machine and the observation, not the part.
+MACHINE_FIELDS = ("plant", "plant_options", "dt", "preview_steps", "observation_shape", "action_shape")
+
+
 def check_signature(recorded: dict, given: dict, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
     """ValueError listing every field where the ``given`` :func:`env_signature` differs from the ``recorded`` one.
 
     An unknown id on either side (an env made without ``gym.make``) is not
-    compared; fields the recorded signature lacks are not compared.  With
-    ``allow_mismatch`` the differences are a warning instead, except a
-    different observation or action shape, which no agent can run on.
+    compared; fields the recorded signature lacks are not compared; an agent
+    trained on an id of :data:`ANY_CONTOUR_IDS` is compared on the
+    :data:`MACHINE_FIELDS` only.  With ``allow_mismatch`` the differences are
+    a warning instead, except a different observation or action shape, which
+    no agent can run on.
     """
     diffs, fatal = [], False
+    generalist = recorded.get("id") in ANY_CONTOUR_IDS
     for key, unit in _SIGNATURE_UNITS.items():
         if key not in recorded or key not in given or (key == "id" and (recorded[key] is None or given[key] is None)):
+            continue
+        if generalist and key not in MACHINE_FIELDS:
             continue
         if not _same(recorded[key], given[key]):
             diffs.append(f"{key}: trained on {recorded[key]}{unit}, this env has {given[key]}{unit}")

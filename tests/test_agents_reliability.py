@@ -48,7 +48,7 @@ from agents.training import RunWarning, latest_checkpoint, prepare_run, scan_che
 
 OMEGA = "VCNC-Omega-v1"
 HEART = "VCNC-Heart-v1"
-SHIPPED = "VCNC-Omega-v0"  # the shipped agent these tests open: a residual over QFT, as OMEGA's entry
+SHIPPED = "VCNC-OmegaLookahead-v1"  # the shipped agent these tests open: a residual over ff-ccc
 ROOT = Path(__file__).resolve().parents[1]
 ROLLOUT = 256  # n_steps 128 x n_envs 2
 

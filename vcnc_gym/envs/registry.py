@@ -110,8 +110,9 @@ SUITE: tuple[SuiteEnv, ...] = (
 #: end, and its observation had no contour preview.
 _V0 = {"episode_end": "reference", "contour_ahead": ()}
 
-#: The v0 contouring ids, still registered so that agents trained on them keep
-#: running (``agents/trained``); ``vcnc-bench`` runs the current ids.
+#: The v0 contouring ids, still registered for the figures measured on them (the papers' tables in
+#: docs/reproduction.md, ``benchmarks/train_throughput.py``); no agent is shipped on them (``agents/trained``
+#: holds agents of current ids only) and ``vcnc-bench`` runs the current ids.
 LEGACY: tuple[SuiteEnv, ...] = tuple(
     SuiteEnv(e.id.replace("-v1", "-v0"),
              {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},

@@ -1,0 +1,77 @@
+"""The shipped agents of issue 24: specialists on current ids, generalists on any contour of their machine."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import agents
+import baselines
+import vcnc_gym
+from agents.action_modes import ActionMode, ResidualAction
+from agents.policy import ANY_CONTOUR_IDS, check_signature, env_signature
+from vcnc_gym.envs.registry import CONTOURING_IDS
+
+ROOT = Path(__file__).resolve().parents[1]
+SPECIALISTS = ROOT / "agents" / "hyperparams" / "specialists.yml"
+
+
+def test_shipped_agents_are_on_current_ids_only():
+    """No agent is left on an id a newer version replaced (the v0 ids), and every generalist names a plant."""
+    assert set(agents.TRAINED) <= set(vcnc_gym.ENV_IDS), sorted(set(agents.TRAINED) - set(vcnc_gym.ENV_IDS))
+    for plant, folder in agents.GENERALISTS.items():
+        config = yaml.safe_load((folder / "config.yml").read_text())
+        assert config["env_id"] in ANY_CONTOUR_IDS and config["env"]["signature"]["plant"] == plant
+
+
+def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline(tmp_path):
+    """Each entry of specialists.yml passes vcnc-train's checks for its id; the baseline it corrects has a
+    compiled form (the lean trainer steps a whole decision in one call)."""
+    entries = yaml.safe_load(SPECIALISTS.read_text())
+    assert set(entries) <= set(CONTOURING_IDS)
+    for env_id in entries:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", agents.RunWarning)  # n_timesteps rounded up to whole rollouts
+            run_dir, config, checkpoint = agents.training.prepare_run(env_id, tmp_path / env_id,
+                                                                       config_file=SPECIALISTS)
+        assert checkpoint is None and not run_dir.exists()
+        mode = ActionMode(**config["action_mode"])
+        assert mode.mode == "residual"
+        assert config["hyperparams"]["env_kwargs"]["randomize"] is True
+        policy = baselines.make(mode.baseline, gym.make(env_id))
+        assert hasattr(policy, "compiled"), mode.baseline
+
+
+def test_a_generalist_signature_fits_any_contour_of_its_machine_and_no_other():
+    """An agent trained on the random contours is checked on the machine (plant, dt, preview, shapes) only: the
+    heart and the ISO 230-4 circle on Jahanpour et al.'s drive fit, Simba et al.'s drive does not; a specialist
+    is still refused on another contour."""
+    recorded = env_signature(gym.make("VCNC-RandomContour-v1"))
+    for env_id in ("VCNC-Heart-v1", "VCNC-OmegaLookahead-v1", "VCNC-ISO230Circle-v1", "VCNC-Butterfly-v1"):
+        check_signature(recorded, env_signature(gym.make(env_id)))
+    with pytest.raises(ValueError, match="plant: trained on vcnc_feed_drive"):
+        check_signature(recorded, env_signature(gym.make("VCNC-CornersSmooth-v1")))
+    with pytest.raises(ValueError, match="dt: trained on"):
+        check_signature(recorded, env_signature(gym.make("VCNC-RandomContour-v1", dt=2e-4)))
+    specialist = env_signature(gym.make("VCNC-Heart-v1"))
+    with pytest.raises(ValueError, match="trained on VCNC-Heart-v1, not VCNC-Butterfly-v1"):
+        check_signature(specialist, env_signature(gym.make("VCNC-Butterfly-v1")))
+
+
+def test_the_residual_wrapper_replans_its_baseline_for_each_random_contour():
+    """ResidualAction over a model-based baseline hands every new contour to it: after each reset the baseline's
+    table is built from the env's current reference (not the first contour's)."""
+    env = ResidualAction(gym.make("VCNC-RandomContour-v1"), baseline="ff-ccc", correction=0.1, action_repeat=10)
+    seen = []
+    for seed in (1, 2):
+        env.reset(seed=seed)
+        samples = env.unwrapped.task.reference_arrays.samples
+        assert env.baseline.reference is samples or np.array_equal(env.baseline.reference, samples)
+        seen.append(samples.shape[0])
+        env.step(np.zeros(2))
+    assert seen[0] != seen[1]  # two contours of different lengths: the table followed
