@@ -20,7 +20,7 @@ read) over the whole reference, within the input limits:
   So on every plant the oracle is at or below ``ff-pid``, ``zpetc`` and ``ff-ccc`` by construction.
 
 What the learning reaches (``python benchmarks/oracle_convergence.py``, docs/reproduction.md): on Simba et
-al.'s current-driven drive it converges (VCNC-CornersSmooth-v1: 0.015 -> 0.006 um); on Jahanpour et al.'s
+al.'s current-driven drive it converges (VCNC-CornersSmooth-v1: 0.005 -> 0.002 um); on Jahanpour et al.'s
 drive the largest errors sit at the axis reversals, where the drive must cross its 3 um backlash gap while
 saturated at 5 V, and the linear inverse cannot learn through the gap or through stick-slip from low speeds
 (those stretches are left out of the learning: ``backlash_window``, :data:`SLOW_SPEED`), so the floor there is
