@@ -112,6 +112,10 @@ class ActionMode:
         ``ContouringVectorEnv.step_controlled``, does the same operations)."""
         a = np.clip(np.asarray(agent_action, dtype=np.float32), -1.0, 1.0)
         if self.mode == "residual":
+            axes = np.shape(baseline_action)[-1]
+            if a.shape[-1] > axes:  # the env's further inputs (a feed override): the agent's own, passed through
+                corrected = np.clip(baseline_action + self.correction * a[..., :axes], -1.0, 1.0)
+                return np.concatenate([corrected.astype(np.float32), a[..., axes:]], axis=-1)
             a = baseline_action + self.correction * a
         return np.clip(a, -1.0, 1.0).astype(np.float32)
 
@@ -152,7 +156,10 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     contour error averaged over the step); a divergence penalty, counted by the
     env in control periods, becomes the same penalty per remaining decision.
     ``info`` is the last control period's, with "contour_error_max" the
-    largest over the step.  Usable as RL Zoo's ``env_wrapper``.
+    largest over the step.  Usable as RL Zoo's ``env_wrapper``.  On an env
+    with more inputs than the baseline's two axes (``VCNC-OmegaOverride-v1``'s
+    feed override) the agent sets those directly: its action's further
+    components pass through unchanged.
     """
 
     def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
@@ -192,8 +199,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self._obs is None:
             raise RuntimeError("step() called before reset()")
         a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {a.shape}")
+        if a.shape != self.env.action_space.shape:  # (2,), or (3,) with a feed override (FeedOverrideEnv)
+            raise ValueError(f"action must have shape {self.env.action_space.shape}, got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action must be finite, got {action!r}")
         total = 0.0

@@ -89,6 +89,9 @@ class AgentPolicy:
         u = env.unwrapped
         if u.action_repeat != 1:
             raise ValueError(f"an agent is evaluated on the plain env (action_repeat=1), got {u.action_repeat}")
+        if model.action_space.shape != u.action_space.shape:
+            raise ValueError(f"the agent acts with shape {model.action_space.shape}, "
+                             f"the env takes {u.action_space.shape}")
         if model.observation_space.shape != u.observation_space.shape:
             raise ValueError(f"the agent observes shape {model.observation_space.shape}, "
                              f"the env gives {u.observation_space.shape}: it was trained with another layout")
@@ -117,7 +120,7 @@ class AgentPolicy:
         n = obs2.shape[0]
         if self._count is None or self._count.shape[0] != n:
             self._count = np.zeros(n, dtype=np.int64)
-            self._held = np.zeros((n, 2), dtype=np.float32)
+            self._held = np.zeros((n,) + tuple(self.model.action_space.shape), dtype=np.float32)
         if episode_start is not None:
             start = np.broadcast_to(np.asarray(episode_start, dtype=bool).reshape(-1), (n,))
             self._count[start] = 0

@@ -18,9 +18,12 @@ __all__ = ["KIND", "applies"]
 
 def applies(name: str, env) -> bool:
     """True if baseline ``name`` was designed for the plant of ``env`` (and, for a controller that follows a
-    contour's reference, ``env`` has one)."""
+    contour's reference, ``env`` has one), and the env takes the two axis commands a controller gives (not a
+    third action such as ``VCNC-OmegaOverride-v1``'s feed override)."""
     cls = policy_class(name)
     u = env.unwrapped
+    if getattr(u.action_space, "shape", None) != (2,):
+        return False
     plant = getattr(u, "plant", None)
     if getattr(cls, "needs_reference", False) and not hasattr(getattr(u, "task", None), "reference_arrays"):
         return False

@@ -13,6 +13,7 @@ from .base import BaselinePolicy
 from .coupling.ccc import CrossCoupledPolicy, FeedforwardCrossCoupledPolicy
 from .coupling.contouring_fb import ContouringFBPolicy
 from .feedforward.ff_pid import FeedforwardPIDPolicy
+from .feedforward.online import OnlineFeedforwardPIDPolicy
 from .feedforward.zpetc import ZPETCPolicy
 from .feedback.fuzzy import FuzzyPolicy
 from .feedback.nctf import NCTFPolicy
@@ -38,6 +39,7 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     # feedforward
     FeedforwardPIDPolicy,  # inverse-model feedforward + PID, every plant
     ZPETCPolicy,  # Tomizuka (1987), every plant
+    OnlineFeedforwardPIDPolicy,  # ff-pid from the observed reference: a feed override's re-timed reference
     # coupling
     ContouringFBPolicy,  # Simba et al., eq. (7)
     CrossCoupledPolicy,  # Koren (1980), every plant

@@ -242,6 +242,10 @@ class ServoPolicy(BaselinePolicy):
         if task is None or not hasattr(task, "reference_arrays"):
             raise ValueError(f"baseline {cls.name!r} follows a contour's reference: it needs a contouring env "
                              f"(env.unwrapped.task.reference_arrays), got {type(env).__name__}")
+        if getattr(getattr(env, "unwrapped", env), "retimes_reference", False):
+            raise ValueError(f"baseline {cls.name!r} reads the reference ahead from a table computed once; "
+                             f"{type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
+                             "override): use 'ff-pid-online'")
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     def plan(self, env) -> None:

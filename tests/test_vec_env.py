@@ -77,7 +77,8 @@ def _assert_same(a, b):
                     np.testing.assert_array_equal(p[key], q[key], err_msg=f"info[{key!r}] of env {i}, decision {k}")
 
 
-@pytest.mark.parametrize("baseline, randomize", [("smc", False), ("smc", True), ("qft", True), ("ff-ccc", True)])
+@pytest.mark.parametrize("baseline, randomize", [("smc", False), ("smc", True), ("qft", True), ("ff-ccc", True),
+                                                ("ff-pid-online", True)])
 def test_compiled_baseline_gives_the_python_path_and_single_envs_to_the_bit(baseline, randomize):
     actions = _actions(120)
     kwargs = {"divergence_bound": 0.05, "randomize": randomize}  # 50 um: corrections of 2 u_max end episodes
@@ -87,7 +88,7 @@ def test_compiled_baseline_gives_the_python_path_and_single_envs_to_the_bit(base
     _assert_same(compiled, _run_single(actions, baseline, 2.0, kwargs))
 
 
-@pytest.mark.parametrize("name", ["smc", "qft", "ff-ccc", "zpetc"])
+@pytest.mark.parametrize("name", ["smc", "qft", "ff-ccc", "zpetc", "ff-pid-online"])
 def test_compiled_law_is_the_numpy_law_to_the_bit(name):
     """predict runs the compiled law on float32 observations and the NumPy statement of it (``_command``) on
     float64 ones: the same commands and memory, on random observations (1e-3 to 1e2) and a random memory."""

@@ -210,7 +210,7 @@ class ContouringEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
         self.task = ContouringTask(**kwargs)
-        self._batch = ContouringBatch(self.task, 1)
+        self._batch = self._make_batch()
         b = self._batch.buffers
         self._obs = b.obs[0]
         self._action = b.action[0]
@@ -231,6 +231,10 @@ class ContouringEnv(gym.Env):
         self._warned_limit = False
         self._history: dict[str, list] | None = None
         self._figure = None
+
+    def _make_batch(self) -> ContouringBatch:
+        """The batch of one env this env steps (a subclass may give it its own reference buffer)."""
+        return ContouringBatch(self.task, 1)
 
     # -- the task, read-only ----------------------------------------------------------
     plant = property(lambda self: self.task.plant, doc="The plant model (vcnc_gym.plants.PlantModel).")

@@ -20,6 +20,7 @@ _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
 _GCODE = "vcnc_gym.envs.gcode_env:GCodeEnv"
 _GCODE_VECTOR = "vcnc_gym.envs.gcode_env:GCodeVectorEnv"
 _RANDOM = "vcnc_gym.envs.random_contour_env:RandomContourEnv"
+_OVERRIDE = "vcnc_gym.envs.feed_override_env:FeedOverrideEnv"
 
 
 @dataclass(frozen=True)
@@ -101,6 +102,10 @@ SUITE: tuple[SuiteEnv, ...] = (
              "a new contour at every reset (random G-code: lines with seed 002 blends, arcs; 33-100 mm/s look-ahead) "
              "on seed 000's feed drives; make_vec gives SyncVectorEnv, each env its own contours",
              entry_point=_RANDOM, vector_entry_point=None),
+    # not a CONTOURING_ID either: a third action, the feed override (the classical ids' controllers take two)
+    SuiteEnv("VCNC-OmegaOverride-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
+             "VCNC-Omega-v1 with a feed override (0-100 %) as a third action: the reference re-timed online, "
+             "cycle time in the reward", entry_point=_OVERRIDE, vector_entry_point=None),
     SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
              "seed 001 step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
              entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),

@@ -164,14 +164,18 @@ StepConfig = namedtuple("StepConfig", [
 #: of the last control period, the next search's warm start; NaN = none),
 #: ``input_limit`` (N, 2) in the plant's unit, ``previous_action`` (N, 2),
 #: ``progress`` (the reference sample at or before the tool's closest point,
-#: never decreasing), ``cycle_time`` (s, NaN until the tool reaches the end);
+#: never decreasing), ``cycle_time`` (s, NaN until the tool reaches the end),
+#: ``reference_end`` (the control period at which the reference reaches the
+#: contour's end: its last sample for a reference computed ahead; a feed
+#: override, :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`,
+#: moves it while it re-times the reference);
 #: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
 #: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
 #: float32; scratch ``sensed`` (N, SENSE_SIZE), ``der`` (N, 3, 2), ``work``
 #: (N, W).
 EnvBuffers = namedtuple("EnvBuffers", [
     "mode", "action", "k", "steps", "foot", "input_limit", "previous_action", "progress", "cycle_time",
-    "obs", "reward", "flags", "info", "obs_high", "sensed", "der", "work",
+    "reference_end", "obs", "reward", "flags", "info", "obs_high", "sensed", "der", "work",
 ])
 
 
@@ -388,7 +392,8 @@ def _last_at_or_below(samples, column, value, lo):
 def _advance_progress(samples, cfg, b, i):
     """Move env ``i``'s progress to the reference sample at or before its closest point (never back, at most
     ``progress_window`` mm at once), and time its arrival at the end of the contour: the first control period,
-    the reference's end or later, with at most ``completion_tolerance`` mm of contour left."""
+    the reference's end (``b.reference_end[i]``) or later, with at most ``completion_tolerance`` mm of contour
+    left."""
     p = b.progress[i]
     foot = b.foot[i]
     if foot > samples[p, REF_U]:
@@ -397,7 +402,7 @@ def _advance_progress(samples, cfg, b, i):
             b.progress[i] = q
             p = q
     last = samples.shape[0] - 1
-    if (np.isnan(b.cycle_time[i]) and b.k[i] >= last
+    if (np.isnan(b.cycle_time[i]) and b.k[i] >= b.reference_end[i]
             and samples[last, REF_ARC] - samples[p, REF_ARC] <= cfg.completion_tolerance):
         b.cycle_time[i] = b.k[i] * cfg.dt
 

@@ -314,10 +314,15 @@ class ContouringBatch:
     task : ContouringTask
     n_envs : int
         Number of envs (machines), >= 1.
+    reference : ReferenceArrays, optional
+        The reference the kernel reads; default ``task.reference_arrays`` (a feed override,
+        :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`, gives a buffer it re-times).
     """
 
-    def __init__(self, task: ContouringTask, n_envs: int, *, argument: str = "n_envs"):
+    def __init__(self, task: ContouringTask, n_envs: int, *, argument: str = "n_envs",
+                 reference: sk.ReferenceArrays | None = None):
         self.task = task
+        self.reference_arrays = task.reference_arrays if reference is None else reference
         n = self.n_envs = size(argument, n_envs, bytes_each=self.bytes_per_env(task),
                                why="each env's rows of the batch arrays, twice (the copies step returns), and "
                                    "its random generator")
@@ -334,6 +339,7 @@ class ContouringBatch:
             previous_action=np.zeros((n, 2)),
             progress=np.zeros(n, dtype=np.int64),
             cycle_time=np.full(n, np.nan),
+            reference_end=np.full(n, self.reference_arrays.samples.shape[0] - 1, dtype=np.int64),
             obs=np.zeros((n, layout.size), dtype=np.float32),
             reward=np.zeros(n),
             flags=np.zeros((n, sk.FLAG_SIZE), dtype=np.bool_),
@@ -343,7 +349,7 @@ class ContouringBatch:
             der=np.zeros((n, 3, 2)),
             work=np.zeros((n, workspace_size(task.curve.degree, 2))),
         )
-        self.data = sk.StepData(self.plant_arrays, task.reference_arrays, task.contour_arrays, task.config,
+        self.data = sk.StepData(self.plant_arrays, self.reference_arrays, task.contour_arrays, task.config,
                                 layout.offsets(), self.buffers)
 
     @staticmethod
@@ -353,7 +359,7 @@ class ContouringBatch:
         arrays = task.plant.arrays(1, task.dt, **task.plant_options)
         rows = sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
         layout = task.layout
-        rows += layout.size * 4 + (sk.INFO_SIZE + contract.SENSE_SIZE + 6 + 2 * 5 + 4) * 8 + sk.FLAG_SIZE + 1
+        rows += layout.size * 4 + (sk.INFO_SIZE + contract.SENSE_SIZE + 6 + 2 * 5 + 5) * 8 + sk.FLAG_SIZE + 1
         rows += workspace_size(task.curve.degree, 2) * 8
         return 2 * rows + ENV_OVERHEAD_BYTES
 
@@ -363,7 +369,7 @@ class ContouringBatch:
         b = self.buffers
         self.parameters[i] = parameters
         self.plant_arrays.params[i] = parameters
-        self.task.plant.reset_machine(self.plant_arrays, i, self.task.reference_arrays.samples[0, :2])
+        self.task.plant.reset_machine(self.plant_arrays, i, self.reference_arrays.samples[0, :2])
         if rng is not None and self.task.plant.seed_machine is not None:
             self.task.plant.seed_machine(self.plant_arrays, i, rng)
         b.input_limit[i] = self.task.plant.input_limits(parameters)
@@ -373,6 +379,7 @@ class ContouringBatch:
         b.previous_action[i] = 0.0
         b.progress[i] = 0
         b.cycle_time[i] = np.nan
+        b.reference_end[i] = self.reference_arrays.samples.shape[0] - 1
         b.action[i] = 0.0
         b.mode[i] = sk.MODE_OBSERVE
 

@@ -1,0 +1,122 @@
+"""Inverse-model feedforward computed from the reference as it arrives, plus PID (``ff-pid-online``).
+
+``ff-pid`` reads its feedforward from a table computed ahead from the whole reference (the interpolator's
+output, which a CNC computes before its servo loop runs).  Under a feed override the reference is re-timed
+while the part runs (:class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`), and no table exists ahead:
+this controller computes the same nominal inverse dynamics from the reference velocity and acceleration of
+the current observation, per axis ``j``::
+
+    v_h = v_d + a_d T / 2                      (half a control period ahead, as ff-pid reads its table)
+    u_ff = c_1 v_h + c_2 a_d + F_c(sgn v_h)    (the nominal linear part and Coulomb level of the direction)
+    u = u_ff + K_p e + K_d (v_d - v) + K_i I,  e = clip(x_d - x, +-50 u_max / K_p),  I <- clip(I + e T)
+
+with ``c_n``, ``F_c`` of :meth:`vcnc_gym.plants.PlantModel.inverse` at the nominal parameters and the gains
+of :func:`baselines.servo.pid_gains` at the machine's commissioning bandwidth.  What it gives up against
+``ff-pid``: the friction switch's zero-phase spread before a reversal, the backlash crossing's lead and the
+jerk and snap terms (zero for the two drives it serves: their models are second order), and any dead time
+(so it serves the plants without one).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from vcnc_gym.envs import controller_contract
+from vcnc_gym.validation import positive
+from ..base import BaselinePolicy
+from ..servo import ERROR_LIMIT, commissioning, pid_gains
+
+__all__ = ["OnlineFeedforwardPIDPolicy", "OnlineArrays"]
+
+
+class OnlineFeedforwardPIDPolicy(BaselinePolicy):
+    """Inverse-model feedforward from the observed reference, plus PID: ``ff-pid`` without a table.
+
+    Parameters
+    ----------
+    layout, decision_period, nominal_parameters, plant
+        As :class:`~baselines.base.BaselinePolicy`.
+    bandwidth : float, optional
+        Closed-loop pole of the PID design, rad/s; default the machine's :func:`~baselines.servo.commissioning`.
+    integral : bool
+        PID (True, default) or PD.
+    """
+
+    name = "ff-pid-online"
+    plants = ("vcnc_feed_drive", "current_feed_drive")
+    state_shape = (2,)  # the integrators, mm s
+
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, bandwidth=None,
+                 integral: bool = True):
+        super().__init__(layout, decision_period, nominal_parameters, plant)
+        self.inverse = self.plant.inverse(self.nominal_parameters)
+        if np.any(self.inverse.delay > 0) or np.any(self.inverse.coefficients[:, 2:] != 0):
+            raise ValueError(f"ff-pid-online computes a second-order model's input from the current reference; "
+                             f"plant {self.plant.name!r} has a dead time or higher-order terms")
+        self.bandwidth = positive("bandwidth", commissioning(self.plant).bandwidth if bandwidth is None
+                                  else bandwidth, "rad/s")
+        self.kp, self.kd, self.ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth,
+                                              integral=bool(integral))
+        ki = self.ki
+        self.integral_limit = np.where(ki > 0, self.u_max / np.where(ki > 0, ki, 1.0), 0.0)
+
+    def _command(self, obs: np.ndarray) -> np.ndarray:
+        """The law in NumPy for a batch (the readable statement; the compiled form repeats its operations)."""
+        lay = self.layout
+        v_d = lay.reference_velocity(obs).astype(np.float64)
+        a_d = lay.reference_acceleration(obs).astype(np.float64)
+        v_h = v_d + 0.5 * self.decision_period * a_d
+        c = self.inverse.coefficients
+        coulomb = np.where(v_h > 0, self.inverse.coulomb[:, 0], np.where(v_h < 0, self.inverse.coulomb[:, 1], 0.0))
+        u_ff = c[:, 0] * v_h + c[:, 1] * a_d + coulomb
+        limit = ERROR_LIMIT * self.u_max / self.kp
+        e = np.minimum(np.maximum(lay.tracking_error(obs).astype(np.float64), -limit), limit)
+        ed = v_d - lay.velocity(obs)
+        integral = self._state
+        u = u_ff + self.kp * e + self.kd * ed + self.ki * integral
+        self._state[...] = np.minimum(np.maximum(integral + e * self.decision_period, -self.integral_limit),
+                                      self.integral_limit)
+        return u
+
+    def _compiled_arrays(self) -> "OnlineArrays":
+        inv = self.inverse
+        return OnlineArrays(self._state, np.ascontiguousarray(inv.coefficients[:, :2]),
+                            np.ascontiguousarray(inv.coulomb), self.kp, self.kd, self.ki, self.integral_limit,
+                            self.u_max, self.decision_period)
+
+
+#: The compiled law: memory (N, 2) (the integrators), the nominal linear coefficients (2, 2) (per axis: of
+#: velocity, of acceleration), Coulomb levels (2, 2) (per axis: positive, negative direction), the PID gains
+#: (2,) each, integral limits (2,), u_max (2,), the call period (s).
+OnlineArrays = namedtuple("OnlineArrays", ["memory", "coefficients", "coulomb", "kp", "kd", "ki", "integral_limit",
+                                           "u_max", "period"])
+
+
+@njit(cache=True, _nrt=False)
+def _online_command(s, i, obs, o, out):
+    """:meth:`OnlineFeedforwardPIDPolicy._command` and ``predict``'s normalisation for env ``i``, the same
+    floating-point operations."""
+    mem = s.memory[i]
+    for j in range(2):
+        v = np.float64(obs[o.reference_velocity + j])
+        a = np.float64(obs[o.reference_acceleration + j])
+        vh = v + 0.5 * s.period * a
+        coulomb = s.coulomb[j, 0] if vh > 0 else (s.coulomb[j, 1] if vh < 0 else 0.0)
+        u_ff = s.coefficients[j, 0] * vh + s.coefficients[j, 1] * a + coulomb
+        limit = ERROR_LIMIT * s.u_max[j] / s.kp[j]
+        e = min(max(np.float64(obs[o.tracking_error + j]), -limit), limit)
+        ed = v - np.float64(obs[o.velocity + j])
+        integral = mem[j]
+        u = u_ff + s.kp[j] * e + s.kd[j] * ed + s.ki[j] * integral
+        mem[j] = min(max(integral + e * s.period, -s.integral_limit[j]), s.integral_limit[j])
+        out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
+
+
+@overload(controller_contract.command, jit_options={"cache": True})
+def _command(controller, i, obs, o, out):
+    if controller_contract.is_controller(controller, OnlineArrays):
+        return lambda controller, i, obs, o, out: _online_command(controller, i, obs, o, out)

@@ -1,0 +1,153 @@
+"""The feed override (VCNC-OmegaOverride-v1, vcnc_gym.envs.retiming) and the controller that runs under it."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import baselines
+import vcnc_gym  # noqa: F401  (registers the ids)
+from agents.action_modes import ResidualAction
+from vcnc_gym.envs import step_kernel as sk
+from vcnc_gym.envs.retiming import padded_reference, retime
+from vcnc_gym.envs.task import pack_reference
+from vcnc_gym.motion import SCurveFeedrate, interpolate
+
+ID = "VCNC-OmegaOverride-v1"
+
+
+@pytest.fixture(scope="module")
+def omega():
+    return gym.make("VCNC-Omega-v1").unwrapped
+
+
+def _episode(env, policy, dial):
+    """One episode of ``env`` under ``policy`` with the override dial held at ``dial`` (-1..1); the infos."""
+    obs, _ = env.reset(seed=0)
+    infos = []
+    start = True
+    while True:
+        a, _ = policy.predict(obs, episode_start=start)
+        start = False
+        obs, reward, terminated, truncated, info = env.step(np.r_[a, dial])
+        infos.append((reward, info))
+        if terminated or truncated:
+            return infos, terminated, truncated
+
+
+def test_full_override_is_the_omega_to_the_bit(omega):
+    """At 100 % the override env is VCNC-Omega-v1: the same observations, rewards (plus the time cost) and
+    cycle time under the same commands."""
+    env = gym.make(ID).unwrapped
+    policy = baselines.make("ff-pid-online", omega)
+    o1, _ = omega.reset(seed=0)
+    o2, _ = env.reset(seed=0)
+    assert np.array_equal(o1, o2)
+    start = True
+    while True:
+        a, _ = policy.predict(o1, episode_start=start)
+        start = False
+        o1, r1, t1, _, i1 = omega.step(a)
+        o2, r2, t2, _, i2 = env.step(np.r_[a, 1.0])
+        assert np.array_equal(o1, o2)
+        assert r2 == pytest.approx(r1 - env.time_cost / env.reward_scale, abs=1e-12)
+        assert i2["override"] == 1.0
+        if t1:
+            break
+    assert t2 and i1["cycle_time"] == i2["cycle_time"]
+
+
+@pytest.mark.parametrize("s", [0.37, 0.5, 0.8])
+def test_constant_override_is_the_slower_scurve(omega, s):
+    """The reference re-timed at a constant override s is the interpolator's own S-curve at s times the feed
+    with the ramp time over s (an independent computation: Taylor interpolation at the slower feed), within
+    the interpolators' own differences (0.2 um, 0.1 mm/s)."""
+    original = omega.task.reference_arrays.samples
+    dt = omega.task.dt
+    slow = pack_reference(omega.curve, interpolate(omega.curve, SCurveFeedrate(feedrate=100.0 * s,
+                                                                             ramp_time=0.12 / s), dt))
+    n = slow.shape[0]
+    out = padded_reference(original, n)
+    retime(original, out, 1, n - 1, n - 1, 0.0, s, s, 0.1, dt)
+    position = np.hypot(*(out[:n, :2] - slow[:, :2]).T)
+    assert position.max() < 2e-4  # mm
+    assert np.abs(out[:n, sk.REF_VELOCITY:sk.REF_VELOCITY + 2] - slow[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+                  ).max() < 0.1  # mm/s: the two interpolations' timing differs by microseconds, and the
+    # velocity turns at 2e4 (s = 0.37) to 5e4 deg/s in the 0.19 mm corners
+    assert np.abs(out[:n, sk.REF_ARC] - slow[:, sk.REF_ARC]).max() < 1e-3
+
+
+def test_half_override_doubles_the_time_and_zero_runs_out_of_it():
+    """Held at 50 % the tool arrives at about twice the 0.63 s (the override ramps down from 100 % over 50 ms
+    first), with the reference clock at its end; held at 0 the reference stops and the episode ends at the
+    time limit, incomplete, paying for the contour left."""
+    env = gym.make(ID).unwrapped
+    policy = baselines.make("ff-pid-online", env)
+    duration = env.reference.t[-1]
+    infos, terminated, _ = _episode(env, policy, 0.0)
+    info = infos[-1][1]
+    assert terminated and info["completed"] and info["override"] == 0.5
+    assert info["reference_time"] == pytest.approx(duration)
+    assert 2 * duration - 0.05 < info["cycle_time"] < 2 * duration + 0.01
+    infos, terminated, _ = _episode(env, policy, -1.0)
+    info = infos[-1][1]
+    assert terminated and not info["completed"] and info["reward_incomplete"] < 0
+    assert info["time"] == pytest.approx(env.time_limit * duration, abs=2 * env.dt)
+    assert info["reference_time"] < 0.1
+
+
+def test_bad_arguments_and_actions_are_named():
+    env = gym.make(ID)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(3,\)"):
+        env.step(np.zeros(2))
+    for kwargs, word in (({"time_limit": 0.5}, "time_limit"), ({"time_cost": -1.0}, "time_cost"),
+                         ({"override_rate": 0.0}, "override_rate"), ({"completion_timeout": 1.0}, "time_limit")):
+        with pytest.raises(ValueError, match=word):
+            gym.make(ID, **kwargs)
+    with pytest.raises(ValueError, match="ff-pid-online"):
+        baselines.make("ff-pid", env)
+
+
+def test_checkers_pass():
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make(ID).unwrapped, skip_render_check=True)
+        sb3_check(gym.make(ID), warn=True)
+
+
+def test_residual_action_passes_the_override_through():
+    """A residual agent sets the override itself: the third component reaches the env unchanged."""
+    env = ResidualAction(gym.make(ID, action_repeat=1), baseline="ff-pid-online", correction=0.1, action_repeat=10)
+    assert env.action_space.shape == (3,)
+    env.reset(seed=0)
+    for _ in range(8):  # 8 ms: 100 % -> 92 % at 10 per second
+        _, _, _, _, info = env.step(np.array([0.0, 0.0, -0.5], dtype=np.float32))
+    assert info["override"] == pytest.approx(0.92)
+    for _ in range(80):  # 88 ms: there (25 %)
+        _, _, _, _, info = env.step(np.array([0.0, 0.0, -0.5], dtype=np.float32))
+    assert info["override"] == pytest.approx(0.25)
+
+
+def test_online_feedforward_is_the_tables_linear_part(omega):
+    """ff-pid-online's feedforward from the observed reference equals ff-pid's table (its linear part, read
+    half a period ahead: baselines.feedforward.tables.inverse_feedforward) within the second-order term of
+    reading ahead by v + a T / 2."""
+    from baselines.feedforward.tables import inverse_feedforward
+
+    online = baselines.make("ff-pid-online", omega)
+    samples = omega.task.reference_arrays.samples
+    table = inverse_feedforward(online.inverse, samples, omega.dt, friction=False, backlash=False)
+    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    a = samples[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2]
+    c = online.inverse.coefficients
+    mine = c[:, 0] * (v + 0.5 * omega.dt * a) + c[:, 1] * a
+    smooth = np.all(np.abs(np.diff(a, axis=0)) < 1e3, axis=1)  # away from the NURBS' acceleration steps
+    rows = np.flatnonzero(smooth[:-1] & smooth[1:])
+    assert np.abs(mine[rows] - table[rows]).max() < 0.05 * np.abs(table).max()

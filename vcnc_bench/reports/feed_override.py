@@ -1,0 +1,154 @@
+"""The front of max contour error against cycle time on the omega: a feed-override agent against the classical
+controllers on the look-ahead feed at several feeds (issue 24, item 3).
+
+Jahanpour et al. (2014)'s omega at 100 mm/s on the S-curve (``VCNC-Omega-v1``) asks twenty times the drives'
+acceleration at its 0.19 mm corners.  A CNC avoids that in one of two ways, and this report puts them side by
+side on the nominal plant:
+
+- **planned**: the look-ahead feed (``VCNC-OmegaLookahead-v1``, :class:`~vcnc_gym.motion.LookaheadFeedrate`)
+  slows down for every corner before the part runs; each classical controller runs it at the feeds of
+  :data:`FEEDS`, one point each;
+- **online**: the agent on ``VCNC-OmegaOverride-v1`` sets a feed override on the S-curve while it runs (it sees
+  the contour 4 mm ahead); one point per cap of its override (:data:`CAPS`: the agent's dial scaled so the
+  override never exceeds the cap, as an operator limits the dial).
+
+Run ``python -m vcnc_bench.reports.feed_override --agent agents/trained/VCNC-OmegaOverride-v1 --plot
+bench-out/omega_front.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FrontPoint", "FEEDS", "CAPS", "CLASSICAL", "classical_front", "agent_front", "format_front",
+           "plot_front", "main"]
+
+#: Feeds of the look-ahead runs, mm/s.
+FEEDS = (100.0, 80.0, 60.0, 45.0, 30.0)
+#: Caps of the agent's override (1 = 100 %).
+CAPS = (1.0, 0.8, 0.6, 0.45, 0.3)
+#: The classical controllers of the front: the strongest causal ones on the omega (README's table).
+CLASSICAL = ("ff-pid", "zpetc", "ff-ccc", "ff-pid-online")
+
+
+@dataclass(frozen=True)
+class FrontPoint:
+    """One run: ``policy`` at ``setting`` (a feed in mm/s, or an override cap), its cycle time (s), max and RMS
+    contour error (um)."""
+
+    policy: str
+    setting: str
+    cycle_time_s: float
+    max_um: float
+    rms_um: float
+
+
+def _point(policy_name, setting, result) -> FrontPoint:
+    cycle = result.cycle_time_s if result.completed else math.inf
+    return FrontPoint(policy_name, setting, cycle, result.max_contour_error_um, result.rms_contour_error_um)
+
+
+def classical_front(policies=CLASSICAL, feeds=FEEDS) -> list[FrontPoint]:
+    """Each classical controller on ``VCNC-OmegaLookahead-v1`` at each feed (mm/s), nominal plant."""
+    import gymnasium as gym
+
+    import baselines
+    from vcnc_gym.evaluation import run_episode
+
+    points = []
+    for feed in feeds:
+        env = gym.make("VCNC-OmegaLookahead-v1", feedrate=float(feed))
+        for name in policies:
+            points.append(_point(name, f"{feed:g} mm/s", run_episode(baselines.make(name, env), env)))
+        env.close()
+    return points
+
+
+class _Capped:
+    """An agent's policy with its override dial scaled so that the override never exceeds ``cap``."""
+
+    def __init__(self, policy, cap: float):
+        self.policy, self.cap = policy, float(cap)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        action, state = self.policy.predict(observation, state=state, episode_start=episode_start,
+                                            deterministic=deterministic)
+        action = np.array(action, dtype=np.float32)
+        action[..., 2] = self.cap * (np.clip(action[..., 2], -1.0, 1.0) + 1.0) - 1.0
+        return action, state
+
+
+def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
+    """The agent (a folder of ``agents/trained`` or a run's ``best``) on ``VCNC-OmegaOverride-v1``, nominal plant,
+    once per override cap."""
+    import gymnasium as gym
+
+    from agents import load_agent
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make("VCNC-OmegaOverride-v1")
+    policy = load_agent(agent, env)
+    points = [_point(label, f"cap {100 * c:g} %", run_episode(_Capped(policy, c), env)) for c in caps]
+    env.close()
+    return points
+
+
+def format_front(points) -> str:
+    """The points as a table, um and s."""
+    lines = [f"{'policy':16s} {'setting':12s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 58]
+    for p in points:
+        lines.append(f"{p.policy:16s} {p.setting:12s} {p.cycle_time_s:8.4f} {p.max_um:9.3f} {p.rms_um:9.4f}")
+    return "\n".join(lines)
+
+
+def plot_front(points, path) -> None:
+    """Max contour error (um, log) against cycle time (s), one line per policy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for name in dict.fromkeys(p.policy for p in points):
+        mine = sorted((p for p in points if p.policy == name and math.isfinite(p.cycle_time_s)),
+                      key=lambda p: p.cycle_time_s)
+        style = "o-" if name.startswith("agent") else "s--"
+        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], style, label=name)
+    ax.set_yscale("log")
+    ax.set_xlabel("cycle time (s)")
+    ax.set_ylabel("max contour error (um)")
+    ax.set_title("Omega, nominal plant: look-ahead feeds (classical) vs feed override (agent)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.feed_override", description=__doc__.split(
+        "\n\n")[0])
+    parser.add_argument("--agent", help="the feed-override agent's folder (default: the shipped one)")
+    parser.add_argument("--plot", help="write the front as a PNG here")
+    args = parser.parse_args(argv)
+    agent = args.agent
+    if agent is None:
+        from agents import TRAINED
+
+        agent = TRAINED.get("VCNC-OmegaOverride-v1")
+        if agent is None or not agent.is_dir():
+            parser.error("no agent is shipped for VCNC-OmegaOverride-v1: give --agent FOLDER")
+    points = classical_front() + agent_front(agent)
+    print(format_front(points))
+    if args.plot:
+        plot_front(points, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,158 @@
+"""FeedOverrideEnv: contour following where the policy also turns the feed override dial (issue 24)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+
+from .contouring_env import ContouringEnv, check_actions
+from .retiming import padded_reference, retime
+from .task import ContouringBatch
+from ..validation import positive
+
+__all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT"]
+
+#: How fast the override follows its dial, 1/s: the whole range in 0.1 s.  The re-timed reference's extra
+#: acceleration, rate x feed, is then 1e3 mm/s^2 at 100 mm/s, within the ~2.6e3 mm/s^2 of Jahanpour et al.
+#: (2014)'s +-5 V drives.
+DEFAULT_OVERRIDE_RATE = 10.0
+
+#: What a second of cycle time costs, as mm of contour error held over that second: 1 um.  The omega's S-curve
+#: at 100 mm/s throws the strongest causal controller hundreds of um off at each 0.19 mm corner; its look-ahead
+#: feed (0.99 s instead of 0.63 s) brings that to 1.4 um (README): at 1 um per second, slowing down pays where
+#: the error is microns, not where it is nanometres.
+DEFAULT_TIME_COST = 1e-3
+
+#: The time limit, as a multiple of the reference's duration at full feed: an override held below 1/3 runs out
+#: of time (and pays for the contour left).
+DEFAULT_TIME_LIMIT = 3.0
+
+
+class FeedOverrideEnv(ContouringEnv):
+    r"""Contour following with a feed override: the policy commands both axes and sets the override.
+
+    ## Description
+
+    :class:`~vcnc_gym.envs.ContouringEnv`'s task (by default Jahanpour et
+    al. (2014)'s omega at 100 mm/s on the S-curve, ``VCNC-Omega-v1``, whose
+    0.19 mm corners ask twenty times the drives' acceleration) with a third
+    input: the feed override of a CNC's operator panel, 0 to 100 %.  The
+    reference is re-timed online (:mod:`vcnc_gym.envs.retiming`): the path
+    stays the same, the clock along it runs at the override, which moves
+    toward the dial at ``override_rate`` per second.  The preview in the
+    observation is the re-timed reference with the dial held (what the
+    interpolator knows).  Each second until the tool arrives costs as much as
+    ``time_cost`` mm of contour error held over it, so the policy trades
+    contour error against cycle time.
+
+    ## Action Space
+
+    ``Box(-1, 1, (3,), float32)``:
+
+    | Num | Action           | Min | Max | Unit                                      |
+    |-----|------------------|-----|-----|-------------------------------------------|
+    | 0   | x-axis command   | -1  | 1   | x the plant's input limit (5 V)           |
+    | 1   | y-axis command   | -1  | 1   | x the plant's input limit (5 V)           |
+    | 2   | feed override    | -1  | 1   | dial: override = (a + 1) / 2, 0 to 100 %  |
+
+    ## Observation Space
+
+    ContouringEnv's, field by field (``env.unwrapped.layout``); the reference
+    fields are the re-timed reference's (its velocity is the feed times the
+    override).  ``info["override"]`` is the override in force (1 = 100 %),
+    ``info["reference_time"]`` the re-timed clock (s along the original
+    reference).
+
+    ## Rewards
+
+    ContouringEnv's, plus ``-time_cost / reward_scale`` per step until the
+    tool arrives (``info["reward_time"]``): with the default 1 um and 10 um,
+    0.1 per step, against 0.1 per step for each um of mean contour error.
+
+    ## Episode End
+
+    ContouringEnv's, with the reference's end where the re-timed clock
+    reaches it, and the completion time limit at ``time_limit`` times the
+    reference's duration at full feed (an override held below
+    1 / ``time_limit`` runs out of time and pays for the contour left).
+
+    ## Arguments
+
+    Every argument of ContouringEnv but ``completion_timeout`` (set by
+    ``time_limit``), plus ``override_rate`` (1/s, 10: the whole range in 0.1
+    s), ``time_cost`` (mm, 0.001) and ``time_limit`` (1, 3.0).
+
+    ## Version History
+
+    - v1 (``VCNC-OmegaOverride-v1``): initial release (issue 24); the omega
+      of ``VCNC-Omega-v1`` with the override.
+    """
+
+    #: Classical controllers that read the reference ahead from a table computed once (feedforward, ZPETC, the
+    #: oracle) refuse this env: its reference is re-timed while it runs.
+    retimes_reference = True
+
+    def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, time_cost: float = DEFAULT_TIME_COST,
+                 time_limit: float = DEFAULT_TIME_LIMIT, render_mode: str | None = None, **kwargs):
+        if "completion_timeout" in kwargs:
+            raise ValueError("completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
+                             "at full feed) in FeedOverrideEnv")
+        self.override_rate = positive("override_rate", override_rate, "1/s")
+        self.time_cost = float(time_cost)
+        if not math.isfinite(self.time_cost) or self.time_cost < 0:
+            raise ValueError(f"time_cost must be a finite number >= 0 (mm of contour error per second), "
+                             f"got {time_cost!r}")
+        self.time_limit = float(time_limit)
+        if not math.isfinite(self.time_limit) or self.time_limit < 1.0:
+            raise ValueError(f"time_limit must be a number >= 1 (times the reference's duration at full feed), "
+                             f"got {time_limit!r}")
+        probe = ContouringEnv(**kwargs)  # the reference's duration at full feed sets the time limit
+        duration = float(probe.task.reference.t[-1])
+        probe.close()
+        super().__init__(render_mode=render_mode, completion_timeout=(self.time_limit - 1.0) * duration, **kwargs)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self._tau = 0.0
+        self._speed = 1.0
+
+    def _make_batch(self) -> ContouringBatch:
+        task = self.task
+        self._original = task.reference_arrays.samples
+        self._padded = padded_reference(self._original, task.end_index + 1)
+        self._buffer = self._padded.copy()
+        self._lookahead = task.action_repeat + int(max(task.layout.preview_steps, default=0))
+        return ContouringBatch(task, 1, reference=task.reference_arrays._replace(samples=self._buffer))
+
+    @property
+    def override(self) -> float:
+        """The feed override in force, 1 = 100 %."""
+        return self._speed
+
+    def reset(self, *, seed: int | None = None, options=None):
+        """As ContouringEnv's, the override at 100 % and the reference at its original timing."""
+        self._buffer[:] = self._padded
+        self._tau = 0.0
+        self._speed = 1.0
+        obs, info = super().reset(seed=seed, options=options)
+        self._batch.buffers.reference_end[0] = np.iinfo(np.int64).max  # until the re-timed clock gets there
+        return obs, info
+
+    def step(self, action):
+        if self._done:
+            raise RuntimeError("step() called on a finished episode; call reset() first")
+        a = check_actions(action, (3,))
+        dial = 0.5 * (min(1.0, max(-1.0, float(a[2]))) + 1.0)
+        task = self.task
+        k = int(self._k[0])
+        self._tau, self._speed, end = retime(
+            self._original, self._buffer, k + 1, self._lookahead, task.action_repeat, self._tau, self._speed,
+            dial, self.override_rate * task.dt, task.dt)
+        if end >= 0:
+            self._batch.buffers.reference_end[0] = end
+        obs, reward, terminated, truncated, info = super().step(a[:2])
+        r_time = -self.time_cost / task.reward_scale  # a step is taken only before the tool has arrived
+        info["reward_time"] = r_time
+        info["override"] = self._speed
+        info["reference_time"] = self._tau * task.dt
+        return obs, reward + r_time, terminated, truncated, info
