@@ -47,14 +47,18 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
-from gymnasium.vector import AutoresetMode
 
 from .action_modes import ActionMode
 from .config import normalize_kwargs, ppo_arguments
+from .callbacks import StopSignal, evaluation_score, stop_on_signals
+from .env_factory import make_eval_env
 from .normalization import NormalizationStats
-from .vec_env import monitor_writers
+from .policy import CONFIG_FILE
+from .training import TrainingResult, prepare_run
+from .run_folder import (best_of, checkpoint_files, clear_new_run, read_evaluations, record_session, roll_back,
+                         run_lock, save_agent, save_model, scan_checkpoints, write_evaluations, write_yaml)
+from .vec_env import monitor_writers, native_batch
 
 __all__ = ["TRAINERS", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
 
@@ -94,16 +98,10 @@ class DecisionEnv:
 
     def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict, seed: int, *,
                  monitor_dir=None, start_steps: int = 0, append: bool = False):
-        kwargs = dict(env_kwargs or {})
-        residual = mode.mode == "residual"
-        kwargs["action_repeat"] = 1 if residual else mode.action_repeat
-        self.venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
-                                 autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
+        batch = native_batch(env_id, n_envs, mode, env_kwargs)
+        self.venv, self.baseline, self.controller, self.repeat = batch
         self.mode = mode
         self.n = n_envs
-        self.repeat = mode.action_repeat if residual else 1
-        self.baseline = mode.make_baseline(self.venv)
-        self.controller = self.baseline.compiled(n_envs) if self.baseline is not None else None
         self.observation_space = self.venv.single_observation_space
         self.action_space = self.venv.single_action_space
         self._seed = seed
@@ -517,22 +515,20 @@ def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True,
     stagger : bool
         Spread the envs along the episode before training (see the module docstring).
     """
-    from . import training as tr
-
     if config.get("trainer", "lean") != "lean":
         raise ValueError(f"{run_dir} was trained with the {config['trainer']!r} trainer, not 'lean'")
     config = dict(config, trainer="lean")
     fresh = checkpoint is None
     created = fresh and not run_dir.exists()
     run_dir.mkdir(parents=True, exist_ok=True)
-    stop = tr._Stop()
-    with tr._run_lock(run_dir), tr._stop_on_signals(stop):
+    stop = StopSignal()
+    with run_lock(run_dir), stop_on_signals(stop):
         try:
             return _learn(run_dir, config, checkpoint, stop, progress_bar=progress_bar, device=device,
                           verbose=verbose, stagger=stagger)
         except BaseException:
-            if fresh and not tr.scan_checkpoints(run_dir)[0]:
-                tr._clear_new_run(run_dir, created)
+            if fresh and not scan_checkpoints(run_dir)[0]:
+                clear_new_run(run_dir, created)
             raise
 
 
@@ -540,7 +536,6 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
     from stable_baselines3 import PPO
     from stable_baselines3.common.utils import set_random_seed
 
-    from . import training as tr
     from .model_file import load_ppo
     from .policy import AgentPolicy
 
@@ -552,15 +547,15 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
     rolled_back = None
     if checkpoint is None:
         if run_dir.exists():
-            tr._clear_new_run(run_dir, created=False)
+            clear_new_run(run_dir, created=False)
         run_dir.mkdir(parents=True, exist_ok=True)
-        tr._write_yaml(run_dir / tr.CONFIG_FILE, config)
+        write_yaml(run_dir / CONFIG_FILE, config)
         done = 0
     else:
         done, model_zip, norm_file = checkpoint
     env = DecisionEnv(config["env_id"], n_envs, mode, h.get("env_kwargs") or {}, config["seed"] + done,
                       monitor_dir=run_dir / "monitor", start_steps=done, append=checkpoint is not None)
-    eval_env = tr._eval_env(config)
+    eval_env = make_eval_env(config)
     try:
         stub = _spaces_only(env.observation_space, env.action_space, n_envs)
         if checkpoint is None:
@@ -570,14 +565,14 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
             model = load_ppo(model_zip, observation_space=env.observation_space, action_space=env.action_space,
                              ppo_kwargs=kwargs, device=device)
             norm = RunningNormalizer(NormalizationStats.load(norm_file), n_envs)
-            _, damaged = tr.scan_checkpoints(run_dir, n_envs)
-            rolled_back = tr._roll_back(run_dir, config, done, damaged)
+            _, damaged = scan_checkpoints(run_dir, n_envs)
+            rolled_back = roll_back(run_dir, config, done, damaged)
             set_random_seed(config["seed"] + done)
-            tr._write_yaml(run_dir / tr.CONFIG_FILE, config)
+            write_yaml(run_dir / CONFIG_FILE, config)
         model.num_timesteps = done
         ppo = LeanPPO(model, env, norm, total, clock)
-        rows = tr._read_evaluations(run_dir / "evaluations.csv")
-        best = tr._best_of(rows)
+        rows = read_evaluations(run_dir / "evaluations.csv")
+        best = best_of(rows)
         last_eval = max((r["steps"] for r in rows), default=done)
         last_checkpoint = done
         session = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done, "wall_s": 0.0,
@@ -589,14 +584,14 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
 
         def save_checkpoint(n):
             nonlocal last_checkpoint
-            model_zip_, norm_ = tr._checkpoint_files(run_dir / "checkpoints", n)
+            model_zip_, norm_ = checkpoint_files(run_dir / "checkpoints", n)
             model_zip_.parent.mkdir(parents=True, exist_ok=True)
             norm.stats().save(norm_)
             model.num_timesteps = n
-            tr._save_model(model, model_zip_)
+            save_model(model, model_zip_)
             last_checkpoint = n
             session.update(end_timesteps=n, **_session_rates(session, n, wall0, clock, repeat))
-            tr._record_session(run_dir, session, best)
+            record_session(run_dir, session, best)
 
         def evaluate(n):
             nonlocal best, last_eval
@@ -605,15 +600,15 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
             last_eval = n
             stats = norm.stats()
             r = run_episode(AgentPolicy(model, stats, mode, eval_env), eval_env, seed=0)
-            score = math.inf if r.diverged else tr.evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
+            score = math.inf if r.diverged else evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
             row = {"steps": int(n), "max_um": float(r.max_contour_error_um),
                    "mean_um": float(r.mean_contour_error_um), "rms_um": float(r.rms_contour_error_um),
                    "score_um": float(score), "diverged": bool(r.diverged)}
             rows.append(row)
-            tr._write_evaluations(run_dir / "evaluations.csv", rows)
+            write_evaluations(run_dir / "evaluations.csv", rows)
             if math.isfinite(score) and (best is None or score < best["score_um"]):
                 best = row
-                tr._save_agent(run_dir / "best", model, stats, config, n, row)
+                save_agent(run_dir / "best", model, stats, config, n, row)
             if verbose:
                 print(f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, "
                       f"diverged {row['diverged']}")
@@ -652,15 +647,15 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
         if interrupted is None:
             if n != last_eval or not rows:
                 evaluate(n)
-            tr._save_agent(run_dir / "final", model, norm.stats(), config, n)
+            save_agent(run_dir / "final", model, norm.stats(), config, n)
         wall = time.perf_counter() - wall0
     finally:
         env.close()
         eval_env.close()
     session.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
                    **_session_rates(session, n, wall0, clock, repeat))
-    tr._record_session(run_dir, session, best)
-    return tr.TrainingResult(run_dir=run_dir, timesteps=n, session_timesteps=n - done, wall_s=wall,
+    record_session(run_dir, session, best)
+    return TrainingResult(run_dir=run_dir, timesteps=n, session_timesteps=n - done, wall_s=wall,
                              steps_per_s=session["steps_per_s"], control_periods_per_s=session["control_periods_per_s"],
                              best=best, interrupted=interrupted, rolled_back=rolled_back)
 
@@ -685,8 +680,6 @@ def train_lean(env_id: str | None = None, run_dir=None, *, progress_bar: bool = 
                verbose: int = 0, stagger: bool = True, **options):
     """:func:`agents.training.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
     resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`agents.training.TrainingResult`."""
-    from .training import prepare_run
-
     run_dir, config, checkpoint = prepare_run(env_id, run_dir, **options)
     return learn(run_dir, config, checkpoint, progress_bar=progress_bar, device=device, verbose=verbose,
                  stagger=stagger)

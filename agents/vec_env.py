@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -35,7 +36,47 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from .action_modes import ActionMode
 
-__all__ = ["VcncVecEnv"]
+__all__ = ["VcncVecEnv", "NativeBatch", "native_batch", "monitor_writers"]
+
+
+class NativeBatch(NamedTuple):
+    """The native vector env of a run's training envs with the action mode's baseline.
+
+    Attributes
+    ----------
+    venv
+        The unwrapped native vector env (no autoreset), at ``action_repeat=1`` in residual mode.
+    baseline
+        The residual mode's batched baseline, None in direct mode.
+    controller
+        The baseline's compiled form for ``step_controlled``, None without one (or when not asked for).
+    repeat : int
+        Control periods per agent decision stepped by the caller (the action repeat in residual mode, else 1:
+        the env repeats the action itself).
+    """
+
+    venv: object
+    baseline: object
+    controller: object
+    repeat: int
+
+
+def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None, *,
+                 compiled: bool = True) -> NativeBatch:
+    """Build ``n_envs`` envs of ``env_id`` as one native vector env for ``mode``: what :class:`VcncVecEnv` (SB3's
+    trainer) and the lean trainer step.  ValueError when ``env_kwargs``' action_repeat contradicts the mode."""
+    kwargs = dict(env_kwargs or {})
+    residual = mode.mode == "residual"
+    env_repeat = 1 if residual else mode.action_repeat
+    if kwargs.get("action_repeat", env_repeat) != env_repeat:
+        raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
+                         f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
+    kwargs["action_repeat"] = env_repeat
+    venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+                        autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
+    baseline = mode.make_baseline(venv)
+    controller = baseline.compiled(n_envs) if baseline is not None and compiled else None
+    return NativeBatch(venv, baseline, controller, mode.action_repeat if residual else 1)
 
 #: The attributes ``get_attr`` answers, read from the vector env (the same for every env).
 _SHARED_ATTRIBUTES = ("layout", "decision_period", "nominal_parameters", "plant", "dt", "episode_steps", "task")
@@ -77,20 +118,10 @@ class VcncVecEnv(VecEnv):
     def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None,
                  seed: int | None = None, *, monitor_dir=None, start_steps: int = 0, append: bool = False,
                  compiled: bool = True):
-        kwargs = dict(env_kwargs or {})
         self.mode = mode
-        residual = mode.mode == "residual"
-        env_repeat = 1 if residual else mode.action_repeat
-        if kwargs.get("action_repeat", env_repeat) != env_repeat:
-            raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
-                             f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
-        kwargs["action_repeat"] = env_repeat
-        self.venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
-                                 autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
+        batch = native_batch(env_id, n_envs, mode, env_kwargs, compiled=compiled)
+        self.venv, self.baseline, self.controller, self.repeat = batch
         self.env_id = env_id
-        self.baseline = mode.make_baseline(self.venv)
-        self.repeat = mode.action_repeat if residual else 1
-        self.controller = self.baseline.compiled(n_envs) if self.baseline is not None and compiled else None
         super().__init__(n_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._seed = seed
         self._obs = None

@@ -369,14 +369,14 @@ def test_case_8_n_envs_is_limited_by_open_files_and_memory(tiny_config, tmp_path
                            "--n-envs", str(10**6)])
     assert code == 2 and "n_envs must be at most" in err and "Traceback" not in err, err
     assert not out.exists() and time.perf_counter() - t0 < 10.0
-    from agents import training
+    from agents import run_config
 
     monkeypatch.setattr(validation, "available_memory", lambda: 10**9)
-    each = 2048 * (40 + 2 + 6) * 4 + training.ENV_BYTES  # float32 rollout rows, plus the env's own
+    each = 2048 * (40 + 2 + 6) * 4 + run_config.ENV_BYTES  # float32 rollout rows, plus the env's own
     limit = int(0.5 * 10**9 // each)
-    assert training._check_n_envs(limit, 2048, 40) == limit
+    assert run_config.check_n_envs(limit, 2048, 40) == limit
     with pytest.raises(ValueError, match=rf"n_envs must be at most {limit:,} \(each env fills n_steps = 2048 rows"):
-        training._check_n_envs(limit + 1, 2048, 40)
+        run_config.check_n_envs(limit + 1, 2048, 40)
 
 
 def test_case_9_an_output_folder_that_cannot_be_made_is_an_error(tiny_config):
