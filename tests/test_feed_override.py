@@ -151,3 +151,16 @@ def test_online_feedforward_is_the_tables_linear_part(omega):
     smooth = np.all(np.abs(np.diff(a, axis=0)) < 1e3, axis=1)  # away from the NURBS' acceleration steps
     rows = np.flatnonzero(smooth[:-1] & smooth[1:])
     assert np.abs(mine[rows] - table[rows]).max() < 0.05 * np.abs(table).max()
+
+
+def test_running_out_of_time_pays_for_the_whole_contour_left():
+    """The incomplete penalty counts the contour from the tool to the contour's end, however far the re-timed
+    reference lags (the buffer's last row stays the contour's end)."""
+    env = gym.make(ID).unwrapped
+    policy = baselines.make("ff-pid-online", env)
+    infos, terminated, _ = _episode(env, policy, -0.96)  # 2 %: a few mm in the time limit
+    info = infos[-1][1]
+    assert terminated and not info["completed"]
+    left = env.task.contour_length - info["progress"]
+    assert left > 40.0
+    assert info["reward_incomplete"] == pytest.approx(-left / env.reward_scale, rel=1e-6)

@@ -119,9 +119,11 @@ class FeedOverrideEnv(ContouringEnv):
     def _make_batch(self) -> ContouringBatch:
         task = self.task
         self._original = task.reference_arrays.samples
-        self._padded = padded_reference(self._original, task.end_index + 1)
-        self._buffer = self._padded.copy()
         self._lookahead = task.action_repeat + int(max(task.layout.preview_steps, default=0))
+        # rows for every period up to the time limit and its preview, then the contour's end, never re-timed:
+        # the kernel reads the last row as the end of the reference (the contour left, the completion)
+        self._padded = padded_reference(self._original, task.end_index + self._lookahead + 2)
+        self._buffer = self._padded.copy()
         return ContouringBatch(task, 1, reference=task.reference_arrays._replace(samples=self._buffer))
 
     @property

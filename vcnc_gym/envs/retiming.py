@@ -72,7 +72,8 @@ def _write_row(original, out, n, tau, speed, dspeed, dt):
 
 @njit(cache=True)
 def retime(original, out, start, rows, committed, tau, speed, target, max_change, dt):
-    """Write rows ``start`` .. ``start + rows - 1`` of ``out`` (those beyond its end are skipped): the reference
+    """Write rows ``start`` .. ``start + rows - 1`` of ``out`` (those at or beyond its last row are skipped: the last
+    row holds the contour's end, which the kernel reads as the end of the reference): the reference
     re-timed from the clock ``tau`` (samples of ``original``) and override ``speed`` of row ``start - 1``, the
     override moving toward ``target`` by at most ``max_change`` per control period (trapezoidal clock:
     ``tau_n = tau_{n-1} + (s_{n-1} + s_n) / 2``).
@@ -86,7 +87,7 @@ def retime(original, out, start, rows, committed, tau, speed, target, max_change
     state_speed = speed
     for r in range(rows):
         n = start + r
-        if n >= out.shape[0]:
+        if n >= out.shape[0] - 1:
             break
         step = min(max_change, max(-max_change, target - speed))
         new = speed + step
