@@ -114,7 +114,9 @@ def make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose:
                 return  # this checkpoint was evaluated before the run was resumed
             policy = AgentPolicy(self.model, stats, self.mode, self.env)
             r = run_episode(policy, self.env, seed=0)
-            score = math.inf if r.diverged else evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
+            # an episode cut by the completion time limit covers part of the contour only: no candidate either
+            score = math.inf if r.diverged or not r.completed else evaluation_score(r.max_contour_error_um,
+                                                                                   r.rms_contour_error_um)
             # a diverged episode's errors cover only the part before it left the bounds (a table that never
             # moved has 0.0 um there): written as inf, the bench's figure for a diverged plant, never as perfect
             figures = ((math.inf,) * 3 if r.diverged else
