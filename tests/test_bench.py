@@ -243,3 +243,22 @@ def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, caps
     assert record["episode_steps"] == gym.make("VCNC-Omega-v1", feedrate=20.0).unwrapped.episode_steps
     assert not record["diverged"] and record["max_contour_error_um"] < 50.0  # feasible at 20 mm/s
     assert "at 20 mm/s" in capsys.readouterr().out
+
+
+def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, capsys):
+    """--plant NAME makes every env with plant=NAME: the bench's figure is run_episode's on that env (an
+    independent gym.make), the papers' columns stay empty, and a bad name is an argument error naming it."""
+    import baselines
+
+    out = tmp_path / "plant.json"
+    assert bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "current_feed_drive",
+                       "--no-progress", "--json", str(out)]) == 0
+    (record,) = json.loads(out.read_text())
+    env = gym.make("VCNC-Butterfly-v1", plant="current_feed_drive")
+    assert env.unwrapped.plant.name == "current_feed_drive"
+    mine = run_episode(baselines.make("zpetc", env), env)
+    assert record["max_contour_error_um"] == pytest.approx(mine.max_contour_error_um, rel=1e-12)
+    assert record["paper_max_contour_error_um"] is None
+    with pytest.raises(SystemExit) as exc:
+        bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "nope", "--no-progress"])
+    assert exc.value.code == 2 and "nope" in capsys.readouterr().err

@@ -164,3 +164,20 @@ def test_running_out_of_time_pays_for_the_whole_contour_left():
     left = env.task.contour_length - info["progress"]
     assert left > 40.0
     assert info["reward_incomplete"] == pytest.approx(-left / env.reward_scale, rel=1e-6)
+
+
+def test_operator_fixed_override_is_the_held_dial():
+    """The report's operator points (vcnc_bench.reports.feed_override.FixedOverride) are ff-pid-online with
+    the dial held: the same episode as the hand-written loop with that dial; the cap must lie in (0, 1]."""
+    from vcnc_bench.reports.feed_override import FixedOverride
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make(ID).unwrapped
+    infos, terminated, _ = _episode(env, baselines.make("ff-pid-online", env), 2 * 0.6 - 1.0)
+    result = run_episode(FixedOverride(baselines.make("ff-pid-online", env), 0.6), env)
+    assert terminated and result.completed
+    assert result.cycle_time_s == infos[-1][1]["cycle_time"]
+    assert result.max_contour_error_um == pytest.approx(1e3 * max(i["contour_error"] for _, i in infos), rel=1e-12)
+    for bad in (0.0, 1.5):
+        with pytest.raises(ValueError, match="override"):
+            FixedOverride(baselines.make("ff-pid-online", env), bad)

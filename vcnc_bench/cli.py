@@ -167,6 +167,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
                    help="feedrate in mm/s (default: each env's own); with another value the paper's "
                         "columns stay empty")
+    p.add_argument("--plant", metavar="NAME",
+                   help="run every env on this plant instead of its own (a name of vcnc_gym.plants.PLANTS, such as "
+                        "current_feed_drive: a generalist's machine on the test pieces); the papers' columns stay "
+                        "empty")
     p.add_argument("--trials", type=int, metavar="K",
                    help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
                         "and the last, the JSON every one (default 10; with --plants 1, the last scored)")
@@ -196,12 +200,20 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _make_env(env_id: str, feedrate: float | None, parser):
-    """The env of ``env_id``, at another feedrate if one is given."""
+def _env_kwargs(args) -> dict:
+    """The arguments every env is made with: ``feedrate`` and ``plant`` when given."""
+    kwargs = {} if args.feedrate is None else {"feedrate": args.feedrate}
+    if args.plant is not None:
+        kwargs["plant"] = args.plant
+    return kwargs
+
+
+def _make_env(env_id: str, kwargs: dict, parser):
+    """The env of ``env_id`` with ``kwargs`` (another feedrate, another plant)."""
     try:
-        return gym.make(env_id) if feedrate is None else gym.make(env_id, feedrate=feedrate)
-    except ValueError as exc:
-        parser.error(str(exc))
+        return gym.make(env_id, **kwargs)
+    except (ValueError, TypeError) as exc:
+        parser.error(f"{env_id}: {exc}")
 
 
 def _unique(items):
@@ -282,18 +294,19 @@ def main(argv: list[str] | None = None) -> int:
         _check_writable(args.plots, parser, "directory")
 
     # build every env and policy first, so a bad spec fails before any run
-    envs = {env_id: _make_env(env_id, args.feedrate, parser) for env_id in env_ids}
+    envs = {env_id: _make_env(env_id, _env_kwargs(args), parser) for env_id in env_ids}
     if args.program:
         if args.feedrate is not None:
             parser.error("--feedrate does not apply to --program: a program's F words set its feeds")
         try:
             tolerance = None if args.tolerance == "sharp" else float(args.tolerance)
-            envs.update(programs.make_program_envs(programs.expand_programs(args.program, args.circle), tolerance))
+            envs.update(programs.make_program_envs(programs.expand_programs(args.program, args.circle), tolerance,
+                                                   plant=args.plant))
         except ValueError as exc:
             parser.error(str(exc))
         env_ids = list(envs)
     _check_sizes(args, envs, parser)
-    compare = args.feedrate is None
+    compare = args.feedrate is None and args.plant is None
     runs = []
     for env_id, env in envs.items():
         for spec in specs or default_specs(env):
@@ -391,7 +404,7 @@ def _robust(args, envs: dict, runs: list) -> int:
     from tqdm import tqdm
 
     trials = args.trials or 1
-    kwargs = {} if args.feedrate is None else {"feedrate": args.feedrate}
+    kwargs = _env_kwargs(args)
     with tqdm(total=len(runs), unit="run", file=sys.stderr, dynamic_ncols=True, leave=False,
               disable=True if args.no_progress else None) as bar:
         records, plant_sets = robust.evaluate([(e, _label(s, p), p) for e, s, p in runs], envs, args.plants,
@@ -415,7 +428,7 @@ def _robust(args, envs: dict, runs: list) -> int:
         print(f"\nNOT COMPLETE on the nominal plant (diverged or cut short): {', '.join(nominal_bad)}")
     if args.json is not None:
         settings = {"plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
-                    "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate}
+                    "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate, "plant": args.plant}
         out = {"settings": settings, "robust": [_json_safe(r) for r in records]}
         args.json.write_text(json.dumps(out, indent=2) + "\n")
         print(f"\nwrote {len(records)} robust records to {args.json}")

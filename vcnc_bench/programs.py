@@ -56,9 +56,10 @@ def expand_programs(specs: list[str], circle: tuple[float, float] | None) -> lis
     return out
 
 
-def make_program_envs(programs: list[tuple[str, object]], tolerance: float | None) -> dict:
-    """{table name: env} of ``VCNC-GCode-v1`` for each program."""
-    return {PROGRAM_PREFIX + name: gym.make("VCNC-GCode-v1", program=program, tolerance=tolerance)
+def make_program_envs(programs: list[tuple[str, object]], tolerance: float | None, plant: str | None = None) -> dict:
+    """{table name: env} of ``VCNC-GCode-v1`` for each program, on ``plant`` (a plant's name) if given."""
+    kwargs = {} if plant is None else {"plant": plant}
+    return {PROGRAM_PREFIX + name: gym.make("VCNC-GCode-v1", program=program, tolerance=tolerance, **kwargs)
             for name, program in programs}
 
 

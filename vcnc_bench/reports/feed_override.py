@@ -11,6 +11,8 @@ side on the nominal plant:
 - **online**: the agent on ``VCNC-OmegaOverride-v1`` sets a feed override on the S-curve while it runs (it sees
   the contour 4 mm ahead); one point per cap of its override (:data:`CAPS`: the agent's dial scaled so the
   override never exceeds the cap, as an operator limits the dial).
+- **operator**: the classical servo that runs under an override (``ff-pid-online``) on ``VCNC-OmegaOverride-v1``
+  with the dial held at each cap from the start, as an operator who turns the override down for the whole part.
 
 Run ``python -m vcnc_bench.reports.feed_override --agent agents/trained/VCNC-OmegaOverride-v1 --plot
 bench-out/omega_front.png``.
@@ -24,15 +26,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FrontPoint", "FEEDS", "CAPS", "CLASSICAL", "classical_front", "agent_front", "format_front",
-           "plot_front", "main"]
+__all__ = ["FrontPoint", "FEEDS", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride", "classical_front",
+           "operator_front", "agent_front", "format_front", "plot_front", "main"]
 
 #: Feeds of the look-ahead runs, mm/s.
 FEEDS = (100.0, 80.0, 60.0, 45.0, 30.0)
-#: Caps of the agent's override (1 = 100 %).
-CAPS = (1.0, 0.8, 0.6, 0.45, 0.3)
+#: Caps of the agent's override and the operator's fixed overrides (1 = 100 %); the env's time limit, three times the
+#: reference's duration at full feed, ends an override held below 1/3 before the contour's end.
+CAPS = (1.0, 0.8, 0.6, 0.45, 0.35)
 #: The classical controllers of the front: the strongest causal ones on the omega (README's table).
 CLASSICAL = ("ff-pid", "zpetc", "ff-ccc", "ff-pid-online")
+#: The classical controller run under a fixed override: the one that needs no table computed ahead.
+OPERATOR = "ff-pid-online"
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,37 @@ class _Capped:
         return action, state
 
 
+class FixedOverride:
+    """A two-axis controller on ``VCNC-OmegaOverride-v1`` with the override dial held at ``override`` (1 = 100 %)
+    from the first step: the operator's override, not a learned one."""
+
+    def __init__(self, policy, override: float):
+        if not 0.0 < override <= 1.0:
+            raise ValueError(f"override must be in (0, 1] (1 = 100 %), got {override!r}")
+        self.policy, self.dial = policy, 2.0 * float(override) - 1.0
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        action, state = self.policy.predict(observation, state=state, episode_start=episode_start,
+                                            deterministic=deterministic)
+        action = np.asarray(action, dtype=np.float32)
+        dial = np.full(action.shape[:-1] + (1,), self.dial, dtype=np.float32)
+        return np.concatenate([action, dial], axis=-1), state
+
+
+def operator_front(policy: str = OPERATOR, caps=CAPS) -> list[FrontPoint]:
+    """``policy`` on ``VCNC-OmegaOverride-v1`` (the S-curve) with the override held at each cap, nominal plant."""
+    import gymnasium as gym
+
+    import baselines
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make("VCNC-OmegaOverride-v1")
+    points = [_point(f"{policy} @ override", f"{100 * c:g} %", run_episode(FixedOverride(baselines.make(policy, env), c),
+                                                                             env)) for c in caps]
+    env.close()
+    return points
+
+
 def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
     """The agent (a folder of ``agents/trained`` or a run's ``best``) on ``VCNC-OmegaOverride-v1``, nominal plant,
     once per override cap."""
@@ -99,9 +135,9 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
 
 def format_front(points) -> str:
     """The points as a table, um and s."""
-    lines = [f"{'policy':16s} {'setting':12s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 58]
+    lines = [f"{'policy':26s} {'setting':12s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 68]
     for p in points:
-        lines.append(f"{p.policy:16s} {p.setting:12s} {p.cycle_time_s:8.4f} {p.max_um:9.3f} {p.rms_um:9.4f}")
+        lines.append(f"{p.policy:26s} {p.setting:12s} {p.cycle_time_s:8.4f} {p.max_um:9.3f} {p.rms_um:9.4f}")
     return "\n".join(lines)
 
 
@@ -142,7 +178,7 @@ def main(argv=None) -> int:
         agent = TRAINED.get("VCNC-OmegaOverride-v1")
         if agent is None or not agent.is_dir():
             parser.error("no agent is shipped for VCNC-OmegaOverride-v1: give --agent FOLDER")
-    points = classical_front() + agent_front(agent)
+    points = classical_front() + operator_front() + agent_front(agent)
     print(format_front(points))
     if args.plot:
         plot_front(points, args.plot)
