@@ -404,3 +404,35 @@ def test_blends_are_seed_002s_smooth_polyline():
         d, _ = ContourProjector(b).project(pts)
         assert np.max(d) < 1e-7
     assert abs(ours.arc_length() - ref.arc_length()) < 1e-7
+
+
+def test_random_contours_of_the_xy_table_keep_its_scale_and_path_limits():
+    """Purtojo et al.'s table draws PLANT_SPECS' contours (0.5-3 mm lines, 0.2-2 mm arcs, 30-120 mm/min); the
+    reference's speed, differenced from its positions, stays within the feed, its acceleration within the path
+    limit (30 mm/s^2);
+    a spec given as a dict (YAML) is the same spec; a misspelt field is named."""
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401
+    from vcnc_gym.gcode import PATH_LIMITS
+    from vcnc_gym.gcode.random_contour import PLANT_SPECS, RandomContourSpec, spec_for
+
+    spec = PLANT_SPECS["nct_xy_table"]
+    env = gym.make("VCNC-RandomContour-v1", plant="nct_xy_table", dt=1e-3)
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        u = env.unwrapped
+        for m in u.task.path.program.moves:
+            if m.kind == "line":
+                assert spec.line_min - 1e-5 <= m.length <= spec.line_max + 1e-5
+            else:
+                assert spec.radius_min - 1e-5 <= m.radius <= spec.radius_max + 1e-5
+        xy = u.reference.position[:-1]  # the last sample is the curve's end, at any distance (Reference)
+        speed = np.hypot(*np.diff(xy, axis=0).T) / u.dt
+        assert speed.max() <= 1.001 * spec.feed_max / 60
+        assert np.hypot(*u.reference.acceleration.T).max() < 1.05 * PATH_LIMITS["nct_xy_table"][0]
+    assert spec_for("nct_xy_table", {"feed_min": 30.0, "feed_max": 120.0}) == RandomContourSpec(feed_min=30.0,
+                                                                                                 feed_max=120.0)
+    assert spec_for("vcnc_feed_drive") == RandomContourSpec()
+    with pytest.raises(ValueError, match="feed_mni"):
+        spec_for("nct_xy_table", {"feed_mni": 1.0})

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..gcode import path_limits, read_program
-from ..gcode.random_contour import RandomContourSpec, random_program
+from ..gcode.random_contour import RandomContourSpec, random_program, spec_for
 from .contouring_env import ContouringEnv
 
 __all__ = ["RandomContourEnv", "LOOKAHEAD_SPACING"]
@@ -44,25 +44,30 @@ class RandomContourEnv(ContouringEnv):
 
     ## Arguments
 
-    ``tolerance`` (mm, 0.01), ``spec`` (a RandomContourSpec), ``plant``
-    ("vcnc_feed_drive"), ``acceleration`` / ``jerk`` (the path limits, as
-    :class:`~vcnc_gym.envs.gcode_env.GCodeEnv`), and every other argument of
-    ContouringEnv but ``contour``, ``feedrate`` and ``profile``.
+    ``tolerance`` (mm, 0.01), ``spec`` (a RandomContourSpec or a dict of
+    its fields; default the plant's entry of
+    :data:`~vcnc_gym.gcode.random_contour.PLANT_SPECS`, else the
+    defaults above: Purtojo et al.'s table draws contours a tenth of the size
+    at 30-120 mm/min), ``plant`` ("vcnc_feed_drive"), ``acceleration`` /
+    ``jerk`` (the path limits, as :class:`~vcnc_gym.envs.gcode_env.GCodeEnv`),
+    and every other argument of ContouringEnv but ``contour``, ``feedrate``
+    and ``profile``.  The look-ahead samples the curvature every 0.05 mm
+    times the spec's smallest radius over the defaults' 2 mm (at most 0.05).
 
     ## Version History
 
     - v1: initial release.
     """
 
-    def __init__(self, tolerance=0.01, spec: RandomContourSpec | None = None, *, plant="vcnc_feed_drive",
+    def __init__(self, tolerance=0.01, spec: RandomContourSpec | dict | None = None, *, plant="vcnc_feed_drive",
                  acceleration=None, jerk=None, render_mode=None, **kwargs):
         for key in ("contour", "feedrate", "profile", "program"):
             if key in kwargs:
                 raise ValueError(f"{key}= is drawn at every reset in VCNC-RandomContour-v1; "
                                  f"shape the draws with spec= (vcnc_gym.gcode.random_contour.RandomContourSpec)")
-        if spec is not None and not isinstance(spec, RandomContourSpec):
-            raise ValueError(f"spec must be a RandomContourSpec, got {spec!r}")
-        self._spec = spec or RandomContourSpec()
+        self._spec = spec_for(plant, spec)
+        # the arcs' scale sets the look-ahead's sampling (0.05 mm for the defaults' 2 mm arcs)
+        self._spacing = LOOKAHEAD_SPACING * min(1.0, self._spec.radius_min / RandomContourSpec.radius_min)
         self._tolerance = tolerance
         self._limits = path_limits(plant, acceleration, jerk)
         self._kwargs = {"plant": plant, "profile": "lookahead", **kwargs}
@@ -72,7 +77,7 @@ class RandomContourEnv(ContouringEnv):
 
     def _toolpath(self, text: str):
         a, j = self._limits
-        return read_program(text, self._tolerance, acceleration=a, jerk=j, spacing=LOOKAHEAD_SPACING)
+        return read_program(text, self._tolerance, acceleration=a, jerk=j, spacing=self._spacing)
 
     def reset(self, *, seed: int | None = None, options=None):
         """A new contour from the env's generator (seeded by ``seed``), then ContouringEnv's reset."""

@@ -31,7 +31,12 @@ __all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move",
 
 #: Path acceleration (mm/s^2) and jerk (mm/s^3) limits by plant: those the suite already plans with for
 #: the plant's seed (seed 000: motion.lookahead's SEED000_PATH_*; seed 002: motion.jlap's SEED002_*).
-PATH_LIMITS = {"vcnc_feed_drive": (1000.0, 3.0e4), "current_feed_drive": (4000.0, 1.6e5)}
+#: Purtojo et al.'s X-Y table (plants.nct_xy_table) has no path limits of its own (its paper runs a 1 mm circle
+#: at 1 mm/s): 30 mm/s^2 is 40 % of its slower (x) axis's acceleration at the rated input from rest, K alpha u_r =
+#: 50.7 x 1.475 = 75 mm/s^2 (Jahanpour et al.'s 1000 mm/s^2 is 38 % of its drives' ~2.6e3), and the jerk keeps
+#: the same 30 1/s ratio to it as theirs.
+PATH_LIMITS = {"vcnc_feed_drive": (1000.0, 3.0e4), "current_feed_drive": (4000.0, 1.6e5),
+               "nct_xy_table": (30.0, 900.0)}
 
 #: File suffixes read as program files when ``program`` is a one-line string.
 SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".txt")

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RandomContourSpec", "random_program"]
+__all__ = ["RandomContourSpec", "PLANT_SPECS", "spec_for", "random_program"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,33 @@ class RandomContourSpec:
             raise ValueError("turn_max must be < 180 degrees (no U-turn) and sweep_max <= 360 degrees")
         if not 0.0 <= self.line_probability <= 1.0:
             raise ValueError(f"line_probability must be in [0, 1], got {self.line_probability!r}")
+
+
+#: The default draws of a plant whose scale is not the defaults' (the defaults are Jahanpour et al. (2014)'s
+#: and Simba et al.'s feed drives: 5-30 mm lines, 33-100 mm/s).  Purtojo et al.'s X-Y table runs its 1 mm circle
+#: at 1 mm/s and tops out at 50 mm/s with the rated input on a 0.7 s time constant: its contours are a tenth of
+#: the size (0.5-3 mm lines, 0.2-2 mm arcs) at 0.5-2 mm/s (30-120 mm/min).
+PLANT_SPECS: dict[str, RandomContourSpec] = {
+    "nct_xy_table": RandomContourSpec(line_min=0.5, line_max=3.0, radius_min=0.2, radius_max=2.0,
+                                      feed_min=30.0, feed_max=120.0),
+}
+
+
+def spec_for(plant, spec=None) -> RandomContourSpec:
+    """The draws for ``plant`` (a name or a plant model): ``spec`` if given (a :class:`RandomContourSpec`, or a
+    mapping of its fields, as a YAML configuration gives it), else :data:`PLANT_SPECS`'s or the defaults."""
+    if spec is None:
+        name = plant if isinstance(plant, str) else getattr(plant, "name", str(plant))
+        return PLANT_SPECS.get(name, RandomContourSpec())
+    if isinstance(spec, RandomContourSpec):
+        return spec
+    if isinstance(spec, dict):
+        unknown = sorted(set(spec) - set(RandomContourSpec.__dataclass_fields__))
+        if unknown:
+            raise ValueError(f"spec has unknown field(s) {unknown}; RandomContourSpec's fields are "
+                             f"{list(RandomContourSpec.__dataclass_fields__)}")
+        return RandomContourSpec(**spec)
+    raise ValueError(f"spec must be a RandomContourSpec or a dict of its fields, got {spec!r}")
 
 
 def _n(x: float) -> str:
