@@ -75,3 +75,28 @@ def test_the_residual_wrapper_replans_its_baseline_for_each_random_contour():
         seen.append(samples.shape[0])
         env.step(np.zeros(2))
     assert seen[0] != seen[1]  # two contours of different lengths: the table followed
+
+
+#: A named contour of each generalist's machine (none of which it trained on).
+NAMED_CONTOUR = {"vcnc_feed_drive": "VCNC-Heart-v1", "current_feed_drive": "VCNC-CornersSmooth-v1",
+                 "nct_xy_table": "VCNC-Circle-v1"}
+
+
+def test_a_generalist_is_shipped_for_every_contouring_plant():
+    """One generalist per plant a contouring id runs on (Yadav et al.'s axis has positioning ids only)."""
+    plants = {gym.make(env_id).unwrapped.plant.name for env_id in CONTOURING_IDS}  # a shop floor's is its machine's
+    assert plants == set(agents.GENERALISTS) == set(NAMED_CONTOUR)
+
+
+@pytest.mark.slow  # > 10 s on 2 cores: one whole episode per generalist
+@pytest.mark.parametrize("plant", sorted(NAMED_CONTOUR))
+def test_a_generalist_finishes_a_named_contour_it_never_saw(plant):
+    """Each generalist, trained on VCNC-RandomContour-v1 only, finishes a named contour of its machine within
+    twice the error of the controller it corrects (its correction is 5 % of the input limit)."""
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make(NAMED_CONTOUR[plant])
+    mine = run_episode(agents.load_agent(agents.GENERALISTS[plant], env), env, seed=0)
+    base = run_episode(baselines.make("ff-ccc", env), env, seed=0)
+    assert mine.completed and not mine.diverged
+    assert mine.max_contour_error_um < 2 * base.max_contour_error_um + 0.01
