@@ -61,7 +61,7 @@ class ActionMode:
     correction : float
         Residual mode: the largest correction, as a fraction of u_max (0 < correction <= 2).
     baseline_params : dict
-        Residual mode: constructor parameters of the baseline (its seed values if empty).
+        Residual mode: constructor parameters of the baseline (its paper's values if empty).
     """
 
     mode: str = "direct"

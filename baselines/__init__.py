@@ -1,6 +1,6 @@
 """Classical contouring controllers as policies with Stable-Baselines3's predict.
 
-The three controllers seed 000 compares (Jahanpour et al., 2014):
+The three controllers Jahanpour et al. (2014) compare:
 
 - ``"qft"``: the robust QFT controller G(s) with pre-filter F(s), section 2c
   (:class:`QFTPolicy`), with its robust-stability check, eq. (11)

@@ -42,7 +42,7 @@ class BaselinePolicy:
         ``input_limit`` parameter, e.g. ``u_max`` in V) scales the action.
     plant : str or vcnc_gym.plants.PlantModel, optional
         The plant the env holds; default the first of :attr:`plants`.  It must
-        be one of :attr:`plants`: a controller is designed for its seed's
+        be one of :attr:`plants`: a controller is designed for its paper's
         machine.
 
     Notes

@@ -41,12 +41,12 @@ def _oracle(ctx) -> list[str]:
 
 
 def _qft_stability(ctx) -> list[str]:
-    """Seed 000 eq. (11) for the QFT loop, when "qft" ran."""
+    """Jahanpour et al.'s eq. (11) for the QFT loop, when "qft" ran."""
     ran = [e for e in ctx.env_ids if "qft" in ctx.results.get(e, {})]
     if not ran:
         return []
     dts = sorted({ctx.envs[e].unwrapped.decision_period for e in ran})
-    head = "QFT robust-stability peak max|T(jw)| over the uncertainty box, seed 000 eq. (11)"
+    head = "QFT robust-stability peak max|T(jw)| over the uncertainty box, Jahanpour et al.'s eq. (11)"
     lines = [f"{head} (bound mu = {qft.MU:g}):"]
     for axis in ("x", "y"):
         parts = [f"{qft.robust_stability_peak(axis=axis):.3f} continuous"]
@@ -55,20 +55,20 @@ def _qft_stability(ctx) -> list[str]:
     return lines
 
 
-def _seed001(ctx) -> list[str]:
-    """Seed 001's section 3.5 margins and Table 2, when an env on its plant (cncmt_axis) ran."""
+def _yadav2020(ctx) -> list[str]:
+    """Yadav et al.'s section 3.5 margins and Table 2, when an env on its plant (cncmt_axis) ran."""
     ran = _plant_envs(ctx, "cncmt_axis")
     if not ran:
         return []
     from vcnc_bench.reports import yadav2020 as report
 
-    lines = ["Seed 001, section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)", "",
+    lines = ["Yadav et al. (2020), section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)", "",
              report.format_kharitonov()]
     lines.append(report.format_table2(report.table2(dead_time=0.0), "\nTable 2, continuous loop without the dead "
-                                      "time (as the seed computes it); cells: ours / seed's"))
+                                      "time (as the paper computes it); cells: ours / paper's"))
     rows, traces = report.env_step_table(env_id=ran[0])
     lines.append(report.format_table2(rows, f"\nTable 2 on {ran[0]} (dead time 0.1 s exact, nominal and 10 plants "
-                                            f"across the box); cells: ours / seed's"))
+                                            f"across the box); cells: ours / paper's"))
     if ctx.plots is not None:
         path = ctx.plots / f"{ran[0]}_step_responses.png"
         report.plot_step_responses(traces, path, setpoint=rows[0].get("setpoint_mm", 10.0))
@@ -80,14 +80,14 @@ def _plant_envs(ctx, plant: str) -> list[str]:
     return [e for e in ctx.env_ids if getattr(getattr(ctx.envs[e].unwrapped, "plant", None), "name", None) == plant]
 
 
-def _seed002(ctx) -> list[str]:
-    """Seed 002's ratios (ILC/FB per path, smoothed/linear FB) and the cycle times of both paths."""
+def _simba(ctx) -> list[str]:
+    """Simba et al.'s ratios (ILC/FB per path, smoothed/linear FB) and the cycle times of both paths."""
     ran = _plant_envs(ctx, "current_feed_drive")
     if not ran:
         return []
-    from vcnc_bench.papers import PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT, paper_figures
+    from vcnc_bench.papers import PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT, paper_figures
 
-    lines = ["Seed 002, section IV: max contour error ratios, ours (paper)"]
+    lines = ["Simba et al., section IV: max contour error ratios, ours (paper)"]
     fb = {}
     for e in ran:
         res = ctx.results.get(e, {})
@@ -110,12 +110,12 @@ def _seed002(ctx) -> list[str]:
         lin, smooth = durations["VCNC-Corners-v1"], durations["VCNC-CornersSmooth-v1"]
         lines.append(f"  cycle time (reference): linear {lin:.4f} s, smoothed {smooth:.4f} s: "
                      f"{100 * (smooth / lin - 1):+.2f} % "
-                     f"(paper's experiment {PAPER_SEED_002_CYCLE_TIME_INCREASE_PERCENT:+.2f} %)")
+                     f"(paper's experiment {PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT:+.2f} %)")
     return lines
 
 
-def _seed003(ctx) -> list[str]:
-    """Seed 003's circle figures of every policy that ran on its table, and the radial-error plot."""
+def _purtojo(ctx) -> list[str]:
+    """Purtojo et al.'s circle figures of every policy that ran on its table, and the radial-error plot."""
     lines = []
     for e in _plant_envs(ctx, "nct_xy_table"):
         from vcnc_bench.reports import circle as circle_report
@@ -132,6 +132,6 @@ KIND = PolicyKind(
     make=lambda arg, env: make(arg, env),
     names=names,
     defaults=lambda env: [n for n in names() if applies(n, env)],
-    report=lambda ctx: _qft_stability(ctx) + _seed001(ctx) + _seed002(ctx) + _seed003(ctx) + _oracle(ctx),
+    report=lambda ctx: _qft_stability(ctx) + _yadav2020(ctx) + _simba(ctx) + _purtojo(ctx) + _oracle(ctx),
     description="the papers' classical controllers (baselines.names())",
 )

@@ -2,7 +2,7 @@
 
 The registry maps a name to a policy class; :func:`make` builds it for an env
 from ``env.unwrapped`` (observation layout, decision period, nominal plant)
-and the keyword parameters, whose defaults are the seed's values.
+and the keyword parameters, whose defaults are the paper's values.
 """
 
 from __future__ import annotations
@@ -57,9 +57,9 @@ REGISTRY: dict[str, type[BaselinePolicy]] = {cls.name: cls for cls in CONTROLLER
 #: registry with some of its parameters changed, benchmarked under its own name.
 VARIANTS: dict[str, tuple[str, dict]] = {
     # QFT's feedback G(s) without the pre-filter (F = 1): isolates the share of
-    # the contour error that the seed's F(s) causes (docs/reproduction.md).
+    # the contour error that the paper's F(s) causes (docs/reproduction.md).
     "qft-g": ("qft", {"prefilter": ((1.0,), (1.0,))}),
-    # seed 002's ILC with a 20 Hz zero-phase low-pass Q: monotone convergence
+    # Simba et al.'s ILC with a 20 Hz zero-phase low-pass Q: monotone convergence
     # where Table I's q = 1 lets the ringing above 38.5 Hz grow (baselines/learning/ilc.py).
     "ilc-q": ("ilc", {"q_cutoff": 20.0}),
     # Koren and Lo (1991)'s variable-gain CCC, without feedforward.
@@ -94,7 +94,7 @@ def make(name: str, env, **params) -> BaselinePolicy:
         ``nominal_parameters`` (2, P)), or a VecEnv of them.
     **params
         Constructor parameters of the policy class (e.g. ``lam=150`` for
-        "smc"); omitted ones take the seed's values.
+        "smc"); omitted ones take the paper's values.
 
     Returns
     -------

@@ -79,7 +79,7 @@ def random_settings(rng: np.random.Generator) -> dict:
         profile=profile,
         feedrate=float(np.exp(rng.uniform(np.log(f_lo), np.log(f_hi)))),
         dt=float(np.exp(rng.uniform(np.log(dt_lo), np.log(dt_hi)))) if plant != "cncmt_axis"
-        else 0.1 / int(rng.integers(50, 1000)),  # seed 001's 0.1 s dead time is a whole number of periods
+        else 0.1 / int(rng.integers(50, 1000)),  # Yadav et al.'s 0.1 s dead time is a whole number of periods
         action_repeat=int(rng.integers(1, 21)),
         randomize=bool(rng.random() < 0.5),
         preview_steps=tuple(sorted(int(s) for s in rng.integers(1, 200, int(rng.integers(1, 5))))),

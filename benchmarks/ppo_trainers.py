@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/ppo_trainers.py --n-envs 64 --steps 131072`` (``--candidates``, ``--help``).
 
-The task: ``VCNC-Heart-v1``, residual over seed 000's sliding-mode controller
+The task: ``VCNC-Heart-v1``, residual over Jahanpour et al.'s sliding-mode controller
 (correction 0.2 x 5 V, a decision every 10 control periods), the shipped
 entry of ``agents/hyperparams/ppo.yml`` for everything a candidate does not
 change; seed 0; no checkpoint or evaluation during training, one

@@ -3,8 +3,8 @@
 Run: ``python benchmarks/random_contour_reset.py`` (``--episodes N``, default 10).
 
 For N seeds, in one process: times ``env.reset(seed=s)`` (drawing the program,
-reading it, seed 002's corner designs, the look-ahead plan, the reference,
-the projector's grid, the batch; seed 002's corner design of every turn angle
+reading it, Simba et al.'s corner designs, the look-ahead plan, the reference,
+the projector's grid, the batch; Simba et al.'s corner design of every turn angle
 made beforehand, as after the first resets of a run, unless ``--cold``) and then the episode's ``env.step`` calls
 under a PD loop (300 V/mm, 1 V s/mm, the tests' controller, computed outside
 the timed steps), and prints per seed and in total the reset time, the
@@ -34,7 +34,7 @@ def main() -> None:
     env = gym.make("VCNC-RandomContour-v1")
     u = env.unwrapped
     env.reset(seed=10_000)  # compile once
-    if not args.cold:  # seed 002's corner design of every angle the spec draws, made once per process
+    if not args.cold:  # Simba et al.'s corner design of every angle the spec draws, made once per process
         spec, (a, j) = u._spec, u._limits
         t0 = time.perf_counter()
         for turn in range(math.ceil(spec.turn_min), math.floor(spec.turn_max) + 1):

@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/shop_floor_cost.py`` (``--steps``, ``--envs``, ``--repeats``).
 
-The heart of VCNC-Heart-v1 on seed 000's feed drives, ``--envs`` machines in one
+The heart of VCNC-Heart-v1 on Jahanpour et al.'s feed drives, ``--envs`` machines in one
 :class:`~vcnc_gym.envs.task.ContouringBatch` stepped by the serial kernel
 (``step_serial``: the single env's path, one thread), each env under a PD
 tracking loop closed on its own observation (computed outside the timed

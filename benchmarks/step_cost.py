@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-#: The envs timed: seed 000's, whose PD gains (V/mm) below fit their plant.
+#: The envs timed: Jahanpour et al.'s, whose PD gains (V/mm) below fit their plant.
 ENV_IDS = ("VCNC-Heart-v1", "VCNC-Omega-v1")
 
 START_UP = """

@@ -16,7 +16,7 @@ it).
 
 Both sides train PPO on ``VCNC-Heart-v0`` (the only heart the "before" code
 has) with the same settings: VCNC-Heart-v1's shipped entry of
-``agents/hyperparams/ppo.yml`` (residual over seed 000's sliding-mode
+``agents/hyperparams/ppo.yml`` (residual over Jahanpour et al.'s sliding-mode
 controller, correction 0.2 x 5 V = 1 V, a decision every 10 control periods)
 given to both as the same file, the same agent steps, n_envs and seed, one
 torch thread and one numba thread (``NUMBA_NUM_THREADS=1``: the after side's

@@ -12,7 +12,7 @@ import pytest
 
 #: The PD tracking loop the tests use as a plain, hand-written controller:
 #: 300 V/mm on the tracking error and 1 V s/mm on the velocity error, the
-#: action being the voltage over the seed-000 drive's 5 V limit.
+#: action being the voltage over the 5 V limit of Jahanpour et al.'s drive.
 PD_KP = 300.0  # V/mm
 PD_KD = 1.0  # V s/mm
 PD_LIMIT = 5.0  # V

@@ -468,7 +468,7 @@ def test_every_env_has_an_entry_that_prepares_a_run(tmp_path):
         mode = ActionMode(**config["action_mode"])
         assert mode.mode == "residual" and mode.baseline in baselines.names()
         assert config["n_timesteps"] % (config["hyperparams"]["n_steps"] * config["n_envs"]) == 0
-    # seed 001's positioning entry, as its helper proposed it
+    # Yadav et al.'s positioning entry, as its helper proposed it
     step = load_hyperparameters("VCNC-Step-v0")
     assert action_mode_of(step) == ActionMode("residual", action_repeat=1, baseline="hinf-reduced", correction=0.05)
     assert (step["n_envs"], step["n_steps"], step["batch_size"], step["gamma"]) == (4, 512, 256, 0.99)

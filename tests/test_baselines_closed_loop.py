@@ -1,6 +1,6 @@
-"""Closed-loop runs of the seed 000 baselines on the registered contouring envs.
+"""Closed-loop runs of Jahanpour et al.'s baselines on the registered contouring envs.
 
-Every baseline must trace the "heart" and the "omega" (seed 000, section 3a)
+Every baseline must trace the "heart" and the "omega" (Jahanpour et al. (2014), section 3a)
 without ``info["diverged"]``, on the nominal plant and on corners of the
 uncertainty box, and must run under SB3's ``evaluate_policy``.
 
@@ -129,14 +129,15 @@ def test_evaluate_policy_batched_envs():
     assert len(rewards) == 3 and np.ptp(rewards) <= 1e-9 * abs(np.mean(rewards))
 
 
-#: The controllers of seed 000's plant (not the non-causal oracle, a floor planned offline: tests/test_feedforward.py).
-SEED_000 = [n for n in baselines.names() if "vcnc_feed_drive" in baselines.registry.policy_class(n).plants
+#: The controllers of Jahanpour et al.'s plant (not the non-causal oracle, a floor planned offline:
+#: tests/test_feedforward.py).
+JAHANPOUR_BASELINES = [n for n in baselines.names() if "vcnc_feed_drive" in baselines.registry.policy_class(n).plants
             and getattr(baselines.registry.policy_class(n), "causal", True)]
 
 
-@pytest.mark.parametrize("name", SEED_000)
+@pytest.mark.parametrize("name", JAHANPOUR_BASELINES)
 def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
-    """All 64 corners of seed 000's box, as one batch of the vector env, the policy's predict on the batch
+    """All 64 corners of Jahanpour et al.'s box, as one batch of the vector env, the policy's predict on the batch
     (the heart is run on vertices 0 and 63 above)."""
     from vcnc_bench.robust import make_batch, run_plants
 

@@ -1,4 +1,4 @@
-"""Unit tests of the classical baselines (seed 000): QFT, sliding mode, fuzzy.
+"""Unit tests of the classical baselines (Jahanpour et al. (2014)): QFT, sliding mode, fuzzy.
 
 Each controller is checked against something independent of this package:
 python-control and scipy for the linear filters, scikit-fuzzy for the fuzzy
@@ -82,7 +82,7 @@ def test_qft_discretisation_is_tustin_exactly(qft_policy, which):
     np.testing.assert_allclose(resp_d, resp_c, rtol=1e-7)
 
 
-def test_qft_seed_transfer_functions(qft_policy):
+def test_qft_paper_transfer_functions(qft_policy):
     G, F, H = qft_policy.G, qft_policy.F, qft_policy.H
     s = 1j * 37.0
     np.testing.assert_allclose(complex(G(s)), (22.36 * s + 61.21) / (0.0001 * s + 1.326))
@@ -105,7 +105,7 @@ def test_qft_policy_output_matches_scipy_filters():
     pol.reset(n_envs=1)
     for k in range(n):  # the unclipped command in V (the action would saturate at 5 V)
         u[k] = pol._command(make_obs(1, e=e[k], v_ref=v_r[k]))[0]
-    # independent route: scipy's bilinear transform of the seed's polynomials
+    # independent route: scipy's bilinear transform of the paper's polynomials
     fs = 1.0 / DT
     gb, ga = ss.bilinear([22.36, 61.21], [0.0001, 1.326], fs=fs)
     hb, ha = ss.bilinear([-0.001, -0.187], [0.001, 0.187, 8.72], fs=fs)
@@ -342,7 +342,7 @@ def test_qft_g_variant_is_qft_without_prefilter():
     variant = baselines.make("qft-g", env)
     assert isinstance(variant, baselines.QFTPolicy)
     np.testing.assert_allclose(variant.F.num[0][0], variant.F.den[0][0])  # F = 1
-    assert baselines.make("qft", env).F.den[0][0].size == 3  # the seed's second-order F
+    assert baselines.make("qft", env).F.den[0][0].size == 3  # the paper's second-order F
     with pytest.raises(ValueError, match="fixes"):
         baselines.make("qft-g", env, prefilter=((1.0,), (1.0,)))
 

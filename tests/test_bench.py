@@ -192,8 +192,8 @@ def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path
 
 
 def test_paper_table_covers_every_env_and_baseline():
-    seed_000 = ("VCNC-Heart", "VCNC-Omega")
-    assert set(bench.PAPER_TABLE_4) == {(e, p) for e in seed_000 for p in ("qft", "smc", "fuzzy")}
+    jahanpour_envs = ("VCNC-Heart", "VCNC-Omega")
+    assert set(bench.PAPER_TABLE_4) == {(e, p) for e in jahanpour_envs for p in ("qft", "smc", "fuzzy")}
     assert bench.paper_figures("VCNC-Heart-v1", "qft")["max_contour_error_um"] == 10.14
     assert bench.paper_figures("VCNC-Omega-v0", "fuzzy")["max_contour_error_um"] == 44.19
     assert bench.paper_figures("VCNC-OmegaLookahead-v1", "fuzzy") == {}  # the paper ran the S-curve

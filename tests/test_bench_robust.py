@@ -16,7 +16,7 @@ from vcnc_gym.envs import CONTOURING_IDS, SUITE, VECTOR_IDS
 from vcnc_gym.evaluation import run_episode
 from vcnc_gym.plants import get_plant
 
-#: The shortest contouring id on seed 000's feed drive (6 uncertain coordinates: 64 vertices), and the
+#: The shortest contouring id on Jahanpour et al.'s feed drive (6 uncertain coordinates: 64 vertices), and the
 #: positioning id (no vector env).
 OMEGA = next(i for i in CONTOURING_IDS if "Omega" in i)
 STEP = next(e.id for e in SUITE if e.entry_point.endswith(":PositioningEnv"))

@@ -1,10 +1,10 @@
-"""Corner-smoothed polylines, seed 002 eqs. (12)-(23) (vcnc_gym.geometry.corners).
+"""Corner-smoothed polylines, Simba et al.'s eqs. (12)-(23) (vcnc_gym.geometry.corners).
 
 Oracles that are not the code under test: eq. (12) written out as a direct
 Bernstein sum, geomdl (points and derivatives of the blends and of the whole
 degree-5 NURBS), scipy (quad for the arc length, minimize_scalar for the
 closest point to the corner), finite differences for the jerk factor of
-eq. (17), brute-force grids for n_opt, and the statements of seed 002
+eq. (17), brute-force grids for n_opt, and the statements of Simba et al.'s
 section III about Fig. 4.
 """
 
@@ -34,9 +34,9 @@ from vcnc_gym.geometry.corners import (
 )
 from vcnc_gym.geometry.shapes import corners_path, corners_vertices
 
-A_MAX = 4000.0  # mm/s^2 (vcnc_gym.motion.jlap.SEED002_A_MAX)
+A_MAX = 4000.0  # mm/s^2 (vcnc_gym.motion.jlap.SIMBA_A_MAX)
 J_MAX = 1.6e5  # mm/s^3
-EPS = 0.05  # mm, seed 002 section IV-A
+EPS = 0.05  # mm, Simba et al.'s section IV-A
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def path():
 
 
 def eq12(p, h):
-    """Seed 002 eq. (12) exactly as printed."""
+    """Simba et al.'s eq. (12) exactly as printed."""
     h = np.asarray(h, dtype=float)[:, None]
     return (
         (1 - h) ** 5 * p[0]
@@ -174,7 +174,7 @@ def test_eq13_is_the_distance_from_the_corner_to_the_blend(theta_deg, n):
     assert abs(res.x - 0.5) < 1e-5  # on the bisector
 
 
-def test_epsilon_on_the_seed002_path(path):
+def test_epsilon_on_simba_path(path):
     """The smoothed NURBS passes eps from every sharp corner, and no point of the sharp path is further."""
     curve = path.curve
     for k, g in enumerate(path.vertices[1:-1]):
@@ -214,7 +214,7 @@ def test_curvature_against_geomdl_and_jerk_factor_against_finite_differences():
 
 
 def test_peak_curvature_scales_with_epsilon():
-    """kappa ~ 1/eps and varkappa ~ 1/eps^2 (seed 002 section III)."""
+    """kappa ~ 1/eps and varkappa ~ 1/eps^2 (Simba et al., section III)."""
     k1, j1 = peak_curvature(math.radians(45), 0.05, 0.9)
     k2, j2 = peak_curvature(math.radians(45), 0.2, 0.9)
     assert math.isclose(k1 / k2, 4.0, rel_tol=1e-9)
@@ -268,13 +268,13 @@ def test_n_opt_against_brute_force(theta_deg, a_max, j_max):
     k_ours, j_ours = numpy_peaks(theta, EPS, [d.n], np.linspace(0, 1, 200001))
     assert math.isclose(d.v_max, min(math.sqrt(a_max / k_ours[0]), math.cbrt(j_max / j_ours[0])), rel_tol=1e-7)
     assert math.isclose(d.v_max_a, math.sqrt(a_max / d.kappa_max), rel_tol=1e-14)
-    # seed 002, Fig. 4: n_opt lies between n_opt,a and n_opt,j
+    # Simba et al., Fig. 4: n_opt lies between n_opt,a and n_opt,j
     assert min(d.n_a, d.n_j) * (1 - 1e-6) <= d.n <= max(d.n_a, d.n_j) * (1 + 1e-6)
 
 
 @pytest.mark.parametrize("theta_deg", [30, 60, 90, 120])
 def test_n_opt_lt_of_ref16_is_slightly_smaller_than_n_opt_a(theta_deg):
-    """Seed 002 section III: n_opt,lt (ref. [16], l_t = 1 fixed) is always slightly smaller than n_opt,a."""
+    """Simba et al.'s section III: n_opt,lt (ref. [16], l_t = 1 fixed) is always slightly smaller than n_opt,a."""
     theta = math.radians(theta_deg)
     ns = np.exp(np.linspace(np.log(0.05), np.log(20), 1000))
     p = np.array([blend_control_points([0, 0], [1, 0], [-math.cos(theta), math.sin(theta)], 1.0, n) for n in ns])
@@ -349,7 +349,7 @@ def test_sharp_polyline_is_degree1_in_arc_length():
     assert math.isclose(curve.arc_length(), 200.0, rel_tol=1e-13)
 
 
-def test_seed002_test_path():
+def test_simba_test_path():
     v = corners_vertices()
     np.testing.assert_allclose(np.degrees(interior_angles(v)), [30, 60, 90], atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(np.diff(v, axis=0), axis=1), 50.0, rtol=1e-14)

@@ -283,7 +283,7 @@ def test_render_rgb_array():
 
 
 def test_default_control_period_makes_seed_qft_loop_stable_on_every_vertex():
-    """Seed 000 sec. 2c G(s) with the ZOH plant: stable at the env's dt, not at 1 ms."""
+    """Jahanpour et al.'s sec. 2c G(s) with the ZOH plant: stable at the env's dt, not at 1 ms."""
     control = pytest.importorskip("control")
     g = control.tf([22.36, 61.21], [0.0001, 1.326])
     dt = gym.make("VCNC-Heart-v1").unwrapped.dt

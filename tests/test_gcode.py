@@ -389,7 +389,7 @@ def test_bench_runs_programs_and_reports_iso230_4(monkeypatch, tmp_path, capsys)
         bench.main(["--program", str(tmp_path / "missing.nc"), "--no-progress"])
 
 
-def test_blends_are_seed_002s_smooth_polyline():
+def test_blends_are_simba_smooth_polyline():
     """The reader's blends (designs cached by angle) lie on smooth_polyline's path to 1e-7 mm and back."""
     from vcnc_gym.contour import ContourProjector
     from vcnc_gym.geometry.corners import smooth_polyline

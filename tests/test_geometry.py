@@ -1,9 +1,9 @@
-"""Tests of vcnc_gym.geometry: the NURBS evaluator and the seed's named shapes.
+"""Tests of vcnc_gym.geometry: the NURBS evaluator and the paper's named shapes.
 
 Oracles that are not the code under test: geomdl (points, first and second
 derivatives; its knots normalised to [0, 1] and its derivatives rescaled by
 the chain rule d/du = d/dv / (b - a)), scipy.integrate.quad (arc length, span
-by span), and the numbers printed in seed 000 section 3a.
+by span), and the numbers printed in Jahanpour et al.'s section 3a.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from scipy.integrate import quad
 
 from vcnc_gym.geometry import SHAPES, NurbsCurve, heart, omega
 
-# seed 000, section 3a, exactly as printed
+# Jahanpour et al. (2014), section 3a, exactly as printed
 HEART_X = [0, 0, -20, 40, 90, 40, -20, 0, 0]
 HEART_Y = [0, 10, 50, 50, 0, -50, -50, -10, 0]
 HEART_W = [1, 1, 1.7, 1, 4, 1, 1.7, 1, 1]
@@ -161,7 +161,7 @@ def test_shapes_registry_and_fresh_read_only_curves():
 
 
 def test_heart_traced_clockwise_from_origin():
-    """Seed 000 section 3b: the heart starts at the origin and runs clockwise (negative area)."""
+    """Jahanpour et al.'s section 3b: the heart starts at the origin and runs clockwise (negative area)."""
     c = heart()
     pts = c.points(np.linspace(0.0, 6.0, 4001))
     area = 0.5 * np.sum(pts[:-1, 0] * pts[1:, 1] - pts[1:, 0] * pts[:-1, 1])

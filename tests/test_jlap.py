@@ -1,9 +1,9 @@
-"""Jerk-limited feedrate planning, seed 002 section III (vcnc_gym.motion.jlap).
+"""Jerk-limited feedrate planning, Simba et al.'s section III (vcnc_gym.motion.jlap).
 
 Oracle that is not the code under test: ruckig, whose 1-DoF time-optimal
 jerk-limited trajectories (position and velocity interfaces) give the
 duration and the path of every straight section and feed change.  Also the
-seed 002 plant's parameter table (the limits' derivation) and the paper's
+parameter table of Simba et al.'s plant (the limits' derivation) and the paper's
 Table I gain k_P.
 """
 
@@ -20,16 +20,16 @@ from vcnc_gym.geometry.corners import blend_curvature, smooth_polyline
 from vcnc_gym.geometry.shapes import corners_vertices
 from vcnc_bench.reports.simba import corners_cycle_times
 from vcnc_gym.motion.jlap import (
-    SEED002_A_MAX,
-    SEED002_FEEDRATE,
-    SEED002_J_MAX,
+    SIMBA_A_MAX,
+    SIMBA_FEEDRATE,
+    SIMBA_J_MAX,
     JlapFeedrate,
     constant_feedrate,
     jlap_state,
     transition_time,
 )
 
-F, A, J = SEED002_FEEDRATE, SEED002_A_MAX, SEED002_J_MAX
+F, A, J = SIMBA_FEEDRATE, SIMBA_A_MAX, SIMBA_J_MAX
 TOL_T = 1e-9  # s: our durations against ruckig's
 TOL_S = 1e-9  # mm: our positions against ruckig's along a section
 
@@ -103,7 +103,7 @@ def check_against_ruckig(plan, feedrate, a_max, j_max):
 
 
 # --------------------------------------------------------------------------
-# seed 002's smoothed path
+# Simba et al.'s smoothed path
 # --------------------------------------------------------------------------
 
 
@@ -133,7 +133,7 @@ def test_corner_speed_held_over_each_corner_segment(path, plan):
 
 
 def test_cycle_time_against_the_linear_path(path, plan):
-    """Seed 002 section IV-C: the smoothed path takes longer than the sharp one at a constant 50 mm/s.
+    """Simba et al.'s section IV-C: the smoothed path takes longer than the sharp one at a constant 50 mm/s.
 
     The duration is also rebuilt from ruckig's section durations and the corner segments' times.
     """
@@ -232,9 +232,9 @@ def test_numba_kernel_evaluates_the_plan(plan):
     assert abs(np.sum(0.5 * (v[1:] + v[:-1]) * np.diff(t)) - plan.length) < 1e-6
 
 
-def test_limits_come_from_the_seed002_drives():
+def test_limits_come_from_simba_drives():
     """a_max <= 50 % of the weakest axis's worst-case acceleration at 50 mm/s; j_max ramps a_max in
-    no less than one natural period of the eq. (7) loop (k_P = 70 000 s^-2, seed 002 Table I)."""
+    no less than one natural period of the eq. (7) loop (k_P = 70 000 s^-2, Simba et al.'s Table I)."""
     from vcnc_gym.plants.current_feed_drive import PARAMETERS
 
     p = {q.name: q for q in PARAMETERS}

@@ -7,8 +7,8 @@ the reference's own parameters and on a dense grid of u with the arc length
 by the trapezoid rule (not the planner's grid or quadrature), geomdl and
 scipy's bounded minimisation for the omega's sharpest curvature, ruckig's
 time-optimal jerk-limited trajectories (straight line, circle, every section
-of the omega's plan), closed-form lower bounds on the cycle time, and seed
-000's plant table for the default limits.
+of the omega's plan), closed-form lower bounds on the cycle time, and Jahanpour
+et al.'s plant table for the default limits.
 """
 
 from __future__ import annotations
@@ -31,9 +31,9 @@ from vcnc_gym.motion import (
     SCurveFeedrate,
     interpolate,
 )
-from vcnc_gym.motion.lookahead import SEED000_FEEDRATE, SEED000_PATH_ACCELERATION, SEED000_PATH_JERK
+from vcnc_gym.motion.lookahead import JAHANPOUR2014_FEEDRATE, JAHANPOUR2014_PATH_ACCELERATION, JAHANPOUR2014_PATH_JERK
 
-F, A, J = SEED000_FEEDRATE, SEED000_PATH_ACCELERATION, SEED000_PATH_JERK
+F, A, J = JAHANPOUR2014_FEEDRATE, JAHANPOUR2014_PATH_ACCELERATION, JAHANPOUR2014_PATH_JERK
 DT = 1e-4  # s, the envs' control period
 # relative, on every limit at the reference's samples: eq. (8) puts C(u_k) within the step error
 # (< 0.002 V_peak dt here, a few nm) of where S(t_k) is along the path, so V(t_k) meets the curvature
@@ -92,7 +92,7 @@ def check_reference(curve: NurbsCurve, ref, feedrate, a_n, j_n, a_t, j_t):
 
 
 # --------------------------------------------------------------------------
-# the seed's contours
+# the paper's contours
 # --------------------------------------------------------------------------
 
 
@@ -155,7 +155,7 @@ def test_omega_corners_pass_at_their_feasible_speed(normal_jerk):
 
 
 def test_cycle_times_against_the_s_curve_and_lower_bounds():
-    """The look-ahead is slower than seed 000's S-curve (which ignores the curvature), and no faster
+    """The look-ahead is slower than Jahanpour et al.'s S-curve (which ignores the curvature), and no faster
     than two bounds any feed below v_lim must respect: int ds / v_lim, and the bidirectional
     acceleration-only scan (v^2 changes by at most 2 A_t ds)."""
     expected = {"omega": 0.986, "heart": 3.286}  # s, with the default limits (the S-curve: 0.631, 3.221)
@@ -211,7 +211,7 @@ def test_straight_line_is_the_plain_jerk_limited_profile(length):
 
 
 def test_circle_runs_at_its_constant_limit():
-    """Seed 003's 1 mm circle: kappa = 1/mm everywhere, v_lim = min(F, sqrt(A_n R), (J_n R^2)^(1/3)) =
+    """Purtojo et al.'s 1 mm circle: kappa = 1/mm everywhere, v_lim = min(F, sqrt(A_n R), (J_n R^2)^(1/3)) =
     31.07 mm/s, one rest-to-rest section below it (its rounding noise is not a string of minima)."""
     curve = circle(1.0)
     la = LookaheadFeedrate(curve)
@@ -234,8 +234,8 @@ def test_random_curves_within_the_limits():
         check_reference(curve, interpolate(curve, la, DT), 60.0, 800.0, 2e4, 1500.0, 5e4)
 
 
-def test_smoothed_corners_with_seed_002_limits():
-    """Seed 002's blended test path (accepted as its SmoothedPolyline) at seed 002's limits."""
+def test_smoothed_corners_with_simba_limits():
+    """Simba et al.'s blended test path (accepted as its SmoothedPolyline) at Simba et al.'s limits."""
     path = smooth_polyline(corners_vertices(), 0.05, 4000.0, 1.6e5)
     la = LookaheadFeedrate(path, 50.0, 4000.0, 1.6e5, 4000.0, 1.6e5)
     assert la.curve is path.curve
@@ -247,10 +247,10 @@ def test_smoothed_corners_with_seed_002_limits():
 # --------------------------------------------------------------------------
 
 
-def test_default_limits_from_seed_000s_drive():
+def test_default_limits_from_jahanpour_drive():
     """A: below what 5 V gives the weaker axis at 100 mm/s against friction at the worst vertex of the
     box (1262 mm/s^2), about half its nominal (2105); the braking deceleration (friction helping) gives
-    the issue's 1.9 mm stop from 100 mm/s.  J: A lambda / (2 pi), lambda of seed 000 Table 2's SMC."""
+    the issue's 1.9 mm stop from 100 mm/s.  J: A lambda / (2 pi), lambda of the SMC in Jahanpour et al.'s Table 2."""
     from baselines.feedback.smc import SMC_TABLE2
     from vcnc_gym.plants import vcnc_feed_drive as fd
 

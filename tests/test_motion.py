@@ -26,8 +26,8 @@ from vcnc_gym.geometry import NurbsCurve, heart, omega
 from vcnc_gym.motion import Reference, SCurveFeedrate, interpolate
 from vcnc_gym.motion.feedrate import scurve_acceleration, scurve_distance, scurve_velocity
 
-V_SEED = 100.0  # mm/s, seed 000 section 3
-TA_SEED = 0.12  # s, seed 000 section 3
+V_PAPER = 100.0  # mm/s, Jahanpour et al.'s section 3
+TA_PAPER = 0.12  # s, Jahanpour et al.'s section 3
 SHAPES = {"heart": heart, "omega": omega}
 CASES = [(s, dt) for s in SHAPES for dt in (1e-3, 1e-4)]
 
@@ -44,7 +44,7 @@ def curve(name: str) -> NurbsCurve:
 
 @functools.lru_cache(maxsize=None)
 def reference(name: str, dt: float) -> Reference:
-    return interpolate(curve(name), SCurveFeedrate(V_SEED, TA_SEED), dt)
+    return interpolate(curve(name), SCurveFeedrate(V_PAPER, TA_PAPER), dt)
 
 
 @functools.lru_cache(maxsize=None)
@@ -81,16 +81,16 @@ def geomdl_derivatives(name: str, us) -> np.ndarray:
 # --------------------------------------------------------------------------
 
 
-def test_seed_plan_numbers():
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(310.0)
-    assert plan.v_peak == V_SEED
-    assert plan.cruise_time == pytest.approx((310.0 - V_SEED * TA_SEED) / V_SEED, rel=1e-15)
-    assert plan.duration == pytest.approx(2 * TA_SEED + 2.98, rel=1e-15)
+def test_paper_plan_numbers():
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(310.0)
+    assert plan.v_peak == V_PAPER
+    assert plan.cruise_time == pytest.approx((310.0 - V_PAPER * TA_PAPER) / V_PAPER, rel=1e-15)
+    assert plan.duration == pytest.approx(2 * TA_PAPER + 2.98, rel=1e-15)
 
 
 @pytest.mark.parametrize("length", [310.0, 12.0, 5.0])
 def test_velocity_and_acceleration_continuous_at_phase_boundaries(length):
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(length)
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(length)
     ta, tc = plan.ramp_time, plan.cruise_time
     eps = 1e-9  # s
     for tb in (0.0, ta, ta + tc, 2 * ta + tc):
@@ -104,7 +104,7 @@ def test_velocity_and_acceleration_continuous_at_phase_boundaries(length):
 
 @pytest.mark.parametrize("length", [310.1146, 51.1434, 12.0, 5.0, 0.3])
 def test_integral_of_feed_is_length(length):
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(length)
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(length)
     ta, tc = plan.ramp_time, plan.cruise_time
     integral, _ = quad(plan.velocity, 0.0, plan.duration, points=[ta, ta + tc], epsabs=1e-12, limit=200)
     assert integral == pytest.approx(length, rel=1e-10)
@@ -131,7 +131,7 @@ def test_integral_of_feed_is_length_any_plan(feedrate, ramp_time, length):
 
 @pytest.mark.parametrize("length", [310.0, 5.0])
 def test_peak_acceleration_is_one_and_a_half_v_over_ta(length):
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(length)
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(length)
     res = minimize_scalar(lambda t: -plan.acceleration(t), bounds=(0.0, plan.ramp_time), method="bounded",
                           options={"xatol": 1e-10})
     assert -res.fun == pytest.approx(1.5 * plan.v_peak / plan.ramp_time, rel=1e-9)
@@ -146,26 +146,26 @@ def test_peak_acceleration_is_one_and_a_half_v_over_ta(length):
 
 
 def test_ramps_are_zero_acceleration_at_ends_and_cover_half_vta():
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(310.0)
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(310.0)
     for tb in (0.0, plan.ramp_time, plan.ramp_time + plan.cruise_time, plan.duration):
         assert plan.acceleration(tb) == pytest.approx(0.0, abs=1e-9)
-    assert plan.distance(plan.ramp_time) == pytest.approx(V_SEED * TA_SEED / 2, rel=1e-14)
-    assert plan.velocity(plan.ramp_time / 2) == pytest.approx(V_SEED / 2, rel=1e-14)
+    assert plan.distance(plan.ramp_time) == pytest.approx(V_PAPER * TA_PAPER / 2, rel=1e-14)
+    assert plan.velocity(plan.ramp_time / 2) == pytest.approx(V_PAPER / 2, rel=1e-14)
     assert plan.velocity(-1.0) == 0.0 and plan.velocity(plan.duration + 1e-9) == 0.0
 
 
 def test_short_path_lowers_peak_feed():
     length = 6.0  # mm < V T_a = 12 mm
-    profile = SCurveFeedrate(V_SEED, TA_SEED)
+    profile = SCurveFeedrate(V_PAPER, TA_PAPER)
     plan = profile.plan(length)
-    assert plan.v_peak == pytest.approx(length / TA_SEED, rel=1e-15)
+    assert plan.v_peak == pytest.approx(length / TA_PAPER, rel=1e-15)
     assert plan.cruise_time == 0.0
-    assert profile.duration(length) == pytest.approx(2 * TA_SEED, rel=1e-15)
+    assert profile.duration(length) == pytest.approx(2 * TA_PAPER, rel=1e-15)
     t = np.linspace(0.0, plan.duration, 10001)
-    assert np.max(plan.velocity(t)) == pytest.approx(length / TA_SEED, rel=1e-6)
+    assert np.max(plan.velocity(t)) == pytest.approx(length / TA_PAPER, rel=1e-6)
     # the long-path branch at exactly V T_a has no cruise and the full feed
-    edge = profile.plan(V_SEED * TA_SEED)
-    assert edge.v_peak == V_SEED and edge.cruise_time == 0.0
+    edge = profile.plan(V_PAPER * TA_PAPER)
+    assert edge.v_peak == V_PAPER and edge.cruise_time == 0.0
 
 
 def test_vectorised_equals_scalar_kernels():
@@ -286,7 +286,7 @@ def test_acceleration_is_dvdt_along_and_kappa_v2_across(name, dt):
     kappa = (c1[:, 0] * c2[:, 1] - c1[:, 1] * c2[:, 0]) / speed**3  # signed, 1/mm
     a = ref.acceleration[idx]
     v = ref.feedrate[idx]
-    scale = np.max(np.abs(kappa)) * V_SEED**2 + 1.5 * V_SEED / TA_SEED
+    scale = np.max(np.abs(kappa)) * V_PAPER**2 + 1.5 * V_PAPER / TA_PAPER
     np.testing.assert_allclose(np.sum(a * tangent, axis=1), ref.plan.acceleration(ref.t[idx]), atol=1e-9 * scale)
     np.testing.assert_allclose(np.sum(a * normal, axis=1), kappa * v**2, atol=1e-9 * scale)
 
@@ -311,7 +311,7 @@ def test_feedrate_fluctuation_small(name, dt):
 
 @pytest.mark.parametrize("name", SHAPES)
 def test_duration_and_end_gap(name):
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(quad_length(name))
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(quad_length(name))
     gaps = []
     for dt in (1e-3, 1e-4):
         ref = reference(name, dt)
@@ -329,7 +329,7 @@ def test_duration_and_end_gap(name):
 
 
 def test_interpolation_speed_heart_at_0p1_ms():
-    c, profile = curve("heart"), SCurveFeedrate(V_SEED, TA_SEED)
+    c, profile = curve("heart"), SCurveFeedrate(V_PAPER, TA_PAPER)
     interpolate(c, profile, 1e-4)  # compiled / loaded from cache
     best = min(_timed(lambda: interpolate(c, profile, 1e-4)) for _ in range(5))
     assert best < 0.1
@@ -343,8 +343,8 @@ def _timed(fn) -> float:
 
 def test_short_straight_path():
     line = NurbsCurve([[0.0, 0.0], [3.0, 4.0]], [1.0, 1.0], [0.0, 0.0, 1.0, 1.0], 1)
-    ref = interpolate(line, SCurveFeedrate(V_SEED, TA_SEED), 1e-4)
-    assert ref.plan.v_peak == pytest.approx(5.0 / TA_SEED, rel=1e-12)
+    ref = interpolate(line, SCurveFeedrate(V_PAPER, TA_PAPER), 1e-4)
+    assert ref.plan.v_peak == pytest.approx(5.0 / TA_PAPER, rel=1e-12)
     assert ref.u[-1] == 1.0
     np.testing.assert_allclose(ref.position[-1], [3.0, 4.0], atol=0)
     assert abs(ref.end_gap) < 1e-6
@@ -362,7 +362,7 @@ def test_step_past_the_end_is_clamped():
     from vcnc_gym.motion.interpolator import taylor_interpolate_kernel
 
     c = curve("omega")
-    plan = SCurveFeedrate(V_SEED, TA_SEED).plan(1.01 * c.arc_length())
+    plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(1.01 * c.arc_length())
     dt = 1e-4
     k_max = int(math.ceil(plan.duration / dt)) + 2
     t, u, feed = (np.empty(k_max) for _ in range(3))

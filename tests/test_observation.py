@@ -22,7 +22,7 @@ def _check_fields(env, n_steps=400):
     prev_pos = None
     prev_measured = None
     shop = getattr(u.plant, "inner", None) is not None  # on the shop floor (vcnc_gym.plants.shop_floor)
-    sensor_error = 0.5e-3  # seed 003's 1 um encoder; a shop-floor sensor's half count plus 6 sigma of noise
+    sensor_error = 0.5e-3  # Purtojo et al.'s 1 um encoder; a shop-floor sensor's half count plus 6 sigma of noise
     if shop:
         p = u.plant.nominal()[0]
         sensor_error = 0.5 * p[u.plant.index("encoder_resolution")] + 6.0 * p[u.plant.index("noise_std")]
@@ -37,7 +37,7 @@ def _check_fields(env, n_steps=400):
         np.testing.assert_array_equal(lay.reference_position(obs), f32(info["reference_position"]))
         np.testing.assert_array_equal(lay.reference_velocity(obs), f32(ref[k, 2:4]))
         np.testing.assert_array_equal(lay.reference_acceleration(obs), f32(ref[k, 4:6]))
-        # the observation sees the sensor (quantised on seed 003's table); info's tracking error is the truth
+        # the observation sees the sensor (quantised on Purtojo et al.'s table); info's tracking error is the truth
         measured_error = info["reference_position"] - info["measured_position"]
         np.testing.assert_array_equal(lay.tracking_error(obs), f32(measured_error))
         assert np.all(np.abs(info["measured_position"] - info["position"]) <= sensor_error + 1e-12)

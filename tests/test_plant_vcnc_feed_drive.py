@@ -1,8 +1,8 @@
-"""Tests of seed 000's biaxial feed drive (vcnc_gym.plants.vcnc_feed_drive).
+"""Tests of Jahanpour et al.'s biaxial feed drive (vcnc_gym.plants.vcnc_feed_drive).
 
 Independent references: python-control's ZOH discretisation of eq. (1) for
 the linear part, closed-form solutions of J w' = T - B w for friction, the
-play operator's definition for backlash, and the numbers of seed 000,
+play operator's definition for backlash, and the numbers of Jahanpour et al. (2014),
 section 2c and Table 3, typed in again here.
 """
 
@@ -51,7 +51,7 @@ def k_motor(params, axis):
 # ---------------------------------------------------------------- numbers
 
 
-def test_numbers_match_seed_000():
+def test_numbers_match_jahanpour2014():
     p = fd.nominal_parameters()
     d = fd.parameters_to_dict(p)
     # section 2c midpoints

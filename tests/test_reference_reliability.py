@@ -349,9 +349,9 @@ def test_issue_stalled_reference_is_corrected():
     assert abs(ref.end_gap) <= 0.1 * ref.plan.v_peak * ref.dt
 
 
-def test_seed_contours_are_not_corrected():
-    """Eq. (8) alone meets the tolerance on the seed's contours (largest step error
-    0.06 V_peak dt, the omega's last step at 1 ms): their figures are the seed method's."""
+def test_paper_contours_are_not_corrected():
+    """Eq. (8) alone meets the tolerance on the paper's contours (largest step error
+    0.06 V_peak dt, the omega's last step at 1 ms): their figures are those of the paper's method."""
     for make, dt, expected in ((heart, 1e-3, 6.1e-3), (heart, 1e-4, 6.1e-4), (omega, 1e-3, 5.95e-2),
                                (omega, 1e-4, 1.42e-2)):
         ref = interpolate(make(), SCurveFeedrate(), dt)

@@ -10,8 +10,8 @@ figures beside ours (:mod:`vcnc_bench.papers`)::
 
 With ``--plants N`` every policy runs instead on N plants drawn uniformly
 from the env's uncertainty box (``--plant-seed S``, default 0), plus the
-box's vertices when it has at most 64 (seed 000's feed drive: 64, seed
-001's and 003's tables: 16; seed 002's drive has 256: none), all plants of
+box's vertices when it has at most 64 (Jahanpour et al.'s feed drive: 64,
+Yadav et al.'s and Purtojo et al.'s tables: 16; Simba et al.'s drive has 256: none), all plants of
 an env in one batch: one call of the env's compiled vector kernel and one
 batched ``predict`` per step (the positioning env, which has no vector env:
 a batch of single envs; :mod:`vcnc_bench.robust`).  The table gives per env
@@ -101,7 +101,7 @@ def _cell(value, fmt: str) -> str:
 
 
 def format_table(records: list[dict], columns: list | None = None) -> str:
-    """The records as a fixed-width table in the shape of seed 000's Table 4 (errors in um); ``columns``
+    """The records as a fixed-width table in the shape of Jahanpour et al.'s Table 4 (errors in um); ``columns``
     (header, width, record key, format) default to the ordinary bench's."""
     columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key in ("env", "policy") else w, key, fmt)
                for h, w, key, fmt in (columns or _COLUMNS)]

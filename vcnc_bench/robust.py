@@ -8,8 +8,8 @@ Which plants (:func:`plant_set`)
   seed, so the heart and the omega meet the same machines);
 - the box's **vertices** (``PlantModel.vertices``) when there are at most
   :data:`MAX_VERTICES` of them, i.e. at most 6 uncertain coordinates
-  (seed 000's feed drive: 6 -> 64 vertices, seed 001's and seed 003's
-  tables: 4 -> 16; seed 002's drive has 8 -> 256, none).
+  (Jahanpour et al.'s feed drive: 6 -> 64 vertices, Yadav et al.'s and Purtojo et al.'s
+  tables: 4 -> 16; Simba et al.'s drive has 8 -> 256, none).
 
 How they run (:func:`run_plants`)
 ---------------------------------

@@ -1,6 +1,6 @@
-"""The contouring controller of seed 002, eqs. (2)-(7): feedback linearisation in the path frame.
+"""The contouring controller of Simba et al., eqs. (2)-(7): feedback linearisation in the path frame.
 
-Seed 002 (Simba et al.) controls its current-driven feed drives, eq. (1)
+Simba et al. control their current-driven feed drives, eq. (1)
 (:mod:`vcnc_gym.plants.current_feed_drive`), in two layers.
 
 **Feedback linearisation**, eqs. (4)-(6): the current
@@ -71,7 +71,7 @@ from ..base import BaselinePolicy
 
 __all__ = ["TABLE_I_FB", "MIN_SPEED", "ContouringFBPolicy", "contouring_feedback"]
 
-#: Seed 002, Table I: feedback gains (both axes), as accelerations: k_P 1/s^2, k_D 1/s.
+#: Simba et al., Table I: feedback gains (both axes), as accelerations: k_P 1/s^2, k_D 1/s.
 TABLE_I_FB = {"k_p": 70000.0, "k_d": 240.0}
 
 #: Reference speed in mm/s below which the path angle is not taken from the
@@ -139,7 +139,7 @@ def contouring_feedback(obs, offsets, memory, k_p, k_d, dt, fb, frame):
 
 
 class ContouringFBPolicy(BaselinePolicy):
-    """Seed 002's contouring controller, eq. (7), with feedback linearisation, eq. (5).
+    """Simba et al.'s contouring controller, eq. (7), with feedback linearisation, eq. (5).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
-"""The fuzzy controller (FC) of seed 000: Table 1's 7x7 rule base on error and error change.
+"""The fuzzy controller (FC) of Jahanpour et al. (2014): Table 1's 7x7 rule base on error and error change.
 
-Seed 000 gives, for both axes, only the rule base (Table 1): seven linguistic
+Jahanpour et al. (2014) give, for both axes, only the rule base (Table 1): seven linguistic
 values NL, NM, NS, Z, PS, PM, PL on the error, the error change and the
 output, with the output label of rule (error i, change j) equal to the label
 index i + j clipped to NL..PL (the Mac Vicar-Whelan table).  Everything else
@@ -30,9 +30,9 @@ corresponds to D * T in mm.
 Scalings (:class:`FuzzyScaling`), chosen for this plant, not fitted to the paper
 -------------------------------------------------------------------------------
 The FC has no integral and no feedforward (the paper's FC has neither), so
-the error itself must produce the steady command.  At 100 mm/s (the seed's
+the error itself must produce the steady command.  At 100 mm/s (the paper's
 feed) the x axis needs c v + T_coul/(K_t K_a), about 0.4 V + 0.7 V = 1.1 V
-(seed 000 Table 3 friction, nominal B), plus m a, about 1.6 mV per mm/s^2,
+(Jahanpour et al. (2014), Table 3 friction, nominal B), plus m a, about 1.6 mV per mm/s^2,
 on the S-curve ramps and around corners.  Because the table is linear in
 i + j and neighbouring sets cross at 0.5, the inference surface is close to
 u = U clip(e/E + e_dot/D, -1, 1); with min/max/centroid its slope at the
@@ -82,7 +82,7 @@ __all__ = [
 #: Linguistic values, in order of their index -3..3.
 LABELS = ("NL", "NM", "NS", "Z", "PS", "PM", "PL")
 
-#: Seed 000, Table 1: output label; rows error change NL..PL, columns error NL..PL.
+#: Jahanpour et al. (2014), Table 1: output label; rows error change NL..PL, columns error NL..PL.
 _TABLE1 = """
 NL NL NL NL NM NS Z
 NL NL NL NM NS Z  PS
@@ -216,7 +216,7 @@ def fuzzy_infer(e_n, de_n, rules, centres, half_width, grid, out):
 
 
 class FuzzyPolicy(BaselinePolicy):
-    """Fuzzy PD-type controller of seed 000 (Table 1 rules), per axis.
+    """Fuzzy PD-type controller of Jahanpour et al. (2014) (Table 1 rules), per axis.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
-"""The fuzzy-based NCTF controller of seed 003, built the paper's way.
+"""The fuzzy-based NCTF controller of Purtojo et al., built the paper's way.
 
-Seed 003 (Purtojo, Rochardjo, Nugroho and Herianto) controls each axis of an
+Purtojo, Rochardjo, Nugroho and Herianto (Purtojo et al.) control each axis of an
 X-Y table with a nominal characteristic trajectory following (NCTF)
 controller whose PI compensator is replaced by a 3x3 Mamdani fuzzy
 compensator.  The design has three steps (section II, after its refs. [8],
@@ -86,7 +86,7 @@ What the paper leaves out, chosen here (:class:`NCTFSettings`, :data:`OUTPUT_POI
   velocity window (``velocity_window`` = 50 ms: the 1 um sensor then
   resolves 0.02 mm/s, 0.04 % of ``h_max``).
 * The sample period of the experiment and of the controller: the env's
-  decision period (seed 003 gives none).
+  decision period (Purtojo et al. give none).
 
 Everything is computed from the nominal plant the env declares; no number of
 the paper's results is used.
@@ -126,7 +126,7 @@ __all__ = [
 #: Linguistic values of every variable, index 0..2.
 LABELS = ("N", "Z", "P")
 
-#: Seed 003, Table I: output label index for (u_p label, u_i label), ``RULE_TABLE[u_p, u_i]``.
+#: Purtojo et al., Table I: output label index for (u_p label, u_i label), ``RULE_TABLE[u_p, u_i]``.
 RULE_TABLE = np.array([[0, 0, 1],
                        [0, 1, 2],
                        [1, 2, 2]], dtype=np.int64)
@@ -137,7 +137,7 @@ OUTPUT_POINTS = 101
 
 @dataclass(frozen=True)
 class NCTFSettings:
-    """The values seed 003 leaves out, in one place (see the module docstring).
+    """The values Purtojo et al. leave out, in one place (see the module docstring).
 
     Parameters
     ----------
@@ -227,7 +227,7 @@ def _run_open_loop(plant, commands, out):
 
 def stepwise_experiment(parameters=None, dt: float = 1e-3, settings: NCTFSettings = DEFAULT_SETTINGS,
                         plant="nct_xy_table") -> StepwiseExperiment:
-    """Run the open-loop stepwise experiment of seed 003, section III, on both axes.
+    """Run the open-loop stepwise experiment of Purtojo et al., section III, on both axes.
 
     Parameters
     ----------
@@ -238,7 +238,7 @@ def stepwise_experiment(parameters=None, dt: float = 1e-3, settings: NCTFSetting
     settings : NCTFSettings
         ``on_time`` and ``off_time``, s.
     plant : str or PlantModel
-        The plant module (seed 003's ``"nct_xy_table"``).
+        The plant module (Purtojo et al.'s ``"nct_xy_table"``).
 
     Returns
     -------
@@ -270,7 +270,7 @@ def stepwise_experiment(parameters=None, dt: float = 1e-3, settings: NCTFSetting
 
 @dataclass(frozen=True)
 class NominalCharacteristicTrajectory:
-    """The NCT of one axis (seed 003, Fig. 1(b)) and the data it was read from.
+    """The NCT of one axis (Purtojo et al., Fig. 1(b)) and the data it was read from.
 
     Attributes
     ----------
@@ -364,7 +364,7 @@ def construct_nct(experiment: StepwiseExperiment, axis: int,
 
 @dataclass(frozen=True)
 class FuzzyCompensator:
-    """Membership design of one axis's fuzzy compensator (seed 003, section II-B).
+    """Membership design of one axis's fuzzy compensator (Purtojo et al., section II-B).
 
     Attributes
     ----------
@@ -591,7 +591,7 @@ def _nctf_step(e, e_dot, m, h_max, k_i, T, u_i_max, h_s_res, u_i_s_res, integral
 
 
 class NCTFPolicy(BaselinePolicy):
-    """Fuzzy-based NCTF controller of seed 003 (Fig. 1(a), Table I, eqs. (1)-(2)), per axis.
+    """Fuzzy-based NCTF controller of Purtojo et al. (Fig. 1(a), Table I, eqs. (1)-(2)), per axis.
 
     At construction the controller is designed the paper's way on the
     env's nominal plant: :func:`stepwise_experiment` at the decision
@@ -605,7 +605,7 @@ class NCTFPolicy(BaselinePolicy):
         Period in s at which :meth:`predict` is called; also the
         experiment's sample period.
     nominal_parameters : array_like, (2, P)
-        The nominal table (seed 003's ``nct_xy_table`` parameters).
+        The nominal table (Purtojo et al.'s ``nct_xy_table`` parameters).
     plant : str or PlantModel, optional
         ``"nct_xy_table"``.
     integral_gain, on_time, off_time, fit_fraction, velocity_window, zero_rate :
@@ -677,7 +677,7 @@ class NCTFPolicy(BaselinePolicy):
 
 
 def main(argv=None) -> int:
-    """The NCTF design on seed 003's nominal table and its circle figures, printed.
+    """The NCTF design on Purtojo et al.'s nominal table and its circle figures, printed.
 
     ``python -c "import baselines.feedback.nctf as m; m.main()" [--omega W] [--dt T] [--zero-rate nct|sample] [--plot PNG]``
     """
@@ -693,7 +693,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     model = get_plant("nct_xy_table")
     policy = NCTFPolicy(cr.circle_layout(), args.dt, model.nominal(), zero_rate=args.zero_rate)
-    print(f"NCTF design at T = {args.dt:g} s (stepwise experiment on the nominal table, seed 003 eq. (4)):")
+    print(f"NCTF design at T = {args.dt:g} s (stepwise experiment on the nominal table, Purtojo et al.'s eq. (4)):")
     for axis, (n, c) in enumerate(zip(policy.nct, policy.compensators)):
         K, alpha = n.model()
         print(f"  {'xy'[axis]}: h_max {n.h_max:.3f} mm/s, A {n.A:.3f} mm, m {n.m:.4f} 1/s -> eq. (3): K {K:.2f}, "

@@ -1,6 +1,6 @@
-"""Seed 001's controllers as transfer functions: robust PI, IMC and H-infinity.
+"""Yadav et al.'s controllers as transfer functions: robust PI, IMC and H-infinity.
 
-Seed 001 (Yadav, Pathak and Gaur, 2020) designs three unity-feedback
+Yadav, Pathak and Gaur (2020) design three unity-feedback
 controllers ``u = C(s) (r - x)`` for the CNCMT axis of eq. (2),
 ``G(s) = 4.85 / (s (s + 9.7)) e^{-0.1 s}`` (x in m, u in V):
 
@@ -16,7 +16,7 @@ controllers ``u = C(s) (r - x)`` for the CNCMT axis of eq. (2),
   eq. (28) (weights of eq. (27), MATLAB ``hinfopt``);
 - ``"hinf-reduced"``: its first-order reduction, eq. (29), ``20.97 / (s + 5.5)``.
 
-:data:`SEED_CONTROLLERS` holds the coefficients as printed, in the seed's V/m;
+:data:`PAPER_CONTROLLERS` holds the coefficients as printed, in the paper's V/m;
 :func:`controller_tf` returns the python-control transfer function in V/mm,
 the suite's unit (divided by :data:`~vcnc_gym.plants.cncmt_axis.METRE`).
 Every other use (policies, analysis) goes through :func:`controller_tf`.
@@ -32,7 +32,7 @@ import numpy as np
 from vcnc_gym.plants.cncmt_axis import METRE, SEED_NOMINAL
 
 __all__ = [
-    "SEED_CONTROLLERS",
+    "PAPER_CONTROLLERS",
     "CONTROLLER_SOURCES",
     "controller_names",
     "controller_tf",
@@ -40,31 +40,31 @@ __all__ = [
     "robust_pi_gains",
 ]
 
-#: Seed 001's controllers as printed: (numerator, denominator), highest power
-#: of s first, in V/m (the seed's length unit).
-SEED_CONTROLLERS: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {
+#: Yadav et al.'s controllers as printed: (numerator, denominator), highest power
+#: of s first, in V/m (the paper's length unit).
+PAPER_CONTROLLERS: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {
     "pi": ((38.33, 45.65), (1.0, 0.0)),
     "imc": ((0.21, 2.0), (1.0, 2.0)),
     "hinf": ((20.12, 197.2, 19.52, 2.72e-13), (1.0, 14.23, 54.16, 5.879, 0.05339)),
     "hinf-reduced": ((20.97,), (1.0, 5.5)),
 }
 
-#: Where each controller is printed in seed 001.
+#: Where each controller is printed in Yadav et al. (2020).
 CONTROLLER_SOURCES = {
-    "pi": "seed 001, section 3.2 (K_P = 38.33, K_I = 45.65)",
-    "imc": "seed 001, eq. (23) (lambda = 2, mu = 1)",
-    "hinf": "seed 001, eq. (28)",
-    "hinf-reduced": "seed 001, eq. (29)",
+    "pi": "Yadav et al. (2020), section 3.2 (K_P = 38.33, K_I = 45.65)",
+    "imc": "Yadav et al. (2020), eq. (23) (lambda = 2, mu = 1)",
+    "hinf": "Yadav et al. (2020), eq. (28)",
+    "hinf-reduced": "Yadav et al. (2020), eq. (29)",
 }
 
 
 def controller_names() -> list[str]:
-    """The names of seed 001's controllers."""
-    return list(SEED_CONTROLLERS)
+    """The names of Yadav et al.'s controllers."""
+    return list(PAPER_CONTROLLERS)
 
 
 def controller_tf(name: str, unit: str = "mm") -> control.TransferFunction:
-    """Seed 001's controller ``name`` as a continuous python-control transfer function.
+    """Yadav et al.'s controller ``name`` as a continuous python-control transfer function.
 
     Parameters
     ----------
@@ -72,30 +72,31 @@ def controller_tf(name: str, unit: str = "mm") -> control.TransferFunction:
         One of :func:`controller_names`: "pi", "imc", "hinf", "hinf-reduced".
     unit : str
         Length unit of the error it acts on: "mm" (the suite's; V/mm) or "m"
-        (the seed's; V/m).
+        (the paper's; V/m).
 
     Raises
     ------
     ValueError
         For an unknown controller or unit.
     """
-    if not isinstance(name, str) or name not in SEED_CONTROLLERS:
-        raise ValueError(f"unknown seed 001 controller {name!r}; known controllers are {controller_names()}")
+    if not isinstance(name, str) or name not in PAPER_CONTROLLERS:
+        raise ValueError(f"unknown controller of Yadav et al. (2020) {name!r}; "
+                         f"known controllers are {controller_names()}")
     if unit not in ("mm", "m"):
         raise ValueError(f"unit must be 'mm' (C in V/mm) or 'm' (C in V/m), got {unit!r}")
-    num, den = SEED_CONTROLLERS[name]
+    num, den = PAPER_CONTROLLERS[name]
     scale = 1.0 / METRE if unit == "mm" else 1.0
     return control.tf([scale * c for c in num], list(den))
 
 
 def imc_controller(mu: float = 1.0, lam: int = 2, a: float = SEED_NOMINAL["a"],
                    b: float = SEED_NOMINAL["b"]) -> control.TransferFunction:
-    """The IMC controller of seed 001, eqs. (21)-(22), for ``G(s) = b / (s (s + a))``.
+    """The IMC controller of Yadav et al. (2020), eqs. (21)-(22), for ``G(s) = b / (s (s + a))``.
 
     ``Q = G^-1 / (mu s + 1)^lambda`` and ``C = Q / (1 - G Q)``, which is
     ``C = s (s + a) / (b ((mu s + 1)^lambda - 1))``; the common factor ``s``
     (``(mu s + 1)^lambda - 1`` has no constant term) is cancelled exactly.
-    With the seed's ``lambda = 2``, ``mu = 1`` and eq. (2)'s ``a = 9.7``,
+    With the paper's ``lambda = 2``, ``mu = 1`` and eq. (2)'s ``a = 9.7``,
     ``b = 4.85`` this is ``(s + 9.7) / (4.85 s + 9.7) = (0.2062 s + 2) / (s + 2)``,
     eq. (23) printed with ``1 / 4.85`` rounded to 0.21.
 
@@ -130,7 +131,7 @@ def imc_controller(mu: float = 1.0, lam: int = 2, a: float = SEED_NOMINAL["a"],
 
 def robust_pi_gains(gain_margin_db: float = 10.0, phase_margin_deg: float = 60.0, alpha_1: float = 7.5,
                     b_low: float = 3.0, b_high: float = 6.0, ratio_digits: int | None = None) -> tuple[float, float]:
-    """K_P and K_I of seed 001's robust PI design, eqs. (17)-(19).
+    """K_P and K_I of Yadav et al.'s robust PI design, eqs. (17)-(19).
 
     On Kharitonov's worst polynomial ``p_3 = s^3 + alpha_1 s^2 + b_low K_P s
     + b_high K_I`` the gain margin of eq. (11), ``alpha_1 alpha_2 / beta_3``,
@@ -145,13 +146,13 @@ def robust_pi_gains(gain_margin_db: float = 10.0, phase_margin_deg: float = 60.0
         The plant's interval bounds (7.5 1/s; 3 and 6 m/(V s^2)), section 3.5.
     ratio_digits : int, optional
         Round ``K_P / K_I`` to this many decimals before eq. (19), as the
-        seed does (``K_P = 0.84 K_I``; ``ratio_digits=2``).
+        paper does (``K_P = 0.84 K_I``; ``ratio_digits=2``).
 
     Returns
     -------
     (K_P, K_I) : (float, float)
         In V/m and V/(m s).  Exact: (38.05, 45.12); with ``ratio_digits=2``:
-        (38.33, 45.63), the seed's 38.33 and 45.65.
+        (38.33, 45.63), the paper's 38.33 and 45.65.
     """
     ratio = b_high * 10.0 ** (gain_margin_db / 20.0) / (alpha_1 * b_low)  # eq. (18)
     if ratio_digits is not None:

@@ -1,6 +1,6 @@
-"""Seed 001's controllers as policies with Stable-Baselines3's ``predict``, on :class:`PositioningEnv`.
+"""Yadav et al.'s controllers as policies with Stable-Baselines3's ``predict``, on :class:`PositioningEnv`.
 
-Each axis runs the unity-feedback loop of seed 001 (Figs. 3(b) and 4(b)),
+Each axis runs the unity-feedback loop of Yadav et al. (2020) (Figs. 3(b) and 4(b)),
 
     u = C(z) e,    e = r - x    (mm -> V),
 
@@ -20,11 +20,11 @@ from ..base import BaselinePolicy
 from ..linear import DiscreteLTI, discretize
 from .pi_imc_hinf import CONTROLLER_SOURCES, controller_tf
 
-__all__ = ["Seed001Policy", "PIPolicy", "IMCPolicy", "HinfPolicy", "HinfReducedPolicy"]
+__all__ = ["Yadav2020Policy", "PIPolicy", "IMCPolicy", "HinfPolicy", "HinfReducedPolicy"]
 
 
-class Seed001Policy(BaselinePolicy):
-    """One of seed 001's controllers, per axis, on the CNCMT axis of eq. (2); subclasses name it.
+class Yadav2020Policy(BaselinePolicy):
+    """One of Yadav et al.'s controllers, per axis, on the CNCMT axis of eq. (2); subclasses name it.
 
     Parameters
     ----------
@@ -40,7 +40,7 @@ class Seed001Policy(BaselinePolicy):
         Discretisation method of :func:`control.c2d` (default ``"tustin"``).
     """
 
-    name = "seed001"
+    name = "yadav2020"
     plants = ("cncmt_axis",)
     @property
     def controller_name(self) -> str:
@@ -53,7 +53,7 @@ class Seed001Policy(BaselinePolicy):
         try:
             layout.slice("position_error")
         except KeyError:
-            raise ValueError("seed 001's controllers need an observation with a 'position_error' field "
+            raise ValueError("Yadav et al.'s controllers need an observation with a 'position_error' field "
                              "(the PositioningEnv, e.g. VCNC-Step-v0)") from None
         self.continuous = controller_tf(self.controller_name)  # ValueError for an unknown name
         self.source = CONTROLLER_SOURCES[self.controller_name]
@@ -72,25 +72,25 @@ class Seed001Policy(BaselinePolicy):
         return f"{type(self).__name__}({self.controller_name!r}, decision_period={self.decision_period:g} s)"
 
 
-class PIPolicy(Seed001Policy):
-    """Robust PI, ``K_P + K_I / s`` with K_P = 38.33 V/m, K_I = 45.65 V/(m s) (seed 001, section 3.2)."""
+class PIPolicy(Yadav2020Policy):
+    """Robust PI, ``K_P + K_I / s`` with K_P = 38.33 V/m, K_I = 45.65 V/(m s) (Yadav et al. (2020), section 3.2)."""
 
     name = "pi"
 
 
-class IMCPolicy(Seed001Policy):
-    """IMC, ``(0.21 s + 2) / (s + 2)`` V/m (seed 001, eq. (23))."""
+class IMCPolicy(Yadav2020Policy):
+    """IMC, ``(0.21 s + 2) / (s + 2)`` V/m (Yadav et al. (2020), eq. (23))."""
 
     name = "imc"
 
 
-class HinfPolicy(Seed001Policy):
-    """Fourth-order H-infinity controller (seed 001, eq. (28))."""
+class HinfPolicy(Yadav2020Policy):
+    """Fourth-order H-infinity controller (Yadav et al. (2020), eq. (28))."""
 
     name = "hinf"
 
 
-class HinfReducedPolicy(Seed001Policy):
-    """First-order reduced H-infinity controller, ``20.97 / (s + 5.5)`` V/m (seed 001, eq. (29))."""
+class HinfReducedPolicy(Yadav2020Policy):
+    """First-order reduced H-infinity controller, ``20.97 / (s + 5.5)`` V/m (Yadav et al. (2020), eq. (29))."""
 
     name = "hinf-reduced"

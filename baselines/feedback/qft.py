@@ -1,6 +1,6 @@
-"""The robust QFT controller of seed 000, section 2c, and its robustness checks.
+"""The robust QFT controller of Jahanpour et al. (2014), section 2c, and its robustness checks.
 
-Seed 000 (Jahanpour, Honari-Torshizi and Gharib, 2014) designs, for both axes,
+Jahanpour, Honari-Torshizi and Gharib (2014) design, for both axes,
 a two-degree-of-freedom loop (its Fig. 3)
 
 .. math::
@@ -69,7 +69,7 @@ omega_n = 93.4 rad/s: the table lags the command by F's delay,
 path of curvature radius R the filtered path cuts inside by about
 v^2 / (R omega_n^2), so the QFT's contour error is dominated by F (about
 0.2 mm on the heart at 100 mm/s; with F = 1 the same G gives about 16 um).
-This is the seed's design as published, kept as is.
+This is the paper's design as published, kept as is.
 """
 
 from __future__ import annotations
@@ -105,11 +105,11 @@ __all__ = [
     "sampled_loop_stable",
 ]
 
-#: G(s) of seed 000, section 2c, (numerator, denominator), highest power first; V/mm.
+#: G(s) of Jahanpour et al. (2014), section 2c, (numerator, denominator), highest power first; V/mm.
 QFT_CONTROLLER = ((22.36, 61.21), (0.0001, 1.326))
-#: F(s) of seed 000, section 2c, (numerator, denominator); dimensionless, F(0) = 1.
+#: F(s) of Jahanpour et al. (2014), section 2c, (numerator, denominator); dimensionless, F(0) = 1.
 QFT_PREFILTER = ((8.72,), (0.001, 0.187, 8.72))
-#: Robust-stability bound mu of seed 000, eq. (11).
+#: Robust-stability bound mu of Jahanpour et al. (2014), eq. (11).
 MU = 1.2
 
 
@@ -138,12 +138,12 @@ def _as_tf(name: str, value) -> control.TransferFunction:
 
 
 def controller_tf(controller=QFT_CONTROLLER) -> control.TransferFunction:
-    """The feedback controller G(s) in V/mm (seed 000, section 2c)."""
+    """The feedback controller G(s) in V/mm (Jahanpour et al. (2014), section 2c)."""
     return _as_tf("controller", controller)
 
 
 def prefilter_tf(prefilter=QFT_PREFILTER) -> control.TransferFunction:
-    """The pre-filter F(s) (seed 000, section 2c); checked stable with F(0) = 1.
+    """The pre-filter F(s) (Jahanpour et al. (2014), section 2c); checked stable with F(0) = 1.
 
     Raises
     ------
@@ -166,7 +166,7 @@ def reference_velocity_filter_tf(prefilter=QFT_PREFILTER) -> control.TransferFun
     """H(s) = (F(s) - 1)/s in s, the filter applied to the reference velocity.
 
     With F = n/d and F(0) = 1, n - d has no constant term, so it divides by s
-    exactly: H = ((n - d)/s)/d.  For the seed's F,
+    exactly: H = ((n - d)/s)/d.  For the paper's F,
     H(s) = -(0.001 s + 0.187)/(0.001 s^2 + 0.187 s + 8.72).
     """
     F = prefilter_tf(prefilter)
@@ -178,7 +178,7 @@ def reference_velocity_filter_tf(prefilter=QFT_PREFILTER) -> control.TransferFun
 
 # -- the policy ----------------------------------------------------------------
 class QFTPolicy(BaselinePolicy):
-    """QFT two-degree-of-freedom controller of seed 000, section 2c, per axis.
+    """QFT two-degree-of-freedom controller of Jahanpour et al. (2014), section 2c, per axis.
 
     Parameters
     ----------
@@ -191,10 +191,10 @@ class QFTPolicy(BaselinePolicy):
         Nominal feed-drive parameters; ``u_max`` (V) scales the action and the
         nominal plant is used to warn when the sampled loop is unstable.
     controller : (num, den) or control.TransferFunction
-        G(s) in V/mm, coefficients highest power first.  Default: seed 000's
+        G(s) in V/mm, coefficients highest power first.  Default: Jahanpour et al.'s
         G(s) = (22.36 s + 61.21)/(0.0001 s + 1.326), used on both axes.
     prefilter : (num, den) or control.TransferFunction
-        F(s), stable with F(0) = 1.  Default: seed 000's
+        F(s), stable with F(0) = 1.  Default: Jahanpour et al.'s
         F(s) = 8.72/(0.001 s^2 + 0.187 s + 8.72).
     method : str
         Discretisation method of :func:`control.c2d` for G and H
@@ -293,7 +293,7 @@ def plant_parameter_sets(axis: int, n_grid: int = 5, vertices=None) -> np.ndarra
         Grid points per uncertain parameter, end points included (0: vertices only).
     vertices : array_like, (V, 2, P), optional
         Vertices of the uncertainty box; default the plant's 64 vertices
-        (seed 000, section 2c: r_g, K_t, K_ax, K_ay, B_x, B_y).
+        (Jahanpour et al. (2014), section 2c: r_g, K_t, K_ax, K_ay, B_x, B_y).
 
     Returns
     -------
@@ -354,12 +354,12 @@ def _complementary_sensitivity(num, den, omega, dt):
 
 def robust_stability_peak(G=QFT_CONTROLLER, axis=0, dt=None, *, n_grid: int = 5, vertices=None,
                           omega=None, method: str = "tustin", full_output: bool = False):
-    """Worst-case peak of |P G / (1 + P G)| over the uncertainty box, seed 000 eq. (11).
+    """Worst-case peak of |P G / (1 + P G)| over the uncertainty box, Jahanpour et al.'s eq. (11).
 
     Parameters
     ----------
     G : (num, den) or control.TransferFunction
-        Continuous controller G(s) in V/mm; default seed 000's.
+        Continuous controller G(s) in V/mm; default Jahanpour et al.'s.
     axis : int or {"x", "y"}
         The feed-drive axis.
     dt : float, optional
@@ -423,14 +423,14 @@ def sampled_loop_spectral_radius(G=QFT_CONTROLLER, axis=0, dt=1e-4, *, parameter
                                  method: str = "tustin") -> float:
     """Largest closed-loop pole modulus |z| of the sampled loop over a plant set.
 
-    The loop is the ZOH-discretised plant P(z) (seed 000 eq. (1)) in unity
+    The loop is the ZOH-discretised plant P(z) (Jahanpour et al. (2014), eq. (1)) in unity
     feedback with G discretised by ``method`` at ``dt``; the poles are those
     of :func:`control.feedback` (P G, 1).
 
     Parameters
     ----------
     G : (num, den) or control.TransferFunction
-        Continuous controller in V/mm; default seed 000's G(s).
+        Continuous controller in V/mm; default Jahanpour et al.'s G(s).
     axis : int or {"x", "y"}
         Feed-drive axis.
     dt : float

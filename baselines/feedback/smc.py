@@ -1,6 +1,6 @@
-"""Adaptive sliding-mode control of Altintas, Erkorkmaz and Zhu (2000), seed 000 Table 2.
+"""Adaptive sliding-mode control of Altintas, Erkorkmaz and Zhu (2000), Jahanpour et al.'s Table 2.
 
-Seed 000 compares its QFT design with "the sliding mode controller of [32]"
+Jahanpour et al. (2014) compare their QFT design with "the sliding mode controller of [32]"
 (Altintas, Erkorkmaz and Zhu, *Sliding mode controller design for high speed
 feed drives*, CIRP Annals 49(1), 2000) with the parameters of its Table 2:
 
@@ -17,12 +17,12 @@ disturbance limit d+           0.43     0.58     V
 Reading of [32] used here
 -------------------------
 The paper itself could not be consulted here; this is the design as it is
-generally described and as the seed's Table 2 parameterises it.
+generally described and as the paper's Table 2 parameterises it.
 
 * Each axis is modelled in volts at the amplifier input,
   ``u = m a + c v + d``, with a and v the table acceleration (mm/s^2) and
   velocity (mm/s), m = J / (K_t K_a r_g) (V s^2/mm) and
-  c = B / (K_t K_a r_g) (V s/mm) from the nominal plant of seed 000 eq. (1),
+  c = B / (K_t K_a r_g) (V s/mm) from the nominal plant of Jahanpour et al.'s eq. (1),
   and d (V) the equivalent disturbance: friction and cutting torque divided
   by K_t K_a.
 * Sliding surface ``S = lam e + e_dot``, e = x_d - x (mm); S = 0 makes the
@@ -67,7 +67,7 @@ from ..base import BaselinePolicy
 
 __all__ = ["SMC_TABLE2", "SlidingModePolicy", "SlidingModeArrays"]
 
-#: Seed 000, Table 2 (both axes unless a pair): lam rad/s, K_s V s/mm, rho V/mm, d-/d+ V (x, y).
+#: Jahanpour et al. (2014), Table 2 (both axes unless a pair): lam rad/s, K_s V s/mm, rho V/mm, d-/d+ V (x, y).
 SMC_TABLE2 = {
     "lam": 200.0,
     "K_s": 0.3,
@@ -78,7 +78,7 @@ SMC_TABLE2 = {
 
 
 class SlidingModePolicy(BaselinePolicy):
-    """Adaptive sliding-mode controller, per axis, of seed 000 ref. [32] with Table 2.
+    """Adaptive sliding-mode controller, per axis, of Jahanpour et al.'s ref. [32] with Table 2.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
-"""The iterative learning contouring controller of seed 002, eqs. (8)-(11), and K trials of it.
+"""The iterative learning contouring controller of Simba et al., eqs. (8)-(11), and K trials of it.
 
-Seed 002 (Simba et al.) repeats the same contour and, between trials j and
+Simba et al. repeat the same contour and, between trials j and
 j + 1, learns from the normal component of the error only:
 
 .. math::
@@ -65,7 +65,7 @@ is fast below the loop's bandwidth (|S_i| << 1), but |S_i| exceeds 1 from
 (k_PL = 200 1/s^2 against k_P = 70 000) cannot pull it back.  With Table I's
 q = 1 the error content there grows by up to 26 % per trial: the ringing
 after a sharp corner or a friction break-away builds up over the trials (the
-seed's own ILC gains 9 % on its linear path).  The registered variant
+paper's own ILC gains 9 % on its linear path).  The registered variant
 ``ilc-q`` adds the low-pass with q_cutoff = 20 Hz (|Q| = 0.07 at 38.5 Hz):
 then |Q S_i (1 - G L)| <= 0.13 at every frequency (computed for the sampled
 loop at 0.1 ms), a monotone convergence of the linear loop, at the price of
@@ -111,14 +111,14 @@ from ..coupling.contouring_fb import TABLE_I_FB, ContouringFBPolicy
 
 __all__ = ["TABLE_I_ILC", "ILCPolicy", "run_trials"]
 
-#: Seed 002, Table I: learning gains (k_PL 1/s^2, k_IL 1/s^3, k_DL 1/s), alpha, beta (mm), q.
+#: Simba et al., Table I: learning gains (k_PL 1/s^2, k_IL 1/s^3, k_DL 1/s), alpha, beta (mm), q.
 TABLE_I_ILC = {"k_pl": 200.0, "k_il": 0.2, "k_dl": 10.0, "alpha": 30.0, "beta": 0.005, "q": 1.0}
 
 _INITIAL_CAPACITY = 4096
 
 
 class ILCPolicy(ContouringFBPolicy):
-    """Seed 002's iterative learning contouring controller, eqs. (8)-(11), Table I.
+    """Simba et al.'s iterative learning contouring controller, eqs. (8)-(11), Table I.
 
     Parameters
     ----------
@@ -139,7 +139,7 @@ class ILCPolicy(ContouringFBPolicy):
         The constant of the Q filter of eq. (9), in (0, 1].  Default 1 (Table I).
     q_cutoff : float or None
         Cutoff in Hz of Q's zero-phase low-pass, below the Nyquist frequency;
-        None (default, as in seed 002): no low-pass.  ``ilc-q`` uses 20 Hz.
+        None (default, as in Simba et al.): no low-pass.  ``ilc-q`` uses 20 Hz.
 
     Attributes
     ----------

@@ -22,7 +22,9 @@ import pkgutil
 import re
 from pathlib import Path
 
-#: Seed file number -> how a user knows the paper (docs/references.md has the full citations).
+#: File number of a paper in the project's paper folder -> how the docs cite it (docs/references.md has the
+#: mapping and the full references).  The code cites authors; text still giving a file number (a plant's
+#: ``source`` written before the change) is rewritten by :func:`cite`.
 PAPERS = {
     "000": "Jahanpour et al. (2014)",
     "001": "Yadav et al. (2020)",
@@ -49,7 +51,8 @@ API_PACKAGES = {
 
 
 def cite(text: str) -> str:
-    """``text`` with "seed 000" (any case) replaced by the paper's authors and year."""
+    """``text`` with a paper named by its file number (the word seed and 000..003) replaced by its authors and
+    year, and "the seed" by "the paper"."""
     text = re.sub(r"\b[Ss]eed (00[0-3])\b", lambda m: PAPERS[m.group(1)], text)
     return re.sub(r"\b([Tt])he seed\b", lambda m: m.group(1) + "he paper", text)
 

@@ -1,6 +1,6 @@
-"""Seed 003's circle: its reference, a stand-alone closed loop, the paper's figures and the radial-error plot.
+"""Purtojo et al.'s circle: its reference, a stand-alone closed loop, the paper's figures and the radial-error plot.
 
-Seed 003, section IV, drives the x axis of its X-Y table with a sine and the
+Purtojo et al. (section IV) drive the x axis of their X-Y table with a sine and the
 y axis with a cosine of 1 mm amplitude, so that the table traces a 1 mm
 radius circle, and reports (Fig. 6 and its text):
 
@@ -25,7 +25,7 @@ What is here
     is the first :data:`DEFAULT_TRANSIENT` s (our choice).
 :func:`run_circle`
     One pass of any SB3-style policy around the circle: an episode of
-    ``VCNC-Circle-v1`` (seed 003's table, its 1 um sensor, a constant feed
+    ``VCNC-Circle-v1`` (Purtojo et al.'s table, its 1 um sensor, a constant feed
     R omega from t = 0) through the one evaluation loop.
 :func:`circle_reference`
     The exact sine/cosine reference, x = R sin(omega t), y = R cos(omega t),
@@ -60,11 +60,11 @@ __all__ = [
     "plot_radial_error",
 ]
 
-#: Circle radius, mm (seed 003, section IV).
+#: Circle radius, mm (Purtojo et al., section IV).
 DEFAULT_RADIUS = 1.0
-#: Angular frequency of the sine/cosine, rad/s (our choice; seed 003 gives none).
+#: Angular frequency of the sine/cosine, rad/s (our choice; Purtojo et al. give none).
 DEFAULT_OMEGA = 1.0
-#: Control period, s (our choice; seed 003 gives none).
+#: Control period, s (our choice; Purtojo et al. give none).
 DEFAULT_DT = 1e-3
 #: Start of the trace excluded from the "radial error within" figure, s (our choice).
 DEFAULT_TRANSIENT = 1.0
@@ -72,7 +72,7 @@ DEFAULT_TRANSIENT = 1.0
 
 @dataclass(frozen=True)
 class CircleFigures:
-    """Seed 003's figures of one circle run, um.
+    """Purtojo et al.'s figures of one circle run, um.
 
     Attributes
     ----------
@@ -99,7 +99,7 @@ class CircleFigures:
         return asdict(self)
 
 
-#: Seed 003, section IV: RMS x 0.0063 mm, y 0.0037 mm, radial 0.0008 mm; radial error within 2 um.
+#: Purtojo et al., section IV: RMS x 0.0063 mm, y 0.0037 mm, radial 0.0008 mm; radial error within 2 um.
 PAPER_FIGURES = CircleFigures(rms_x_um=6.3, rms_y_um=3.7, rms_radial_um=0.8, max_radial_after_transient_um=2.0)
 
 
@@ -151,7 +151,7 @@ def _traces(name: str, a, n: int | None = None) -> np.ndarray:
 
 def circle_figures(time, position, reference_position, radius: float = DEFAULT_RADIUS, center=(0.0, 0.0),
                    transient: float = DEFAULT_TRANSIENT) -> CircleFigures:
-    """Seed 003's figures of a circle run.
+    """Purtojo et al.'s figures of a circle run.
 
     Parameters
     ----------
@@ -209,14 +209,14 @@ def format_comparison(figures: CircleFigures, title: str = "", paper: CircleFigu
     """:func:`comparison_table` as aligned text lines (um), under ``title``."""
     lines = [title] if title else []
     for row in comparison_table(figures, paper):
-        lines.append(f"  {row['figure']:<40} {row['ours_um']:8.2f} um   seed 003: {row['paper_um']:4.1f} um"
+        lines.append(f"  {row['figure']:<40} {row['ours_um']:8.2f} um   Purtojo et al.: {row['paper_um']:4.1f} um"
                      f"   ratio {row['ratio']:5.2f}")
     return "\n".join(lines)
 
 
 def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAULT_RADIUS,
                  transient: float = DEFAULT_TRANSIENT, plot_path=None) -> list[str]:
-    """Seed 003's figures of every policy's circle run, as text lines, and optionally the radial-error plot.
+    """Purtojo et al.'s figures of every policy's circle run, as text lines, and optionally the radial-error plot.
 
     Parameters
     ----------
@@ -234,7 +234,7 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     -------
     list of str
     """
-    head = (f"Seed 003, section IV, on {label}: RMS tracking error x, y, RMS radial error and max |radial error| "
+    head = (f"Purtojo et al., section IV, on {label}: RMS tracking error x, y, RMS radial error and max |radial error| "
             f"after the first {transient:g} s")
     lines = [head]
     for name, run in results_by_policy.items():
@@ -245,7 +245,7 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     return lines
 
 
-#: The env of seed 003's circle.
+#: The env of Purtojo et al.'s circle.
 CIRCLE_ID = "VCNC-Circle-v1"
 
 
@@ -324,7 +324,7 @@ def plot_radial_error(runs, radius: float = DEFAULT_RADIUS, transient: float = D
         ax_t.plot(t, 1e3 * (ref[:, 0] - p[:, 0]), lw=0.8, label=f"{name}: x")
         ax_t.plot(t, 1e3 * (ref[:, 1] - p[:, 1]), lw=0.8, label=f"{name}: y")
     band = paper.max_radial_after_transient_um
-    ax_r.axhspan(-band, band, color="0.9", zorder=0, label=f"seed 003: within {band:g} um")
+    ax_r.axhspan(-band, band, color="0.9", zorder=0, label=f"Purtojo et al.: within {band:g} um")
     for ax in (ax_r, ax_t):
         ax.axvline(transient, color="0.5", ls=":", lw=0.8)
         ax.legend(fontsize=7, loc="upper right")

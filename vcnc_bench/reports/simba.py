@@ -9,8 +9,7 @@ import numpy as np
 
 from vcnc_gym.geometry.corners import smooth_polyline
 from vcnc_gym.geometry.shapes import corners_vertices
-from vcnc_gym.motion.jlap import JlapFeedrate, constant_feedrate
-from vcnc_gym.plants.current_feed_drive import SEED002_A_MAX, SEED002_FEEDRATE, SEED002_J_MAX
+from vcnc_gym.motion.jlap import SIMBA_A_MAX, SIMBA_FEEDRATE, SIMBA_J_MAX, JlapFeedrate, constant_feedrate
 
 __all__ = ["corners_cycle_times"]
 
@@ -32,9 +31,9 @@ def corners_cycle_times(epsilon: float = 0.05) -> dict:
     ``increase`` (relative, smooth / linear - 1) and ``corner_speeds`` (mm/s).
     """
     vertices = corners_vertices()
-    path = smooth_polyline(vertices, epsilon, SEED002_A_MAX, SEED002_J_MAX)
+    path = smooth_polyline(vertices, epsilon, SIMBA_A_MAX, SIMBA_J_MAX)
     linear_length = float(np.sum(np.hypot(*np.diff(vertices, axis=0).T)))
-    linear = constant_feedrate(linear_length, SEED002_FEEDRATE)
+    linear = constant_feedrate(linear_length, SIMBA_FEEDRATE)
     smooth = JlapFeedrate().plan_path(path)
     return {
         "linear_length": linear_length,

@@ -1,6 +1,6 @@
-"""Seed 001's figures: Kharitonov robust stability and stability margins, Table 2's step metrics.
+"""Yadav et al.'s figures: Kharitonov robust stability and stability margins, Table 2's step metrics.
 
-Section 3.5 of seed 001 closes each controller's loop around the interval
+Section 3.5 of Yadav et al. (2020) closes each controller's loop around the interval
 plant ``b / (s (s + a))`` (dead time neglected), bounds the coefficients of
 the closed-loop characteristic equation (CLCE) ``s (s + a) D_C(s) + b N_C(s)``
 and computes the stability margin of eq. (5) from them; Table 2 gives the
@@ -16,11 +16,11 @@ tools of :mod:`vcnc_gym.analysis`:
   box's four vertices), the four Kharitonov polynomials, the Routh test of
   each and eq. (5)'s margin (third-order CLCEs only);
 - :func:`loop_step_metrics`: the metrics of one loop, continuous (python-control,
-  no dead time, as the seed's Table 2 evidently is) or sampled at ``dt``
+  no dead time, as the paper's Table 2 evidently is) or sampled at ``dt``
   with the dead time exact (``z^-n``), the plant held by a ZOH and the
   controller discretised by Tustin, what :class:`PositioningEnv` and the
   policies compute;
-- :func:`table2`: Table 2 in our numbers, with the seed's beside them
+- :func:`table2`: Table 2 in our numbers, with the paper's beside them
   (:func:`format_table2`); :func:`env_step_table`: the same metrics from
   episodes of the registered policies on ``VCNC-Step-v0``;
   :func:`plot_step_responses`: the step responses.
@@ -66,7 +66,7 @@ __all__ = [
     "main",
 ]
 
-#: Seed 001, Table 2: nominal (OS %, ST s, RT s), uncertain ranges ((lo, hi) each) and SM.
+#: Yadav et al. (2020), Table 2: nominal (OS %, ST s, RT s), uncertain ranges ((lo, hi) each) and SM.
 PAPER_TABLE_2 = {
     "pi": {"nominal": (41.2, 0.88, 0.14), "uncertain": ((32.8, 45.3), (0.77, 1.33), (0.123, 0.27)), "sm": 588.6},
     "imc": {"nominal": (0.57, 5.84, 3.36), "uncertain": ((0.12, 1.27), (4.1, 7.08), (2.56, 3.98)), "sm": 145.46},
@@ -74,7 +74,7 @@ PAPER_TABLE_2 = {
 }
 
 #: Which row of :data:`PAPER_TABLE_2` each controller is compared with.  The
-#: seed's H-infinity row is the reduced controller's: its SM is eq. (34)-(35)'s
+#: paper's H-infinity row is the reduced controller's: its SM is eq. (34)-(35)'s
 #: (the CLCE of eq. (29)), and its nominal OS and ST are eq. (29)'s.
 PAPER_ROW = {"pi": "pi", "imc": "imc", "hinf": "hinf", "hinf-reduced": "hinf"}
 
@@ -91,7 +91,7 @@ def plant_box() -> tuple[tuple[float, float], tuple[float, float]]:
 def plant_samples(n: int = 10) -> np.ndarray:
     """``n`` plants ``(a, b)`` across the box, (n, 2), in 1/s and mm/(V s^2).
 
-    The seed's "10 uncertain samples between the lower and upper limit" are
+    The paper's "10 uncertain samples between the lower and upper limit" are
     not listed; we take the box's four vertices (where the extremes of the
     metrics usually lie) and fill up with the first points of the 2-D Halton
     sequence (bases 2, 3, unscrambled, starting at its second point):
@@ -116,10 +116,10 @@ def _plant_tf(a: float, b: float) -> control.TransferFunction:
 
 # -- Kharitonov ----------------------------------------------------------------------
 def closed_loop_polynomial(controller: str, a: float, b: float) -> np.ndarray:
-    """The CLCE ``s (s + a) D_C(s) + b N_C(s)``, descending powers of s (seed 001, eqs. (30), (32), (34)).
+    """The CLCE ``s (s + a) D_C(s) + b N_C(s)``, descending powers of s (Yadav et al. (2020), eqs. (30), (32), (34)).
 
     ``C = N_C / D_C`` is :func:`controller_tf` (V/mm) and ``b`` is in
-    mm/(V s^2), so the coefficients are the seed's (V/m and m/(V s^2)).
+    mm/(V s^2), so the coefficients are the paper's (V/m and m/(V s^2)).
     """
     C = controller_tf(controller)
     num = np.asarray(C.num[0][0], dtype=np.float64)
@@ -128,7 +128,7 @@ def closed_loop_polynomial(controller: str, a: float, b: float) -> np.ndarray:
 
 
 def kharitonov_analysis(controller: str) -> dict:
-    """Seed 001, section 3.5, for one controller.
+    """Yadav et al. (2020), section 3.5, for one controller.
 
     Returns
     -------
@@ -239,12 +239,12 @@ def _row(controller: str, plants: np.ndarray, metrics_of) -> dict:
 
 def table2(dead_time: float = 0.0, dt: float | None = None, n_plants: int = 10, controllers=None,
            t_end: float = 30.0) -> list[dict]:
-    """Seed 001's Table 2 in our numbers.
+    """Yadav et al.'s Table 2 in our numbers.
 
     Parameters
     ----------
     dead_time : float
-        T_d [s] in the loop; 0 reproduces the seed's Table 2 (its numbers are
+        T_d [s] in the loop; 0 reproduces the paper's Table 2 (its numbers are
         those of the loop without the dead time: with it the robust PI loop
         is unstable); 0.1 is eq. (2) as stated.
     dt : float, optional
@@ -262,7 +262,7 @@ def table2(dead_time: float = 0.0, dt: float | None = None, n_plants: int = 10, 
         One row per controller: ``nominal`` metrics, ``uncertain`` (min, max)
         per metric over the plants whose loop is stable (``unstable_plants``
         counts the others), ``stability_margin`` (eq. (5)),
-        ``robustly_stable``, ``unstable_plants``, and ``paper``, the seed's
+        ``robustly_stable``, ``unstable_plants``, and ``paper``, the paper's
         row of Table 2 (the H-infinity row for both "hinf" and "hinf-reduced").
     """
     a0, b0 = (float(MODEL.nominal()[0, IDX_A]), float(MODEL.nominal()[0, IDX_B]))
@@ -287,9 +287,9 @@ def _fmt(v: float, digits: int = 3) -> str:
 
 
 def format_kharitonov(controllers=None) -> str:
-    """A Markdown table of section 3.5: coefficient bounds, Kharitonov verdict, SM beside the seed's."""
+    """A Markdown table of section 3.5: coefficient bounds, Kharitonov verdict, SM beside the paper's."""
     rows = ["| controller | CLCE order | alpha (lower bounds) | beta (upper bounds) | 4 Kharitonov polys Hurwitz "
-            "| SM eq. (5) | seed's SM |", "|---|---|---|---|---|---|---|"]
+            "| SM eq. (5) | paper's SM |", "|---|---|---|---|---|---|---|"]
     for name in controllers or controller_names():
         k = kharitonov_analysis(name)
         rows.append(f"| {name} | {k['alpha'].size - 1} | {', '.join(_fmt(v, 4) for v in k['alpha'])} | "
@@ -299,7 +299,7 @@ def format_kharitonov(controllers=None) -> str:
 
 
 def format_table2(rows: list[dict], title: str = "") -> str:
-    """A Markdown table in Table 2's shape, ours beside the seed's ("ours / seed").
+    """A Markdown table in Table 2's shape, ours beside the paper's ("ours / paper").
 
     Ranges are over the stable plants of each row; a metric undefined on all
     of them is "n/a" (e.g. the 0-100 % rise time of a response that never
@@ -340,7 +340,7 @@ def env_step_table(controllers=None, n_plants: int = 10, dead_time: float | None
     Parameters
     ----------
     controllers : list of str, optional
-        Baseline names; default the four of seed 001.
+        Baseline names; default the four of Yadav et al. (2020).
     n_plants : int
         Plants across the box.
     dead_time : float, optional
@@ -435,18 +435,18 @@ def plot_step_responses(traces: dict, path=None, setpoint: float = 10.0):
 
 # -- command line ------------------------------------------------------------------------------
 def main(argv=None) -> int:
-    """Print section 3.5's margins and Table 2 (no dead time, then the stated 0.1 s), ours beside the seed's."""
+    """Print section 3.5's margins and Table 2 (no dead time, then the stated 0.1 s), ours beside the paper's."""
     parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.yadav2020", description=main.__doc__)
     parser.add_argument("--plants", type=int, default=10, help="plants across the box (default 10)")
     parser.add_argument("--dead-time", type=float, default=None,
                         help="only this dead time in s (default: 0, then 0.1 sampled at 1 ms)")
     args = parser.parse_args(argv)
-    print("Seed 001, section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)\n")
+    print("Yadav et al. (2020), section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)\n")
     print(format_kharitonov())
     cases = [(0.0, None), (0.1, 1e-3)] if args.dead_time is None else [(args.dead_time, 1e-3 if args.dead_time else None)]
     for dead_time, dt in cases:
         how = "continuous" if dt is None else f"sampled at {dt:g} s, dead time exact"
-        title = f"\nTable 2, dead time {dead_time:g} s ({how}); cells: ours / seed's"
+        title = f"\nTable 2, dead time {dead_time:g} s ({how}); cells: ours / paper's"
         print(format_table2(table2(dead_time=dead_time, dt=dt, n_plants=args.plants), title))
     return 0
 

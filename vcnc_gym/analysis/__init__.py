@@ -1,10 +1,10 @@
-"""Analysis tools shared by the seeds: interval polynomials (Kharitonov) and step-response metrics.
+"""Analysis tools shared by the papers: interval polynomials (Kharitonov) and step-response metrics.
 
 - :mod:`~vcnc_gym.analysis.kharitonov`: the four Kharitonov polynomials of an
-  interval polynomial (seed 001, eq. (4)), a Routh-Hurwitz test and the
-  stability margin of a third-order interval polynomial (seed 001, eq. (5));
+  interval polynomial (Yadav et al. (2020), eq. (4)), a Routh-Hurwitz test and the
+  stability margin of a third-order interval polynomial (Yadav et al. (2020), eq. (5));
 - :mod:`~vcnc_gym.analysis.step_metrics`: overshoot, settling time and rise
-  time of a step response (seed 001, Table 2).
+  time of a step response (Yadav et al. (2020), Table 2).
 """
 
 from .kharitonov import (

@@ -1,16 +1,16 @@
 """Interval polynomials: Kharitonov's four polynomials, a Routh-Hurwitz test, the stability margin.
 
-An interval polynomial (seed 001, eq. (3))
+An interval polynomial (Yadav et al. (2020), eq. (3))
 
 .. math::
 
     P(s) = a_0 s^n + a_1 s^{n-1} + \\dots + a_n, \\qquad \\alpha_i \\le a_i \\le \\beta_i,
 
 has every member Hurwitz (all roots in the open left half plane) if and only
-if its four Kharitonov polynomials are (Kharitonov, 1978; seed 001, eq. (4)),
+if its four Kharitonov polynomials are (Kharitonov, 1978; Yadav et al. (2020), eq. (4)),
 provided the leading coefficient cannot vanish.  For n = 3 with positive
-coefficients the Routh criterion of one of them, ``p_3``, decides, and seed
-001 (after Hote et al., its ref. [14]) calls the slack of that criterion the
+coefficients the Routh criterion of one of them, ``p_3``, decides, and Yadav
+et al. (after Hote et al., their ref. [14]) call the slack of that criterion the
 stability margin, eq. (5):
 
 .. math:: SM = \\alpha_1 \\alpha_2 - \\beta_0 \\beta_3 .
@@ -20,7 +20,7 @@ index ``i`` is the coefficient of ``s^(n - i)`` as in eq. (3).
 
 Example
 -------
-The robust PI loop of seed 001, eq. (17): ``s^3 + a s^2 + b K_P s + b K_I``
+The robust PI loop of Yadav et al. (2020), eq. (17): ``s^3 + a s^2 + b K_P s + b K_I``
 with ``a >= 7.5``, ``3 <= b <= 6``:
 
 >>> import numpy as np
@@ -46,7 +46,7 @@ __all__ = [
 ]
 
 #: Which bound each Kharitonov polynomial takes at coefficient index i (mod 4),
-#: seed 001, eq. (4): False = lower (alpha), True = upper (beta).
+#: Yadav et al. (2020), eq. (4): False = lower (alpha), True = upper (beta).
 _PATTERNS = (
     (False, False, True, True),   # p1 = alpha_0 s^n + alpha_1 s^(n-1) + beta_2 s^(n-2) + beta_3 ...
     (False, True, True, False),   # p2 = alpha_0, beta_1, beta_2, alpha_3, ...
@@ -90,7 +90,7 @@ def interval_polynomial(polynomials) -> tuple[np.ndarray, np.ndarray]:
 
 
 def kharitonov_polynomials(alpha, beta) -> np.ndarray:
-    """The four Kharitonov polynomials of seed 001, eq. (4).
+    """The four Kharitonov polynomials of Yadav et al. (2020), eq. (4).
 
     Parameters
     ----------
@@ -160,7 +160,7 @@ def robustly_stable(alpha, beta) -> bool:
 
 
 def stability_margin(alpha, beta) -> float:
-    """Stability margin of a third-order interval polynomial, seed 001, eq. (5).
+    """Stability margin of a third-order interval polynomial, Yadav et al. (2020), eq. (5).
 
     ``SM = alpha_1 alpha_2 - beta_0 beta_3``: the Routh condition
     ``a_1 a_2 > a_0 a_3`` at its worst corner (Kharitonov's ``p_3``).  For

@@ -1,4 +1,4 @@
-"""Step-response metrics: overshoot, settling time, rise time (seed 001, Table 2).
+"""Step-response metrics: overshoot, settling time, rise time (Yadav et al. (2020), Table 2).
 
 The response ``y(t)`` to a step from ``initial`` to ``target`` applied at
 ``t[0]`` is normalised, ``z = (y - initial) / (target - initial)``, and

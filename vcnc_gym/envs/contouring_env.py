@@ -20,11 +20,11 @@ class ContouringEnv(gym.Env):
 
     ## Description
 
-    A biaxial (X-Y) machine table follows a contour, a NURBS curve (seed
-    000's "heart" or "omega", section 3a, by default), at the S-curve
-    feedrate of seed 000 (100 mm/s, 0.12 s ramps) laid out by the
+    A biaxial (X-Y) machine table follows a contour, a NURBS curve (Jahanpour
+    et al.'s "heart" or "omega", section 3a, by default), at the S-curve
+    feedrate of Jahanpour et al. (2014) (100 mm/s, 0.12 s ramps) laid out by the
     second-order Taylor interpolator, eqs. (8)-(10).  The machine is a plant
-    of :mod:`vcnc_gym.plants` (``plant=``); by default seed 000's feed drive,
+    of :mod:`vcnc_gym.plants` (``plant=``); by default Jahanpour et al.'s feed drive,
     eq. (1), with the parameters of section 2c and Table 3: +-5 V amplifier
     saturation, 3 um backlash, asymmetric static and Coulomb friction
     (Karnopp stick-slip), integrated in closed form on substeps.  The policy
@@ -38,8 +38,8 @@ class ContouringEnv(gym.Env):
 
     | Num | Action            | Min | Max | Unit                                   |
     |-----|-------------------|-----|-----|----------------------------------------|
-    | 0   | x-axis command    | -1  | 1   | x the plant's input limit (5 V, seed 000) |
-    | 1   | y-axis command    | -1  | 1   | x the plant's input limit (5 V, seed 000) |
+    | 0   | x-axis command    | -1  | 1   | x the plant's input limit (5 V, Jahanpour et al. (2014)) |
+    | 1   | y-axis command    | -1  | 1   | x the plant's input limit (5 V, Jahanpour et al. (2014)) |
 
     Values outside [-1, 1] are clipped: that is the amplifier's saturation.
     ``env.unwrapped.plant`` names the input and its unit (``input_name``,
@@ -58,7 +58,7 @@ class ContouringEnv(gym.Env):
     | 0-1   | reference_position     | mm     | reference point x_d                            |
     | 2-3   | reference_velocity     | mm/s   | dx_d/dt                                        |
     | 4-5   | reference_acceleration | mm/s^2 | d2x_d/dt2                                      |
-    | 6-7   | tracking_error         | mm     | x_d - x (seed 002 eq. (2))                     |
+    | 6-7   | tracking_error         | mm     | x_d - x (Simba et al., eq. (2))                     |
     | 8     | contour_error          | mm     | distance from the table to the whole contour   |
     | 9     | tangential_error       | mm     | tracking error along the path tangent (eq. (3))|
     | 10    | normal_error           | mm     | tracking error along the path normal (eq. (3)) |
@@ -68,7 +68,7 @@ class ContouringEnv(gym.Env):
     | 29-33 | contour_curvature      | 1/mm   | signed curvature of the contour at those points |
     | 34-35 | previous_action        | 1      | the last action                                |
 
-    The contour preview reaches twice the ~1.9 mm that seed 000's drives need
+    The contour preview reaches twice the ~1.9 mm that Jahanpour et al.'s drives need
     to brake from 100 mm/s, so a policy can see a corner coming and slow
     down for it (``contour_ahead=``, mm; ``()`` for none).
 
@@ -94,7 +94,7 @@ class ContouringEnv(gym.Env):
     The table rests at the start of the contour with the backlash gap
     centred; the plant parameters are the nominal ones (interval midpoints),
     those given by ``parameters``, or, with ``randomize=True``, drawn
-    uniformly from seed 000's intervals by the env's seeded generator.  The
+    uniformly from Jahanpour et al.'s intervals by the env's seeded generator.  The
     parameters in force are in the reset info.
 
     ## Episode End
@@ -139,15 +139,15 @@ class ContouringEnv(gym.Env):
       ``SmoothedPolyline`` (mm).
     - ``plant``: a module name of :mod:`vcnc_gym.plants`
       (:func:`vcnc_gym.plants.plant_names`) or a ``PlantModel``; default
-      ``"vcnc_feed_drive"`` (seed 000).
-    - ``profile`` ("scurve"): the feedrate profile, one of "scurve" (seed
-      000's cubic S-curve: ``feedrate`` and ``ramp_time``), "constant" (the
-      feed from t = 0, no ramps: seed 002's linear path, seed 003's circle)
-      or "jlap" (seed 002's jerk-limited profile with the corner speeds of a
+      ``"vcnc_feed_drive"`` (Jahanpour et al. (2014)).
+    - ``profile`` ("scurve"): the feedrate profile, one of "scurve" (Jahanpour
+      et al.'s cubic S-curve: ``feedrate`` and ``ramp_time``), "constant" (the
+      feed from t = 0, no ramps: Simba et al.'s linear path, Purtojo et al.'s circle)
+      or "jlap" (Simba et al.'s jerk-limited profile with the corner speeds of a
       corner-smoothed path, ``contour="corners-smooth"``).
     - ``feedrate`` (mm/s, 100) and ``ramp_time`` (s, S-curve only, default 0.12).
     - ``dt`` (s, 1e-4): the control period, at which the command is held
-      and the reference is sampled.  At 1 ms seed 000's QFT loop is unstable
+      and the reference is sampled.  At 1 ms Jahanpour et al.'s QFT loop is unstable
       (a closed-loop pole near |z| = 10); at 0.1 ms it is stable on every
       vertex of the uncertainty box.
     - ``action_repeat`` (1): control periods per decision.
@@ -165,7 +165,7 @@ class ContouringEnv(gym.Env):
     - ``contour_ahead`` ((0.25, 0.5, 1, 2, 4)): arc lengths, mm, of the
       contour preview.
     - ``plant_options`` (None): the plant's own settings, e.g.
-      ``{"substep": 1e-5}`` (s) for seed 000's integration substep.
+      ``{"substep": 1e-5}`` (s) for Jahanpour et al.'s integration substep.
     - ``shop_floor`` (None): the machine as it is on the shop floor
       (:mod:`vcnc_gym.plants.shop_floor`): True for the documented defaults
       or a dict of effect parameters (encoder resolution and noise, command
@@ -189,7 +189,7 @@ class ContouringEnv(gym.Env):
       table lagging the reference was scored only on the part it had
       traversed.  The cycle time is in ``info``.  The observation gained the
       contour ahead of the table ("contour_preview", "contour_curvature").
-      Seed 003's circle: contour shown 0.05-0.4 mm ahead, 2 um band, 1 s limit.
+      Purtojo et al.'s circle: contour shown 0.05-0.4 mm ahead, 2 um band, 1 s limit.
       Fixes that change no episode a valid configuration can reach (issue
       23), so no new version: a non-finite plant state is rewarded with the
       divergence penalty (was NaN); a preview beyond the contour's end, a
@@ -257,7 +257,8 @@ class ContouringEnv(gym.Env):
 
     @property
     def u_max(self) -> float:
-        """The x axis' input limit that action 1.0 maps to, in ``plant.input_unit`` (5 V, seed 000 Table 3)."""
+        """The x axis' input limit that action 1.0 maps to, in ``plant.input_unit`` (5 V, Jahanpour et al.'s
+        Table 3)."""
         return float(self.plant.input_limits(self.parameters)[0])
 
     # -- Gymnasium API ----------------------------------------------------------

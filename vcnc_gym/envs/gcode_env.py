@@ -41,7 +41,7 @@ class GCodeEnv(ContouringEnv):
     Everything is :class:`~vcnc_gym.envs.ContouringEnv`'s (observation,
     action, reward, episode end) but the contour and the feed, which come
     from the program (:mod:`vcnc_gym.gcode`): G01 moves as straight lines,
-    G02/G03 as exact arcs, corners between G01 moves blended by seed 002's
+    G02/G03 as exact arcs, corners between G01 moves blended by Simba et al.'s
     quintic Bezier curves at ``tolerance`` mm (``None``: sharp, an exact stop
     at each), the feed of each block (F) planned by the look-ahead within the
     plant's path acceleration and jerk.  G00 positions the start point only
@@ -56,8 +56,8 @@ class GCodeEnv(ContouringEnv):
     - ``tolerance`` (mm, 0.01, or None): the corner blending tolerance.
     - ``plant`` ("vcnc_feed_drive"), and ``acceleration`` (mm/s^2) /
       ``jerk`` (mm/s^3): the path limits of the blends and the look-ahead;
-      by default those the suite plans with for the plant's seed
-      (``vcnc_gym.gcode.PATH_LIMITS``: seed 000's 1000 and 3e4, seed 002's
+      by default those the suite plans with for the plant's paper
+      (``vcnc_gym.gcode.PATH_LIMITS``: Jahanpour et al.'s 1000 and 3e4, Simba et al.'s
       4000 and 1.6e5); other plants need them given.
     - ``arc_tolerance`` (mm, LinuxCNC's 0.0283): largest difference of an
       I/J arc's two radii.

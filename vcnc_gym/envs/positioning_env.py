@@ -1,4 +1,4 @@
-"""PositioningEnv: a biaxial machine driven to a set-point, judged by the position error (seed 001)."""
+"""PositioningEnv: a biaxial machine driven to a set-point, judged by the position error (Yadav et al. (2020))."""
 
 from __future__ import annotations
 
@@ -136,15 +136,15 @@ def positioning_periods(plant, k, command, n, setpoint, trajectory, start, sense
 
 
 class PositioningEnv(gym.Env):
-    r"""A step set-point on a biaxial machine, judged by the position error (seed 001).
+    r"""A step set-point on a biaxial machine, judged by the position error (Yadav et al. (2020)).
 
     ## Description
 
     Both axes of a machine table at rest at the origin are commanded, at
     t = 0, to a set-point ``r`` (10 mm on each axis by default): the step
-    response of seed 001 (Yadav et al., 2020, section 4, Table 2).  The
+    response of Yadav et al. (2020, section 4, Table 2).  The
     machine is a plant of :mod:`vcnc_gym.plants` (``plant=``), by default
-    seed 001's CNCMT axis on both axes, eq. (2),
+    Yadav et al.'s CNCMT axis on both axes, eq. (2),
     ``G(s) = 4.85 / (s (s + 9.7)) e^{-0.1 s}`` (m/V; 4850 mm/(V s^2) here), with
     its 0.1 s dead time simulated exactly as a delay line of whole control
     periods.  The policy commands both axes' amplifiers and is judged by the
@@ -200,7 +200,7 @@ class PositioningEnv(gym.Env):
     zero.  The plant parameters are the nominal ones (eq. (2)), those given
     by ``parameters``, or, with ``randomize=True``, drawn uniformly from the
     plant's uncertainty box by the env's seeded generator (for cncmt_axis
-    seed 001's section 3.5 intervals, each axis independently); they are in
+    Yadav et al.'s section 3.5 intervals, each axis independently); they are in
     the reset info.
 
     ## Episode End
@@ -211,7 +211,7 @@ class PositioningEnv(gym.Env):
       earlier.
     - Terminated with ``info["diverged"] = True`` when the distance to the
       set-point exceeds ``divergence_bound`` (100 mm) or the plant state is
-      not finite.  Seed 001's robust PI loop does so: with the 0.1 s dead
+      not finite.  Yadav et al.'s robust PI loop does so: with the 0.1 s dead
       time it is unstable (its delay margin is 48 ms).
     - The last step's info holds ``"completed"`` (True when the whole window
       ran without divergence) and ``"step_metrics"``: per axis (``"x"``,
@@ -226,13 +226,13 @@ class PositioningEnv(gym.Env):
     ``gym.make("VCNC-Step-v0", **kwargs)`` with
 
     - ``plant``: a module name of :mod:`vcnc_gym.plants` or a ``PlantModel``;
-      default ``"cncmt_axis"`` (seed 001).
+      default ``"cncmt_axis"`` (Yadav et al. (2020)).
     - ``setpoint`` ((10.0, 10.0) mm): the step per axis.
     - ``dt`` (s, 0.01): the control period, at which the command is held and
       the position recorded; the plant's dead time must be a whole number of
       it (ValueError otherwise).
     - ``action_repeat`` (1): control periods per decision.
-    - ``duration`` (s, 15.0): the episode's simulated time (seed 001's
+    - ``duration`` (s, 15.0): the episode's simulated time (Yadav et al.'s
       slowest loop, IMC, settles within 14 s on the box).
     - ``randomize`` (False) / ``parameters`` (None, a (2, P) array, columns
       ``env.unwrapped.plant.parameter_names``): the plant in force; not both.
@@ -253,7 +253,7 @@ class PositioningEnv(gym.Env):
 
     ## Version History
 
-    - v0: initial release (seed 001's step response on the CNCMT axis).
+    - v0: initial release (Yadav et al.'s step response on the CNCMT axis).
     """
 
     metadata = {"render_modes": []}

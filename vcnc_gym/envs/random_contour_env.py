@@ -24,7 +24,7 @@ class RandomContourEnv(ContouringEnv):
     mm/min; the distributions are
     :class:`~vcnc_gym.gcode.random_contour.RandomContourSpec`'s) from the
     env's generator, so ``reset(seed=s)`` gives the same contour for the same
-    s, and reads it as ``VCNC-GCode-v1`` does: seed 002's corner blends at
+    s, and reads it as ``VCNC-GCode-v1`` does: Simba et al.'s corner blends at
     ``tolerance`` mm, exact arcs, the look-ahead feed within the plant's path
     limits.  The program is in the reset info (``info["program"]``).  The
     plant (nominal, fixed or drawn with ``randomize=True``) is drawn after

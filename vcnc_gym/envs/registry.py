@@ -39,14 +39,14 @@ class SuiteEnv:
         return self.entry_point in (_CONTOURING, _GCODE)
 
 
-#: The circle of seed 003 is 1 mm across and driven at 1 mm/s: its contour is
+#: The circle of Purtojo et al. is 1 mm across and driven at 1 mm/s: its contour is
 #: shown 50-400 um ahead, arrives within 2 um (twice its sensor's 1 um) and is
 #: given 1 s after the reference's end.
 _CIRCLE = {"contour": "circle", "plant": "nct_xy_table", "profile": "constant", "feedrate": 1.0, "dt": 1e-3,
            "reward_scale": 1e-3, "tracking_bound": 0.5, "divergence_bound": 0.5}
 _CIRCLE_V1 = {"contour_ahead": (0.05, 0.1, 0.2, 0.4), "completion_tolerance": 0.002, "completion_timeout": 1.0}
 
-#: Seed 003's table on the shop floor (vcnc_gym.plants.shop_floor): its own 1 um sensor with 0.2 um of noise; no
+#: Purtojo et al.'s table on the shop floor (vcnc_gym.plants.shop_floor): its own 1 um sensor with 0.2 um of noise; no
 #: cutting force (1 N is 1.3 u_r on its 10 kg carriage, beyond the motor's rating: a plotting or engraving table);
 #: Stribeck friction of 0.05 N (7 % of the rated input), fading over 0.5 mm/s.
 _CIRCLE_SHOP = {"encoder_resolution": 1e-3, "noise_std": 2e-4, "cutting_force": 0.0, "cutting_ripple": 0.0,
@@ -55,59 +55,60 @@ _CIRCLE_SHOP = {"encoder_resolution": 1e-3, "noise_std": 2e-4, "cutting_force": 
 #: Every current env id of the suite (the contouring ids at v1: see ContouringEnv's Version History).
 SUITE: tuple[SuiteEnv, ...] = (
     SuiteEnv("VCNC-Heart-v1", {"contour": "heart", "plant": "vcnc_feed_drive"},
-             "seed 000 'heart' (cubic NURBS, 310 mm) at 100 mm/s on seed 000's feed drives"),
+             "Jahanpour et al.'s 'heart' (cubic NURBS, 310 mm) at 100 mm/s on their feed drives"),
     SuiteEnv("VCNC-Omega-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
-             "seed 000 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on seed 000's feed drives"),
+             "Jahanpour et al.'s 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on their feed drives"),
     SuiteEnv("VCNC-HeartLookahead-v1", {"contour": "heart", "plant": "vcnc_feed_drive", "profile": "lookahead"},
-             "the heart with a CNC look-ahead feed (100 mm/s, normal acceleration and jerk within seed 000's "
+             "the heart with a CNC look-ahead feed (100 mm/s, normal acceleration and jerk within Jahanpour et al.'s "
              "drives' reach): the classical baselines on a feasible reference"),
     SuiteEnv("VCNC-OmegaLookahead-v1", {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead"},
              "the omega with a CNC look-ahead feed: its 0.19 mm corners at 10 mm/s, 0.99 s instead of 0.63 s"),
     SuiteEnv("VCNC-Corners-v1",
              {"contour": "corners", "plant": "current_feed_drive", "profile": "constant", "feedrate": 50.0},
-             "seed 002 test path (corners of 30, 60, 90 deg, sharp) at a constant 50 mm/s on seed 002's drives"),
+             "Simba et al.'s test path (corners of 30, 60, 90 deg, sharp) at a constant 50 mm/s on their drives"),
     SuiteEnv("VCNC-CornersSmooth-v1",
              {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0},
-             "seed 002 test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s"),
+             "Simba et al.'s test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s"),
     SuiteEnv("VCNC-Circle-v1", {**_CIRCLE, **_CIRCLE_V1},
-             "seed 003 circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on seed 003's NCT-identified X-Y table"),
+             "Purtojo et al.'s circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on their NCT-identified X-Y table"),
     SuiteEnv("VCNC-HeartShop-v1", {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True},
-             "the heart on seed 000's drives on the shop floor: 0.1 um encoder with noise, a period of delay, a "
-             "150 Hz mode, a milling force and Stribeck friction (vcnc_gym.plants.shop_floor's defaults)"),
+             "the heart on Jahanpour et al.'s drives on the shop floor: 0.1 um encoder with noise, a period of delay, "
+             "a 150 Hz mode, a milling force and Stribeck friction (vcnc_gym.plants.shop_floor's defaults)"),
     SuiteEnv("VCNC-OmegaLookaheadShop-v1",
              {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead", "shop_floor": True},
-             "the look-ahead omega on seed 000's drives on the shop floor (the defaults)"),
+             "the look-ahead omega on Jahanpour et al.'s drives on the shop floor (the defaults)"),
     SuiteEnv("VCNC-CornersSmoothShop-v1",
              {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0,
               "shop_floor": True},
-             "seed 002's smoothed corners on its drives on the shop floor (the defaults)"),
+             "Simba et al.'s smoothed corners on their drives on the shop floor (the defaults)"),
     SuiteEnv("VCNC-CircleShop-v1", {**_CIRCLE, **_CIRCLE_V1, "shop_floor": _CIRCLE_SHOP},
-             "seed 003's circle on its X-Y table with a noisy 1 um sensor, a period of delay, a 150 Hz mode and "
-             "Stribeck friction, no cutting force (a light table: see _CIRCLE_SHOP)"),
+             "Purtojo et al.'s circle on their X-Y table with a noisy 1 um sensor, a period of delay, a 150 Hz mode "
+             "and Stribeck friction, no cutting force (a light table: see _CIRCLE_SHOP)"),
     SuiteEnv("VCNC-GCode-v1", {"program": "iso230-4-ccw"},
              "a G-code part program (program=, text or path; default the ISO 230-4 circle, 50 mm at 3000 mm/min) "
-             "on seed 000's feed drives: G01/G02/G03, seed 002 corner blends at tolerance= mm, look-ahead feeds",
+             "on Jahanpour et al.'s feed drives: G01/G02/G03, Simba et al.'s corner blends at tolerance= mm, "
+             "look-ahead feeds",
              entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
     SuiteEnv("VCNC-ISO230Circle-v1", {"program": "iso230-4-ccw"},
              "ISO 230-4 circular test, 50 mm diameter at 3000 mm/min counter-clockwise (the CW run: program="
-             "'iso230-4-cw'), on seed 000's feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+             "'iso230-4-cw'), on Jahanpour et al.'s feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
     SuiteEnv("VCNC-CircleDiamondSquare-v1", {"program": "circle-diamond-square"},
-             "NAS 979 / ISO 10791-7 circle-diamond-square (60 mm square, 6000 mm/min, 10 um blends) on seed 000's "
-             "feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+             "NAS 979 / ISO 10791-7 circle-diamond-square (60 mm square, 6000 mm/min, 10 um blends) on "
+             "Jahanpour et al.'s feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
     SuiteEnv("VCNC-Butterfly-v1", {"program": "butterfly"},
-             "butterfly free-form as G-code biarcs (78 mm, 3000 mm/min) on seed 000's feed drives",
+             "butterfly free-form as G-code biarcs (78 mm, 3000 mm/min) on Jahanpour et al.'s feed drives",
              entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
     # not a CONTOURING_ID: its contour (env.unwrapped.task) changes at every reset, which those ids' tests rule out
     SuiteEnv("VCNC-RandomContour-v1", {},
-             "a new contour at every reset (random G-code: lines with seed 002 blends, arcs; 33-100 mm/s look-ahead) "
-             "on seed 000's feed drives; make_vec gives SyncVectorEnv, each env its own contours",
+             "a new contour at every reset (random G-code: lines with Simba et al.'s blends, arcs; 33-100 mm/s "
+             "look-ahead) on Jahanpour et al.'s feed drives; make_vec gives SyncVectorEnv, each env its own contours",
              entry_point=_RANDOM, vector_entry_point=None),
     # not a CONTOURING_ID either: a third action, the feed override (the classical ids' controllers take two)
     SuiteEnv("VCNC-OmegaOverride-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
              "VCNC-Omega-v1 with a feed override (0-100 %) as a third action: the reference re-timed online, "
              "cycle time in the reward", entry_point=_OVERRIDE, vector_entry_point=None),
     SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
-             "seed 001 step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
+             "Yadav et al.'s step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
              entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
 )
 

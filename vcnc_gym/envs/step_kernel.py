@@ -339,7 +339,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     obs[o.tracking_error] = ex
     obs[o.tracking_error + 1] = ey
     obs[o.contour_error] = err
-    obs[o.tangential_error] = tx * ex + ty * ey  # seed 002 eq. (3): e_l = R^T e_w
+    obs[o.tangential_error] = tx * ex + ty * ey  # Simba et al.'s eq. (3): e_l = R^T e_w
     obs[o.normal_error] = -ty * ex + tx * ey
     preview = reference.preview_steps
     for j in range(preview.shape[0]):

@@ -29,15 +29,15 @@ from .layout import ObservationLayout
 __all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EPISODE_ENDS", "make_contour", "make_profile",
            "pack_reference"]
 
-#: The feedrate profiles of ``profile=``: seed 000's S-curve (``feedrate``,
-#: ``ramp_time``), a constant feed from t = 0 (seed 002's linear case, seed
-#: 003's circle), seed 002's jerk-limited profile along a corner-smoothed path,
+#: The feedrate profiles of ``profile=``: Jahanpour et al.'s S-curve (``feedrate``,
+#: ``ramp_time``), a constant feed from t = 0 (Simba et al.'s linear case, Purtojo
+#: et al.'s circle), Simba et al.'s jerk-limited profile along a corner-smoothed path,
 #: and a CNC look-ahead feed that keeps the path's normal acceleration and jerk
 #: within limits (:class:`~vcnc_gym.motion.LookaheadFeedrate`, its defaults:
-#: seed 000's drives).
+#: Jahanpour et al.'s drives).
 PROFILES = ("scurve", "constant", "jlap", "lookahead")
 
-#: S-curve ramp time when ``ramp_time`` is not given, s (seed 000, section 3).
+#: S-curve ramp time when ``ramp_time`` is not given, s (Jahanpour et al. (2014), section 3).
 DEFAULT_RAMP_TIME = 0.12
 
 #: How an episode ends (``episode_end=``): "tool" once the tool has reached the
@@ -48,16 +48,16 @@ EPISODE_ENDS = {"reference": sk.END_REFERENCE, "tool": sk.END_TOOL}
 #: Defaults of the episode end (ours, measured in docs/reproduction.md, "Episode
 #: ends"): the settling time after the reference's end of v0, s; the
 #: completion tolerance, mm of contour still ahead of the tool's closest point
-#: when it counts as arrived, an in-position band: seed 000's QFT loop comes to
+#: when it counts as arrived, an in-position band: Jahanpour et al.'s QFT loop comes to
 #: rest 11 um short of the heart's end (friction and the 3 um backlash), the
-#: other baselines of seeds 000 and 002 within 2.5 um; the completion time
+#: other baselines of Jahanpour et al. and Simba et al. within 2.5 um; the completion time
 #: limit after the reference's end, s (QFT arrives 38 ms after it).
 DEFAULT_SETTLING_TIME = 0.01
 DEFAULT_COMPLETION_TOLERANCE = 0.02
 DEFAULT_COMPLETION_TIMEOUT = 0.1
 
 #: Arc lengths ahead of the tool's closest point at which the observation shows
-#: the contour, mm: out to 4 mm, twice the ~1.9 mm that seed 000's drives need
+#: the contour, mm: out to 4 mm, twice the ~1.9 mm that Jahanpour et al.'s drives need
 #: to brake from 100 mm/s (+-5 V, ~2.6e3 mm/s^2).
 DEFAULT_CONTOUR_AHEAD = (0.25, 0.5, 1.0, 2.0, 4.0)
 

@@ -9,7 +9,7 @@ path) in three steps, one module each:
    units, arcs from I/J or R, feeds; what is ignored is listed);
 3. :mod:`~vcnc_gym.gcode.toolpath`: the moves into one NURBS contour (G01 as
    straight segments, G02/G03 as exact rational quadratic arcs,
-   :mod:`~vcnc_gym.gcode.arcs`), seed 002's corner blends at the tolerance,
+   :mod:`~vcnc_gym.gcode.arcs`), Simba et al.'s corner blends at the tolerance,
    and the feed plan (:mod:`~vcnc_gym.gcode.feeds`: look-ahead with each
    block's feed, exact stops at the corners left sharp).
 
@@ -30,11 +30,11 @@ __all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move",
            "read_program_text"]
 
 #: Path acceleration (mm/s^2) and jerk (mm/s^3) limits by plant: those the suite already plans with for
-#: the plant's seed (seed 000: motion.lookahead's SEED000_PATH_*; seed 002: motion.jlap's SEED002_*).
-#: Purtojo et al.'s X-Y table (plants.nct_xy_table) has no path limits of its own (its paper runs a 1 mm circle
-#: at 1 mm/s): 30 mm/s^2 is 40 % of its slower (x) axis's acceleration at the rated input from rest, K alpha u_r =
-#: 50.7 x 1.475 = 75 mm/s^2 (Jahanpour et al.'s 1000 mm/s^2 is 38 % of its drives' ~2.6e3), and the jerk keeps
-#: the same 30 1/s ratio to it as theirs.
+#: the plant's paper (Jahanpour et al. (2014): motion.lookahead's JAHANPOUR2014_PATH_*; Simba et al.:
+#: motion.jlap's SIMBA_*).  Purtojo et al.'s X-Y table (plants.nct_xy_table) has no path limits in its paper
+#: (which runs a 1 mm circle at 1 mm/s): 30 mm/s^2 is 40 % of its slower (x) axis's acceleration at the rated
+#: input from rest, K alpha u_r = 50.7 x 1.475 = 75 mm/s^2 (Jahanpour et al.'s 1000 mm/s^2 is 38 % of its
+#: drives' ~2.6e3), and the jerk keeps the same 30 1/s ratio to it as theirs.
 PATH_LIMITS = {"vcnc_feed_drive": (1000.0, 3.0e4), "current_feed_drive": (4000.0, 1.6e5),
                "nct_xy_table": (30.0, 900.0)}
 
@@ -77,10 +77,10 @@ def read_program(program, tolerance: float | None = 0.01, *, acceleration: float
     program : str or os.PathLike
         The program's text, or a path to it.
     tolerance : float or None, default 0.01
-        Corner blending tolerance, mm (seed 002's blends between G01 moves); None: sharp corners with
+        Corner blending tolerance, mm (Simba et al.'s blends between G01 moves); None: sharp corners with
         exact stops.
     acceleration, jerk : float
-        Path limits of the blends and the look-ahead, mm/s^2 and mm/s^3 (default seed 000's drives').
+        Path limits of the blends and the look-ahead, mm/s^2 and mm/s^3 (default Jahanpour et al.'s drives').
     arc_tolerance : float
         Largest difference of an I/J arc's two radii, mm (default LinuxCNC's 0.0283 mm).
     spacing : float

@@ -2,7 +2,7 @@
 
 An arc of sweep phi <= 90 degrees is one rational quadratic Bezier segment
 (Piegl and Tiller, *The NURBS Book*, 2nd ed., section 7.3, eqs. (7.7)-(7.8);
-seed 000's curve type): end points P0, P2 on the circle, the middle point P1
+Jahanpour et al.'s curve type): end points P0, P2 on the circle, the middle point P1
 where the end tangents meet, at distance r / cos(phi / 2) from the centre on
 the bisector, weights (1, cos(phi / 2), 1).  A longer arc is cut into
 ceil(|sweep| / 90 deg) equal segments (section 7.5, algorithm A7.1), a full
@@ -15,7 +15,7 @@ degree p to p + t without changing the curve:
     Q_i = sum_{j = max(0, i - t)}^{min(p, i)} C(p, j) C(t, i - j) / C(p + t, i) P_j,
 
 applied to the homogeneous control points (w x, w y, w), so a rational arc
-stays the same exact arc at degree 5, the degree of seed 002's corner blends.
+stays the same exact arc at degree 5, the degree of Simba et al.'s corner blends.
 """
 
 from __future__ import annotations

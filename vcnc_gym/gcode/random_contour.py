@@ -3,7 +3,7 @@
 :func:`random_program` draws a G-code program (so every drawn contour is a
 program a user could run, and ``info["program"]`` shows it) from a numpy
 ``Generator``; it is then read like any program (:func:`vcnc_gym.gcode.read_program`):
-seed 002's blends at the corners between two G01 moves, exact arcs, the
+Simba et al.'s blends at the corners between two G01 moves, exact arcs, the
 look-ahead feed.
 
 The distributions (:class:`RandomContourSpec`, defaults):
@@ -14,15 +14,15 @@ The distributions (:class:`RandomContourSpec`, defaults):
 - line length: uniform in [``line_min``, ``line_max``] = [5, 30] mm;
 - between two lines a corner: the heading turns by a whole number of
   degrees uniform in [``turn_min``, ``turn_max``] = [20, 120], left or right
-  with probability 1/2 (seed 002's test path turns by 90 to 150 degrees;
-  whole degrees so that seed 002's corner designs, cached by angle in
+  with probability 1/2 (Simba et al.'s test path turns by 90 to 150 degrees;
+  whole degrees so that Simba et al.'s corner designs, cached by angle in
   :mod:`vcnc_gym.gcode.toolpath`, are made once per angle); a move
   after or before an arc continues tangentially (no corner: arcs join their
   neighbours smoothly, as a CAM system writes them);
 - arc radius: log-uniform in [``radius_min``, ``radius_max``] = [2, 20] mm;
   sweep uniform in [``sweep_min``, ``sweep_max``] = [30, 180] degrees;
 - feed: one per program, uniform in [``feed_min``, ``feed_max``] =
-  [2000, 6000] mm/min (33 to 100 mm/s, seed 000's 100 mm/s at the top);
+  [2000, 6000] mm/min (33 to 100 mm/s, Jahanpour et al.'s 100 mm/s at the top);
 - start at the origin, initial heading uniform in [0, 360) degrees.
 
 Coordinates are written to 1e-6 mm (6 decimals), arcs with I/J.  The path

@@ -8,7 +8,7 @@ into
   (:mod:`vcnc_gym.gcode.arcs`); interior knots of full multiplicity (every
   segment a Bezier piece), knot spans equal to the segments' arc lengths, so
   u is close to the arc length in mm;
-- at every corner between two G01 moves, with a ``tolerance`` (mm), seed 002's
+- at every corner between two G01 moves, with a ``tolerance`` (mm), Simba et al.'s
   quintic Bezier blend (Simba et al., eqs. (12)-(23),
   :func:`vcnc_gym.geometry.corners.smooth_polyline`): the path passes the
   corner at ``tolerance`` from the programmed vertex, like a CNC's
@@ -18,7 +18,7 @@ into
   without, it is of degree 2;
 - an exact stop (the feed down to zero, :mod:`vcnc_gym.gcode.feeds`) at every
   other corner: all of them with ``tolerance=None`` (sharp), and, with a
-  tolerance, the corners where an arc meets a line or another arc (seed 002's
+  tolerance, the corners where an arc meets a line or another arc (Simba et al.'s
   blend joins two straight legs); a path that turns back on itself (a
   180-degree corner) is an error naming the line;
 - the feed of every segment: its block's F; over a blend the lower F of its two blocks.
@@ -42,7 +42,7 @@ from .lexer import GCodeError
 __all__ = ["Joint", "Toolpath", "build_toolpath", "PROFILES"]
 
 #: Feed profiles a toolpath can be run with: the look-ahead with every block's feed and exact stops
-#: (default), or, for a program with one feed, seed 000's S-curve or a constant feed from t = 0 (no stops).
+#: (default), or, for a program with one feed, Jahanpour et al.'s S-curve or a constant feed from t = 0 (no stops).
 PROFILES = ("lookahead", "scurve", "constant")
 
 
@@ -61,7 +61,7 @@ class Joint:
     angle : float
         How far the tangent turns there, rad (0: tangent, pi: a U-turn).
     kind : str
-        ``"tangent"`` (<= TANGENT_ANGLE, run through), ``"blend"`` (seed 002's blend) or ``"stop"`` (exact stop).
+        ``"tangent"`` (<= TANGENT_ANGLE, run through), ``"blend"`` (Simba et al.'s blend) or ``"stop"`` (exact stop).
     """
 
     lines: tuple
@@ -262,7 +262,7 @@ def _cuts(segments: list, acceleration: float, jerk: float) -> np.ndarray:
     return cuts
 
 
-#: Seed 002's corner designs (the optimal length ratio n of eqs. (16)-(20), a golden-section search of ~0.15 s)
+#: Simba et al.'s corner designs (the optimal length ratio n of eqs. (16)-(20), a golden-section search of ~0.15 s)
 #: are cached by the interior angle rounded to this many rad: the design is made at the rounded angle, the
 #: blend itself at the exact one (l_t of eq. (13) from the exact angle: the path passes the corner at exactly
 #: the tolerance); n is at an optimum, so a 5e-6 rad shift of its angle changes the corner speed by nothing
@@ -284,7 +284,7 @@ def _design(theta: float, tolerance: float, acceleration: float, jerk: float):
 
 
 def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> list[_Segment]:
-    """Segments of consecutive G01 moves ``run`` joined by seed 002's blends (one move: a straight segment).
+    """Segments of consecutive G01 moves ``run`` joined by Simba et al.'s blends (one move: a straight segment).
 
     As :func:`vcnc_gym.geometry.corners.smooth_polyline` builds them (eqs. (12)-(23): control points on the
     legs, l_t from eq. (13), the corner segments' side l_s of eq. (22) must fit in every line), with the
@@ -297,7 +297,7 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
     blends, sides = [], [0.0]
     for k in range(len(run) - 1):
         d_in, d_out = dirs[k], dirs[k + 1]
-        theta = math.pi - _turn(d_in, d_out)  # the interior angle of seed 002 Fig. 3
+        theta = math.pi - _turn(d_in, d_out)  # the interior angle of Simba et al.'s Fig. 3
         design = _design(theta, tolerance, acceleration, jerk)
         l_t = corner_length(theta, tolerance, design.n)
         l_s = max(l_t, corner_length(theta, tolerance, max(design.n_a, design.n_j)))
@@ -310,7 +310,7 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
         if need >= moves[i].length:
             raise GCodeError(f"the corner blends do not fit: tolerance = {tolerance:g} mm is too large for this "
                              f"{moves[i].length:.6g} mm move; its corner segments take {need:.6g} mm (side l_s of "
-                             "seed 002 eq. (22))", moves[i].line, f"tolerance={tolerance!r}")
+                             "Simba et al.'s eq. (22))", moves[i].line, f"tolerance={tolerance!r}")
     out = []
     start = np.asarray(vertices[0], dtype=np.float64)
     for k, i in enumerate(run):

@@ -1,13 +1,13 @@
-"""Polyline tool paths with quintic Bezier corner blends, seed 002 eqs. (12)-(23).
+"""Polyline tool paths with quintic Bezier corner blends, Simba et al.'s eqs. (12)-(23).
 
-Seed 002 (Simba et al., section III, after its ref. [16], Sencer et al.)
-replaces every corner of a piecewise-linear tool path by a fifth-order Bezier
+Simba et al. (section III, after their ref. [16], Sencer et al.)
+replace every corner of a piecewise-linear tool path by a fifth-order Bezier
 curve, eq. (12),
 
     p(h) = sum_{i=0..5} binom(5, i) h^i (1-h)^(5-i) p_{i+1},    h in [0, 1].
 
-Placement (seed 002 Fig. 3)
----------------------------
+Placement (Simba et al., Fig. 3)
+--------------------------------
 At a corner G with interior angle theta between the legs, p_1, p_2, p_3
 lie on the incoming leg and p_4, p_5, p_6 on the outgoing one, symmetric
 about the bisector:
@@ -25,8 +25,8 @@ blend passes the bisector at the distance of eq. (13) from G,
 which is also its closest approach to G: the largest distance from the sharp
 path to the smoothed one is eps (tests/test_corners.py measures it).
 
-Length ratio (seed 002 eqs. (14)-(20))
---------------------------------------
+Length ratio (Simba et al., eqs. (14)-(20))
+-------------------------------------------
 With eq. (13) solved for l_t, the blend of a given (theta, eps) depends on n
 only.  Travelled at a constant speed v, its acceleration is v^2 kappa
 (eq. (14)) and its jerk v^3 varkappa (eq. (17)), with kappa the curvature and
@@ -35,7 +35,7 @@ varkappa = |d^3 p / ds^3| = sqrt(kappa_s^2 + kappa^4).  So
     v_max,a(n) = sqrt(a_max / max_h kappa)           (eq. (15)),
     v_max,j(n) = cbrt(j_max / max_h varkappa)       (eq. (18)),
 
-n_opt,a = argmin_n max_h kappa (eq. (16), eps held fixed as seed 002 does),
+n_opt,a = argmin_n max_h kappa (eq. (16), eps held fixed as Simba et al. do),
 n_opt,j = argmin_n max_h varkappa (eq. (19)) and
 n_opt = argmax_n min(v_max,a, v_max,j) (eq. (20)).  Eq. (17) as printed has
 |p''|^7 in its denominator and "+" before the p''' p' term of H_1 and before
@@ -46,20 +46,20 @@ checks it against a finite-difference kappa_s).
 Maxima over h are found on a 513-point grid of h in [0, 1/2] (the blend is
 symmetric about h = 1/2) refined by golden-section search around the best
 sample; the optimisations over n by a 61-point grid of log n in [0.01, 100]
-refined by golden-section search (the objectives are unimodal in n: seed 002
+refined by golden-section search (the objectives are unimodal in n: Simba et al.'s
 Fig. 4, and the brute-force test).
 
-Corner segment (seed 002 eqs. (21)-(23))
-----------------------------------------
+Corner segment (Simba et al., eqs. (21)-(23))
+---------------------------------------------
 The feedrate planner holds the corner speed over a corner segment that starts
 l_s before G on the incoming leg and ends l_s after it (the "unilateral
 triangle" of side l_s), eq. (22): l_s = l_t(n_opt,j).  When n_opt,a > n_opt,j
-(not met in seed 002's settings) we take l_s = l_t(max(n_opt,a, n_opt,j)),
+(not met in Simba et al.'s settings) we take l_s = l_t(max(n_opt,a, n_opt,j)),
 which keeps l_s >= l_t(n_opt) since l_t grows with n.  The segment's length is
 eq. (23), Delta s = 2 (l_s - l_t(n_opt)) + s_arc, with the blend's arc length
 s_arc of eq. (21) computed by composite 20-point Gauss-Legendre quadrature,
 the number of pieces doubled until two successive sums agree to 1e-14
-relative (seed 002 uses a sixth-order point-based method, its ref. [20]; any
+relative (Simba et al. use a sixth-order point-based method, their ref. [20]; any
 converged quadrature gives the same number).
 
 The whole path as one NURBS
@@ -194,7 +194,7 @@ def _interior_angles(dirs: np.ndarray) -> np.ndarray:
 def interior_angles(vertices) -> np.ndarray:
     """Interior angle theta at each inner vertex of a polyline, rad, shape (K-2,).
 
-    theta is the angle between the two legs at the vertex (seed 002 Fig. 3):
+    theta is the angle between the two legs at the vertex (Simba et al., Fig. 3):
     pi for a straight continuation, small for a sharp corner.
 
     Raises
@@ -237,7 +237,7 @@ def _ratio_factor(n: float) -> float:
 
 
 def corner_error(theta: float, l_t: float, n: float) -> float:
-    """Seed 002 eq. (13): eps = (7n+16) sqrt(2+2cos theta) / (64n+32) l_t, mm.
+    """Simba et al.'s eq. (13): eps = (7n+16) sqrt(2+2cos theta) / (64n+32) l_t, mm.
 
     Parameters
     ----------
@@ -255,7 +255,7 @@ def corner_error(theta: float, l_t: float, n: float) -> float:
 
 
 def corner_length(theta: float, epsilon: float, n: float) -> float:
-    """Seed 002 eq. (13) solved for l_t: the blend length along each leg, mm.
+    """Simba et al.'s eq. (13) solved for l_t: the blend length along each leg, mm.
 
     Parameters
     ----------
@@ -277,7 +277,7 @@ def _l_t(theta: float, epsilon: float, n: float) -> float:
 
 
 def blend_control_points(corner, d_in, d_out, l_t: float, n: float) -> np.ndarray:
-    """The six control points p_1..p_6 of a corner blend (seed 002 Fig. 3), mm.
+    """The six control points p_1..p_6 of a corner blend (Simba et al., Fig. 3), mm.
 
     Parameters
     ----------
@@ -476,7 +476,7 @@ def peak_curvature(theta: float, epsilon: float, n: float) -> tuple[float, float
 
 
 def bezier_arc_length(control_points) -> float:
-    """Arc length of a Bezier curve, seed 002 eq. (21), mm.
+    """Arc length of a Bezier curve, Simba et al.'s eq. (21), mm.
 
     Composite 20-point Gauss-Legendre quadrature of |dp/dh| on [0, 1]; the
     number of equal pieces is doubled (from 1) until two successive sums agree
@@ -510,7 +510,7 @@ def bezier_arc_length(control_points) -> float:
 
 @dataclass(frozen=True)
 class CornerDesign:
-    """One corner blend designed by seed 002 eqs. (13)-(23).
+    """One corner blend designed by Simba et al.'s eqs. (13)-(23).
 
     Attributes
     ----------
@@ -588,7 +588,7 @@ def _log_n_search(objective) -> float:
 
 
 def design_corner(theta: float, epsilon: float, a_max: float, j_max: float) -> CornerDesign:
-    """Optimal blend of one corner, seed 002 eqs. (13)-(23).
+    """Optimal blend of one corner, Simba et al.'s eqs. (13)-(23).
 
     Parameters
     ----------
@@ -665,7 +665,7 @@ def design_corner(theta: float, epsilon: float, a_max: float, j_max: float) -> C
 
 @dataclass(frozen=True)
 class SmoothedPolyline:
-    """A polyline whose corners are quintic Bezier blends (seed 002 section III).
+    """A polyline whose corners are quintic Bezier blends (Simba et al., section III).
 
     Made by :func:`smooth_polyline`.
 
@@ -720,7 +720,7 @@ def smooth_polyline(vertices, epsilon: float, a_max: float, j_max: float) -> Smo
         The polyline, mm, K >= 2; no repeated consecutive vertices, no three
         consecutive collinear ones.
     epsilon : float
-        Corner tolerance eps of seed 002 eq. (13), mm.
+        Corner tolerance eps of Simba et al.'s eq. (13), mm.
     a_max : float
         Path acceleration limit for the corner speed, mm/s^2 (eq. (15)).
     j_max : float
@@ -749,7 +749,7 @@ def smooth_polyline(vertices, epsilon: float, a_max: float, j_max: float) -> Smo
             raise ValueError(
                 f"the corner at vertex {k + 1} ({pts[k + 1].tolist()} mm) is too sharp to blend: interior angle "
                 f"{math.degrees(theta):.4g} deg, below MIN_BLEND_ANGLE = {math.degrees(MIN_BLEND_ANGLE):.4g} deg, "
-                "where seed 002's optimal length ratio n (eqs. (16)-(20)) leaves the design's search range; the "
+                "where Simba et al.'s optimal length ratio n (eqs. (16)-(20)) leaves the design's search range; the "
                 "path nearly turns back on itself there: open the corner or split the path at it"
             )
     designs = tuple(design_corner(t, epsilon, a_max, j_max) for t in thetas)
@@ -761,7 +761,7 @@ def smooth_polyline(vertices, epsilon: float, a_max: float, j_max: float) -> Smo
         if need >= length:
             raise ValueError(
                 f"epsilon = {epsilon:g} mm is too large for segment {k} (vertices {k} to {k + 1}, "
-                f"{length:.6g} mm long): its corner segments take {need:.6g} mm (side l_s of seed 002 eq. (22))"
+                f"{length:.6g} mm long): its corner segments take {need:.6g} mm (side l_s of Simba et al.'s eq. (22))"
             )
 
     pieces: list[tuple[np.ndarray, float, float]] = []  # (control points, knot span, arc length)

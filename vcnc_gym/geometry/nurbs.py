@@ -1,6 +1,6 @@
-"""Planar NURBS curves, seed 000 eqs. (2)-(5).
+"""Planar NURBS curves, Jahanpour et al.'s eqs. (2)-(5).
 
-The evaluator follows Piegl and Tiller, *The NURBS Book* (seed 000 ref. [20]):
+The evaluator follows Piegl and Tiller, *The NURBS Book* (Jahanpour et al. (2014), ref. [20]):
 algorithm A2.1 (knot span), A2.3 (basis functions and their derivatives) and
 A4.2 (derivatives of a rational curve from those of its homogeneous form).
 The kernels are module-level numba functions on plain arrays, so the
@@ -55,7 +55,7 @@ _GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
 
 def interior_angle(d_in, d_out):
     """Interior angle between incoming and outgoing directions ``d_in``, ``d_out`` (..., 2), rad in [0, pi]:
-    pi for a straight continuation, 0 for a U-turn (seed 002 Fig. 3's theta).  Turns back where it is at most
+    pi for a straight continuation, 0 for a U-turn (the theta of Simba et al.'s Fig. 3).  Turns back where it is at most
     :data:`TURN_BACK_ANGLE`."""
     d_in, d_out = np.asarray(d_in, dtype=np.float64), np.asarray(d_out, dtype=np.float64)
     cross = d_in[..., 0] * d_out[..., 1] - d_in[..., 1] * d_out[..., 0]
@@ -228,7 +228,7 @@ def curve_derivatives_into(control_points, weights, knots, degree, u, order, out
 
 @njit(cache=True)
 def curve_derivatives(control_points, weights, knots, degree, u, order, out):
-    """C(u) and its derivatives with respect to u, seed 000 eq. (5) (A4.2).
+    """C(u) and its derivatives with respect to u, Jahanpour et al.'s eq. (5) (A4.2).
 
     Parameters
     ----------
@@ -264,7 +264,7 @@ def _is_integer(x) -> bool:
 
 
 class NurbsCurve:
-    """A planar NURBS curve of any degree p >= 1, seed 000 eqs. (2)-(5).
+    """A planar NURBS curve of any degree p >= 1, Jahanpour et al.'s eqs. (2)-(5).
 
     Parameters
     ----------
@@ -442,7 +442,7 @@ class NurbsCurve:
     def check_regular(self) -> None:
         """Raise ``ValueError`` where the curve's tangent C'(u) / |C'(u)| is undefined.
 
-        The interpolator divides by |C'(u)| (seed 000 eq. (9): du/dt =
+        The interpolator divides by |C'(u)| (Jahanpour et al. (2014), eq. (9): du/dt =
         V / |C'|) and the envs command the unit tangent, so a curve must be
         *regular*: C'(u) != 0 everywhere.  Checked, with relative tolerances
         so that the answer does not depend on the units of u or of the
@@ -528,7 +528,8 @@ class NurbsCurve:
             f"|C'(u)| = {speed[j]:.3g} mm per unit of u, {ratio[j]:.2g} of the knot span [{a:.10g}, {b:.10g}]'s "
             f"mean speed (SPEED_TOLERANCE = {SPEED_TOLERANCE:g})"
         )
-        consequence = "the feed relation of seed 000 eq. (9), du/dt = V / |C'(u)|, and the tangent are undefined there"
+        consequence = ("the feed relation of Jahanpour et al.'s eq. (9), du/dt = V / |C'(u)|, and the tangent are "
+                       "undefined there")
         near = 1e-6 * (b - a)
         if u - lo <= near or hi - u <= near:
             end = "start" if u - lo <= near else "end"

@@ -1,4 +1,4 @@
-"""The named contours of the seeds, in machine coordinates (mm).
+"""The named contours of the source papers, in machine coordinates (mm).
 
 Each function returns a fresh curve exactly as the paper defines it: not
 rescaled, not shifted, knots in their own units.
@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from ..plants.current_feed_drive import SEED002_A_MAX, SEED002_J_MAX
+from ..plants.current_feed_drive import SEED002_A_MAX as SIMBA_A_MAX, SEED002_J_MAX as SIMBA_J_MAX
 from ..validation import positive
 from .corners import polyline, smooth_polyline
 from .nurbs import NurbsCurve
@@ -19,7 +19,7 @@ __all__ = ["heart", "omega", "corners_vertices", "corners_path", "circle", "SHAP
 
 
 def heart() -> NurbsCurve:
-    """The "heart" of seed 000, section 3a: cubic, 9 control points, u in [0, 6].
+    """The "heart" of Jahanpour et al. (2014), section 3a: cubic, 9 control points, u in [0, 6].
 
     It starts and ends at the origin; the paper traces it clockwise.
     """
@@ -34,7 +34,7 @@ def heart() -> NurbsCurve:
 
 
 def omega() -> NurbsCurve:
-    """The "omega" of seed 000, section 3a: quadratic, 12 control points, u in [0, 1].
+    """The "omega" of Jahanpour et al. (2014), section 3a: quadratic, 12 control points, u in [0, 1].
 
     Traced from left to right.
     """
@@ -49,9 +49,9 @@ def omega() -> NurbsCurve:
 
 
 def corners_vertices() -> np.ndarray:
-    """Vertices (mm) of seed 002's test path (Fig. 5): corners of 30, 60 and 90 degrees.
+    """Vertices (mm) of Simba et al.'s test path (Fig. 5): corners of 30, 60 and 90 degrees.
 
-    Seed 002 names the interior angles (section IV-A) but gives no lengths.
+    Simba et al. name the interior angles (section IV-A) but give no lengths.
     Our choice: four 50 mm segments (200 mm, 4 s at the paper's 50 mm/s, so
     the linear path meets its corners at 1, 2 and 3 s and stops at 4 s, where
     the paper's Fig. 11 shows its overshoots), starting at the origin along
@@ -71,35 +71,35 @@ def corners_vertices() -> np.ndarray:
 
 def corners_path(smooth: bool = True, epsilon: float = 0.05, a_max: float | None = None,
                  j_max: float | None = None) -> NurbsCurve:
-    """Seed 002's test path (Fig. 5, :func:`corners_vertices`), sharp or corner-smoothed.
+    """Simba et al.'s test path (Fig. 5, :func:`corners_vertices`), sharp or corner-smoothed.
 
     Parameters
     ----------
     smooth : bool
-        True: corners replaced by quintic Bezier blends (seed 002 eqs. (12)-(23)),
+        True: corners replaced by quintic Bezier blends (Simba et al., eqs. (12)-(23)),
         a degree-5 NURBS; False: the sharp polyline, a degree-1 NURBS whose
         parameter is the arc length.
     epsilon : float
-        Corner tolerance, mm (seed 002 section IV-A: 50 um).
+        Corner tolerance, mm (Simba et al., section IV-A: 50 um).
     a_max, j_max : float or None
         Limits the blends are designed for, mm/s^2 and mm/s^3; None: Simba et al.'s
         drives (:mod:`vcnc_gym.plants.current_feed_drive`).
     """
     if not smooth:
         return polyline(corners_vertices())
-    a_max = SEED002_A_MAX if a_max is None else a_max
-    j_max = SEED002_J_MAX if j_max is None else j_max
+    a_max = SIMBA_A_MAX if a_max is None else a_max
+    j_max = SIMBA_J_MAX if j_max is None else j_max
     return smooth_polyline(corners_vertices(), epsilon, a_max, j_max).curve
 
 
 def circle(radius: float = 1.0) -> NurbsCurve:
-    """The circle of seed 003, section IV: radius ``radius`` mm (the paper's 1 mm), centred at the origin.
+    """The circle of Purtojo et al., section IV: radius ``radius`` mm (the paper's 1 mm), centred at the origin.
 
     An exact NURBS: rational quadratic, 9 control points on the corners and
     edge midpoints of the circumscribed square, weights 1 and sqrt(2)/2
     (Piegl and Tiller, The NURBS Book, 2nd ed., section 7.5), u in [0, 1],
     one quarter per knot span.  It starts at (0, R) and runs clockwise, as
-    x = R sin(w t), y = R cos(w t) do (seed 003: a sine on the x axis, a
+    x = R sin(w t), y = R cos(w t) do (Purtojo et al.: a sine on the x axis, a
     cosine on the y axis).
     """
     r = positive("radius", radius, "mm")
@@ -115,10 +115,10 @@ def circle(radius: float = 1.0) -> NurbsCurve:
 
 
 def corners_smooth(epsilon: float = 0.05):
-    """Seed 002's test path with its corners smoothed (eqs. (12)-(23), epsilon = 50 um), as the
+    """Simba et al.'s test path with its corners smoothed (eqs. (12)-(23), epsilon = 50 um), as the
     :class:`~vcnc_gym.geometry.corners.SmoothedPolyline` (curve and corner zones, which the
     jerk-limited feedrate plans along)."""
-    return smooth_polyline(corners_vertices(), epsilon, SEED002_A_MAX, SEED002_J_MAX)
+    return smooth_polyline(corners_vertices(), epsilon, SIMBA_A_MAX, SIMBA_J_MAX)
 
 
 SHAPES = {

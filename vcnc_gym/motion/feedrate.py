@@ -1,7 +1,7 @@
-"""The cubic S-curve feedrate profile of seed 000 (section 2b, refs. [22, 24]).
+"""The cubic S-curve feedrate profile of Jahanpour et al. (2014) (section 2b, refs. [22, 24]).
 
-Seed 000 plans the feed along the tool path with "the cubic time-dependent
-feedrate" of its refs. [22, 24]: an acceleration phase, a constant-feed phase
+Jahanpour et al. (2014) plan the feed along the tool path with "the cubic time-dependent
+feedrate" of their refs. [22, 24]: an acceleration phase, a constant-feed phase
 and a symmetric deceleration phase. Each ramp of duration T_a follows the
 smoothstep cubic
 
@@ -13,7 +13,7 @@ ends of the ramp and peaks at 1.5 V_peak / T_a in the middle, and the jerk
 phase boundaries, so V and dV/dt are continuous and the jerk is bounded).
 Each ramp covers V_peak T_a / 2 of path.
 
-Section 3 of the seed uses V = 100 mm/s and T_a = 0.12 s for both contours;
+Section 3 of the paper uses V = 100 mm/s and T_a = 0.12 s for both contours;
 those are the defaults here.
 
 The profile is split in two parts that follow the numba conventions of the
@@ -214,7 +214,7 @@ class FeedratePlan:
 
 
 class SCurveFeedrate:
-    """Cubic S-curve feedrate profile, seed 000 section 2b (refs. [22, 24]).
+    """Cubic S-curve feedrate profile, Jahanpour et al.'s section 2b (refs. [22, 24]).
 
     Three phases: acceleration V(t) = V_peak (3 tau^2 - 2 tau^3) with
     tau = t / T_a, constant feed V_peak, and the mirror-image deceleration.
@@ -233,9 +233,9 @@ class SCurveFeedrate:
     Parameters
     ----------
     feedrate : float, default 100.0
-        Requested feed V along the path, mm/s (seed 000 section 3: 100 mm/s).
+        Requested feed V along the path, mm/s (Jahanpour et al. (2014), section 3: 100 mm/s).
     ramp_time : float, default 0.12
-        Acceleration / deceleration time T_a, s (seed 000 section 3: 0.12 s).
+        Acceleration / deceleration time T_a, s (Jahanpour et al. (2014), section 3: 0.12 s).
 
     Raises
     ------

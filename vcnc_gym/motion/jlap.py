@@ -1,13 +1,13 @@
-"""Jerk-limited acceleration profiles (JLAPs) along a path, seed 002 section III, Fig. 2.
+"""Jerk-limited acceleration profiles (JLAPs) along a path, Simba et al.'s section III, Fig. 2.
 
-Seed 002 drives its smoothed tool paths with JLAPs: every change of feed is
+Simba et al. drive their smoothed tool paths with JLAPs: every change of feed is
 made of a constant-jerk ramp up to a constant acceleration, the constant
 acceleration, and a constant-jerk ramp back to zero acceleration, so the
 acceleration is continuous and starts and ends at zero; changes are joined by
 constant-feed sections.  Along a corner-smoothed path
 (:func:`vcnc_gym.geometry.corners.smooth_polyline`) the feed is held at the
-corner speed min(v_max,a, v_max,j) of seed 002 eq. (20) over each corner
-segment of eq. (23) and reaches the programmed feedrate (50 mm/s, seed 002
+corner speed min(v_max,a, v_max,j) of Simba et al.'s eq. (20) over each corner
+segment of eq. (23) and reaches the programmed feedrate (50 mm/s, Simba et al.'s
 section IV-A) on the straight parts where there is room.
 
 One feed change
@@ -27,14 +27,14 @@ A straight section between two held feeds (or rest) of length Delta s rises
 to the highest peak feed v_c <= feedrate for which the two changes fit,
 cruises at v_c if the feedrate is reached, and comes down.  Before that, a
 forward and a backward pass lower every held feed that cannot be reached from
-its neighbours within the section between them (never met on seed 002's
+its neighbours within the section between them (never met on Simba et al.'s
 path).  The time-optimal 1-DoF trajectory with the same limits and boundary
 states is this one (tests/test_jlap.py checks the durations against ruckig).
 
-Seed 002's limits (the paper gives none)
-----------------------------------------
+Simba et al.'s limits (the paper gives none)
+--------------------------------------------
 * ``a_max`` = 4000 mm/s^2 (0.41 g).  The weakest drive is x: with the 5 A
-  current limit chosen for seed 002's plant (:mod:`vcnc_gym.plants.current_feed_drive`)
+  current limit chosen for Simba et al.'s plant (:mod:`vcnc_gym.plants.current_feed_drive`)
   and every Table I parameter at the unfavourable end of its uncertainty
   interval (k_f -10 %, f_c +20 %, c +30 %, m +10 %), it can accelerate at
   (k_f i_max - f_c - c 50 mm/s) / m = 9.98e3 mm/s^2 at the 50 mm/s feed
@@ -48,18 +48,18 @@ Seed 002's limits (the paper gives none)
   the acceleration to take at least one natural period 2 pi / omega_n =
   23.7 ms to reach a_max: j_max <= a_max omega_n / (2 pi) = 1.68e5 mm/s^3,
   rounded down to 1.6e5 (a_max reached in 25 ms).
-* ``feedrate`` = 50 mm/s, seed 002 section IV-A.
+* ``feedrate`` = 50 mm/s, Simba et al.'s section IV-A.
 
-With these limits and eps = 50 um the corner speeds of seed 002's test path
+With these limits and eps = 50 um the corner speeds of Simba et al.'s test path
 are jerk-bound (n_opt = n_opt,j): 3.4, 6.6 and 11.5 mm/s at 30, 60 and 90
 degrees.  No feed change of at most 50 mm/s reaches a_max (that takes
-a_max^2 / j_max = 100 mm/s): seed 002's changes are jerk-bound too, peaking at
+a_max^2 / j_max = 100 mm/s): Simba et al.'s changes are jerk-bound too, peaking at
 sqrt(Delta v j_max) <= 2.83e3 mm/s^2; a_max enters through the corner speeds
 of eq. (15) (not binding here) and would bound faster or larger changes.
 
 The sharp path
 --------------
-Seed 002's linear path runs at a constant 50 mm/s: :func:`constant_feedrate`
+Simba et al.'s linear path runs at a constant 50 mm/s: :func:`constant_feedrate`
 is that plan, V = feedrate from t = 0 to length / feedrate (a step in feed at
 both ends, as in the paper's linear case).
 
@@ -94,14 +94,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..plants.current_feed_drive import SEED002_A_MAX, SEED002_FEEDRATE, SEED002_J_MAX  # limits beside their plant
+from ..plants.current_feed_drive import (  # limits beside their plant
+    SEED002_A_MAX as SIMBA_A_MAX,
+    SEED002_FEEDRATE as SIMBA_FEEDRATE,
+    SEED002_J_MAX as SIMBA_J_MAX,
+)
 from ..validation import positive as _positive
 
 __all__ = [
     "PieceWriter",
-    "SEED002_A_MAX",
-    "SEED002_FEEDRATE",
-    "SEED002_J_MAX",
+    "SIMBA_A_MAX",
+    "SIMBA_FEEDRATE",
+    "SIMBA_J_MAX",
     "JlapFeedrate",
     "JlapPlan",
     "JlapSection",
@@ -273,7 +277,7 @@ class JlapSection:
     ----------
     kind : str
         ``"straight"`` (feed change, cruise, feed change), ``"corner"`` (the
-        feed held over a corner segment of seed 002 eq. (23)) or
+        feed held over a corner segment of Simba et al.'s eq. (23)) or
         ``"constant"`` (the whole constant-feedrate plan).
     t_start, t_end : float
         Time span, s.
@@ -400,15 +404,15 @@ class PieceWriter:
         return JlapPlan(length=length, breaks=breaks, coeffs=coeffs, sections=tuple(sections))
 
 
-def constant_feedrate(length: float, feedrate: float = SEED002_FEEDRATE) -> JlapPlan:
-    """Seed 002's linear case: V = feedrate from t = 0 to the end, length / feedrate s.
+def constant_feedrate(length: float, feedrate: float = SIMBA_FEEDRATE) -> JlapPlan:
+    """Simba et al.'s linear case: V = feedrate from t = 0 to the end, length / feedrate s.
 
     Parameters
     ----------
     length : float
         Path length, mm.
     feedrate : float
-        The constant feed, mm/s (seed 002: 50).
+        The constant feed, mm/s (Simba et al.: 50).
 
     Raises
     ------
@@ -426,7 +430,7 @@ def constant_feedrate(length: float, feedrate: float = SEED002_FEEDRATE) -> Jlap
 class ConstantFeedrate:
     """A constant feed from t = 0 to the end (no ramps): ``plan(length)`` is :func:`constant_feedrate`.
 
-    Seed 002's linear case (50 mm/s) and seed 003's circle (x = R sin(omega t),
+    Simba et al.'s linear case (50 mm/s) and Purtojo et al.'s circle (x = R sin(omega t),
     y = R cos(omega t): a constant feed R omega from the start).
 
     Parameters
@@ -435,7 +439,7 @@ class ConstantFeedrate:
         The feed, mm/s.
     """
 
-    def __init__(self, feedrate: float = SEED002_FEEDRATE):
+    def __init__(self, feedrate: float = SIMBA_FEEDRATE):
         self.feedrate = _positive("feedrate", feedrate, "mm/s")
 
     def plan(self, length: float) -> JlapPlan:
@@ -446,7 +450,7 @@ class ConstantFeedrate:
 
 
 class JlapPathFeedrate:
-    """Seed 002's jerk-limited feedrate along one corner-smoothed path, corner speeds included.
+    """Simba et al.'s jerk-limited feedrate along one corner-smoothed path, corner speeds included.
 
     ``plan(length)`` plans ``path`` (a :class:`~vcnc_gym.geometry.SmoothedPolyline`)
     with :meth:`JlapFeedrate.plan_path`, at the limits the path's blends were
@@ -456,10 +460,10 @@ class JlapPathFeedrate:
     ----------
     path : SmoothedPolyline
     feedrate : float
-        Programmed feed, mm/s (seed 002: 50).
+        Programmed feed, mm/s (Simba et al.: 50).
     """
 
-    def __init__(self, path, feedrate: float = SEED002_FEEDRATE):
+    def __init__(self, path, feedrate: float = SIMBA_FEEDRATE):
         self.path = path
         self.feedrate = _positive("feedrate", feedrate, "mm/s")
         self.planner = JlapFeedrate(self.feedrate, a_max=path.a_max, j_max=path.j_max)
@@ -476,16 +480,16 @@ class JlapPathFeedrate:
 
 
 class JlapFeedrate:
-    """Jerk-limited feedrate planner along a path's arc length (seed 002 section III, Fig. 2).
+    """Jerk-limited feedrate planner along a path's arc length (Simba et al., section III, Fig. 2).
 
     Parameters
     ----------
     feedrate : float
-        Programmed feed, mm/s (seed 002: 50).
+        Programmed feed, mm/s (Simba et al.: 50).
     a_max : float
-        Feed acceleration limit, mm/s^2 (module docstring: 4000 for seed 002).
+        Feed acceleration limit, mm/s^2 (module docstring: 4000 for Simba et al.).
     j_max : float
-        Feed jerk limit, mm/s^3 (module docstring: 1.6e5 for seed 002).
+        Feed jerk limit, mm/s^3 (module docstring: 1.6e5 for Simba et al.).
 
     Raises
     ------
@@ -493,7 +497,7 @@ class JlapFeedrate:
         If an argument is not a positive finite number (message names it and its unit).
     """
 
-    def __init__(self, feedrate: float = SEED002_FEEDRATE, a_max: float = SEED002_A_MAX, j_max: float = SEED002_J_MAX):
+    def __init__(self, feedrate: float = SIMBA_FEEDRATE, a_max: float = SIMBA_A_MAX, j_max: float = SIMBA_J_MAX):
         self.feedrate = _positive("feedrate", feedrate, "mm/s")
         self.a_max = _positive("a_max", a_max, "mm/s^2")
         self.j_max = _positive("j_max", j_max, "mm/s^3")
@@ -586,7 +590,7 @@ class JlapFeedrate:
         Parameters
         ----------
         path : vcnc_gym.geometry.corners.SmoothedPolyline
-            Its ``zones`` (mm) and ``corner_speeds`` (mm/s, seed 002 eq. (20)).
+            Its ``zones`` (mm) and ``corner_speeds`` (mm/s, Simba et al.'s eq. (20)).
 
         Raises
         ------

@@ -9,8 +9,8 @@ dynamics-based NURBS interpolator with real-time look-ahead algorithm",
 Int. J. Machine Tools and Manufacture 47(15), 2246-2262, 2007): a
 curvature-limited feed, critical points at its minima, forward and backward
 (bidirectional) scans of the speeds there, and jerk-limited feed changes
-between them (Erkorkmaz and Altintas 2001, seed 000 ref. [17]; the changes
-are those of seed 002's JLAPs, :mod:`vcnc_gym.motion.jlap`).
+between them (Erkorkmaz and Altintas 2001, Jahanpour et al.'s ref. [17]; the changes
+are those of Simba et al.'s JLAPs, :mod:`vcnc_gym.motion.jlap`).
 
 1. The speed limit along the arc length s
 -----------------------------------------
@@ -27,7 +27,7 @@ The jerk bound is an approximation: the whole jerk of the path is
 tangent and normal, A = dV/dt, kappa_s = dkappa/ds); the terms 3 kappa V A
 (a feed change inside a curve) and kappa_s V^3 (a varying curvature) are not
 bounded here.  Where the curvature jumps (at the knots of a C1 curve such as
-seed 000's quadratic omega: 0.148 -> 0.261 1/mm at s = 21.0 mm) the normal
+Jahanpour et al.'s quadratic omega: 0.148 -> 0.261 1/mm at s = 21.0 mm) the normal
 acceleration steps and no feed above zero bounds its jerk.
 
 kappa is sampled on a grid of about ``spacing`` mm of arc (uniform in u in
@@ -43,14 +43,14 @@ The path is cut at the local minima of v_lim below F (minima not separated by
 a rise of more than 1e-6 relative are one: a circle's constant curvature is
 one minimum, not its rounding noise).  Each cut is a critical point with the
 speed limit w = v_lim there; the path starts and ends at rest.  Every section
-between two cuts is planned as one JLAP straight section of seed 002: a
+between two cuts is planned as one JLAP straight section of Simba et al.: a
 jerk-limited change from the speed at its start to a peak, a cruise, a
 change down to the speed at its end, acceleration zero at both ends
 (:func:`vcnc_gym.motion.jlap.transition_distance`), the peak no higher than
 the section's cap c, the largest v_lim inside it.  A forward scan lowers every
 critical speed that cannot be reached from the one before within the section
 between them, a backward scan every one from which the next cannot be reached
-(as :meth:`vcnc_gym.motion.jlap.JlapFeedrate.plan` does for seed 002's
+(as :meth:`vcnc_gym.motion.jlap.JlapFeedrate.plan` does for Simba et al.'s
 corners).
 
 3. Below the limit between the critical points
@@ -88,14 +88,14 @@ the rest-to-rest JLAP of :class:`~vcnc_gym.motion.jlap.JlapFeedrate`, the
 time-optimal jerk-limited motion, and every section is time-optimal for its
 end speeds and peak (tests/test_lookahead.py checks both against ruckig).
 
-With the defaults the omega takes 0.986 s and the heart 3.286 s (seed 000's
+With the defaults the omega takes 0.986 s and the heart 3.286 s (Jahanpour et al.'s
 S-curve: 0.631 and 3.221 s); no feed below v_lim with |dV/dt| <= A_t, jerk
 unbounded, can do them in less than 0.862 and 3.243 s (the bidirectional
 acceleration-only scan of v^2 on the same grid).
 
-Seed 000's limits (the paper gives none)
-----------------------------------------
-Seed 000's drive (eq. (1), Table 3, section 2c; :mod:`vcnc_gym.plants.vcnc_feed_drive`)
+Jahanpour et al.'s limits (the paper gives none)
+------------------------------------------------
+Jahanpour et al.'s drive (eq. (1), Table 3, section 2c; :mod:`vcnc_gym.plants.vcnc_feed_drive`)
 accelerates the table at r_g (K_t K_a u_max - T_coul - B v / r_g) / J with the
 full 5 V; at the 100 mm/s feed, against Coulomb and viscous friction, that is
 2332 (x) and 2105 (y) mm/s^2 at the nominal plant and 1437 and 1262 mm/s^2 at
@@ -103,25 +103,25 @@ the weakest vertex of the uncertainty box; braking, friction helps: 3470 and
 2543 mm/s^2 on y (2543 mm/s^2 is the 1.97 mm braking distance from 100 mm/s).
 
 * ``normal_acceleration`` = ``tangential_acceleration`` = 1000 mm/s^2
-  (``SEED000_PATH_ACCELERATION``): 79 % of the weakest axis's worst case
+  (``JAHANPOUR2014_PATH_ACCELERATION``): 79 % of the weakest axis's worst case
   (1262), 48 % of its nominal (2105), so at the nominal plant about half of
   the 5 V stays for the feedback and the friction.  The two bounds are
   separate: where both are reached at once (braking inside a curve) the
   path's acceleration is up to sqrt(2) x 1000 mm/s^2; each axis's acceleration
   is at most the path's.
-* ``normal_jerk`` = ``tangential_jerk`` = 3e4 mm/s^3 (``SEED000_PATH_JERK``).
+* ``normal_jerk`` = ``tangential_jerk`` = 3e4 mm/s^3 (``JAHANPOUR2014_PATH_JERK``).
   Eq. (1) has no electrical dynamics (the torque follows the voltage at
-  once), so the drive sets no jerk bound; the loops do.  As for seed 002's
+  once), so the drive sets no jerk bound; the loops do.  As for Simba et al.'s
   limits (:mod:`vcnc_gym.motion.jlap`) the acceleration is asked to take at
-  least one period of the slowest feedback loop of seed 000's controllers to
-  build up, the sliding-mode surface of bandwidth lambda = 200 rad/s (seed 000
+  least one period of the slowest feedback loop of Jahanpour et al.'s controllers to
+  build up, the sliding-mode surface of bandwidth lambda = 200 rad/s (Jahanpour et al.'s
   Table 2; the fuzzy loop is near 300 rad/s, the QFT's crosses over near
   8.6e3 rad/s): J <= A lambda / (2 pi) = 3.18e4 mm/s^3, rounded down to 3e4
   (1000 mm/s^2 reached in 33 ms).  On a curve this bounds the turning rate
   kappa V of the acceleration at A_n to J_n / A_n = 30 rad/s.
-* ``feedrate`` = 100 mm/s, seed 000 section 3.
+* ``feedrate`` = 100 mm/s, Jahanpour et al.'s section 3.
 
-For comparison, seed 000's S-curve (100 mm/s, T_a = 0.12 s) asks for a
+For comparison, Jahanpour et al.'s S-curve (100 mm/s, T_a = 0.12 s) asks for a
 tangential acceleration of 1.5 V / T_a = 1250 mm/s^2 and a jerk of
 6 V / T_a^2 = 4.2e4 mm/s^3, and at the omega's 0.19 mm corners (kappa up to
 5.37 1/mm) for a normal acceleration of 5.4e4 mm/s^2, 21 times what the
@@ -157,19 +157,19 @@ from .profile import plan_arrays
 __all__ = [
     "DEFAULT_SPACING",
     "MAX_LIMIT_SAMPLES",
-    "SEED000_FEEDRATE",
-    "SEED000_PATH_ACCELERATION",
-    "SEED000_PATH_JERK",
+    "JAHANPOUR2014_FEEDRATE",
+    "JAHANPOUR2014_PATH_ACCELERATION",
+    "JAHANPOUR2014_PATH_JERK",
     "LookaheadFeedrate",
     "LookaheadPlan",
 ]
 
-#: Programmed feed of seed 000's experiments, mm/s (section 3).
-SEED000_FEEDRATE = 100.0
-#: Normal and tangential path acceleration limit for seed 000's drives, mm/s^2 (module docstring).
-SEED000_PATH_ACCELERATION = 1000.0
-#: Normal and tangential path jerk limit for seed 000's drives, mm/s^3 (module docstring).
-SEED000_PATH_JERK = 3.0e4
+#: Programmed feed of Jahanpour et al.'s experiments, mm/s (section 3).
+JAHANPOUR2014_FEEDRATE = 100.0
+#: Normal and tangential path acceleration limit for Jahanpour et al.'s drives, mm/s^2 (module docstring).
+JAHANPOUR2014_PATH_ACCELERATION = 1000.0
+#: Normal and tangential path jerk limit for Jahanpour et al.'s drives, mm/s^3 (module docstring).
+JAHANPOUR2014_PATH_JERK = 3.0e4
 #: Default arc length between the samples of the curvature, mm: 1/19 of the
 #: omega's tightest radius (0.186 mm).  Samples are uniform in u in each knot
 #: span, at most this far apart: 7 400 on the omega, 52 000 on the heart.
@@ -401,11 +401,11 @@ class LookaheadFeedrate:
         (``NurbsCurve.check_regular``) and without corners (a unit tangent
         that jumps at a knot).
     feedrate : float, default 100.0
-        Programmed feed F, mm/s (seed 000 section 3).
+        Programmed feed F, mm/s (Jahanpour et al. (2014), section 3).
     normal_acceleration : float, default 1000.0
-        A_n, mm/s^2 (``SEED000_PATH_ACCELERATION``, module docstring).
+        A_n, mm/s^2 (``JAHANPOUR2014_PATH_ACCELERATION``, module docstring).
     normal_jerk : float, default 3e4
-        J_n, mm/s^3 (``SEED000_PATH_JERK``), as kappa^2 V^3.
+        J_n, mm/s^3 (``JAHANPOUR2014_PATH_JERK``), as kappa^2 V^3.
     tangential_acceleration : float, default 1000.0
         A_t, mm/s^2: bound on the feed's rate dV/dt.
     tangential_jerk : float, default 3e4
@@ -435,11 +435,11 @@ class LookaheadFeedrate:
     def __init__(
         self,
         curve,
-        feedrate: float = SEED000_FEEDRATE,
-        normal_acceleration: float = SEED000_PATH_ACCELERATION,
-        normal_jerk: float = SEED000_PATH_JERK,
-        tangential_acceleration: float = SEED000_PATH_ACCELERATION,
-        tangential_jerk: float = SEED000_PATH_JERK,
+        feedrate: float = JAHANPOUR2014_FEEDRATE,
+        normal_acceleration: float = JAHANPOUR2014_PATH_ACCELERATION,
+        normal_jerk: float = JAHANPOUR2014_PATH_JERK,
+        tangential_acceleration: float = JAHANPOUR2014_PATH_ACCELERATION,
+        tangential_jerk: float = JAHANPOUR2014_PATH_JERK,
         *,
         spacing: float = DEFAULT_SPACING,
     ):

@@ -11,7 +11,7 @@ through its ``kernel_args``, ``(breaks, coeffs)``:
   ``tau = t - breaks[k]``; row K is the rest after the motion,
   ``[length, 0, 0, 0, 0]``.
 
-Seed 000's cubic S-curve (quartic S on its ramps), seed 002's jerk-limited
+Jahanpour et al.'s cubic S-curve (quartic S on its ramps), Simba et al.'s jerk-limited
 profiles (cubic S, constant jerk per piece) and a constant feedrate (linear
 S) are all exactly of this form, so one compiled evaluator,
 :func:`plan_state`, serves them all.
@@ -68,7 +68,7 @@ def plan_batch(ts, breaks, coeffs, out):
 
 def plan_arrays(plan) -> tuple[np.ndarray, np.ndarray]:
     """``(breaks, coeffs)`` of any plan in this module's form: ``plan.kernel_args``, a cubic
-    (4-column, seed 002's jerk-limited plans) widened with a zero quartic column.
+    (4-column, Simba et al.'s jerk-limited plans) widened with a zero quartic column.
 
     Raises
     ------

@@ -1,6 +1,6 @@
-"""Seed 001's Table 2 in our numbers (vcnc_bench.reports.yadav2020) against the seed's own numbers.
+"""Yadav et al.'s Table 2 in our numbers (vcnc_bench.reports.yadav2020) against the paper's own numbers.
 
-The seed's nominal row is reproduced by the continuous loop without the dead
+The paper's nominal row is reproduced by the continuous loop without the dead
 time (section 4 evidently neglects it: with it the robust PI loop is
 unstable); its rise times of the underdamped loops are 0-100 % rise times.
 """

@@ -1,8 +1,8 @@
-"""The positioning env VCNC-Step-v0 (vcnc_gym.envs.positioning_env) with seed 001's plant and controllers.
+"""The positioning env VCNC-Step-v0 (vcnc_gym.envs.positioning_env) with Yadav et al.'s plant and controllers.
 
 Independent references: Gymnasium's and Stable-Baselines3's env checkers,
 python-control's sampled-data loop (ZOH plant times z^-n, Tustin controller),
-and seed 001's Table 2 (continuous loop without the dead time).
+and Yadav et al.'s Table 2 (continuous loop without the dead time).
 """
 
 import math
@@ -77,8 +77,8 @@ def test_pi_is_unstable_with_the_dead_time_and_reproduces_table_2_without_it():
     result = run_episode(baselines.make("pi", env), env)
     m = env.unwrapped.step_metrics()["x"]
     assert not result.diverged
-    # seed 001, Table 2, robust PI nominal: OS 41.2 %, ST 0.88 s; our 10-90 % rise time, 0.097 s,
-    # is shorter than the seed's 0.14 s, which is the 0-100 % rise time
+    # Yadav et al. (2020), Table 2, robust PI nominal: OS 41.2 %, ST 0.88 s; our 10-90 % rise time, 0.097 s,
+    # is shorter than the paper's 0.14 s, which is the 0-100 % rise time
     assert m["overshoot"] == pytest.approx(41.2, rel=0.05)
     assert m["settling_time"] == pytest.approx(0.88, rel=0.05)
     assert m["rise_time_100"] == pytest.approx(0.14, rel=0.05)

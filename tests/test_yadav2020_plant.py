@@ -1,9 +1,9 @@
-"""Tests of seed 001's CNCMT axis (vcnc_gym.plants.cncmt_axis).
+"""Tests of Yadav et al.'s CNCMT axis (vcnc_gym.plants.cncmt_axis).
 
 Independent references: python-control's ZOH discretisation of eq. (2)
 followed by z^-n, python-control's Pade approximation of high order of the
 continuous plant with its dead time, the closed-form response of
-b / (s (s + a)) to a delayed step, and the numbers of seed 001 typed in again.
+b / (s (s + a)) to a delayed step, and the numbers of Yadav et al. (2020) typed in again.
 """
 
 import math
@@ -36,7 +36,7 @@ def params_with(**values):
     return p
 
 
-def test_numbers_of_seed_001():
+def test_numbers_of_yadav2020():
     d = c.MODEL.to_dict(c.MODEL.nominal())
     assert d["a"] == (9.7, 9.7) and d["b"] == (4850.0, 4850.0)  # eq. (2): 4.85 m/(V s^2)
     assert d["T_d"] == (0.1, 0.1)

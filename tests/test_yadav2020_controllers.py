@@ -1,8 +1,8 @@
-"""Seed 001's controllers (baselines.feedback.pi_imc_hinf): transfer functions, discretisation, policies.
+"""Yadav et al.'s controllers (baselines.feedback.pi_imc_hinf): transfer functions, discretisation, policies.
 
 Independent references: python-control's continuous frequency responses,
 its discrete simulation (``forced_response``) of the c2d system, and the
-numbers of seed 001 (section 3.2, eqs. (17)-(19), (21)-(23), (28)-(29)).
+numbers of Yadav et al. (2020) (section 3.2, eqs. (17)-(19), (21)-(23), (28)-(29)).
 """
 
 import gymnasium as gym
@@ -56,7 +56,7 @@ def test_imc_is_eq_23_from_eqs_21_22():
 
 
 def test_robust_pi_design_of_section_3_2():
-    kp, ki = ctl.robust_pi_gains(ratio_digits=2)  # K_P = 0.84 K_I as the seed rounds eq. (18)
+    kp, ki = ctl.robust_pi_gains(ratio_digits=2)  # K_P = 0.84 K_I as the paper rounds eq. (18)
     assert kp == pytest.approx(38.33, rel=2e-4) and ki == pytest.approx(45.65, rel=1e-3)
     kp_exact, ki_exact = ctl.robust_pi_gains()
     # the margins the design asked for hold on Kharitonov's p3 by eqs. (11) and (15)
@@ -66,7 +66,8 @@ def test_robust_pi_design_of_section_3_2():
 
 
 def test_unknown_controller():
-    with pytest.raises(ValueError, match="unknown seed 001 controller 'lqr'.*'pi', 'imc', 'hinf', 'hinf-reduced'"):
+    with pytest.raises(ValueError, match=r"unknown controller of Yadav et al\. \(2020\) 'lqr'; "
+                                         r"known controllers are .*'pi', 'imc', 'hinf', 'hinf-reduced'"):
         ctl.controller_tf("lqr")
     with pytest.raises(ValueError, match="unit"):
         ctl.controller_tf("pi", unit="in")

@@ -1,4 +1,4 @@
-"""Seed 003's X-Y table (vcnc_gym.plants.nct_xy_table): eq. (4), exact ZOH, the 1 um sensor, bad inputs."""
+"""Purtojo et al.'s X-Y table (vcnc_gym.plants.nct_xy_table): eq. (4), exact ZOH, the 1 um sensor, bad inputs."""
 
 from __future__ import annotations
 

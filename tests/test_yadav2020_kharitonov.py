@@ -3,7 +3,7 @@
 Independent references: numpy's polynomial roots (eigenvalues of the
 companion matrix) instead of the Routh array, python-control's closed loops
 ``feedback(G C)`` over a grid of the plant box, the textbook (ascending
-powers) statement of Kharitonov's polynomials, and seed 001's numbers
+powers) statement of Kharitonov's polynomials, and Yadav et al.'s numbers
 (section 3.5, eqs. (31), (33), (35)).
 """
 
@@ -115,10 +115,10 @@ def test_clce_intervals_against_python_control_over_the_box(name):
 
 def test_stability_margins_of_section_3_5():
     sm = {name: report.kharitonov_analysis(name)["stability_margin"] for name in controller_names()}
-    assert sm["pi"] == pytest.approx(7.5 * 3 * 38.33 - 6 * 45.65)  # 588.5; the seed's 588.6 rounds alpha_2 to 115
+    assert sm["pi"] == pytest.approx(7.5 * 3 * 38.33 - 6 * 45.65)  # 588.5; the paper's 588.6 rounds alpha_2 to 115
     assert sm["pi"] == pytest.approx(588.6, abs=0.2)
     assert sm["hinf-reduced"] == pytest.approx(410.43, abs=0.01)  # 13 x 41.25 - 125.82
-    # IMC: alpha_2 = min(2 a + 0.21 b) = 2 x 7.5 + 0.21 x 3 = 15.63; the seed's eq. (33) writes
+    # IMC: alpha_2 = min(2 a + 0.21 b) = 2 x 7.5 + 0.21 x 3 = 15.63; the paper's eq. (33) writes
     # 16.575 = 2 x 7.5 + 0.21 x 7.5 (a's bound in b's place) and gets 145.46
     assert sm["imc"] == pytest.approx(9.5 * 15.63 - 12.0)
     assert 9.5 * (2 * 7.5 + 0.21 * 7.5) - 12.0 == pytest.approx(145.46, abs=0.01)

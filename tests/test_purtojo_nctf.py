@@ -1,4 +1,4 @@
-"""Seed 003's fuzzy NCTF controller (baselines/feedback/nctf.py): the NCT from the plant's own open-loop
+"""Purtojo et al.'s fuzzy NCTF controller (baselines/feedback/nctf.py): the NCT from the plant's own open-loop
 response, the membership design of eqs. (1)-(2), Table I's inference against scikit-fuzzy, the policy."""
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def test_nct_from_the_deceleration_gives_back_the_plant(vertex):
 
 
 def test_nct_of_eq_4_reads_the_papers_model(policy):
-    # seed 003 derives eq. (4) from the NCT through eq. (3): the construction closes the loop
+    # Purtojo et al. derive eq. (4) from the NCT through eq. (3): the construction closes the loop
     (Kx, ax), (Ky, ay) = (n.model() for n in policy.nct)
     np.testing.assert_allclose([Kx, ax, Ky, ay], [50.7, 1.475, 53.1, 3.156], rtol=5e-3)
 
@@ -219,9 +219,9 @@ def test_registered_and_built_from_an_env():
     pol = baselines.make("nctf", env)
     assert isinstance(pol, NCTFPolicy) and pol.decision_period == DT
     assert "nctf" in baselines.names()
-    seed000 = ContouringEnv(contour="omega", plant="vcnc_feed_drive")
+    jahanpour_env = ContouringEnv(contour="omega", plant="vcnc_feed_drive")
     with pytest.raises(ValueError, match="nct_xy_table"):
-        baselines.make("nctf", seed000)
+        baselines.make("nctf", jahanpour_env)
 
 
 @pytest.mark.parametrize("kwargs, words", [

@@ -1,4 +1,4 @@
-"""Seed 003's circle: the exact NURBS (geomdl), the sine/cosine reference, the paper's figures,
+"""Purtojo et al.'s circle: the exact NURBS (geomdl), the sine/cosine reference, the paper's figures,
 the stand-alone closed loop and the radial-error plot (vcnc_bench.reports.circle)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Tests of seed 002's controllers: contouring FB (eqs. (2)-(7)) and ILC (eqs. (8)-(11)).
+"""Tests of Simba et al.'s controllers: contouring FB (eqs. (2)-(7)) and ILC (eqs. (8)-(11)).
 
 Independent references: the analytic solution of the designed error dynamics
 e'' + k_D e' + k_P e = 0 on a circle traversed at a varying speed, the plant's

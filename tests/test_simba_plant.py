@@ -1,6 +1,6 @@
-"""Tests of seed 002's current-driven feed drive (vcnc_gym.plants.current_feed_drive).
+"""Tests of Simba et al.'s current-driven feed drive (vcnc_gym.plants.current_feed_drive).
 
-Independent references: Table I of seed 002 typed in again, python-control's
+Independent references: Table I of Simba et al. typed in again, python-control's
 ZOH discretisation of the linear model, the closed-form solution of
 m v' = F - c v for a coasting stop, and scipy's DOP853 integrator with event
 location for the friction reversals.
