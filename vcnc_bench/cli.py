@@ -168,7 +168,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="feedrate in mm/s (default: each env's own); with another value the paper's "
                         "columns stay empty")
     p.add_argument("--plant", metavar="NAME",
-                   help="run every env on this plant instead of its own (a name of vcnc_gym.plants.PLANTS, such as "
+                   help="run every env on this plant instead of its own (a name of vcnc_gym.plants.plant_names(), such as "
                         "current_feed_drive: a generalist's machine on the test pieces); the papers' columns stay "
                         "empty")
     p.add_argument("--trials", type=int, metavar="K",
