@@ -371,13 +371,7 @@ def _ring_bound(qx, qy, bound, pieces):
     (pieces beyond it are at least :func:`_clearance` away, so they cannot
     lower the bound once the disk fits).  No curve evaluation.
     """
-    piece_table = pieces.piece_table
-    piece_sag = pieces.piece_sag
-    grid_origin = pieces.grid_origin
-    cell_size = pieces.cell_size
-    grid_shape = pieces.grid_shape
-    cell_start = pieces.cell_start
-    cell_pieces = pieces.cell_pieces
+    _degree, piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces = pieces
     nx = grid_shape[0]
     ny = grid_shape[1]
     cx = _cell_index(qx, grid_origin[0], cell_size, nx)
@@ -426,13 +420,7 @@ def _isolation_radii(pieces, reach):
     checked; any other lies wholly outside those cells (see
     :func:`_clearance`), at least ``reach`` away.
     """
-    piece_table = pieces.piece_table
-    piece_sag = pieces.piece_sag
-    grid_origin = pieces.grid_origin
-    cell_size = pieces.cell_size
-    grid_shape = pieces.grid_shape
-    cell_start = pieces.cell_start
-    cell_pieces = pieces.cell_pieces
+    _degree, piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces = pieces
     nx = grid_shape[0]
     ny = grid_shape[1]
     for i in range(piece_sag.shape[0]):
@@ -469,14 +457,7 @@ def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, pieces, der):
     are left out; (best_d, best_u) is the best point found so far (inf if
     none).
     """
-    piece_u = pieces.piece_u
-    piece_table = pieces.piece_table
-    piece_sag = pieces.piece_sag
-    grid_origin = pieces.grid_origin
-    cell_size = pieces.cell_size
-    grid_shape = pieces.grid_shape
-    cell_start = pieces.cell_start
-    cell_pieces = pieces.cell_pieces
+    _degree, piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces = pieces
     nx = grid_shape[0]
     ny = grid_shape[1]
     ox = grid_origin[0]

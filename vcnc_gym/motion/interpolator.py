@@ -156,7 +156,7 @@ class InterpolationSettings(NamedTuple):
     u_end: float
     dt: float  #: sampling period T, s
     v_peak: float  #: the plan's largest feed, mm/s (the step tolerance's scale)
-    step_tolerance: float  #: allowed |a_k - dS_k| and |s_k - S(t_k)|, as a fraction of v_peak dt
+    step_tolerance: float  #: the allowed error of a step's arc length and of the distance run, a fraction of v_peak dt
 
 
 class ReferenceBuffers(NamedTuple):
