@@ -26,7 +26,6 @@ from test_geometry import random_curve
 from vcnc_gym.contour import NO_FOOT, ContourProjector, project_point, project_point_warm
 from vcnc_gym.contour import projector as P
 from vcnc_gym.geometry import NurbsCurve, heart, omega
-from vcnc_gym.geometry.nurbs import workspace_size
 from vcnc_gym.motion import SCurveFeedrate, interpolate
 
 TOL = 1e-9  # mm: warm against global
@@ -237,7 +236,7 @@ def test_random_curves_with_corners(degree):
 def test_no_previous_foot_is_the_global_search():
     """NaN (NO_FOOT) and any u_prev outside the range give project_point's result, bit for bit."""
     proj = ContourProjector(omega())
-    args = (*proj.kernel_args, *proj.arrays, np.empty((3, 2)), np.empty(workspace_size(proj.curve.degree, 2)))
+    args = (proj.arrays, np.empty((3, 2)))
     rng = np.random.default_rng(81)
     for q in rng.uniform(-5.0, 20.0, (20, 2)):
         ref = project_point(q[0], q[1], *args)
@@ -252,7 +251,7 @@ def test_non_finite_points_in_the_kernels():
     """A diverged plant's NaN or inf position gives NaN or inf at once (no crash, no endless walk);
     the NaN foot then means "no previous foot"."""
     proj = ContourProjector(heart())
-    args = (*proj.kernel_args, *proj.arrays, np.empty((3, 2)), np.empty(workspace_size(proj.curve.degree, 2)))
+    args = (proj.arrays, np.empty((3, 2)))
     for qx, qy, want in ((np.nan, 1.0, np.nan), (1.0, np.nan, np.nan), (np.inf, 0.0, np.inf),
                          (0.0, -np.inf, np.inf), (np.nan, np.inf, np.nan)):
         for d, u in (project_point(qx, qy, *args), project_point_warm(qx, qy, 1.0, *args),
@@ -285,21 +284,17 @@ def test_non_finite_points_raise():
 
 
 @njit(parallel=True, cache=False)
-def _machines_in_parallel(paths, control_points, weights, knots, degree, piece_u, piece_table, piece_sag,
-                          grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der, work, dist, feet):
+def _machines_in_parallel(paths, pieces, der, dist, feet):
     """N machines, each following its own path, one prange thread per machine, own scratch."""
     for m in prange(paths.shape[0]):
         u = np.nan
         for k in range(paths.shape[1]):
-            dist[m, k], u = project_point_warm(paths[m, k, 0], paths[m, k, 1], u, control_points, weights,
-                                               knots, degree, piece_u, piece_table, piece_sag, grid_origin,
-                                               cell_size, grid_shape, cell_start, cell_pieces, der[m],
-                                               work[m])
+            dist[m, k], u = project_point_warm(paths[m, k, 0], paths[m, k, 1], u, pieces, der[m])
             feet[m, k] = u
 
 
 def test_concurrent_calls_from_prange_threads():
-    """Machines stepped in a numba prange loop (each with its own der/work rows) get exactly what
+    """Machines stepped in a numba prange loop (each with its own der row) get exactly what
     each gets alone."""
     shape = Shape("heart")
     rng = np.random.default_rng(91)
@@ -309,8 +304,7 @@ def test_concurrent_calls_from_prange_threads():
     dist = np.empty((n_machines, steps))
     feet = np.empty((n_machines, steps))
     der = np.zeros((n_machines, 3, 2))
-    work = np.zeros((n_machines, workspace_size(shape.curve.degree, 2)))
-    _machines_in_parallel(paths, *shape.proj.kernel_args, *shape.proj.arrays, der, work, dist, feet)
+    _machines_in_parallel(paths, shape.proj.arrays, der, dist, feet)
     for m in range(n_machines):
         d, u = shape.proj.track(paths[m])
         np.testing.assert_array_equal(dist[m], d)

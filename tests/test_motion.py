@@ -359,7 +359,8 @@ def test_step_past_the_end_is_clamped():
     (``interpolate`` refuses such a plan; the kernel's clamping is what keeps a
     reference from passing u_end when eq. (8) runs ahead at the end.)
     """
-    from vcnc_gym.motion.interpolator import taylor_interpolate_kernel
+    from vcnc_gym.motion import interpolator as I
+    from vcnc_gym.motion.profile import plan_arrays
 
     c = curve("omega")
     plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(1.01 * c.arc_length())
@@ -367,12 +368,12 @@ def test_step_past_the_end_is_clamped():
     k_max = int(math.ceil(plan.duration / dt)) + 2
     t, u, feed = (np.empty(k_max) for _ in range(3))
     pos, vel, acc, tan = (np.empty((k_max, 2)) for _ in range(4))
-    info = np.zeros(8)
+    info = np.zeros(I.INFO_SIZE)
     u_start, u_end = c.u_range
-    n = taylor_interpolate_kernel(*c.kernel_args, u_start, u_end, dt, *plan.kernel_args, plan.v_peak, 0.1, t, u, pos,
-                                  vel, acc,
-                                  tan, feed, info)
-    assert info[0] == 1.0  # clamped
+    n = I.taylor_interpolate_kernel(c.kernel_args, plan_arrays(plan),
+                                    I.InterpolationSettings(u_start, u_end, dt, plan.v_peak, 0.1),
+                                    I.ReferenceBuffers(t, u, pos, vel, acc, tan, feed), info)
+    assert info[I.INFO_END_CODE] == I.END_CLAMPED
     u = u[:n]
     assert u[-1] == u_end and np.all(u <= u_end) and np.all(np.diff(u) >= 0)
     assert t[n - 1] < plan.duration - 0.001

@@ -2,7 +2,7 @@
 
 The contour error is the distance from the actual tool position to the
 closest point of the reference contour, not to the current reference point
-(that is the tracking error, seed 002 eq. (2) and Fig. 1).
+(that is the tracking error, Simba et al., eq. (2) and Fig. 1).
 
 How it is found exactly and fast enough for every control period:
 
@@ -47,17 +47,21 @@ reference counting (``_nrt=False``): with it every array argument of every
 inner call costs an atomic increment and decrement, which measured 2.5x the
 work of a whole query (and would contend between ``prange`` threads sharing
 the tables).  They read the tables and write only the caller's scratch, so
-threads may share one projector.
+threads may share one projector.  They take the tables as one record,
+:class:`ProjectorArrays` (``ContourProjector.arrays``), and the scratch
+``der`` (3, 2): ``project_point_warm(qx, qy, u_prev, arrays, der)``.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from ..geometry.nurbs import SECOND, basis_derivatives, find_span, workspace_size
+from ..geometry.nurbs import basis_derivatives, find_span
 
-__all__ = ["ContourProjector", "NO_FOOT", "project_point", "project_point_warm"]
+__all__ = ["ContourProjector", "NO_FOOT", "ProjectorArrays", "project_point", "project_point_warm"]
 
 #: ``u_prev`` meaning "no previous foot" for :func:`project_point_warm`.
 NO_FOOT = np.nan
@@ -78,12 +82,27 @@ _NONE_LO = np.int64(0)
 _NONE_HI = np.int64(-1)
 
 
+class ProjectorArrays(NamedTuple):
+    """Everything the query kernels read, one argument (a heterogeneous tuple to numba):
+    :attr:`ContourProjector.arrays`.  Built by :class:`ContourProjector`; the kernels do not check it."""
+
+    degree: int  #: p of the curve (its pieces' polynomials have p + 1 coefficients)
+    piece_u: np.ndarray  #: (n+1,) float64, the piece ends u_i
+    piece_table: np.ndarray  #: (n+1, _POLY + 3 (p+1)) float64, see ContourProjector._table
+    piece_sag: np.ndarray  #: (n,) float64, mm: how far piece i strays from its chord
+    grid_origin: np.ndarray  #: (2,) float64, mm: the lower left corner of the grid
+    cell_size: float  #: mm, the edge of a square cell
+    grid_shape: np.ndarray  #: (2,) int64, cells along x and y
+    cell_start: np.ndarray  #: (cells+1,) int64: cell c lists cell_pieces[cell_start[c]:cell_start[c+1]]
+    cell_pieces: np.ndarray  #: int64, the pieces of every cell, cell by cell
+
+
 @njit(cache=True)
 def _piece_polynomials(control_points, weights, knots, degree, piece_u, table):
     """Write each piece's homogeneous polynomials into ``table[i, _POLY:]``.
 
     On a knot span the homogeneous curve (w C, w) = sum N_j (w_j P_j, w_j) is
-    a polynomial of degree p (seed 000 eq. (2)); on piece i it is stored as
+    a polynomial of degree p (Jahanpour et al. (2014), eq. (2)); on piece i it is stored as
     its Taylor expansion at u_i, coefficient k = (d^k/du^k (w C, w))(u_i) / k!
     as (x, y, w) in columns _POLY + 3k .. _POLY + 3k + 2, from the basis
     derivatives of The NURBS Book A2.3 on the span holding [u_i, u_i+1].
@@ -304,8 +323,8 @@ def _refine_from_chord(degree, qx, qy, i, limit, piece_u, piece_table, piece_sag
                            piece_table[i + 1, 0], piece_table[i + 1, 1])
     if d - piece_sag[i] > limit:
         return np.inf, piece_u[i]
-    return _refine_on_piece(degree, qx, qy, piece_u[i] + t * (piece_u[i + 1] - piece_u[i]), i,
-                            piece_u, piece_table, der)
+    return _refine_on_piece(degree, qx, qy, piece_u[i] + t * (piece_u[i + 1] - piece_u[i]), i, piece_u,
+                            piece_table, der)
 
 
 @njit(cache=True, _nrt=False)
@@ -343,8 +362,7 @@ def _clearance(qx, qy, ix0, ix1, iy0, iy1, grid_origin, cell_size, grid_shape):
 
 
 @njit(cache=True, _nrt=False)
-def _ring_bound(qx, qy, bound, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start,
-                cell_pieces):
+def _ring_bound(qx, qy, bound, pieces):
     """Tighten an upper bound (mm) on the distance from q to the curve from chords alone.
 
     Visits rings of cells around q's cell (the nearest cell if q is outside
@@ -353,6 +371,7 @@ def _ring_bound(qx, qy, bound, piece_table, piece_sag, grid_origin, cell_size, g
     (pieces beyond it are at least :func:`_clearance` away, so they cannot
     lower the bound once the disk fits).  No curve evaluation.
     """
+    _degree, piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces = pieces
     nx = grid_shape[0]
     ny = grid_shape[1]
     cx = _cell_index(qx, grid_origin[0], cell_size, nx)
@@ -392,8 +411,7 @@ def _segment_gap(ax, ay, bx, by, cx, cy, dx, dy):
 
 
 @njit(cache=True)
-def _isolation_radii(piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
-                     reach):
+def _isolation_radii(pieces, reach):
     """Write into ``piece_table[i, _ISOLATION]`` a lower bound (mm, at most ``reach``) on the
     distance from any point of piece i to any point of a piece other than i-1, i, i+1.
 
@@ -402,6 +420,7 @@ def _isolation_radii(piece_table, piece_sag, grid_origin, cell_size, grid_shape,
     checked; any other lies wholly outside those cells (see
     :func:`_clearance`), at least ``reach`` away.
     """
+    _degree, piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces = pieces
     nx = grid_shape[0]
     ny = grid_shape[1]
     for i in range(piece_sag.shape[0]):
@@ -427,8 +446,7 @@ def _isolation_radii(piece_table, piece_sag, grid_origin, cell_size, grid_shape,
 
 
 @njit(cache=True, _nrt=False)
-def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, degree, piece_u, piece_table, piece_sag,
-             grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der):
+def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, pieces, der):
     """The closest point, given an upper bound (mm) on its distance: (dist mm, u).
 
     Visits the cells the disk of radius min(bound, best_d) around q touches
@@ -439,6 +457,7 @@ def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, degree, piece_u, p
     are left out; (best_d, best_u) is the best point found so far (inf if
     none).
     """
+    _degree, piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces = pieces
     nx = grid_shape[0]
     ny = grid_shape[1]
     ox = grid_origin[0]
@@ -473,7 +492,7 @@ def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, degree, piece_u, p
                 if d - piece_sag[i] > lim:
                     continue
                 u0 = piece_u[i] + t * (piece_u[i + 1] - piece_u[i])
-                dd, uu = _refine_on_piece(degree, qx, qy, u0, i, piece_u, piece_table, der)
+                dd, uu = _refine_on_piece(pieces.degree, qx, qy, u0, i, piece_u, piece_table, der)
                 if dd < best_d:
                     best_d = dd
                     best_u = uu
@@ -482,18 +501,15 @@ def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, degree, piece_u, p
 
 
 @njit(cache=True, _nrt=False)
-def _search(qx, qy, best_d, best_u, skip_lo, skip_hi, degree, piece_u, piece_table, piece_sag,
-            grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der):
+def _search(qx, qy, best_d, best_u, skip_lo, skip_hi, pieces, der):
     """The global closest point, given the best point found so far (best_d may be inf):
     :func:`_certify`, after a cheap chord bound from the rings around q
     (:func:`_ring_bound`) unless best_d is already within ``_NEAR_CELLS``
     cells (then the rings would cost as much as the certification)."""
     bound = best_d
-    if not best_d <= _NEAR_CELLS * cell_size:
-        bound = _ring_bound(qx, qy, best_d, piece_table, piece_sag, grid_origin, cell_size, grid_shape,
-                            cell_start, cell_pieces)
-    return _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, degree, piece_u, piece_table,
-                    piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der)
+    if not best_d <= _NEAR_CELLS * pieces.cell_size:
+        bound = _ring_bound(qx, qy, best_d, pieces)
+    return _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, pieces, der)
 
 
 @njit(cache=True, _nrt=False)
@@ -505,13 +521,7 @@ def _not_finite(qx, qy):
 
 
 @njit(cache=True, _nrt=False)
-def project_point(
-    qx, qy,
-    control_points, weights, knots, degree,
-    piece_u, piece_table, piece_sag,
-    grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
-    der, work,
-):
+def project_point(qx, qy, pieces, der):
     """Closest point of the curve to (qx, qy): returns (distance mm, u).
 
     The global search, with no prior (module docstring, steps 2-3).
@@ -520,17 +530,12 @@ def project_point(
     ----------
     qx, qy : float
         The point, mm.
-    control_points, weights, knots, degree
-        ``curve.kernel_args``.  Only ``degree`` is read: the curve is
-        evaluated from the piece polynomials in ``piece_table``.
-    piece_u, piece_table, piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces
-        ``ContourProjector.arrays``.
+    pieces : ProjectorArrays
+        ``ContourProjector.arrays``: the curve is evaluated from its piece
+        polynomials, not from the NURBS arrays.
     der : (3, 2) float64 array
         Scratch (C, C', C'' of the last evaluation): one per thread when
         called from parallel loops; nothing else is written.
-    work : float64 array
-        Unused (kept so callers' signatures stay; the NURBS evaluator it
-        served is no longer called here).
 
     Returns
     -------
@@ -545,18 +550,11 @@ def project_point(
     """
     if not (abs(qx) < np.inf and abs(qy) < np.inf):
         return _not_finite(qx, qy)
-    return _search(qx, qy, np.inf, piece_u[0], _NONE_LO, _NONE_HI, degree, piece_u, piece_table, piece_sag,
-                   grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der)
+    return _search(qx, qy, np.inf, pieces.piece_u[0], _NONE_LO, _NONE_HI, pieces, der)
 
 
 @njit(cache=True, _nrt=False)
-def project_point_warm(
-    qx, qy, u_prev,
-    control_points, weights, knots, degree,
-    piece_u, piece_table, piece_sag,
-    grid_origin, cell_size, grid_shape, cell_start, cell_pieces,
-    der, work,
-):
+def project_point_warm(qx, qy, u_prev, pieces, der):
     """Closest point of the curve to (qx, qy) starting from a previous foot: (distance mm, u).
 
     The same global, exact answer as :func:`project_point` (the same distance
@@ -582,12 +580,11 @@ def project_point_warm(
         The previous foot parameter.  NaN (or any value outside the curve's
         parameter range ``[piece_u[0], piece_u[-1]]``) means no previous foot:
         the call is then :func:`project_point`.
-    control_points, weights, knots, degree, piece_u, ..., cell_pieces
-        As for :func:`project_point` (``curve.kernel_args`` then
-        ``ContourProjector.arrays``).
-    der, work
+    pieces : ProjectorArrays
+        ``ContourProjector.arrays``, as for :func:`project_point`.
+    der : (3, 2) float64 array
         Scratch, as for :func:`project_point`: each thread of a parallel loop
-        passes its own ``der``; the call keeps no other state.
+        passes its own; the call keeps no other state.
 
     Returns
     -------
@@ -596,13 +593,16 @@ def project_point_warm(
     u : float
         Parameter of a closest point (the next call's ``u_prev``).
     """
-    n = piece_sag.shape[0]
+    piece_u = pieces.piece_u
+    n = pieces.piece_sag.shape[0]
     if not (abs(qx) < np.inf and abs(qy) < np.inf):
         return _not_finite(qx, qy)
     if not (piece_u[0] <= u_prev <= piece_u[n]):  # also false for NaN
-        return project_point(qx, qy, control_points, weights, knots, degree, piece_u, piece_table, piece_sag,
-                             grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der, work)
+        return project_point(qx, qy, pieces, der)
     i = min(np.searchsorted(piece_u, u_prev, side="right") - 1, n - 1)
+    degree = pieces.degree
+    piece_table = pieces.piece_table
+    piece_sag = pieces.piece_sag
     best_d, best_u = _refine_on_piece(degree, qx, qy, u_prev, i, piece_u, piece_table, der)
     f = i  # the piece holding the best point
     lo = i  # pieces lo..hi are refined
@@ -642,27 +642,22 @@ def project_point_warm(
         # a point of any other piece closer than best_d to q would lie within
         # 2 best_d of the foot: the isolation radius says there is none
         return best_d, best_u
-    return _search(qx, qy, best_d, best_u, lo, hi, degree, piece_u, piece_table, piece_sag,
-                   grid_origin, cell_size, grid_shape, cell_start, cell_pieces, der)
+    return _search(qx, qy, best_d, best_u, lo, hi, pieces, der)
 
 
 @njit(cache=True)
-def _project_points(qs, u_prev, carry, control_points, weights, knots, degree, piece_u, piece_table,
-                    piece_sag, grid_origin, cell_size, grid_shape, cell_start, cell_pieces, dist, us):
+def _project_points(qs, u_prev, carry, pieces, dist, us):
     """Batch of :func:`project_point_warm` (NaN u_prev: :func:`project_point`).
 
     ``carry``: the foot of point k is the ``u_prev`` of point k + 1 (a
     trajectory; only ``u_prev[0]`` is read), else ``u_prev[k]`` per point.
     """
     der = np.empty((3, 2))
-    work = np.empty(workspace_size(degree, SECOND))
     u = u_prev[0]
     for k in range(qs.shape[0]):
         if not carry:
             u = u_prev[k]
-        dist[k], u = project_point_warm(qs[k, 0], qs[k, 1], u, control_points, weights, knots, degree,
-                                        piece_u, piece_table, piece_sag, grid_origin, cell_size,
-                                        grid_shape, cell_start, cell_pieces, der, work)
+        dist[k], u = project_point_warm(qs[k, 0], qs[k, 1], u, pieces, der)
         us[k] = u
 
 
@@ -687,6 +682,12 @@ class ContourProjector:
     >>> from vcnc_gym.geometry import heart
     >>> proj = ContourProjector(heart())
     >>> d, u = proj.project([45.0, 0.0])
+
+    Attributes
+    ----------
+    arrays : ProjectorArrays
+        The piece table and the grid, what :func:`project_point` and
+        :func:`project_point_warm` read (one argument).
     """
 
     def __init__(self, curve, piece_length: float = 0.5, cell_size: float = 1.0, margin: float = 10.0):
@@ -694,13 +695,14 @@ class ContourProjector:
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be positive and finite, got {v!r}")
         self.curve = curve
-        self.kernel_args = curve.kernel_args
         self.piece_u, self.piece_points, self.piece_sag = self._cut(curve, piece_length)
         self.piece_table = self._table(curve, self.piece_u, self.piece_points)
         self.cell_size = float(cell_size)
         self._build_grid(margin)
-        _isolation_radii(self.piece_table, self.piece_sag, self.grid_origin, self.cell_size, self.grid_shape,
-                         self.cell_start, self.cell_pieces, _ISOLATION_CELLS * self.cell_size)
+        self.arrays = ProjectorArrays(curve.degree, self.piece_u, self.piece_table, self.piece_sag,
+                                      self.grid_origin, self.cell_size, self.grid_shape, self.cell_start,
+                                      self.cell_pieces)
+        _isolation_radii(self.arrays, _ISOLATION_CELLS * self.cell_size)
 
     @staticmethod
     def _cut(curve, piece_length):
@@ -806,18 +808,6 @@ class ContourProjector:
         self.cell_start = np.concatenate([[0], np.cumsum([len(b) for b in buckets])]).astype(np.int64)
         self.cell_pieces = np.array([i for b in buckets for i in b], dtype=np.int64)
 
-    @property
-    def arrays(self) -> tuple:
-        """The arrays :func:`project_point` and :func:`project_point_warm` take after the
-        curve's kernel args.
-
-        The second is :attr:`piece_table` (per piece end: point and one-sided
-        tangents; per piece: convexity bounds, isolation radius, polynomial
-        coefficients; see :meth:`_table`), not :attr:`piece_points`.
-        """
-        return (self.piece_u, self.piece_table, self.piece_sag, self.grid_origin, self.cell_size,
-                self.grid_shape, self.cell_start, self.cell_pieces)
-
     def project(self, points):
         """Closest curve points to ``points`` (mm, (2,) or (k, 2)): (distance mm, u).
 
@@ -883,7 +873,7 @@ class ContourProjector:
     def _run(self, q, u_prev, carry, single):
         dist = np.empty(len(q))
         us = np.empty(len(q))
-        _project_points(q, u_prev, carry, *self.kernel_args, *self.arrays, dist, us)
+        _project_points(q, u_prev, carry, self.arrays, dist, us)
         return (dist[0], us[0]) if single else (dist, us)
 
     def contour_error(self, points):

@@ -13,7 +13,8 @@ structures:
 - ``plant``: the plant's namedtuple of arrays (its type selects the plant's
   kernels at compile time);
 - ``reference``: :data:`ReferenceArrays`, the packed reference shared by all envs;
-- ``contour``: :data:`ContourArrays`, the curve and the projector's grid;
+- ``contour``: :class:`~vcnc_gym.contour.projector.ProjectorArrays`, the projector's pieces and grid
+  (``ContourProjector.arrays``), for the exact contour error;
 - ``config``: :data:`StepConfig`, the scalars of the task;
 - ``offsets``: the layout's :data:`~vcnc_gym.envs.layout.ObservationOffsets`;
 - ``buffers``: :data:`EnvBuffers`, per-env inputs, memory and outputs.
@@ -42,7 +43,6 @@ from . import controller_contract
 __all__ = [
     "StepData",
     "ReferenceArrays",
-    "ContourArrays",
     "StepConfig",
     "EnvBuffers",
     "step_serial",
@@ -135,14 +135,6 @@ END_TOOL = 1  # once the tool has reached the end, or at the completion time lim
 #: arc lengths in mm ahead of the tool's closest point.
 ReferenceArrays = namedtuple("ReferenceArrays", ["samples", "preview_steps", "contour_ahead"])
 
-#: The contour for the exact contour error: the NURBS arrays
-#: (:attr:`NurbsCurve.kernel_args`) and the projector's grid
-#: (:attr:`ContourProjector.arrays`).
-ContourArrays = namedtuple("ContourArrays", [
-    "control_points", "weights", "knots", "degree",
-    "piece_u", "piece_table", "piece_sag", "grid_origin", "cell_size", "grid_shape", "cell_start", "cell_pieces",
-])
-
 #: The scalars of a task: ``n_repeat`` control periods per decision;
 #: ``reward_scale`` mm; ``effort_weight``; ``divergence_bound`` and
 #: ``tracking_bound`` mm; ``episode_end`` (END_REFERENCE or END_TOOL);
@@ -171,11 +163,10 @@ StepConfig = namedtuple("StepConfig", [
 #: moves it while it re-times the reference);
 #: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
 #: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
-#: float32; scratch ``sensed`` (N, SENSE_SIZE), ``der`` (N, 3, 2), ``work``
-#: (N, W).
+#: float32; scratch ``sensed`` (N, SENSE_SIZE) and ``der`` (N, 3, 2).
 EnvBuffers = namedtuple("EnvBuffers", [
     "mode", "action", "k", "steps", "foot", "input_limit", "previous_action", "progress", "cycle_time",
-    "reference_end", "obs", "reward", "flags", "info", "obs_high", "sensed", "der", "work",
+    "reference_end", "obs", "reward", "flags", "info", "obs_high", "sensed", "der",
 ])
 
 
@@ -247,9 +238,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
             b.k[i] += 1
         contract.sense(plant, i, sensed)
         err, b.foot[i] = project_point_warm(
-            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1], b.foot[i],
-            c.control_points, c.weights, c.knots, c.degree, c.piece_u, c.piece_table, c.piece_sag,
-            c.grid_origin, c.cell_size, c.grid_shape, c.cell_start, c.cell_pieces, b.der[i], b.work[i])
+            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1], b.foot[i], c, b.der[i])
         err_sum += err
         err_max = max(err_max, err)
         _advance_progress(samples, cfg, b, i)
@@ -339,7 +328,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     obs[o.tracking_error] = ex
     obs[o.tracking_error + 1] = ey
     obs[o.contour_error] = err
-    obs[o.tangential_error] = tx * ex + ty * ey  # Simba et al.'s eq. (3): e_l = R^T e_w
+    obs[o.tangential_error] = tx * ex + ty * ey  # Simba et al., eq. (3): e_l = R^T e_w
     obs[o.normal_error] = -ty * ex + tx * ey
     preview = reference.preview_steps
     for j in range(preview.shape[0]):

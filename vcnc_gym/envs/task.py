@@ -18,7 +18,6 @@ import numpy as np
 from ..contour import ContourProjector
 from ..geometry import SHAPES, NurbsCurve
 from ..geometry.corners import SmoothedPolyline
-from ..geometry.nurbs import workspace_size
 from ..gcode.toolpath import Toolpath
 from ..motion import ConstantFeedrate, JlapPathFeedrate, LookaheadFeedrate, SCurveFeedrate, interpolate
 from ..plants import PlantModel, contract, get_plant
@@ -29,12 +28,13 @@ from .layout import ObservationLayout
 __all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EPISODE_ENDS", "make_contour", "make_profile",
            "pack_reference"]
 
-#: The feedrate profiles of ``profile=``: Jahanpour et al.'s S-curve (``feedrate``,
-#: ``ramp_time``), a constant feed from t = 0 (Simba et al.'s linear case, Purtojo
-#: et al.'s circle), Simba et al.'s jerk-limited profile along a corner-smoothed path,
-#: and a CNC look-ahead feed that keeps the path's normal acceleration and jerk
-#: within limits (:class:`~vcnc_gym.motion.LookaheadFeedrate`, its defaults:
-#: Jahanpour et al.'s drives).
+#: The feedrate profiles of ``profile=``: Jahanpour et al.'s (2014) S-curve
+#: (``feedrate``, ``ramp_time``), a constant feed from t = 0 (Simba et al.'s
+#: linear case, Purtojo et al.'s circle), Simba et al.'s jerk-limited profile
+#: along a corner-smoothed path, and a CNC look-ahead feed that keeps the path's
+#: normal acceleration and jerk within limits
+#: (:class:`~vcnc_gym.motion.LookaheadFeedrate`, its defaults: Jahanpour et
+#: al.'s drives).
 PROFILES = ("scurve", "constant", "jlap", "lookahead")
 
 #: S-curve ramp time when ``ramp_time`` is not given, s (Jahanpour et al. (2014), section 3).
@@ -48,9 +48,10 @@ EPISODE_ENDS = {"reference": sk.END_REFERENCE, "tool": sk.END_TOOL}
 #: Defaults of the episode end (ours, measured in docs/reproduction.md, "Episode
 #: ends"): the settling time after the reference's end of v0, s; the
 #: completion tolerance, mm of contour still ahead of the tool's closest point
-#: when it counts as arrived, an in-position band: Jahanpour et al.'s QFT loop comes to
-#: rest 11 um short of the heart's end (friction and the 3 um backlash), the
-#: other baselines of Jahanpour et al. and Simba et al. within 2.5 um; the completion time
+#: when it counts as arrived, an in-position band: Jahanpour et al.'s QFT loop
+#: comes to rest 11 um short of the heart's end (friction and the 3 um
+#: backlash), the other baselines of Jahanpour et al. and Simba et al. within
+#: 2.5 um; the completion time
 #: limit after the reference's end, s (QFT arrives 38 ms after it).
 DEFAULT_SETTLING_TIME = 0.01
 DEFAULT_COMPLETION_TOLERANCE = 0.02
@@ -241,7 +242,7 @@ class ContouringTask:
         )
         self.reference_arrays = sk.ReferenceArrays(samples, np.array(self.layout.preview_steps, dtype=np.int64),
                                                    np.array(self.layout.contour_ahead, dtype=np.float64))
-        self.contour_arrays = sk.ContourArrays(*self.curve.kernel_args, *self.projector.arrays)
+        self.contour_arrays = self.projector.arrays
         self.config = sk.StepConfig(
             n_repeat=self.action_repeat, reward_scale=self.reward_scale, effort_weight=self.effort_weight,
             divergence_bound=self.divergence_bound, tracking_bound=self.tracking_bound,
@@ -347,7 +348,6 @@ class ContouringBatch:
             obs_high=layout.high(),
             sensed=np.zeros((n, contract.SENSE_SIZE)),
             der=np.zeros((n, 3, 2)),
-            work=np.zeros((n, workspace_size(task.curve.degree, 2))),
         )
         self.data = sk.StepData(self.plant_arrays, self.reference_arrays, task.contour_arrays, task.config,
                                 layout.offsets(), self.buffers)
@@ -360,7 +360,6 @@ class ContouringBatch:
         rows = sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
         layout = task.layout
         rows += layout.size * 4 + (sk.INFO_SIZE + contract.SENSE_SIZE + 6 + 2 * 5 + 5) * 8 + sk.FLAG_SIZE + 1
-        rows += workspace_size(task.curve.degree, 2) * 8
         return 2 * rows + ENV_OVERHEAD_BYTES
 
     def reset_env(self, i: int, parameters: np.ndarray, rng: np.random.Generator | None = None) -> None:

@@ -1,6 +1,6 @@
-"""Planar NURBS curves, Jahanpour et al.'s eqs. (2)-(5).
+"""Planar NURBS curves, Jahanpour et al. (2014), eqs. (2)-(5).
 
-The evaluator follows Piegl and Tiller, *The NURBS Book* (Jahanpour et al. (2014), ref. [20]):
+The evaluator follows Piegl and Tiller, *The NURBS Book* (their ref. [20]):
 algorithm A2.1 (knot span), A2.3 (basis functions and their derivatives) and
 A4.2 (derivatives of a rational curve from those of its homogeneous form).
 The kernels are module-level numba functions on plain arrays, so the
@@ -11,12 +11,14 @@ compiled loops; :class:`NurbsCurve` validates a definition once and wraps them.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 __all__ = [
     "NurbsCurve",
+    "NurbsArrays",
     "basis_derivatives",
     "SPAN_LENGTH_TOLERANCE",
     "SPEED_TOLERANCE",
@@ -53,9 +55,19 @@ TURN_BACK_ANGLE = 1e-9
 _GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
 
 
+class NurbsArrays(NamedTuple):
+    """A curve as the compiled kernels take it, one argument (numba reads it as a heterogeneous tuple):
+    :attr:`NurbsCurve.kernel_args`.  The module's own kernels keep the four as separate leading arguments."""
+
+    control_points: np.ndarray  #: (n+1, 2) float64, mm
+    weights: np.ndarray  #: (n+1,) float64
+    knots: np.ndarray  #: (n+p+2,) float64
+    degree: int  #: p
+
+
 def interior_angle(d_in, d_out):
     """Interior angle between incoming and outgoing directions ``d_in``, ``d_out`` (..., 2), rad in [0, pi]:
-    pi for a straight continuation, 0 for a U-turn (the theta of Simba et al.'s Fig. 3).  Turns back where it is at most
+    pi for a straight continuation, 0 for a U-turn (Simba et al.'s Fig. 3 theta).  Turns back where it is at most
     :data:`TURN_BACK_ANGLE`."""
     d_in, d_out = np.asarray(d_in, dtype=np.float64), np.asarray(d_out, dtype=np.float64)
     cross = d_in[..., 0] * d_out[..., 1] - d_in[..., 1] * d_out[..., 0]
@@ -228,7 +240,7 @@ def curve_derivatives_into(control_points, weights, knots, degree, u, order, out
 
 @njit(cache=True)
 def curve_derivatives(control_points, weights, knots, degree, u, order, out):
-    """C(u) and its derivatives with respect to u, Jahanpour et al.'s eq. (5) (A4.2).
+    """C(u) and its derivatives with respect to u, Jahanpour et al. (2014), eq. (5) (A4.2).
 
     Parameters
     ----------
@@ -264,7 +276,7 @@ def _is_integer(x) -> bool:
 
 
 class NurbsCurve:
-    """A planar NURBS curve of any degree p >= 1, Jahanpour et al.'s eqs. (2)-(5).
+    """A planar NURBS curve of any degree p >= 1, Jahanpour et al. (2014), eqs. (2)-(5).
 
     Parameters
     ----------
@@ -336,9 +348,10 @@ class NurbsCurve:
         return float(self.knots[self.degree]), float(self.knots[-self.degree - 1])
 
     @property
-    def kernel_args(self) -> tuple:
-        """(control_points, weights, knots, degree) for the numba kernels."""
-        return self.control_points, self.weights, self.knots, self.degree
+    def kernel_args(self) -> NurbsArrays:
+        """The curve's arrays for the numba kernels, a :class:`NurbsArrays` (a tuple: ``*kernel_args``
+        gives the kernels of this module their leading four arguments)."""
+        return NurbsArrays(self.control_points, self.weights, self.knots, self.degree)
 
     def _check_u(self, u: np.ndarray) -> None:
         lo, hi = self.u_range
@@ -388,6 +401,15 @@ class NurbsCurve:
         curves whose parametric speed |C'(u)| is sharply peaked (large weight
         ratios, short spans): it was off by up to ~1e-4 relative on random
         rational curves.
+
+        The compiled :func:`vcnc_gym.geometry.arclength.arc_between` computes
+        the same integral (they agree to ~1e-15 on the heart, the omega and
+        random curves of degree 1-5) and is the home of the kernels' arc
+        lengths; this one stays because :mod:`~vcnc_gym.geometry.arclength`
+        is built on this module's evaluator (calling it from here would be an
+        import circle) and because its stopping rule differs: relative, with
+        a floor at the resolution of u, where ``arc_between`` takes an
+        absolute tolerance and bisects down to the resolution of u.
         """
         lo, hi = self.u_range
         a = lo if u_start is None else float(u_start)
@@ -528,7 +550,7 @@ class NurbsCurve:
             f"|C'(u)| = {speed[j]:.3g} mm per unit of u, {ratio[j]:.2g} of the knot span [{a:.10g}, {b:.10g}]'s "
             f"mean speed (SPEED_TOLERANCE = {SPEED_TOLERANCE:g})"
         )
-        consequence = ("the feed relation of Jahanpour et al.'s eq. (9), du/dt = V / |C'(u)|, and the tangent are "
+        consequence = ("the feed relation of Jahanpour et al. (2014), eq. (9), du/dt = V / |C'(u)|, and the tangent are "
                        "undefined there")
         near = 1e-6 * (b - a)
         if u - lo <= near or hi - u <= near:

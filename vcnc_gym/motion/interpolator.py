@@ -1,8 +1,8 @@
-"""Second-order Taylor NURBS interpolator, seed 000 section 2b, eqs. (6)-(10).
+"""Second-order Taylor NURBS interpolator, Jahanpour et al. (2014), section 2b, eqs. (6)-(10).
 
 Given a curve C(u) and a feedrate profile V(t), the interpolator finds the
 parameter u_k at every sampling instant t_k = k T so that the tool moves
-along the curve at the commanded feed. The feed relation (seed 000 eq. (6))
+along the curve at the commanded feed. The feed relation (eq. (6))
 
     V(t) = ds/dt = |C'(u)| du/dt
 
@@ -13,7 +13,7 @@ second-order Taylor expansion around t_k (eq. (8)):
     du/dt   = V / |C'|                                   (eq. (9))
     d2u/dt2 = (dV/dt) / |C'| - V^2 (C' . C'') / |C'|^4   (eq. (10))
 
-with C' = dC/du and C'' = d2C/du2 from the NURBS kernel (seed 000 eq. (5)).
+with C' = dC/du and C'' = d2C/du2 from the NURBS kernel (eq. (5)).
 The positions are C(u_k) (eq. (2)); the velocity and acceleration commands
 follow by the chain rule, v = C' du/dt and a = C'' (du/dt)^2 + C' d2u/dt2.
 
@@ -23,7 +23,7 @@ once per sample; :func:`interpolate` validates, plans the feedrate over the
 curve's length, runs the kernel, checks the result and packs it in a
 read-only :class:`Reference`.
 
-Step control (not in the seed)
+Step control (not in the paper)
 ------------------------------
 Eq. (8) is a truncated expansion: where |C'| changes fast compared with a
 step (large weight ratios, knots where C'' jumps, corners of a polyline)
@@ -34,7 +34,7 @@ a step that misses by more than ``step_tolerance`` x V_peak x dt (default
 plan by more than 0.9 of that, is replaced by the u solved from the arc
 length (Newton on arc(u_k, u) = S(t_{k+1}) - s_k; see
 :func:`taylor_interpolate_kernel`).  Steps within the tolerance are eq. (8)
-unchanged: on the seed's heart and omega none is corrected, so the seed's
+unchanged: on the paper's heart and omega none is corrected, so the paper's
 figures are those of eq. (8) alone.  A curve whose tangent is undefined
 somewhere (a cusp, coincident control points) is refused before
 (:meth:`NurbsCurve.check_regular`), and a reference that would exceed
@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -74,7 +75,23 @@ from .profile import plan_arrays, plan_state
 __all__ = [
     "MAX_REFERENCE_SAMPLES",
     "STEP_TOLERANCE",
+    "END_CLAMPED",
+    "END_FAILED",
+    "END_PROFILE",
+    "END_SINGULAR",
+    "END_UNRESOLVED",
+    "INFO_CORRECTED",
+    "INFO_END_CODE",
+    "INFO_SIZE",
+    "INFO_S_END",
+    "INFO_STEP_ERROR",
+    "INFO_T_END",
+    "INFO_U_END",
+    "INFO_WORST_K",
+    "INFO_WORST_U",
+    "InterpolationSettings",
     "Reference",
+    "ReferenceBuffers",
     "interpolate",
     "reference_samples",
     "taylor_interpolate_kernel",
@@ -82,7 +99,7 @@ __all__ = [
 
 #: Default ``step_tolerance`` of :func:`interpolate`: every step of a reference
 #: moves along the curve within this fraction of V_peak dt of the distance the
-#: profile commands over it.  The seed's own figures stay inside it untouched:
+#: profile commands over it.  The paper's own figures stay inside it untouched:
 #: the largest step error of eq. (8) on the heart and the omega is 0.06 V_peak dt
 #: (the omega's last step at dt = 1 ms), so no step of theirs is corrected.
 STEP_TOLERANCE = 0.1
@@ -91,7 +108,7 @@ STEP_TOLERANCE = 0.1
 #: may have.  A sample holds 11 float64 (t, u, V and the x, y of position,
 #: velocity, acceleration and tangent), so 2e6 samples are 0.16 GiB and take
 #: about 1.5 s to build; they are 200 s of motion at dt = 0.1 ms (the heart at
-#: 1.6 mm/s; the seed's 100 mm/s makes 32 213), 60 times the seed's episodes.
+#: 1.6 mm/s; the paper's 100 mm/s makes 32 213), 60 times the paper's episodes.
 MAX_REFERENCE_SAMPLES = 2_000_000
 
 _BYTES_PER_SAMPLE = 11 * 8
@@ -113,12 +130,56 @@ _RESOLUTION_SHARE = 1e-3
 # (_RESOLUTION_SHARE), so the promise holds whatever the quadrature's error.
 _ARC_SLACK = 2e-3
 
-# end codes written by the kernel into info[0]
-_END_PROFILE = 0.0  # profile ended first: next sample placed at u_end
-_END_CLAMPED = 1.0  # u reached u_end before the profile ended: step clamped
-_END_SINGULAR = 2.0  # |C'(u)| = 0 (or not finite) met: eq. (9) undefined
-_END_FAILED = 3.0  # a corrected step still missed the tolerance: stopped after it
-_END_UNRESOLVED = 4.0  # one floating-point step of u moves too far at a sample: stopped there
+# slots of the kernel's status array info (INFO_SIZE,), float64
+INFO_END_CODE = 0  # how the interpolation ended, END_* (-1 while it runs)
+INFO_U_END = 1  # u where eq. (8) stood at the end; for END_SINGULAR and END_UNRESOLVED the u it stopped at
+INFO_T_END = 2  # time of that u, s
+INFO_S_END = 3  # planned distance S at that time, mm
+INFO_CORRECTED = 4  # steps solved from the arc length instead of eq. (8)
+INFO_STEP_ERROR = 5  # largest |a_k - dS_k| over the steps, mm (the last step onto u_end included)
+INFO_WORST_U = 6  # u_k of that step
+INFO_WORST_K = 7  # k of that step
+INFO_SIZE = 8
+
+# end codes, info[INFO_END_CODE]
+END_PROFILE = 0.0  # profile ended first: next sample placed at u_end
+END_CLAMPED = 1.0  # u reached u_end before the profile ended: step clamped
+END_SINGULAR = 2.0  # |C'(u)| = 0 (or not finite) met: eq. (9) undefined
+END_FAILED = 3.0  # a corrected step still missed the tolerance: stopped after it
+END_UNRESOLVED = 4.0  # one floating-point step of u moves too far at a sample: stopped there
+
+
+class InterpolationSettings(NamedTuple):
+    """The scalars of one run of :func:`taylor_interpolate_kernel`."""
+
+    u_start: float  #: the curve's parameter range, ``NurbsCurve.u_range``
+    u_end: float
+    dt: float  #: sampling period T, s
+    v_peak: float  #: the plan's largest feed, mm/s (the step tolerance's scale)
+    step_tolerance: float  #: the allowed error of a step's arc length and of the distance run, a fraction of v_peak dt
+
+
+class ReferenceBuffers(NamedTuple):
+    """The arrays :func:`taylor_interpolate_kernel` writes, named as :class:`Reference`'s fields.
+
+    K_max rows each, at least ceil(duration / dt) + 2.
+    """
+
+    t: np.ndarray  #: (K_max,) t_k, s
+    u: np.ndarray  #: (K_max,) u_k
+    position: np.ndarray  #: (K_max, 2) C(u_k), mm
+    velocity: np.ndarray  #: (K_max, 2) mm/s
+    acceleration: np.ndarray  #: (K_max, 2) mm/s^2
+    tangent: np.ndarray  #: (K_max, 2) unit tangent C'(u_k) / |C'(u_k)|
+    feedrate: np.ndarray  #: (K_max,) commanded V(t_k), mm/s
+
+
+class _ArcWorkspace(NamedTuple):
+    """Scratch of the arc-length helpers, made by the kernel."""
+
+    ders: np.ndarray  #: (3, 2) derivatives of the last evaluation
+    work: np.ndarray  #: (workspace_size(degree, SECOND),) for curve_derivatives_into
+    stack: np.ndarray  #: (3, ARC_STACK) for arc_between
 
 
 
@@ -128,7 +189,7 @@ _END_UNRESOLVED = 4.0  # one floating-point step of u moves too far at a sample:
 
 
 @njit(cache=True)
-def _step_arc(control_points, weights, knots, degree, u0, u1, d0, d1, tol, ders, work, stack):
+def _step_arc(curve, u0, u1, d0, d1, tol, ws):
     """Arc length of the step u0 -> u1 (derivatives d0, d1 of order 2 at its ends), mm.
 
     Within one knot span, where |C'| is smooth, the corrected trapezoid rule
@@ -137,8 +198,10 @@ def _step_arc(control_points, weights, knots, degree, u0, u1, d0, d1, tol, ders,
     chord-and-curvature estimate c (1 + kappa^2 c^2 / 24) (c the chord,
     kappa the mean curvature of the ends) to within ``tol`` mm: the step then
     resolves the curve.  Otherwise (a knot inside, or a step that does not
-    resolve the curve) the arc is integrated (:func:`arc_between`).
+    resolve the curve) the arc is integrated (:func:`arc_between`).  ``curve`` is a
+    :class:`~vcnc_gym.geometry.nurbs.NurbsArrays`, ``ws`` an :class:`_ArcWorkspace`.
     """
+    control_points, weights, knots, degree = curve
     n = control_points.shape[0] - 1
     if u1 <= u0:
         return 0.0
@@ -158,11 +221,11 @@ def _step_arc(control_points, weights, knots, degree, u0, u1, d0, d1, tol, ders,
             chordal = c * (1.0 + kappa * kappa * c * c / 24.0)
             if abs(trapezoid - chordal) <= tol:
                 return trapezoid
-    return arc_between(control_points, weights, knots, degree, u0, u1, 1e-3 * tol, ders, work, stack)
+    return arc_between(control_points, weights, knots, degree, u0, u1, 1e-3 * tol, ws.ders, ws.work, ws.stack)
 
 
 @njit(cache=True)
-def _arc_step(control_points, weights, knots, degree, u0, speed0, target, u_end, tol, ders, work, stack, result):
+def _arc_step(curve, u0, speed0, target, u_end, tol, ws, result):
     """The u > u0 at which the arc from u0 is ``target`` mm (to ``tol`` mm).
 
     The arc length is increasing in u with slope |C'(u)|, so the root is
@@ -170,8 +233,11 @@ def _arc_step(control_points, weights, knots, degree, u0, speed0, target, u_end,
     target / |C'(u0)|), then Newton's method safeguarded by bisection.
 
     Writes ``result`` = [u, arc from u0 to u (mm), 1.0 if the curve ends
-    (u = u_end) before the target is reached else 0.0].
+    (u = u_end) before the target is reached else 0.0].  ``curve`` is a
+    :class:`~vcnc_gym.geometry.nurbs.NurbsArrays`, ``ws`` an :class:`_ArcWorkspace`.
     """
+    control_points, weights, knots, degree = curve
+    ders, work, stack = ws
     result[2] = 0.0
     if target <= 0.0:
         result[0] = u0
@@ -230,28 +296,8 @@ def _arc_step(control_points, weights, knots, degree, u0, speed0, target, u_end,
 
 
 @njit(cache=True)
-def taylor_interpolate_kernel(
-    control_points,
-    weights,
-    knots,
-    degree,
-    u_start,
-    u_end,
-    dt,
-    breaks,
-    coeffs,
-    v_peak,
-    step_tolerance,
-    t_out,
-    u_out,
-    pos_out,
-    vel_out,
-    acc_out,
-    tan_out,
-    feed_out,
-    info,
-):
-    """Seed 000 eqs. (8)-(10) from t = 0 to the end of the curve, with step control.
+def taylor_interpolate_kernel(curve, plan, settings, out, info):
+    """Jahanpour et al. (2014), eqs. (8)-(10), from t = 0 to the end of the curve, with step control.
 
     Every step is first made by eq. (8).  Its arc length a_k along the curve
     (:func:`_step_arc`) is compared with the distance the profile commands,
@@ -267,54 +313,61 @@ def taylor_interpolate_kernel(
 
     Parameters
     ----------
-    control_points, weights, knots, degree
-        The curve, as ``NurbsCurve.kernel_args``.
-    u_start, u_end : float
-        Parameter range of the curve.
-    dt : float
-        Sampling period T, s.
-    breaks, coeffs : numpy.ndarray
-        The feedrate plan S(t) as a piecewise quartic, the plan's
-        ``kernel_args`` (:mod:`vcnc_gym.motion.profile`: s; mm, mm/s, ...).
-    v_peak : float
-        The plan's largest feed, mm/s (the step tolerance's scale).
-    step_tolerance : float
-        Allowed |a_k - dS_k| and |s_k - S(t_k)|, as a fraction of v_peak dt.
-    t_out, u_out, feed_out : (K_max,) float64 arrays
-        Written with t_k (s), u_k and the commanded V(t_k) (mm/s).
-    pos_out, vel_out, acc_out, tan_out : (K_max, 2) float64 arrays
-        Written with C(u_k) (mm), velocity (mm/s), acceleration (mm/s^2) and
-        the unit tangent C'(u_k) / |C'(u_k)|.
-        K_max must be at least ceil(duration / dt) + 2.
-    info : (8,) float64 array
-        Written with [end code, u where eq. (8) stood at the end (see
-        :func:`interpolate`), time of that u (s), planned distance S at that
-        time (mm), number of corrected steps, largest |a_k - dS_k| (mm, the
-        last step onto u_end included), u_k and k of that step].  End codes:
-        0 the profile ended, 1 u reached u_end first, 2 |C'(u)| = 0 met at
-        u = info[1] (stopped there), 3 a corrected step k still missed the
-        tolerance (stopped after its sample k + 1: no u can meet it), 4 one
-        floating-point step of u moves more than 1e-3 tol at u = info[1]
-        (stopped there).
+    curve : NurbsArrays
+        The curve, ``NurbsCurve.kernel_args``.
+    plan : PlanArrays
+        The feedrate plan S(t) as a piecewise quartic, ``plan_arrays(plan)``
+        (:mod:`vcnc_gym.motion.profile`: s; mm, mm/s, ...).
+    settings : InterpolationSettings
+        The parameter range u_start, u_end, the sampling period dt (s), the
+        plan's v_peak (mm/s) and the step tolerance (a fraction of v_peak dt).
+    out : ReferenceBuffers
+        Written with t_k (s), u_k, C(u_k) (mm), velocity (mm/s), acceleration
+        (mm/s^2), the unit tangent C'(u_k) / |C'(u_k)| and the commanded V(t_k)
+        (mm/s); K_max rows, at least ceil(duration / dt) + 2.
+    info : (INFO_SIZE,) float64 array
+        Written with the status, at the slots ``INFO_*``: the end code
+        (``INFO_END_CODE``), u where eq. (8) stood at the end (``INFO_U_END``,
+        see :func:`interpolate`), the time of that u (s) and the planned
+        distance S then (mm), the number of corrected steps, the largest
+        |a_k - dS_k| (mm, the last step onto u_end included) and u_k and k of
+        that step.  End codes: ``END_PROFILE`` the profile ended,
+        ``END_CLAMPED`` u reached u_end first, ``END_SINGULAR`` |C'(u)| = 0
+        met at u = info[INFO_U_END] (stopped there), ``END_FAILED`` a corrected
+        step k = info[INFO_WORST_K] still missed the tolerance (stopped after
+        its sample k + 1: no u can meet it), ``END_UNRESOLVED`` one
+        floating-point step of u moves more than 1e-3 tol at
+        u = info[INFO_U_END] (stopped there).
 
     Returns
     -------
     int
         Number K of samples written.
     """
+    control_points, weights, knots, degree = curve
+    breaks, coeffs = plan
+    u_start, u_end, dt, v_peak, step_tolerance = settings
+    t_out = out.t
+    u_out = out.u
+    pos_out = out.position
+    vel_out = out.velocity
+    acc_out = out.acceleration
+    tan_out = out.tangent
+    feed_out = out.feedrate
     duration = breaks[breaks.shape[0] - 1]
     tol = step_tolerance * v_peak * dt
     ders = np.empty((3, 2))
     nxt = np.empty((3, 2))
-    scratch = np.empty((3, 2))
-    work = np.empty(workspace_size(degree, SECOND))
-    stack = np.empty((3, ARC_STACK))
+    ws = _ArcWorkspace(np.empty((3, 2)), np.empty(workspace_size(degree, SECOND)), np.empty((3, ARC_STACK)))
+    scratch = ws.ders
+    work = ws.work
+    stack = ws.stack
     result = np.empty(3)
-    info[0] = -1.0  # no end yet
-    info[4] = 0.0
-    info[5] = 0.0
-    info[6] = u_start
-    info[7] = 0.0
+    info[INFO_END_CODE] = -1.0  # no end yet
+    info[INFO_CORRECTED] = 0.0
+    info[INFO_STEP_ERROR] = 0.0
+    info[INFO_WORST_U] = u_start
+    info[INFO_WORST_K] = 0.0
     u = u_start
     s = 0.0  # arc length travelled, mm
     k = 0
@@ -331,13 +384,13 @@ def taylor_interpolate_kernel(
         pos_out[k, 1] = ders[0, 1]
         feed_out[k] = v
         if not (speed2 > 0.0 and speed2 < np.inf):
-            info[0] = _END_SINGULAR
-            info[1] = u
+            info[INFO_END_CODE] = END_SINGULAR
+            info[INFO_U_END] = u
             return k + 1
         speed = math.sqrt(speed2)
         if speed * (np.nextafter(abs(u), np.inf) - abs(u)) > _RESOLUTION_SHARE * tol:
-            info[0] = _END_UNRESOLVED
-            info[1] = u
+            info[INFO_END_CODE] = END_UNRESOLVED
+            info[INFO_U_END] = u
             return k + 1
         tan_out[k, 0] = c1x / speed
         tan_out[k, 1] = c1y / speed
@@ -354,10 +407,10 @@ def taylor_interpolate_kernel(
             # the profile ends within this step: where does eq. (8) stand at
             # t = duration (partial step h = duration - t)?
             h = duration - t
-            info[0] = _END_PROFILE
-            info[1] = u + h * du + 0.5 * h * h * ddu
-            info[2] = duration
-            info[3] = plan_state(duration, breaks, coeffs)[0]
+            info[INFO_END_CODE] = END_PROFILE
+            info[INFO_U_END] = u + h * du + 0.5 * h * h * ddu
+            info[INFO_T_END] = duration
+            info[INFO_S_END] = plan_state(duration, breaks, coeffs)[0]
             step = arc_between(control_points, weights, knots, degree, u, u_end, 1e-9 * tol, scratch, work, stack)
         else:
             u_next = u + dt * du + 0.5 * dt * dt * ddu  # eq. (8)
@@ -367,38 +420,36 @@ def taylor_interpolate_kernel(
             if u_next > u_end:
                 u_next = u_end
             curve_derivatives_into(control_points, weights, knots, degree, u_next, SECOND, nxt, work)
-            step = _step_arc(control_points, weights, knots, degree, u, u_next, ders, nxt, 1e-6 * tol, scratch,
-                             work, stack)
+            step = _step_arc(curve, u, u_next, ders, nxt, 1e-6 * tol, ws)
             kept = abs(step - (s_next - s_now)) <= (1.0 - _ARC_SLACK) * tol
             if not (kept and abs(s + step - s_next) <= _DRIFT_SHARE * tol):
-                _arc_step(control_points, weights, knots, degree, u, speed, s_next - s, u_end, 1e-6 * tol,
-                          scratch, work, stack, result)
+                _arc_step(curve, u, speed, s_next - s, u_end, 1e-6 * tol, ws, result)
                 u_next = result[0]
                 step = result[1]
                 u_taylor = u_next
-                info[4] += 1.0
+                info[INFO_CORRECTED] += 1.0
                 curve_derivatives_into(control_points, weights, knots, degree, u_next, SECOND, nxt, work)
                 if abs(step - (s_next - s_now)) > (1.0 - _ARC_SLACK) * tol and result[2] == 0.0:
                     # no u meets the tolerance (u cannot resolve the step): stop here
-                    info[0] = _END_FAILED
-                    info[5] = abs(step - (s_next - s_now))
-                    info[6] = u
-                    info[7] = k
+                    info[INFO_END_CODE] = END_FAILED
+                    info[INFO_STEP_ERROR] = abs(step - (s_next - s_now))
+                    info[INFO_WORST_U] = u
+                    info[INFO_WORST_K] = k
                     t_out[k + 1] = t_next
                     u_out[k + 1] = u_next
                     return k + 2
             if u_next >= u_end:
-                info[0] = _END_CLAMPED
-                info[1] = u_taylor
-                info[2] = t_next
-                info[3] = s_next
+                info[INFO_END_CODE] = END_CLAMPED
+                info[INFO_U_END] = u_taylor
+                info[INFO_T_END] = t_next
+                info[INFO_S_END] = s_next
         error = abs(step - (s_next - s_now))
-        if error > info[5]:
-            info[5] = error
-            info[6] = u
-            info[7] = k
+        if error > info[INFO_STEP_ERROR]:
+            info[INFO_STEP_ERROR] = error
+            info[INFO_WORST_U] = u
+            info[INFO_WORST_K] = k
         s += step
-        if info[0] >= 0.0:  # the end: the next sample is u_end
+        if info[INFO_END_CODE] >= 0.0:  # the end: the next sample is u_end
             k += 1
             curve_derivatives_into(control_points, weights, knots, degree, u_end, FIRST, scratch, work)
             sp = curve_speed(scratch)
@@ -434,10 +485,10 @@ class Reference:
     t : ndarray, shape (K,)
         Sampling instants t_k = k dt, s.
     u : ndarray, shape (K,)
-        Curve parameter u_k from seed 000 eq. (8); non-decreasing, from
+        Curve parameter u_k from Jahanpour et al. (2014), eq. (8); non-decreasing, from
         u_start to exactly u_end.
     position : ndarray, shape (K, 2)
-        Position command C(u_k) (seed 000 eq. (2)), mm.
+        Position command C(u_k) (eq. (2)), mm.
     velocity : ndarray, shape (K, 2)
         Velocity command C'(u_k) du/dt (eq. (9)), mm/s; its norm is the
         commanded feed V(t_k). Zero at the last sample.
@@ -552,7 +603,7 @@ class Reference:
         return np.diff(self.plan.distance(self.t)) / self.dt
 
 
-_ARRAYS = ("t", "u", "position", "velocity", "acceleration", "tangent", "feedrate")
+_ARRAYS = ReferenceBuffers._fields
 
 
 # --------------------------------------------------------------------------
@@ -666,7 +717,7 @@ def interpolate(
     step_tolerance: float = STEP_TOLERANCE,
     max_samples: int = MAX_REFERENCE_SAMPLES,
 ) -> Reference:
-    """Interpolate a curve with a feedrate profile, seed 000 eqs. (8)-(10).
+    """Interpolate a curve with a feedrate profile, Jahanpour et al. (2014), eqs. (8)-(10).
 
     Plans ``profile`` over the curve's arc length, then advances the
     parameter with the second-order Taylor expansion u_{k+1} = u_k + T du/dt
@@ -684,7 +735,7 @@ def interpolate(
       feed); so is the arc length travelled since t = 0 of S(t_k).  Where
       eq. (8) misses by more (large parametric accelerations, steps across
       knots where C'' jumps, corners), u_{k+1} is solved from the arc length
-      instead (``Reference.corrected_steps``).  The seed's contours need no
+      instead (``Reference.corrected_steps``).  The paper's contours need no
       correction: their largest eq. (8) error is 0.06 V_peak dt (the
       omega's last step at dt = 1 ms).
     * **The end is reached, never passed.**  u runs non-decreasing from
@@ -693,7 +744,7 @@ def interpolate(
       (the next sampling instant t_{k+1} is at or after the planned
       duration) with u still short of u_end, the sample at t_{k+1} is
       placed at u_end.  The last sample has zero velocity and acceleration;
-      the signed gap it closes is ``Reference.end_gap``.  With the seed
+      the signed gap it closes is ``Reference.end_gap``.  With the paper's
       settings (100 mm/s, 0.12 s ramps) eq. (8) falls short, by 6.1e-4 mm
       (heart) and 6.0e-3 mm (omega) at dt = 1 ms and by 6.1e-6 mm and
       1.4e-4 mm at dt = 0.1 ms.
@@ -709,7 +760,7 @@ def interpolate(
         The feedrate profile; anything with ``plan(length) -> FeedratePlan``
         whose plan covers exactly ``length``.
     dt : float
-        Interpolation (sampling) period T, s. Seed 000 uses 1e-3 s; the envs
+        Interpolation (sampling) period T, s. Jahanpour et al. use 1e-3 s; the envs
         use their control period (default 1e-4 s).
     step_tolerance : float, default STEP_TOLERANCE = 0.1
         The guarantee above, as a fraction of V_peak dt; in [1e-6, 1].
@@ -768,35 +819,30 @@ def interpolate(
         )
     k_max = _check_cost(length, profile, plan, dt, max_samples) + 1
 
-    t = np.empty(k_max)
-    u = np.empty(k_max)
-    pos = np.empty((k_max, 2))
-    vel = np.empty((k_max, 2))
-    acc = np.empty((k_max, 2))
-    tan = np.empty((k_max, 2))
-    feed = np.empty(k_max)
-    info = np.zeros(8)
-    breaks, coeffs = plan_arrays(plan)
-    n = taylor_interpolate_kernel(
-        *curve.kernel_args, u_start, u_end, dt, breaks, coeffs, plan.v_peak, step_tolerance, t, u, pos, vel, acc,
-        tan, feed, info,
-    )
-    if info[0] == _END_SINGULAR:
+    out = ReferenceBuffers(t=np.empty(k_max), u=np.empty(k_max), position=np.empty((k_max, 2)),
+                           velocity=np.empty((k_max, 2)), acceleration=np.empty((k_max, 2)),
+                           tangent=np.empty((k_max, 2)), feedrate=np.empty(k_max))
+    t, u, pos, vel, acc, tan, feed = out
+    info = np.zeros(INFO_SIZE)
+    settings = InterpolationSettings(u_start, u_end, dt, plan.v_peak, step_tolerance)
+    n = taylor_interpolate_kernel(curve.kernel_args, plan_arrays(plan), settings, out, info)
+    end = info[INFO_END_CODE]
+    if end == END_SINGULAR:
         raise ValueError(
-            f"curve has C'(u) = 0 (or not finite) at u = {float(info[1])!r}: the feed relation of seed 000 "
-            "eq. (9) is undefined there"
+            f"curve has C'(u) = 0 (or not finite) at u = {float(info[INFO_U_END])!r}: the feed relation of "
+            "Jahanpour et al. (2014), eq. (9), is undefined there"
         )
-    if info[0] == _END_UNRESOLVED:
-        raise ValueError(_unresolved(curve, plan, dt, step_tolerance, float(info[1]), float(t[n - 1])))
-    if info[0] == _END_FAILED:
-        k = int(info[7])
+    if end == END_UNRESOLVED:
+        raise ValueError(_unresolved(curve, plan, dt, step_tolerance, float(info[INFO_U_END]), float(t[n - 1])))
+    if end == END_FAILED:
+        k = int(info[INFO_WORST_K])
         raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u[: k + 2], np.diff(plan.distance(t[: k + 2]))))
     t, u, pos, vel, acc, tan, feed = (a[:n].copy() for a in (t, u, pos, vel, acc, tan, feed))
     _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed)
 
-    u_taylor, s_planned = float(info[1]), float(info[3])
+    u_taylor, s_planned = float(info[INFO_U_END]), float(info[INFO_S_END])
     end_gap_u = u_end - u_taylor
-    if info[0] == _END_PROFILE and u_taylor < u_end:
+    if end == END_PROFILE and u_taylor < u_end:
         travelled_left = float(curve.arc_length(max(u_taylor, u_start), u_end))
     else:  # at or past u_end: overshoot to first order, |C'(u_end)| (u - u_end)
         speed_end = float(np.linalg.norm(curve.derivatives(u_end, 1)[1]))
@@ -830,8 +876,8 @@ def interpolate(
         length=length,
         plan=plan,
         step_tolerance=step_tolerance,
-        step_error=float(info[5] / (plan.v_peak * dt)),
-        corrected_steps=int(info[4]),
+        step_error=float(info[INFO_STEP_ERROR] / (plan.v_peak * dt)),
+        corrected_steps=int(info[INFO_CORRECTED]),
         end_gap=float(end_gap),
         end_gap_u=float(end_gap_u),
         feedrate_fluctuation=fluctuation,
@@ -860,9 +906,10 @@ def _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, fee
     commanded = np.diff(plan.distance(t))
     excess = chords - commanded
     worst = int(np.argmax(excess)) if excess.size else 0
-    step_error = max(float(info[5]), float(excess[worst]) if excess.size else 0.0)
+    kernel_error = float(info[INFO_STEP_ERROR])
+    step_error = max(kernel_error, float(excess[worst]) if excess.size else 0.0)
     if not step_error <= tol * (1.0 + 1e-9):
-        k = int(info[7]) if info[5] >= (excess[worst] if excess.size else 0.0) else worst
+        k = int(info[INFO_WORST_K]) if kernel_error >= (excess[worst] if excess.size else 0.0) else worst
         raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u, commanded))
 
 

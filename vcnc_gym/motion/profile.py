@@ -11,21 +11,30 @@ through its ``kernel_args``, ``(breaks, coeffs)``:
   ``tau = t - breaks[k]``; row K is the rest after the motion,
   ``[length, 0, 0, 0, 0]``.
 
-Jahanpour et al.'s cubic S-curve (quartic S on its ramps), Simba et al.'s jerk-limited
-profiles (cubic S, constant jerk per piece) and a constant feedrate (linear
+Jahanpour et al.'s (2014) cubic S-curve (quartic S on its ramps), Simba et
+al.'s jerk-limited profiles (cubic S, constant jerk per piece) and a constant feedrate (linear
 S) are all exactly of this form, so one compiled evaluator,
 :func:`plan_state`, serves them all.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-__all__ = ["PLAN_COLUMNS", "plan_state", "plan_batch", "plan_arrays", "PlanEvaluation"]
+__all__ = ["PLAN_COLUMNS", "PlanArrays", "plan_state", "plan_batch", "plan_arrays", "PlanEvaluation"]
 
 #: Columns of ``coeffs``: S, V, A/2, J/6, snap/24.
 PLAN_COLUMNS = 5
+
+
+class PlanArrays(NamedTuple):
+    """A plan as the compiled kernels take it, one argument: :func:`plan_arrays`."""
+
+    breaks: np.ndarray  #: (K+1,) float64, s
+    coeffs: np.ndarray  #: (K+1, PLAN_COLUMNS) float64, the Taylor coefficients of S per piece
 
 
 @njit(cache=True)
@@ -66,9 +75,9 @@ def plan_batch(ts, breaks, coeffs, out):
         out[i, 0], out[i, 1], out[i, 2] = plan_state(ts[i], breaks, coeffs)
 
 
-def plan_arrays(plan) -> tuple[np.ndarray, np.ndarray]:
-    """``(breaks, coeffs)`` of any plan in this module's form: ``plan.kernel_args``, a cubic
-    (4-column, Simba et al.'s jerk-limited plans) widened with a zero quartic column.
+def plan_arrays(plan) -> PlanArrays:
+    """``(breaks, coeffs)`` of any plan in this module's form, a :class:`PlanArrays`: ``plan.kernel_args``, a
+    cubic (4-column, Simba et al.'s jerk-limited plans) widened with a zero quartic column.
 
     Raises
     ------
@@ -83,7 +92,7 @@ def plan_arrays(plan) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError("a plan's breaks must start at 0 s and increase")
     if coeffs.shape[1] < PLAN_COLUMNS:
         coeffs = np.hstack([coeffs, np.zeros((coeffs.shape[0], PLAN_COLUMNS - coeffs.shape[1]))])
-    return breaks, coeffs
+    return PlanArrays(breaks, coeffs)
 
 
 class PlanEvaluation:

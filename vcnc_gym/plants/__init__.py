@@ -15,7 +15,8 @@ from .contract import Parameter, PlantModel
 
 __all__ = ["Parameter", "PlantModel", "get_plant", "plant_names"]
 
-_NOT_PLANTS = {"contract", "shop_floor", "exact_zoh"}  # shop_floor wraps a plant (shop_floor.shop_floor(name)); exact_zoh is their shared numerics
+# shop_floor wraps a plant (shop_floor.shop_floor(name)); exact_zoh and stick_slip are their shared numerics
+_NOT_PLANTS = {"contract", "shop_floor", "exact_zoh", "stick_slip"}
 
 
 def plant_names() -> list[str]:

@@ -1,6 +1,6 @@
-"""Biaxial current-driven feed drive of seed 002 (Simba et al.), eq. (1) and Table I.
+"""Biaxial current-driven feed drive of Simba et al., eq. (1) and Table I.
 
-Each axis i (x, y) of a machine is the rigid table of seed 002, eq. (1),
+Each axis i (x, y) of a machine is the rigid table of Simba et al., eq. (1),
 
 .. math::
 
@@ -24,7 +24,7 @@ i_max   A           5        5        fixed (our choice, see below)
 
 What the paper does not give, and what we chose
 -----------------------------------------------
-* **Current limit** ``i_max`` = 5 A per axis.  Seed 002 states no limit but
+* **Current limit** ``i_max`` = 5 A per axis.  The paper states no limit but
   says (section IV-B) that in its simulations the high curvature of the
   linear path's corners saturates the control inputs.  The contouring
   controller of eq. (7) asks about K_D |dv_d| m / k_f ~ 8.4 A on x at the
@@ -33,7 +33,7 @@ What the paper does not give, and what we chose
   (k_f i_max - f_c) / m ~ 1.3e4 mm/s^2 on x and 1.6e4 mm/s^2 on y, the
   1-1.5 g class of a machine-tool feed drive.  Chosen once from those two
   arguments, not fitted to the paper's contour errors.
-* **Uncertainty intervals** (the paper gives none): the widths of seed 000's
+* **Uncertainty intervals** (the paper gives none): the widths of Jahanpour et al.'s (2014)
   analogous quantities (section 2c: viscous friction B +-30 %, torque
   constant K_t and amplifier gain K_a about +-11 %) for ``c`` and ``k_f``;
   +-10 % on ``m`` for the workpiece and fixtures on the table; +-20 % on
@@ -50,9 +50,10 @@ Integration
 The current is held constant over the control period ``dt`` (zero-order
 hold) and clipped to ``[-i_max, i_max]``.  With a constant current the
 friction force is constant between velocity reversals, so every piece of
-motion solves ``m v' = F - c v`` in closed form (the first-order helpers of
-seed 000's plant, :mod:`vcnc_gym.plants.vcnc_feed_drive`).  A velocity zero
-crossing inside the period is located exactly; the table stops there, stays
+motion solves ``m v' = F - c v`` in closed form (:mod:`vcnc_gym.plants.exact_zoh`),
+and the stops and break-aways are those of every plant's stick-slip routine
+(:func:`vcnc_gym.plants.stick_slip.stick_slip`, with the static levels equal to
+the Coulomb ones).  A velocity zero crossing inside the period is located exactly; the table stops there, stays
 stuck if ``|k_f i| <= f_c`` and otherwise breaks away in the direction of the
 force for the rest of the period.  After a break-away the net force
 ``k_f i - f_c sgn(v)`` has the sign of ``v``, so the velocity cannot cross
@@ -88,7 +89,8 @@ from numba.extending import overload
 from . import contract
 from .contract import Parameter, PlantModel
 
-from .exact_zoh import first_order, log1p_ratio, log1p_rest
+from .exact_zoh import first_order
+from .stick_slip import STOPPED, STUCK, StickSlipAxis, stick_slip
 
 __all__ = [
     "PARAMETERS",
@@ -114,8 +116,8 @@ __all__ = [
     "step_feed_drives",
 ]
 
-_TABLE_I = "seed 002, Table I"
-_CHOICE = "our choice (seed 002 gives none; module docstring)"
+_TABLE_I = "Simba et al., Table I"
+_CHOICE = "our choice (Simba et al. give none; module docstring)"
 
 
 def _interval(nominal, rel):
@@ -174,7 +176,7 @@ CurrentFeedDriveArrays = namedtuple("CurrentFeedDriveArrays", ["state", "params"
 # --------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def advance_axis(x, v, force, m, c, f_c, h):
     """One axis over ``h`` s under a constant motor force, exactly; returns ``(x, v)``.
 
@@ -194,31 +196,14 @@ def advance_axis(x, v, force, m, c, f_c, h):
         Duration [s].
     """
     inv_m = 1.0 / m
-    a = c * inv_m
-    if v != 0.0:
-        net = force - f_c if v > 0.0 else force + f_c  # N, constant while v keeps its sign
-        e, g, q = first_order(a, h)
-        alpha = net * inv_m
-        v_new = e * v + g * alpha
-        if (v > 0.0 and v_new > 0.0) or (v < 0.0 and v_new < 0.0):
-            return x + g * v + q * alpha, v_new
-        # the net force opposes v (-net has the sign of v): the table stops inside h
-        tau = m * v / (-net)  # > 0: the stop time without viscous friction
-        z = c * v / (-net)  # >= 0
-        t_stop = tau * log1p_ratio(z)
-        x += tau * v * log1p_rest(z)
-        h -= t_stop
-        if h <= 0.0:
-            return x, 0.0
-    # at rest: break away in the direction of the force, or stay stuck
-    if force > f_c:
-        alpha = (force - f_c) * inv_m
-    elif force < -f_c:
-        alpha = (force + f_c) * inv_m
-    else:
+    axis = StickSlipAxis(m, c, inv_m, f_c, -f_c, f_c, -f_c)  # one level: break-away = Coulomb
+    mode, v, travel, rest = stick_slip(axis, v, force, h, first_order(c * inv_m, h))
+    if mode == STUCK:
         return x, 0.0
-    _, g, q = first_order(a, h)
-    return x + q * alpha, g * alpha
+    x += travel
+    if v != 0.0 and mode == STOPPED:  # broken away again after the stop
+        x += rest
+    return x, v
 
 
 @numba.njit(cache=True)
@@ -328,14 +313,14 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
 
 
 def _force_gain(params: np.ndarray) -> np.ndarray:
-    """Amperes per newton of force on the table, per axis: ``1 / k_f`` (seed 002, eq. (1): the force is
+    """Amperes per newton of force on the table, per axis: ``1 / k_f`` (Simba et al., eq. (1): the force is
     ``k_f i_a``)."""
     return 1.0 / params[:, MODEL.index("k_f")]
 
 
 MODEL = PlantModel(
     name="current_feed_drive",
-    source="seed 002, eq. (1) and Table I",
+    source="Simba et al., eq. (1) and Table I",
     parameters=PARAMETERS,
     state_names=STATE_NAMES,
     input_name="amplifier current",

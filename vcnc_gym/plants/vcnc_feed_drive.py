@@ -1,7 +1,7 @@
-"""Biaxial feed drive of seed 000 (VCNC contouring with QFT), as numba kernels.
+"""Biaxial feed drive of Jahanpour et al. (2014) (VCNC contouring with QFT), as numba kernels.
 
-Each of the two axes (x, y) of a machine is the rigid feed drive of seed 000,
-section 2a, eq. (1),
+Each of the two axes (x, y) of a machine is the rigid feed drive of
+Jahanpour et al. (2014), section 2a, eq. (1),
 
 .. math::
 
@@ -18,22 +18,22 @@ read in the time domain as
 with
 
 - ``u`` the commanded voltage [V], clipped to ``[-u_max, u_max]`` by the
-  amplifier (seed 000, Table 3, "Saturation limits");
+  amplifier (Table 3, "Saturation limits");
 - ``omega`` the motor angular velocity [rad/s] and ``x_m = r_g * theta`` the
   motor-side linear position [mm];
 - ``T_f`` a Karnopp stick-slip friction torque [N m] with asymmetric static
-  and Coulomb levels (seed 000, Table 3): a drive with ``omega == 0.0``
+  and Coulomb levels (Table 3): a drive with ``omega == 0.0``
   (exactly) is stuck until the motor torque ``T_m = K_t K_a u`` exceeds
   ``T_stat_pos`` (break-away in + direction) or falls below ``T_stat_neg``
   (break-away in - direction); a moving drive feels ``T_coul_pos`` for
   ``omega > 0`` and ``T_coul_neg`` (a negative number) for ``omega < 0``;
 - ``x_t`` the table position [mm], which follows ``x_m`` through a backlash
-  (play / hysteresis operator) of width ``D_b`` (seed 000, Table 3):
+  (play / hysteresis operator) of width ``D_b`` (Table 3):
   ``x_t <- clip(x_t, x_m - D_b/2, x_m + D_b/2)``. The table is what is
   measured and what cuts. The cutting torque ``T_c`` of eq. (1) is zero (the
   seed simulates air cutting).
 
-The uncertain parameters and their intervals are those of seed 000,
+The uncertain parameters and their intervals are those of the paper's
 section 2c: ``r_g`` and ``K_t`` are one value per machine shared by both
 axes, ``K_a`` and ``B`` are per axis. Nominal values are the interval
 midpoints.
@@ -44,7 +44,8 @@ into ``n_substeps`` equal substeps; in each substep the friction torque is
 constant and the linear ODE is solved in closed form. A velocity zero
 crossing inside a substep is located exactly; the drive stops there and, if
 the motor torque breaks it away in the opposite direction, moves on for the
-rest of that substep, so with friction and backlash set to zero the kernel
+rest of that substep (the suite's one stick-slip routine,
+:func:`vcnc_gym.plants.stick_slip.stick_slip`), so with friction and backlash set to zero the kernel
 is the exact ZOH discretisation of eq. (1). Because the motor torque is
 constant over a control period, a substep holds at most one stop and one
 break-away after it, and the play operator is applied at the stop and at the
@@ -90,7 +91,8 @@ from numba.extending import overload
 
 from . import contract
 from .contract import Parameter, PlantModel
-from .exact_zoh import first_order, log1p_ratio, log1p_rest
+from .exact_zoh import first_order
+from .stick_slip import STOPPED, STUCK, StickSlipAxis, stick_slip
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -140,14 +142,14 @@ __all__ = [
 #: Axis order of axis 1 of every array.
 AXES = contract.AXES
 
-_SECTION_2C = "seed 000, section 2c"
-_TABLE_3 = "seed 000, Table 3"
+_SECTION_2C = "Jahanpour et al. (2014), section 2c"
+_TABLE_3 = "Jahanpour et al. (2014), Table 3"
 
 #: The per-axis parameters, in the order of the last axis of a parameter
-#: array.  Uncertain ones carry seed 000's intervals (section 2c; nominal =
+#: array.  Uncertain ones carry the paper's intervals (section 2c; nominal =
 #: midpoint; r_g and K_t are one value per machine), fixed ones Table 3's
-#: values (J is "Total reflected inertia", printed kg/m^2 in the seed;
-#: T_coul are the seed's "T_cont"; saturation limits -5, +5 V).
+#: values (J is "Total reflected inertia", printed kg/m^2 in the paper;
+#: T_coul are the paper's "T_cont"; saturation limits -5, +5 V).
 PARAMETERS = (
     Parameter("r_g", "mm/rad", interval=((1.4, 1.73), (1.4, 1.73)), shared=True, source=_SECTION_2C,
               description="transmission gain (ball screw and gear)",
@@ -217,7 +219,7 @@ N_PARAMETERS = len(PARAMETER_NAMES)
 STATE_NAMES = ("x_m", "w", "x_t")
 S_XM, S_W, S_XT = 0, 1, 2
 
-#: Uncertainty intervals of seed 000, section 2c, keyed by name: shared ones
+#: Uncertainty intervals of Jahanpour et al. (2014), section 2c, keyed by name: shared ones
 #: (lo, hi), per-axis ones ((lo_x, hi_x), (lo_y, hi_y)).  Derived from
 #: ``PARAMETERS``.
 PARAMETER_INTERVALS = {p.name: (p.interval[0] if p.shared else p.interval) for p in PARAMETERS if p.uncertain}
@@ -269,7 +271,7 @@ def _check_friction(p: np.ndarray) -> None:
 
 
 def linear_transfer_function_coefficients(params: np.ndarray, axis: int):
-    """Voltage-to-table-position transfer function of seed 000, eq. (1).
+    """Voltage-to-table-position transfer function of Jahanpour et al. (2014), eq. (1).
 
     ``P(s) = r_g K_t K_a / (s (J s + B))`` [mm/V], friction, backlash and
     saturation ignored.
@@ -335,13 +337,13 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
 def _force_gain(params: np.ndarray) -> np.ndarray:
     """Volts per newton of force on the table, per axis: a force F [N] on the table is a torque F r_g / 1000
     [N m] on the motor (r_g in mm/rad), which the amplifier produces from ``r_g / (1000 K_t K_a)`` V per N
-    (seed 000, eq. (1): the cutting torque T_c enters beside K_t K_a U_a)."""
+    (Jahanpour et al. (2014), eq. (1): the cutting torque T_c enters beside K_t K_a U_a)."""
     return 1e-3 * params[:, IDX_R_G] / (params[:, IDX_K_T] * params[:, IDX_K_A])
 
 
 MODEL = PlantModel(
     name="vcnc_feed_drive",
-    source="seed 000, eq. (1), section 2c and Table 3",
+    source="Jahanpour et al. (2014), eq. (1), section 2c and Table 3",
     parameters=PARAMETERS,
     state_names=("x_m [mm]", "w [rad/s]", "x_t [mm]"),
     input_name="amplifier voltage",
@@ -362,7 +364,7 @@ MODEL = PlantModel(
 
 
 def parameter_intervals() -> dict:
-    """Uncertainty intervals of seed 000, section 2c.
+    """Uncertainty intervals of Jahanpour et al. (2014), section 2c.
 
     Returns
     -------
@@ -377,8 +379,8 @@ def parameter_intervals() -> dict:
 def nominal_parameters() -> np.ndarray:
     """Nominal parameters of both axes, shape ``(2, N_PARAMETERS)``.
 
-    Uncertain parameters at the midpoints of their intervals (seed 000,
-    section 2c), fixed ones from seed 000, Table 3 (``MODEL.nominal()``).
+    Uncertain parameters at the midpoints of their intervals (section
+    2c), fixed ones from Table 3 (``MODEL.nominal()``).
     """
     return MODEL.nominal()
 
@@ -387,7 +389,7 @@ def sample_parameters(rng: np.random.Generator) -> np.ndarray:
     """Draw one machine uniformly from the uncertainty box, shape ``(2, N_PARAMETERS)``.
 
     ``r_g`` and ``K_t`` are drawn once and shared by both axes; ``K_a`` and
-    ``B`` are drawn per axis (seed 000, section 2c): one ``rng.uniform``
+    ``B`` are drawn per axis (section 2c): one ``rng.uniform``
     call over (r_g, K_t, K_a_x, K_a_y, B_x, B_y) (``MODEL.sample``).
     """
     return MODEL.sample(rng)
@@ -413,7 +415,7 @@ def parameters_to_dict(params: np.ndarray) -> dict:
 def without_nonlinearities(params: np.ndarray, keep_saturation: bool = False) -> np.ndarray:
     """Copy of a parameter array with friction and backlash set to zero.
 
-    What remains is the linear model of seed 000, eq. (1) (plus the
+    What remains is the linear model of Jahanpour et al. (2014), eq. (1) (plus the
     amplifier saturation if ``keep_saturation``; otherwise ``u_max`` is set
     to ``inf``).
 
@@ -480,17 +482,17 @@ def reset_feed_drives(state, positions):
     """
     for k in range(state.shape[0]):
         for i in range(2):
-            state[k, i, 0] = positions[k, i]
-            state[k, i, 1] = 0.0
-            state[k, i, 2] = positions[k, i]
+            state[k, i, S_XM] = positions[k, i]
+            state[k, i, S_W] = 0.0
+            state[k, i, S_XT] = positions[k, i]
 
 
 @numba.njit(cache=True)
 def step_feed_drives(state, voltage, params, dt, n_substeps):
     """Advance N biaxial feed drives by one control period, in place.
 
-    Seed 000, eq. (1) with saturation, Karnopp stick-slip friction and
-    backlash (seed 000, Table 3). The voltage is held constant over ``dt``
+    Jahanpour et al. (2014), eq. (1) with saturation, Karnopp stick-slip friction and
+    backlash (Table 3). The voltage is held constant over ``dt``
     and clipped to ``[-u_max, u_max]``; ``dt`` is split into ``n_substeps``
     equal substeps, each solved in closed form with velocity zero crossings
     located exactly. No validation (use ``validate_parameters``); callable
@@ -518,16 +520,14 @@ def step_machine(state, k, voltage, params, dt, n_substeps):
     """Advance both axes of machine ``k`` by one control period; ``voltage`` (2,) V. See ``step_feed_drives``."""
     h = dt / n_substeps
     for i in range(2):
-        r_g = params[k, i, 0]
-        kt_ka = params[k, i, 1] * params[k, i, 2]
-        jj = params[k, i, 3]
-        bb = params[k, i, 4]
-        ts_p = params[k, i, 5]
-        ts_n = params[k, i, 6]
-        tc_p = params[k, i, 7]
-        tc_n = params[k, i, 8]
-        half = 0.5 * params[k, i, 9]
-        u_max = params[k, i, 10]
+        r_g = params[k, i, IDX_R_G]
+        kt_ka = params[k, i, IDX_K_T] * params[k, i, IDX_K_A]
+        jj = params[k, i, IDX_J]
+        inv_j = 1.0 / jj
+        axis = StickSlipAxis(jj, params[k, i, IDX_B], inv_j, params[k, i, IDX_T_STAT_POS],
+                             params[k, i, IDX_T_STAT_NEG], params[k, i, IDX_T_COUL_POS], params[k, i, IDX_T_COUL_NEG])
+        half = 0.5 * params[k, i, IDX_BACKLASH]
+        u_max = params[k, i, IDX_U_MAX]
 
         u = voltage[i]
         if u > u_max:
@@ -535,60 +535,28 @@ def step_machine(state, k, voltage, params, dt, n_substeps):
         elif u < -u_max:
             u = -u_max
         t_m = kt_ka * u
-        inv_j = 1.0 / jj
-        a = bb * inv_j
-        e, g, q = first_order(a, h)
+        zoh = first_order(axis.damping * inv_j, h)
 
-        x_m = state[k, i, 0]
-        w = state[k, i, 1]
-        x_t = state[k, i, 2]
+        x_m = state[k, i, S_XM]
+        w = state[k, i, S_W]
+        x_t = state[k, i, S_XT]
 
         for _ in range(n_substeps):
-            if w == 0.0:
-                # stuck: break away or stay put
-                if t_m > ts_p:
-                    alpha = (t_m - tc_p) * inv_j
-                elif t_m < ts_n:
-                    alpha = (t_m - tc_n) * inv_j
-                else:
+            mode, w, travel, rest = stick_slip(axis, w, t_m, h, zoh)
+            if mode == STUCK:
+                continue
+            x_m += r_g * travel
+            if mode == STOPPED:
+                # the play operator at the stop, where the motion may reverse
+                x_t = _clip_play(x_t, x_m, half)
+                if w == 0.0:
                     continue
-                w = alpha * g
-                x_m += r_g * (alpha * q)
-            else:
-                if w > 0.0:
-                    torque = t_m - tc_p
-                else:
-                    torque = t_m - tc_n
-                alpha = torque * inv_j
-                w_new = e * w + g * alpha
-                if (w > 0.0 and w_new > 0.0) or (w < 0.0 and w_new < 0.0):
-                    x_m += r_g * (g * w + q * alpha)
-                    w = w_new
-                else:
-                    # velocity reaches zero inside this substep (torque
-                    # opposes w, so -torque has the sign of w)
-                    tau = jj * w / (-torque)  # > 0, stop time if B = 0
-                    x = bb * w / (-torque)  # >= 0
-                    t_stop = tau * log1p_ratio(x)
-                    x_m += r_g * (tau * w * log1p_rest(x))
-                    w = 0.0
-                    x_t = _clip_play(x_t, x_m, half)
-                    rest = h - t_stop
-                    if rest > 0.0:
-                        if t_m > ts_p:
-                            alpha = (t_m - tc_p) * inv_j
-                        elif t_m < ts_n:
-                            alpha = (t_m - tc_n) * inv_j
-                        else:
-                            continue
-                        _, g_r, q_r = first_order(a, rest)
-                        w = alpha * g_r
-                        x_m += r_g * (alpha * q_r)
+                x_m += r_g * rest
             x_t = _clip_play(x_t, x_m, half)
 
-        state[k, i, 0] = x_m
-        state[k, i, 1] = w
-        state[k, i, 2] = x_t
+        state[k, i, S_XM] = x_m
+        state[k, i, S_W] = w
+        state[k, i, S_XT] = x_t
 
 
 @numba.njit(cache=True)
@@ -627,7 +595,8 @@ def table_velocities(state, params, out):
     for k in range(state.shape[0]):
         for i in range(2):
             out[k, i] = table_velocity(
-                state[k, i, 0], state[k, i, 1], state[k, i, 2], params[k, i, 0], params[k, i, 9]
+                state[k, i, S_XM], state[k, i, S_W], state[k, i, S_XT], params[k, i, IDX_R_G],
+                params[k, i, IDX_BACKLASH]
             )
 
 
@@ -664,7 +633,7 @@ def _sense(plant, k, out):
 
 
 class FeedDrivePlant:
-    """N biaxial feed drives of seed 000 with validated inputs.
+    """N biaxial feed drives of Jahanpour et al. (2014) with validated inputs.
 
     Holds the parameter and state arrays and calls the kernels; shapes are
     checked in ``__init__``/``reset``, and ``step`` only converts the
