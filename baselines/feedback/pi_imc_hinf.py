@@ -29,7 +29,7 @@ import math
 import control
 import numpy as np
 
-from vcnc_gym.plants.cncmt_axis import METRE, SEED_NOMINAL
+from vcnc_gym.plants.cncmt_axis import METRE, PAPER_NOMINAL
 
 __all__ = [
     "PAPER_CONTROLLERS",
@@ -89,8 +89,8 @@ def controller_tf(name: str, unit: str = "mm") -> control.TransferFunction:
     return control.tf([scale * c for c in num], list(den))
 
 
-def imc_controller(mu: float = 1.0, lam: int = 2, a: float = SEED_NOMINAL["a"],
-                   b: float = SEED_NOMINAL["b"]) -> control.TransferFunction:
+def imc_controller(mu: float = 1.0, lam: int = 2, a: float = PAPER_NOMINAL["a"],
+                   b: float = PAPER_NOMINAL["b"]) -> control.TransferFunction:
     """The IMC controller of Yadav et al. (2020), eqs. (21)-(22), for ``G(s) = b / (s (s + a))``.
 
     ``Q = G^-1 / (mu s + 1)^lambda`` and ``C = Q / (1 - G Q)``, which is

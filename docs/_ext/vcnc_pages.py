@@ -10,8 +10,9 @@
   by walking the package, so that a new module appears without editing the docs.
 
 A page is rewritten only when its text changes, so incremental builds stay
-incremental.  The papers are named by authors and year (:data:`PAPERS`), the
-mapping the references page gives.
+incremental.  The papers are named by authors and year in the code itself
+(docstrings, parameter sources, env summaries); the references page maps
+them to the project's paper folder.
 """
 
 from __future__ import annotations
@@ -19,18 +20,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
-import re
 from pathlib import Path
-
-#: File number of a paper in the project's paper folder -> how the docs cite it (docs/references.md has the
-#: mapping and the full references).  The code cites authors; text still giving a file number (a plant's
-#: ``source`` written before the change) is rewritten by :func:`cite`.
-PAPERS = {
-    "000": "Jahanpour et al. (2014)",
-    "001": "Yadav et al. (2020)",
-    "002": "Simba et al.",
-    "003": "Purtojo et al.",
-}
 
 #: The controller families, in the order of the page: folder of baselines/ -> heading.
 FAMILIES = {
@@ -48,13 +38,6 @@ API_PACKAGES = {
     "agents": "agents: PPO training and trained agents",
     "vcnc_bench": "vcnc_bench: the benchmark",
 }
-
-
-def cite(text: str) -> str:
-    """``text`` with a paper named by its file number (the word seed and 000..003) replaced by its authors and
-    year, and "the seed" by "the paper"."""
-    text = re.sub(r"\b[Ss]eed (00[0-3])\b", lambda m: PAPERS[m.group(1)], text)
-    return re.sub(r"\b([Tt])he seed\b", lambda m: m.group(1) + "he paper", text)
 
 
 def _write(path: Path, text: str) -> None:
@@ -105,7 +88,7 @@ def _parameter_table(plant) -> list[str]:
     for p in plant.parameters:
         nominal = ", ".join(f"{v:.6g}" for v in p.nominal)
         interval = "; ".join(f"[{lo:.6g}, {hi:.6g}]" for lo, hi in p.interval) if p.interval else "fixed"
-        lines.append(f"| `{p.name}` | {_md_cell(p.unit)} | {nominal} | {interval} | {_md_cell(cite(p.source))} |")
+        lines.append(f"| `{p.name}` | {_md_cell(p.unit)} | {nominal} | {interval} | {_md_cell(p.source)} |")
     return lines
 
 
@@ -119,7 +102,7 @@ def _env_page(entry, env, picture: bool) -> str:
         ("class", f"{{py:class}}`{cls.__module__}.{cls.__name__}`"),
         ("registered arguments", kwargs),
         ("native vector env", vector),
-        ("plant", f"`{plant.name}`: {cite(plant.source)}"),
+        ("plant", f"`{plant.name}`: {plant.source}"),
         ("action", f"`{env.action_space}`: the {plant.input_name} per axis over its limit "
                    f"(`{plant.input_limit}`, {plant.input_unit})"),
         ("observation", f"`Box` of shape {env.observation_space.shape}, {env.observation_space.dtype}, "
@@ -129,14 +112,14 @@ def _env_page(entry, env, picture: bool) -> str:
     ]
     if hasattr(env, "reward_scale"):
         rows.append(("reward scale", f"{env.reward_scale:g} mm (reward = -contour error / scale)"))
-    lines = [f"# {entry.id}", "", cite(entry.summary) + ".", ""]
+    lines = [f"# {entry.id}", "", entry.summary + ".", ""]
     if picture:
         lines += [f"```{{image}} _img/{entry.id}.png", f":alt: the contour of {entry.id}", ":width: 420px", "```", ""]
     lines += ["```python", "import gymnasium as gym", "import vcnc_gym  # registers the ids", "",
               f'env = gym.make("{entry.id}")', "```", "", "| | |", "|---|---|"]
     lines += [f"| {k} | {_md_cell(v)} |" for k, v in rows]
     lines += ["", "## Observation", "", "The fields of `env.unwrapped.layout`, in order "
-              "(`env.unwrapped.layout.describe()`):", "", cite(env.layout.describe()).strip(), "",
+              "(`env.unwrapped.layout.describe()`):", "", env.layout.describe().strip(), "",
               "## Plant parameters", "", "`env.unwrapped.plant.parameters`, the box `randomize=True` draws from:", ""]
     lines += _parameter_table(plant)
     lines += ["", "## Full description", "",
@@ -161,11 +144,11 @@ def write_env_pages(docs: Path) -> None:
         picture = _picture(env, out / "_img" / f"{entry.id}.png")
         _write(out / f"{entry.id}.md", _env_page(entry, env, picture))
         env.close()
-        index.append(f"| [{entry.id}]({entry.id}.md) | {_md_cell(cite(entry.summary))} |")
+        index.append(f"| [{entry.id}]({entry.id}.md) | {_md_cell(entry.summary)} |")
     index += ["", "## Legacy ids", "",
               "Still registered so that agents trained on them keep running; `vcnc-bench` runs the current ids.", "",
               "| id | task |", "|---|---|"]
-    index += [f"| `{e.id}` | {_md_cell(cite(e.summary))} |" for e in LEGACY]
+    index += [f"| `{e.id}` | {_md_cell(e.summary)} |" for e in LEGACY]
     index += ["", "```{toctree}", ":hidden:", ""] + [e.id for e in SUITE] + ["```", ""]
     _write(out / "index.md", "\n".join(index))
 
@@ -197,12 +180,12 @@ def write_controllers_page(docs: Path) -> None:
         if not names:
             continue
         package = importlib.import_module(f"baselines.{family}")
-        lines += [f"## {FAMILIES.get(family, family)}", "", cite(_first_paragraph(package)), "",
+        lines += [f"## {FAMILIES.get(family, family)}", "", _first_paragraph(package), "",
                   "| name | class | what |", "|---|---|---|"]
         for name in names:
             cls = registry.REGISTRY[name]
             lines.append(f"| `{name}` | {{py:class}}`~{cls.__module__}.{cls.__name__}` | "
-                         f"{_md_cell(cite(_first_paragraph(cls)))} |")
+                         f"{_md_cell(_first_paragraph(cls))} |")
         lines.append("")
     lines += ["## Variants", "",
               "A registered controller with some of its parameters fixed, benchmarked under its own name.", "",

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from ..plants.current_feed_drive import SEED002_A_MAX as SIMBA_A_MAX, SEED002_J_MAX as SIMBA_J_MAX
+from ..plants.current_feed_drive import SIMBA_A_MAX, SIMBA_J_MAX
 from ..validation import positive
 from .corners import polyline, smooth_polyline
 from .nurbs import NurbsCurve

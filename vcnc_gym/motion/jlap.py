@@ -95,9 +95,9 @@ import numpy as np
 from numba import njit
 
 from ..plants.current_feed_drive import (  # limits beside their plant
-    SEED002_A_MAX as SIMBA_A_MAX,
-    SEED002_FEEDRATE as SIMBA_FEEDRATE,
-    SEED002_J_MAX as SIMBA_J_MAX,
+    SIMBA_A_MAX,
+    SIMBA_FEEDRATE,
+    SIMBA_J_MAX,
 )
 from ..validation import positive as _positive
 

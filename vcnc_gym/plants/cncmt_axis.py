@@ -1,6 +1,6 @@
-"""The CNC machine-tool (CNCMT) axis of seed 001, with its dead time, as numba kernels.
+"""The CNC machine-tool (CNCMT) axis of Yadav et al. (2020), with its dead time, as numba kernels.
 
-Seed 001 (Yadav, Pathak and Gaur, 2020) models one feed axis, eq. (2),
+Yadav, Pathak and Gaur (2020) model one feed axis, eq. (2),
 
 .. math::
 
@@ -29,7 +29,7 @@ are divided by 1000 to act on mm (``baselines.feedback.pi_imc_hinf``).
 
 Saturation
 ----------
-Seed 001 gives no input limit.  ``u_max`` = 10 V, the usual +-10 V analog
+Yadav et al. (2020) gives no input limit.  ``u_max`` = 10 V, the usual +-10 V analog
 command range of servo amplifiers (our choice).  At a 10 mm step none of the
 seed's controllers comes near it (robust PI, the largest, asks 38.33 V/m x
 0.01 m = 0.38 V); it bounds what an agent can ask (top speed
@@ -86,7 +86,7 @@ Exact zero-order hold: the delayed command is held over ``dt`` and the linear
 ODE solved in closed form, ``v1 = E v0 + b g u``, ``x1 = x0 + g v0 + b q u``,
 ``E = exp(-a dt)``, ``g = (1 - E) / a``, ``q = (dt - g) / a`` (series for
 small ``a dt``): ``control.c2d(G, dt, "zoh")`` followed by ``z^-n_d``, up to
-rounding (tests/test_seed001_plant.py).
+rounding (tests/test_yadav2020_plant.py).
 
 Layouts
 -------
@@ -124,7 +124,7 @@ __all__ = [
     "S_X",
     "S_V",
     "METRE",
-    "SEED_NOMINAL",
+    "PAPER_NOMINAL",
     "TABLE_1",
     "delay_periods",
     "table1_coefficients",
@@ -132,16 +132,16 @@ __all__ = [
     "advance_machine",
 ]
 
-#: mm per m: seed 001's positions and controller gains are in m (see the module docstring).
+#: mm per m: Yadav et al. (2020)'s positions and controller gains are in m (see the module docstring).
 METRE = 1000.0
 
-_EQ_2 = "seed 001, eq. (2)"
-_SEC_35 = "seed 001, section 3.5, eqs. (17), (31), (35)"
+_EQ_2 = "Yadav et al. (2020), eq. (2)"
+_SEC_35 = "Yadav et al. (2020), section 3.5, eqs. (17), (31), (35)"
 
 #: Eq. (2) in the seed's own units: a [1/s], b [m/(V s^2)], T_d [s].
-SEED_NOMINAL = {"a": 9.7, "b": 4.85, "T_d": 0.1}
+PAPER_NOMINAL = {"a": 9.7, "b": 4.85, "T_d": 0.1}
 
-#: Seed 001, Table 1: nominal value and relative uncertainty of the physical
+#: Yadav et al. (2020), Table 1: nominal value and relative uncertainty of the physical
 #: parameters, SI units, with the pitch p = 0.05 m (printed "5 (mm)"; see the
 #: module docstring).  Used only to document the disagreement with eq. (2).
 TABLE_1 = {
@@ -170,7 +170,7 @@ PARAMETERS = (
               description="input dead time, a whole number of control periods",
               physical_range=(0, 10),
               range_source="ours: a dead time beyond 10 s is no servo axis"),
-    Parameter("u_max", "V", nominal=(10.0, 10.0), source="ours (+-10 V servo command; seed 001 gives no limit)",
+    Parameter("u_max", "V", nominal=(10.0, 10.0), source="ours (+-10 V servo command; Yadav et al. (2020) gives no limit)",
               description="amplifier command saturation",
               physical_range=(0.1, 100),
               range_source="ours: amplifier commands are +-10 V in industry, +-100 V at most"),
@@ -311,7 +311,7 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
 
 MODEL = PlantModel(
     name="cncmt_axis",
-    source="seed 001, eq. (2) and section 3.5",
+    source="Yadav et al. (2020), eq. (2) and section 3.5",
     parameters=PARAMETERS,
     state_names=("x [mm]", "v [mm/s]"),
     input_name="power amplifier command voltage",

@@ -1,6 +1,6 @@
 """The plant contract: what a plant module declares, and the two kernels the env calls.
 
-A plant is one module of :mod:`vcnc_gym.plants` (seed 000's feed drive is
+A plant is one module of :mod:`vcnc_gym.plants` (Jahanpour et al. (2014)'s feed drive is
 :mod:`~vcnc_gym.plants.vcnc_feed_drive`).  It declares, in one place:
 
 - ``MODEL``, a :class:`PlantModel`: the parameters (name, unit, nominal
@@ -68,7 +68,7 @@ AXES = ("x", "y")
 #: one the contour error is measured on.
 SENSE_POSITION = 0
 #: Position as the position sensor reports it (x, y), mm (the true one for a
-#: perfect sensor; quantised for seed 003's 1 um encoder).
+#: perfect sensor; quantised for Purtojo et al.'s 1 um encoder).
 SENSE_MEASURED = 2
 #: Table velocity (x, y), mm/s.
 SENSE_VELOCITY = 4
@@ -106,7 +106,7 @@ class Parameter:
     shared : bool
         One value per machine for both axes (drawn once from the x interval).
     source : str
-        Where the numbers come from ("seed 000, section 2c").
+        Where the numbers come from ("Jahanpour et al. (2014), section 2c").
     sign : str
         ``"positive"``, ``"nonnegative"``, ``"nonpositive"`` or ``"any"``:
         what :meth:`PlantModel.validate` requires.
@@ -175,7 +175,7 @@ class PlantModel:
     name : str
         The module's short name (``"vcnc_feed_drive"``), as ``plant=`` of the envs takes it.
     source : str
-        The seed and equation of the model ("seed 000, eq. (1)").
+        The paper and equation of the model ("Jahanpour et al. (2014), eq. (1)").
     parameters : tuple of Parameter
         In the order of the last axis of a parameter array.
     state_names : tuple of str
@@ -189,7 +189,7 @@ class PlantModel:
     make_arrays : callable (n_machines, dt, **options) -> namedtuple
         The plant's arrays for N machines at control period ``dt`` s, state
         at rest at the origin, parameters nominal; ``options`` are the
-        plant's own settings (e.g. seed 000's integration ``substep``), the
+        plant's own settings (e.g. Jahanpour et al. (2014)'s integration ``substep``), the
         envs' ``plant_options``.
     reset_machine : callable (arrays, k, position) -> None
         Put machine ``k`` at rest at ``position`` ((2,) mm).

@@ -101,9 +101,9 @@ __all__ = [
     "IDX_F_C",
     "IDX_K_F",
     "IDX_I_MAX",
-    "SEED002_A_MAX",
-    "SEED002_J_MAX",
-    "SEED002_FEEDRATE",
+    "SIMBA_A_MAX",
+    "SIMBA_J_MAX",
+    "SIMBA_FEEDRATE",
     "STATE_NAMES",
     "S_X",
     "S_V",
@@ -158,9 +158,9 @@ IDX_M, IDX_C, IDX_F_C, IDX_K_F, IDX_I_MAX = range(N_PARAMETERS)
 #: The path limits Simba et al.'s drives are planned with (the paper gives none; derived in
 #: :mod:`vcnc_gym.motion.jlap`'s docstring from this plant's 5 A limit and eq. (7)'s loop): path acceleration
 #: mm/s^2, path jerk mm/s^3, and the programmed feed of their experiments, mm/s (section IV-A).
-SEED002_A_MAX = 4000.0
-SEED002_J_MAX = 1.6e5
-SEED002_FEEDRATE = 50.0
+SIMBA_A_MAX = 4000.0
+SIMBA_J_MAX = 1.6e5
+SIMBA_FEEDRATE = 50.0
 
 #: Per-axis state entries: table position x [mm], table velocity v [mm/s].
 STATE_NAMES = ("x [mm]", "v [mm/s]")

@@ -1,6 +1,6 @@
-"""The NCT-identified X-Y table of seed 003 (fuzzy NCTF control on a circle), as numba kernels.
+"""The NCT-identified X-Y table of Purtojo et al. (fuzzy NCTF control on a circle), as numba kernels.
 
-Each axis (x, y) of a machine is the simplified model of seed 003, eq. (3),
+Each axis (x, y) of a machine is the simplified model of Purtojo et al., eq. (3),
 
 .. math::
 
@@ -17,7 +17,7 @@ domain, with ``v`` the table velocity,
 
 The input
 ---------
-Seed 003 names the input only as the motor input, with ``u_r`` the rated
+Purtojo et al. names the input only as the motor input, with ``u_r`` the rated
 motor input: the stepwise input of the identification experiment is ``u_r``
 (section III), the fuzzy compensator's output spans ``+-u_r`` (section II-B)
 and ``K = h_max / u_r`` (eq. (3)).  It gives ``u_r`` no number and no unit.
@@ -29,7 +29,7 @@ input**: ``u = 1`` is ``u_r`` (unit ``"u_r"``), so ``K`` is in mm/s per
 
 The sensor
 ----------
-Seed 003, section III: "1 um sensor resolution is used".  The position
+Purtojo et al., section III: "1 um sensor resolution is used".  The position
 sensor is modelled as a mid-tread quantiser of step ``resolution``
 (0.001 mm), ``q(x) = resolution * round(x / resolution)``: what the
 controller sees (``SENSE_MEASURED``); the true position (``SENSE_POSITION``)
@@ -40,7 +40,7 @@ difference over the last control period, ``(q(x_k) - q(x_{k-1})) / dt``
 
 Uncertainty
 -----------
-Seed 003 gives one identified model and no uncertainty.  We chose
+Purtojo et al. gives one identified model and no uncertainty.  We chose
 +-10 % on ``K`` and ``alpha`` of each axis (the spread of a model read off
 one open-loop experiment; our choice, not the paper's), so that
 ``randomize=True`` draws a table the NCTF design has not seen; nominal
@@ -94,9 +94,9 @@ __all__ = [
     "step_axis",
 ]
 
-_EQ_4 = "seed 003, eq. (4)"
+_EQ_4 = "Purtojo et al., eq. (4)"
 
-#: Relative half-width of the uncertainty intervals of K and alpha (our choice; seed 003 gives none).
+#: Relative half-width of the uncertainty intervals of K and alpha (our choice; Purtojo et al. gives none).
 UNCERTAINTY = 0.10
 
 
@@ -116,11 +116,11 @@ PARAMETERS = (
               description="velocity pole alpha = -m, eq. (3)",
               physical_range=(0.001, 10000),
               range_source="ours: velocity-loop poles from 1 ms to 1000 s"),
-    Parameter("u_r", "u_r", nominal=(1.0, 1.0), source="seed 003, sections II-B and III (no number given)",
+    Parameter("u_r", "u_r", nominal=(1.0, 1.0), source="Purtojo et al., sections II-B and III (no number given)",
               description="rated motor input: the input limit, the unit of the input",
               physical_range=(0.001, 1000),
               range_source="ours: a rated input in V or in per-unit"),
-    Parameter("resolution", "mm", nominal=(0.001, 0.001), source="seed 003, section III (1 um sensor)",
+    Parameter("resolution", "mm", nominal=(0.001, 0.001), source="Purtojo et al., section III (1 um sensor)",
               description="position sensor resolution",
               physical_range=(1e-07, 1),
               range_source="ours: position sensors resolve 0.1 nm (interferometers) to 1 mm"),
@@ -161,7 +161,7 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     """Eq. (3) of Purtojo et al. inverted: ``u = (a / alpha + v) / K`` in units of u_r (no friction term)."""
     return contract.InverseDynamics.from_linear(MODEL, params)
 
-#: Moving mass of one axis of the X-Y table, kg: seed 003 identifies no mass (its model is velocity over
+#: Moving mass of one axis of the X-Y table, kg: Purtojo et al. identifies no mass (its model is velocity over
 #: motor input), so this is ours, a small laboratory X-Y table's carriage; used only to convert a force on the
 #: table into the motor input that produces it (:func:`_force_gain`).
 MOVING_MASS = 10.0
@@ -176,7 +176,7 @@ def _force_gain(params: np.ndarray) -> np.ndarray:
 
 MODEL = PlantModel(
     name="nct_xy_table",
-    source="seed 003, eqs. (3)-(4) and section III",
+    source="Purtojo et al., eqs. (3)-(4) and section III",
     parameters=PARAMETERS,
     state_names=("x [mm]", "v [mm/s]", "q_prev [mm]"),
     input_name="motor input (fraction of the rated input u_r)",
