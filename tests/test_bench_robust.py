@@ -46,7 +46,7 @@ def test_nominal_row_is_the_ordinary_bench_episode(omega_robust):
 def test_json_has_the_figures_of_every_plant(omega_robust):
     data, out = omega_robust
     assert data["settings"] == {"plants": N, "plant_seed": 5, "seed": 0, "trials": 1,
-                                "max_vertices": robust.MAX_VERTICES, "feedrate": None}
+                                "max_vertices": robust.MAX_VERTICES, "feedrate": None, "plant": None}
     (rec,) = data["robust"]
     assert (rec["env"], rec["policy"], rec["n_samples"], rec["n_vertices"], rec["n_plants"]) == (OMEGA, "smc", N, 64,
                                                                                                   N + 64)

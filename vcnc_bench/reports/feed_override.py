@@ -1,21 +1,26 @@
 """The front of max contour error against cycle time on the omega: a feed-override agent against the classical
-controllers on the look-ahead feed at several feeds (issue 24, item 3).
+controllers on the look-ahead feed (issue 24, item 3).
 
 Jahanpour et al. (2014)'s omega at 100 mm/s on the S-curve (``VCNC-Omega-v1``) asks twenty times the drives'
 acceleration at its 0.19 mm corners.  A CNC avoids that in one of two ways, and this report puts them side by
 side on the nominal plant:
 
 - **planned**: the look-ahead feed (``VCNC-OmegaLookahead-v1``, :class:`~vcnc_gym.motion.LookaheadFeedrate`)
-  slows down for every corner before the part runs; each classical controller runs it at the feeds of
-  :data:`FEEDS`, one point each;
+  slows down for every corner before the part runs; each classical controller of :data:`CLASSICAL` runs it at
+  each setting of :data:`LOOKAHEAD`: the programmed feed and the path acceleration limit (jerk 30 times it, the
+  suite's ratio), the two numbers a CNC engineer commissions the look-ahead with, so that the classical side is
+  tuned for time as well as for error (the strongest-opponent rule);
 - **online**: the agent on ``VCNC-OmegaOverride-v1`` sets a feed override on the S-curve while it runs (it sees
   the contour 4 mm ahead); one point per cap of its override (:data:`CAPS`: the agent's dial scaled so the
   override never exceeds the cap, as an operator limits the dial).
 - **operator**: the classical servo that runs under an override (``ff-pid-online``) on ``VCNC-OmegaOverride-v1``
   with the dial held at each cap from the start, as an operator who turns the override down for the whole part.
 
-Run ``python -m vcnc_bench.reports.feed_override --agent agents/trained/VCNC-OmegaOverride-v1 --plot
-bench-out/omega_front.png``.
+:func:`pareto` keeps the points no other point beats in both cycle time and max error: the classical front is
+the Pareto set of every planned run.
+
+Run ``python -m vcnc_bench.reports.feed_override --plot bench-out/omega_front.png`` (the shipped agent, or
+``--agent FOLDER``).
 """
 
 from __future__ import annotations
@@ -26,16 +31,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FrontPoint", "FEEDS", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride", "classical_front",
-           "operator_front", "agent_front", "format_front", "plot_front", "main"]
+__all__ = ["FrontPoint", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
+           "SCURVE", "classical_front", "scurve_points", "operator_front", "agent_front", "pareto", "verdicts",
+           "format_front", "plot_front", "main"]
 
-#: Feeds of the look-ahead runs, mm/s.
-FEEDS = (100.0, 80.0, 60.0, 45.0, 30.0)
+#: Look-ahead settings of the planned runs: (programmed feed mm/s, path acceleration limit mm/s^2).  The suite's
+#: default limit is 1000 mm/s^2 (motion.lookahead: 38 % of the drives' ~2.6e3 at 5 V); the drives take more.
+LOOKAHEAD = ((100.0, 1000.0), (80.0, 1000.0), (60.0, 1000.0), (45.0, 1000.0), (30.0, 1000.0),
+             (100.0, 1500.0), (100.0, 2000.0), (100.0, 2600.0), (150.0, 2000.0), (150.0, 2600.0))
+#: The jerk limit of a planned run, as a multiple of its acceleration limit, 1/s (the suite's 3e4 / 1000).
+JERK_PER_ACCELERATION = 30.0
 #: Caps of the agent's override and the operator's fixed overrides (1 = 100 %); the env's time limit, three times the
 #: reference's duration at full feed, ends an override held below 1/3 before the contour's end.
 CAPS = (1.0, 0.8, 0.6, 0.45, 0.35)
 #: The classical controllers of the front: the strongest causal ones on the omega (README's table).
 CLASSICAL = ("ff-pid", "zpetc", "ff-ccc", "ff-pid-online")
+#: The controllers run on the S-curve itself: QFT, the strongest causal one there (README's table).
+SCURVE = ("qft",)
 #: The classical controller run under a fixed override: the one that needs no table computed ahead.
 OPERATOR = "ff-pid-online"
 
@@ -57,20 +69,37 @@ def _point(policy_name, setting, result) -> FrontPoint:
     return FrontPoint(policy_name, setting, cycle, result.max_contour_error_um, result.rms_contour_error_um)
 
 
-def classical_front(policies=CLASSICAL, feeds=FEEDS) -> list[FrontPoint]:
-    """Each classical controller on ``VCNC-OmegaLookahead-v1`` at each feed (mm/s), nominal plant."""
+def classical_front(policies=CLASSICAL, settings=LOOKAHEAD) -> list[FrontPoint]:
+    """Each classical controller on ``VCNC-OmegaLookahead-v1`` at each (feed mm/s, path acceleration mm/s^2) of
+    ``settings``, nominal plant."""
     import gymnasium as gym
 
     import baselines
     from vcnc_gym.evaluation import run_episode
+    from vcnc_gym.motion import LookaheadFeedrate
 
+    curve = gym.make("VCNC-OmegaLookahead-v1").unwrapped.curve
     points = []
-    for feed in feeds:
-        env = gym.make("VCNC-OmegaLookahead-v1", feedrate=float(feed))
+    for feed, acceleration in settings:
+        jerk = JERK_PER_ACCELERATION * acceleration
+        profile = LookaheadFeedrate(curve, feed, acceleration, jerk, acceleration, jerk)
+        env = gym.make("VCNC-OmegaLookahead-v1", feedrate=float(feed), profile=profile)
         for name in policies:
-            points.append(_point(name, f"{feed:g} mm/s", run_episode(baselines.make(name, env), env)))
+            points.append(_point(name, f"{feed:g} mm/s, {acceleration:g} mm/s^2",
+                                 run_episode(baselines.make(name, env), env)))
         env.close()
     return points
+
+
+def pareto(points) -> list[FrontPoint]:
+    """The points no other point beats in both cycle time and max error (finished runs only), fastest first."""
+    done = sorted((p for p in points if math.isfinite(p.cycle_time_s)), key=lambda p: (p.cycle_time_s, p.max_um))
+    front, best = [], math.inf
+    for p in done:
+        if p.max_um < best:
+            front.append(p)
+            best = p.max_um
+    return front
 
 
 class _Capped:
@@ -82,7 +111,7 @@ class _Capped:
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         action, state = self.policy.predict(observation, state=state, episode_start=episode_start,
                                             deterministic=deterministic)
-        action = np.array(action, dtype=np.float32)
+        action = np.array(action, copy=True)  # its own dtype: the axes' commands reach the env unrounded
         action[..., 2] = self.cap * (np.clip(action[..., 2], -1.0, 1.0) + 1.0) - 1.0
         return action, state
 
@@ -128,38 +157,77 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
 
     env = gym.make("VCNC-OmegaOverride-v1")
     policy = load_agent(agent, env)
-    points = [_point(label, f"cap {100 * c:g} %", run_episode(_Capped(policy, c), env)) for c in caps]
+    # at 100 % the agent runs as it is: rescaling its dial rounds it, and the omega's corners amplify that
+    points = [_point(label, f"cap {100 * c:g} %", run_episode(policy if c == 1.0 else _Capped(policy, c), env))
+              for c in caps]
     env.close()
     return points
 
 
 def format_front(points) -> str:
     """The points as a table, um and s."""
-    lines = [f"{'policy':26s} {'setting':12s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 68]
+    lines = [f"{'policy':26s} {'setting':26s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 82]
     for p in points:
-        lines.append(f"{p.policy:26s} {p.setting:12s} {p.cycle_time_s:8.4f} {p.max_um:9.3f} {p.rms_um:9.4f}")
+        lines.append(f"{p.policy:26s} {p.setting:26s} {p.cycle_time_s:8.4f} {p.max_um:9.3f} {p.rms_um:9.4f}")
     return "\n".join(lines)
 
 
+def scurve_points(policies=SCURVE) -> list[FrontPoint]:
+    """Each of ``policies`` on ``VCNC-Omega-v1`` itself (the S-curve at 100 mm/s, no override), nominal plant."""
+    import gymnasium as gym
+
+    import baselines
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make("VCNC-Omega-v1")
+    points = [_point(name, "S-curve, 100 mm/s", run_episode(baselines.make(name, env), env)) for name in policies]
+    env.close()
+    return points
+
+
+def verdicts(points, label: str = "agent") -> list[str]:
+    """For each finished point of ``label``: the classical (planned) run that beats it in both cycle time and max
+    error, or that none does."""
+    classical = [p for p in points if p.policy in CLASSICAL and "mm/s^2" in p.setting]
+    lines = []
+    for a in (p for p in points if p.policy == label and math.isfinite(p.cycle_time_s)):
+        better = [c for c in pareto(classical) if c.cycle_time_s <= a.cycle_time_s and c.max_um <= a.max_um]
+        lines.append(f"{label} {a.setting} ({a.cycle_time_s:.4f} s, {a.max_um:.3f} um): " + (
+            f"beaten by {better[0].policy} at {better[0].setting} ({better[0].cycle_time_s:.4f} s, "
+            f"{better[0].max_um:.3f} um)" if better else "no classical run is both faster and more accurate"))
+    return lines
+
+
 def plot_front(points, path) -> None:
-    """Max contour error (um, log) against cycle time (s), one line per policy."""
+    """Max contour error (um, log) against cycle time (s): every classical planned run (markers), their Pareto
+    front (line), the operator's fixed overrides, the S-curve runs and the agent."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for name in dict.fromkeys(p.policy for p in points):
-        mine = sorted((p for p in points if p.policy == name and math.isfinite(p.cycle_time_s)),
-                      key=lambda p: p.cycle_time_s)
-        style = "o-" if name.startswith("agent") else "s--"
-        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], style, label=name)
+    fig, ax = plt.subplots(figsize=(7.5, 5.0))
+    finished = [p for p in points if math.isfinite(p.cycle_time_s)]
+    planned = [p for p in finished if p.policy in CLASSICAL and "mm/s^2" in p.setting]
+    for name, marker in zip(CLASSICAL, "sD^v"):
+        mine = [p for p in planned if p.policy == name]
+        ax.scatter([p.cycle_time_s for p in mine], [p.max_um for p in mine], marker=marker, s=22, alpha=0.6,
+                   label=f"{name}, look-ahead")
+    front = pareto(planned)
+    ax.step([p.cycle_time_s for p in front], [p.max_um for p in front], "k-", where="post", lw=1.2,
+            label="classical front (look-ahead)")
+    others = dict.fromkeys(p.policy for p in finished if p not in planned)
+    for name in others:
+        mine = sorted((p for p in finished if p.policy == name), key=lambda p: p.cycle_time_s)
+        style = "o-" if name.startswith("agent") else "x:"
+        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], style, ms=7, lw=1.5,
+                label=f"{name} (S-curve)" if name in SCURVE else name)
     ax.set_yscale("log")
     ax.set_xlabel("cycle time (s)")
     ax.set_ylabel("max contour error (um)")
-    ax.set_title("Omega, nominal plant: look-ahead feeds (classical) vs feed override (agent)")
+    ax.set_title("Omega, nominal plant: planned look-ahead (classical) vs online feed override (agent)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -178,8 +246,12 @@ def main(argv=None) -> int:
         agent = TRAINED.get("VCNC-OmegaOverride-v1")
         if agent is None or not agent.is_dir():
             parser.error("no agent is shipped for VCNC-OmegaOverride-v1: give --agent FOLDER")
-    points = classical_front() + operator_front() + agent_front(agent)
+    points = classical_front() + scurve_points() + operator_front() + agent_front(agent)
     print(format_front(points))
+    print("\nclassical front (look-ahead runs no other beats in both cycle time and max error):")
+    print(format_front(pareto([p for p in points if p.policy in CLASSICAL and "mm/s^2" in p.setting])))
+    print()
+    print("\n".join(verdicts(points)))
     if args.plot:
         plot_front(points, args.plot)
         print(f"wrote {args.plot}")
