@@ -181,3 +181,20 @@ def test_operator_fixed_override_is_the_held_dial():
     for bad in (0.0, 1.5):
         with pytest.raises(ValueError, match="override"):
             FixedOverride(baselines.make("ff-pid-online", env), bad)
+
+
+def test_the_front_keeps_exactly_the_points_nothing_beats():
+    """vcnc_bench.reports.feed_override.pareto against a brute-force check of every pair: a point is on the
+    front when no other finished point is at least as fast and strictly more accurate (ties in time: the lower
+    error); unfinished runs (infinite cycle time) are never on it."""
+    from vcnc_bench.reports.feed_override import FrontPoint, pareto
+
+    rng = np.random.default_rng(0)
+    points = [FrontPoint("p", str(k), float(t), float(m), 0.0)
+              for k, (t, m) in enumerate(zip(rng.choice([0.7, 0.8, 0.9, 1.0, np.inf], 60), rng.uniform(1, 9, 60)))]
+    mine = pareto(points)
+    brute = [p for p in points if np.isfinite(p.cycle_time_s) and not any(
+        q is not p and np.isfinite(q.cycle_time_s) and q.cycle_time_s <= p.cycle_time_s and q.max_um < p.max_um
+        for q in points)]
+    assert sorted(mine, key=lambda p: p.setting) == sorted(brute, key=lambda p: p.setting)
+    assert [p.cycle_time_s for p in mine] == sorted(p.cycle_time_s for p in mine)
