@@ -74,7 +74,10 @@ def test_agents_modules_take_no_private_names_and_import_around_no_loop():
 
 
 #: The fingerprints a run of 2 PPO updates (4096 agent steps, seed 7, VCNC-Heart-v1) printed at commit 456604d,
-#: before the split, with the versions below (another torch, numpy or SB3 may round differently: then skipped).
+#: before the split, with the versions below (another torch, numpy or SB3 may round differently: then skipped):
+#: the weights' digest and the evaluation's max and RMS (um).  The digest holds on the CPU it was taken on only:
+#: torch's kernels round differently on another one (an AMD EPYC host gives 9.846791 against 9.846794 um), so the
+#: test compares the figures within 1e-5 and the digest where it matches the CPU's own fingerprint.
 BEFORE_SPLIT = {
     "versions": ("2.13.0+cpu", "2.4.6", "2.9.2"),
     "sb3": ("2f6aeb17343644cdbaac4263e9383f14a9a97c23891e148ef522cdaea1188749", 9.846793763788218,
@@ -105,4 +108,8 @@ def test_a_short_run_trains_the_model_it_trained_before_the_split(trainer, tmp_p
     with zipfile.ZipFile(run_dir / "final" / "model.zip") as z:
         state = torch.load(io.BytesIO(z.read("policy.pth")), map_location="cpu")
     digest = hashlib.sha256(b"".join(v.numpy().tobytes() for _, v in sorted(state.items()))).hexdigest()
-    assert (digest, result.best["max_um"], result.best["rms_um"]) == BEFORE_SPLIT[trainer]
+    before_digest, before_max, before_rms = BEFORE_SPLIT[trainer]
+    assert result.best["max_um"] == pytest.approx(before_max, rel=1e-5)
+    assert result.best["rms_um"] == pytest.approx(before_rms, rel=1e-5)
+    if (result.best["max_um"], result.best["rms_um"]) == (before_max, before_rms):  # the same CPU's rounding
+        assert digest == before_digest
