@@ -190,7 +190,7 @@ def test_the_front_keeps_exactly_the_points_nothing_beats():
     from vcnc_bench.reports.feed_override import FrontPoint, pareto
 
     rng = np.random.default_rng(0)
-    points = [FrontPoint("p", str(k), float(t), float(m), 0.0)
+    points = [FrontPoint("p", str(k), float(t), float(m), 0.0, "planned")
               for k, (t, m) in enumerate(zip(rng.choice([0.7, 0.8, 0.9, 1.0, np.inf], 60), rng.uniform(1, 9, 60)))]
     mine = pareto(points)
     brute = [p for p in points if np.isfinite(p.cycle_time_s) and not any(

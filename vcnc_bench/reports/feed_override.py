@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FrontPoint", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
+__all__ = ["FrontPoint", "KINDS", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
            "SCURVE", "classical_front", "scurve_points", "operator_front", "agent_front", "pareto", "verdicts",
            "format_front", "plot_front", "main"]
 
@@ -52,21 +52,27 @@ SCURVE = ("qft",)
 OPERATOR = "ff-pid-online"
 
 
+#: The kinds of run on the front: a classical controller on a planned look-ahead feed, a controller on the S-curve
+#: itself, a classical controller under an operator's fixed override, the agent with its own override.
+KINDS = ("planned", "s-curve", "operator", "agent")
+
+
 @dataclass(frozen=True)
 class FrontPoint:
-    """One run: ``policy`` at ``setting`` (a feed in mm/s, or an override cap), its cycle time (s), max and RMS
-    contour error (um)."""
+    """One run: ``policy`` at ``setting`` (a feed and path acceleration, or an override), its cycle time (s), max
+    and RMS contour error (um), and its ``kind`` (:data:`KINDS`)."""
 
     policy: str
     setting: str
     cycle_time_s: float
     max_um: float
     rms_um: float
+    kind: str = "planned"
 
 
-def _point(policy_name, setting, result) -> FrontPoint:
+def _point(policy_name, setting, result, kind) -> FrontPoint:
     cycle = result.cycle_time_s if result.completed else math.inf
-    return FrontPoint(policy_name, setting, cycle, result.max_contour_error_um, result.rms_contour_error_um)
+    return FrontPoint(policy_name, setting, cycle, result.max_contour_error_um, result.rms_contour_error_um, kind)
 
 
 def classical_front(policies=CLASSICAL, settings=LOOKAHEAD) -> list[FrontPoint]:
@@ -86,7 +92,7 @@ def classical_front(policies=CLASSICAL, settings=LOOKAHEAD) -> list[FrontPoint]:
         env = gym.make("VCNC-OmegaLookahead-v1", feedrate=float(feed), profile=profile)
         for name in policies:
             points.append(_point(name, f"{feed:g} mm/s, {acceleration:g} mm/s^2",
-                                 run_episode(baselines.make(name, env), env)))
+                                 run_episode(baselines.make(name, env), env), "planned"))
         env.close()
     return points
 
@@ -128,8 +134,8 @@ class FixedOverride:
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         action, state = self.policy.predict(observation, state=state, episode_start=episode_start,
                                             deterministic=deterministic)
-        action = np.asarray(action, dtype=np.float32)
-        dial = np.full(action.shape[:-1] + (1,), self.dial, dtype=np.float32)
+        action = np.asarray(action)
+        dial = np.full(action.shape[:-1] + (1,), self.dial, dtype=action.dtype)
         return np.concatenate([action, dial], axis=-1), state
 
 
@@ -141,8 +147,8 @@ def operator_front(policy: str = OPERATOR, caps=CAPS) -> list[FrontPoint]:
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-OmegaOverride-v1")
-    points = [_point(f"{policy} @ override", f"{100 * c:g} %", run_episode(FixedOverride(baselines.make(policy, env), c),
-                                                                             env)) for c in caps]
+    points = [_point(f"{policy} @ override", f"{100 * c:g} %",
+                     run_episode(FixedOverride(baselines.make(policy, env), c), env), "operator") for c in caps]
     env.close()
     return points
 
@@ -158,7 +164,8 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
     env = gym.make("VCNC-OmegaOverride-v1")
     policy = load_agent(agent, env)
     # at 100 % the agent runs as it is: rescaling its dial rounds it, and the omega's corners amplify that
-    points = [_point(label, f"cap {100 * c:g} %", run_episode(policy if c == 1.0 else _Capped(policy, c), env))
+    points = [_point(label, f"cap {100 * c:g} %", run_episode(policy if c == 1.0 else _Capped(policy, c), env),
+                     "agent")
               for c in caps]
     env.close()
     return points
@@ -180,19 +187,20 @@ def scurve_points(policies=SCURVE) -> list[FrontPoint]:
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-Omega-v1")
-    points = [_point(name, "S-curve, 100 mm/s", run_episode(baselines.make(name, env), env)) for name in policies]
+    points = [_point(name, "S-curve, 100 mm/s", run_episode(baselines.make(name, env), env), "s-curve")
+              for name in policies]
     env.close()
     return points
 
 
-def verdicts(points, label: str = "agent") -> list[str]:
-    """For each finished point of ``label``: the classical (planned) run that beats it in both cycle time and max
-    error, or that none does."""
-    classical = [p for p in points if p.policy in CLASSICAL and "mm/s^2" in p.setting]
+def verdicts(points) -> list[str]:
+    """For each finished agent point: the classical (planned) run that beats it in both cycle time and max error,
+    or that none does."""
+    front = pareto([p for p in points if p.kind == "planned"])
     lines = []
-    for a in (p for p in points if p.policy == label and math.isfinite(p.cycle_time_s)):
-        better = [c for c in pareto(classical) if c.cycle_time_s <= a.cycle_time_s and c.max_um <= a.max_um]
-        lines.append(f"{label} {a.setting} ({a.cycle_time_s:.4f} s, {a.max_um:.3f} um): " + (
+    for a in (p for p in points if p.kind == "agent" and math.isfinite(p.cycle_time_s)):
+        better = [c for c in front if c.cycle_time_s <= a.cycle_time_s and c.max_um <= a.max_um]
+        lines.append(f"{a.policy} {a.setting} ({a.cycle_time_s:.4f} s, {a.max_um:.3f} um): " + (
             f"beaten by {better[0].policy} at {better[0].setting} ({better[0].cycle_time_s:.4f} s, "
             f"{better[0].max_um:.3f} um)" if better else "no classical run is both faster and more accurate"))
     return lines
@@ -208,7 +216,7 @@ def plot_front(points, path) -> None:
 
     fig, ax = plt.subplots(figsize=(7.5, 5.0))
     finished = [p for p in points if math.isfinite(p.cycle_time_s)]
-    planned = [p for p in finished if p.policy in CLASSICAL and "mm/s^2" in p.setting]
+    planned = [p for p in finished if p.kind == "planned"]
     for name, marker in zip(CLASSICAL, "sD^v"):
         mine = [p for p in planned if p.policy == name]
         ax.scatter([p.cycle_time_s for p in mine], [p.max_um for p in mine], marker=marker, s=22, alpha=0.6,
@@ -216,12 +224,10 @@ def plot_front(points, path) -> None:
     front = pareto(planned)
     ax.step([p.cycle_time_s for p in front], [p.max_um for p in front], "k-", where="post", lw=1.2,
             label="classical front (look-ahead)")
-    others = dict.fromkeys(p.policy for p in finished if p not in planned)
-    for name in others:
-        mine = sorted((p for p in finished if p.policy == name), key=lambda p: p.cycle_time_s)
-        style = "o-" if name.startswith("agent") else "x:"
-        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], style, ms=7, lw=1.5,
-                label=f"{name} (S-curve)" if name in SCURVE else name)
+    for kind, name in dict.fromkeys((p.kind, p.policy) for p in finished if p.kind != "planned"):
+        mine = sorted((p for p in finished if (p.kind, p.policy) == (kind, name)), key=lambda p: p.cycle_time_s)
+        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], "o-" if kind == "agent" else "x:", ms=7,
+                lw=1.5, label=f"{name} (S-curve)" if kind == "s-curve" else name)
     ax.set_yscale("log")
     ax.set_xlabel("cycle time (s)")
     ax.set_ylabel("max contour error (um)")
@@ -249,7 +255,7 @@ def main(argv=None) -> int:
     points = classical_front() + scurve_points() + operator_front() + agent_front(agent)
     print(format_front(points))
     print("\nclassical front (look-ahead runs no other beats in both cycle time and max error):")
-    print(format_front(pareto([p for p in points if p.policy in CLASSICAL and "mm/s^2" in p.setting])))
+    print(format_front(pareto([p for p in points if p.kind == "planned"])))
     print()
     print("\n".join(verdicts(points)))
     if args.plot:
