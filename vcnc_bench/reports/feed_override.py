@@ -127,8 +127,10 @@ class FixedOverride:
     from the first step: the operator's override, not a learned one."""
 
     def __init__(self, policy, override: float):
-        if not 0.0 < override <= 1.0:
-            raise ValueError(f"override must be in (0, 1] (1 = 100 %), got {override!r}")
+        from vcnc_gym.validation import positive
+
+        if positive("override", override, "1 = 100 %") > 1.0:
+            raise ValueError(f"override must be at most 1 (100 %), got {override!r}")
         self.policy, self.dial = policy, 2.0 * float(override) - 1.0
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):

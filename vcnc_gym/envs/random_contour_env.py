@@ -6,6 +6,7 @@ import numpy as np
 
 from ..gcode import path_limits, read_program
 from ..gcode.random_contour import RandomContourSpec, random_program, spec_for
+from ..plants import get_plant
 from .contouring_env import ContouringEnv
 
 __all__ = ["RandomContourEnv", "LOOKAHEAD_SPACING"]
@@ -65,11 +66,12 @@ class RandomContourEnv(ContouringEnv):
             if key in kwargs:
                 raise ValueError(f"{key}= is drawn at every reset in VCNC-RandomContour-v1; "
                                  f"shape the draws with spec= (vcnc_gym.gcode.random_contour.RandomContourSpec)")
-        self._spec = spec_for(plant, spec)
+        name = get_plant(plant).name  # a name or a model; an unknown name is refused here, naming the known ones
+        self._spec = spec_for(name, spec)
         # the arcs' scale sets the look-ahead's sampling (0.05 mm for the defaults' 2 mm arcs)
         self._spacing = LOOKAHEAD_SPACING * min(1.0, self._spec.radius_min / RandomContourSpec.radius_min)
         self._tolerance = tolerance
-        self._limits = path_limits(plant, acceleration, jerk)
+        self._limits = path_limits(name, acceleration, jerk)
         self._kwargs = {"plant": plant, "profile": "lookahead", **kwargs}
         self._render = render_mode
         self.program_text = random_program(np.random.default_rng(0), self._spec)

@@ -81,12 +81,11 @@ PLANT_SPECS: dict[str, RandomContourSpec] = {
 }
 
 
-def spec_for(plant, spec=None) -> RandomContourSpec:
-    """The draws for ``plant`` (a name or a plant model): ``spec`` if given (a :class:`RandomContourSpec`, or a
-    mapping of its fields, as a YAML configuration gives it), else :data:`PLANT_SPECS`'s or the defaults."""
+def spec_for(plant: str, spec=None) -> RandomContourSpec:
+    """The draws for the plant named ``plant``: ``spec`` if given (a :class:`RandomContourSpec`, or a mapping of
+    its fields, as a YAML configuration gives it), else :data:`PLANT_SPECS`'s or the defaults."""
     if spec is None:
-        name = plant if isinstance(plant, str) else getattr(plant, "name", str(plant))
-        return PLANT_SPECS.get(name, RandomContourSpec())
+        return PLANT_SPECS.get(plant, RandomContourSpec())
     if isinstance(spec, RandomContourSpec):
         return spec
     if isinstance(spec, dict):
