@@ -36,5 +36,8 @@ test: lint docs
 test-all: lint docs
 	$(BIN)/python -m pytest -q
 
+# The main job: the default table (vcnc_bench.cli.DEFAULT_IDS) on the idle cores, its JSON and plots in bench-out/.
+# `vcnc-bench --all` runs every id and every policy; `vcnc-bench --plants N` the uncertainty box.
 bench: install
+	rm -f bench-out/bench.json
 	$(BIN)/vcnc-bench --json bench-out/bench.json --plots bench-out

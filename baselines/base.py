@@ -57,6 +57,9 @@ class BaselinePolicy:
     name: str = "base"
     #: Names of the plants (``vcnc_gym.plants`` modules) the controller is designed for.
     plants: tuple[str, ...] = ()
+    #: The source paper that designed this controller, by authors and year ("" for the suite's own designs): the
+    #: bench's plots show a paper's controllers beside the strongest causal one.
+    paper: str = ""
     #: Per-environment shape of the controller memory; (0,) for a memoryless controller.
     state_shape: tuple = (0,)
 

@@ -121,7 +121,7 @@ def _purtojo(ctx) -> list[str]:
         from vcnc_bench.reports import circle as circle_report
 
         path = ctx.plots / f"{e}_radial_error.png" if ctx.plots is not None else None
-        lines += circle_report.bench_report(ctx.results.get(e, {}), label=e, plot_path=path)
+        lines += circle_report.bench_report(ctx.results.get(e, {}), label=e, plot_path=path, shown=ctx.shown.get(e))
         if path is not None:
             ctx.plots_written.append(path)
     return lines

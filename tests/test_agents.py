@@ -416,7 +416,7 @@ def test_bench_evaluates_a_ppo_agent(omega_run, tmp_path, capsys):
     out = tmp_path / "bench.json"
     spec = f"ppo:{omega_run.run_dir / 'best'}"
     assert bench.main(["--env", OMEGA, "--policy", spec, "--policy", "smc", "--no-progress", "--json", str(out)]) == 0
-    records = {r["policy"]: r for r in json.loads(out.read_text())}
+    records = {r["policy"]: r for r in json.loads(out.read_text())["records"]}
     assert set(records) == {spec, "smc"}
     agent = records[spec]
     assert agent["env"] == OMEGA and agent["diverged"] is False

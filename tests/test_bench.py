@@ -162,7 +162,7 @@ def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path
     out = capsys.readouterr().out
     assert re.search(r"total wall time \d+\.\d s", out)
 
-    records = json.loads(out_json.read_text())
+    records = json.loads(out_json.read_text())["records"]
     rows = _parse_table(out)
     assert [(r["env"], r["policy"]) for r in records] == [(OMEGA, "pd:300"), (OMEGA, "pd:100")]
     assert set(rows) == {(OMEGA, "pd:300"), (OMEGA, "pd:100")}
@@ -238,7 +238,7 @@ def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, caps
     out = tmp_path / "slow.json"
     assert bench.main(["--env", "VCNC-Omega-v1", "--policy", "smc", "--feedrate", "20",
                        "--no-progress", "--json", str(out)]) == 0
-    (record,) = json.loads(out.read_text())
+    (record,) = json.loads(out.read_text())["records"]
     assert record["paper_max_contour_error_um"] is None
     assert record["episode_steps"] == gym.make("VCNC-Omega-v1", feedrate=20.0).unwrapped.episode_steps
     assert not record["diverged"] and record["max_contour_error_um"] < 50.0  # feasible at 20 mm/s
@@ -253,7 +253,7 @@ def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, c
     out = tmp_path / "plant.json"
     assert bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "current_feed_drive",
                        "--no-progress", "--json", str(out)]) == 0
-    (record,) = json.loads(out.read_text())
+    (record,) = json.loads(out.read_text())["records"]
     env = gym.make("VCNC-Butterfly-v1", plant="current_feed_drive")
     assert env.unwrapped.plant.name == "current_feed_drive"
     mine = run_episode(baselines.make("zpetc", env), env)

@@ -375,11 +375,11 @@ def test_bench_runs_programs_and_reports_iso230_4(monkeypatch, tmp_path, capsys)
 
     _install_pd(monkeypatch)
     out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
-    assert bench.main(["--program", "iso230-4", "--circle", "10", "1200", "--policy", "pd:300", "--json",
+    assert bench.main(["--jobs", "1", "--program", "iso230-4", "--circle", "10", "1200", "--policy", "pd:300", "--json",
                        str(out_json), "--plots", str(plots), "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "ISO 230-4 circular test" in out
-    iso = [r for r in json.loads(out_json.read_text()) if r.get("table") == "iso230-4"]
+    iso = [r for r in json.loads(out_json.read_text())["records"] if r.get("table") == "iso230-4"]
     assert {r["direction"] for r in iso} == {"ccw", "cw"}
     for r in iso:
         assert r["bidirectional_circular_deviation_um"] >= 0.9 * r["circular_deviation_um"] > 0

@@ -189,7 +189,7 @@ def test_the_agent_loads_as_data_and_runs_in_vcnc_bench(lean_run, tmp_path):
     out = tmp_path / "bench.json"
     spec = f"ppo:{lean_run / 'best'}"
     assert bench.main(["--env", HEART, "--policy", spec, "--no-progress", "--json", str(out)]) == 0
-    record = json.loads(out.read_text())[0]
+    record = json.loads(out.read_text())["records"][0]
     best = yaml.safe_load((lean_run / "best" / "config.yml").read_text())["agent"]["evaluation"]
     assert record["diverged"] is False and math.isfinite(record["max_contour_error_um"])
     assert record["max_contour_error_um"] == pytest.approx(best["max_um"], rel=1e-9)

@@ -4,9 +4,23 @@ Runs each policy for one deterministic episode on the nominal plant of each
 env and prints max, mean and RMS contour error (um) with the paper's
 figures beside ours (:mod:`vcnc_bench.papers`)::
 
-    vcnc-bench                                  # every policy that applies, on every env
+    vcnc-bench                                  # the default table: DEFAULT_IDS, every policy that applies
+    vcnc-bench --all                            # every id, every policy (ILC's trials included)
     vcnc-bench --env VCNC-Omega-v0 --policy qft --policy smc
     vcnc-bench --json bench.json --plots bench-plots
+
+The default table (:data:`DEFAULT_IDS`) is the ids with a shipped agent and
+one id of every other kind; the policies that learn across episodes (ILC)
+run only with ``--all`` or when named.  The run's first lines say what the
+default left out.  The envs are spread over ``--jobs`` processes (default:
+the cores other processes leave idle; :mod:`vcnc_bench.runner`), one
+progress line per finished env on stderr.  ``--json`` writes
+``{"settings", "plan" (every env's policy labels), "records" (one per
+episode, and the ISO 230-4 rows with "table")}``; ``python -m
+vcnc_bench.check FILE`` says whether it is complete.  ``--plots`` writes
+ENV_contour.png, ENV_error.png and ENV_deviation.png per contouring env,
+with the runs :func:`vcnc_bench.plots.shown_labels` chooses (``--plot-all``:
+every one), and the reports' plots.
 
 With ``--plants N`` every policy runs instead on N plants drawn uniformly
 from the env's uncertainty box (``--plant-seed S``, default 0), plus the
@@ -21,7 +35,7 @@ their worst over samples and vertices (a diverged plant counts as an
 infinite error), the nominal, median and worst cycle time, and how many
 plants diverged or, without diverging, did not complete::
 
-    vcnc-bench --plants 100                     # every policy, every env: 100 plants (+ vertices) each
+    vcnc-bench --plants 100                     # every policy of the default table's ids: 100 plants (+ vertices)
     vcnc-bench --env VCNC-Omega-v1 --plants 100 --plant-seed 1 --json robust.json --plots robust-plots
 
 There ``--json`` writes ``{"settings": {...}, "robust": [one record per env
@@ -36,12 +50,12 @@ which need the single episodes, are not printed.
 
 A policy is named by a spec (:mod:`vcnc_bench.policies`): a bare name such
 as ``qft``, or ``KIND:ARGUMENT`` such as ``ppo:runs/x/best``.  The kinds
-come from the packages that provide them (``baselines``, ``agents``); the
-bench names none.  By default each env runs the policies that apply to its
-plant (every kind's ``defaults``).
+come from the packages that provide them (``baselines``, ``agents``),
+found through entry points; the bench names none.  By default each env runs
+the policies that apply to its plant (every kind's ``defaults``).
 
-This package is the top layer: it imports ``vcnc_gym`` and, through the
-policy kinds, ``baselines`` and ``agents``; nothing imports it.
+This package is the top layer: it imports ``vcnc_gym`` and finds the
+policy kinds through entry points.
 """
 
 from __future__ import annotations
@@ -53,25 +67,33 @@ import sys
 import time
 from pathlib import Path
 
-import gymnasium as gym
 
 import vcnc_gym  # noqa: F401  (registers the ids)
-from vcnc_gym.envs import ENV_IDS, ContouringEnv
+from vcnc_gym.envs import ENV_IDS
 from vcnc_gym.envs.registry import LEGACY
-from vcnc_gym.evaluation import EpisodeResult, plot_contour_errors, plot_contours, plot_trials, run_episode
-
-from vcnc_gym.deviation_plot import plot_deviation
+from vcnc_gym.evaluation import EpisodeResult, plot_trials
 from vcnc_gym.validation import size
 
 from .papers import paper_figures
 from . import programs, robust
-from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, policy_label,
-                       resolve_policy)
+from .plots import shown_labels
+from .policies import BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, resolve_policy
+from .runner import EnvRecipe, EnvRuns, PolicyBuildError, idle_cores, label_of, run_table
 
 #: The v0 ids, kept for agents trained on them: benchmarked when named.
 LEGACY_IDS = tuple(e.id for e in LEGACY)
 
-__all__ = ["format_table", "main"]
+#: The default table (``vcnc-bench`` with no ``--env``): the ids that carry a verdict (a shipped agent against the
+#: strongest causal controller and the floor: ``agents/trained``) and one id of every other kind the suite has (a
+#: G-code test piece, the random contour, the feed override, the positioning env).  ``--all`` runs every id of
+#: ``ENV_IDS``; the ones left out here are the S-curve omega and the look-ahead heart (papers' tasks without an
+#: agent), ``VCNC-GCode-v1`` (by default the ISO 230-4 circle of ``VCNC-ISO230Circle-v1``) and two more test pieces.
+DEFAULT_IDS = ("VCNC-Heart-v1", "VCNC-OmegaLookahead-v1", "VCNC-Corners-v1", "VCNC-CornersSmooth-v1",
+               "VCNC-Circle-v1", "VCNC-HeartShop-v1", "VCNC-OmegaLookaheadShop-v1", "VCNC-CornersSmoothShop-v1",
+               "VCNC-CircleShop-v1", "VCNC-ISO230Circle-v1", "VCNC-RandomContour-v1", "VCNC-OmegaOverride-v1",
+               "VCNC-Step-v0")
+
+__all__ = ["DEFAULT_IDS", "format_table", "main"]
 
 
 # -- the table -------------------------------------------------------------------------
@@ -120,12 +142,6 @@ def format_table(records: list[dict], columns: list | None = None) -> str:
     return "\n".join(lines)
 
 
-def _label(spec: str, policy) -> str:
-    """A policy's label in the tables and the JSON: a non-causal floor (``causal = False``, the baselines'
-    oracle) is marked so wherever it appears, never to be read as a controller."""
-    return policy_label(spec) + (" (non-causal)" if getattr(policy, "causal", True) is False else "")
-
-
 def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True, trial: int | None = None) -> dict:
     paper = paper_figures(env_id, label).get("max_contour_error_um") if compare else None
     ratio = result.max_contour_error_um / paper if paper else None
@@ -159,7 +175,13 @@ def _parser() -> argparse.ArgumentParser:
                     "and compare with the source papers' figures.",
     )
     p.add_argument("--env", action="append", metavar="ID",
-                   help=f"env id, repeatable (default: all of {', '.join(ENV_IDS)}; the v0 ids when named)")
+                   help="env id, repeatable (default: the ids with a shipped agent and one of every other kind, "
+                        f"{', '.join(DEFAULT_IDS)}; --all: every id; the v0 ids when named)")
+    p.add_argument("--all", action="store_true",
+                   help=f"every id ({', '.join(ENV_IDS)}) with every policy that applies, those that learn across "
+                        "episodes (ILC) included")
+    p.add_argument("--jobs", type=int, metavar="J",
+                   help="processes that run the envs (default: the cores other processes leave idle, at least 1)")
     p.add_argument("--policy", action="append", metavar="SPEC",
                    help="a baseline name, 'ppo' (the agent shipped for the env) or KIND:ARGUMENT such as "
                         "ppo:RUN/best, repeatable (default: every policy that applies to each env's plant)")
@@ -173,7 +195,8 @@ def _parser() -> argparse.ArgumentParser:
                         "empty")
     p.add_argument("--trials", type=int, metavar="K",
                    help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
-                        "and the last, the JSON every one (default 10; with --plants 1, the last scored)")
+                        "and the last, the JSON every one (default 10; with --plants 1, the last scored); such "
+                        "policies run by default only with --all")
     p.add_argument("--plants", type=int, metavar="N",
                    help="robust evaluation instead: every policy on the nominal plant, N plants drawn uniformly "
                         "from the env's uncertainty box and the box's vertices when it has at most "
@@ -196,7 +219,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write ENV_contour.png, ENV_error.png and ENV_deviation.png (the deviation magnified along "
                         "the contour's normal, an inset at every corner) per env into this directory")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--plot-all", action="store_true",
+                   help="with --plots: every policy in each env's plots (default: the paper's controllers, the "
+                        "strongest causal one, the agent and the floor)")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
     return p
 
 
@@ -206,14 +232,6 @@ def _env_kwargs(args) -> dict:
     if args.plant is not None:
         kwargs["plant"] = args.plant
     return kwargs
-
-
-def _make_env(env_id: str, kwargs: dict, parser):
-    """The env of ``env_id`` with ``kwargs`` (another feedrate, another plant)."""
-    try:
-        return gym.make(env_id, **kwargs)
-    except (ValueError, TypeError) as exc:
-        parser.error(f"{env_id}: {exc}")
 
 
 def _unique(items):
@@ -261,11 +279,12 @@ def _check_sizes(args, envs: dict, parser) -> None:
         parser.error(str(exc))
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``vcnc-bench``; returns the exit code (argument errors exit with 2)."""
-    wall0 = time.perf_counter()
-    parser = _parser()
-    args = parser.parse_args(argv)
+#: Trials of a policy that learns across episodes (ILC) when it runs and ``--trials`` is not given.
+DEFAULT_TRIALS = 10
+
+
+def _check_arguments(args, parser) -> None:
+    """The options' values and combinations, before anything is built."""
     if args.seed < 0:
         parser.error(f"--seed must be >= 0, got {args.seed}")
     if args.trials is not None and args.trials < 1:
@@ -274,129 +293,240 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--plants must be >= 1, got {args.plants}")
     if args.plant_seed < 0:
         parser.error(f"--plant-seed must be >= 0, got {args.plant_seed}")
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs must be >= 1, got {args.jobs}")
     if args.parallel and args.plants is None:
         parser.error("--parallel spreads the batch of --plants N over threads; without --plants each episode "
                      "runs on one env and there is nothing to spread: add --plants N or drop --parallel")
+    if args.all and (args.env or args.program):
+        parser.error("--all runs every id with every policy; it does not combine with --env or --program")
+    if args.program and args.feedrate is not None:
+        parser.error("--feedrate does not apply to --program: a program's F words set its feeds")
 
-    env_ids = _unique(args.env or ([] if args.program else list(ENV_IDS)))
+
+def _env_ids(args, parser) -> list[str]:
+    """The ids run: those named, else every id (``--all``) or :data:`DEFAULT_IDS` (none with only ``--program``)."""
+    if args.env:
+        env_ids = _unique(args.env)
+    elif args.program:
+        env_ids = []
+    else:
+        env_ids = list(ENV_IDS if args.all else DEFAULT_IDS)
     unknown = [e for e in env_ids if e not in ENV_IDS + LEGACY_IDS]
     if unknown:
         parser.error(f"unknown env id(s) {', '.join(map(repr, unknown))}; valid ids are {', '.join(ENV_IDS)}")
-    specs = _unique(args.policy or [])
+    return env_ids
+
+
+def _recipes(args, parser) -> list[EnvRecipe]:
+    """One :class:`~vcnc_bench.runner.EnvRecipe` per env of the table: its id and arguments, the policies named by
+    ``--policy`` (none: the defaults of every kind, those that learn across episodes only with ``--all``)."""
+    specs = tuple(_unique(args.policy or []))
     for spec in specs:
         try:
             check_policy_spec(spec)
         except ValueError as exc:
             parser.error(str(exc))
-    if args.json is not None:
-        _check_writable(args.json, parser, "file")
-    if args.plots is not None:
-        _check_writable(args.plots, parser, "directory")
-
-    # build every env and policy first, so a bad spec fails before any run
-    envs = {env_id: _make_env(env_id, _env_kwargs(args), parser) for env_id in env_ids}
+    learners = bool(args.all or specs)
+    kwargs = _env_kwargs(args)
+    recipes = [EnvRecipe(e, e, kwargs, specs, learners) for e in _env_ids(args, parser)]
     if args.program:
-        if args.feedrate is not None:
-            parser.error("--feedrate does not apply to --program: a program's F words set its feeds")
         try:
             tolerance = None if args.tolerance == "sharp" else float(args.tolerance)
-            envs.update(programs.make_program_envs(programs.expand_programs(args.program, args.circle), tolerance,
-                                                   plant=args.plant))
+            pieces = programs.expand_programs(args.program, args.circle)
         except ValueError as exc:
             parser.error(str(exc))
-        env_ids = list(envs)
-    _check_sizes(args, envs, parser)
+        recipes += [EnvRecipe(key, env_id, kw, specs, learners)
+                     for key, env_id, kw in programs.program_recipes(pieces, tolerance, plant=args.plant)]
+    return recipes
+
+
+def _build_envs(recipes: list[EnvRecipe], parser) -> dict:
+    """{key: env} of the recipes; a bad argument (``--plant``, ``--feedrate``, a program) exits 2 naming the env."""
+    envs = {}
+    for r in recipes:
+        try:
+            envs[r.key] = r.make()
+        except (ValueError, TypeError) as exc:
+            parser.error(f"{r.key}: {exc}")
+    return envs
+
+
+def _cost(envs: dict):
+    """A recipe's run time estimate for the pool's order: its episode steps."""
+    return lambda r: float(getattr(envs[r.key].unwrapped, "episode_steps", 0))
+
+
+def _print_plan(args, recipes: list[EnvRecipe], jobs: int) -> None:
+    """The run's first lines: what runs, on how many processes, and what the default leaves out."""
+    keys = [r.key for r in recipes]
+    policies = "the policies named" if args.policy else "every policy that applies"
+    print(f"vcnc-bench: {policies} on {len(keys)} env(s), one deterministic episode each on the nominal plant "
+          f"(seed {args.seed}), on {jobs} process(es) (--jobs)", flush=True)
+    if not (args.env or args.program or args.all):
+        left = [e for e in ENV_IDS if e not in DEFAULT_IDS]
+        print(f"  the default table: the ids with a shipped agent and one id of every other kind; left out: "
+              f"{', '.join(left)} (--all runs every id)", flush=True)
+    if not (args.all or args.policy):
+        print("  left out: the policies that learn across episodes (ILC, 10 trials each; --all, or --policy NAME)",
+              flush=True)
+    print("  more: --plants N (the uncertainty box: median and worst over N plants), --program PART (your G-code), "
+          "--help", flush=True)
+
+
+def _progress_line(result: EnvRuns, done: int, total: int) -> None:
+    """One line per finished env on stderr."""
+    print(f"  [{done:>{len(str(total))}}/{total}] {result.key}: {len(result.runs)} policies in {result.wall_s:.1f} s",
+          file=sys.stderr, flush=True)
+
+
+def _run(args, recipes: list[EnvRecipe], envs: dict, parser, jobs: int) -> dict:
+    """{key: EnvRuns} of every recipe; a policy that cannot be built exits 2 naming it and the env."""
+    try:
+        return run_table(recipes, seed=args.seed, trials=args.trials or DEFAULT_TRIALS, jobs=jobs, envs=envs,
+                         cost=_cost(envs), on_env_done=None if args.no_progress else _progress_line,
+                         plots=args.plots, plot_all=args.plot_all)
+    except PolicyBuildError as exc:
+        parser.error(str(exc))
+
+
+def _context(args, envs: dict, results: dict) -> BenchContext:
+    """The reports' view of the run: every policy's last trial, every trial of those that learn across episodes,
+    and the labels each env's plots show."""
+    ctx = BenchContext(env_ids=list(results), envs=envs, plots=args.plots, trials=args.trials or DEFAULT_TRIALS)
+    for key, env_runs in results.items():
+        for run in env_runs.runs:
+            ctx.results.setdefault(key, {})[run.label] = run.trials[-1]
+            if len(run.trials) > 1:
+                ctx.trials_of[(key, run.label)] = run.trials
+        ctx.shown[key] = shown_labels(key, env_runs.runs, everything=args.plot_all)
+        ctx.plots_written.extend(env_runs.plots)
+    return ctx
+
+
+def _table_records(args, ctx: BenchContext, results: dict) -> list[dict]:
+    """One record per episode (every trial), in the table's order."""
     compare = args.feedrate is None and args.plant is None
-    runs = []
-    for env_id, env in envs.items():
-        for spec in specs or default_specs(env):
-            try:
-                runs.append((env_id, spec, resolve_policy(spec, env)))
-            except (ValueError, OSError) as exc:
-                parser.error(f"cannot build policy {spec!r} for {env_id}: {exc}")
-    if not runs:
-        parser.error(f"no policies to run: {policy_choices()}")
-
-    if args.plants is not None:
-        code = _robust(args, envs, runs)
-        for env in envs.values():
-            env.close()
-        print(f"total wall time {time.perf_counter() - wall0:.1f} s")
-        return code
-    if args.trials is None:
-        args.trials = 10
-
-    from tqdm import tqdm
-
-    def trials_of(policy) -> int:
-        return args.trials if getattr(policy, "learns_across_episodes", False) else 1
-
-    total = sum(envs[e].unwrapped.episode_steps * trials_of(p) for e, _, p in runs)
-    records: list[dict] = []
-    ctx = BenchContext(env_ids=env_ids, envs=envs, plots=args.plots, trials=args.trials)
-    with tqdm(total=total, unit="step", file=sys.stderr, dynamic_ncols=True, leave=False,
-              disable=True if args.no_progress else None) as bar:
-        for env_id, spec, policy in runs:
-            label = _label(spec, policy)
-            k = trials_of(policy)
-            trials = []
-            for trial in range(1, k + 1):
-                bar.set_postfix_str(f"{env_id} {label}" + (f" trial {trial}/{k}" if k > 1 else ""))
-                result = run_episode(policy, envs[env_id], seed=args.seed, progress=bar.update)
-                trials.append(result)
-                records.append(_record(env_id, label, result, compare and trial == k, trial if k > 1 else None))
-            ctx.results.setdefault(env_id, {})[label] = trials[-1]
-            if k > 1:
-                ctx.trials_of[(env_id, label)] = trials
+    records = []
+    for key, env_runs in results.items():
+        for run in env_runs.runs:
+            k = len(run.trials)
+            for trial, result in enumerate(run.trials, start=1):
+                records.append(_record(key, run.label, result, compare and trial == k, trial if k > 1 else None))
     ctx.records = records
+    return records
 
-    feeds = sorted({envs[e].unwrapped.feedrate_profile.feedrate for e in env_ids
-                    if hasattr(envs[e].unwrapped, "feedrate_profile")})
+
+def _print_table(args, ctx: BenchContext, records: list[dict]) -> None:
+    feeds = sorted({env.unwrapped.feedrate_profile.feedrate for env in ctx.envs.values()
+                    if hasattr(env.unwrapped, "feedrate_profile")})
+    print()
     print(f"Error of every policy on the nominal plant, one deterministic episode each (seed {args.seed}"
-          + (f"; policies that learn across episodes: {args.trials} trials, first and last shown" if ctx.trials_of
+          + (f"; policies that learn across episodes: {ctx.trials} trials, first and last shown" if ctx.trials_of
              else "") + ")" + (f"; contours at {', '.join(f'{f:g}' for f in feeds)} mm/s" if feeds else ""))
-    print("error: the contour error on contouring envs, the distance to the set-point on positioning envs; "
-          "paper = the source paper's figure")
-    shown = [r for r in records if r.get("trial") in (None, 1, args.trials)]
+    print("max/mean/rms_um: the contour error (the distance from the table to the whole contour) on contouring envs, "
+          "the distance to the set-point on positioning envs; paper_max_um: the source paper's figure, ours/paper "
+          "their ratio; cycle_s: when the table reached the contour's end; wall_s: the episode's wall time; "
+          "'(non-causal)': a floor that reads the exact plant, never a controller")
+    shown = [r for r in records if r.get("trial") in (None, 1, ctx.trials)]
     print(format_table(shown))
     incomplete = [f"{r['env']} {r['policy']}" for r in shown if not r["completed"]]
     if incomplete:
         print(f"\nNOT COMPLETE (diverged, or cut short before the end of its contour or step-response window; "
               f"its errors cover only the part it ran): {', '.join(incomplete)}")
+
+
+def _print_reports(ctx: BenchContext, records: list[dict]) -> None:
+    """The kinds' reports (the papers' own tables) and the ISO 230-4 figures of every full circle."""
     for kind in policy_kinds().values():
         if kind.report is not None:
             lines = kind.report(ctx)
             if lines:
                 print()
                 print("\n".join(lines))
-
-    circular_lines, circular_rows = programs.circular_report(ctx.results, envs)
+    circular_lines, circular_rows = programs.circular_report(ctx.results, ctx.envs)
     if circular_lines:
         print()
         print("\n".join(circular_lines))
         records += [{"table": "iso230-4", **r} for r in circular_rows]
+
+
+def _write_json(args, results: dict, records: list[dict], jobs: int) -> None:
+    """``--json``: the settings, the plan (every env's policy labels) and the records."""
+    settings = {"seed": args.seed, "trials": args.trials or DEFAULT_TRIALS, "feedrate": args.feedrate,
+                "plant": args.plant, "all": args.all, "jobs": jobs,
+                "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None}
+    plan = {key: [run.label for run in env_runs.runs] for key, env_runs in results.items()}
+    out = {"settings": settings, "plan": plan, "records": [_json_safe(r) for r in records]}
+    args.json.write_text(json.dumps(out, indent=2) + "\n")
+
+
+def _write_trial_plots(ctx: BenchContext) -> None:
+    for (env_id, label), trials in ctx.trials_of.items():
+        path = ctx.plots / f"{env_id}_{label}_trials.png"
+        plot_trials(trials, path, title=f"{env_id}: {label}, max contour error per trial")
+        ctx.plots_written.append(path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``vcnc-bench``; returns the exit code (argument errors exit with 2)."""
+    wall0 = time.perf_counter()
+    parser = _parser()
+    args = parser.parse_args(argv)
+    _check_arguments(args, parser)
+    recipes = _recipes(args, parser)
     if args.json is not None:
-        args.json.write_text(json.dumps([_json_safe(r) for r in records], indent=2) + "\n")
-        print(f"\nwrote {len(records)} records to {args.json}")
+        _check_writable(args.json, parser, "file")
     if args.plots is not None:
-        written = 0
-        for env_id, by_policy in ctx.results.items():
-            if not isinstance(envs[env_id].unwrapped, ContouringEnv):  # a G-code program's, a random contour's too
-                continue
-            plot_contours(by_policy, envs[env_id], args.plots / f"{env_id}_contour.png")
-            plot_contour_errors(by_policy, envs[env_id], args.plots / f"{env_id}_error.png")
-            plot_deviation(by_policy, envs[env_id], args.plots / f"{env_id}_deviation.png")
-            written += 3
-        for (env_id, label), trials in ctx.trials_of.items():
-            plot_trials(trials, args.plots / f"{env_id}_{label}_trials.png",
-                        title=f"{env_id}: {label}, max contour error per trial")
-            written += 1
-        written += len(ctx.plots_written)
-        print(f"wrote {written} plots to {args.plots}")
+        _check_writable(args.plots, parser, "directory")
+    if args.plants is not None:
+        return _robust_main(args, recipes, parser, wall0)
+
+    jobs = min(args.jobs or idle_cores(), len(recipes))
+    _print_plan(args, recipes, jobs)
+    envs = _build_envs(recipes, parser)
+    _check_sizes(args, envs, parser)
+    results = _run(args, recipes, envs, parser, jobs)
+    if not any(env_runs.runs for env_runs in results.values()):
+        parser.error(f"no policies to run: {policy_choices()}")
+    ctx = _context(args, envs, results)
+    records = _table_records(args, ctx, results)
+    _print_table(args, ctx, records)
+    _print_reports(ctx, records)
+    if args.plots is not None:
+        _write_trial_plots(ctx)
+    if args.json is not None:
+        _write_json(args, results, records, jobs)
+        print(f"\nwrote {len(records)} records ({sum(map(len, (r.runs for r in results.values())))} env x policy "
+              f"runs) to {args.json}")
+    if args.plots is not None:
+        print(f"wrote {len(ctx.plots_written)} plots to {args.plots} (each env's: the paper's controllers, the "
+              f"strongest causal one, the agent and the floor; --plot-all: every policy)")
     for env in envs.values():
         env.close()
     print(f"total wall time {time.perf_counter() - wall0:.1f} s")
     return 0
+
+
+def _robust_main(args, recipes: list[EnvRecipe], parser, wall0: float) -> int:
+    """``--plants N``: every policy of every env built here, then :func:`_robust`."""
+    envs = _build_envs(recipes, parser)
+    _check_sizes(args, envs, parser)
+    runs = []
+    for r in recipes:
+        specs = r.specs or tuple(s for s in default_specs(envs[r.key]))
+        for spec in specs:
+            try:
+                runs.append((r.key, spec, resolve_policy(spec, envs[r.key])))
+            except (ValueError, OSError) as exc:
+                parser.error(f"cannot build policy {spec!r} for {r.key}: {exc}")
+    if not runs:
+        parser.error(f"no policies to run: {policy_choices()}")
+    code = _robust(args, envs, runs)
+    for env in envs.values():
+        env.close()
+    print(f"total wall time {time.perf_counter() - wall0:.1f} s")
+    return code
 
 
 def _robust(args, envs: dict, runs: list) -> int:
@@ -407,7 +537,7 @@ def _robust(args, envs: dict, runs: list) -> int:
     kwargs = _env_kwargs(args)
     with tqdm(total=len(runs), unit="run", file=sys.stderr, dynamic_ncols=True, leave=False,
               disable=True if args.no_progress else None) as bar:
-        records, plant_sets = robust.evaluate([(e, _label(s, p), p) for e, s, p in runs], envs, args.plants,
+        records, plant_sets = robust.evaluate([(e, label_of(s, p), p) for e, s, p in runs], envs, args.plants,
                                               plant_seed=args.plant_seed, seed=args.seed, trials=trials,
                                               env_kwargs=kwargs, parallel=args.parallel, bar=bar)
     print(f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "

@@ -49,6 +49,9 @@ class BenchContext:
         path to ``plots_written``.
     trials : int
         ``--trials``.
+    shown : dict
+        ``shown[env_id]``: the policy labels that env's plots show (:func:`vcnc_bench.plots.shown_labels`); a
+        report that draws a plot of its own shows those.
     """
 
     env_ids: list
@@ -59,6 +62,13 @@ class BenchContext:
     trials_of: dict = field(default_factory=dict)
     records: list = field(default_factory=list)
     plots_written: list = field(default_factory=list)
+    shown: dict = field(default_factory=dict)
+
+    def shown_results(self, env_id: str) -> dict:
+        """{label: EpisodeResult} of the runs on ``env_id`` its plots show (all of them if none was chosen)."""
+        results = self.results.get(env_id, {})
+        labels = self.shown.get(env_id)
+        return dict(results) if labels is None else {k: v for k, v in results.items() if k in labels}
 
 
 @dataclass(frozen=True)

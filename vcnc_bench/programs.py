@@ -22,15 +22,10 @@ import numpy as np
 from vcnc_gym.gcode.circular import circular_figures
 from vcnc_gym.gcode.pieces import PIECES, circle_program, piece_path
 
-__all__ = ["PROGRAM_PREFIX", "expand_programs", "make_program_envs", "circular_report", "is_program"]
+__all__ = ["PROGRAM_PREFIX", "expand_programs", "program_recipes", "make_program_envs", "circular_report"]
 
 #: Table names of program envs start with this.
 PROGRAM_PREFIX = "GCode:"
-
-
-def is_program(env_key: str) -> bool:
-    """True for a program env's key in the bench's tables."""
-    return env_key.startswith(PROGRAM_PREFIX)
 
 
 def expand_programs(specs: list[str], circle: tuple[float, float] | None) -> list[tuple[str, object]]:
@@ -56,16 +51,23 @@ def expand_programs(specs: list[str], circle: tuple[float, float] | None) -> lis
     return out
 
 
+def program_recipes(programs: list[tuple[str, object]], tolerance: float | None,
+                    plant: str | None = None) -> list[tuple[str, str, dict]]:
+    """(table name, id, ``gym.make`` arguments) of ``VCNC-GCode-v1`` for each program, on ``plant`` (a plant's
+    name) if given."""
+    extra = {} if plant is None else {"plant": plant}
+    return [(PROGRAM_PREFIX + name, "VCNC-GCode-v1", {"program": program, "tolerance": tolerance, **extra})
+            for name, program in programs]
+
+
 def make_program_envs(programs: list[tuple[str, object]], tolerance: float | None, plant: str | None = None) -> dict:
     """{table name: env} of ``VCNC-GCode-v1`` for each program, on ``plant`` (a plant's name) if given."""
-    kwargs = {} if plant is None else {"plant": plant}
-    return {PROGRAM_PREFIX + name: gym.make("VCNC-GCode-v1", program=program, tolerance=tolerance, **kwargs)
-            for name, program in programs}
+    return {key: gym.make(env_id, **kwargs) for key, env_id, kwargs in program_recipes(programs, tolerance, plant)}
 
 
 def _full_circle(env):
     """(move index, centre, radius, ccw) of the program's first full circle, or None."""
-    path = getattr(env.unwrapped.task, "path", None)
+    path = getattr(getattr(env.unwrapped, "task", None), "path", None)
     program = getattr(path, "program", None)
     if program is None:
         return None

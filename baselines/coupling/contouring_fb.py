@@ -167,6 +167,7 @@ class ContouringFBPolicy(BaselinePolicy):
 
     name = "contouring-fb"
     plants = ("current_feed_drive",)
+    paper = "Simba et al."
     state_shape = (3,)  # theta [rad], theta_dot [rad/s] of the previous call, 1.0 once called
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None,

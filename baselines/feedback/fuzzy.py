@@ -242,6 +242,7 @@ class FuzzyPolicy(BaselinePolicy):
 
     name = "fuzzy"
     plants = ("vcnc_feed_drive",)
+    paper = "Jahanpour et al. (2014)"
     state_shape = (0,)
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None,

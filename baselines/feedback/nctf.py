@@ -630,6 +630,7 @@ class NCTFPolicy(BaselinePolicy):
 
     name = "nctf"
     plants = ("nct_xy_table",)
+    paper = "Purtojo et al."
     state_shape = (3, 2)
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None,

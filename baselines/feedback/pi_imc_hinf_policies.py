@@ -42,6 +42,7 @@ class Yadav2020Policy(BaselinePolicy):
 
     name = "yadav2020"
     plants = ("cncmt_axis",)
+    paper = "Yadav et al. (2020)"
     @property
     def controller_name(self) -> str:
         """Which of Yadav et al.'s controllers (:func:`~baselines.feedback.pi_imc_hinf.controller_names`): the

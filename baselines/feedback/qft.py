@@ -211,6 +211,7 @@ class QFTPolicy(BaselinePolicy):
 
     name = "qft"
     plants = ("vcnc_feed_drive",)
+    paper = "Jahanpour et al. (2014)"
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, controller=QFT_CONTROLLER,
                  prefilter=QFT_PREFILTER, method: str = "tustin"):

@@ -107,6 +107,7 @@ class SlidingModePolicy(BaselinePolicy):
 
     name = "smc"
     plants = ("vcnc_feed_drive",)
+    paper = "Jahanpour et al. (2014)"
     state_shape = (2,)  # d_hat per axis, V
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, lam=SMC_TABLE2["lam"],

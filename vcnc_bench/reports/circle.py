@@ -215,7 +215,7 @@ def format_comparison(figures: CircleFigures, title: str = "", paper: CircleFigu
 
 
 def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAULT_RADIUS,
-                 transient: float = DEFAULT_TRANSIENT, plot_path=None) -> list[str]:
+                 transient: float = DEFAULT_TRANSIENT, plot_path=None, shown=None) -> list[str]:
     """Purtojo et al.'s figures of every policy's circle run, as text lines, and optionally the radial-error plot.
 
     Parameters
@@ -228,7 +228,9 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     radius, transient :
         See :func:`circle_figures`.
     plot_path : path, optional
-        Where :func:`plot_radial_error` saves the plot of all the runs.
+        Where :func:`plot_radial_error` saves the plot of the runs.
+    shown : collection of str, optional
+        The policies the plot shows (default all; the figures are printed for all).
 
     Returns
     -------
@@ -240,8 +242,9 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     for name, run in results_by_policy.items():
         f = circle_figures(run.time, run.position, run.reference_position, radius, (0.0, 0.0), transient)
         lines.append(format_comparison(f, f"{name}:"))
-    if plot_path is not None and results_by_policy:
-        plot_radial_error(results_by_policy, radius, transient, path=plot_path)
+    plotted = {k: v for k, v in results_by_policy.items() if shown is None or k in shown}
+    if plot_path is not None and plotted:
+        plot_radial_error(plotted, radius, transient, path=plot_path)
     return lines
 
 

@@ -1,0 +1,83 @@
+"""Is a ``vcnc-bench --json`` file complete?  ``python -m vcnc_bench.check bench-out/bench.json [--default]``.
+
+CI runs the README's main job (``make bench``) and then this check: the JSON must exist, hold the plan the run
+printed (every env with the labels of the policies it ran) and, for every env and policy of the plan, a record of
+its scored episode with finite max, mean and RMS errors.  With ``--default`` the plan's envs must also be
+:data:`vcnc_bench.cli.DEFAULT_IDS`, every one with at least one policy.  Exit 1 with one line per problem.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+__all__ = ["problems", "main"]
+
+_FIGURES = ("max_contour_error_um", "mean_contour_error_um", "rms_contour_error_um")
+
+
+def problems(data, default_ids: tuple | None = None) -> list[str]:
+    """What is missing or not finite in a bench JSON (its parsed content); empty when complete.  ``default_ids``:
+    the envs the plan must hold, in order."""
+    if not isinstance(data, dict) or not {"settings", "plan", "records"} <= set(data):
+        return ["not a vcnc-bench table JSON: expected the keys settings, plan and records"]
+    plan, records = data["plan"], data["records"]
+    out = []
+    if default_ids is not None and list(plan) != list(default_ids):
+        out.append(f"the plan's envs {list(plan)} are not the default table's {list(default_ids)}")
+    scored = {}
+    for r in records:
+        if "table" in r:  # a report's rows (ISO 230-4)
+            continue
+        key = (r.get("env"), r.get("policy"))
+        trial = r.get("trial")
+        if trial is not None:  # every trial of a learning policy: the last is scored under its own label
+            key = (r.get("env"), r.get("policy", "").rsplit(" (trial ", 1)[0])
+        scored[key] = r
+    for env, labels in plan.items():
+        if not labels:
+            out.append(f"{env}: no policy ran")
+        for label in labels:
+            rec = scored.get((env, label))
+            if rec is None:
+                out.append(f"{env} {label}: no record")
+                continue
+            bad = [k for k in _FIGURES if not (isinstance(rec.get(k), (int, float)) and math.isfinite(rec[k]))]
+            if bad:
+                out.append(f"{env} {label}: no finite {', '.join(bad)} (diverged: {rec.get('diverged')})")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m vcnc_bench.check", description=__doc__.splitlines()[0])
+    p.add_argument("json", type=Path, help="the file vcnc-bench --json wrote")
+    p.add_argument("--default", action="store_true", help="the plan must be the default table's envs")
+    args = p.parse_args(argv)
+    if not args.json.is_file():
+        print(f"{args.json}: no such file (did vcnc-bench run to its end?)", file=sys.stderr)
+        return 1
+    try:
+        data = json.loads(args.json.read_text())
+    except (OSError, ValueError) as exc:
+        print(f"{args.json}: cannot be read as JSON: {exc}", file=sys.stderr)
+        return 1
+    default_ids = None
+    if args.default:
+        from .cli import DEFAULT_IDS
+
+        default_ids = DEFAULT_IDS
+    found = problems(data, default_ids)
+    for line in found:
+        print(f"{args.json}: {line}", file=sys.stderr)
+    if not found:
+        n = sum(len(v) for v in data["plan"].values())
+        print(f"{args.json}: complete, {len(data['plan'])} envs x their policies = {n} runs, every one with finite "
+              f"figures")
+    return 1 if found else 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
