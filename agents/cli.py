@@ -111,8 +111,6 @@ def main(argv: list[str] | None = None) -> int:
                          f"drop {', '.join(fixed)}")
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads must be positive, got {args.threads}")
-    if args.trainer == "lean" and args.vec_env != "native":
-        parser.error("the lean trainer steps the native vector env: drop --vec-env")
 
     from .config import DEFAULT_CONFIG
     from .training import check_env_id, check_training_options, learn, prepare_run
@@ -124,6 +122,10 @@ def main(argv: list[str] | None = None) -> int:
                                    vec_env=args.vec_env, tensorboard=tensorboard)
             if args.resume is None:
                 check_env_id(args.env)
+                if args.trainer == "lean":  # at once, before the envs are built
+                    from .lean_ppo import check_trainer
+
+                    check_trainer("lean", {"env_id": args.env})
                 config_file = args.config if args.config is not None else DEFAULT_CONFIG
                 run_dir, config, checkpoint = prepare_run(
                     args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
@@ -133,10 +135,14 @@ def main(argv: list[str] | None = None) -> int:
                 run_dir, config, checkpoint = prepare_run(
                     args.env, args.resume, resume=True, n_timesteps=args.timesteps,
                     checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+            from .lean_ppo import check_trainer
+
+            trainer = check_trainer(args.trainer, config)
+            if trainer == "lean" and args.vec_env != "native":
+                raise ValueError("the lean trainer steps the native vector env: drop --vec-env")
         except (ValueError, FileNotFoundError, FileExistsError) as exc:
             parser.error(str(exc))
 
-        trainer = args.trainer or config.get("trainer", "sb3")
         if args.threads is not None or trainer == "lean":
             import torch
 
