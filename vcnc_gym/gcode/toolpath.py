@@ -39,7 +39,7 @@ from .feeds import KINK_ANGLE, TANGENT_ANGLE, ProgramFeedrate, ProgramProfile
 from .interpreter import Move, Program
 from .lexer import GCodeError
 
-__all__ = ["Joint", "Toolpath", "build_toolpath", "PROFILES"]
+__all__ = ["Joint", "Toolpath", "build_toolpath", "corner_side", "PROFILES"]
 
 #: Feed profiles a toolpath can be run with: the look-ahead with every block's feed and exact stops
 #: (default), or, for a program with one feed, Jahanpour et al.'s S-curve or a constant feed from t = 0 (no stops).
@@ -321,6 +321,15 @@ def _design(theta: float, tolerance: float, acceleration: float, jerk: float):
             _DESIGNS.clear()
         design = _DESIGNS[key] = design_corner(key[0] * ANGLE_QUANTUM, tolerance, acceleration, jerk)
     return design
+
+
+def corner_side(turn: float, tolerance: float, acceleration: float, jerk: float) -> float:
+    """How much of each leg Simba et al.'s blend of a corner takes, mm: the side l_s of eq. (22) of a corner
+    where the tangent turns by ``turn`` rad, at ``tolerance`` mm (as :func:`build_toolpath` blends it)."""
+    theta = math.pi - turn
+    design = _design(theta, tolerance, acceleration, jerk)
+    return max(corner_length(theta, tolerance, design.n),
+               corner_length(theta, tolerance, max(design.n_a, design.n_j)))
 
 
 def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> list[_Segment]:
