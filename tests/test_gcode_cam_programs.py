@@ -190,3 +190,11 @@ def test_read_program_numbers_go_through_validation(name, value):
     kwargs = {"tolerance": 0.01, name: value}
     with pytest.raises(ValueError, match=name):
         read_program("G01 X1 F600\n", **kwargs)
+
+
+def test_a_corner_sharper_than_the_blend_design_reaches_is_named_by_line():
+    # the path turns back by 179.98 degrees (not a full U-turn): found by benchmarks/fuzz_new_surfaces.py
+    text = "G01 X10 Y0 F600\nG01 X0 Y0.0036\n"
+    with pytest.raises(GCodeError, match="cannot be blended") as exc:
+        read_program(text, 0.01)
+    assert exc.value.line == 2

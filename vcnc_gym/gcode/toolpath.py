@@ -347,7 +347,11 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
     for k in range(len(run) - 1):
         d_in, d_out = dirs[k], dirs[k + 1]
         theta = math.pi - _turn(d_in, d_out)  # the interior angle of Simba et al.'s Fig. 3
-        design = _design(theta, tolerance, acceleration, jerk)
+        try:
+            design = _design(theta, tolerance, acceleration, jerk)
+        except ValueError as exc:  # a corner sharper than the blend design reaches
+            raise GCodeError(f"the corner where this move begins cannot be blended: {exc}", moves[run[k + 1]].line,
+                             moves[run[k + 1]].code) from None
         l_t = corner_length(theta, tolerance, design.n)
         l_s = max(l_t, corner_length(theta, tolerance, max(design.n_a, design.n_j)))
         ctrl = blend_control_points(vertices[k + 1], d_in, d_out, l_t, design.n)
