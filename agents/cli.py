@@ -91,7 +91,8 @@ def _sweep_main(parser, args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``vcnc-train``: 0 done, 2 bad options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
+    """Entry point of ``vcnc-train``: 0 done, 1 the run folder could not be written (disk full, permissions), 2 bad
+    options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
     parser = make_parser()
     args = parser.parse_args(argv)
     conflict = _sweep_conflict(args)
@@ -159,6 +160,11 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:  # a second Ctrl-C
             print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
             return 130
+        except OSError as exc:  # disk full, a folder made read-only during the run: one line, no traceback
+            where = f" {exc.filename}" if exc.filename else ""
+            print(f"vcnc-train: training failed: cannot write{where}: {exc.strerror or exc}; "
+                  f"{_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+            return 1
         except Exception:
             print(f"vcnc-train: training failed; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
             raise

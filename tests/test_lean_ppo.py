@@ -350,3 +350,54 @@ def test_the_lean_trainer_refuses_an_id_without_a_native_vector_env_before_writi
     assert exc.value.code == 2
     assert "native vector env" in capsys.readouterr().err
     assert not run.exists()
+
+
+@pytest.mark.slow  # the short run's fixture
+def test_a_read_only_run_folder_is_refused_on_resume_before_anything_is_written(short_run, tmp_path, monkeypatch,
+                                                                                capsys):
+    import os
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(short_run, run)
+    before = {p: p.stat().st_mtime_ns for p in run.rglob("*")}
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(run) else real_access(p, mode))
+    with pytest.raises(SystemExit) as exc:  # root writes anywhere: the permission as os.access reports it
+        train_main(["--resume", str(run), "--timesteps", str(3 * SHORT_ROLLOUT), "--no-progress"])
+    assert exc.value.code == 2
+    assert f"{run} is not writable" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in run.rglob("*")} == before
+
+
+@pytest.mark.slow  # a run of its own
+@pytest.mark.parametrize("trainer", ["lean", "sb3"])
+def test_a_full_disk_ends_the_run_with_one_line_naming_the_file(trainer, tmp_path, monkeypatch, capsys):
+    import errno
+
+    import agents.callbacks
+    import agents.lean_ppo
+    import agents.run_folder
+
+    config = tmp_path / "short.yml"
+    config.write_text(_SHORT)
+    original, calls = agents.run_folder.save_model, []
+
+    def full(model, path):
+        calls.append(path)
+        if len(calls) >= 2:  # the first checkpoint is written, the second finds the disk full
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return original(model, path)
+
+    for module in (agents.run_folder, agents.lean_ppo, agents.callbacks):
+        monkeypatch.setattr(module, "save_model", full)
+    run = tmp_path / "run"
+    code = train_main(["--env", "VCNC-GCode-v1", "--trainer", trainer, "--config", str(config), "--output", str(run),
+                       "--checkpoint-freq", str(SHORT_ROLLOUT), "--eval-freq", "0", "--no-progress",
+                       "--no-tensorboard"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "Traceback" not in err
+    line = [x for x in err.splitlines() if "training failed" in x]
+    assert len(line) == 1 and "No space left on device" in line[0] and "rl_model_128_steps.zip" in line[0]
+    assert f"vcnc-train --resume {run}" in line[0]
