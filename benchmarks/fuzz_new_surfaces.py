@@ -5,8 +5,8 @@ Run: ``python benchmarks/fuzz_new_surfaces.py [--n 200] [--seed 0]``.  Every inp
 error (a ValueError naming what it refuses: a GCodeError with its line for a program, the setting's name for a
 shop-floor setting, ``spec`` for a spec) or a result that holds (a toolpath with a finite contour; observations
 finite and inside the space).  Anything else (another exception, an error that names nothing, a non-finite
-value) is counted as a failure, printed, and makes the exit status 1.  Kill and resume of both trainers:
-``benchmarks/kill_and_resume.py --trainer lean|sb3``.
+value) is counted as a failure, printed, and makes the exit status 1.  ``--kill-resume`` adds a SIGKILL and
+resume of each trainer (``benchmarks/kill_and_resume.py``: no row lost or duplicated, the rows reach the end).
 """
 
 from __future__ import annotations
@@ -136,11 +136,35 @@ def fuzz_specs(n: int, rng, failures: list) -> dict:
     return counts
 
 
+def fuzz_kill_resume(failures: list) -> dict:
+    import tempfile
+    from pathlib import Path
+
+    from kill_and_resume import kill_and_resume
+
+    out = {}
+    for trainer in ("lean", "sb3"):
+        with tempfile.TemporaryDirectory() as tmp:
+            r = kill_and_resume(Path(tmp), trainer=trainer)
+        a = r["audit"]
+        ok = (r["pre_checkpoint_rows_unchanged"] and a["evaluations"]["increasing"]
+              and not a["evaluations"]["duplicates"]
+              and all(m["chain_breaks"] == 0 and m["duplicates"] == 0 and not m["tail_lost"]
+                      for m in a["monitor"].values()))
+        rows = sum(m["rows"] for m in a["monitor"].values())
+        out[trainer] = f"resumed from {r['resumed_from']}: {rows} monitor rows, {a['evaluations']['rows']} evaluations, " \
+                       f"{'ok' if ok else 'LOST OR DUPLICATED ROWS'}"
+        if not ok:
+            failures.append(("kill/resume", trainer, str(a)))
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=200, help="inputs per surface (default 200)")
     p.add_argument("--episodes", type=int, default=2, help="override episodes (default 2)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--kill-resume", action="store_true", help="also kill and resume a run of each trainer")
     args = p.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     failures: list = []
@@ -149,6 +173,8 @@ def main(argv=None) -> int:
                       ("random-contour specs", lambda: fuzz_specs(args.n, rng, failures)),
                       ("override actions", lambda: fuzz_override(args.episodes, rng, failures))):
         print(f"{name}: {run()}", flush=True)
+    if args.kill_resume:
+        print(f"kill and resume: {fuzz_kill_resume(failures)}", flush=True)
     for f in failures[:30]:
         print("FAIL", *f)
     print(f"failures: {len(failures)}")
