@@ -61,3 +61,9 @@ def test_every_reset_succeeds_at_the_largest_tolerance_accepted():
     env = gym.make(ID, tolerance=tolerance)
     for seed in range(12):  # the flattest corners on the shortest lines: each reset builds its blends
         env.reset(seed=seed)
+
+
+@pytest.mark.parametrize("name, value", [("acceleration", "1000"), ("jerk", True), ("acceleration", -1.0)])
+def test_the_path_limits_go_through_validation(name, value):
+    with pytest.raises(ValueError, match=name):
+        gym.make(ID, **{name: value})

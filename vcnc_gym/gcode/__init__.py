@@ -44,8 +44,12 @@ SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".txt")
 
 def path_limits(plant: str, acceleration: float | None = None, jerk: float | None = None) -> tuple[float, float]:
     """(acceleration mm/s^2, jerk mm/s^3) for ``plant``: those given, else :data:`PATH_LIMITS`'s."""
+    from ..validation import positive
+
+    acceleration = None if acceleration is None else positive("acceleration", acceleration, "mm/s^2")
+    jerk = None if jerk is None else positive("jerk", jerk, "mm/s^3")
     if acceleration is not None and jerk is not None:
-        return float(acceleration), float(jerk)
+        return acceleration, jerk
     name = plant if isinstance(plant, str) else getattr(plant, "name", str(plant))
     if name not in PATH_LIMITS:
         raise ValueError(f"no path acceleration and jerk limits are known for plant {name!r} (known: "
