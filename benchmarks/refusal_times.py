@@ -46,6 +46,8 @@ def main(argv=None) -> int:
         with open(big, "wb") as f:
             f.truncate(8 * 1024**3)
         ok &= _timed("VCNC-GCode-v1 program= an 8 GiB file", lambda: gym.make("VCNC-GCode-v1", program=str(big)))
+        text = "G01 X1 F600\n" + "G01 X2\nG01 X1\n" * 50_000
+        ok &= _timed("a 1e5-line program text (0.7 MB)", lambda: read_program_text(text))
         text = "G01 X1 F600\n" + "G01 X2\nG01 X1\n" * 500_000
         ok &= _timed("a 1e6-line program text", lambda: read_program_text(text))
         ok &= _timed("a 10 MB line", lambda: read_program_text("G01 X" + "1" * 10_000_000 + "\n"))

@@ -64,10 +64,12 @@ def _chords(radius: float, chord: float, sweep_deg: float) -> str:
 
 def test_chords_of_an_arc_with_sub_degree_kinks_are_run_through():
     # 1 mm chords of a 100 mm arc: kinks of 0.57 degrees, whose 10 um blends would not fit in the chords
-    toolpath = read_program(_chords(100.0, 1.0, 30.0), 0.01)
+    sweep = math.radians(10.0)
+    toolpath = read_program(_chords(100.0, 1.0, 10.0), 0.01)
     kinds = {j.kind for j in toolpath.joints}
     assert kinds == {"kink"}
-    expected = math.radians(30.0) * 100.0 * (1 - (math.radians(30.0) / 52) ** 2 / 24)  # 52 chords' total length
+    n = round(sweep * 100.0)  # 17 chords of 2 R sin(sweep / 2n) each
+    expected = n * 2.0 * 100.0 * math.sin(sweep / (2 * n))
     assert toolpath.length == pytest.approx(expected, rel=1e-4)
     assert max(j.angle for j in toolpath.joints) <= KINK_ANGLE
     profile = toolpath.feedrate_profile()  # the look-ahead plans it without a stop at the kinks
