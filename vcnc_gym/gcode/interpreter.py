@@ -84,7 +84,7 @@ RADIUS_TOLERANCE = 0.00005 * MM_PER_INCH
 #: of CNCs (FANUC's IS-E); absolute, so no other word of the program (a far rapid, a large R) changes it.
 ZERO_LENGTH = 1e-6
 
-#: Largest |X|, |Y|, |I|, |J|, |R| read, mm (after G20's inch): 100 m, beyond any machine tool's travel; a
+#: Largest absolute value of X, Y, I, J and R read, mm (after G20's inch): 100 m, beyond any machine tool's travel; a
 #: larger number (a typo, an overflow to inf) is an error naming its line and word.
 MAX_COORDINATE = 1.0e5
 
