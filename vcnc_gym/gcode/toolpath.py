@@ -204,7 +204,11 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
         if angle <= TANGENT_ANGLE:
             kind = "tangent"
         elif tolerance is not None and a.kind == b.kind == "line":
-            kind = "blend"
+            # a blend passing the corner at the tolerance reaches at least tolerance / sin(turn / 2) along each
+            # leg (it lies in the triangle of the vertex and its ends): a kink whose shorter leg is shorter
+            # cannot be blended, and is known so without designing the blend (a CAM program's thousands of chords)
+            short = tolerance / math.sin(0.5 * angle) >= min(a.length, b.length)
+            kind = "kink" if angle <= KINK_ANGLE and short else "blend"
         else:
             kind = "stop"
         joints.append(Joint((a.line, b.line), angle, kind))
