@@ -23,13 +23,31 @@ from .policy import AgentPolicy
 from .run_folder import (EVAL_FIELDS, best_of, checkpoint_files, read_evaluations, record_session, save_agent,
                          save_model, session_rates)
 
-__all__ = ["evaluation_score", "make_run_callback", "StopSignal", "stop_on_signals"]
+__all__ = ["evaluation_score", "evaluation_row", "make_run_callback", "StopSignal", "stop_on_signals"]
 
 
 def evaluation_score(max_um: float, rms_um: float) -> float:
     """Selection score of an evaluation, um: the geometric mean of max and RMS contour error
     (inf if either is not finite; a diverged episode is scored inf by the caller)."""
     return math.sqrt(max_um * rms_um) if math.isfinite(max_um) and math.isfinite(rms_um) else math.inf
+
+
+def evaluation_row(steps: int, result) -> dict:
+    """The evaluations.csv row of an evaluation episode (``vcnc_gym.evaluation.run_episode``'s result), as both
+    trainers write it.
+
+    A diverged episode's errors cover only the part before it left the bounds (a table that never moved has
+    0.0 um there): its figures are written as inf, the bench's figure for a diverged plant, never as perfect.
+    An episode cut by the completion time limit covers part of the contour only: its score is inf (no
+    candidate for best/).
+    """
+    diverged = bool(result.diverged)
+    completed = bool(result.completed)
+    figures = ((math.inf,) * 3 if diverged else
+               (result.max_contour_error_um, result.mean_contour_error_um, result.rms_contour_error_um))
+    score = math.inf if diverged or not completed else evaluation_score(figures[0], figures[2])
+    return {"steps": int(steps), "max_um": float(figures[0]), "mean_um": float(figures[1]),
+            "rms_um": float(figures[2]), "score_um": float(score), "diverged": diverged}
 
 
 def make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose: int):
@@ -114,15 +132,8 @@ def make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose:
                 return  # this checkpoint was evaluated before the run was resumed
             policy = AgentPolicy(self.model, stats, self.mode, self.env)
             r = run_episode(policy, self.env, seed=0)
-            # an episode cut by the completion time limit covers part of the contour only: no candidate either
-            score = math.inf if r.diverged or not r.completed else evaluation_score(r.max_contour_error_um,
-                                                                                   r.rms_contour_error_um)
-            # a diverged episode's errors cover only the part before it left the bounds (a table that never
-            # moved has 0.0 um there): written as inf, the bench's figure for a diverged plant, never as perfect
-            figures = ((math.inf,) * 3 if r.diverged else
-                       (r.max_contour_error_um, r.mean_contour_error_um, r.rms_contour_error_um))
-            row = {"steps": int(n), "max_um": float(figures[0]), "mean_um": float(figures[1]),
-                   "rms_um": float(figures[2]), "score_um": float(score), "diverged": bool(r.diverged)}
+            row = evaluation_row(n, r)
+            score = row["score_um"]
             new = not self.csv.exists()
             with open(self.csv, "a", newline="") as f:
                 w = csv.DictWriter(f, fieldnames=EVAL_FIELDS)

@@ -91,7 +91,8 @@ def _sweep_main(parser, args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``vcnc-train``: 0 done, 2 bad options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
+    """Entry point of ``vcnc-train``: 0 done, 1 the run folder could not be written (disk full, permissions), 2 bad
+    options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
     parser = make_parser()
     args = parser.parse_args(argv)
     conflict = _sweep_conflict(args)
@@ -111,8 +112,6 @@ def main(argv: list[str] | None = None) -> int:
                          f"drop {', '.join(fixed)}")
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads must be positive, got {args.threads}")
-    if args.trainer == "lean" and args.vec_env != "native":
-        parser.error("the lean trainer steps the native vector env: drop --vec-env")
 
     from .config import DEFAULT_CONFIG
     from .training import check_env_id, check_training_options, learn, prepare_run
@@ -124,6 +123,10 @@ def main(argv: list[str] | None = None) -> int:
                                    vec_env=args.vec_env, tensorboard=tensorboard)
             if args.resume is None:
                 check_env_id(args.env)
+                if args.trainer == "lean":  # at once, before the envs are built
+                    from .lean_ppo import check_trainer
+
+                    check_trainer("lean", {"env_id": args.env})
                 config_file = args.config if args.config is not None else DEFAULT_CONFIG
                 run_dir, config, checkpoint = prepare_run(
                     args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
@@ -133,10 +136,14 @@ def main(argv: list[str] | None = None) -> int:
                 run_dir, config, checkpoint = prepare_run(
                     args.env, args.resume, resume=True, n_timesteps=args.timesteps,
                     checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+            from .lean_ppo import check_trainer
+
+            trainer = check_trainer(args.trainer, config)
+            if trainer == "lean" and args.vec_env != "native":
+                raise ValueError("the lean trainer steps the native vector env: drop --vec-env")
         except (ValueError, FileNotFoundError, FileExistsError) as exc:
             parser.error(str(exc))
 
-        trainer = args.trainer or config.get("trainer", "sb3")
         if args.threads is not None or trainer == "lean":
             import torch
 
@@ -153,6 +160,11 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:  # a second Ctrl-C
             print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
             return 130
+        except OSError as exc:  # disk full, a folder made read-only during the run: one line, no traceback
+            where = f" {exc.filename}" if exc.filename else ""
+            print(f"vcnc-train: training failed: cannot write{where}: {exc.strerror or exc}; "
+                  f"{_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+            return 1
         except Exception:
             print(f"vcnc-train: training failed; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
             raise

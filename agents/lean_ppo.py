@@ -51,19 +51,44 @@ import numpy as np
 
 from .action_modes import ActionMode
 from .config import normalize_kwargs, ppo_arguments
-from .callbacks import StopSignal, evaluation_score, stop_on_signals
+from .callbacks import StopSignal, evaluation_row, stop_on_signals
 from .env_factory import make_eval_env
 from .normalization import NormalizationStats
 from .policy import CONFIG_FILE
 from .training import TrainingResult, prepare_run
+from .run_warning import note
 from .run_folder import (best_of, checkpoint_files, clear_new_run, read_evaluations, record_session, roll_back,
                          run_lock, save_agent, save_model, scan_checkpoints, write_evaluations, write_yaml)
 from .vec_env import monitor_writers, native_batch
 
-__all__ = ["TRAINERS", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
+__all__ = ["TRAINERS", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
 
 #: The trainers of ``vcnc-train --trainer``: SB3's PPO (agents.training) and this module's.
 TRAINERS = ("sb3", "lean")
+
+
+def check_trainer(trainer: str, config: dict) -> str:
+    """The trainer a run goes on with; ValueError, before anything is written, when it cannot.
+
+    ``trainer`` is the one asked for (None: the run's, or ``"sb3"`` for a new run); ``config`` the run's
+    configuration (:func:`agents.training.prepare_run`'s).  A resumed run goes on with the trainer it was
+    started with; the lean trainer steps the native vector env, which an id must have
+    (``vcnc_gym.envs.registry.VECTOR_IDS``).
+    """
+    from vcnc_gym.envs.registry import VECTOR_IDS
+
+    recorded = config.get("trainer")
+    if trainer is None:
+        trainer = recorded or "sb3"
+    if trainer not in TRAINERS:
+        raise ValueError(f"trainer must be one of {list(TRAINERS)}, got {trainer!r}")
+    if recorded is not None and trainer != recorded:
+        raise ValueError(f"the run was trained with the {recorded!r} trainer and goes on with it; drop --trainer "
+                         f"{trainer}")
+    if trainer == "lean" and config["env_id"] not in VECTOR_IDS:
+        raise ValueError(f"the lean trainer steps the native vector env, which {config['env_id']} does not have "
+                         f"(ids with one: {', '.join(VECTOR_IDS)}); train it with --trainer sb3")
+    return trainer
 
 
 # -- the envs, as arrays -----------------------------------------------------------------------------------------
@@ -515,8 +540,7 @@ def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True,
     stagger : bool
         Spread the envs along the episode before training (see the module docstring).
     """
-    if config.get("trainer", "lean") != "lean":
-        raise ValueError(f"{run_dir} was trained with the {config['trainer']!r} trainer, not 'lean'")
+    check_trainer("lean", config)  # before the run folder is made
     config = dict(config, trainer="lean")
     fresh = checkpoint is None
     created = fresh and not run_dir.exists()
@@ -553,27 +577,37 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
         done = 0
     else:
         done, model_zip, norm_file = checkpoint
-    env = DecisionEnv(config["env_id"], n_envs, mode, h.get("env_kwargs") or {}, config["seed"] + done,
-                      monitor_dir=run_dir / "monitor", start_steps=done, append=checkpoint is not None)
     eval_env = make_eval_env(config)
+    env = None
     try:
-        stub = _spaces_only(env.observation_space, env.action_space, n_envs)
-        if checkpoint is None:
-            model = PPO(policy_name, stub, seed=config["seed"], device=device, **kwargs)
-            norm = RunningNormalizer.fresh(h, env.observation_space.shape[0], n_envs)
-        else:
-            model = load_ppo(model_zip, observation_space=env.observation_space, action_space=env.action_space,
-                             ppo_kwargs=kwargs, device=device)
+        if checkpoint is not None:
+            # the checkpoint loads first (on the evaluation env's spaces, as agents.training does); then the
+            # run folder changes: the logs roll back, and only then are the monitor files opened for appending
+            # (opened before, they would be the files roll_back replaces by rename: every row lost)
+            model = load_ppo(model_zip, observation_space=eval_env.observation_space,
+                             action_space=eval_env.action_space, ppo_kwargs=kwargs, device=device)
             norm = RunningNormalizer(NormalizationStats.load(norm_file), n_envs)
-            _, damaged = scan_checkpoints(run_dir, n_envs)
+            intact, damaged = scan_checkpoints(run_dir, n_envs)
+            damaged += [c for c in intact if c[0] > done]  # passed over by latest_checkpoint: tensors unreadable
             rolled_back = roll_back(run_dir, config, done, damaged)
+            if rolled_back["evaluations"] or rolled_back["episodes"]:
+                note(f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
+                     f"{rolled_back['episodes']} episode(s) logged after that checkpoint (their training was lost)")
             set_random_seed(config["seed"] + done)
             write_yaml(run_dir / CONFIG_FILE, config)
+        env = DecisionEnv(config["env_id"], n_envs, mode, h.get("env_kwargs") or {}, config["seed"] + done,
+                          monitor_dir=run_dir / "monitor", start_steps=done, append=checkpoint is not None)
+        if checkpoint is None:
+            stub = _spaces_only(env.observation_space, env.action_space, n_envs)
+            model = PPO(policy_name, stub, seed=config["seed"], device=device, **kwargs)
+            norm = RunningNormalizer.fresh(h, env.observation_space.shape[0], n_envs)
         model.num_timesteps = done
         ppo = LeanPPO(model, env, norm, total, clock)
         rows = read_evaluations(run_dir / "evaluations.csv")
         best = best_of(rows)
-        last_eval = max((r["steps"] for r in rows), default=done)
+        # as the SB3 trainer's callback: the schedule is the grid of multiples of eval_freq, so an evaluation
+        # that a kill cut short (its checkpoint saved, its row not written) is made up at the session's start
+        last_eval = max((r["steps"] for r in rows), default=0)
         last_checkpoint = done
         session = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done, "wall_s": 0.0,
                    "steps_per_s": 0.0, "control_periods_per_s": 0.0, "n_envs": n_envs, "vec_env": "native",
@@ -600,10 +634,8 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
             last_eval = n
             stats = norm.stats()
             r = run_episode(AgentPolicy(model, stats, mode, eval_env), eval_env, seed=0)
-            score = math.inf if r.diverged else evaluation_score(r.max_contour_error_um, r.rms_contour_error_um)
-            row = {"steps": int(n), "max_um": float(r.max_contour_error_um),
-                   "mean_um": float(r.mean_contour_error_um), "rms_um": float(r.rms_contour_error_um),
-                   "score_um": float(score), "diverged": bool(r.diverged)}
+            row = evaluation_row(n, r)
+            score = row["score_um"]
             rows.append(row)
             write_evaluations(run_dir / "evaluations.csv", rows)
             if math.isfinite(score) and (best is None or score < best["score_um"]):
@@ -620,6 +652,9 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
                 obs = env.stagger(obs)
         session["stagger_s"] = round(time.perf_counter() - t0, 3)
         ppo.start(obs)
+        eval_freq = config["eval_freq"]
+        if eval_freq > 0 and done > 0 and done // eval_freq > last_eval // eval_freq:
+            evaluate(done)  # the evaluation of the checkpoint resumed from, cut short by a kill
         bar = _progress(progress_bar, total, done)
         n = done
         interrupted = None
@@ -650,7 +685,8 @@ def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, 
             save_agent(run_dir / "final", model, norm.stats(), config, n)
         wall = time.perf_counter() - wall0
     finally:
-        env.close()
+        if env is not None:
+            env.close()
         eval_env.close()
     session.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
                    **_session_rates(session, n, wall0, clock, repeat))

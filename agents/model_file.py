@@ -68,15 +68,30 @@ def check_torch() -> None:
                            f"(weights-only torch.load by default), found {torch.__version__}")
 
 
+#: Largest ``data`` member (JSON) of a model.zip read, bytes: a PPO's is a few kB.
+MAX_DATA_BYTES = 16 * 1024**2
+
+#: Largest other member of a model.zip read, bytes: a policy of a few hundred thousand float32 weights is about
+#: a MB; 256 MB is a network of 64 million weights.
+MAX_MEMBER_BYTES = 256 * 1024**2
+
+
 def read_model_data(path) -> dict:
     """The ``data`` JSON of an SB3 model.zip as a dict (nothing unpickled).
 
-    Raises ValueError naming the file when it is not a zip, is damaged
-    (CRC), lacks ``data`` or ``policy.pth``, or its ``data`` is not JSON.
+    Raises ValueError naming the file when it is not a zip, a member would inflate beyond
+    :data:`MAX_DATA_BYTES` / :data:`MAX_MEMBER_BYTES` (checked on the declared sizes, before anything is
+    inflated), it is damaged (CRC), lacks ``data`` or ``policy.pth``, or its ``data`` is not JSON.
     """
     path = Path(path)
     try:
         with zipfile.ZipFile(path) as archive:
+            for info in archive.infolist():  # declared sizes, before anything is inflated (zipfile reads no more)
+                limit = MAX_DATA_BYTES if info.filename == "data" else MAX_MEMBER_BYTES
+                if info.file_size > limit:
+                    raise ValueError(f"{path}: member {info.filename!r} inflates to {info.file_size:,} bytes, more "
+                                     f"than an SB3 model holds (at most {limit:,}: "
+                                     f"{'MAX_DATA_BYTES' if info.filename == 'data' else 'MAX_MEMBER_BYTES'})")
             bad = archive.testzip()
             if bad is not None:
                 raise ValueError(f"{path} is damaged: member {bad!r} fails its CRC check")

@@ -377,6 +377,17 @@ def run_lock(run_dir: Path, *, probe: bool = False):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
+def check_writable(run_dir: Path) -> None:
+    """ValueError unless the run folder and its sub-folders can be written (a resumed run writes its lock,
+    checkpoints and logs there): checked before anything is written."""
+    folders = [run_dir] + [run_dir / name for name in ("checkpoints", "monitor", "best", "final")
+                           if (run_dir / name).is_dir()]
+    for folder in folders:
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise ValueError(f"{folder} is not writable: a resumed run writes its checkpoints and logs there "
+                             "(check its permissions, or copy the run folder somewhere writable)")
+
+
 def check_output_folder(run_dir: Path) -> None:
     """ValueError naming ``run_dir`` unless a folder can be made there: a probe folder is made and removed in
     its nearest existing ancestor (``--output /proc/run``: procfs takes no new folder)."""

@@ -31,7 +31,7 @@ from .normalization import NormalizationStats
 from .policy import CONFIG_FILE, check_signature
 from .run_config import (DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ, VEC_ENVS, check_env_id, check_seed,
                          check_timesteps, check_training_options, new_config, round_to_rollouts, rollout_size)
-from .run_folder import (CHECKPOINT_PREFIX, LOCK_FILE, check_output_folder, clear_new_run, latest_checkpoint,
+from .run_folder import (CHECKPOINT_PREFIX, LOCK_FILE, check_output_folder, check_writable, clear_new_run, latest_checkpoint,
                          read_run_config, record_session, roll_back, run_lock, save_agent, scan_checkpoints,
                          session_rates, stale_run, write_yaml)
 from .run_warning import RunWarning, note
@@ -99,6 +99,7 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
             raise ValueError("resume needs the run folder")
         run_dir = Path(run_dir)
         config = read_run_config(run_dir)
+        check_writable(run_dir)
         with run_lock(run_dir, probe=True):
             pass
         if env_id is not None and env_id != config["env_id"]:

@@ -19,7 +19,10 @@ run folder, ``--mode residual`` for evaluations with finite scores and a best/).
      where the envs were reset: ``steps_k - S = n_envs * l_k``.  A lost row
      breaks the chain; a duplicated one repeats a step count.
    - the rows written before the kill up to the checkpoint resumed from are
-     still there, unchanged.
+     still there, unchanged;
+   - the rows reach the run's end (at most one episode missing): a resumed
+     session whose rows all went to a deleted file (the lean trainer before
+     issue 35) fails here.
 
 The same audit of a naive merge (the killed session's rows kept and the
 resumed session's appended: what "append without roll-back" would give)
@@ -81,8 +84,10 @@ def evaluation_steps(run_dir: Path) -> list[int]:
     return [int(r["steps"]) for r in csv.DictReader(path.open())] if path.exists() else []
 
 
-def audit_monitor(rows: list[dict], n_envs: int, session_starts: list[int]) -> dict:
-    """Chain check of one Monitor file's rows (see the module docstring)."""
+def audit_monitor(rows: list[dict], n_envs: int, session_starts: list[int], end: int | None = None) -> dict:
+    """Chain check of one Monitor file's rows (see the module docstring); with ``end`` (the run's last step),
+    also that the rows reach it: no more than one episode (the longest logged) is missing at the end, so a
+    session whose rows were all lost (written to a file that no longer exists) is caught."""
     broken = duplicates = 0
     seen = set()
     prev = 0
@@ -93,7 +98,9 @@ def audit_monitor(rows: list[dict], n_envs: int, session_starts: list[int]) -> d
         anchor = max([prev] + [s for s in session_starts if prev <= s < steps])
         broken += steps - anchor != n_envs * length
         prev = steps
-    return {"rows": len(rows), "chain_breaks": broken, "duplicates": duplicates}
+    longest = max((int(r["l"]) for r in rows), default=0)
+    tail_lost = end is not None and (not rows or end - prev > n_envs * longest)
+    return {"rows": len(rows), "chain_breaks": broken, "duplicates": duplicates, "tail_lost": bool(tail_lost)}
 
 
 def audit_run(run_dir: Path, monitors: dict[str, list[dict]] | None = None, evaluations: list[int] | None = None) -> dict:
@@ -105,7 +112,8 @@ def audit_run(run_dir: Path, monitors: dict[str, list[dict]] | None = None, eval
         monitors = {p.name: monitor_rows(p) for p in sorted((run_dir / "monitor").glob("*.monitor.csv"))}
     steps = evaluation_steps(run_dir) if evaluations is None else evaluations
     return {
-        "monitor": {name: audit_monitor(rows, config_n_envs, starts) for name, rows in monitors.items()},
+        "monitor": {name: audit_monitor(rows, config_n_envs, starts, summary["sessions"][-1]["end_timesteps"])
+                    for name, rows in monitors.items()},
         "evaluations": {"rows": len(steps), "duplicates": len(steps) - len(set(steps)),
                         "increasing": all(a < b for a, b in zip(steps, steps[1:])), "steps": steps},
         "sessions": [(s["start_timesteps"], s["end_timesteps"], s["status"]) for s in summary["sessions"]],
@@ -216,7 +224,8 @@ def main(argv=None) -> int:
     a = report["audit"]
     ok = (report["pre_checkpoint_rows_unchanged"] and a["evaluations"]["increasing"]
           and not a["evaluations"]["duplicates"]
-          and all(m["chain_breaks"] == 0 and m["duplicates"] == 0 for m in a["monitor"].values()))
+          and all(m["chain_breaks"] == 0 and m["duplicates"] == 0 and not m["tail_lost"]
+                  for m in a["monitor"].values()))
     print("OK: no lost or duplicated rows" if ok else "FAILED: lost or duplicated rows")
     return 0 if ok else 1
 

@@ -215,3 +215,189 @@ def test_the_lean_entries_are_valid_hyperparameters():
         h = load_hyperparameters(env_id, lean)
         _, kwargs = ppo_arguments(h)
         assert (kwargs["n_steps"] * h["n_envs"]) % kwargs["batch_size"] == 0  # whole minibatches per rollout
+
+
+# -- resumes keep the SB3 trainer's promises -------------------------------------------------------------------
+#: A 5 mm line at 100 mm/s, 50 control periods per decision: 36-decision episodes, so a rollout of 32 decisions
+#: of 2 envs ends episodes in every session.
+_SHORT = """\
+VCNC-GCode-v1:
+  n_envs: 2
+  n_timesteps: 128
+  policy: MlpPolicy
+  normalize: "{'norm_obs': True, 'norm_reward': True}"
+  env_kwargs:
+    program: "G01 X5 F6000\\n"
+    action_repeat: 50
+  n_steps: 32
+  batch_size: 64
+  n_epochs: 1
+  policy_kwargs: "dict(log_std_init=-1.0, net_arch=dict(pi=[16], vf=[16]))"
+"""
+SHORT_ROLLOUT = 64
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    """A lean run of 2 rollouts on a short program: checkpoints and evaluations at 64 and 128 steps."""
+    folder = tmp_path_factory.mktemp("lean_short")
+    config = folder / "short.yml"
+    config.write_text(_SHORT)
+    run_dir = folder / "run"
+    assert train_main(["--env", "VCNC-GCode-v1", "--trainer", "lean", "--config", str(config), "--eval-freq",
+                       str(SHORT_ROLLOUT), "--checkpoint-freq", str(SHORT_ROLLOUT), "--output", str(run_dir),
+                       "--no-progress"]) == 0
+    return run_dir
+
+
+def _monitor_steps(run_dir) -> dict:
+    import csv
+
+    out = {}
+    for p in sorted((run_dir / "monitor").glob("*.monitor.csv")):
+        lines = p.read_text().splitlines()
+        out[p.name] = [int(r["steps"]) for r in csv.DictReader(lines[1:])]
+    return out
+
+
+def _eval_steps(run_dir) -> list:
+    import csv
+
+    return [int(r["steps"]) for r in csv.DictReader((run_dir / "evaluations.csv").open())]
+
+
+@pytest.mark.slow  # a ~20 s run shared by the four (the G-code env's compile)
+def test_a_resumed_lean_run_appends_monitor_rows_and_keeps_the_old_ones(short_run, tmp_path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(short_run, run)
+    before = _monitor_steps(run)
+    assert all(before.values())  # episodes ended in the first session
+    assert train_main(["--resume", str(run), "--timesteps", str(4 * SHORT_ROLLOUT), "--no-progress"]) == 0
+    after = _monitor_steps(run)
+    for name, steps in after.items():
+        assert steps[:len(before[name])] == before[name]  # kept as they were
+        new = steps[len(before[name]):]
+        assert new and all(s > 2 * SHORT_ROLLOUT for s in new)  # the resumed session's episodes, logged
+        assert len(set(steps)) == len(steps) and steps == sorted(steps)  # none duplicated
+
+
+@pytest.mark.slow  # a ~20 s run shared by the four (the G-code env's compile)
+def test_a_lean_evaluation_cut_short_by_a_kill_is_made_up_on_resume(short_run, tmp_path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(short_run, run)
+    assert _eval_steps(run) == [SHORT_ROLLOUT, 2 * SHORT_ROLLOUT]
+    lines = (run / "evaluations.csv").read_text().splitlines()
+    (run / "evaluations.csv").write_text("\n".join(lines[:-1]) + "\n")  # killed while evaluating at 128
+    assert train_main(["--resume", str(run), "--timesteps", str(3 * SHORT_ROLLOUT), "--no-progress"]) == 0
+    assert _eval_steps(run) == [SHORT_ROLLOUT, 2 * SHORT_ROLLOUT, 3 * SHORT_ROLLOUT]  # the grid kept
+
+
+@pytest.mark.slow  # a ~20 s run shared by the four (the G-code env's compile)
+def test_a_lean_diverged_evaluation_is_written_as_inf(short_run, tmp_path, monkeypatch):
+    import shutil
+    from types import SimpleNamespace
+
+    import vcnc_gym.evaluation
+
+    run = tmp_path / "run"
+    shutil.copytree(short_run, run)
+    diverged = SimpleNamespace(diverged=True, completed=False, max_contour_error_um=0.0, mean_contour_error_um=0.0,
+                               rms_contour_error_um=0.0)
+    monkeypatch.setattr(vcnc_gym.evaluation, "run_episode", lambda *a, **k: diverged)
+    assert train_main(["--resume", str(run), "--timesteps", str(3 * SHORT_ROLLOUT), "--no-progress"]) == 0
+    import csv
+
+    last = list(csv.DictReader((run / "evaluations.csv").open()))[-1]
+    assert int(last["steps"]) == 3 * SHORT_ROLLOUT
+    assert [float(last[k]) for k in ("max_um", "mean_um", "rms_um", "score_um")] == [math.inf] * 4
+
+
+@pytest.mark.slow  # a ~20 s run shared by the four (the G-code env's compile)
+def test_a_lean_resume_renames_a_checkpoint_with_a_poisoned_policy_file(short_run, tmp_path):
+    import io
+    import shutil
+    import zipfile
+
+    run = tmp_path / "run"
+    shutil.copytree(short_run, run)
+    newest = run / "checkpoints" / f"rl_model_{2 * SHORT_ROLLOUT}_steps.zip"
+    with zipfile.ZipFile(newest) as z:
+        members = {n: z.read(n) for n in z.namelist()}
+    buffer = io.BytesIO()
+    torch.save({"x": _Pickled()}, buffer)  # a pickled object: torch's weights-only reader refuses it
+    members["policy.pth"] = buffer.getvalue()
+    with zipfile.ZipFile(newest, "w") as z:
+        for n, b in members.items():
+            z.writestr(n, b)
+    assert train_main(["--resume", str(run), "--timesteps", str(3 * SHORT_ROLLOUT), "--no-progress"]) == 0
+    assert (run / "checkpoints" / f"rl_model_{2 * SHORT_ROLLOUT}_steps.zip.damaged").exists()
+    assert _eval_steps(run) == [SHORT_ROLLOUT, 2 * SHORT_ROLLOUT, 3 * SHORT_ROLLOUT]  # 128 trained again
+
+
+class _Pickled:
+    """An object torch.save can only pickle."""
+
+
+@pytest.mark.parametrize("env_id", ["VCNC-OmegaOverride-v1", "VCNC-RandomContour-v1"])
+def test_the_lean_trainer_refuses_an_id_without_a_native_vector_env_before_writing(env_id, tmp_path, capsys):
+    run = tmp_path / "run"
+    with pytest.raises(SystemExit) as exc:
+        train_main(["--env", env_id, "--trainer", "lean", "--output", str(run), "--no-progress"])
+    assert exc.value.code == 2
+    assert "native vector env" in capsys.readouterr().err
+    assert not run.exists()
+
+
+@pytest.mark.slow  # the short run's fixture
+def test_a_read_only_run_folder_is_refused_on_resume_before_anything_is_written(short_run, tmp_path, monkeypatch,
+                                                                                capsys):
+    import os
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(short_run, run)
+    before = {p: p.stat().st_mtime_ns for p in run.rglob("*")}
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(run) else real_access(p, mode))
+    with pytest.raises(SystemExit) as exc:  # root writes anywhere: the permission as os.access reports it
+        train_main(["--resume", str(run), "--timesteps", str(3 * SHORT_ROLLOUT), "--no-progress"])
+    assert exc.value.code == 2
+    assert f"{run} is not writable" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in run.rglob("*")} == before
+
+
+@pytest.mark.slow  # a run of its own
+@pytest.mark.parametrize("trainer", ["lean", "sb3"])
+def test_a_full_disk_ends_the_run_with_one_line_naming_the_file(trainer, tmp_path, monkeypatch, capsys):
+    import errno
+
+    import agents.callbacks
+    import agents.lean_ppo
+    import agents.run_folder
+
+    config = tmp_path / "short.yml"
+    config.write_text(_SHORT)
+    original, calls = agents.run_folder.save_model, []
+
+    def full(model, path):
+        calls.append(path)
+        if len(calls) >= 2:  # the first checkpoint is written, the second finds the disk full
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return original(model, path)
+
+    for module in (agents.run_folder, agents.lean_ppo, agents.callbacks):
+        monkeypatch.setattr(module, "save_model", full)
+    run = tmp_path / "run"
+    code = train_main(["--env", "VCNC-GCode-v1", "--trainer", trainer, "--config", str(config), "--output", str(run),
+                       "--checkpoint-freq", str(SHORT_ROLLOUT), "--eval-freq", "0", "--no-progress",
+                       "--no-tensorboard"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "Traceback" not in err
+    line = [x for x in err.splitlines() if "training failed" in x]
+    assert len(line) == 1 and "No space left on device" in line[0] and "rl_model_128_steps.zip" in line[0]
+    assert f"vcnc-train --resume {run}" in line[0]

@@ -10,9 +10,9 @@ from gymnasium import spaces
 from .contouring_env import ContouringEnv, check_actions
 from .retiming import padded_reference, retime
 from .task import ContouringBatch
-from ..validation import positive
+from ..validation import non_negative, positive, real, size
 
-__all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT"]
+__all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT"]
 
 #: How fast the override follows its dial, 1/s: the whole range in 0.1 s.  The re-timed reference's extra
 #: acceleration, rate x feed, is then 1e3 mm/s^2 at 100 mm/s, within the ~2.6e3 mm/s^2 of Jahanpour et al.
@@ -24,6 +24,10 @@ DEFAULT_OVERRIDE_RATE = 10.0
 #: feed (0.99 s instead of 0.63 s) brings that to 1.4 um (README): at 1 um per second, slowing down pays where
 #: the error is microns, not where it is nanometres.
 DEFAULT_TIME_COST = 1e-3
+
+#: Largest time limit, times the reference's duration at full feed: an override held below 1 % is a feed hold,
+#: not a feed (and the re-timed reference holds a row per control period up to the limit).
+MAX_TIME_LIMIT = 100.0
 
 #: The time limit, as a multiple of the reference's duration at full feed: an override held below 1/3 runs out
 #: of time (and pays for the contour left).
@@ -99,18 +103,22 @@ class FeedOverrideEnv(ContouringEnv):
         if "completion_timeout" in kwargs:
             raise ValueError("completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
                              "at full feed) in FeedOverrideEnv")
-        self.override_rate = positive("override_rate", override_rate, "1/s")
-        self.time_cost = float(time_cost)
-        if not math.isfinite(self.time_cost) or self.time_cost < 0:
-            raise ValueError(f"time_cost must be a finite number >= 0 (mm of contour error per second), "
-                             f"got {time_cost!r}")
-        self.time_limit = float(time_limit)
-        if not math.isfinite(self.time_limit) or self.time_limit < 1.0:
-            raise ValueError(f"time_limit must be a number >= 1 (times the reference's duration at full feed), "
-                             f"got {time_limit!r}")
+        self.override_rate = positive("override_rate", override_rate, "1/s")  # bool and str refused
+        self.time_cost = non_negative("time_cost", time_cost, "mm of contour error per second")
+        self.time_limit = real("time_limit", time_limit, "times the reference's duration at full feed")
+        if not 1.0 <= self.time_limit <= MAX_TIME_LIMIT:
+            raise ValueError(f"time_limit must be in [1, {MAX_TIME_LIMIT:g}] (times the reference's duration at "
+                             f"full feed; MAX_TIME_LIMIT: an override below 1 % is a feed hold), got {time_limit!r}")
         probe = ContouringEnv(**kwargs)  # the reference's duration at full feed sets the time limit
         duration = float(probe.task.reference.t[-1])
+        columns = probe.task.reference_arrays.samples.shape[1]
+        dt = probe.task.dt
         probe.close()
+        # the re-timed reference (and its copy) hold a row per control period up to the time limit: checked
+        # against the memory before they are made
+        size(f"time_limit={self.time_limit:g}: the re-timed reference's rows",
+             math.ceil(self.time_limit * duration / dt) + 2, bytes_each=2 * 8 * columns,
+             why="a row per control period up to the time limit")
         super().__init__(render_mode=render_mode, completion_timeout=(self.time_limit - 1.0) * duration, **kwargs)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self._tau = 0.0

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from ..gcode import ARC_RADIUS_TOLERANCE, path_limits, read_program
+from pathlib import Path
+
+from ..gcode import ARC_RADIUS_TOLERANCE, GCodeError, path_limits, read_program
 from ..gcode.pieces import piece_path
 from .contouring_env import ContouringEnv
 from .contouring_vector_env import ContouringVectorEnv
@@ -25,13 +27,23 @@ def gcode_task_kwargs(program=None, tolerance=DEFAULT_TOLERANCE, *, plant="vcnc_
                              f"of vcnc_gym.gcode.pieces.PIECES); its F words set the feed")
     if program is None:
         program = DEFAULT_PROGRAM
-    if isinstance(program, str) and "\n" not in program:
+    one_line = isinstance(program, str) and "\n" not in program
+    if one_line:
         from ..gcode.pieces import PIECES
 
         if program in PIECES:
             program = piece_path(program)
+            one_line = False
     a, j = path_limits(plant, acceleration, jerk)
-    toolpath = read_program(program, tolerance, acceleration=a, jerk=j, arc_tolerance=arc_tolerance)
+    try:
+        toolpath = read_program(program, tolerance, acceleration=a, jerk=j, arc_tolerance=arc_tolerance)
+    except GCodeError as exc:
+        if one_line and not Path(program).exists() and exc.line is not None:
+            from ..gcode.pieces import PIECES
+
+            raise GCodeError(f"program={program!r} is neither a file, a test piece ({', '.join(PIECES)}) nor "
+                             f"G-code that reads ({exc})") from None
+        raise
     return {"contour": toolpath, "plant": plant, "profile": profile, **kwargs}
 
 

@@ -2,18 +2,39 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..gcode import path_limits, read_program
+from ..gcode.toolpath import corner_side
 from ..gcode.random_contour import RandomContourSpec, random_program, spec_for
 from ..plants import get_plant
+from ..validation import positive
 from .contouring_env import ContouringEnv
 
-__all__ = ["RandomContourEnv", "LOOKAHEAD_SPACING"]
+__all__ = ["RandomContourEnv", "LOOKAHEAD_SPACING", "check_blends_fit"]
 
 #: The look-ahead's curvature sample spacing on random contours, mm: five times the default 0.01 mm (which is
 #: 1/19 of the omega's 0.19 mm corners), as the tightest arc here is 2 mm; blends keep >= 8 samples each.
 LOOKAHEAD_SPACING = 0.05
+
+
+def check_blends_fit(spec: RandomContourSpec, tolerance: float, acceleration: float, jerk: float) -> None:
+    """ValueError unless every corner blend at ``tolerance`` mm fits in the shortest line of ``spec``.
+
+    A line between two corners gives each blend its side l_s (Simba et al.'s eq. (22),
+    :func:`vcnc_gym.gcode.toolpath.corner_side`); the flattest corner (``turn_min``) has the longest, and both
+    ends of the turn range are checked.  Checked at construction, so that no reset fails later in a run.
+    """
+    if spec.line_probability == 0.0 or spec.moves_max < 2:
+        return
+    turns = {math.ceil(spec.turn_min), math.floor(spec.turn_max)}
+    side = max(corner_side(math.radians(t), tolerance, acceleration, jerk) for t in turns)
+    if 2.0 * side >= spec.line_min:
+        raise ValueError(f"tolerance = {tolerance:g} mm is too large for the spec's lines: a corner blend takes "
+                         f"{side:.4g} mm of each leg, and a line of line_min = {spec.line_min:g} mm between two "
+                         f"corners needs more than twice that; lower tolerance or raise spec line_min")
 
 
 class RandomContourEnv(ContouringEnv):
@@ -70,8 +91,10 @@ class RandomContourEnv(ContouringEnv):
         self._spec = spec_for(name, spec)
         # the arcs' scale sets the look-ahead's sampling (0.05 mm for the defaults' 2 mm arcs)
         self._spacing = LOOKAHEAD_SPACING * min(1.0, self._spec.radius_min / RandomContourSpec.radius_min)
-        self._tolerance = tolerance
         self._limits = path_limits(name, acceleration, jerk)
+        self._tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm")
+        if self._tolerance is not None:
+            check_blends_fit(self._spec, self._tolerance, *self._limits)
         self._kwargs = {"plant": plant, "profile": "lookahead", **kwargs}
         self._render = render_mode
         self.program_text = random_program(np.random.default_rng(0), self._spec)

@@ -22,11 +22,11 @@ import os
 from pathlib import Path
 
 from .interpreter import ARC_RADIUS_TOLERANCE, MM_PER_INCH, Move, Program, interpret, read_program_text
-from .lexer import GCodeError, lex
+from .lexer import MAX_LINE_LENGTH, MAX_LINES, MAX_PROGRAM_BYTES, GCodeError, lex
 from .toolpath import PROFILES, Joint, Toolpath, build_toolpath
 
 __all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move", "PATH_LIMITS", "PROFILES", "Program",
-           "Toolpath", "build_toolpath", "interpret", "lex", "load_text", "path_limits", "read_program",
+           "Toolpath", "build_toolpath", "decode", "interpret", "lex", "load_text", "path_limits", "read_program",
            "read_program_text"]
 
 #: Path acceleration (mm/s^2) and jerk (mm/s^3) limits by plant: those the suite already plans with for
@@ -44,8 +44,12 @@ SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".txt")
 
 def path_limits(plant: str, acceleration: float | None = None, jerk: float | None = None) -> tuple[float, float]:
     """(acceleration mm/s^2, jerk mm/s^3) for ``plant``: those given, else :data:`PATH_LIMITS`'s."""
+    from ..validation import positive
+
+    acceleration = None if acceleration is None else positive("acceleration", acceleration, "mm/s^2")
+    jerk = None if jerk is None else positive("jerk", jerk, "mm/s^3")
     if acceleration is not None and jerk is not None:
-        return float(acceleration), float(jerk)
+        return acceleration, jerk
     name = plant if isinstance(plant, str) else getattr(plant, "name", str(plant))
     if name not in PATH_LIMITS:
         raise ValueError(f"no path acceleration and jerk limits are known for plant {name!r} (known: "
@@ -56,16 +60,57 @@ def path_limits(plant: str, acceleration: float | None = None, jerk: float | Non
 
 def load_text(program) -> tuple[str, str]:
     """(text, name) of ``program``: a path (``os.PathLike``, or a one-line str naming a file or ending in
-    one of :data:`SUFFIXES`), or the program's text itself."""
+    one of :data:`SUFFIXES`), or the program's text itself.
+
+    A file larger than :data:`~vcnc_gym.gcode.lexer.MAX_PROGRAM_BYTES` is refused before it is read.  Its
+    bytes are read as UTF-8; a line that is not UTF-8 (a comment written by an older post-processor) is read
+    as ISO 8859-1 (Latin-1), in which every byte is a character: the lexer then names the line if the
+    character stands outside a comment.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    GCodeError
+        A file too large or that cannot be read (permissions, a folder), naming it.
+    """
     if isinstance(program, os.PathLike) or (isinstance(program, str) and "\n" not in program
                                             and (program.lower().endswith(SUFFIXES) or Path(program).is_file())):
         path = Path(program)
         if not path.is_file():
             raise FileNotFoundError(f"program file {str(path)!r} not found")
-        return path.read_text(), path.stem
+        try:
+            size = path.stat().st_size
+            if size > MAX_PROGRAM_BYTES:
+                raise GCodeError(f"program file {str(path)!r} has {size:,} bytes: at most MAX_PROGRAM_BYTES = "
+                                 f"{MAX_PROGRAM_BYTES:,} are read ({MAX_LINES:,} lines of {MAX_LINE_LENGTH} "
+                                 "characters)")
+            with open(path, "rb") as f:
+                data = f.read(MAX_PROGRAM_BYTES + 1)  # a file that grew since: still bounded
+        except OSError as exc:
+            raise GCodeError(f"program file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
+        if len(data) > MAX_PROGRAM_BYTES:
+            raise GCodeError(f"program file {str(path)!r} has more than MAX_PROGRAM_BYTES = {MAX_PROGRAM_BYTES:,} "
+                             "bytes")
+        return decode(data), path.stem
     if not isinstance(program, str):
         raise TypeError(f"program must be G-code text or a path to a file, got {type(program).__name__}")
     return program, "program"
+
+
+def decode(data: bytes) -> str:
+    """A program's bytes as text: UTF-8, each line that is not UTF-8 as ISO 8859-1 (:func:`load_text`)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        pass
+    out = []
+    for line in data.split(b"\n"):
+        try:
+            out.append(line.decode("utf-8"))
+        except UnicodeDecodeError:
+            out.append(line.decode("latin-1"))
+    return "\n".join(out)
 
 
 def read_program(program, tolerance: float | None = 0.01, *, acceleration: float = 1000.0, jerk: float = 3.0e4,
@@ -91,12 +136,12 @@ def read_program(program, tolerance: float | None = 0.01, *, acceleration: float
     GCodeError
         A bad program, naming the line and the word.
     """
-    text, name = load_text(program)
+    from ..validation import non_negative, positive
+
     if tolerance is not None:
-        if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not tolerance > 0 \
-                or tolerance != tolerance or tolerance == float("inf"):
-            raise ValueError(f"tolerance must be a corner blending tolerance > 0 in mm, or None for sharp "
-                             f"corners, got {tolerance!r}")
-        tolerance = float(tolerance)
+        tolerance = positive("tolerance (the corner blending tolerance; None for sharp corners)", tolerance, "mm")
+    acceleration, jerk = positive("acceleration", acceleration, "mm/s^2"), positive("jerk", jerk, "mm/s^3")
+    arc_tolerance, spacing = non_negative("arc_tolerance", arc_tolerance, "mm"), positive("spacing", spacing, "mm")
+    text, name = load_text(program)
     return build_toolpath(read_program_text(text, arc_tolerance=arc_tolerance, name=name), tolerance,
-                          float(acceleration), float(jerk), float(spacing))
+                          acceleration, jerk, spacing)

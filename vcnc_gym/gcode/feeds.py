@@ -32,10 +32,18 @@ from ..motion import LookaheadFeedrate
 from ..motion.jlap import JlapPlan, JlapSection
 from ..motion.lookahead import DEFAULT_SPACING
 
-__all__ = ["TANGENT_ANGLE", "ProgramFeedrate", "ProgramProfile"]
+__all__ = ["TANGENT_ANGLE", "KINK_ANGLE", "ProgramFeedrate", "ProgramProfile"]
 
 #: Largest turn of the tangent between two blocks run through without a stop, rad (1 mrad = 0.057 deg).
 TANGENT_ANGLE = 1e-3
+
+#: Largest kink between two G01 moves that is run through, at the feed, when the corner blend at the tolerance
+#: does not fit in the moves, rad (1 degree).  CAM systems write arcs and free-form curves as chords (a 1 mm
+#: chord of a 100 mm radius turns by 0.57 degrees); a CNC's look-ahead passes such kinks without a stop (its
+#: corner velocity tolerance), where the blend of a larger corner would eat more than the move.  At the feed V
+#: the velocity's direction jumps by V times the angle: 1.7 mm/s at 100 mm/s and 1 degree.  A larger corner
+#: whose blend does not fit is an error naming the move.
+KINK_ANGLE = math.radians(1.0)
 
 # block boundaries closer than this (relative to the section's length) to an arc-length sample are at it
 _EDGE = 1e-9
@@ -47,7 +55,7 @@ class ProgramFeedrate(LookaheadFeedrate):
     Parameters
     ----------
     curve : NurbsCurve
-        The section, no corner above ``TANGENT_ANGLE``.
+        The section, no corner above ``KINK_ANGLE`` (the toolpath's kinks, run through).
     edges : (n + 1,) array
         Arc lengths of the block boundaries along the section, mm, from 0 to its length.
     feeds : (n,) array
@@ -73,7 +81,7 @@ class ProgramFeedrate(LookaheadFeedrate):
         inner, angle = self.curve.knot_turns()
         if not inner.size:
             return
-        if np.max(angle) > TANGENT_ANGLE:  # the toolpath puts stops there: a bug if reached
+        if np.max(angle) > KINK_ANGLE:  # the toolpath puts stops or blends there: a bug if reached
             raise ValueError(f"section with a corner of {math.degrees(float(np.max(angle))):.4g} degrees")
 
     def feed_limit(self, arc: np.ndarray) -> np.ndarray:

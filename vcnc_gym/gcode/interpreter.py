@@ -19,7 +19,7 @@ What is read
   arcs in the XY plane (seen from +Z), with the centre's offsets **I**, **J**
   from the start point (incremental, RS-274's default), or the radius **R**:
   R > 0 for the arc of at most 180 degrees, R < 0 for the longer one.  A
-  G02/G03 whose end point is its start point (to 1e-9 of the program's size)
+  G02/G03 whose end point is its start point (to ``ZERO_LENGTH``, 1 nm)
   with I/J is a full circle; with R it is an error (no centre is defined).
 - **G17** (the XY plane) only; G18/G19 are errors.  **G90**/**G91**
   absolute/incremental X and Y.  **G20**/**G21** inch/mm (mm at the start),
@@ -47,7 +47,10 @@ its centre onto the perpendicular bisector of its chord (the nearest such
 point to the programmed centre), as a control that ends the arc on its
 programmed end point must; ``Move.centre_shift`` records the shift.
 
-A cutting move that goes nowhere (a G01 to its own start point) is dropped
+Numbers beyond ``MAX_COORDINATE`` (X, Y, I, J, R, mm), ``MAX_FEED`` (F, mm/min) or
+``MAX_LINE_NUMBER`` (N, a whole number >= 0) are errors naming the line and the word.
+
+A cutting move that goes nowhere (a G01 to its own start point, within ``ZERO_LENGTH`` = 1 nm) is dropped
 with a warning (``Program.warnings`` and Python's ``warnings``); a G01/G02/
 G03 block without X or Y (a Z-only plunge) moves nothing in XY and is listed
 in ``Program.ignored``.
@@ -63,7 +66,7 @@ import numpy as np
 
 from .lexer import Block, GCodeError, Word, lex
 
-__all__ = ["ARC_RADIUS_TOLERANCE", "RADIUS_TOLERANCE", "MM_PER_INCH", "Move", "Program", "interpret",
+__all__ = ["ARC_RADIUS_TOLERANCE", "RADIUS_TOLERANCE", "ZERO_LENGTH", "MAX_COORDINATE", "MAX_FEED", "MM_PER_INCH", "Move", "Program", "interpret",
            "read_program_text"]
 
 #: mm per inch (exact, by the international yard and pound agreement of 1959).
@@ -77,8 +80,19 @@ ARC_RADIUS_TOLERANCE = 2 * 0.01 * math.sqrt(2.0)
 #: LinuxCNC's RADIUS_TOLERANCE_MM = 0.00005 in (interp_internal.hh).
 RADIUS_TOLERANCE = 0.00005 * MM_PER_INCH
 
-#: A move shorter than this fraction of the program's size (max |coordinate|, at least 1 mm) goes nowhere.
-ZERO_LENGTH = 1e-9
+#: A move shorter than this goes nowhere, mm: 1 nm, the least input increment of the finest increment system
+#: of CNCs (FANUC's IS-E); absolute, so no other word of the program (a far rapid, a large R) changes it.
+ZERO_LENGTH = 1e-6
+
+#: Largest absolute value of X, Y, I, J and R read, mm (after G20's inch): 100 m, beyond any machine tool's travel; a
+#: larger number (a typo, an overflow to inf) is an error naming its line and word.
+MAX_COORDINATE = 1.0e5
+
+#: Largest feed read, mm/min (after G20): 1e6 mm/min = 16.7 m/s, above any machine tool's rapid traverse.
+MAX_FEED = 1.0e6
+
+#: Largest N line number: 8 digits (FANUC's N99999999).
+MAX_LINE_NUMBER = 99_999_999
 
 # G codes by meaning (G numbers as floats, as pygcode gives them)
 _MOTION = {0.0: "rapid", 1.0: "line", 2.0: "cw", 3.0: "ccw"}
@@ -216,7 +230,6 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
     ignored: list[tuple[int, str, str]] = []
     dropped: list[str] = []
     start = np.zeros(2)
-    size = max(1.0, max((abs(w.value) for b in blocks for w in b.words if w.letter in "XYIJR"), default=1.0))
     rapid_after_cut: tuple[Block, Word] | None = None
     for index, block in enumerate(blocks):
         err = lambda msg, word=None: GCodeError(msg, block.line, _fmt(word) or None, block.text)  # noqa: E731
@@ -252,6 +265,7 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
             elif w.letter not in _USED_LETTERS:
                 raise err(f"word {w.text}: the letter {w.letter} is not supported (read: G, N, F, X, Y, I, J, R, "
                           f"and M, T, S, O, Z listed as ignored)", w)
+        _check_ranges(block, state.scale, err)
         f = block.get("F")
         if f is not None:
             if not f.value > 0:
@@ -284,7 +298,7 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
             if arc_words:
                 raise err(f"word {arc_words[0].text} has no meaning in G00", arc_words[0])
             if moves:
-                if np.hypot(*(target - state.position)) > ZERO_LENGTH * size:
+                if np.hypot(*(target - state.position)) > ZERO_LENGTH:
                     rapid_after_cut = (block, x or y)
                 ignored.append((block.line, (motion_word or x or y).text, "rapid after the cut"))
             else:
@@ -305,14 +319,14 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
         if state.motion == "line":
             if arc_words:
                 raise err(f"word {arc_words[0].text} has no meaning in G01", arc_words[0])
-            if np.hypot(*(target - state.position)) <= ZERO_LENGTH * size:
+            if np.hypot(*(target - state.position)) <= ZERO_LENGTH:
                 msg = f"line {block.line} ({block.text.strip()!r}): G01 to its own start point dropped (zero length)"
                 dropped.append(msg)
                 warnings.warn(msg, stacklevel=3)
                 continue
             moves.append(Move("line", state.position.copy(), target, state.feed, block.line, n, "G01"))
         else:
-            moves.append(_arc(state, target, i, j, r, block, n, size, arc_tolerance, err))
+            moves.append(_arc(state, target, i, j, r, block, n, arc_tolerance, err))
         state.position = target
         if ended:
             _skip_rest(blocks[index + 1:], ignored)
@@ -320,6 +334,17 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
     if not moves:
         raise GCodeError("the program has no cutting move (G01, G02 or G03 with X/Y): nothing to contour")
     return Program(moves=moves, start=start, ignored=ignored, warnings=dropped, name=name)
+
+
+def _check_ranges(block: Block, scale: float, err) -> None:
+    """GCodeError naming the word of ``block`` whose number is out of range (module docstring)."""
+    for w in block.words:
+        if w.letter in "XYIJR" and not abs(w.value) * scale <= MAX_COORDINATE:
+            raise err(f"word {w.text}: |{w.letter}| must be at most {MAX_COORDINATE:g} mm (100 m)", w)
+        if w.letter == "F" and not w.value * scale <= MAX_FEED:
+            raise err(f"word {w.text}: the feed must be at most {MAX_FEED:g} mm/min", w)
+        if w.letter == "N" and not (0 <= w.value <= MAX_LINE_NUMBER and w.value == int(w.value)):
+            raise err(f"word {w.text}: a line number must be a whole number in [0, {MAX_LINE_NUMBER}]", w)
 
 
 def _code(motion: str) -> str:
@@ -331,14 +356,14 @@ def _skip_rest(rest: list[Block], ignored: list) -> None:
         ignored.append((b.line, b.text.strip(), "after the program end (M02/M30)"))
 
 
-def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, size: float, tolerance: float, err) -> Move:
+def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, tolerance: float, err) -> Move:
     """An arc move from the words (module docstring)."""
     ccw = state.motion == "ccw"
     code = "G03" if ccw else "G02"
     p0 = state.position.copy()
     chord = end - p0
     d = float(np.hypot(*chord))
-    closed = d <= ZERO_LENGTH * size
+    closed = d <= ZERO_LENGTH
     if r is not None and (i is not None or j is not None):
         raise err(f"{code} with both R and I/J: give one", r)
     if r is None and i is None and j is None:
@@ -365,7 +390,7 @@ def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, size: fl
         offset = np.array([0.0 if i is None else i.value, 0.0 if j is None else j.value]) * state.scale
         programmed = p0 + offset
         r0 = float(np.hypot(*offset))
-        if r0 <= ZERO_LENGTH * size:
+        if r0 <= ZERO_LENGTH:
             raise err(f"{code} centre offsets {_fmt(i)} {_fmt(j)} put the centre on the start point".replace("  ", " "),
                       i or j)
         r1 = float(np.hypot(*(end - programmed)))

@@ -1,6 +1,8 @@
 """Lexing G-code text into blocks of words, through pygcode.
 
-A part program is read line by line; each line is one block (RS-274/NGC,
+A part program is read line by line (lines end at LF, CR LF or CR; a form
+feed or vertical tab, which tapes and old posts put between sections, is
+white space); each line is one block (RS-274/NGC,
 Kramer, Proctor and Messina 2000, NIST IR 6556, section 3.3: an optional
 block delete ``/``, an optional line number ``N``, words, comments).  The
 lexing itself is pygcode's (``pygcode.Line``): it splits a line into its
@@ -42,6 +44,12 @@ program is read: the rest of the suite does not link it.  It has had no
 release since 2017; the lexing surface we use (``Line``, ``Word``) is small
 and covered by our tests, so a fork or a replacement is a one-module change.
 
+Block delete: a ``/`` (or FANUC's optional block skip ``/1`` to ``/9``) that
+starts a block is read with the switch off: the block runs, as on a control
+whose block delete switch is off (RS-274/NGC 3.3; a ``/`` anywhere else is an
+error naming the line).  The size of a program is checked before anything is
+lexed: at most ``MAX_LINES`` lines of ``MAX_LINE_LENGTH`` characters.
+
 What this module does not do: it gives no meaning to the words (that is
 :mod:`vcnc_gym.gcode.interpreter`).
 """
@@ -51,7 +59,22 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-__all__ = ["GCodeError", "Block", "Word", "lex"]
+__all__ = ["GCodeError", "Block", "Word", "lex", "split_lines", "check_size", "MAX_LINE_LENGTH", "MAX_LINES",
+           "MAX_PROGRAM_BYTES"]
+
+#: Longest line read, characters: LinuxCNC's LINELEN = 255 (src/emc/rs274ngc/interp_internal.hh).  Checked for
+#: every line before any is lexed.
+MAX_LINE_LENGTH = 255
+
+#: Most lines a program may have: 20 000 (a contour of 20 000 blocks is minutes of cutting at 100 mm/s with
+#: 1 mm moves).  Checked before any line is lexed.  The work below the ceiling is long: on the 2-core CI host a
+#: 10 000-chord program (4.6 m of path) is read in 7 s and its feed planned in 93 s (the look-ahead's
+#: ~9 ms per knot span, vcnc_gym.motion.lookahead).
+MAX_LINES = 20_000
+
+#: Largest program read, bytes: MAX_LINES lines of MAX_LINE_LENGTH characters and a line end (5.1 MB).  A
+#: file's size is checked before it is read.
+MAX_PROGRAM_BYTES = MAX_LINES * (MAX_LINE_LENGTH + 2)
 
 
 class GCodeError(ValueError):
@@ -128,8 +151,6 @@ def _check_covered(block, number: int, raw: str) -> None:
     """GCodeError unless the block's text (comments removed) is words and nothing else: pygcode reads
     ``X1.2.3 F10`` as X1.2 F10, skipping text between two words that it would reject at the end."""
     text = (block._raw_text or "").strip()
-    if text.startswith("/"):  # block delete: run (the switch is off)
-        text = text[1:]
     pos, count = 0, 0
     while pos < len(text):
         m = _WORD.match(text, pos)
@@ -137,12 +158,45 @@ def _check_covered(block, number: int, raw: str) -> None:
             rest = text[pos:].strip()
             if not rest:
                 break
-            raise GCodeError(f"cannot be lexed: {rest!r} is not a word (a letter and a number)", number,
+            hint = (": a block delete '/' must start the block (RS-274/NGC 3.3)" if rest.startswith("/") else "")
+            raise GCodeError(f"cannot be lexed: {rest!r} is not a word (a letter and a number){hint}", number,
                              rest.split()[0], raw)
         pos = m.end()
         count += 1
     if count != len(block.words):
         raise GCodeError(f"cannot be lexed: {count} words written, pygcode read {len(block.words)}", number, None, raw)
+
+
+# a block delete (RS-274/NGC 3.3) or FANUC's optional block skip /1-/9 at the start of a block
+_BLOCK_DELETE = re.compile(r"^\s*/[1-9]?")
+# the line ends of a program text: LF, CR LF, CR (str.splitlines would also split at form feeds and \x1c-\x1e)
+_LINE_END = re.compile(r"\r\n|\r|\n")
+# white space that str.strip() knows and pygcode may not: form feed, vertical tab
+_WHITE = str.maketrans({"\f": " ", "\v": " "})
+
+
+def split_lines(text: str) -> list[str]:
+    """The lines of a program text: split at LF, CR LF and CR only (a form feed is white space in a line)."""
+    lines = _LINE_END.split(text)
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
+def check_size(text: str, name: str = "program") -> list[str]:
+    """The lines of ``text``; GCodeError if it has more than ``MAX_LINES`` lines or a line longer than
+    ``MAX_LINE_LENGTH`` characters (checked before anything is lexed: a fraction of a second for the largest)."""
+    if len(text) > MAX_PROGRAM_BYTES:
+        raise GCodeError(f"{name} has {len(text):,} characters: at most {MAX_PROGRAM_BYTES:,} are read "
+                         f"(MAX_LINES = {MAX_LINES:,} lines of MAX_LINE_LENGTH = {MAX_LINE_LENGTH} characters)")
+    lines = split_lines(text)
+    if len(lines) > MAX_LINES:
+        raise GCodeError(f"{name} has {len(lines):,} lines: at most MAX_LINES = {MAX_LINES:,} are read; split it")
+    longest = max(range(len(lines)), key=lambda k: len(lines[k]), default=None)
+    if longest is not None and len(lines[longest]) > MAX_LINE_LENGTH:
+        raise GCodeError(f"the line has {len(lines[longest]):,} characters: at most MAX_LINE_LENGTH = "
+                         f"{MAX_LINE_LENGTH} (LinuxCNC's LINELEN)", longest + 1, None, lines[longest][:40] + "...")
+    return lines
 
 
 def _pygcode():
@@ -164,12 +218,19 @@ def lex(text: str) -> list[Block]:
     """
     if not isinstance(text, str):
         raise TypeError(f"program text must be a str, got {type(text).__name__}")
+    lines = check_size(text)
     pygcode = _pygcode()
     blocks = []
-    for number, raw in enumerate(text.splitlines(), start=1):
-        if not raw.strip() or _PERCENT.match(raw):
+    for number, raw in enumerate(lines, start=1):
+        line = raw.translate(_WHITE)
+        if not line.strip() or _PERCENT.match(line):
             continue
-        cleaned = _PLUS.sub(r"\1", raw)
+        skip = _BLOCK_DELETE.match(line)
+        if skip is not None:  # block delete, switch off: the block runs
+            line = " " * skip.end() + line[skip.end():]
+            if not line.strip():
+                continue
+        cleaned = _PLUS.sub(r"\1", line)
         depth = 0
         for ch in cleaned:
             if ch == ";" and depth == 0:

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RandomContourSpec", "PLANT_SPECS", "spec_for", "random_program"]
+__all__ = ["RandomContourSpec", "PLANT_SPECS", "spec_for", "random_program", "MAX_MOVES", "MAX_EXTENT"]
 
 
 @dataclass(frozen=True)
@@ -59,16 +59,44 @@ class RandomContourSpec:
     feed_max: float = 6000.0
 
     def __post_init__(self):
+        from ..validation import integer, positive, real
+
+        set_ = object.__setattr__  # frozen: the checked values replace the given ones (4.0 -> 4 refused)
+        set_(self, "moves_min", integer("spec moves_min", self.moves_min, 1, MAX_MOVES))
+        set_(self, "moves_max", integer("spec moves_max", self.moves_max, 1, MAX_MOVES))
+        for name in ("line", "turn", "radius", "sweep", "feed"):
+            for end in ("min", "max"):
+                field = f"{name}_{end}"
+                set_(self, field, positive(f"spec {field}", getattr(self, field), _UNITS[name]))
+        set_(self, "line_probability", real("spec line_probability", self.line_probability))
         pairs = [("moves", self.moves_min, self.moves_max), ("line", self.line_min, self.line_max),
                  ("turn", self.turn_min, self.turn_max), ("radius", self.radius_min, self.radius_max),
                  ("sweep", self.sweep_min, self.sweep_max), ("feed", self.feed_min, self.feed_max)]
         for name, lo, hi in pairs:
-            if not (0 < lo <= hi) or not math.isfinite(hi):
-                raise ValueError(f"{name}_min and {name}_max must satisfy 0 < min <= max < inf, got {lo!r}, {hi!r}")
+            if not lo <= hi:
+                raise ValueError(f"spec {name}_min must be at most {name}_max, got {lo!r} > {hi!r}")
         if self.turn_max >= 180.0 or self.sweep_max > 360.0:
-            raise ValueError("turn_max must be < 180 degrees (no U-turn) and sweep_max <= 360 degrees")
+            raise ValueError("spec turn_max must be < 180 degrees (no U-turn) and sweep_max <= 360 degrees")
+        if math.floor(self.turn_max) < math.ceil(self.turn_min):
+            raise ValueError(f"spec turn_min..turn_max ({self.turn_min:g}..{self.turn_max:g} degrees) holds no whole "
+                             "degree (turns are drawn in whole degrees)")
         if not 0.0 <= self.line_probability <= 1.0:
-            raise ValueError(f"line_probability must be in [0, 1], got {self.line_probability!r}")
+            raise ValueError(f"spec line_probability must be in [0, 1], got {self.line_probability!r}")
+        extent = self.moves_max * max(self.line_max, 2.0 * self.radius_max)
+        if extent > MAX_EXTENT:
+            raise ValueError(f"spec moves_max x the longest move (line_max, or an arc's chord up to 2 radius_max) "
+                             f"= {extent:g} mm: at most MAX_EXTENT = {MAX_EXTENT:g} mm, so that every contour "
+                             "stays within the observation's position bound (1000 mm)")
+
+
+#: Most moves a random program may have (``moves_max``).
+MAX_MOVES = 1000
+
+#: Largest reach of a random contour from its start, mm: moves_max x the longest move must not exceed it (the
+#: observation bounds positions at 1000 mm; the defaults reach 8 x 40 = 320 mm).
+MAX_EXTENT = 900.0
+
+_UNITS = {"line": "mm", "turn": "degrees", "radius": "mm", "sweep": "degrees", "feed": "mm/min"}
 
 
 #: The default draws of a plant whose scale is not the defaults' (the defaults are Jahanpour et al. (2014)'s

@@ -34,12 +34,12 @@ import numpy as np
 from ..geometry.corners import bezier_arc_length, blend_control_points, corner_length, design_corner
 from ..geometry.nurbs import NurbsCurve
 from . import arcs
-from ..motion.lookahead import DEFAULT_SPACING
-from .feeds import TANGENT_ANGLE, ProgramFeedrate, ProgramProfile
+from ..motion.lookahead import DEFAULT_SPACING, MAX_LIMIT_SAMPLES
+from .feeds import KINK_ANGLE, TANGENT_ANGLE, ProgramFeedrate, ProgramProfile
 from .interpreter import Move, Program
 from .lexer import GCodeError
 
-__all__ = ["Joint", "Toolpath", "build_toolpath", "PROFILES"]
+__all__ = ["Joint", "Toolpath", "build_toolpath", "corner_side", "PROFILES"]
 
 #: Feed profiles a toolpath can be run with: the look-ahead with every block's feed and exact stops
 #: (default), or, for a program with one feed, Jahanpour et al.'s S-curve or a constant feed from t = 0 (no stops).
@@ -48,6 +48,7 @@ PROFILES = ("lookahead", "scurve", "constant")
 
 #: A joint whose tangent turns by more than pi minus this (rad) turns back on itself: an error.
 U_TURN_ANGLE = 1e-6
+
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,9 @@ class Joint:
     angle : float
         How far the tangent turns there, rad (0: tangent, pi: a U-turn).
     kind : str
-        ``"tangent"`` (<= TANGENT_ANGLE, run through), ``"blend"`` (Simba et al.'s blend) or ``"stop"`` (exact stop).
+        ``"tangent"`` (<= TANGENT_ANGLE, run through), ``"blend"`` (Simba et al.'s blend), ``"kink"`` (a corner
+        between two G01 moves of at most ``KINK_ANGLE`` whose blend does not fit: run through) or ``"stop"``
+        (exact stop).
     """
 
     lines: tuple
@@ -201,28 +204,33 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
         if angle <= TANGENT_ANGLE:
             kind = "tangent"
         elif tolerance is not None and a.kind == b.kind == "line":
-            kind = "blend"
+            # a blend passing the corner at the tolerance reaches at least tolerance / sin(turn / 2) along each
+            # leg (it lies in the triangle of the vertex and its ends): a kink whose shorter leg is shorter
+            # cannot be blended, and is known so without designing the blend (a CAM program's thousands of chords)
+            short = tolerance / math.sin(0.5 * angle) >= min(a.length, b.length)
+            kind = "kink" if angle <= KINK_ANGLE and short else "blend"
         else:
             kind = "stop"
         joints.append(Joint((a.line, b.line), angle, kind))
 
-    segments: list[_Segment] = []
-    stop_after: list[int] = []  # segment counts at which an exact stop falls
-    k = 0
-    while k < len(moves):
-        m = moves[k]
-        if m.kind == "arc":
-            segments += [_Segment(p, length, m.feed, k, False, m.radius) for p, length in _arc_pieces(m)]
-            k += 1
-        else:
-            run = [k]  # lines joined by blends
-            while run[-1] < len(joints) and joints[run[-1]].kind == "blend":
-                run.append(run[-1] + 1)
-            segments += _lines(moves, run, tolerance, acceleration, jerk)
-            k = run[-1] + 1
-        if k - 1 < len(joints) and joints[k - 1].kind == "stop":
-            stop_after.append(len(segments))
+    while True:
+        try:
+            segments, stop_after = _segments(moves, joints, tolerance, acceleration, jerk)
+            break
+        except _NoFit as no_fit:  # kinks of CAM chords: run through (KINK_ANGLE), then build again
+            kinks = [k for k in no_fit.joints if joints[k].angle <= KINK_ANGLE]
+            if not kinks:
+                raise no_fit.error from None
+            for k in kinks:
+                joints[k] = Joint(joints[k].lines, joints[k].angle, "kink")
 
+    samples = sum(max(8, math.ceil(s.length / spacing)) + 1 for s in segments)
+    if samples > MAX_LIMIT_SAMPLES:  # before the look-ahead samples it (its own check comes after the work)
+        length = sum(s.length for s in segments)
+        raise GCodeError(f"the program's path is {length:.6g} mm long in {len(segments)} segments: the look-ahead "
+                         f"samples its curvature every {spacing:g} mm and plans at most MAX_LIMIT_SAMPLES = "
+                         f"{MAX_LIMIT_SAMPLES:,} samples (vcnc_gym.motion.lookahead), about "
+                         f"{MAX_LIMIT_SAMPLES * spacing:g} mm of path; split the program into shorter contours")
     degree = max(s.points.shape[0] - 1 for s in segments)
     degree = 5 if degree > 2 else 2
     lengths = np.array([s.length for s in segments])
@@ -244,6 +252,42 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
                     feeds=feeds, stops=tuple(stop_after), segment_moves=segment_moves,
                     segment_blends=segment_blends, acceleration=acceleration, jerk=jerk, spacing=spacing,
                     _sections=tuple(sections))
+
+
+def _segments(moves, joints, tolerance, acceleration, jerk):
+    """(segments, stop_after) of the moves joined as ``joints`` says (:func:`build_toolpath`)."""
+    segments: list[_Segment] = []
+    stop_after: list[int] = []  # segment counts at which an exact stop falls
+    failed = None
+    k = 0
+    while k < len(moves):
+        m = moves[k]
+        if m.kind == "arc":
+            segments += [_Segment(p, length, m.feed, k, False, m.radius) for p, length in _arc_pieces(m)]
+            k += 1
+        else:
+            run = [k]  # lines joined by blends
+            while run[-1] < len(joints) and joints[run[-1]].kind == "blend":
+                run.append(run[-1] + 1)
+            try:
+                segments += _lines(moves, run, tolerance, acceleration, jerk)
+            except _NoFit as no_fit:  # go on: every move whose blends do not fit, in one pass
+                failed = failed or no_fit
+                failed.joints += [j for j in no_fit.joints if j not in failed.joints]
+            k = run[-1] + 1
+        if k - 1 < len(joints) and joints[k - 1].kind == "stop":
+            stop_after.append(len(segments))
+    if failed is not None:
+        raise failed
+    return segments, stop_after
+
+
+class _NoFit(Exception):
+    """The blends of a move do not fit: ``joints`` the blended corners at its ends, ``error`` the GCodeError."""
+
+    def __init__(self, joints: list, error: GCodeError):
+        super().__init__(str(error))
+        self.joints, self.error = joints, error
 
 
 def _cuts(segments: list, acceleration: float, jerk: float) -> np.ndarray:
@@ -283,6 +327,15 @@ def _design(theta: float, tolerance: float, acceleration: float, jerk: float):
     return design
 
 
+def corner_side(turn: float, tolerance: float, acceleration: float, jerk: float) -> float:
+    """How much of each leg Simba et al.'s blend of a corner takes, mm: the side l_s of eq. (22) of a corner
+    where the tangent turns by ``turn`` rad, at ``tolerance`` mm (as :func:`build_toolpath` blends it)."""
+    theta = math.pi - turn
+    design = _design(theta, tolerance, acceleration, jerk)
+    return max(corner_length(theta, tolerance, design.n),
+               corner_length(theta, tolerance, max(design.n_a, design.n_j)))
+
+
 def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> list[_Segment]:
     """Segments of consecutive G01 moves ``run`` joined by Simba et al.'s blends (one move: a straight segment).
 
@@ -298,19 +351,31 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
     for k in range(len(run) - 1):
         d_in, d_out = dirs[k], dirs[k + 1]
         theta = math.pi - _turn(d_in, d_out)  # the interior angle of Simba et al.'s Fig. 3
-        design = _design(theta, tolerance, acceleration, jerk)
+        try:
+            design = _design(theta, tolerance, acceleration, jerk)
+        except ValueError as exc:  # a corner sharper than the blend design reaches
+            raise GCodeError(f"the corner where this move begins cannot be blended: {exc}", moves[run[k + 1]].line,
+                             moves[run[k + 1]].code) from None
         l_t = corner_length(theta, tolerance, design.n)
         l_s = max(l_t, corner_length(theta, tolerance, max(design.n_a, design.n_j)))
         ctrl = blend_control_points(vertices[k + 1], d_in, d_out, l_t, design.n)
         blends.append((ctrl, bezier_arc_length(ctrl)))
         sides.append(l_s)
     sides.append(0.0)
+    failed = None
     for k, i in enumerate(run):
         need = sides[k] + sides[k + 1]
         if need >= moves[i].length:
-            raise GCodeError(f"the corner blends do not fit: tolerance = {tolerance:g} mm is too large for this "
-                             f"{moves[i].length:.6g} mm move; its corner segments take {need:.6g} mm (side l_s of "
-                             "Simba et al.'s eq. (22))", moves[i].line, f"tolerance={tolerance!r}")
+            corners = [i - 1] * (k > 0) + [i] * (k < len(run) - 1)  # the joints at its ends (joint j: moves j, j+1)
+            if failed is None:
+                failed = _NoFit([], GCodeError(
+                    f"the corner blends do not fit: tolerance = {tolerance:g} mm is too large for this "
+                    f"{moves[i].length:.6g} mm move; its corner segments take {need:.6g} mm (side l_s of Simba et "
+                    f"al.'s eq. (22)); corners of at most {math.degrees(KINK_ANGLE):g} degree are run through",
+                    moves[i].line, f"tolerance={tolerance!r}"))
+            failed.joints += [j for j in corners if j not in failed.joints]
+    if failed is not None:
+        raise failed
     out = []
     start = np.asarray(vertices[0], dtype=np.float64)
     for k, i in enumerate(run):

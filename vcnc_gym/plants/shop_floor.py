@@ -199,6 +199,25 @@ class ShopFloorModel(PlantModel):
     inner: PlantModel | None = None
 
 
+#: The effects counted in whole numbers: their settings must be whole numbers (``command_delay=1`` or 1.0; not 1.5
+#: or True).
+COUNTS = ("command_delay", "sensor_delay", "teeth")
+
+
+def _setting(p: Parameter, value) -> tuple:
+    """The (x, y) pair of a shop-floor setting, each through :mod:`vcnc_gym.validation` (a count an integer)."""
+    from ..validation import integer, per_axis
+
+    name = f"shop-floor setting {p.name}"
+    if p.name in COUNTS:
+        items = value if isinstance(value, (tuple, list)) else (value, value)
+        if len(items) != 2:
+            raise ValueError(f"{name} must be an integer or an (x, y) pair of them ({p.unit}), got {value!r}")
+        whole = [int(v) if isinstance(v, float) and v.is_integer() else v for v in items]  # 4.0 (YAML) is 4
+        return tuple(float(integer(f"{name} ({p.unit})", v, minimum=0)) for v in whole)
+    return tuple(float(v) for v in per_axis(name, value, p.unit))
+
+
 def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
     """The plant ``plant`` (a name of :mod:`vcnc_gym.plants` or a PlantModel) on the shop floor.
 
@@ -235,10 +254,7 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
     for p in EFFECT_PARAMETERS:
         if p.name in settings:
             value = settings[p.name]
-            pair = tuple(float(v) for v in (value if isinstance(value, (tuple, list)) else (value, value)))
-            if len(pair) != 2 or not all(math.isfinite(v) for v in pair):
-                raise ValueError(f"shop-floor setting {p.name} [{p.unit}] must be a finite number or an (x, y) "
-                                 f"pair, got {value!r}")
+            pair = _setting(p, value)
             if p.physical_range is not None and not all(p.physical_range[0] <= v <= p.physical_range[1]
                                                         for v in pair):
                 raise ValueError(f"shop-floor setting {p.name} = {value!r} {p.unit} is outside its physical range "
