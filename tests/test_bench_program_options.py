@@ -63,3 +63,18 @@ def test_a_piece_name_that_is_also_a_local_file_is_an_error(tmp_path, monkeypatc
 def test_plants_with_a_program_is_an_error():
     with pytest.raises(ValueError, match="--plants N runs the robust evaluation of registered ids"):
         check_program_options(_args(program=["butterfly"], plants=4))
+
+
+@pytest.mark.parametrize("argv, names", [
+    (["--env", "VCNC-Circle-v1", "--circle", "10", "1200"], "--circle"),
+    (["--env", "VCNC-Circle-v1", "--tolerance", "0.02"], "--tolerance"),
+    (["--program", "iso230-4", "--circle", "inf", "3000"], "--circle"),
+    (["--program", "iso230-4", "--plants", "3"], "--plants"),
+])
+def test_vcnc_bench_refuses_an_option_that_does_not_apply_before_building_anything(argv, names, capsys):
+    from vcnc_bench import cli
+
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv + ["--no-progress"])
+    assert exc.value.code == 2
+    assert names in capsys.readouterr().err

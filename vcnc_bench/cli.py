@@ -74,6 +74,7 @@ from vcnc_gym.envs.registry import LEGACY
 from vcnc_gym.evaluation import EpisodeResult, plot_trials
 from vcnc_gym.validation import size
 
+from .options import check_program_options, program_tolerance
 from .papers import paper_figures
 from . import programs, robust
 from .plots import shown_labels
@@ -211,7 +212,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="a G-code part program (a file, a test piece of vcnc_gym.gcode.pieces.PIECES, or "
                         "'iso230-4': the circular test both ways) run as VCNC-GCode-v1, repeatable; with no --env "
                         "only the programs run (vcnc_bench.programs)")
-    p.add_argument("--tolerance", metavar="MM", default="0.01",
+    p.add_argument("--tolerance", metavar="MM", default=None,
                    help="with --program: corner blending tolerance in mm, or 'sharp' (exact stops; default 0.01)")
     p.add_argument("--circle", nargs=2, type=float, metavar=("D_MM", "F_MM_PER_MIN"),
                    help="with --program iso230-4: the circle's diameter (mm) and feed (mm/min)")
@@ -302,6 +303,10 @@ def _check_arguments(args, parser) -> None:
         parser.error("--all runs every id with every policy; it does not combine with --env or --program")
     if args.program and args.feedrate is not None:
         parser.error("--feedrate does not apply to --program: a program's F words set its feeds")
+    try:
+        check_program_options(args)
+    except ValueError as exc:
+        parser.error(str(exc))
 
 
 def _env_ids(args, parser) -> list[str]:
@@ -332,7 +337,7 @@ def _recipes(args, parser) -> list[EnvRecipe]:
     recipes = [EnvRecipe(e, e, kwargs, specs, learners) for e in _env_ids(args, parser)]
     if args.program:
         try:
-            tolerance = None if args.tolerance == "sharp" else float(args.tolerance)
+            tolerance = program_tolerance(args.tolerance)
             pieces = programs.expand_programs(args.program, args.circle)
         except ValueError as exc:
             parser.error(str(exc))
