@@ -64,6 +64,7 @@ import argparse
 import json
 import math
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -79,7 +80,7 @@ from .papers import paper_figures
 from . import programs, robust
 from .plots import shown_labels
 from .policies import BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, resolve_policy
-from .runner import EnvRecipe, EnvRuns, PolicyBuildError, idle_cores, label_of, run_table
+from .runner import BuildError, EnvRecipe, EnvRuns, idle_cores, label_of, run_table
 
 #: The v0 ids, kept for agents trained on them: benchmarked when named.
 LEGACY_IDS = tuple(e.id for e in LEGACY)
@@ -89,10 +90,12 @@ LEGACY_IDS = tuple(e.id for e in LEGACY)
 #: G-code test piece, the random contour, the feed override, the positioning env).  ``--all`` runs every id of
 #: ``ENV_IDS``; the ones left out here are the S-curve omega and the look-ahead heart (papers' tasks without an
 #: agent), ``VCNC-GCode-v1`` (by default the ISO 230-4 circle of ``VCNC-ISO230Circle-v1``) and two more test pieces.
-DEFAULT_IDS = ("VCNC-Heart-v1", "VCNC-OmegaLookahead-v1", "VCNC-Corners-v1", "VCNC-CornersSmooth-v1",
-               "VCNC-Circle-v1", "VCNC-HeartShop-v1", "VCNC-OmegaLookaheadShop-v1", "VCNC-CornersSmoothShop-v1",
-               "VCNC-CircleShop-v1", "VCNC-ISO230Circle-v1", "VCNC-RandomContour-v1", "VCNC-OmegaOverride-v1",
-               "VCNC-Step-v0")
+#: Grouped by machine (Jahanpour et al. (2014)'s drive, Simba et al.'s, Purtojo et al.'s table, Yadav et al.
+#: (2020)'s axis); the worker pool takes them in this order.
+DEFAULT_IDS = ("VCNC-Heart-v1", "VCNC-HeartShop-v1", "VCNC-ISO230Circle-v1", "VCNC-RandomContour-v1",
+               "VCNC-OmegaLookahead-v1", "VCNC-OmegaLookaheadShop-v1", "VCNC-OmegaOverride-v1",
+               "VCNC-Corners-v1", "VCNC-CornersSmooth-v1", "VCNC-CornersSmoothShop-v1",
+               "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-Step-v0")
 
 __all__ = ["DEFAULT_IDS", "format_table", "main"]
 
@@ -346,10 +349,14 @@ def _recipes(args, parser) -> list[EnvRecipe]:
     return recipes
 
 
-def _build_envs(recipes: list[EnvRecipe], parser) -> dict:
-    """{key: env} of the recipes; a bad argument (``--plant``, ``--feedrate``, a program) exits 2 naming the env."""
+def _build_envs(recipes: list[EnvRecipe], parser, built: dict | None = None) -> dict:
+    """{key: env} of the recipes (those in ``built`` taken from it); a bad argument (``--plant``, ``--feedrate``, a
+    program) exits 2 naming the env."""
     envs = {}
     for r in recipes:
+        if built is not None and r.key in built:
+            envs[r.key] = built[r.key]
+            continue
         try:
             envs[r.key] = r.make()
         except (ValueError, TypeError) as exc:
@@ -357,8 +364,21 @@ def _build_envs(recipes: list[EnvRecipe], parser) -> dict:
     return envs
 
 
-def _cost(envs: dict):
-    """A recipe's run time estimate for the pool's order: its episode steps."""
+def _build_quietly(recipes: list[EnvRecipe], built: dict) -> None:
+    """Build the recipes' envs into ``built``, stopping at the first that fails (:func:`_build_envs` then says
+    why, if the workers did not)."""
+    for r in recipes:
+        try:
+            built[r.key] = r.make()
+        except Exception:  # noqa: BLE001  (reported by _build_envs on the main thread)
+            return
+
+
+def _cost(envs: dict | None):
+    """A recipe's run time estimate for the pool's order: its episode steps (none without the envs: the
+    recipes' order, longest first in :data:`DEFAULT_IDS`)."""
+    if envs is None:
+        return None
     return lambda r: float(getattr(envs[r.key].unwrapped, "episode_steps", 0))
 
 
@@ -385,13 +405,13 @@ def _progress_line(result: EnvRuns, done: int, total: int) -> None:
           file=sys.stderr, flush=True)
 
 
-def _run(args, recipes: list[EnvRecipe], envs: dict, parser, jobs: int) -> dict:
-    """{key: EnvRuns} of every recipe; a policy that cannot be built exits 2 naming it and the env."""
+def _run(args, recipes: list[EnvRecipe], envs: dict | None, parser, jobs: int) -> dict:
+    """{key: EnvRuns} of every recipe; an env or a policy that cannot be built exits 2 naming it."""
     try:
         return run_table(recipes, seed=args.seed, trials=args.trials or DEFAULT_TRIALS, jobs=jobs, envs=envs,
                          cost=_cost(envs), on_env_done=None if args.no_progress else _progress_line,
                          plots=args.plots, plot_all=args.plot_all)
-    except PolicyBuildError as exc:
+    except BuildError as exc:
         parser.error(str(exc))
 
 
@@ -489,9 +509,17 @@ def main(argv: list[str] | None = None) -> int:
 
     jobs = min(args.jobs or idle_cores(), len(recipes))
     _print_plan(args, recipes, jobs)
-    envs = _build_envs(recipes, parser)
-    _check_sizes(args, envs, parser)
-    results = _run(args, recipes, envs, parser, jobs)
+    if jobs == 1 or args.trials is not None:  # the runs use these envs, or --trials is checked against them
+        envs = _build_envs(recipes, parser)
+        _check_sizes(args, envs, parser)
+        results = _run(args, recipes, envs, parser, jobs)
+    else:  # the workers build their own: this process builds the reports' envs while they run
+        built: dict = {}
+        builder = threading.Thread(target=_build_quietly, args=(recipes, built), daemon=True)
+        builder.start()
+        results = _run(args, recipes, None, parser, jobs)
+        builder.join()
+        envs = _build_envs(recipes, parser, built)
     if not any(env_runs.runs for env_runs in results.values()):
         parser.error(f"no policies to run: {policy_choices()}")
     ctx = _context(args, envs, results)

@@ -21,13 +21,14 @@ from dataclasses import dataclass, field
 from multiprocessing import get_context
 from typing import Callable
 
-__all__ = ["EnvRecipe", "PolicyRun", "EnvRuns", "PolicyBuildError", "idle_cores", "label_of", "trials_of", "run_env",
+__all__ = ["EnvRecipe", "PolicyRun", "EnvRuns", "BuildError", "idle_cores", "label_of", "trials_of", "run_env",
            "run_table"]
 
 
-class PolicyBuildError(ValueError):
-    """A policy spec that cannot be built for an env (a bad ``ppo:PATH``, a controller that refuses the plant);
-    the message names both."""
+class BuildError(ValueError):
+    """An env that cannot be built from its recipe (a bad ``--plant``, ``--feedrate`` or program), or a policy
+    spec that cannot be built for an env (a bad ``ppo:PATH``); the message names the env and the spec."""
+
 
 
 @dataclass(frozen=True)
@@ -101,18 +102,33 @@ def trials_of(policy, trials: int) -> int:
     return trials if getattr(policy, "learns_across_episodes", False) else 1
 
 
-def idle_cores() -> int:
+def _cpu_times() -> tuple[float, float]:
+    """(idle, total) jiffies of all cores since boot, from Linux's /proc/stat."""
+    with open("/proc/stat") as f:
+        fields = [float(x) for x in f.readline().split()[1:]]
+    return fields[3] + fields[4], sum(fields[:8])  # idle + iowait; user .. steal
+
+
+def idle_cores(sample: float = 0.3) -> int:
     """Cores this process may use that other processes are not using now (at least 1): the cores of the
-    affinity mask minus the one-minute load average, rounded."""
+    affinity mask times the idle fraction of the CPU over the next ``sample`` seconds (Linux's /proc/stat), or,
+    where that cannot be read, minus the one-minute load average (which lags: right after another job it still
+    counts that job)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover  (macOS, Windows)
         cores = os.cpu_count() or 1
     try:
-        load = os.getloadavg()[0]
-    except OSError:  # pragma: no cover
-        load = 0.0
-    return max(1, min(cores, round(cores - load)))
+        idle0, total0 = _cpu_times()
+        time.sleep(sample)
+        idle1, total1 = _cpu_times()
+        busy = (1.0 - (idle1 - idle0) / max(total1 - total0, 1e-9)) * (os.cpu_count() or cores)  # busy cores
+    except (OSError, ValueError, IndexError):  # pragma: no cover  (no /proc)
+        try:
+            busy = os.getloadavg()[0]
+        except OSError:
+            busy = 0.0
+    return max(1, min(cores, round(cores - busy)))
 
 
 def _policy(spec: str, env, key: str, policies: dict | None):
@@ -123,7 +139,7 @@ def _policy(spec: str, env, key: str, policies: dict | None):
     try:
         return resolve_policy(spec, env)
     except (ValueError, OSError) as exc:
-        raise PolicyBuildError(f"cannot build policy {spec!r} for {key}: {exc}") from exc
+        raise BuildError(f"cannot build policy {spec!r} for {key}: {exc}") from exc
 
 
 def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: dict | None = None,
@@ -141,7 +157,11 @@ def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: di
 
     t0 = time.perf_counter()
     own = env is None
-    env = recipe.make() if own else env
+    if own:
+        try:
+            env = recipe.make()
+        except (ValueError, TypeError) as exc:
+            raise BuildError(f"{recipe.key}: {exc}") from exc
     runs = []
     for spec in recipe.specs or default_specs(env):
         b0 = time.perf_counter()
@@ -203,8 +223,8 @@ def run_table(recipes: list[EnvRecipe], *, seed: int, trials: int, jobs: int = 1
 
     Raises
     ------
-    PolicyBuildError
-        For a spec that cannot be built on an env (the pool's remaining envs are cancelled).
+    BuildError
+        For an env or a spec that cannot be built (the pool's remaining envs are cancelled).
     """
     total = len(recipes)
     done: dict[str, EnvRuns] = {}
