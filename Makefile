@@ -30,11 +30,13 @@ docs: install
 
 # CI runs `make test`: lint, the docs build and every test but those marked slow (> 10 s each on 2 cores;
 # tests/conftest.py), which keeps the whole CI run well under 15 minutes.  `make test-all` runs them too.
+# The tests run on 2 processes (pytest-xdist), each test file on one of them (--dist loadfile: a module's shared
+# fixtures are built once).
 test: lint docs
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow" -n 2 --dist loadfile
 
 test-all: lint docs
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 # The main job: the default table (vcnc_bench.cli.DEFAULT_IDS) on the idle cores, its JSON and plots in bench-out/.
 # `vcnc-bench --all` runs every id and every policy; `vcnc-bench --plants N` the uncertainty box.
