@@ -260,9 +260,9 @@ def closed_loop_bandwidth(model: AxisModel, rho: float, q: float = 1.0) -> float
     triple pole at ``-w`` (the PID design of :func:`baselines.servo.pid_gains`) it is ``w``."""
     *_, K = _riccati(model, q, rho)
     Phi, Gamma, _ = augmented(model)
-    z = np.linalg.eigvals(Phi - np.outer(Gamma, K))
-    z = np.sort(np.abs(z))[::-1][:1 + model.order]
-    s = np.abs(np.log(np.maximum(z, 1e-300))) / model.dt
+    z = np.linalg.eigvals(Phi - np.outer(Gamma, K)).astype(complex)
+    z = z[np.argsort(np.abs(z))[::-1][:1 + model.order]]
+    s = np.abs(np.log(np.where(np.abs(z) > 1e-300, z, 1e-300))) / model.dt  # |s| of s = ln(z) / T, complex
     return float(np.exp(np.mean(np.log(np.maximum(s, 1e-300)))))
 
 
@@ -275,7 +275,11 @@ def input_weight_for_bandwidth(model: AxisModel, bandwidth: float, q: float = 1.
         raise ValueError(f"bandwidth {bandwidth} rad/s is beyond what the model's LQ loop reaches at dt = {model.dt} s")
     while hi - lo > 1e-9:
         mid = 0.5 * (lo + hi)
-        if closed_loop_bandwidth(model, 10.0 ** mid, q) > bandwidth:
+        try:
+            faster = closed_loop_bandwidth(model, 10.0 ** mid, q) > bandwidth
+        except np.linalg.LinAlgError:  # a weight so large the Riccati solver loses the integral's pole near z = 1
+            faster = False
+        if faster:
             lo = mid
         else:
             hi = mid

@@ -21,12 +21,18 @@ its linear term linear in ``X(k)``, ``u(k-1)`` and the previewed increments).
 Explicit handling: the unconstrained minimiser ``z* = -H^-1 f`` is a matrix product; where it lies within the
 bounds it is the QP's solution (exactly: the problem is convex), and only otherwise is the QP solved.
 
-The solver is DAQP (Arnstrom, Bemporad and Axehill 2022, a dual active-set solver for small dense QPs, with the
-bounds as simple bounds): at this problem's size (10 variables, 10 bounds) it solved the QPs of an episode on
-``VCNC-Omega-v1`` in ~12 us each, against ~20 us for OSQP and ~40 us for PIQP (their Python interfaces'
-overheads included; ``python benchmarks/mpc_solvers.py`` prints the figures and ratios of one run), and, an
-active-set method, exactly (OSQP's ADMM stops at a tolerance).  ``tinympc`` (0.0.8) pins ``scipy < 1.12``,
-which does not install beside the suite's NumPy 2.
+The solver is DAQP (Arnstrom, Bemporad and Axehill 2022: a dual active-set method for small dense QPs, the bounds
+as simple bounds), chosen by measurement (``python benchmarks/mpc_solvers.py``: the 2810 QPs the first 3000
+control periods of ``VCNC-Omega-v1`` ask for, 10 variables and 10 bounds each, through each solver's Python
+interface): per solve OSQP took 3.7 times DAQP's time, PIQP 2.7 times, scipy's BVLS 20 times; DAQP's and OSQP's
+solutions agree with BVLS's to 5e-12 V, PIQP's to 4e-4 V (its tolerance).  DAQP warm-started from the previous
+QP's active set took 1.25 times its cold time (reading the multipliers back costs more than the iterations it
+saves at this size), so the policy solves cold.  ``tinympc`` (0.0.8) pins ``scipy < 1.12``, which does not
+install beside the suite's NumPy 2.
+
+Cost: the unconstrained minimiser is ~0.3 DAQP solves; a ``predict`` call of one env ~10 times
+``lq-preview``'s compiled one (the NumPy estimator and preview), so an episode of the heart (32 212 periods,
+~160 QPs) takes ~15-30 s against ~2 s.
 """
 
 from __future__ import annotations
@@ -160,12 +166,6 @@ class MPCPolicy(LQPreviewPolicy):
         self.qps = [condensed_qp(m, d, blocks) for m, d in zip(self.axis_models, self.designs)]
         self.solves = 0
         self.calls = 0
-        self._active = None
-
-    def reset(self, n_envs=None, mask=None) -> None:
-        super().reset(n_envs, mask)
-        if self._state is not None and (self._active is None or self._active.shape[0] != self._state.shape[0]):
-            self._active = np.zeros((self._state.shape[0], 2, len(self.qps[0].blocks)), dtype=np.int32)
 
     def _bounds(self, k, j):
         """Per env and block, the linear input's bounds over the block's periods: (lower, upper), (N, b) each."""
@@ -187,7 +187,7 @@ class MPCPolicy(LQPreviewPolicy):
             z = X @ qp.Gx.T + up[:, j, None] * qp.Gu + R @ qp.Gr.T  # the unconstrained minimisers, (N, b)
             lo, hi = self._bounds(k, j)
             for i in np.flatnonzero(np.any((z < lo) | (z > hi), axis=1)):  # the QP where they leave the bounds
-                z[i] = solve_box_qp(qp.H, qp.linear_term(X[i], up[i, j], R[i]), lo[i], hi[i], self._active[i, j])
+                z[i] = solve_box_qp(qp.H, qp.linear_term(X[i], up[i, j], R[i]), lo[i], hi[i])
                 self.solves += 1
             u_lin[:, j] = z[:, 0]
         self.calls += obs.shape[0]
