@@ -268,8 +268,19 @@ def closed_loop_bandwidth(model: AxisModel, rho: float, q: float = 1.0) -> float
 
 def input_weight_for_bandwidth(model: AxisModel, bandwidth: float, q: float = 1.0) -> float:
     """The input weight ``rho`` whose LQ loop has :func:`closed_loop_bandwidth` equal to ``bandwidth`` rad/s
-    (bisection on ``log rho``: a smaller weight, a faster loop)."""
+    (bisection on ``log rho``: a smaller weight, a faster loop; remembered per model, bandwidth and ``q``, as
+    every controller built for an id asks the same)."""
     bandwidth = positive("bandwidth", bandwidth, "rad/s")
+    key = (model.A.tobytes(), model.B.tobytes(), model.C.tobytes(), model.order, model.dt, bandwidth, float(q))
+    if key not in _WEIGHTS:
+        _WEIGHTS[key] = _bisect_weight(model, bandwidth, q)
+    return _WEIGHTS[key]
+
+
+_WEIGHTS: dict = {}
+
+
+def _bisect_weight(model: AxisModel, bandwidth: float, q: float) -> float:
     lo, hi = -40.0, 40.0  # log10 rho: fast ... slow
     if closed_loop_bandwidth(model, 10.0 ** lo, q) < bandwidth:
         raise ValueError(f"bandwidth {bandwidth} rad/s is beyond what the model's LQ loop reaches at dt = {model.dt} s")
