@@ -22,17 +22,17 @@ Explicit handling: the unconstrained minimiser ``z* = -H^-1 f`` is a matrix prod
 bounds it is the QP's solution (exactly: the problem is convex), and only otherwise is the QP solved.
 
 The solver is DAQP (Arnstrom, Bemporad and Axehill 2022: a dual active-set method for small dense QPs, the bounds
-as simple bounds), chosen by measurement (``python benchmarks/mpc_solvers.py``: the 2810 QPs the first 3000
+as simple bounds), chosen by measurement (``python benchmarks/mpc_solvers.py``: the ~2700 QPs the first 3000
 control periods of ``VCNC-Omega-v1`` ask for, 10 variables and 10 bounds each, through each solver's Python
-interface): per solve OSQP took 3.7 times DAQP's time, PIQP 2.7 times, scipy's BVLS 20 times; DAQP's and OSQP's
-solutions agree with BVLS's to 5e-12 V, PIQP's to 4e-4 V (its tolerance).  DAQP warm-started from the previous
-QP's active set took 1.25 times its cold time (reading the multipliers back costs more than the iterations it
-saves at this size), so the policy solves cold.  ``tinympc`` (0.0.8) pins ``scipy < 1.12``, which does not
-install beside the suite's NumPy 2.
+interface; two runs on the shared 2-core host): per solve OSQP took 3.7-4.0 times DAQP's time, PIQP 2.1-2.7
+times, scipy's BVLS 10-20 times; DAQP's and OSQP's solutions agree with BVLS's to 1e-12 V, PIQP's to 1e-4 V (its
+tolerance).  DAQP warm-started from the previous QP's active set took 1.16-1.25 times its cold time (reading the
+multipliers back costs more than the iterations it saves at this size), so the policy solves cold.  ``tinympc``
+(0.0.8) pins ``scipy < 1.12``, which does not install beside the suite's NumPy 2.
 
-Cost: the unconstrained minimiser is ~0.3 DAQP solves; a ``predict`` call of one env ~10 times
-``lq-preview``'s compiled one (the NumPy estimator and preview), so an episode of the heart (32 212 periods,
-~160 QPs) takes ~15-30 s against ~2 s.
+Cost: the unconstrained minimiser costs 0.2-0.3 DAQP solves; a ``predict`` call of one env 5-6 times
+``lq-preview``'s compiled one (the NumPy estimator and preview around the solver), so an episode of the heart
+(32 212 periods) took 75-95 s on the loaded host against ~10 s for ``lq-preview``.
 """
 
 from __future__ import annotations
