@@ -193,3 +193,17 @@ def test_closed_loop_on_the_heart():
             assert 0 < policy.solves < policy.calls
     assert figures["lq-preview"] < 2.5 * figures["ff-pid"]
     assert figures["mpc"] < 2.5 * figures["ff-pid"]
+
+
+def test_the_estimator_reads_the_velocity_only_from_an_exact_sensor():
+    """Purtojo et al.'s table reads a 1 um encoder (its velocity a difference of counts): position only, through the
+    Kalman filter; Jahanpour et al.'s drive reads the exact state: the estimate is the measurement."""
+    heart, circle = gym.make("VCNC-Heart-v1"), gym.make("VCNC-Circle-v1")
+    exact = baselines.make("mpc", heart, input_weight=1e-5, models=[heart.unwrapped.plant.linear_model(axis=j)
+                                                                    for j in range(2)])
+    assert exact.velocity and exact.axis_models[0].Cv is not None
+    L = exact.estimator_gains[0]
+    np.testing.assert_allclose(L @ exact.axis_models[0].measurement(), np.eye(2), atol=1e-12)
+    quantised = baselines.make("lq-preview", circle, input_weight=1.0)
+    assert not quantised.velocity and quantised.axis_models[0].Cv is None
+    assert quantised.estimator_gains[0].shape == (2, 1) and 0 < np.abs(quantised.estimator_gains[0]).max()

@@ -103,7 +103,7 @@ class AxisModel:
         return np.vstack([self.C] + ([self.Cv] if self.Cv is not None else []))
 
 
-def axis_model(tf, dt: float, delay: float = 0.0) -> AxisModel:
+def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True) -> AxisModel:
     """Discretise one axis' transfer function (mm per input unit) under zero-order hold at ``dt`` s.
 
     Parameters
@@ -114,6 +114,8 @@ def axis_model(tf, dt: float, delay: float = 0.0) -> AxisModel:
         Control period, s.
     delay : float
         Input dead time, s, rounded to whole control periods (at most :data:`MAX_DELAY_PERIODS`).
+    velocity : bool
+        Whether the velocity is measured (``C_v``); False leaves the position alone.
     """
     import control
 
@@ -129,7 +131,8 @@ def axis_model(tf, dt: float, delay: float = 0.0) -> AxisModel:
         raise ValueError(f"model must be strictly proper (no direct feedthrough), got {tf}")
     A_c, B_c, C_c = (np.asarray(m, dtype=np.float64) for m in (sys.A, sys.B, sys.C))
     if tf.dt in (0, None):
-        Cv = C_c @ A_c if abs((C_c @ B_c).item()) <= 1e-12 * np.abs(C_c).max() * np.abs(B_c).max() else None
+        Cv = C_c @ A_c if velocity and abs((C_c @ B_c).item()) <= 1e-12 * np.abs(C_c).max() * np.abs(B_c).max() \
+            else None
         d = control.c2d(sys, dt, "zoh")  # the same state coordinates: expm of the continuous system
         A, B = np.asarray(d.A, dtype=np.float64), np.asarray(d.B, dtype=np.float64)
     else:

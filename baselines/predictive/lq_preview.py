@@ -72,9 +72,16 @@ class LQPreviewPolicy(ServoPolicy):
     friction_time, backlash_time : float
         s, as ``ff-pid`` (:func:`~baselines.feedforward.tables.inverse_feedforward`); ``friction_time`` defaults to
         the machine's commissioning.
-    input_noise, position_noise, velocity_noise : float
+    velocity : bool, optional
+        Whether the estimator reads the measured velocity; default: unless the plant declares a position sensor
+        with a resolution or noise (a ``resolution``, ``encoder_resolution`` or ``noise_std`` parameter above 0 at
+        the nominal plant: Purtojo et al.'s 1 um encoder, the shop floor), whose velocity reading is a backward
+        difference of its counts (1 mm/s steps at 1 um and 1 ms), which the increments ``Dx`` would take for
+        accelerations.
+    input_noise, position_noise, velocity_noise : float, optional
         The Kalman filter's noise levels (input unit, mm, mm/s), used only for a model whose state the measured
-        position and velocity do not determine.
+        position (and velocity) do not determine; defaults 1 % of the input limit, the sensor's
+        ``sqrt(resolution^2 / 12 + noise_std^2)`` (1e-5 mm without one) and 1 mm/s.
 
     Attributes
     ----------
@@ -86,8 +93,8 @@ class LQPreviewPolicy(ServoPolicy):
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
                  input_weight=None, preview=None, models=None, delays=None, friction_time: float | None = None,
-                 backlash_time: float = 16e-3, input_noise: float = 0.05, position_noise: float = 1e-4,
-                 velocity_noise: float = 1.0):
+                 backlash_time: float = 16e-3, velocity: bool | None = None, input_noise: float | None = None,
+                 position_noise: float | None = None, velocity_noise: float = 1.0):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
         if self.stride != 1:
             raise ValueError(f"{self.name} is designed at the control period: it needs decision_period = dt "
@@ -106,7 +113,13 @@ class LQPreviewPolicy(ServoPolicy):
         delays = np.zeros(2) if delays is None else np.asarray(delays, dtype=np.float64)
         if delays.shape != (2,) or not np.all(np.isfinite(delays)) or np.any(delays < 0):
             raise ValueError(f"delays must be two finite dead times >= 0 s, got {delays!r}")
-        self.axis_models = [axis_model(models[j], self.dt, delays[j]) for j in range(2)]
+        sensor = _sensor_noise(self.plant, self.nominal_parameters)
+        self.velocity = bool(np.all(sensor == 0.0)) if velocity is None else bool(velocity)
+        position_noise = np.where(sensor > 0, sensor, 1e-5) if position_noise is None else \
+            np.broadcast_to(np.asarray(position_noise, dtype=np.float64), (2,))
+        input_noise = 0.01 * self.u_max if input_noise is None else \
+            np.broadcast_to(np.asarray(input_noise, dtype=np.float64), (2,))
+        self.axis_models = [axis_model(models[j], self.dt, delays[j], self.velocity) for j in range(2)]
         if input_weight is None:
             rho = [input_weight_for_bandwidth(m, self.bandwidth) for m in self.axis_models]
         else:
@@ -114,8 +127,8 @@ class LQPreviewPolicy(ServoPolicy):
             for r in rho:
                 positive("input_weight", r)
         self.designs = [preview_design(m, r, preview) for m, r in zip(self.axis_models, rho)]
-        self.estimator_gains = [estimator_gain(m, input_noise, position_noise, velocity_noise)
-                                for m in self.axis_models]
+        self.estimator_gains = [estimator_gain(m, input_noise[j], position_noise[j], velocity_noise)
+                                for j, m in enumerate(self.axis_models)]
         n = max(m.n for m in self.axis_models)
         self.n_states = n
         self.state_shape = (1 + 2 * (1 + 2 * n),)
@@ -189,6 +202,18 @@ class LQPreviewPolicy(ServoPolicy):
     def _compiled_arrays(self):
         g = self.gains
         return LQPreviewArrays(self._state, self.table, g.Ke, g.Kx, g.Kr, g.A, g.B, g.Cm, g.L, g.C_pinv, self.u_max)
+
+
+def _sensor_noise(plant, nominal) -> np.ndarray:
+    """Per axis, the standard deviation (mm) of the position reading the plant declares: ``sqrt(resolution^2 / 12
+    + noise_std^2)`` from its nominal ``resolution`` / ``encoder_resolution`` and ``noise_std`` (0 for an exact
+    one)."""
+    names = list(plant.parameter_names)
+    variance = np.zeros(2)
+    for name, per in (("resolution", 12.0), ("encoder_resolution", 12.0), ("noise_std", 1.0)):
+        if name in names:
+            variance += nominal[:, names.index(name)] ** 2 / per
+    return np.sqrt(variance)
 
 
 #: The gains of both axes, padded to ``n`` states and ``M`` preview steps: ``Ke`` (2,), ``Kx`` (2, n), ``Kr``
