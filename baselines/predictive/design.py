@@ -208,7 +208,11 @@ def _riccati(model: AxisModel, q: float, rho: float):
     Phi, Gamma, G = augmented(model)
     Q = np.zeros_like(Phi)
     Q[0, 0] = q
-    P = linalg.solve_discrete_are(Phi, Gamma[:, None], Q, np.array([[rho]]))
+    try:
+        P = linalg.solve_discrete_are(Phi, Gamma[:, None], Q, np.array([[rho]]))
+    except ValueError as exc:  # scipy's ordqz on an ill-conditioned pencil
+        raise np.linalg.LinAlgError(f"the preview servo's Riccati equation failed for this model at dt = {model.dt} s "
+                                    f"and input weight {rho:g} ({exc}); give another input_weight") from None
     P = 0.5 * (P + P.T)
     S = rho + Gamma @ P @ Gamma
     K = (Gamma @ P @ Phi) / S
