@@ -22,6 +22,8 @@ from .feedback.qft import QFTPolicy
 from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy
 from .optimal.oracle import OraclePolicy
+from .predictive.lq_preview import LQPreviewPolicy
+from .predictive.mpc import MPCPolicy
 
 __all__ = ["make", "names", "policy_class", "CONTROLLERS", "REGISTRY", "VARIANTS"]
 
@@ -46,6 +48,9 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     FeedforwardCrossCoupledPolicy,  # feedforward + Koren and Lo (1991)'s variable-gain CCC
     # learning
     ILCPolicy,  # Simba et al., eqs. (8)-(11)
+    # predictive
+    LQPreviewPolicy,  # Tomizuka and Whitney (1975), Katayama et al. (1985), every plant
+    MPCPolicy,  # the same model, cost and preview with the input limit: a QP per control period (DAQP)
     # optimal (non-causal)
     OraclePolicy,  # ILC to convergence on the exact plant
 )

@@ -135,7 +135,8 @@ JAHANPOUR_BASELINES = [n for n in baselines.names() if "vcnc_feed_drive" in base
             and getattr(baselines.registry.policy_class(n), "causal", True)]
 
 
-@pytest.mark.parametrize("name", JAHANPOUR_BASELINES)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "mpc" else n  # a QP per env
+                                  for n in JAHANPOUR_BASELINES])                             # and period
 def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
     """All 64 corners of Jahanpour et al.'s box, as one batch of the vector env, the policy's predict on the batch
     (the heart is run on vertices 0 and 63 above)."""

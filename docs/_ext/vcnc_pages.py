@@ -5,7 +5,7 @@
   picture of its contour), and an index that lists the legacy ids too;
 - ``controllers.md``: the controllers of :mod:`baselines.registry`, grouped by
   the family folders of ``baselines/`` (feedback, feedforward, coupling,
-  learning, optimal), with the variants;
+  learning, predictive, optimal), with the variants;
 - ``api/``: one page per package, an ``automodule`` per public module found
   by walking the package, so that a new module appears without editing the docs.
 
@@ -28,6 +28,7 @@ FAMILIES = {
     "feedforward": "Feedforward",
     "coupling": "Cross-coupling",
     "learning": "Learning",
+    "predictive": "Predictive (LQ preview, MPC)",
     "optimal": "Optimal (non-causal floors)",
 }
 
