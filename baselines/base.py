@@ -60,6 +60,9 @@ class BaselinePolicy:
     #: The source paper that designed this controller, by authors and year ("" for the suite's own designs): the
     #: bench's plots show a paper's controllers beside the strongest causal one.
     paper: str = ""
+    #: False for a controller whose episode costs minutes in Python (``mpc``'s QP per period): ``vcnc-bench`` runs
+    #: it when named or with ``--all``, not in its default table.
+    in_default_table: bool = True
     #: Per-environment shape of the controller memory; (0,) for a memoryless controller.
     state_shape: tuple = (0,)
 

@@ -131,7 +131,8 @@ KIND = PolicyKind(
     name="baseline",
     make=lambda arg, env: make(arg, env),
     names=names,
-    defaults=lambda env: [n for n in names() if applies(n, env)],
+    defaults=lambda env: [n for n in names() if applies(n, env) and policy_class(n).in_default_table],
+    extras=lambda env: [n for n in names() if applies(n, env) and not policy_class(n).in_default_table],
     report=lambda ctx: _qft_stability(ctx) + _yadav2020(ctx) + _simba(ctx) + _purtojo(ctx) + _oracle(ctx),
     description="the papers' classical controllers (baselines.names())",
 )

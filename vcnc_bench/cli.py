@@ -328,23 +328,24 @@ def _env_ids(args, parser) -> list[str]:
 
 def _recipes(args, parser) -> list[EnvRecipe]:
     """One :class:`~vcnc_bench.runner.EnvRecipe` per env of the table: its id and arguments, the policies named by
-    ``--policy`` (none: the defaults of every kind, those that learn across episodes only with ``--all``)."""
+    ``--policy`` (none: the defaults of every kind; those that learn across episodes and the kinds' extras only
+    with ``--all``)."""
     specs = tuple(_unique(args.policy or []))
     for spec in specs:
         try:
             check_policy_spec(spec)
         except ValueError as exc:
             parser.error(str(exc))
-    learners = bool(args.all or specs)
+    everything = bool(args.all)
     kwargs = _env_kwargs(args)
-    recipes = [EnvRecipe(e, e, kwargs, specs, learners) for e in _env_ids(args, parser)]
+    recipes = [EnvRecipe(e, e, kwargs, specs, everything) for e in _env_ids(args, parser)]
     if args.program:
         try:
             tolerance = program_tolerance(args.tolerance)
             pieces = programs.expand_programs(args.program, args.circle)
         except ValueError as exc:
             parser.error(str(exc))
-        recipes += [EnvRecipe(key, env_id, kw, specs, learners)
+        recipes += [EnvRecipe(key, env_id, kw, specs, everything)
                      for key, env_id, kw in programs.program_recipes(pieces, tolerance, plant=args.plant)]
     return recipes
 
@@ -393,8 +394,8 @@ def _print_plan(args, recipes: list[EnvRecipe], jobs: int) -> None:
         print(f"  the default table: the ids with a shipped agent and one id of every other kind; left out: "
               f"{', '.join(left)} (--all runs every id)", flush=True)
     if not (args.all or args.policy):
-        print("  left out: the policies that learn across episodes (ILC, 10 trials each; --all, or --policy NAME)",
-              flush=True)
+        print("  left out: the policies that learn across episodes (ILC, 10 trials each) and those whose episode "
+              "costs minutes (mpc: a QP per period in Python); --all, or --policy NAME", flush=True)
     print("  more: --plants N (the uncertainty box: median and worst over N plants), --program PART (your G-code), "
           "--help", flush=True)
 

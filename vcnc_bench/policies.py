@@ -87,6 +87,9 @@ class PolicyKind:
     defaults : callable (env) -> list of str
         The specs of this kind the bench runs on ``env`` when no
         ``--policy`` is given: those that apply to its plant; default none.
+    extras : callable (env) -> list of str
+        Specs that apply to ``env`` but run only with ``vcnc-bench --all``
+        (or when named): those whose episode costs minutes; default none.
     report : callable (BenchContext) -> list of str, optional
         Extra report lines printed under the table (a stability check, a
         paper's table in its own shape); it may draw plots into
@@ -99,6 +102,7 @@ class PolicyKind:
     make: Callable[[str, Any], Any]
     names: Callable[[], list] = field(default=lambda: [])
     defaults: Callable[[Any], list] = field(default=lambda env: [])
+    extras: Callable[[Any], list] = field(default=lambda env: [])
     report: Callable | None = None
     description: str = ""
 
@@ -193,9 +197,12 @@ def resolve_policy(spec: str, env) -> Any:
     return policy_kinds()[kind].make(arg, env)
 
 
-def default_specs(env) -> list[str]:
-    """The specs run on ``env`` by default: every kind's defaults for it, in kind order."""
+def default_specs(env, extras: bool = False) -> list[str]:
+    """The specs run on ``env`` by default: every kind's defaults for it, in kind order; with ``extras`` also
+    every kind's extras (``vcnc-bench --all``)."""
     out = []
     for kind in policy_kinds().values():
         out.extend(s for s in kind.defaults(env) if s not in out)
+        if extras:
+            out.extend(s for s in kind.extras(env) if s not in out)
     return out

@@ -46,15 +46,16 @@ class EnvRecipe:
     specs : tuple of str
         The policy specs run on it, in table order; empty: every kind's defaults for the env
         (:func:`vcnc_bench.policies.default_specs`).
-    learners : bool
-        With the defaults, also run the policies that learn across episodes (ILC); named specs always run.
+    everything : bool
+        With the defaults, also run the policies that learn across episodes (ILC) and every kind's extras (the
+        costly ones, ``mpc``): ``vcnc-bench --all``.  Named specs always run.
     """
 
     key: str
     env_id: str
     kwargs: dict = field(default_factory=dict)
     specs: tuple = ()
-    learners: bool = True
+    everything: bool = True
 
     def make(self):
         """The env (``gym.make(env_id, **kwargs)``)."""
@@ -163,10 +164,10 @@ def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: di
         except (ValueError, TypeError) as exc:
             raise BuildError(f"{recipe.key}: {exc}") from exc
     runs = []
-    for spec in recipe.specs or default_specs(env):
+    for spec in recipe.specs or default_specs(env, extras=recipe.everything):
         b0 = time.perf_counter()
         policy = _policy(spec, env, recipe.key, policies)
-        if not recipe.specs and not recipe.learners and getattr(policy, "learns_across_episodes", False):
+        if not recipe.specs and not recipe.everything and getattr(policy, "learns_across_episodes", False):
             continue
         build = time.perf_counter() - b0
         results = [run_episode(policy, env, seed=seed, progress=progress) for _ in range(trials_of(policy, trials))]

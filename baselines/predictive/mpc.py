@@ -159,6 +159,9 @@ class MPCPolicy(LQPreviewPolicy):
     """
 
     name = "mpc"
+    #: A QP per env and period in Python: a heart episode takes a minute or more, so vcnc-bench's default table
+    #: leaves it out (``--policy mpc``, ``--all``).
+    in_default_table = False
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, blocks=DEFAULT_BLOCKS,
                  bandwidth=None, input_weight=None, preview=None, models=None, delays=None,
