@@ -47,7 +47,7 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     # learning
     ILCPolicy,  # Simba et al., eqs. (8)-(11)
     # optimal (non-causal)
-    OraclePolicy,  # ILC to convergence on the exact plant
+    OraclePolicy,  # the input sequence optimised on the exact plant, replayed
 )
 
 #: Name -> policy class.
