@@ -6,7 +6,8 @@ evaluations), solve time, the replayed figures beside the strongest causal contr
 
 Solves afresh (``VCNC_ORACLE_RECOMPUTE``); ``--store`` writes the solutions into the package
 (``baselines/optimal/solutions/``, what the bench replays), else into a temporary directory; ``--stored``
-replays the shipped solutions instead (their convergence and solve time are the stored ones).  The floor's
+replays the shipped solutions instead (their convergence and solve time are the stored ones).  The shipped
+specialist of each id (``agents/trained``, the bench's ``ppo``) is among the starts unless ``--no-agents``.  The floor's
 figure printed is :func:`vcnc_gym.evaluation.run_episode` of the oracle through ``gym.make(ID)``.
 """
 
@@ -26,6 +27,18 @@ from vcnc_gym.envs.registry import CONTOURING_IDS
 from vcnc_gym.evaluation import run_episode
 
 
+def _specialist(env) -> dict:
+    """The agent shipped for the env (what ``vcnc-bench --policy ppo`` runs), as a start of the floor: a causal
+    controller too."""
+    from agents import TRAINED, load_agent
+    from agents.policy import agent_mismatch
+
+    folder = TRAINED.get(env.unwrapped.spec.id)
+    if folder is None or not folder.is_dir() or agent_mismatch(folder, env) is not None:
+        return {}
+    return {"ppo": load_agent(folder, env)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", action="append", help=f"ids (default: {', '.join(CONTOURING_IDS)})")
@@ -33,6 +46,8 @@ def main() -> None:
     parser.add_argument("--stored", action="store_true", help="replay the shipped solutions, do not solve")
     parser.add_argument("--plot", help="convergence plot (PNG) of every id solved")
     parser.add_argument("--seed", type=int, default=0, help="env.reset seed (the bench's default: 0)")
+    parser.add_argument("--no-agents", dest="agents", action="store_false",
+                        help="leave out the shipped specialist (agents/trained/ID) among the starts")
     args = parser.parse_args()
     os.environ["VCNC_ORACLE_RECOMPUTE"] = "0" if args.stored else "1"
     if not args.store and not args.stored:
@@ -40,7 +55,8 @@ def main() -> None:
     curves = {}
     for env_id in args.env or CONTOURING_IDS:
         env = gym.make(env_id)
-        oracle = baselines.make("oracle", env)
+        extra = _specialist(env) if args.agents else {}
+        oracle = baselines.make("oracle", env, extra_starts=extra)
         env.reset(seed=args.seed)
         t0 = time.perf_counter()
         oracle.plan(env)

@@ -59,6 +59,10 @@ class OraclePolicy(BaselinePolicy):
         The search's budget (:func:`baselines.optimal.search.solve`); the defaults made the shipped solutions.
     cache : bool
         Read and write stored solutions (:mod:`baselines.optimal.solutions`); default True.
+    extra_starts : dict, optional
+        Label -> a causal policy from outside :mod:`baselines` (a trained agent: ``agents.load_agent``), run as a
+        start too (its recorded commands, open-loop); a stored solution without these labels among its starts is
+        solved again.  ``benchmarks/oracle_convergence.py`` passes the shipped specialist of each id.
 
     Attributes
     ----------
@@ -73,11 +77,11 @@ class OraclePolicy(BaselinePolicy):
     causal = False
     plants = ServoPolicy.plants
     needs_reference = True
-    state_shape = (1,)  # decision steps since the episode's start
+    state_shape = (0,)
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, population: int = 16,
                  ilc_iterations: int = 8, rounds: int = 8, generations: int = 12, windows: int = 3,
-                 trials: int = 10, seed: int = 0, cache: bool = True):
+                 trials: int = 10, seed: int = 0, cache: bool = True, extra_starts=None):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         for key, value, low in (("population", population, 4), ("ilc_iterations", ilc_iterations, 0),
                                 ("rounds", rounds, 0), ("generations", generations, 1), ("windows", windows, 1),
@@ -88,14 +92,20 @@ class OraclePolicy(BaselinePolicy):
                        "generations": int(generations), "windows": int(windows), "trials": int(trials),
                        "seed": int(seed)}
         self.cache = bool(cache)
+        self.extra_starts = dict(extra_starts or {})
+        for label, policy in self.extra_starts.items():
+            if not isinstance(label, str) or not hasattr(policy, "predict"):
+                raise ValueError(f"extra_starts must map labels to policies with predict(), got {label!r}: "
+                                 f"{type(policy).__name__}")
         self.solve_time_s = float("nan")
         self.solutions: list[Solution] = []
         self._starts: list = []
         self._corrections: list[np.ndarray] = []
+        self._steps: list[int] = []  # per env, decision steps since its episode's start
         self._planned_for = None
 
     def _initial_state(self):
-        return 0.0
+        return np.zeros(0)
 
     def plan(self, env) -> None:
         """Find (or load) the floor for the plants ``env`` holds now, after its reset:
@@ -112,7 +122,7 @@ class OraclePolicy(BaselinePolicy):
         if fingerprint == self._planned_for:
             return
         t0 = time.perf_counter()
-        current = set(causal_names(env))
+        current = set(causal_names(env)) | set(self.extra_starts)
         self.solutions, self._starts, self._corrections = [], [], []
         for i, p in enumerate(params):
             key = solutions.signature(env, p, noise[i])
@@ -127,7 +137,7 @@ class OraclePolicy(BaselinePolicy):
                                   f"{sol.max_um:.6g} um: solving again", stacklevel=2)
                     sol = None
             if sol is None:
-                sol = solve(env, p, noise_state=noise[i], **self.search)
+                sol = solve(env, p, noise_state=noise[i], extra_starts=self.extra_starts or None, **self.search)
                 start = self._start(env, sol)
                 if self.cache:
                     solutions.store(key, sol)
@@ -135,6 +145,7 @@ class OraclePolicy(BaselinePolicy):
             self._starts.append(start)
             self._corrections.append(np.asarray(sol.correction, dtype=np.float32))
         self.reset(n_envs=params.shape[0])
+        self._steps = [0] * params.shape[0]
         self.solve_time_s = time.perf_counter() - t0
         self._planned_for = fingerprint
 
@@ -166,15 +177,23 @@ class OraclePolicy(BaselinePolicy):
         n = obs2.shape[0]
         if n != len(self._starts):
             raise ValueError(f"the oracle planned for {len(self._starts)} envs, got {n} observations")
-        start = np.zeros(n, dtype=bool) if episode_start is None else \
-            np.broadcast_to(np.asarray(episode_start, dtype=bool).reshape(-1), (n,))
-        self._state[start] = 0.0
+        if episode_start is None:
+            start = np.zeros(n, dtype=bool)
+        else:
+            start = np.asarray(episode_start, dtype=bool).reshape(-1)
+            start = np.repeat(start, n) if start.size == 1 and n > 1 else start
+        steps = self._steps
         action = np.empty((n, 2), dtype=np.float32)
+        one = np.float32(1.0)
         for i in range(n):
+            if start[i]:
+                steps[i] = 0
             base, _ = self._starts[i].predict(obs2[i:i + 1], episode_start=start[i:i + 1], deterministic=True)
+            base = np.asarray(base, dtype=np.float32).reshape(2)
             c = self._corrections[i]
-            k = min(int(self._state[i, 0]), len(c) - 1)
-            action[i] = np.clip(np.asarray(base, dtype=np.float32).reshape(2) + c[k], np.float32(-1.0),
-                                np.float32(1.0))
-            self._state[i, 0] += 1
+            row = c[min(steps[i], len(c) - 1)]
+            # the kernel's arithmetic (rollout._rollout_env): float32 sums, clipped to [-1, 1]
+            action[i, 0] = min(one, max(-one, base[0] + row[0]))
+            action[i, 1] = min(one, max(-one, base[1] + row[1]))
+            steps[i] += 1
         return (action[0] if single else action), state

@@ -140,25 +140,29 @@ class Start:
     table: np.ndarray | None = None  # the recorded commands of an open-loop start
 
 
-def warm_starts(env, rollouts: Rollouts, *, trials: int = 10, names=None, log=None) -> dict:
+def warm_starts(env, rollouts: Rollouts, *, trials: int = 10, names=None, extra=None, log=None) -> dict:
     """Every causal controller of ``names`` (default :func:`causal_names`) closed-loop on the exact plant of
     ``rollouts``: name -> :class:`Start`.  A controller that learns across episodes runs ``trials`` trials,
-    each a start (``ilc#3``: its third), replayed open-loop."""
+    each a start (``ilc#3``: its third), replayed open-loop.  ``extra`` (label -> policy with SB3's ``predict``,
+    e.g. a trained agent) adds causal policies from outside :mod:`baselines`, replayed open-loop too."""
     from ..registry import make
 
     task = rollouts.task
     zero = np.zeros((1, 1, 2))
     out = {}
-    for name in (causal_names(env) if names is None else names):
+    todo = [(name, None) for name in (causal_names(env) if names is None else names)]
+    todo += list((extra or {}).items())
+    for name, given in todo:
         t0 = time.perf_counter()
         try:
-            policy = make(name, env)
+            policy = make(name, env) if given is None else given
         except ValueError as exc:  # a design that does not exist for this env (the papers' limits): not a start
             if log:
                 log(f"  warm start {name}: not built ({exc})")
             continue
         learns = getattr(policy, "learns_across_episodes", False)
-        if not learns and policy.compiled(1) is not None:
+        compiled = getattr(policy, "compiled", None)
+        if not learns and given is None and compiled is not None and compiled(1) is not None:
             runs = [(name, policy, None)]
         else:
             recorded = _record(policy, task, rollouts.parameters, rollouts.noise_state, trials if learns else 1)
@@ -199,7 +203,7 @@ def _peaks(errors: np.ndarray, count: int, separation: int) -> list[int]:
 
 def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16, ilc_iterations: int = 8,
           rounds: int = 8, generations: int = 12, windows: int = 3, window_s: float | None = None,
-          trials: int = 10, seed: int = 0, names=None, log=None) -> Solution:
+          trials: int = 10, seed: int = 0, names=None, extra_starts=None, log=None) -> Solution:
     """The floor's input sequence for ``env``'s task on the plant ``parameters`` (2, P); see the module notes.
 
     Parameters
@@ -222,6 +226,10 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
         Window length, s; default 400 decision periods (40 ms at 0.1 ms).
     trials : int
         Trials of a learning controller among the starts.
+    names : list of str, optional
+        The :mod:`baselines` controllers run as starts; default :func:`causal_names`.
+    extra_starts : dict, optional
+        Label -> causal policy from outside :mod:`baselines` (a trained agent), run as a start too.
     seed : int
         The search's own generator.
     log : callable, optional
@@ -233,7 +241,7 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
     dt = task.dt * task.config.n_repeat
     rng = np.random.default_rng(seed)
     rollouts = Rollouts(task, parameters, population, noise_state)
-    starts = warm_starts(env, rollouts, trials=trials, names=names, log=log)
+    starts = warm_starts(env, rollouts, trials=trials, names=names, extra=extra_starts, log=log)
     if not starts:
         raise ValueError(f"no causal controller applies to {getattr(u.spec, 'id', task)}: no start for the floor")
     name = min(starts, key=lambda k: (starts[k].max, starts[k].rms))
