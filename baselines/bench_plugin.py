@@ -36,7 +36,8 @@ def _oracle(ctx) -> list[str]:
             if label.startswith("oracle")]
     if not rows:
         return []
-    return ["oracle (non-causal floor: ILC on the exact plant, baselines/optimal/oracle.py), solve + episode:"] + \
+    return ["oracle (non-causal floor: the best causal controller plus an input correction searched on the exact "
+            "plant, baselines/optimal/oracle.py; a stored solution replayed, else solved), plan + episode:"] + \
         [f"  {e}: {wall:.2f} s" for e, wall in rows]
 
 

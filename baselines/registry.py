@@ -52,7 +52,7 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     LQPreviewPolicy,  # Tomizuka and Whitney (1975), Katayama et al. (1985), every plant
     MPCPolicy,  # the same model, cost and preview with the input limit: a QP per control period (DAQP)
     # optimal (non-causal)
-    OraclePolicy,  # ILC to convergence on the exact plant
+    OraclePolicy,  # the input sequence optimised on the exact plant, replayed
 )
 
 #: Name -> policy class.

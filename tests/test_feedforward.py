@@ -1,6 +1,6 @@
 """The model-based controllers (baselines.feedforward, baselines.coupling.ccc, baselines.optimal) against what no
 one here wrote: python-control's simulation of the plants' linear models, its frequency responses, the exact
-distance to a circle, and every causal baseline for the oracle."""
+distance to a circle."""
 
 from __future__ import annotations
 
@@ -166,30 +166,6 @@ def test_strongest_causal_controller_reaches_2_um_on_the_heart(heart):
     assert best <= 2.0
 
 
-def test_oracle_is_at_or_below_every_causal_baseline_on_the_circle():
-    """The oracle is the floor: on VCNC-Circle-v1's nominal plant, every causal baseline that applies lies at or
-    above it (max contour error), and it is marked non-causal."""
-    from baselines.bench_plugin import applies
-
-    env = gym.make("VCNC-Circle-v1")
-    oracle = baselines.make("oracle", env)
-    assert oracle.causal is False
-    floor = run_episode(oracle, env)
-    assert np.isfinite(oracle.solve_time_s) and oracle.history_um.shape[0] == oracle.iterations + 1
-    names = [n for n in baselines.names() if applies(n, env) and n != "oracle"]
-    assert {"ff-pid", "zpetc", "ccc", "ff-ccc", "nctf"} <= set(names)
-    for name in names:
-        result = run_episode(baselines.make(name, env), env)
-        assert floor.max_contour_error_um <= result.max_contour_error_um + 1e-9, name
-
-
-def test_oracle_refuses_to_act_without_a_plan(heart):
-    oracle = baselines.make("oracle", heart)
-    obs, _ = heart.reset(seed=0)
-    with pytest.raises(RuntimeError, match="plan"):
-        oracle.predict(obs)
-
-
 def test_servo_controllers_refuse_a_positioning_env():
     env = gym.make("VCNC-Step-v0")
     with pytest.raises(ValueError, match="contouring env"):
@@ -205,19 +181,3 @@ def test_servo_controller_follows_a_contour_drawn_at_reset():
         result = run_episode(policy, env, seed=seed)
         assert policy.reference is env.unwrapped.task.reference_arrays.samples
         assert result.completed and result.max_contour_error_um < 10.0, (seed, result.max_contour_error_um)
-
-
-def test_oracle_is_at_or_below_the_model_based_controllers_on_every_plant():
-    """On plants drawn from the box (one batch, the bench's robust path), the oracle, which starts from the best of
-    ff-pid, zpetc and ff-ccc designed with the nominal and with the exact plant, is at or below each of them."""
-    from vcnc_bench import robust
-
-    env = gym.make("VCNC-Circle-v1")
-    plants = robust.plant_set(env.unwrapped.plant, 3, seed=5, max_vertices=0)
-    runs = {}
-    for name in ("oracle", "ff-pid", "zpetc", "ff-ccc"):
-        batch = robust.make_batch("VCNC-Circle-v1", len(plants.kinds))
-        runs[name] = robust.run_plants(baselines.make(name, env), batch, plants.parameters,
-                                       decision_period=env.unwrapped.decision_period)
-    for name in ("ff-pid", "zpetc", "ff-ccc"):
-        assert np.all(runs["oracle"].max_um <= runs[name].max_um + 1e-9), name

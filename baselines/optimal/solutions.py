@@ -1,0 +1,91 @@
+"""The floor's solutions, cached: the bench replays a stored solution instead of solving again.
+
+A solution (:class:`~baselines.optimal.search.Solution`) is keyed by :func:`signature`: the env's id and keyword
+arguments (``env.spec``), a hash of its packed reference, its control and decision periods, the plant's name and
+exact parameters, and, on a plant with a random state (the shop floor's sensor noise), that state right after the
+env's reset (a function of the reset's seed: the closed-loop starts, and so the floor, see that noise); a plant
+without one is keyed without the seed, its replay being the same for every seed.  Each is one compressed
+``.npz`` in :data:`DIRECTORY` (shipped with the package: the nominal plant of every contouring id,
+``python benchmarks/oracle_convergence.py --store``) or in ``$VCNC_ORACLE_SOLUTIONS``: the start's name, the
+correction (float32: the step kernel adds it as float32, so the stored values are the replayed ones), the
+start's recorded commands where it runs open-loop, the replayed figures, the starts' figures and the
+convergence.  ``VCNC_ORACLE_RECOMPUTE=1`` ignores stored solutions (and overwrites them where writable).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .search import Solution
+
+__all__ = ["DIRECTORY", "SOLVER_VERSION", "signature", "directory", "load", "store", "recompute_requested"]
+
+#: The shipped solutions.
+DIRECTORY = Path(__file__).with_name("solutions")
+
+#: Bumped when the search or the replay changes what a stored solution means.
+SOLVER_VERSION = 1
+
+
+def directory() -> Path:
+    """``$VCNC_ORACLE_SOLUTIONS`` if set, else :data:`DIRECTORY`."""
+    return Path(os.environ.get("VCNC_ORACLE_SOLUTIONS") or DIRECTORY)
+
+
+def recompute_requested() -> bool:
+    """True if ``$VCNC_ORACLE_RECOMPUTE`` is set to something other than ``""`` or ``"0"``."""
+    return os.environ.get("VCNC_ORACLE_RECOMPUTE", "") not in ("", "0")
+
+
+def signature(env, parameters: np.ndarray, noise_state=None) -> str:
+    """The key of the floor for ``env`` (after its reset) on the plant ``parameters`` (2, P): a file name
+    ``ID-HASH`` (see the module notes)."""
+    u = env.unwrapped
+    task = u.task
+    spec = getattr(u, "spec", None) or getattr(env, "spec", None)
+    name = spec.id if spec is not None else task.plant.name
+    h = hashlib.sha256()
+    h.update(json.dumps({"version": SOLVER_VERSION, "id": name,
+                         "kwargs": spec.kwargs if spec is not None else None, "dt": task.dt,
+                         "n_repeat": int(task.config.n_repeat), "plant": task.plant.name,
+                         "options": task.plant_options}, sort_keys=True, default=repr).encode())
+    h.update(np.ascontiguousarray(task.reference_arrays.samples).tobytes())
+    h.update(np.ascontiguousarray(parameters, dtype=np.float64).tobytes())
+    if noise_state is not None:
+        h.update(np.asarray(noise_state, dtype=np.uint64).tobytes())
+    return f"{name}-{h.hexdigest()[:20]}"
+
+
+def load(key: str) -> Solution | None:
+    """The solution stored under ``key``, or None."""
+    path = directory() / f"{key}.npz"
+    if not path.is_file():
+        return None
+    with np.load(path, allow_pickle=False) as z:
+        table = z["table"] if z["table"].size else None
+        starts = json.loads(str(z["warm_starts"]))
+        return Solution(start=str(z["start"]), correction=z["correction"], table=table,
+                        max_um=float(z["max_um"]), rms_um=float(z["rms_um"]),
+                        warm_starts={k: tuple(v) for k, v in starts.items()}, history=z["history"],
+                        solve_time_s=float(z["solve_time_s"]), evaluations=int(z["evaluations"]))
+
+
+def store(key: str, solution: Solution) -> Path | None:
+    """Write ``solution`` under ``key``; the path, or None where the directory is not writable."""
+    folder = directory()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{key}.npz"
+        np.savez_compressed(
+            path, start=solution.start, correction=np.asarray(solution.correction, dtype=np.float32),
+            table=np.zeros((0, 2), dtype=np.float32) if solution.table is None else solution.table,
+            max_um=solution.max_um, rms_um=solution.rms_um, warm_starts=json.dumps(solution.warm_starts),
+            history=solution.history, solve_time_s=solution.solve_time_s, evaluations=solution.evaluations)
+        return path
+    except OSError:
+        return None

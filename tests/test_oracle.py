@@ -1,0 +1,121 @@
+"""The non-causal floor (``oracle``, baselines/optimal): its shipped solutions replay to their figures through
+``gym.make``'s env, it lies at or below every causal controller, and the headroom the bench reports."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import baselines
+import vcnc_gym  # noqa: F401
+from baselines.optimal import oracle as oracle_module, solutions
+from baselines.optimal.search import causal_names
+from vcnc_bench.headroom import NON_CAUSAL, headroom
+from vcnc_gym.envs.registry import CONTOURING_IDS
+from vcnc_gym.evaluation import run_episode
+
+
+def _no_solve(*args, **kwargs):
+    raise AssertionError("the oracle solved instead of replaying its stored solution")
+
+
+@pytest.fixture
+def stored(monkeypatch):
+    """The shipped solutions only: no recompute, no other directory, no solve."""
+    monkeypatch.delenv("VCNC_ORACLE_RECOMPUTE", raising=False)
+    monkeypatch.delenv("VCNC_ORACLE_SOLUTIONS", raising=False)
+    monkeypatch.setattr(oracle_module, "solve", _no_solve)
+
+
+def test_shipped_floor_replays_to_its_stored_figure(stored):
+    """VCNC-Omega-v1's nominal floor, loaded (not solved), replays through gym.make's env to the max contour
+    error stored with it, below its start's own closed-loop episode, which itself matches the stored start."""
+    env = gym.make("VCNC-Omega-v1")
+    oracle = baselines.make("oracle", env)
+    assert oracle.causal is False
+    result = run_episode(oracle, env, seed=0)
+    sol = oracle.solutions[0]
+    assert result.completed
+    assert result.max_contour_error_um == sol.max_um
+    assert result.rms_contour_error_um == pytest.approx(sol.rms_um, rel=1e-12)
+    start = run_episode(baselines.make(sol.start, env), env, seed=0)
+    assert start.max_contour_error_um == pytest.approx(sol.warm_starts[sol.start][0], rel=1e-12)
+    assert result.max_contour_error_um <= start.max_contour_error_um
+    # the stored starts are every causal controller that applies, the floor at or below each
+    assert set(causal_names(env)) <= {k.split("#")[0] for k in sol.warm_starts}
+    assert all(sol.max_um <= v[0] for v in sol.warm_starts.values())
+
+
+def test_every_contouring_id_ships_a_floor_within_a_few_megabytes():
+    """A stored solution named after every contouring id (the keys: the slow test below), a few MB in all."""
+    shipped = {p.name.rsplit("-", 1)[0] for p in solutions.DIRECTORY.glob("*.npz")}
+    assert set(CONTOURING_IDS) <= shipped, sorted(set(CONTOURING_IDS) - shipped)
+    total = sum(p.stat().st_size for p in solutions.DIRECTORY.glob("*.npz"))
+    assert total < 5e6, total
+
+
+@pytest.mark.slow
+def test_every_contouring_id_ships_its_nominal_floor(stored):
+    """A stored solution for every contouring id's nominal plant at the bench's seed 0, found by its key."""
+    missing = []
+    for env_id in CONTOURING_IDS:
+        env = gym.make(env_id)
+        env.reset(seed=0)
+        u = env.unwrapped
+        arrays = u._batch.plant_arrays
+        noise = int(arrays.rng[0]) if hasattr(arrays, "rng") else None
+        if solutions.load(solutions.signature(env, u.parameters, noise)) is None:
+            missing.append(env_id)
+        env.close()
+    assert not missing
+
+
+def test_oracle_refuses_to_act_without_a_plan():
+    env = gym.make("VCNC-Circle-v1")
+    oracle = baselines.make("oracle", env)
+    obs, _ = env.reset(seed=0)
+    with pytest.raises(RuntimeError, match="plan"):
+        oracle.predict(obs)
+    with pytest.raises(ValueError, match="population"):
+        baselines.make("oracle", env, population=2)
+
+
+def test_headroom_is_the_strongest_causal_figure_over_the_floors():
+    results = {"qft": {"max_contour_error_um": 547.0, "rms_contour_error_um": 247.0},
+               "ff-pid": {"max_contour_error_um": 1790.0, "rms_contour_error_um": 650.0},
+               "smc": {"max_contour_error_um": math.inf, "rms_contour_error_um": math.inf},
+               "oracle" + NON_CAUSAL: {"max_contour_error_um": 500.0, "rms_contour_error_um": 240.0}}
+    h = headroom(results)
+    assert (h.strongest, h.floor) == ("qft", "oracle" + NON_CAUSAL)
+    assert h.ratio == 547.0 / 500.0
+    assert headroom({"qft": results["qft"]}) is None
+    with pytest.raises(ValueError, match="floor"):
+        headroom(results, floor="nothing")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ["VCNC-Circle-v1", "VCNC-CircleShop-v1"])
+def test_floor_is_at_or_below_every_causal_controller_on_plants_from_the_box(env_id, monkeypatch, tmp_path):
+    """On plants drawn from the box (one batch, the bench's robust path; on the shop floor each with its own
+    noise), the floor, solved with a small budget, is at or below every causal controller that applies."""
+    from vcnc_bench import robust
+
+    monkeypatch.setenv("VCNC_ORACLE_SOLUTIONS", str(tmp_path))
+    env = gym.make(env_id)
+    plants = robust.plant_set(env.unwrapped.plant, 2, seed=5, max_vertices=0)
+    period = env.unwrapped.decision_period
+
+    def runs(policy):
+        batch = robust.make_batch(env_id, len(plants.kinds))
+        return robust.run_plants(policy, batch, plants.parameters, decision_period=period, seed=3)
+
+    floor = runs(baselines.make("oracle", env, population=4, ilc_iterations=1, rounds=1, generations=2, trials=2))
+    names = causal_names(env)
+    assert {"ff-pid", "zpetc", "nctf"} <= set(names)
+    for name in names:
+        other = runs(baselines.make(name, env))
+        assert np.all(floor.max_um <= other.max_um), (name, floor.max_um, other.max_um)
+    assert len(list(tmp_path.glob("*.npz"))) == len(plants.kinds)  # solved and stored per plant
