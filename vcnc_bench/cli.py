@@ -79,7 +79,9 @@ from .options import check_program_options, program_tolerance
 from .papers import paper_figures
 from . import programs, robust
 from .plots import shown_labels
-from .policies import BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, resolve_policy
+from .headroom import headroom
+from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, resolve_policy,
+                       split_spec)
 from .runner import BuildError, EnvRecipe, EnvRuns, idle_cores, label_of, run_table
 
 #: The v0 ids, kept for agents trained on them: benchmarked when named.
@@ -462,6 +464,28 @@ def _print_table(args, ctx: BenchContext, records: list[dict]) -> None:
               f"its errors cover only the part it ran): {', '.join(incomplete)}")
 
 
+def _print_headroom(results: dict, records: list[dict]) -> None:
+    """Per env with a floor: the strongest causal classical controller (agents aside: the headroom is the room
+    they can still win), the floor, and their ratio (:mod:`vcnc_bench.headroom`); also as JSON rows."""
+    rows = []
+    for key, env_runs in results.items():
+        classical = {r.label: r.trials[-1] for r in env_runs.runs if split_spec(r.spec)[0] != "ppo"}
+        h = headroom(classical)
+        if h is not None:
+            rows.append((key, h))
+    if not rows:
+        return
+    print("\nHeadroom: the strongest causal classical controller's max contour error over the non-causal floor's "
+          "(the room a learned controller can still win)")
+    width = max(len(k) for k, _ in rows)
+    for key, h in rows:
+        print(f"  {key:<{width}} {h.strongest:>14} {h.strongest_max_um:10.4g} um / floor {h.floor_max_um:10.4g} um"
+              f" = {h.ratio:.3f}")
+        records.append({"table": "headroom", "env": key, "strongest": h.strongest,
+                        "strongest_max_um": h.strongest_max_um, "floor_max_um": h.floor_max_um,
+                        "headroom": h.ratio})
+
+
 def _print_reports(ctx: BenchContext, records: list[dict]) -> None:
     """The kinds' reports (the papers' own tables) and the ISO 230-4 figures of every full circle."""
     for kind in policy_kinds().values():
@@ -526,6 +550,7 @@ def main(argv: list[str] | None = None) -> int:
     ctx = _context(args, envs, results)
     records = _table_records(args, ctx, results)
     _print_table(args, ctx, records)
+    _print_headroom(results, records)
     _print_reports(ctx, records)
     if args.plots is not None:
         _write_trial_plots(ctx)

@@ -12,13 +12,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from .headroom import NON_CAUSAL
 from .papers import paper_figures
 from .policies import split_spec
 
-__all__ = ["NON_CAUSAL", "shown_labels", "plot_env"]
-
-#: The mark of a non-causal floor's label (:func:`vcnc_bench.runner.label_of`).
-NON_CAUSAL = " (non-causal)"
+__all__ = ["shown_labels", "plot_env"]
 
 
 def _is_agent(spec: str) -> bool:

@@ -93,9 +93,10 @@ class EnvRuns:
 def label_of(spec: str, policy) -> str:
     """A policy's label in the tables and the JSON: a non-causal floor (``causal = False``, the baselines'
     oracle) is marked so wherever it appears, never to be read as a controller."""
+    from .headroom import NON_CAUSAL
     from .policies import policy_label
 
-    return policy_label(spec) + (" (non-causal)" if getattr(policy, "causal", True) is False else "")
+    return policy_label(spec) + (NON_CAUSAL if getattr(policy, "causal", True) is False else "")
 
 
 def trials_of(policy, trials: int) -> int:
