@@ -15,9 +15,9 @@ The experiment, both axes at once (the axes of every plant of the suite are deco
    spectra of the excitation ``r`` with the position ``x`` and with the command ``u``, :func:`scipy.signal.csd`),
    which the loop's feedback of the sensor noise does not bias (Pintelon & Schoukens, *System Identification:
    A Frequency Domain Approach*, 2nd ed. 2012, ch. 2 and 9).
-2. **Slow reversal moves**: the loop (with an integral) follows a triangle at ``reversal_speed``; the mean
-   command over the constant-speed legs, less the fitted viscous term, is the Coulomb level of each direction
-   (with a cutting force against the motion, its mean is in that level too: what the feedforward must give).
+2. **Slow reversal moves**: the loop (with an integral) moves each axis alone at two speeds, out and back,
+   then both together (:func:`leg_schedule`); the mean commands at speed give the viscous coefficient, the
+   Coulomb level of each direction and a process force along the path (:func:`friction_levels`).
 
 The fit (:func:`fit_axis`): per axis the rigid body ``1 / (m s^2 + c s)`` in series with a first structural
 mode ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` and a dead time ``tau`` (the command and sensor delays
@@ -39,7 +39,7 @@ from vcnc_gym.envs.task import ContouringBatch
 from vcnc_gym.validation import positive
 
 __all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
-           "fit_axis", "coulomb_levels", "identify", "model_response", "MODE_PEAK_DB"]
+           "fit_axis", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
 
 #: A resonance at least this far (dB) above the fitted rigid body is taken for a structural mode.
 MODE_PEAK_DB = 3.0
@@ -61,9 +61,9 @@ class Experiment:
         The holding loop's bandwidth as a fraction of ``1 / dt``, rad/s (reduced until its phase margin on the
         nominal model is 60 deg: :func:`holding_gains`).
     reversal_speed : float
-        Speed of the reversal moves, mm/s.
-    reversal_legs : int
-        Number of constant-speed legs (alternating direction).
+        The lower speed of the reversal moves, mm/s (the higher is ``speed_ratio`` times it).
+    speed_ratio : float
+        Ratio of the two speeds of the reversal moves (they separate the viscous from the Coulomb level).
     leg_time : float
         Duration of each leg, s.
     seed : int
@@ -75,8 +75,8 @@ class Experiment:
     prbs_level: float = 0.3
     holding_bandwidth: float = 0.005
     reversal_speed: float = 10.0
-    reversal_legs: int = 4
-    leg_time: float = 0.1
+    speed_ratio: float = 3.0
+    leg_time: float = 0.25
     seed: int = 12345
 
 
@@ -84,16 +84,18 @@ class Experiment:
 class Measurement:
     """The experiment's record, per machine ``n`` and axis ``j``: excitation ``r``, command ``u`` (input unit)
     and measured tracking error ``e = x_d - x`` (mm) of the frequency-response run, (N, K, 2); the mean commands ``coulomb``
-    (N, 2, 2) (f+, f-) measured on the reversal legs at speed ``speed`` mm/s; the control period ``dt`` (s);
-    the wall time of the experiment (s)."""
+    (N, L, 2) of the reversal legs, whose axes' speeds (mm/s) are ``leg_speeds`` (L, 2); the control period ``dt`` (s);
+    the wall time of the experiment (s); the measured velocity's noise (N, 2), mm/s (standard deviation about
+    its running mean on the legs at speed)."""
 
     r: np.ndarray
     u: np.ndarray
     e: np.ndarray
     leg_command: np.ndarray
-    speed: float
+    leg_speeds: np.ndarray
     dt: float
     seconds: float
+    velocity_noise: np.ndarray
 
 
 class Machines:
@@ -166,28 +168,29 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     u_ff = inverse_feedforward(nominal_inverse, samples, dt)
     rng = np.random.default_rng(experiment.seed)
     K = int(experiment.periods)
-    legs = int(experiment.reversal_legs)
     per_leg = max(int(round(experiment.leg_time / dt)), 10)
     settle = per_leg
+    schedule = leg_schedule(experiment.reversal_speed, experiment.speed_ratio)
+    legs = len(schedule)
     total = K + settle + legs * per_leg
     level = experiment.prbs_level * machines.u_max
     r = np.zeros((n, total, 2))
     r[:, :K] = level * np.where(rng.random((n, K, 2)) < 0.5, -1.0, 1.0)
-    offset = np.zeros(total)  # the reversal legs' triangle on top of the reference, mm
-    offset_rate = np.zeros(total)
-    v0 = experiment.reversal_speed
-    for leg in range(legs):
+    offset_rate = np.zeros((total, 2))  # the reversal legs' moves on top of the reference, mm/s
+    for leg, speeds in enumerate(schedule):
         a = K + settle + leg * per_leg
-        offset_rate[a:a + per_leg] = v0 if leg % 2 == 0 else -v0
-    offset = np.cumsum(offset_rate) * dt
+        offset_rate[a:a + per_leg] = speeds
+    offset = np.cumsum(offset_rate, axis=0) * dt
     u = np.zeros((n, total, 2))
     e = np.zeros((n, total, 2))
+    velocity = np.zeros((n, total, 2))
     obs = machines.observe()
     vf = np.zeros((n, 2))
     integral = np.zeros((n, 2))
     for k in range(total):
         E = lay.tracking_error(obs)
-        vf = alpha * vf + (1 - alpha) * lay.velocity(obs)
+        velocity[:, k] = lay.velocity(obs)
+        vf = alpha * vf + (1 - alpha) * velocity[:, k]
         ek = E + offset[k]
         e[:, k] = E
         integral += ek * dt
@@ -195,16 +198,17 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
                    + ki * integral + r[:, k])
         u[:, k] = np.clip(u[:, k], -machines.u_max, machines.u_max)
         obs = machines.step(u[:, k])
-    leg_command = np.zeros((n, 2, 2))
-    for side, sign in ((0, 1.0), (1, -1.0)):
-        at_speed = np.zeros(total, dtype=bool)
-        for leg in range(legs):
-            a = K + settle + leg * per_leg
-            if (leg % 2 == 0) == (sign > 0):
-                at_speed[a + per_leg // 2:a + per_leg] = True
-        leg_command[:, :, side] = u[:, at_speed].mean(axis=1)
-    return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, speed=v0, dt=dt,
-                       seconds=time.perf_counter() - t0)
+    leg_command = np.zeros((n, legs, 2))
+    for leg in range(legs):
+        a = K + settle + leg * per_leg
+        leg_command[:, leg] = u[:, a + (3 * per_leg) // 5:a + per_leg].mean(axis=1)  # its last 40 %: at speed
+    # the sensor's velocity noise: the measured velocity less its 21-period running mean on the legs at speed
+    legs_v = velocity[:, K + settle + (3 * per_leg) // 5:K + settle + per_leg]
+    kernel = np.ones(21) / 21.0
+    smooth = np.apply_along_axis(lambda v: np.convolve(v, kernel, mode="same"), 1, legs_v)
+    velocity_noise = np.std((legs_v - smooth)[:, 10:-10], axis=1)
+    return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
+                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise)
 
 
 def frf(measurement: Measurement, machine: int, axis: int, segment: int | None = None):
@@ -225,7 +229,10 @@ def frf(measurement: Measurement, machine: int, axis: int, segment: int | None =
 class AxisModel:
     """One axis as identified: ``m s^2 + c s`` (input unit per mm/s^2 and per mm/s), a first mode of
     ``mode_frequency`` Hz (0: none found) and ``mode_damping``, a dead time ``delay`` s (ZOH included), the
-    Coulomb levels ``coulomb`` (f+, f-) in input units, the fit's rms log error and the band (Hz) it used."""
+    Coulomb levels ``coulomb`` (f+, f-) in input units, the fit's rms log error and the band (Hz) it used, the
+    measured velocity's noise (mm/s), the control period ``dt`` (s), the viscous coefficient the reversal legs
+    measured (input unit per mm/s: the steady-state one, which the feedforward uses; ``damping`` is the
+    frequency response's) and the process force along the path they measured (input unit)."""
 
     mass: float
     damping: float
@@ -235,6 +242,17 @@ class AxisModel:
     coulomb: tuple
     fit_error: float
     band: tuple
+    velocity_noise: float = 0.0
+    dt: float = 0.0
+    viscous: float = 0.0
+    process_force: float = 0.0
+
+    @property
+    def command_delay(self) -> float:
+        """The dead time's whole control periods beyond the hold's half period, s (what the feedforward leads by)."""
+        if self.dt <= 0:
+            return max(self.delay, 0.0)
+        return max(0.0, round(self.delay / self.dt - 0.5)) * self.dt
 
 
 def model_response(model_or_params, frequency_hz):
@@ -307,18 +325,42 @@ def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None,
     return AxisModel(mass=float(np.exp(t[0])), damping=float(np.exp(t[1])),
                      mode_frequency=float(np.exp(t[3])) if with_mode else 0.0,
                      mode_damping=float(np.exp(t[4])) if with_mode else 0.0, delay=float(t[2]), coulomb=(0.0, 0.0),
-                     fit_error=rms, band=(float(low), float(high)))
+                     fit_error=rms, band=(float(low), float(high)), dt=float(dt))
 
 
-def coulomb_levels(measurement: Measurement, machine: int, damping) -> np.ndarray:
-    """(2, 2): per axis the Coulomb levels (f+ >= 0, f- <= 0) in input units, the legs' mean command less the
-    viscous ``damping`` (per axis) times the speed."""
-    legs = measurement.leg_command[machine]
-    v = measurement.speed
-    d = np.asarray(damping, dtype=np.float64)
-    f_pos = np.maximum(legs[:, 0] - d * v, 0.0)
-    f_neg = np.minimum(legs[:, 1] + d * v, 0.0)
-    return np.column_stack([f_pos, f_neg])
+def leg_schedule(speed: float, ratio: float) -> np.ndarray:
+    """The reversal legs' axis speeds (L, 2), mm/s: each axis alone at ``speed`` and ``ratio`` times it, in both
+    directions (the other axis holding), then both together at ``speed`` (a diagonal), each out and back."""
+    v1, v2 = speed, speed * ratio
+    legs = []
+    for j in range(2):
+        for v in (v1, v2):
+            move = np.zeros(2)
+            move[j] = v
+            legs += [move, -move]
+    legs += [np.array([v1, v1]), np.array([-v1, -v1])]
+    return np.array(legs)
+
+
+def friction_levels(measurement: Measurement, machine: int):
+    """Per axis the viscous coefficient (input unit per mm/s), the Coulomb levels (f+ >= 0, f- <= 0) and a
+    process force along the path (input unit), from the reversal legs by least squares.
+
+    On a leg where axis ``j`` moves at ``v_j`` (the path at ``|v|``) its mean command is
+    ``c v_j + f^{sgn v_j} + F v_j / |v|``: a process force against the path's motion (a cutting force) shares
+    itself among the axes as the motion does, a Coulomb level does not; the single-axis and diagonal legs
+    separate them.  Returns ``(c (2,), coulomb (2, 2), force (2,))``."""
+    speeds = measurement.leg_speeds
+    path = np.hypot(speeds[:, 0], speeds[:, 1])
+    c, coulomb, force = np.zeros(2), np.zeros((2, 2)), np.zeros(2)
+    for j in range(2):
+        rows = np.flatnonzero(speeds[:, j] != 0)
+        v = speeds[rows, j]
+        A = np.column_stack([v, (v > 0).astype(float), (v < 0).astype(float), v / path[rows]])
+        x, *_ = np.linalg.lstsq(A, measurement.leg_command[machine, rows, j], rcond=None)
+        c[j], coulomb[j] = x[0], (max(x[1], 0.0), min(x[2], 0.0))
+        force[j] = max(x[3], 0.0)
+    return c, coulomb, force
 
 
 def identify(task, parameters, nominal_inverse, experiment: Experiment = Experiment()):
@@ -335,8 +377,9 @@ def identify(task, parameters, nominal_inverse, experiment: Experiment = Experim
         for j in range(2):
             f, G, coh = frf(meas, i, j, experiment.segment)
             axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt))
-        levels = coulomb_levels(meas, i, [a.damping for a in axes])
-        axes = [AxisModel(**{**a.__dict__, "coulomb": (float(levels[j, 0]), float(levels[j, 1]))})
-                for j, a in enumerate(axes)]
+        viscous, levels, force = friction_levels(meas, i)
+        axes = [AxisModel(**{**a.__dict__, "viscous": float(viscous[j]),
+                             "coulomb": (float(levels[j, 0]), float(levels[j, 1])), "process_force": float(force[j]),
+                             "velocity_noise": float(meas.velocity_noise[i, j])}) for j, a in enumerate(axes)]
         models.append(axes)
     return models, meas
