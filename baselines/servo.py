@@ -54,56 +54,19 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import positive, non_negative, per_axis
 from .base import BaselinePolicy
 
-__all__ = ["Commissioning", "COMMISSIONING", "commissioning", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
-           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate"]
+__all__ = ["COMMISSIONING_SOURCES", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
+           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate", "NO_NOTCH"]
 
 #: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
 #: (2, mm), its velocity offset (2, mm/s), the reference's unit tangent (2) and signed curvature (1/mm).
 U_FF, OFFSET, VELOCITY_OFFSET, TANGENT, CURVATURE = 0, 2, 4, 6, 8
 TABLE_COLUMNS = 9
 
-@dataclass(frozen=True)
-class Commissioning:
-    """The free numbers of the model-based controllers' design rule on one machine: what commissioning a drive
-    sets.  ``bandwidth``: the PID's triple closed-loop pole, rad/s (:func:`pid_gains`); ``friction_time``: the
-    duration over which the feedforward's Coulomb level changes sign at a velocity reversal of the reference, s
-    (0: at the reversal; :func:`~baselines.feedforward.tables.inverse_feedforward`)."""
-
-    bandwidth: float
-    friction_time: float
-
-
-#: Per plant and shop floor (False: the papers' machine, True: the same machine on the shop floor,
-#: :mod:`vcnc_gym.plants.shop_floor`), each the best max contour error of ``ff-pid``, ``zpetc`` and ``ff-ccc`` on
-#: the nominal plant of the machine's ids over a grid (``python benchmarks/tune_servo.py`` and
-#: ``--transitions``/``--shop-floor``; the figures in docs/reproduction.md).  The dead time of Yadav et al.'s
-#: axis (0.1 s) bounds its loop to a few rad/s (phase margin ~60 deg at w T_d ~ 0.25 with the triple pole's
-#: lag).  On Simba et al.'s drive a Coulomb switch at the reversal (0) halves the smoothed corners' max against
-#: 1 ms (zpetc 4.3 nm against 12.9 nm); on Jahanpour et al.'s drive the transition grid's spread (1.84 to
-#: 2.02 um on the heart, no consistent optimum on the look-ahead omega) leaves 1 ms.  On the shop floor Simba et
-#: al.'s drive keeps 1 ms: the Coulomb switch does not model its Stribeck friction (ff-ccc 166 um against
-#: 181 um).  Jahanpour et al.'s drive keeps 1000 rad/s there: 1500 rad/s lowers the nominal plant's max (the
-#: heart 60 against 65 um, the look-ahead omega 43 against 53 um) but not over the box: zpetc and ff-pid diverge
-#: on 3 of its 100 plants on the heart, and ff-ccc's worst max rises from 706 to 768 um (the heart) and from
-#: 549 to 727 um (the omega) (``vcnc-bench --plants 100``; docs/reproduction.md).
-COMMISSIONING = {
-    ("vcnc_feed_drive", False): Commissioning(bandwidth=1000.0, friction_time=1e-3),
-    ("vcnc_feed_drive", True): Commissioning(bandwidth=1000.0, friction_time=1e-3),
-    ("current_feed_drive", False): Commissioning(bandwidth=2000.0, friction_time=0.0),
-    ("current_feed_drive", True): Commissioning(bandwidth=2000.0, friction_time=1e-3),
-    ("nct_xy_table", False): Commissioning(bandwidth=30.0, friction_time=1e-3),
-    ("nct_xy_table", True): Commissioning(bandwidth=30.0, friction_time=1e-3),
-    ("cncmt_axis", False): Commissioning(bandwidth=1.0, friction_time=1e-3),
-    ("cncmt_axis", True): Commissioning(bandwidth=1.0, friction_time=1e-3),
-}
-
-
-def commissioning(plant) -> Commissioning:
-    """The :data:`COMMISSIONING` of ``plant`` (a PlantModel, on the shop floor or not)."""
-    from vcnc_gym.plants.shop_floor import ShopFloorModel
-
-    return COMMISSIONING[(plant.name, isinstance(plant, ShopFloorModel))]
-
+#: How a model-based controller is commissioned (:mod:`baselines.commissioning.record`): ``"nominal"`` (the
+#: identification run on the env's nominal machine, shipped with the project), ``"machine"`` (an identification run
+#: on each plant instance in :meth:`ServoPolicy.plan`, before its episode), ``"model"`` (the design rules on the model
+#: the parameters declare, no experiment: non-causal when they are a plant's true ones).
+COMMISSIONING_SOURCES = ("nominal", "machine", "model")
 
 #: Memory columns per env: the control period k of the next call, the axes' integrals (mm s), the coupling's (mm s),
 #: the axes' filtered velocities (mm/s) and the notch filters' two states per axis (input unit).
@@ -232,8 +195,12 @@ class ServoPolicy(BaselinePolicy):
     #: It follows a contour's reference: only contouring envs (vcnc_bench's ``applies``).
     needs_reference = True
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt):
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
+                 commissioning: str | None = None):
         super().__init__(layout, decision_period, nominal_parameters, plant)
+        if commissioning is not None and commissioning not in COMMISSIONING_SOURCES:
+            raise ValueError(f"commissioning must be one of {list(COMMISSIONING_SOURCES)} (or None: the nominal "
+                             f"machine's record where there is one, else the model's), got {commissioning!r}")
         samples = np.asarray(reference, dtype=np.float64)
         if samples.ndim != 2 or samples.shape[1] != sk.REF_COLUMNS or samples.shape[0] < 2:
             raise ValueError(f"reference must be the env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), "
@@ -246,9 +213,64 @@ class ServoPolicy(BaselinePolicy):
                              f"dt = {self.dt} s")
         self.stride = int(round(stride))
         self.inverse = self.plant.inverse(self.nominal_parameters)
+        self.task = task
+        self.commissioning = commissioning
+        self.records = [self._nominal_record()]
+        self.identification_s = 0.0
+        self._commissioned_for = None
         self.table = None
         self.gains = None
         self._record = np.zeros((0, 0, 2))
+
+    def _nominal_record(self):
+        """The record the controller starts from: the nominal machine's (shipped, or identified on ``task``'s
+        nominal machine), or with ``commissioning="model"`` (or None and neither) the declared model's."""
+        from .commissioning.record import model_record, nominal_record
+
+        if self.commissioning != "model":
+            same = self.task is not None and np.array_equal(self.task.nominal_parameters, self.nominal_parameters)
+            record = nominal_record(self.plant, self.nominal_parameters, self.dt, self.task if same else None)
+            if record is not None:
+                return record
+            if self.commissioning is not None:
+                raise ValueError(f"baseline {self.name!r}: commissioning={self.commissioning!r} needs the env's task "
+                                 "(build it with from_env) or a shipped record of its nominal machine "
+                                 "(python -m baselines.commissioning.record ENV_ID)")
+        return model_record(self.plant, self.nominal_parameters, self.dt)
+
+    def _commission_machines(self, env) -> bool:
+        """With ``commissioning="machine"``: identify each plant ``env`` holds now (once per set of plants);
+        True if the records changed."""
+        if self.commissioning != "machine":
+            return False
+        from .commissioning.record import commission
+
+        u = getattr(env, "unwrapped", env)
+        params = np.asarray(u.parameters, dtype=np.float64)
+        params = params[None] if params.ndim == 2 else params
+        if self._commissioned_for is not None and self._commissioned_for == params.tobytes():
+            return False
+        task = getattr(u, "task", None) or self.task
+        self.records = commission(task, "machine", params)
+        self.identification_s = float(sum(r.identification_s for r in self.records))
+        self._commissioned_for = params.tobytes()
+        return True
+
+    def commissioned(self):
+        """Per design row (1, or one per env after a per-machine commissioning): ``(record, inverse, gains)``,
+        the record's inverse dynamics (with its mode; the nominal backlash) and its
+        :class:`ServoGains` arrays (``kp``, ``kd``, ``ki``, ``velocity_filter``, ``notch``), with
+        :attr:`bandwidth` (when a subclass sets one explicitly) overriding the record's PID by pole placement on
+        the record's axes."""
+        rows = []
+        for r in self.records:
+            g = r.gains()
+            inv = r.inverse()
+            override = getattr(self, "_bandwidth_override", None)
+            if override is not None:
+                g["kp"], g["kd"], g["ki"] = pid_gains(inv.mass, inv.damping, override)
+            rows.append((r, inv, g))
+        return rows
 
     @classmethod
     def from_env(cls, env, **params):
@@ -264,14 +286,18 @@ class ServoPolicy(BaselinePolicy):
             raise ValueError(f"baseline {cls.name!r} reads the reference ahead from a table computed once; "
                              f"{type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
                              "override): use 'ff-pid-online'")
-        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
+        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, task=task, **params)
 
     def plan(self, env) -> None:
         """Rebuild the table if ``env``'s reference is not the one it was built from (a contour drawn at reset):
-        what a CNC's interpolator does when a new part program is loaded.  Called by the evaluation loops after
-        every reset; with the same reference it does nothing."""
+        what a CNC's interpolator does when a new part program is loaded; with ``commissioning="machine"``,
+        first commission each plant ``env`` holds (once per set of plants).  Called by the evaluation loops after
+        every reset; with the same reference and plants it does nothing."""
         task = getattr(getattr(env, "unwrapped", env), "task", None)
         samples = getattr(getattr(task, "reference_arrays", None), "samples", None)
+        if self._commission_machines(env) and (samples is None or samples is self.reference):
+            self._build()
+            return
         if samples is None or samples is self.reference:
             return
         if task.dt != self.dt:
