@@ -39,7 +39,13 @@ from vcnc_gym.envs.task import ContouringBatch
 from vcnc_gym.validation import positive
 
 __all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
-           "fit_axis", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
+           "fit_axis", "COHERENCE_FLOOR", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
+
+#: The longest travel of a reversal leg, mm (within the observation's tracking-error bound).
+LEG_TRAVEL = 6.0
+
+#: The fit's band ends where the excitation's coherence with the position falls below this.
+COHERENCE_FLOOR = 0.5
 
 #: A resonance at least this far (dB) above the fitted rigid body is taken for a structural mode.
 MODE_PEAK_DB = 3.0
@@ -60,12 +66,16 @@ class Experiment:
     holding_bandwidth : float
         The holding loop's bandwidth as a fraction of ``1 / dt``, rad/s (reduced until its phase margin on the
         nominal model is 60 deg: :func:`holding_gains`).
-    reversal_speed : float
-        The lower speed of the reversal moves, mm/s (the higher is ``speed_ratio`` times it).
+    reversal_speed : float, optional
+        The lower speed of the reversal moves, mm/s (the higher is ``speed_ratio`` times it); default a fifth of
+        the task's reference's peak speed (the machine's working feed: fast enough that the holding axis'
+        jitter takes no share of a process force along the path), at most :data:`LEG_TRAVEL` per leg at the
+        higher speed.
     speed_ratio : float
         Ratio of the two speeds of the reversal moves (they separate the viscous from the Coulomb level).
-    leg_time : float
-        Duration of each leg, s.
+    leg_time : float, optional
+        Duration of each leg, s; default 12.5 time constants of the holding loop (``12.5 / w``), so that the
+        loop has settled over the leg's last 40 % where the command is averaged.
     seed : int
         Seed of the PRBS and of the machines' sensor noise during the experiment.
     """
@@ -74,9 +84,9 @@ class Experiment:
     segment: int = 8192
     prbs_level: float = 0.3
     holding_bandwidth: float = 0.005
-    reversal_speed: float = 10.0
-    speed_ratio: float = 3.0
-    leg_time: float = 0.25
+    reversal_speed: float | None = None
+    speed_ratio: float = 2.0
+    leg_time: float | None = None
     seed: int = 12345
 
 
@@ -86,7 +96,7 @@ class Measurement:
     and measured tracking error ``e = x_d - x`` (mm) of the frequency-response run, (N, K, 2); the mean commands ``coulomb``
     (N, L, 2) of the reversal legs, whose axes' speeds (mm/s) are ``leg_speeds`` (L, 2); the control period ``dt`` (s);
     the wall time of the experiment (s); the measured velocity's noise (N, 2), mm/s (standard deviation about
-    its running mean on the legs at speed)."""
+    its running mean on the legs at speed); the holding loop's bandwidth per axis (2,), rad/s."""
 
     r: np.ndarray
     u: np.ndarray
@@ -96,6 +106,7 @@ class Measurement:
     dt: float
     seconds: float
     velocity_noise: np.ndarray
+    holding_bandwidth: np.ndarray
 
 
 class Machines:
@@ -168,17 +179,24 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     u_ff = inverse_feedforward(nominal_inverse, samples, dt)
     rng = np.random.default_rng(experiment.seed)
     K = int(experiment.periods)
-    per_leg = max(int(round(experiment.leg_time / dt)), 10)
+    leg_time = 12.5 / float(np.min(w)) if experiment.leg_time is None else experiment.leg_time
+    speed = experiment.reversal_speed
+    if speed is None:  # a fifth of the working feed, at most LEG_TRAVEL per leg at the higher speed
+        ref_v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+        speed = min(0.2 * float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1]))),
+                    LEG_TRAVEL / (leg_time * experiment.speed_ratio))
+    per_leg = max(int(round(leg_time / dt)), 25)
     settle = per_leg
-    schedule = leg_schedule(experiment.reversal_speed, experiment.speed_ratio)
+    schedule = leg_schedule(positive("reversal_speed", speed, "mm/s"), experiment.speed_ratio)
     legs = len(schedule)
-    total = K + settle + legs * per_leg
+    start = max(K, samples.shape[0]) + settle  # the legs begin once the reference has stopped
+    total = start + legs * per_leg
     level = experiment.prbs_level * machines.u_max
     r = np.zeros((n, total, 2))
     r[:, :K] = level * np.where(rng.random((n, K, 2)) < 0.5, -1.0, 1.0)
     offset_rate = np.zeros((total, 2))  # the reversal legs' moves on top of the reference, mm/s
     for leg, speeds in enumerate(schedule):
-        a = K + settle + leg * per_leg
+        a = start + leg * per_leg
         offset_rate[a:a + per_leg] = speeds
     offset = np.cumsum(offset_rate, axis=0) * dt
     u = np.zeros((n, total, 2))
@@ -200,15 +218,15 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
         obs = machines.step(u[:, k])
     leg_command = np.zeros((n, legs, 2))
     for leg in range(legs):
-        a = K + settle + leg * per_leg
+        a = start + leg * per_leg
         leg_command[:, leg] = u[:, a + (3 * per_leg) // 5:a + per_leg].mean(axis=1)  # its last 40 %: at speed
     # the sensor's velocity noise: the measured velocity less its 21-period running mean on the legs at speed
-    legs_v = velocity[:, K + settle + (3 * per_leg) // 5:K + settle + per_leg]
+    legs_v = velocity[:, start + (3 * per_leg) // 5:start + per_leg]
     kernel = np.ones(21) / 21.0
     smooth = np.apply_along_axis(lambda v: np.convolve(v, kernel, mode="same"), 1, legs_v)
     velocity_noise = np.std((legs_v - smooth)[:, 10:-10], axis=1)
     return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
-                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise)
+                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w)
 
 
 def frf(measurement: Measurement, machine: int, axis: int, segment: int | None = None):
@@ -271,12 +289,21 @@ def model_response(model_or_params, frequency_hz):
     return g
 
 
-def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None, high_hz=None) -> AxisModel:
+def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None, high_hz=None,
+             holding_bandwidth: float = 0.0) -> AxisModel:
     """Fit :class:`AxisModel`'s linear part to one axis' estimate (see the module docstring).  The band is
-    ``low_hz`` (default 20 frequency bins or 20 Hz, whichever is higher: below, the friction and the holding loop dominate) to ``high_hz`` (default a fifth of the Nyquist frequency); the
-    nominal mass and damping are the starting point only."""
-    low = low_hz if low_hz is not None else max(20.0 * f[0], 20.0)
-    high = high_hz if high_hz is not None else 0.1 / dt
+    ``low_hz`` (default 20 frequency bins or four times the holding loop's ``holding_bandwidth`` (rad/s), whichever
+    is higher: below, the friction and the holding loop dominate) to ``high_hz`` (default where the coherence,
+    median-filtered over 31 bins, first falls below :data:`COHERENCE_FLOOR` beyond three times the low end, at
+    most 0.4 of the Nyquist frequency); the nominal mass and damping are the starting point only."""
+    low_default = 4.0 * holding_bandwidth / (2 * np.pi)
+    low = low_hz if low_hz is not None else max(20.0 * f[0], low_default)
+    if high_hz is None:  # up to where the response sinks into the sensor's counts and noise
+        smooth = signal.medfilt(np.asarray(coherence, dtype=np.float64), 31)
+        poor = np.flatnonzero((f > 3.0 * low) & (smooth < COHERENCE_FLOOR))
+        high = min(f[poor[0]] if poor.size else np.inf, 0.2 / dt)
+    else:
+        high = high_hz
     band = (f >= low) & (f <= high) & np.isfinite(G) & (np.abs(G) > 0)
     coh = np.clip(coherence[band], 1e-3, 0.999)
     fb, Gb, wgt = f[band], G[band], np.sqrt(coh / (1.0 - coh))  # the estimate's inverse standard deviation
@@ -376,7 +403,8 @@ def identify(task, parameters, nominal_inverse, experiment: Experiment = Experim
         axes = []
         for j in range(2):
             f, G, coh = frf(meas, i, j, experiment.segment)
-            axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt))
+            axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt,
+                                 holding_bandwidth=meas.holding_bandwidth[j]))
         viscous, levels, force = friction_levels(meas, i)
         axes = [AxisModel(**{**a.__dict__, "viscous": float(viscous[j]),
                              "coulomb": (float(levels[j, 0]), float(levels[j, 1])), "process_force": float(force[j]),

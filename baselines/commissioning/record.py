@@ -87,6 +87,11 @@ class CommissioningRecord:
         """The identified inverse dynamics (:func:`~baselines.commissioning.design.inverse_dynamics`)."""
         return inverse_dynamics(self.axes, self.backlash, with_mode=with_mode)
 
+    @property
+    def process_force(self) -> np.ndarray:
+        """Per axis the identified process force along the path, input unit (2,)."""
+        return np.array([a.process_force for a in self.axes])
+
     def gains(self) -> dict:
         """The servo law's per-axis arrays: ``kp``, ``kd``, ``ki``, ``velocity_filter`` (2,), ``notch`` (2, 5)."""
         d = self.designs

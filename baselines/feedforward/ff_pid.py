@@ -2,7 +2,8 @@
 
 The command of each axis is the commissioned machine's inverse dynamics along the reference (the identified
 rigid body with its first mode, :mod:`baselines.commissioning`), read ahead by half a control period and the
-identified dead time, with the identified Coulomb friction of the direction of motion and the backlash crossing
+identified dead time, with the identified Coulomb friction of the direction of motion, the identified process
+force along the path (:func:`~baselines.feedforward.tables.path_force_feedforward`) and the backlash crossing
 pre-compensated (:func:`baselines.feedforward.tables.inverse_feedforward`), plus a PID on the measured tracking
 error (derivative on ``v_d - v``, the measured velocity through the commissioned low-pass), its gains by pole
 placement on the identified axis (:func:`baselines.servo.pid_gains`: a triple closed-loop pole at the
@@ -26,7 +27,7 @@ import numpy as np
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import non_negative, positive
 from ..servo import OFFSET, VELOCITY_OFFSET, ServoGains, ServoPolicy, U_FF, reference_table
-from .tables import inverse_feedforward
+from .tables import inverse_feedforward, path_force_feedforward
 
 __all__ = ["FeedforwardPIDPolicy", "shaped_reference"]
 
@@ -99,6 +100,7 @@ class FeedforwardPIDPolicy(ServoPolicy):
             rigid = record.inverse(with_mode=False)
             table[:, U_FF:U_FF + 2] = inverse_feedforward(rigid, shaped, self.dt, friction_time=self.friction_time,
                                                           backlash_time=self.backlash_time)
+            table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, shaped, self.dt, rigid.delay)
             table[:, OFFSET:OFFSET + 2] = (shaped[:, sk.REF_POSITION:sk.REF_POSITION + 2]
                                            - self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2])
             table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = (shaped[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
@@ -107,6 +109,7 @@ class FeedforwardPIDPolicy(ServoPolicy):
         inv = record.inverse(with_mode=False) if self.feedforward == "rigid" else inverse
         table[:, U_FF:U_FF + 2] = inverse_feedforward(inv, self.reference, self.dt, friction_time=self.friction_time,
                                                       backlash_time=self.backlash_time)
+        table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, self.reference, self.dt, inv.delay)
         return table
 
     def _gains(self, g: dict) -> ServoGains:

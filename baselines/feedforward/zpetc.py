@@ -17,7 +17,7 @@ import numpy as np
 from vcnc_gym.validation import non_negative, positive
 from ..servo import OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, reference_table
 from vcnc_gym.envs import step_kernel as sk
-from .tables import closed_loop, inverse_feedforward, zpetc_filter, zpetc_reference
+from .tables import closed_loop, inverse_feedforward, path_force_feedforward, zpetc_filter, zpetc_reference
 
 __all__ = ["ZPETCPolicy"]
 
@@ -83,6 +83,8 @@ class ZPETCPolicy(ServoPolicy):
             table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
                 rigid, self.reference, self.dt, motion=False, friction_time=self.friction_time,
                 backlash_time=self.backlash_time)
+            table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, self.reference, self.dt,
+                                                              rigid.delay)
             tables.append(table)
             gains.append(ServoGains(g["kp"], g["kd"], g["ki"], velocity_filter=g["velocity_filter"], notch=g["notch"]))
         self._set_law(tables[0] if len(tables) == 1 else np.stack(tables), gains[0] if len(gains) == 1 else gains)
