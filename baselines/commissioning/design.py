@@ -17,7 +17,7 @@ bandwidth ``w_b`` on the identified ``m s^2 + c s``).  The rules (:func:`design_
   ``EXACT_VELOCITY_NOISE``), a first-order low-pass of the count difference with cutoff ``w_v = r w_b``
   (``r`` of ``VELOCITY_FILTER_RATIOS``, at most a third of the Nyquist frequency); with an exact sensor none;
 - **notch**: at the identified mode (where one was found), ``(s^2 + w_m^2) / (s^2 + (w_m / Q) s + w_m^2)``
-  discretised by Tustin's rule prewarped at ``w_m`` (the same coefficients as :func:`scipy.signal.iirnotch`),
+  discretised with its band prewarped (:func:`notch_coefficients`, the coefficients of :func:`scipy.signal.iirnotch`),
   ``Q`` of ``NOTCH_QS``;
 - **bandwidth**: the largest ``w_b`` of a geometric grid up to the ``ceiling`` at which the closed loop is
   stable, its gain crossover is at most ``MODE_FRACTION`` of the mode, and it meets phase margin >=
@@ -93,17 +93,18 @@ class AxisDesign:
 
 
 def notch_coefficients(frequency_hz: float, q: float, dt: float) -> tuple:
-    """``(b0, b1, b2, a1, a2)`` of the notch ``(s^2 + w^2) / (s^2 + (w / Q) s + w^2)`` by Tustin's rule
-    prewarped at ``w = 2 pi frequency_hz``: unit gain at 0 and Nyquist, zero at ``w``, -3 dB width ``w / Q``
-    (Robert Bristow-Johnson's audio EQ cookbook's notch)."""
+    """``(b0, b1, b2, a1, a2)`` of a second-order digital notch at ``w0 = 2 pi frequency_hz dt`` rad/sample whose
+    -3 dB band is ``w0 / Q`` wide: ``g (1 - 2 cos(w0) z^-1 + z^-2) / (1 - 2 g cos(w0) z^-1 + (2 g - 1) z^-2)``,
+    ``g = 1 / (1 + tan(w0 / (2 Q)))`` (the bilinear transform of ``(s^2 + w^2) / (s^2 + (w / Q) s + w^2)`` with
+    its band edges prewarped; Orfanidis, *Introduction to Signal Processing*, 1996, sec. 11.3): unit gain at 0 and
+    Nyquist, zero at ``w0``.  ``frequency_hz <= 0``: no notch."""
     if frequency_hz <= 0.0:
         return NO_NOTCH
     w0 = 2.0 * math.pi * frequency_hz * dt
     if w0 >= math.pi:
         raise ValueError(f"notch frequency {frequency_hz} Hz is at or beyond the Nyquist frequency {0.5 / dt} Hz")
-    alpha = math.sin(w0) / (2.0 * q)
-    a0 = 1.0 + alpha
-    return (1.0 / a0, -2.0 * math.cos(w0) / a0, 1.0 / a0, -2.0 * math.cos(w0) / a0, (1.0 - alpha) / a0)
+    g = 1.0 / (1.0 + math.tan(w0 / (2.0 * q)))
+    return (g, -2.0 * g * math.cos(w0), g, -2.0 * g * math.cos(w0), 2.0 * g - 1.0)
 
 
 def discrete_plant(model: AxisModel, dt: float, omega: np.ndarray) -> np.ndarray:
