@@ -14,7 +14,7 @@ control = pytest.importorskip("control")
 
 import vcnc_gym  # noqa: E402,F401
 from baselines.commissioning import design, identify, record  # noqa: E402
-from baselines.servo import NO_NOTCH, ServoGains, pid_gains  # noqa: E402
+from baselines.servo import NO_NOTCH, ServoGains  # noqa: E402
 
 
 def _axis(mode=150.0, zeta=0.05, delay=1.5e-4, noise=0.8):
@@ -98,9 +98,10 @@ def test_frf_estimate_is_python_controls_response_with_the_mode():
 
 def test_record_round_trips_through_json(tmp_path):
     """A record saved as JSON loads equal, and prints its identified mode and margins."""
-    env = gym.make("VCNC-HeartShop-v1")
-    task = env.unwrapped.task
-    rec = record.model_record(task.plant, task.nominal_parameters, task.dt)
+    from vcnc_gym.plants.shop_floor import shop_floor
+
+    plant = shop_floor("vcnc_feed_drive")
+    rec = record.model_record(plant, plant.nominal(), 1e-4)
     path = tmp_path / "record.json"
     rec.save(path)
     back = record.load(path)
@@ -114,6 +115,7 @@ def test_record_round_trips_through_json(tmp_path):
     np.testing.assert_allclose(inv.coefficients[:, 3], inv.coefficients[:, 1] / w2)
 
 
+@pytest.mark.slow
 def test_servo_law_filters_compiled_equals_numpy():
     """The servo law with a velocity filter and a notch: the compiled form gives the NumPy form's commands, and
     without them the law's commands are those of the plain PID (the filters off change nothing)."""

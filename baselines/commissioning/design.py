@@ -187,7 +187,7 @@ def closed_loop_poles(L) -> np.ndarray:
     return control.poles(control.feedback(L, 1))
 
 def _grid(dt: float) -> np.ndarray:
-    return np.logspace(-1, math.log10(0.999 * math.pi / dt), 6000)
+    return np.logspace(-1, math.log10(0.999 * math.pi / dt), 4000)
 
 
 def design_axis(model: AxisModel, dt: float, velocity_noise: float, ceiling: float) -> AxisDesign:
@@ -205,7 +205,8 @@ def design_axis(model: AxisModel, dt: float, velocity_noise: float, ceiling: flo
 
     Notes
     -----
-    From the highest bandwidth of the grid down, the first at which some velocity-filter ratio of
+    From the highest bandwidth of a geometric grid down (a coarse grid over three decades below the ceiling,
+    then a fine one above its first success), the first at which some velocity-filter ratio of
     :data:`VELOCITY_FILTER_RATIOS` and notch quality of :data:`NOTCH_QS` (the lowest cutoff and then the
     narrowest notch first) gives a closed loop that is stable (:func:`closed_loop_poles`), meets the margins and
     crosses over below :data:`MODE_FRACTION` of the mode.
@@ -216,7 +217,8 @@ def design_axis(model: AxisModel, dt: float, velocity_noise: float, ceiling: flo
     filtered = velocity_noise > EXACT_VELOCITY_NOISE
     ratios = VELOCITY_FILTER_RATIOS if filtered else (0.0,)
     qs = NOTCH_QS if has_mode else (0.0,)
-    for w in np.geomspace(ceiling / 1000.0, ceiling, 301)[::-1]:
+
+    def attempt(w):
         kp, kd, ki = (float(v) for v in pid_gains(model.mass, model.damping, w))
         for ratio in ratios:
             cutoff = min(ratio * w, math.pi / (3 * dt)) if filtered else 0.0
@@ -229,6 +231,21 @@ def design_axis(model: AxisModel, dt: float, velocity_noise: float, ceiling: flo
                 if np.all(np.abs(closed_loop_poles(loop_tf(model, dt, kp, kd, ki, pole, notch))) < 1.0):
                     return AxisDesign(float(w), kp, kd, ki, float(cutoff), float(pole),
                                       model.mode_frequency if has_mode else 0.0, float(q), tuple(notch), m)
+        return None
+
+    # down a coarse geometric grid (3 decades, 31 points) to the first bandwidth that passes, then down a fine
+    # one (30 points) from the coarse point above it
+    coarse = np.geomspace(ceiling / 1000.0, ceiling, 31)[::-1]
+    for i, w in enumerate(coarse):
+        found = attempt(w)
+        if found is not None:
+            if i == 0:
+                return found
+            for w_fine in np.geomspace(w, coarse[i - 1], 31)[-2:0:-1]:
+                better = attempt(w_fine)
+                if better is not None:
+                    return better
+            return found
     raise ValueError(f"no bandwidth up to {ceiling:g} rad/s meets the margins on the identified axis {model}")
 
 
