@@ -42,6 +42,7 @@ does, and it is marked so in every table.
 
 from __future__ import annotations
 
+import inspect
 from collections import namedtuple
 from dataclasses import dataclass
 
@@ -286,7 +287,9 @@ class ServoPolicy(BaselinePolicy):
             raise ValueError(f"baseline {cls.name!r} reads the reference ahead from a table computed once; "
                              f"{type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
                              "override): use 'ff-pid-online'")
-        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, task=task, **params)
+        if "task" in inspect.signature(cls.__init__).parameters:  # the task commissions the nominal machine
+            params = {"task": task, **params}
+        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     def plan(self, env) -> None:
         """Rebuild the table if ``env``'s reference is not the one it was built from (a contour drawn at reset):
