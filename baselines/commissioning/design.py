@@ -136,7 +136,7 @@ def margins(L: np.ndarray, omega: np.ndarray) -> Margins:
     -180 deg crossing of ``|20 log10 |L||``: the gain increase to instability where ``|L| < 1`` there, the
     reduction where ``|L| > 1`` (a PID around a double integrator crosses -180 deg below its crossover: a
     conditionally stable loop).  Stability itself is :func:`closed_loop_poles`'."""
-    mag = np.abs(L)
+    mag = np.maximum(np.abs(L), 1e-300)  # a notch's zero may fall on a grid point
     phase = np.unwrap(np.angle(L))
     pm = math.inf
     crossover = math.nan
