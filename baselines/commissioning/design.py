@@ -47,7 +47,7 @@ __all__ = ["PHASE_MARGIN", "GAIN_MARGIN", "SENSITIVITY_PEAK", "MODE_FRACTION", "
 PHASE_MARGIN = 45.0
 #: Minimum gain margin, dB.
 GAIN_MARGIN = 6.0
-#: Maximum sensitivity peak max |1 / (1 + L)|, dB.
+#: Maximum sensitivity peak (the largest magnitude of 1 / (1 + L)), dB.
 SENSITIVITY_PEAK = 6.0
 #: The bandwidth is at most this fraction of the first mode (servo tuners' half of the first resonance).
 MODE_FRACTION = 0.5
