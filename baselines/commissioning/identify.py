@@ -22,7 +22,8 @@ The experiment, both axes at once (the axes of every plant of the suite are deco
 The fit (:func:`fit_axis`): per axis the rigid body ``1 / (m s^2 + c s)`` in series with a first structural
 mode ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` and a dead time ``tau`` (the command and sensor delays
 and the zero-order hold's half period), by nonlinear least squares (:func:`scipy.optimize.least_squares`) on
-the complex logarithm of the ratio of model and estimate, weighted by the coherence; the mode is kept only
+the complex logarithm of the ratio of model and estimate, weighted by the coherence, within bounds (a decade
+about the nominal mass, up to 20 periods of delay, a mode inside the band); the mode is kept only
 where the estimate shows a resonance (more than ``MODE_PEAK_DB`` above the rigid body).
 """
 
@@ -326,15 +327,24 @@ def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None,
         lower = np.ones_like(fb, dtype=bool)
     # the rigid body on the band below the peak, its dead time from the nominal start (one period and the hold's)
     theta0 = np.array([np.log(nominal_mass), np.log(max(nominal_damping, 1e-9)), 1.5 * dt])
+    # bounds (log m, log c, tau, log f, log zeta): a decade either side of the nominal mass, a viscous term
+    # between nothing and a hundred times the mass per second, up to 20 periods of delay, a mode in the band
+    bound_lo = np.array([np.log(nominal_mass / 10), np.log(nominal_mass * 1e-6), -dt, np.log(low), np.log(1e-3)])
+    bound_hi = np.array([np.log(nominal_mass * 10), np.log(nominal_mass * 1e2), 20 * dt, np.log(0.5 / dt), 0.0])
+
+    def solve(fun, start, n):
+        start = np.clip(start, bound_lo[:n] + 1e-9, bound_hi[:n] - 1e-9)
+        return optimize.least_squares(fun, start, bounds=(bound_lo[:n], bound_hi[:n]), method="trf",
+                                      x_scale="jac")
 
     def rigid_residual(t):
         return residual(t, False)[np.concatenate([lower, lower])]
 
-    rigid = optimize.least_squares(rigid_residual, theta0, method="lm")
+    rigid = solve(rigid_residual, theta0, 3)
     m, c, tau = np.exp(rigid.x[0]), np.exp(rigid.x[1]), rigid.x[2]
     excess = 20 * np.log10(np.abs(Gb / model_response((m, c, 0.0, 0.0, tau), fb)))
     height = float(signal.medfilt(excess, 5)[peak])
-    best, with_mode = optimize.least_squares(lambda t: residual(t, False), rigid.x, method="lm"), False
+    best, with_mode = solve(lambda t: residual(t, False), rigid.x, 3), False
     if height > MODE_PEAK_DB:
         near = fb <= 2.5 * f_peak  # the mode's neighbourhood (beyond, the response sinks into the counts)
 
@@ -344,7 +354,7 @@ def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None,
         # a lightly damped mode: the peak's height above the rigid body is about 1 / (2 zeta)
         zeta0 = float(np.clip(0.5 / 10 ** (height / 20.0), 0.005, 0.7))
         start = np.array([rigid.x[0], rigid.x[1], rigid.x[2], np.log(f_peak), np.log(zeta0)])
-        fitted = optimize.least_squares(mode_residual, start, method="lm")
+        fitted = solve(mode_residual, start, 5)
         if 0.5 * np.sum(residual(fitted.x, True) ** 2) < best.cost:
             best, with_mode = fitted, True
     t = best.x
