@@ -40,7 +40,7 @@ from vcnc_gym.envs.task import ContouringBatch
 from vcnc_gym.validation import positive
 
 __all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
-           "fit_axis", "COHERENCE_FLOOR", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
+           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
 
 #: The longest travel of a reversal leg, mm (within the observation's tracking-error bound).
 LEG_TRAVEL = 6.0
@@ -400,13 +400,27 @@ def friction_levels(measurement: Measurement, machine: int):
     return c, coulomb, force
 
 
+def experiment_task(task, experiment: Experiment = Experiment()):
+    """The task the experiment's axes follow: ``task`` itself when its reference lasts at least half the PRBS
+    run, else the same contour and machine at the feed that makes it last the run (an axis standing still
+    through most of the run sticks in its friction, and the estimate loses the band above its holding loop)."""
+    from vcnc_gym.envs.task import ContouringTask
+
+    if task.reference_arrays.samples.shape[0] >= 0.5 * experiment.periods:
+        return task
+    length = float(task.reference_arrays.samples[-1, sk.REF_ARC])
+    feed = length / (1.05 * experiment.periods * task.dt)
+    return ContouringTask(contour=task.curve, plant=task.plant, dt=task.dt, feedrate=feed,
+                          plant_options=task.plant_options or None)
+
+
 def identify(task, parameters, nominal_inverse, experiment: Experiment = Experiment()):
     """Build ``parameters``' machines (one per (2, P) row) on ``task``, run the experiment and fit each axis.
 
     Returns ``(models, measurement)``: ``models[n][j]`` the :class:`AxisModel` of machine n's axis j.
     """
     positive("experiment.periods", experiment.periods)
-    machines = Machines(task, parameters, seed=experiment.seed)
+    machines = Machines(experiment_task(task, experiment), parameters, seed=experiment.seed)
     meas = run_experiment(machines, nominal_inverse, experiment)
     models = []
     for i in range(machines.n):
