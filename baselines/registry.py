@@ -69,9 +69,15 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     "ilc-q": ("ilc", {"q_cutoff": 20.0}),
     # Koren and Lo (1991)'s variable-gain CCC, without feedforward.
     "vgccc": ("ccc", {"variable": True}),
+    # The model-based controllers commissioned per machine: an identification run on each plant before its
+    # episode (baselines.commissioning); the bare names use the nominal machine's shipped record.
+    "ff-pid@machine": ("ff-pid", {"commissioning": "machine"}),
+    "zpetc@machine": ("zpetc", {"commissioning": "machine"}),
+    "ccc@machine": ("ccc", {"commissioning": "machine"}),
+    "ff-ccc@machine": ("ff-ccc", {"commissioning": "machine"}),
 }
 
-_FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant", "reference", "dt")
+_FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant", "reference", "dt", "task")
 
 
 def names() -> list[str]:

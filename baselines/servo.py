@@ -42,6 +42,7 @@ does, and it is marked so in every table.
 
 from __future__ import annotations
 
+import inspect
 from collections import namedtuple
 from dataclasses import dataclass
 
@@ -54,60 +55,28 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import positive, non_negative, per_axis
 from .base import BaselinePolicy
 
-__all__ = ["Commissioning", "COMMISSIONING", "commissioning", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
-           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate"]
+__all__ = ["COMMISSIONING_SOURCES", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
+           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate", "NO_NOTCH"]
 
 #: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
 #: (2, mm), its velocity offset (2, mm/s), the reference's unit tangent (2) and signed curvature (1/mm).
 U_FF, OFFSET, VELOCITY_OFFSET, TANGENT, CURVATURE = 0, 2, 4, 6, 8
 TABLE_COLUMNS = 9
 
-@dataclass(frozen=True)
-class Commissioning:
-    """The free numbers of the model-based controllers' design rule on one machine: what commissioning a drive
-    sets.  ``bandwidth``: the PID's triple closed-loop pole, rad/s (:func:`pid_gains`); ``friction_time``: the
-    duration over which the feedforward's Coulomb level changes sign at a velocity reversal of the reference, s
-    (0: at the reversal; :func:`~baselines.feedforward.tables.inverse_feedforward`)."""
+#: How a model-based controller is commissioned (:mod:`baselines.commissioning.record`): ``"nominal"`` (the
+#: identification run on the env's nominal machine, shipped with the project), ``"machine"`` (an identification run
+#: on each plant instance in :meth:`ServoPolicy.plan`, before its episode), ``"model"`` (the design rules on the model
+#: the parameters declare, no experiment: non-causal when they are a plant's true ones).
+COMMISSIONING_SOURCES = ("nominal", "machine", "model")
 
-    bandwidth: float
-    friction_time: float
+#: Memory columns per env: the control period k of the next call, the axes' integrals (mm s), the coupling's (mm s),
+#: the axes' filtered velocities (mm/s) and the notch filters' two states per axis (input unit).
+_M_K, _M_I, _M_J, _M_V, _M_N = 0, 1, 3, 4, 6
+_MEMORY = 10
 
-
-#: Per plant and shop floor (False: the papers' machine, True: the same machine on the shop floor,
-#: :mod:`vcnc_gym.plants.shop_floor`), each the best max contour error of ``ff-pid``, ``zpetc`` and ``ff-ccc`` on
-#: the nominal plant of the machine's ids over a grid (``python benchmarks/tune_servo.py`` and
-#: ``--transitions``/``--shop-floor``; the figures in docs/reproduction.md).  The dead time of Yadav et al.'s
-#: axis (0.1 s) bounds its loop to a few rad/s (phase margin ~60 deg at w T_d ~ 0.25 with the triple pole's
-#: lag).  On Simba et al.'s drive a Coulomb switch at the reversal (0) halves the smoothed corners' max against
-#: 1 ms (zpetc 4.3 nm against 12.9 nm); on Jahanpour et al.'s drive the transition grid's spread (1.84 to
-#: 2.02 um on the heart, no consistent optimum on the look-ahead omega) leaves 1 ms.  On the shop floor Simba et
-#: al.'s drive keeps 1 ms: the Coulomb switch does not model its Stribeck friction (ff-ccc 166 um against
-#: 181 um).  Jahanpour et al.'s drive keeps 1000 rad/s there: 1500 rad/s lowers the nominal plant's max (the
-#: heart 60 against 65 um, the look-ahead omega 43 against 53 um) but not over the box: zpetc and ff-pid diverge
-#: on 3 of its 100 plants on the heart, and ff-ccc's worst max rises from 706 to 768 um (the heart) and from
-#: 549 to 727 um (the omega) (``vcnc-bench --plants 100``; docs/reproduction.md).
-COMMISSIONING = {
-    ("vcnc_feed_drive", False): Commissioning(bandwidth=1000.0, friction_time=1e-3),
-    ("vcnc_feed_drive", True): Commissioning(bandwidth=1000.0, friction_time=1e-3),
-    ("current_feed_drive", False): Commissioning(bandwidth=2000.0, friction_time=0.0),
-    ("current_feed_drive", True): Commissioning(bandwidth=2000.0, friction_time=1e-3),
-    ("nct_xy_table", False): Commissioning(bandwidth=30.0, friction_time=1e-3),
-    ("nct_xy_table", True): Commissioning(bandwidth=30.0, friction_time=1e-3),
-    ("cncmt_axis", False): Commissioning(bandwidth=1.0, friction_time=1e-3),
-    ("cncmt_axis", True): Commissioning(bandwidth=1.0, friction_time=1e-3),
-}
-
-
-def commissioning(plant) -> Commissioning:
-    """The :data:`COMMISSIONING` of ``plant`` (a PlantModel, on the shop floor or not)."""
-    from vcnc_gym.plants.shop_floor import ShopFloorModel
-
-    return COMMISSIONING[(plant.name, isinstance(plant, ShopFloorModel))]
-
-
-#: Memory columns per env: the control period k of the next call, the axes' integrals (mm s) and the coupling's (mm s).
-_M_K, _M_I, _M_J = 0, 1, 3
-_MEMORY = 4
+#: The coefficients of a notch (b0, b1, b2, a1, a2 of ``(b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)``) that
+#: passes its input unchanged: no notch.
+NO_NOTCH = (1.0, 0.0, 0.0, 0.0, 0.0)
 
 #: The position error the PID acts on is bounded at ``ERROR_LIMIT u_max / K_p`` per axis (a saturated-error PD): an
 #: error that alone asks fifty times the input limit asks no more, so the derivative term keeps some authority to
@@ -134,6 +103,13 @@ class ServoGains:
         Bound of each axis integral, mm s (anti-windup: ``K_i I_lim = u_max``).
     coupling_limit : float
         Bound of the coupling's integral, mm s (anti-windup: ``K_ci J_lim = min(u_max)``).
+    velocity_filter : ndarray, (2,)
+        Per axis the pole ``a`` in [0, 1) of the first-order low-pass the measured velocity passes before the
+        derivative term, ``v_f <- a v_f + (1 - a) v`` (``a = exp(-w_v T)`` for a cutoff ``w_v``); 0 (default): the
+        measured velocity itself.
+    notch : ndarray, (2, 5)
+        Per axis a biquad ``(b0, b1, b2, a1, a2)`` the feedback part of the command passes (the PID's and the
+        coupling's output, not the feedforward): a notch at a structural mode; default :data:`NO_NOTCH`.
 
     A policy holds them stacked, (G, 2) and (G,), G = 1 or one row per env (:meth:`ServoPolicy._set_law`).
     """
@@ -146,6 +122,12 @@ class ServoGains:
     variable: float = 0.0
     integral_limit: np.ndarray = None
     coupling_limit: float = None
+    velocity_filter: np.ndarray = None
+    notch: np.ndarray = None
+
+
+_GAIN_FIELDS = ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit", "coupling_limit", "velocity_filter",
+                "notch")
 
 
 def pid_gains(mass, damping, bandwidth, integral: bool = True):
@@ -214,8 +196,12 @@ class ServoPolicy(BaselinePolicy):
     #: It follows a contour's reference: only contouring envs (vcnc_bench's ``applies``).
     needs_reference = True
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt):
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
+                 commissioning: str | None = None):
         super().__init__(layout, decision_period, nominal_parameters, plant)
+        if commissioning is not None and commissioning not in COMMISSIONING_SOURCES:
+            raise ValueError(f"commissioning must be one of {list(COMMISSIONING_SOURCES)} (or None: the nominal "
+                             f"machine's record where there is one, else the model's), got {commissioning!r}")
         samples = np.asarray(reference, dtype=np.float64)
         if samples.ndim != 2 or samples.shape[1] != sk.REF_COLUMNS or samples.shape[0] < 2:
             raise ValueError(f"reference must be the env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), "
@@ -228,9 +214,64 @@ class ServoPolicy(BaselinePolicy):
                              f"dt = {self.dt} s")
         self.stride = int(round(stride))
         self.inverse = self.plant.inverse(self.nominal_parameters)
+        self.task = task
+        self.commissioning = commissioning
+        self.records = [self._nominal_record()]
+        self.identification_s = 0.0
+        self._commissioned_for = None
         self.table = None
         self.gains = None
         self._record = np.zeros((0, 0, 2))
+
+    def _nominal_record(self):
+        """The record the controller starts from: the nominal machine's (shipped, or identified on ``task``'s
+        nominal machine), or with ``commissioning="model"`` (or None and neither) the declared model's."""
+        from .commissioning.record import model_record, nominal_record
+
+        if self.commissioning != "model":
+            same = self.task is not None and np.array_equal(self.task.nominal_parameters, self.nominal_parameters)
+            record = nominal_record(self.plant, self.nominal_parameters, self.dt, self.task if same else None)
+            if record is not None:
+                return record
+            if self.commissioning is not None:
+                raise ValueError(f"baseline {self.name!r}: commissioning={self.commissioning!r} needs the env's task "
+                                 "(build it with from_env) or a shipped record of its nominal machine "
+                                 "(python -m baselines.commissioning.record ENV_ID)")
+        return model_record(self.plant, self.nominal_parameters, self.dt)
+
+    def _commission_machines(self, env) -> bool:
+        """With ``commissioning="machine"``: identify each plant ``env`` holds now (once per set of plants);
+        True if the records changed."""
+        if self.commissioning != "machine":
+            return False
+        from .commissioning.record import commission
+
+        u = getattr(env, "unwrapped", env)
+        params = np.asarray(u.parameters, dtype=np.float64)
+        params = params[None] if params.ndim == 2 else params
+        if self._commissioned_for is not None and self._commissioned_for == params.tobytes():
+            return False
+        task = getattr(u, "task", None) or self.task
+        self.records = commission(task, "machine", params)
+        self.identification_s = float(sum(r.identification_s for r in self.records))
+        self._commissioned_for = params.tobytes()
+        return True
+
+    def commissioned(self):
+        """Per design row (1, or one per env after a per-machine commissioning): ``(record, inverse, gains)``,
+        the record's inverse dynamics (with its mode; the nominal backlash) and its
+        :class:`ServoGains` arrays (``kp``, ``kd``, ``ki``, ``velocity_filter``, ``notch``), with
+        :attr:`bandwidth` (when a subclass sets one explicitly) overriding the record's PID by pole placement on
+        the record's axes."""
+        rows = []
+        for r in self.records:
+            g = r.gains()
+            inv = r.inverse()
+            override = getattr(self, "_bandwidth_override", None)
+            if override is not None:
+                g["kp"], g["kd"], g["ki"] = pid_gains(inv.mass, inv.damping, override)
+            rows.append((r, inv, g))
+        return rows
 
     @classmethod
     def from_env(cls, env, **params):
@@ -246,14 +287,20 @@ class ServoPolicy(BaselinePolicy):
             raise ValueError(f"baseline {cls.name!r} reads the reference ahead from a table computed once; "
                              f"{type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
                              "override): use 'ff-pid-online'")
+        if "task" in inspect.signature(cls.__init__).parameters:  # the task commissions the nominal machine
+            params = {"task": task, **params}
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     def plan(self, env) -> None:
         """Rebuild the table if ``env``'s reference is not the one it was built from (a contour drawn at reset):
-        what a CNC's interpolator does when a new part program is loaded.  Called by the evaluation loops after
-        every reset; with the same reference it does nothing."""
+        what a CNC's interpolator does when a new part program is loaded; with ``commissioning="machine"``,
+        first commission each plant ``env`` holds (once per set of plants).  Called by the evaluation loops after
+        every reset; with the same reference and plants it does nothing."""
         task = getattr(getattr(env, "unwrapped", env), "task", None)
         samples = getattr(getattr(task, "reference_arrays", None), "samples", None)
+        if self._commission_machines(env) and (samples is None or samples is self.reference):
+            self._build()
+            return
         if samples is None or samples is self.reference:
             return
         if task.dt != self.dt:
@@ -277,8 +324,7 @@ class ServoPolicy(BaselinePolicy):
                              f"got shape {table.shape}")
         rows = [self._checked(g) for g in ([gains] if isinstance(gains, ServoGains) else gains)]
         self.gains = ServoGains(*(np.ascontiguousarray(np.stack([getattr(r, f) for r in rows]))
-                                  for f in ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit",
-                                            "coupling_limit")))
+                                  for f in _GAIN_FIELDS))
         self.table = table
         self._compiled = None
 
@@ -286,8 +332,7 @@ class ServoPolicy(BaselinePolicy):
         """The gains of env ``i`` (row 0 when all envs share them)."""
         g = self.gains
         r = i if g.kp.shape[0] > 1 else 0
-        return ServoGains(g.kp[r], g.kd[r], g.ki[r], g.kc[r], g.kci[r], g.variable[r], g.integral_limit[r],
-                          g.coupling_limit[r])
+        return ServoGains(*(getattr(g, f)[r] for f in _GAIN_FIELDS))
 
     def _checked(self, gains: ServoGains) -> ServoGains:
         limit = gains.integral_limit
@@ -298,10 +343,17 @@ class ServoPolicy(BaselinePolicy):
         coupling_limit = gains.coupling_limit
         if coupling_limit is None:
             coupling_limit = float(np.min(self.u_max)) / kci if kci > 0 else 0.0
+        alpha = np.zeros(2) if gains.velocity_filter is None else per_axis(
+            "velocity_filter", gains.velocity_filter, rule=non_negative)
+        if np.any(alpha >= 1.0):
+            raise ValueError(f"velocity_filter must be a low-pass pole in [0, 1) per axis, got {alpha}")
+        notch = np.array([NO_NOTCH, NO_NOTCH]) if gains.notch is None else np.array(gains.notch, dtype=np.float64)
+        if notch.shape != (2, 5) or not np.all(np.isfinite(notch)):
+            raise ValueError(f"notch must be finite (b0, b1, b2, a1, a2) per axis, shape (2, 5), got {gains.notch!r}")
         return ServoGains(per_axis("kp", gains.kp, rule=positive), per_axis("kd", gains.kd, rule=non_negative),
                           per_axis("ki", gains.ki, rule=non_negative), non_negative("kc", gains.kc), kci,
                           non_negative("variable", gains.variable), per_axis("integral_limit", limit, rule=non_negative),
-                          non_negative("coupling_limit", coupling_limit))
+                          non_negative("coupling_limit", coupling_limit), alpha, notch)
 
     def record(self, n_envs: int, steps: int) -> np.ndarray:
         """Record the next episodes' commands: returns the (n_envs, steps, 2) array the law writes into, row k
@@ -319,13 +371,13 @@ class ServoPolicy(BaselinePolicy):
         table, mem = self.table, self._state
         n = obs.shape[0]
         own, first = np.arange(n), np.zeros(n, dtype=np.int64)
-        g = ServoGains(*(a[own if a.shape[0] > 1 else first] for a in (
-            self.gains.kp, self.gains.kd, self.gains.ki, self.gains.kc, self.gains.kci, self.gains.variable,
-            self.gains.integral_limit, self.gains.coupling_limit)))
+        g = ServoGains(*(a[own if a.shape[0] > 1 else first] for a in (getattr(self.gains, f) for f in _GAIN_FIELDS)))
         k = mem[:, _M_K].astype(np.int64)
         rows = table[own if table.shape[0] > 1 else first, np.minimum(k, table.shape[1] - 1)]
         E = self.layout.tracking_error(obs)
-        Ed = self.layout.reference_velocity(obs) - self.layout.velocity(obs)
+        v = g.velocity_filter * mem[:, _M_V:_M_V + 2] + (1.0 - g.velocity_filter) * self.layout.velocity(obs)
+        mem[:, _M_V:_M_V + 2] = v
+        Ed = self.layout.reference_velocity(obs) - v
         limit = ERROR_LIMIT * self.u_max / g.kp
         e = np.minimum(np.maximum(E + rows[:, OFFSET:OFFSET + 2], -limit), limit)
         ed = Ed + rows[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2]
@@ -333,7 +385,19 @@ class ServoPolicy(BaselinePolicy):
         w = g.kc * eps + g.kci * mem[:, _M_J]
         coupling = np.column_stack([-cx * w, cy * w])
         integral = mem[:, _M_I:_M_I + 2]
+        notched = np.any(g.notch != np.array(NO_NOTCH), axis=2)  # (n, 2)
+        if notched.any():
+            x = g.kp * e + g.kd * ed + g.ki * integral + coupling
+            b0, b1, b2, a1, a2 = (g.notch[:, :, c] for c in range(5))
+            z1, z2 = mem[:, _M_N:_M_N + 4:2], mem[:, _M_N + 1:_M_N + 4:2]
+            y = b0 * x + z1
+            z1_new, z2_new = b1 * x - a1 * y + z2, b2 * x - a2 * y
+            mem[:, _M_N:_M_N + 4:2] = np.where(notched, z1_new, z1)
+            mem[:, _M_N + 1:_M_N + 4:2] = np.where(notched, z2_new, z2)
+            u_notched = rows[:, U_FF:U_FF + 2] + y
         u = rows[:, U_FF:U_FF + 2] + g.kp * e + g.kd * ed + g.ki * integral + coupling
+        if notched.any():
+            u = np.where(notched, u_notched, u)
         mem[:, _M_I:_M_I + 2] = np.minimum(np.maximum(integral + e * self.decision_period, -g.integral_limit),
                                            g.integral_limit)
         mem[:, _M_J] = np.minimum(np.maximum(mem[:, _M_J] + eps * self.decision_period, -g.coupling_limit),
@@ -346,14 +410,19 @@ class ServoPolicy(BaselinePolicy):
 
     def _compiled_arrays(self) -> ServoArrays:
         g = self.gains
+        notched = np.ascontiguousarray(np.any(g.notch != np.array(NO_NOTCH), axis=2).astype(np.float64))
         return ServoArrays(self._state, self.table, g.kp, g.kd, g.ki, g.integral_limit, g.kc, g.kci, g.variable,
-                           g.coupling_limit, self.decision_period, float(self.stride), self.u_max, self._record)
+                           g.coupling_limit, self.decision_period, float(self.stride), self.u_max, self._record,
+                           g.velocity_filter, g.notch, notched)
 
 
 #: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((1 or N, 2)
-#: or (1 or N,)), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2) (ServoPolicy.record).
+#: or (1 or N,)), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2)
+#: (ServoPolicy.record), the velocity filters' poles (1 or N, 2), the notches (1 or N, 2, 5) and whether each is one
+#: (1 or N, 2; 0: the command skips it, the same operations as without the field).
 ServoArrays = namedtuple("ServoArrays", ["memory", "table", "kp", "kd", "ki", "integral_limit", "kc", "kci",
-                                         "variable", "coupling_limit", "period", "stride", "u_max", "record"])
+                                         "variable", "coupling_limit", "period", "stride", "u_max", "record",
+                                         "velocity_filter", "notch", "notched"])
 
 
 @njit(cache=True, _nrt=False)
@@ -366,8 +435,14 @@ def _servo_command(s, i, obs, o, out):
     g = i if s.kp.shape[0] > 1 else 0
     Ex = np.float64(obs[o.tracking_error])
     Ey = np.float64(obs[o.tracking_error + 1])
-    Edx = np.float64(obs[o.reference_velocity]) - np.float64(obs[o.velocity])
-    Edy = np.float64(obs[o.reference_velocity + 1]) - np.float64(obs[o.velocity + 1])
+    a0 = s.velocity_filter[g, 0]
+    a1 = s.velocity_filter[g, 1]
+    vx = a0 * mem[_M_V] + (1.0 - a0) * np.float64(obs[o.velocity])
+    vy = a1 * mem[_M_V + 1] + (1.0 - a1) * np.float64(obs[o.velocity + 1])
+    mem[_M_V] = vx
+    mem[_M_V + 1] = vy
+    Edx = np.float64(obs[o.reference_velocity]) - vx
+    Edy = np.float64(obs[o.reference_velocity + 1]) - vy
     recording = i < s.record.shape[0] and k < s.record.shape[1]
     half = s.variable[g] * t[CURVATURE] * 0.5
     cx = t[TANGENT + 1] - half * Ex
@@ -382,7 +457,17 @@ def _servo_command(s, i, obs, o, out):
         e = min(max(E + t[OFFSET + j], -limit), limit)
         ed = Ed + t[VELOCITY_OFFSET + j]
         integral = mem[_M_I + j]
-        u = t[U_FF + j] + s.kp[g, j] * e + s.kd[g, j] * ed + s.ki[g, j] * integral + coupling
+        if s.notched[g, j] > 0.0:
+            x = s.kp[g, j] * e + s.kd[g, j] * ed + s.ki[g, j] * integral + coupling
+            c = s.notch[g, j]
+            z1 = mem[_M_N + 2 * j]
+            z2 = mem[_M_N + 2 * j + 1]
+            y = c[0] * x + z1
+            mem[_M_N + 2 * j] = c[1] * x - c[3] * y + z2
+            mem[_M_N + 2 * j + 1] = c[2] * x - c[4] * y
+            u = t[U_FF + j] + y
+        else:
+            u = t[U_FF + j] + s.kp[g, j] * e + s.kd[g, j] * ed + s.ki[g, j] * integral + coupling
         mem[_M_I + j] = min(max(integral + e * s.period, -s.integral_limit[g, j]), s.integral_limit[g, j])
         out[j] = np.float32(min(max(u / s.u_max[j], -1.0), 1.0))
         if recording:

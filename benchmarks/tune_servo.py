@@ -4,10 +4,10 @@ feedforward's friction transition.
 ``baselines.servo.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
 ``ff-pid`` and ``ff-ccc`` on the nominal plant of each plant's contouring ids over a grid of bandwidths (and of
 coupling gains for ``ff-ccc``) and prints max / RMS contour error, the figures behind
-the bandwidths of ``baselines.servo.COMMISSIONING`` and ``baselines.coupling.ccc``'s default coupling (docs/reproduction.md).
+the bandwidths (now each plant's ``servo_bandwidth`` ceiling, below which ``baselines.commissioning`` designs) and ``baselines.coupling.ccc``'s default coupling (docs/reproduction.md).
 ``--transitions`` runs ``zpetc``, ``ff-pid`` and ``ff-ccc`` over a grid of the durations over which the
 feedforward's Coulomb level (``friction_time``) and the backlash crossing (``backlash_time``) change at a
-reversal, and ``--shop-floor`` the bandwidth grid on the shop-floor ids, the rest of ``COMMISSIONING``::
+reversal, and ``--shop-floor`` the bandwidth grid on the shop-floor ids, the rest of the former hand table (now ``PlantModel.friction_time``)::
 
     python benchmarks/tune_servo.py            # every plant's grid, a few minutes on 2 cores
     python benchmarks/tune_servo.py --env VCNC-Heart-v1

@@ -24,7 +24,7 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.plants.contract import INVERSE_ORDER, InverseDynamics
 
 __all__ = ["reference_motion", "smooth_sign", "inverse_feedforward", "linear_inverse", "closed_loop", "split_zeros",
-           "zpetc_filter", "zpetc_reference"]
+           "zpetc_filter", "zpetc_reference", "path_force_feedforward"]
 
 
 def reference_motion(samples: np.ndarray, dt: float) -> np.ndarray:
@@ -179,3 +179,17 @@ def zpetc_reference(filters, positions: np.ndarray) -> np.ndarray:
         zi = signal.lfilter_zi(b, a) * ahead[0]
         out[:, j] = signal.lfilter(b, a, ahead, zi=zi)[0]
     return out
+
+
+def path_force_feedforward(force, samples: np.ndarray, dt: float, delay) -> np.ndarray:
+    """The input (K, 2) that cancels a process force along the path, ``F_j v_j / |v|`` per axis with ``F`` (2,)
+    the identified force in input units (:func:`baselines.commissioning.identify.friction_levels`: a cutting
+    force against the path's motion shares itself among the axes as the motion does), ``v`` the reference
+    velocity, read ahead as :func:`inverse_feedforward` reads it (``delay`` (2,) s); zero where the reference
+    stands still (below a thousandth of its peak speed)."""
+    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    speed = np.hypot(v[:, 0], v[:, 1])
+    floor = 1e-3 * max(float(speed.max()), 1e-12)
+    share = np.where(speed[:, None] > floor, v / np.maximum(speed, floor)[:, None], 0.0)
+    u = share * np.asarray(force, dtype=np.float64)
+    return _at(u, 0.5 + np.asarray(delay, dtype=np.float64) / dt)

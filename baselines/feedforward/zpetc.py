@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from vcnc_gym.validation import non_negative, positive
-from ..servo import OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, commissioning, pid_gains, reference_table
+from ..servo import OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, reference_table
 from vcnc_gym.envs import step_kernel as sk
-from .tables import closed_loop, inverse_feedforward, zpetc_filter, zpetc_reference
+from .tables import closed_loop, inverse_feedforward, path_force_feedforward, zpetc_filter, zpetc_reference
 
 __all__ = ["ZPETCPolicy"]
 
@@ -30,9 +30,11 @@ class ZPETCPolicy(ServoPolicy):
     layout, decision_period, nominal_parameters, plant, reference, dt
         As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
     bandwidth : float, optional
-        Closed-loop pole of the PID design, rad/s; default the machine's :func:`~baselines.servo.commissioning`.
+        Closed-loop pole of the PID design, rad/s; default the commissioning record's.
     friction_time : float, optional
-        s, the Coulomb level's change at a reversal; default the machine's :func:`~baselines.servo.commissioning`.
+        s, the Coulomb level's change at a reversal; default the plant's declaration.
+    commissioning : str, optional
+        As :class:`~baselines.feedforward.ff_pid.FeedforwardPIDPolicy`'s.
     backlash_time : float
         s; both as :func:`~baselines.feedforward.tables.inverse_feedforward`.
 
@@ -46,31 +48,43 @@ class ZPETCPolicy(ServoPolicy):
 
     name = "zpetc"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
-                 friction_time: float | None = None, backlash_time: float = 16e-3):
-        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
+                 commissioning: str | None = None, bandwidth=None, friction_time: float | None = None,
+                 backlash_time: float = 16e-3):
+        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt, task=task,
+                         commissioning=commissioning)
         if self.stride != 1:
             raise ValueError(f"zpetc is designed at the control period: it needs decision_period = dt "
                              f"({self.dt} s), got {self.decision_period} s")
-        design = commissioning(self.plant)
-        self.bandwidth = positive(
-            "bandwidth", design.bandwidth if bandwidth is None else bandwidth, "rad/s")
+        self._bandwidth_override = None if bandwidth is None else positive("bandwidth", bandwidth, "rad/s")
         self.friction_time = non_negative(
-            "friction_time", design.friction_time if friction_time is None else friction_time, "s")
+            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s")
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         self._build()
 
+    @property
+    def bandwidth(self) -> float:
+        """The PID's closed-loop pole, rad/s (the first design row's, x axis)."""
+        return self._bandwidth_override or self.records[0].designs[0].bandwidth
+
     def _build(self) -> None:
-        kp, kd, ki = pid_gains(self.inverse.mass, self.inverse.damping, self.bandwidth)
-        self.loops = [closed_loop(self.inverse, j, self.dt, kp[j], kd[j], ki[j]) for j in range(2)]
-        self.filters = [zpetc_filter(loop) for loop in self.loops]
         x_d = self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2]
-        table = reference_table(self.reference)
-        r = zpetc_reference(self.filters, x_d)
-        r_rate = np.diff(r, axis=0, prepend=r[:1]) / self.dt  # (r_k - r_{k-1}) / T, as the closed loop models it
-        table[:, OFFSET:OFFSET + 2] = r - x_d
-        table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = r_rate - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-        table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
-            self.inverse, self.reference, self.dt, motion=False, friction_time=self.friction_time,
-            backlash_time=self.backlash_time)
-        self._set_law(table, ServoGains(kp, kd, ki))
+        tables, gains = [], []
+        for record, inverse, g in self.commissioned():
+            rigid = record.inverse(with_mode=False)
+            self.loops = [closed_loop(rigid, j, self.dt, g["kp"][j], g["kd"][j], g["ki"][j]) for j in range(2)]
+            self.filters = [zpetc_filter(loop) for loop in self.loops]
+            table = reference_table(self.reference)
+            r = zpetc_reference(self.filters, x_d)
+            r_rate = np.diff(r, axis=0, prepend=r[:1]) / self.dt  # (r_k - r_{k-1}) / T, as the closed loop models it
+            table[:, OFFSET:OFFSET + 2] = r - x_d
+            table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = (r_rate
+                                                             - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2])
+            table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
+                rigid, self.reference, self.dt, motion=False, friction_time=self.friction_time,
+                backlash_time=self.backlash_time)
+            table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, self.reference, self.dt,
+                                                              rigid.delay)
+            tables.append(table)
+            gains.append(ServoGains(g["kp"], g["kd"], g["ki"], velocity_filter=g["velocity_filter"], notch=g["notch"]))
+        self._set_law(tables[0] if len(tables) == 1 else np.stack(tables), gains[0] if len(gains) == 1 else gains)

@@ -212,6 +212,15 @@ class PlantModel:
     seed_machine : callable (arrays, k, rng) -> None, optional
         Draw machine ``k``'s random state (sensor noise) from the env's
         ``numpy.random.Generator``; the envs call it after ``reset_machine``.
+    servo_bandwidth : float, optional
+        The highest position-loop bandwidth the drive supports, rad/s: the
+        ceiling below which commissioning's design rule
+        (:mod:`baselines.commissioning.design`) searches; the margins, a
+        mode and the delays it identifies lower it.
+    friction_time : float
+        s, the duration over which a model-based feedforward changes the
+        Coulomb level at a velocity reversal of the reference (0: at the
+        reversal); default 1 ms.
     """
 
     name: str
@@ -229,6 +238,8 @@ class PlantModel:
     inverse_dynamics: Callable | None = None
     force_gain: Callable | None = None
     seed_machine: Callable | None = None
+    servo_bandwidth: float | None = None
+    friction_time: float = 1e-3
     _index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):

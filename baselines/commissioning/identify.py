@@ -1,0 +1,437 @@
+"""Commissioning's experiment on the machine: excite each axis, estimate its frequency response, fit a model.
+
+What a CNC's commissioning wizard does on a new drive (the "frequency response measurement" of SINAMICS' and
+FANUC's servo tuning tools), written against this project's envs: the machine is stepped through its own
+kernel with commands the experiment chooses, and read through its observation only (the measured position,
+as the encoder gives it).  Nothing here reads a machine's true parameters; the experiment's holding loop and
+its excitation level are set from the *nominal* model, the data a machine builder has before commissioning.
+
+The experiment, both axes at once (the axes of every plant of the suite are decoupled):
+
+1. **Frequency response**: a random binary sequence (a PRBS, one level per control period, amplitude
+   ``prbs_level`` of the input limit) added to a low-gain PD loop that holds the axis near its start (its
+   gain from :func:`holding_gains`).  The loop keeps the run bounded; the response from command to measured
+   position is estimated by the indirect (two-stage) method, ``G = S_rx / S_ru`` (Welch's averaged cross
+   spectra of the excitation ``r`` with the position ``x`` and with the command ``u``, :func:`scipy.signal.csd`),
+   which the loop's feedback of the sensor noise does not bias (Pintelon & Schoukens, *System Identification:
+   A Frequency Domain Approach*, 2nd ed. 2012, ch. 2 and 9).
+2. **Slow reversal moves**: the loop (with an integral) moves each axis alone at two speeds, out and back,
+   then both together (:func:`leg_schedule`); the mean commands at speed give the viscous coefficient, the
+   Coulomb level of each direction and a process force along the path (:func:`friction_levels`).
+
+The fit (:func:`fit_axis`): per axis the rigid body ``1 / (m s^2 + c s)`` in series with a first structural
+mode ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` and a dead time ``tau`` (the command and sensor delays
+and the zero-order hold's half period), by nonlinear least squares (:func:`scipy.optimize.least_squares`) on
+the complex logarithm of the ratio of model and estimate, weighted by the coherence, within bounds (a decade
+about the nominal mass, up to 20 periods of delay, a mode inside the band); the mode is kept only
+where the estimate shows a resonance (more than ``MODE_PEAK_DB`` above the rigid body).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, signal
+
+from vcnc_gym.envs import step_kernel as sk
+from vcnc_gym.envs.task import ContouringBatch
+from vcnc_gym.validation import positive
+
+__all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
+           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
+
+#: The longest travel of a reversal leg, mm (within the observation's tracking-error bound).
+LEG_TRAVEL = 6.0
+
+#: The fit's band ends where the excitation's coherence with the position falls below this.
+COHERENCE_FLOOR = 0.5
+
+#: A resonance at least this far (dB) above the fitted rigid body is taken for a structural mode.
+MODE_PEAK_DB = 3.0
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """The identification experiment's settings.
+
+    Attributes
+    ----------
+    periods : int
+        Control periods of the frequency-response run (the PRBS), per machine.
+    segment : int
+        Welch segment length, control periods (frequency resolution ``1 / (segment dt)``).
+    prbs_level : float
+        PRBS amplitude, fraction of the nominal input limit.
+    holding_bandwidth : float
+        The holding loop's bandwidth as a fraction of ``1 / dt``, rad/s (reduced until its phase margin on the
+        nominal model is 60 deg: :func:`holding_gains`).
+    reversal_speed : float, optional
+        The lower speed of the reversal moves, mm/s (the higher is ``speed_ratio`` times it); default a fifth of
+        the task's reference's peak speed (the machine's working feed: fast enough that the holding axis'
+        jitter takes no share of a process force along the path), at most :data:`LEG_TRAVEL` per leg at the
+        higher speed.
+    speed_ratio : float
+        Ratio of the two speeds of the reversal moves (they separate the viscous from the Coulomb level).
+    leg_time : float, optional
+        Duration of each leg, s; default 12.5 time constants of the holding loop (``12.5 / w``), so that the
+        loop has settled over the leg's last 40 % where the command is averaged.
+    seed : int
+        Seed of the PRBS and of the machines' sensor noise during the experiment.
+    """
+
+    periods: int = 32768
+    segment: int = 8192
+    prbs_level: float = 0.3
+    holding_bandwidth: float = 0.005
+    reversal_speed: float | None = None
+    speed_ratio: float = 2.0
+    leg_time: float | None = None
+    seed: int = 12345
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """The experiment's record, per machine ``n`` and axis ``j``: excitation ``r``, command ``u`` (input unit)
+    and measured tracking error ``e = x_d - x`` (mm) of the frequency-response run, (N, K, 2); the mean commands ``coulomb``
+    (N, L, 2) of the reversal legs, whose axes' speeds (mm/s) are ``leg_speeds`` (L, 2); the control period ``dt`` (s);
+    the wall time of the experiment (s); the measured velocity's noise (N, 2), mm/s (standard deviation about
+    its running mean on the legs at speed); the holding loop's bandwidth per axis (2,), rad/s."""
+
+    r: np.ndarray
+    u: np.ndarray
+    e: np.ndarray
+    leg_command: np.ndarray
+    leg_speeds: np.ndarray
+    dt: float
+    seconds: float
+    velocity_noise: np.ndarray
+    holding_bandwidth: np.ndarray
+
+
+class Machines:
+    """``n`` machines of an env's task, stepped one control period at a time: the experiment's only access.
+
+    ``parameters`` (n, 2, P) are handed to the simulator to *build* the machines (on a real shop floor the
+    machines exist); the experiment itself calls only :meth:`step` and reads the observation.
+    """
+
+    def __init__(self, task, parameters, seed: int = 0):
+        p = np.asarray(parameters, dtype=np.float64)
+        p = p[None] if p.ndim == 2 else p
+        self.task = task
+        self.layout = task.layout
+        self.dt = task.dt
+        self.n = p.shape[0]
+        self._batch = ContouringBatch(task, self.n)
+        for i in range(self.n):
+            self._batch.reset_env(i, task.check_parameters(p[i]), np.random.default_rng(seed + i))
+        self._batch.run()
+        #: the nominal input limit (a builder's data), input unit
+        self.u_max = task.plant.input_limits(task.nominal_parameters)
+
+    def observe(self) -> np.ndarray:
+        """The current observations, (n, obs_dim) float32."""
+        return self._batch.buffers.obs.copy()
+
+    def step(self, command: np.ndarray) -> np.ndarray:
+        """Apply ``command`` (n, 2) in the input unit for one control period; returns the observations."""
+        b = self._batch.buffers
+        b.action[:] = np.clip(command / self.u_max, -1.0, 1.0)
+        b.mode[:] = sk.MODE_STEP
+        self._batch.run()
+        return b.obs.copy()
+
+
+def holding_gains(mass, damping, delay, dt, fraction: float):
+    """PD gains (kp, kd) per axis of the experiment's holding loop and its bandwidth (rad/s): a double pole at
+    ``w = fraction / dt`` on the nominal ``m s^2 + c s``, halved until the phase margin with the nominal dead time
+    plus two control periods is at least 60 deg."""
+    m, c = np.asarray(mass, float), np.asarray(damping, float)
+    w = np.full(2, fraction / dt)
+    for j in range(2):
+        for _ in range(60):
+            kp, kd = m[j] * w[j] ** 2, max(2 * m[j] * w[j] - c[j], 0.0)
+            om = np.logspace(-3, np.log10(np.pi / dt), 4000)
+            s = 1j * om
+            L = (kp + kd * s) / (m[j] * s**2 + c[j] * s) * np.exp(-s * (delay[j] + 2 * dt))
+            i = np.argmax(np.abs(L) < 1.0)
+            if i > 0 and 180.0 + np.degrees(np.angle(L[i])) >= 60.0:
+                break
+            w[j] *= 0.5
+    return m * w**2, np.maximum(2 * m * w - c, 0.0), w
+
+
+def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment = Experiment()) -> Measurement:
+    """Run :class:`Experiment` on ``machines``; ``nominal_inverse`` (the plant's nominal
+    :class:`~vcnc_gym.plants.contract.InverseDynamics`) sets the holding loop and the feedforward with which
+    the axes follow the task's reference during the run (so that the excitation acts on a moving axis, whose
+    friction keeps its sign, and the observation's tracking error stays within its bound)."""
+    from ..feedforward.tables import inverse_feedforward
+
+    t0 = time.perf_counter()
+    dt, n, lay = machines.dt, machines.n, machines.layout
+    kp, kd, w = holding_gains(nominal_inverse.mass, nominal_inverse.damping, nominal_inverse.delay, dt,
+                              experiment.holding_bandwidth)
+    ki = kp * w / 4.0
+    alpha = np.exp(-5.0 * w * dt)  # the velocity the loop damps with: the count difference low-passed at 5 w
+    samples = machines.task.reference_arrays.samples
+    u_ff = inverse_feedforward(nominal_inverse, samples, dt)
+    rng = np.random.default_rng(experiment.seed)
+    K = int(experiment.periods)
+    leg_time = 12.5 / float(np.min(w)) if experiment.leg_time is None else experiment.leg_time
+    speed = experiment.reversal_speed
+    if speed is None:  # a fifth of the working feed, at most LEG_TRAVEL per leg at the higher speed
+        ref_v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+        speed = min(0.2 * float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1]))),
+                    LEG_TRAVEL / (leg_time * experiment.speed_ratio))
+    per_leg = max(int(round(leg_time / dt)), 25)
+    settle = per_leg
+    schedule = leg_schedule(positive("reversal_speed", speed, "mm/s"), experiment.speed_ratio)
+    legs = len(schedule)
+    start = max(K, samples.shape[0]) + settle  # the legs begin once the reference has stopped
+    total = start + legs * per_leg
+    level = experiment.prbs_level * machines.u_max
+    r = np.zeros((n, total, 2))
+    r[:, :K] = level * np.where(rng.random((n, K, 2)) < 0.5, -1.0, 1.0)
+    offset_rate = np.zeros((total, 2))  # the reversal legs' moves on top of the reference, mm/s
+    for leg, speeds in enumerate(schedule):
+        a = start + leg * per_leg
+        offset_rate[a:a + per_leg] = speeds
+    offset = np.cumsum(offset_rate, axis=0) * dt
+    u = np.zeros((n, total, 2))
+    e = np.zeros((n, total, 2))
+    velocity = np.zeros((n, total, 2))
+    obs = machines.observe()
+    vf = np.zeros((n, 2))
+    integral = np.zeros((n, 2))
+    for k in range(total):
+        E = lay.tracking_error(obs)
+        velocity[:, k] = lay.velocity(obs)
+        vf = alpha * vf + (1 - alpha) * velocity[:, k]
+        ek = E + offset[k]
+        e[:, k] = E
+        integral += ek * dt
+        u[:, k] = (u_ff[min(k, u_ff.shape[0] - 1)] + kp * ek + kd * (lay.reference_velocity(obs) + offset_rate[k] - vf)
+                   + ki * integral + r[:, k])
+        u[:, k] = np.clip(u[:, k], -machines.u_max, machines.u_max)
+        obs = machines.step(u[:, k])
+    leg_command = np.zeros((n, legs, 2))
+    for leg in range(legs):
+        a = start + leg * per_leg
+        leg_command[:, leg] = u[:, a + (3 * per_leg) // 5:a + per_leg].mean(axis=1)  # its last 40 %: at speed
+    # the sensor's velocity noise: the measured velocity less its 21-period running mean on the legs at speed
+    legs_v = velocity[:, start + (3 * per_leg) // 5:start + per_leg]
+    kernel = np.ones(21) / 21.0
+    smooth = np.apply_along_axis(lambda v: np.convolve(v, kernel, mode="same"), 1, legs_v)
+    velocity_noise = np.std((legs_v - smooth)[:, 10:-10], axis=1)
+    return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
+                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w)
+
+
+def frf(measurement: Measurement, machine: int, axis: int, segment: int | None = None):
+    """The frequency-response estimate of one machine's axis from command to measured position: frequencies
+    (Hz), ``G`` (complex, mm per input unit) and the coherence of the excitation with the position, by Welch's
+    method with Hann windows (``segment`` periods, half overlap)."""
+    fs = 1.0 / measurement.dt
+    r, u, e = (a[machine, :, axis] for a in (measurement.r, measurement.u, measurement.e))
+    x = -e  # the reference is independent of the excitation: S_rx = -S_re
+    nper = min(segment or 8192, r.size)
+    f, s_rx = signal.csd(r, x, fs=fs, nperseg=nper, detrend="linear")
+    _, s_ru = signal.csd(r, u, fs=fs, nperseg=nper, detrend="linear")
+    _, coh = signal.coherence(r, x, fs=fs, nperseg=nper, detrend="linear")
+    return f[1:], s_rx[1:] / s_ru[1:], coh[1:]
+
+
+@dataclass(frozen=True)
+class AxisModel:
+    """One axis as identified: ``m s^2 + c s`` (input unit per mm/s^2 and per mm/s), a first mode of
+    ``mode_frequency`` Hz (0: none found) and ``mode_damping``, a dead time ``delay`` s (ZOH included), the
+    Coulomb levels ``coulomb`` (f+, f-) in input units, the fit's rms log error and the band (Hz) it used, the
+    measured velocity's noise (mm/s), the control period ``dt`` (s), the viscous coefficient the reversal legs
+    measured (input unit per mm/s: the steady-state one, which the feedforward uses; ``damping`` is the
+    frequency response's) and the process force along the path they measured (input unit)."""
+
+    mass: float
+    damping: float
+    mode_frequency: float
+    mode_damping: float
+    delay: float
+    coulomb: tuple
+    fit_error: float
+    band: tuple
+    velocity_noise: float = 0.0
+    dt: float = 0.0
+    viscous: float = 0.0
+    process_force: float = 0.0
+
+    @property
+    def command_delay(self) -> float:
+        """The dead time's whole control periods beyond the hold's half period, s (what the feedforward leads by)."""
+        if self.dt <= 0:
+            return max(self.delay, 0.0)
+        return max(0.0, round(self.delay / self.dt - 0.5)) * self.dt
+
+
+def model_response(model_or_params, frequency_hz):
+    """The model's frequency response at ``frequency_hz`` (mm per input unit): an :class:`AxisModel`, or
+    ``(m, c, f_mode, zeta, delay)``."""
+    if isinstance(model_or_params, AxisModel):
+        a = model_or_params
+        m, c, fm, z, tau = a.mass, a.damping, a.mode_frequency, a.mode_damping, a.delay
+    else:
+        m, c, fm, z, tau = model_or_params
+    s = 2j * np.pi * np.asarray(frequency_hz, dtype=np.float64)
+    g = 1.0 / (m * s**2 + c * s) * np.exp(-s * tau)
+    if fm > 0:
+        w = 2 * np.pi * fm
+        g = g * (2 * z * w * s + w**2) / (s**2 + 2 * z * w * s + w**2)
+    return g
+
+
+def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None, high_hz=None,
+             holding_bandwidth: float = 0.0) -> AxisModel:
+    """Fit :class:`AxisModel`'s linear part to one axis' estimate (see the module docstring).  The band is
+    ``low_hz`` (default 20 frequency bins or four times the holding loop's ``holding_bandwidth`` (rad/s), whichever
+    is higher: below, the friction and the holding loop dominate) to ``high_hz`` (default where the coherence,
+    median-filtered over 31 bins, first falls below :data:`COHERENCE_FLOOR` beyond three times the low end, at
+    most 0.4 of the Nyquist frequency); the nominal mass and damping are the starting point only."""
+    low_default = 4.0 * holding_bandwidth / (2 * np.pi)
+    low = low_hz if low_hz is not None else max(20.0 * f[0], low_default)
+    if high_hz is None:  # up to where the response sinks into the sensor's counts and noise
+        smooth = signal.medfilt(np.asarray(coherence, dtype=np.float64), 31)
+        poor = np.flatnonzero((f > 3.0 * low) & (smooth < COHERENCE_FLOOR))
+        high = min(f[poor[0]] if poor.size else np.inf, 0.2 / dt)
+    else:
+        high = high_hz
+    band = (f >= low) & (f <= high) & np.isfinite(G) & (np.abs(G) > 0)
+    coh = np.clip(coherence[band], 1e-3, 0.999)
+    fb, Gb, wgt = f[band], G[band], np.sqrt(coh / (1.0 - coh))  # the estimate's inverse standard deviation
+    if fb.size < 8:
+        raise ValueError(f"frequency band {low:g}-{high:g} Hz holds {fb.size} bins: lengthen the experiment")
+
+    def residual(theta, with_mode):
+        m, c, tau = np.exp(theta[0]), np.exp(theta[1]), theta[2]
+        params = (m, c, np.exp(theta[3]), np.exp(theta[4]), tau) if with_mode else (m, c, 0.0, 0.0, tau)
+        ratio = model_response(params, fb) / Gb
+        lr = np.log(ratio)
+        return np.concatenate([wgt * lr.real, wgt * np.angle(ratio)])
+
+    # where a resonance would be: the peak of |G| w^2, flat for the rigid body at high frequency
+    flat = np.abs(Gb) * (2 * np.pi * fb) ** 2
+    peak = int(np.argmax(signal.medfilt(flat, 5)))
+    f_peak = fb[peak]
+    lower = fb <= 0.6 * f_peak
+    if np.count_nonzero(lower) < 8:
+        lower = np.ones_like(fb, dtype=bool)
+    # the rigid body on the band below the peak, its dead time from the nominal start (one period and the hold's)
+    theta0 = np.array([np.log(nominal_mass), np.log(max(nominal_damping, 1e-9)), 1.5 * dt])
+    # bounds (log m, log c, tau, log f, log zeta): a decade either side of the nominal mass, a viscous term
+    # between nothing and a hundred times the mass per second, up to 20 periods of delay, a mode in the band
+    bound_lo = np.array([np.log(nominal_mass / 10), np.log(nominal_mass * 1e-6), -dt, np.log(low), np.log(1e-3)])
+    bound_hi = np.array([np.log(nominal_mass * 10), np.log(nominal_mass * 1e2), 20 * dt, np.log(0.5 / dt), 0.0])
+
+    def solve(fun, start, n):
+        start = np.clip(start, bound_lo[:n] + 1e-9, bound_hi[:n] - 1e-9)
+        return optimize.least_squares(fun, start, bounds=(bound_lo[:n], bound_hi[:n]), method="trf",
+                                      x_scale="jac")
+
+    def rigid_residual(t):
+        return residual(t, False)[np.concatenate([lower, lower])]
+
+    rigid = solve(rigid_residual, theta0, 3)
+    m, c, tau = np.exp(rigid.x[0]), np.exp(rigid.x[1]), rigid.x[2]
+    excess = 20 * np.log10(np.abs(Gb / model_response((m, c, 0.0, 0.0, tau), fb)))
+    height = float(signal.medfilt(excess, 5)[peak])
+    best, with_mode = solve(lambda t: residual(t, False), rigid.x, 3), False
+    if height > MODE_PEAK_DB:
+        near = fb <= 2.5 * f_peak  # the mode's neighbourhood (beyond, the response sinks into the counts)
+
+        def mode_residual(t):
+            return residual(t, True)[np.concatenate([near, near])]
+
+        # a lightly damped mode: the peak's height above the rigid body is about 1 / (2 zeta)
+        zeta0 = float(np.clip(0.5 / 10 ** (height / 20.0), 0.005, 0.7))
+        start = np.array([rigid.x[0], rigid.x[1], rigid.x[2], np.log(f_peak), np.log(zeta0)])
+        fitted = solve(mode_residual, start, 5)
+        if 0.5 * np.sum(residual(fitted.x, True) ** 2) < best.cost:
+            best, with_mode = fitted, True
+    t = best.x
+    rms = float(np.sqrt(2.0 * best.cost / (2 * fb.size)))
+    return AxisModel(mass=float(np.exp(t[0])), damping=float(np.exp(t[1])),
+                     mode_frequency=float(np.exp(t[3])) if with_mode else 0.0,
+                     mode_damping=float(np.exp(t[4])) if with_mode else 0.0, delay=float(t[2]), coulomb=(0.0, 0.0),
+                     fit_error=rms, band=(float(low), float(high)), dt=float(dt))
+
+
+def leg_schedule(speed: float, ratio: float) -> np.ndarray:
+    """The reversal legs' axis speeds (L, 2), mm/s: each axis alone at ``speed`` and ``ratio`` times it, in both
+    directions (the other axis holding), then both together at ``speed`` (a diagonal), each out and back."""
+    v1, v2 = speed, speed * ratio
+    legs = []
+    for j in range(2):
+        for v in (v1, v2):
+            move = np.zeros(2)
+            move[j] = v
+            legs += [move, -move]
+    legs += [np.array([v1, v1]), np.array([-v1, -v1])]
+    return np.array(legs)
+
+
+def friction_levels(measurement: Measurement, machine: int):
+    """Per axis the viscous coefficient (input unit per mm/s), the Coulomb levels (f+ >= 0, f- <= 0) and a
+    process force along the path (input unit), from the reversal legs by least squares.
+
+    On a leg where axis ``j`` moves at ``v_j`` (the path at ``|v|``) its mean command is
+    ``c v_j + f^{sgn v_j} + F v_j / |v|``: a process force against the path's motion (a cutting force) shares
+    itself among the axes as the motion does, a Coulomb level does not; the single-axis and diagonal legs
+    separate them.  Returns ``(c (2,), coulomb (2, 2), force (2,))``."""
+    speeds = measurement.leg_speeds
+    path = np.hypot(speeds[:, 0], speeds[:, 1])
+    c, coulomb, force = np.zeros(2), np.zeros((2, 2)), np.zeros(2)
+    for j in range(2):
+        rows = np.flatnonzero(speeds[:, j] != 0)
+        v = speeds[rows, j]
+        A = np.column_stack([v, (v > 0).astype(float), (v < 0).astype(float), v / path[rows]])
+        x, *_ = np.linalg.lstsq(A, measurement.leg_command[machine, rows, j], rcond=None)
+        c[j], coulomb[j] = x[0], (max(x[1], 0.0), min(x[2], 0.0))
+        force[j] = max(x[3], 0.0)
+    return c, coulomb, force
+
+
+def experiment_task(task, experiment: Experiment = Experiment()):
+    """The task the experiment's axes follow: ``task`` itself when its reference lasts at least half the PRBS
+    run, else the same contour and machine at the feed that makes it last the run (an axis standing still
+    through most of the run sticks in its friction, and the estimate loses the band above its holding loop)."""
+    from vcnc_gym.envs.task import ContouringTask
+
+    if task.reference_arrays.samples.shape[0] >= 0.5 * experiment.periods:
+        return task
+    length = float(task.reference_arrays.samples[-1, sk.REF_ARC])
+    feed = length / (1.05 * experiment.periods * task.dt)
+    return ContouringTask(contour=task.curve, plant=task.plant, dt=task.dt, feedrate=feed,
+                          plant_options=task.plant_options or None)
+
+
+def identify(task, parameters, nominal_inverse, experiment: Experiment = Experiment()):
+    """Build ``parameters``' machines (one per (2, P) row) on ``task``, run the experiment and fit each axis.
+
+    Returns ``(models, measurement)``: ``models[n][j]`` the :class:`AxisModel` of machine n's axis j.
+    """
+    positive("experiment.periods", experiment.periods)
+    machines = Machines(experiment_task(task, experiment), parameters, seed=experiment.seed)
+    meas = run_experiment(machines, nominal_inverse, experiment)
+    models = []
+    for i in range(machines.n):
+        axes = []
+        for j in range(2):
+            f, G, coh = frf(meas, i, j, experiment.segment)
+            axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt,
+                                 holding_bandwidth=meas.holding_bandwidth[j]))
+        viscous, levels, force = friction_levels(meas, i)
+        axes = [AxisModel(**{**a.__dict__, "viscous": float(viscous[j]),
+                             "coulomb": (float(levels[j, 0]), float(levels[j, 1])), "process_force": float(force[j]),
+                             "velocity_noise": float(meas.velocity_noise[i, j])}) for j, a in enumerate(axes)]
+        models.append(axes)
+    return models, meas

@@ -1,0 +1,317 @@
+"""The commissioning record: what an identification run found on a machine and what the design rules chose.
+
+A :class:`CommissioningRecord` is frozen; it is saved and loaded as JSON (:meth:`~CommissioningRecord.to_json`,
+:func:`load`), printed readably (``str(record)``) and plotted (:func:`plot`: the measured frequency response, the
+fitted model, the loop with its margins and notch).  It is made three ways (:func:`commission`):
+
+- ``"nominal"``: the identification run on the *nominal* machine of an env, what a machine builder ships with
+  every machine of a series.  The records of the suite's machines are shipped as JSON data
+  (``baselines/commissioning/shipped/``, rebuilt by ``python -m baselines.commissioning.record``), so a run does
+  not repeat the experiment; a machine without a shipped record is commissioned when first asked (a few
+  seconds) and kept for the process;
+- ``"machine"``: an identification run on each plant instance before its episode (commissioning a real machine);
+- ``"model"``: the design rules applied to the model its parameters declare, without an experiment (a
+  non-causal design when the parameters are a plant's true ones: what the oracle may start from).
+
+In every case the experiment reads only the observation (:mod:`.identify`); the backlash, which the experiment
+does not measure, is the nominal model's (the builder's data sheet).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .design import AxisDesign, Margins, design_axis, inverse_dynamics, loop_response
+from .identify import AxisModel, Experiment, frf, identify, model_response
+
+__all__ = ["CommissioningRecord", "commission", "make_record", "model_record", "nominal_record", "model_axes", "machine_key", "load", "shipped", "plot", "SOURCES",
+           "SHIPPED"]
+
+#: How a record is made (module docstring).
+SOURCES = ("nominal", "machine", "model")
+#: Where the shipped records live.
+SHIPPED = Path(__file__).with_name("shipped")
+_CACHE: dict = {}
+
+
+@dataclass(frozen=True)
+class CommissioningRecord:
+    """One machine's commissioning.
+
+    Attributes
+    ----------
+    plant : str
+        The plant's name.
+    shop_floor : bool
+        The machine is on the shop floor.
+    source : str
+        One of :data:`SOURCES`.
+    dt : float
+        Control period, s.
+    ceiling : float
+        The plant's declared servo bandwidth ceiling, rad/s.
+    axes : tuple of AxisModel
+        The identified (or declared) model of each axis.
+    designs : tuple of AxisDesign
+        The design of each axis' loop.
+    backlash : tuple of float
+        Per axis, mm (the nominal model's).
+    friction_time : float
+        s, the feedforward's Coulomb transition at a reversal (the plant's declaration).
+    identification_s : float
+        Wall time of the identification run, s (0 for ``"model"``).
+    contour : str
+        The contour the experiment's axes followed.
+    """
+
+    plant: str
+    shop_floor: bool
+    source: str
+    dt: float
+    ceiling: float
+    axes: tuple
+    designs: tuple
+    backlash: tuple
+    friction_time: float
+    identification_s: float = 0.0
+    contour: str = ""
+
+    def inverse(self, with_mode: bool = True):
+        """The identified inverse dynamics (:func:`~baselines.commissioning.design.inverse_dynamics`)."""
+        return inverse_dynamics(self.axes, self.backlash, with_mode=with_mode)
+
+    @property
+    def process_force(self) -> np.ndarray:
+        """Per axis the identified process force along the path, input unit (2,)."""
+        return np.array([a.process_force for a in self.axes])
+
+    def gains(self) -> dict:
+        """The servo law's per-axis arrays: ``kp``, ``kd``, ``ki``, ``velocity_filter`` (2,), ``notch`` (2, 5)."""
+        d = self.designs
+        return {"kp": np.array([a.kp for a in d]), "kd": np.array([a.kd for a in d]),
+                "ki": np.array([a.ki for a in d]), "velocity_filter": np.array([a.velocity_pole for a in d]),
+                "notch": np.array([a.notch for a in d])}
+
+    # -- JSON -------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        return json.loads(json.dumps(d, default=float))
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=1)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "CommissioningRecord":
+        axes = tuple(AxisModel(**{**a, "coulomb": tuple(a["coulomb"]), "band": tuple(a["band"])}) for a in d["axes"])
+        designs = tuple(AxisDesign(**{**a, "notch": tuple(a["notch"]), "margins": Margins(**a["margins"])})
+                        for a in d["designs"])
+        return cls(**{**d, "axes": axes, "designs": designs, "backlash": tuple(d["backlash"])})
+
+    def save(self, path) -> None:
+        Path(path).write_text(self.to_json() + "\n")
+
+    def __str__(self) -> str:
+        lines = [f"commissioning of {self.plant}{' on the shop floor' if self.shop_floor else ''} ({self.source}; "
+                 f"dt = {self.dt:g} s; identification {self.identification_s:.1f} s"
+                 f"{' along ' + self.contour if self.contour else ''})"]
+        for name, a, d in zip("xy", self.axes, self.designs):
+            mode = (f"mode {a.mode_frequency:.1f} Hz, zeta {a.mode_damping:.3f}" if a.mode_frequency > 0
+                    else "no mode found")
+            lines.append(f"  {name}: m = {a.mass:.4g} /(mm/s^2), c = {a.viscous or a.damping:.3g} /(mm/s), {mode}, "
+                         f"dead time {1e3 * a.delay:.3f} ms, Coulomb +{a.coulomb[0]:.3f}/{a.coulomb[1]:.3f}, "
+                         f"process force {a.process_force:.3f}, velocity noise {a.velocity_noise:.3g} mm/s")
+            notch = f"notch {d.notch_frequency:.1f} Hz Q {d.notch_q:g}" if d.notch_frequency > 0 else "no notch"
+            vel = f"velocity low-pass {d.velocity_cutoff:.0f} rad/s" if d.velocity_cutoff > 0 else "no velocity filter"
+            frac = (f" ({d.margins.crossover / (2 * math.pi * a.mode_frequency):.2f} of the mode)"
+                    if a.mode_frequency > 0 else "")
+            lines.append(f"     bandwidth {d.bandwidth:.1f} rad/s, crossover {d.margins.crossover:.1f} rad/s{frac}; "
+                         f"Kp {d.kp:.4g}, Kd {d.kd:.4g}, Ki {d.ki:.4g}; {vel}; {notch}; margins: GM "
+                         f"{d.margins.gain_db:.1f} dB, PM {d.margins.phase_deg:.1f} deg, Ms "
+                         f"{d.margins.sensitivity_db:.2f} dB")
+        return "\n".join(lines)
+
+
+def load(path) -> CommissioningRecord:
+    """A record saved by :meth:`CommissioningRecord.save`."""
+    return CommissioningRecord.from_dict(json.loads(Path(path).read_text()))
+
+
+def machine_key(plant, parameters, dt: float) -> str:
+    """A shipped record's file stem: the plant's name, shop floor or not, and a digest of its (nominal)
+    parameters and the control period."""
+    from vcnc_gym.plants.shop_floor import ShopFloorModel
+
+    shop = isinstance(plant, ShopFloorModel)
+    p = np.ascontiguousarray(np.asarray(parameters, dtype=np.float64))
+    digest = hashlib.sha1(p.tobytes() + np.float64(dt).tobytes()).hexdigest()[:12]
+    return f"{plant.name}-{'shop' if shop else 'ideal'}-{digest}"
+
+
+def _ceiling(plant) -> float:
+    c = getattr(plant, "servo_bandwidth", None)
+    if c is None:
+        raise ValueError(f"plant {plant.name!r} declares no servo_bandwidth (rad/s): its commissioning has no "
+                         "ceiling to search below")
+    return float(c)
+
+
+def model_axes(plant, parameters, dt: float) -> list[AxisModel]:
+    """The axes as ``parameters`` (2, P) declare them: the inverse dynamics' mass, damping, Coulomb levels and
+    dead time, and on the shop floor its mode, delays and sensor (no experiment)."""
+    inv = plant.inverse(parameters)
+    p = np.asarray(parameters, dtype=np.float64)
+    names = plant.parameter_names
+
+    def value(name, j, default=0.0):
+        return float(p[j, names.index(name)]) if name in names else default
+
+    axes = []
+    for j in range(2):
+        delays = round(value("command_delay", j)) + round(value("sensor_delay", j))
+        q, sigma = value("encoder_resolution", j), value("noise_std", j)
+        noise = math.sqrt(2.0 * (sigma**2 + q * q / 12.0)) / dt
+        axes.append(AxisModel(mass=float(inv.mass[j]), damping=float(inv.damping[j]),
+                              mode_frequency=value("mode_frequency", j), mode_damping=value("mode_damping", j),
+                              delay=float(inv.delay[j]) + (delays + 0.5) * dt,
+                              coulomb=tuple(float(v) for v in inv.coulomb[j]), fit_error=0.0, band=(0.0, 0.0),
+                              velocity_noise=noise, dt=dt, viscous=float(inv.damping[j])))
+    return axes
+
+
+def _record(task, axes, source, seconds, nominal) -> CommissioningRecord:
+    return make_record(task.plant, task.dt, axes, source, nominal, seconds, getattr(task, "contour_name", ""))
+
+
+def make_record(plant, dt, axes, source, nominal, seconds: float = 0.0, contour: str = "") -> CommissioningRecord:
+    """The record of ``axes`` (identified or declared) of ``plant`` at control period ``dt``: the design rules
+    applied; the backlash of the ``nominal`` parameters."""
+    from vcnc_gym.plants.shop_floor import ShopFloorModel
+
+    ceiling = _ceiling(plant)
+    designs = tuple(design_axis(a, dt, a.velocity_noise, ceiling) for a in axes)
+    backlash = tuple(float(b) for b in plant.inverse(nominal).backlash)
+    return CommissioningRecord(plant=plant.name, shop_floor=isinstance(plant, ShopFloorModel), source=source,
+                               dt=float(dt), ceiling=ceiling, axes=tuple(axes), designs=designs,
+                               backlash=backlash, friction_time=float(plant.friction_time),
+                               identification_s=float(seconds), contour=contour)
+
+
+def model_record(plant, parameters, dt: float, nominal=None) -> CommissioningRecord:
+    """The ``"model"`` record of ``parameters`` (2, P): the rules applied to the declared model (cached)."""
+    nominal = parameters if nominal is None else nominal
+    key = ("model", machine_key(plant, parameters, dt), machine_key(plant, nominal, dt))
+    if key not in _CACHE:
+        _CACHE[key] = make_record(plant, dt, model_axes(plant, parameters, dt), "model", nominal)
+    return _CACHE[key]
+
+
+def nominal_record(plant, nominal, dt: float, task=None) -> CommissioningRecord | None:
+    """The ``"nominal"`` record of the machine ``(plant, nominal, dt)``: this process's, else the shipped one,
+    else (with ``task``, whose nominal machine it must be) a fresh identification run; None without any."""
+    key = machine_key(plant, nominal, dt)
+    if key in _CACHE:
+        return _CACHE[key]
+    path = SHIPPED / f"{key}.json"
+    if path.exists():
+        _CACHE[key] = load(path)
+    elif task is not None:
+        models, meas = identify(task, nominal, plant.inverse(nominal))
+        _CACHE[key] = _record(task, models[0], "nominal", meas.seconds, nominal)
+    else:
+        return None
+    return _CACHE[key]
+
+
+def commission(task, source: str = "nominal", parameters=None, experiment: Experiment = Experiment()):
+    """The records of ``task``'s machines: one for ``"nominal"`` (the shipped one when there is one), one per
+    (2, P) row of ``parameters`` for ``"machine"`` and ``"model"`` (default: the nominal machine)."""
+    if source not in SOURCES:
+        raise ValueError(f"commissioning must be one of {list(SOURCES)}, got {source!r}")
+    nominal = task.nominal_parameters
+    if source == "nominal":
+        return [nominal_record(task.plant, nominal, task.dt, task)]
+    p = np.asarray(nominal if parameters is None else parameters, dtype=np.float64)
+    p = p[None] if p.ndim == 2 else p
+    if source == "model":
+        return [model_record(task.plant, q, task.dt, nominal) for q in p]
+    models, meas = identify(task, p, task.plant.inverse(nominal), experiment)
+    return [_record(task, m, "machine", meas.seconds / len(p), nominal) for m in models]
+
+
+def shipped(task) -> CommissioningRecord:
+    """Commission ``task``'s nominal machine afresh and write the record to :data:`SHIPPED`."""
+    key = machine_key(task.plant, task.nominal_parameters, task.dt)
+    _CACHE.pop(key, None)
+    inv = task.plant.inverse(task.nominal_parameters)
+    models, meas = identify(task, task.nominal_parameters, inv)
+    record = _record(task, models[0], "nominal", meas.seconds, task.nominal_parameters)
+    SHIPPED.mkdir(exist_ok=True)
+    record.save(SHIPPED / f"{key}.json")
+    _CACHE[key] = record
+    return record
+
+
+def plot(record: CommissioningRecord, path, measurement=None, machine: int = 0) -> None:
+    """Per axis: the measured frequency response (when ``measurement`` is given) and the fitted model
+    (magnitude, phase), and the designed loop's magnitude and phase with its margins and notch."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7), sharex="col")
+    for j, (a, d) in enumerate(zip(record.axes, record.designs)):
+        f = np.logspace(0, np.log10(0.45 / record.dt), 800)
+        if measurement is not None:
+            fm, G, _ = frf(measurement, machine, j)
+            ax[0, j].loglog(fm, np.abs(G), ".", ms=2, color="0.6", label="measured")
+            ax[1, j].semilogx(fm, np.degrees(np.angle(G)), ".", ms=2, color="0.6")
+        g = model_response(a, f)
+        ax[0, j].loglog(f, np.abs(g), label="fitted model")
+        ax[1, j].semilogx(f, np.degrees(np.angle(g)))
+        w = 2 * np.pi * f
+        L = loop_response(a, record.dt, w, d.kp, d.kd, d.ki, d.velocity_pole, d.notch)
+        ax[0, j].loglog(f, np.abs(L), label="loop L")
+        ax[1, j].semilogx(f, np.degrees(np.angle(L)))
+        ax[0, j].axhline(1.0, color="k", lw=0.5)
+        if d.notch_frequency > 0:
+            ax[0, j].axvline(d.notch_frequency, color="r", ls=":", label=f"notch {d.notch_frequency:.0f} Hz")
+        ax[0, j].set_title(f"axis {'xy'[j]}: GM {d.margins.gain_db:.1f} dB, PM {d.margins.phase_deg:.0f} deg, "
+                           f"Ms {d.margins.sensitivity_db:.1f} dB")
+        ax[1, j].set_xlabel("frequency, Hz")
+        ax[0, j].legend(fontsize=7)
+    ax[0, 0].set_ylabel("|G|, mm per input unit; |L|")
+    ax[1, 0].set_ylabel("phase, deg")
+    fig.suptitle(f"{record.plant}{' (shop floor)' if record.shop_floor else ''}: {record.source} commissioning")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _main(argv=None) -> None:
+    """Rebuild the shipped records of the suite's contouring envs (``python -m baselines.commissioning.record``)."""
+    import argparse
+
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401  (registers the ids)
+
+    parser = argparse.ArgumentParser(description=_main.__doc__)
+    parser.add_argument("env_ids", nargs="+", help="env ids whose nominal machines to commission")
+    args = parser.parse_args(argv)
+    for env_id in args.env_ids:
+        task = gym.make(env_id).unwrapped.task
+        record = shipped(task)
+        print(env_id, "->", machine_key(task.plant, task.nominal_parameters, task.dt))
+        print(record)
+
+
+if __name__ == "__main__":
+    _main()

@@ -1,0 +1,180 @@
+"""Commissioning (baselines.commissioning) against what no one here wrote: python-control's frequency responses,
+stability margins and discretisation, scipy.signal's notch, and the machines' declared parameters."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy import signal
+
+control = pytest.importorskip("control")
+
+import vcnc_gym  # noqa: E402,F401
+from baselines.commissioning import design, identify, record  # noqa: E402
+from baselines.servo import NO_NOTCH, ServoGains  # noqa: E402
+
+
+def _axis(mode=150.0, zeta=0.05, delay=1.5e-4, noise=0.8):
+    """Jahanpour et al.'s x axis on the shop floor as its nominal parameters declare it."""
+    return identify.AxisModel(mass=0.007774 / 4.7, damping=0.02 / 4.7, mode_frequency=mode, mode_damping=zeta,
+                              delay=delay, coulomb=(0.7, -0.5), fit_error=0.0, band=(0.0, 0.0), velocity_noise=noise,
+                              dt=1e-4)
+
+
+@pytest.mark.parametrize("f0,q,dt", [(150.0, 1.0, 1e-4), (150.0, 4.0, 1e-3), (37.5, 2.0, 1e-4)])
+def test_notch_is_scipy_iirnotch(f0, q, dt):
+    """The notch's coefficients are scipy.signal.iirnotch's (the same prewarped bilinear biquad)."""
+    b, a = signal.iirnotch(f0, q, fs=1.0 / dt)
+    c = design.notch_coefficients(f0, q, dt)
+    np.testing.assert_allclose(c[:3], b / a[0], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(c[3:], a[1:] / a[0], rtol=1e-12, atol=1e-15)
+    _, h = signal.freqz(c[:3], (1.0,) + tuple(c[3:]), worN=[0.0, f0], fs=1.0 / dt)
+    assert abs(h[0]) == pytest.approx(1.0) and abs(h[1]) < 1e-9
+
+
+def test_margins_are_python_controls():
+    """The designed loop's phase and gain margins against control.stability_margins of the same loop built
+    as a discrete transfer function (c2d of the rigid body and mode, the delay, the PID, filter and notch)."""
+    axis = _axis()
+    d = design.design_axis(axis, 1e-4, axis.velocity_noise, 1000.0)
+    assert d.margins.meets() and d.notch_frequency == axis.mode_frequency
+    L = design.loop_tf(axis, 1e-4, d.kp, d.kd, d.ki, d.velocity_pole, d.notch)
+    gm, pm, sm, wg, wp, ws = control.stability_margins(L, returnall=True)
+    crossings = [abs(20 * math.log10(g)) for g in np.atleast_1d(gm) if np.isfinite(g) and g > 0]
+    assert d.margins.gain_db == pytest.approx(min(crossings), abs=0.05)
+    phases = [abs(p) for p in np.atleast_1d(pm) if np.isfinite(p)]
+    assert d.margins.phase_deg == pytest.approx(min(phases), abs=0.2)
+    assert np.all(np.abs(design.closed_loop_poles(L)) < 1.0)
+    # the sensitivity peak against python-control's frequency response of 1 / (1 + L)
+    w = np.logspace(0, math.log10(0.999 * math.pi / 1e-4), 20000)
+    S = control.feedback(1, L)
+    peak = 20 * math.log10(np.max(np.abs(S(np.exp(1j * w * 1e-4)))))
+    assert d.margins.sensitivity_db == pytest.approx(peak, abs=0.05)
+    # the bandwidth is at most about half the mode, and the next grid point up fails a rule
+    assert d.margins.crossover <= design.MODE_FRACTION * 2 * math.pi * axis.mode_frequency
+
+
+def _closed_loop_run(P, dt, n, seed=0):
+    """r -> (x, u) of a low-gain PD loop around the discrete plant P (python-control's simulation), its velocity
+    low-passed at 250 rad/s as the experiment's holding loop does."""
+    rng = np.random.default_rng(seed)
+    r = np.where(rng.random(n) < 0.5, -1.0, 1.0)
+    m = 0.007774 / 4.7
+    kp, kd = m * 50.0**2, 2 * m * 50.0
+    z = control.tf([1.0, 0.0], [1.0], dt)
+    a = math.exp(-250.0 * dt)
+    C = kp + kd * (1 - a) * z / (z - a) * (z - 1) / (z * dt)
+    t = np.arange(n) * dt
+    x = control.forced_response(control.feedback(P, C), t, r).outputs
+    u = control.forced_response(control.feedback(1, P * C), t, r).outputs
+    return r, x, u
+
+
+def test_frf_estimate_is_python_controls_response_with_the_mode():
+    """The indirect estimate S_rx / S_ru around a closed loop recovers the plant's frequency response (rigid
+    body, 150 Hz mode, one period of delay) that python-control gives, through the mode."""
+    dt, n = 1e-4, 2**15
+    m, c, w, zeta = 0.007774 / 4.7, 0.02 / 4.7, 2 * math.pi * 150.0, 0.05
+    Pc = control.tf([1.0], [m, c, 0.0]) * control.tf([2 * zeta * w, w * w], [1.0, 2 * zeta * w, w * w])
+    P = control.c2d(Pc, dt, "zoh") * control.tf([1.0], [1.0, 0.0], dt)
+    r, x, u = _closed_loop_run(P, dt, n)
+    meas = identify.Measurement(r=r[None, :, None].repeat(2, 2), u=u[None, :, None].repeat(2, 2),
+                                e=-x[None, :, None].repeat(2, 2), leg_command=np.zeros((1, 0, 2)),
+                                leg_speeds=np.zeros((0, 2)), dt=dt, seconds=0.0, velocity_noise=np.zeros((1, 2)),
+                                holding_bandwidth=np.full(2, 50.0))
+    f, G, coh = identify.frf(meas, 0, 0)
+    band = (f > 20.0) & (f < 400.0)
+    truth = control.frequency_response(P, 2 * np.pi * f[band]).complex.ravel()
+    error = np.abs(G[band] / truth - 1.0)  # the Welch estimate's leakage and variance: a few per cent
+    assert np.median(error) < 0.01 and np.quantile(error, 0.95) < 0.05 and error.max() < 0.2
+    fit = identify.fit_axis(f, G, coh, m * 1.2, c, dt, holding_bandwidth=50.0)
+    assert fit.mode_frequency == pytest.approx(150.0, rel=0.01)
+    assert fit.mode_damping == pytest.approx(zeta, rel=0.1)
+    assert fit.mass == pytest.approx(m, rel=0.02)
+
+
+def test_record_round_trips_through_json(tmp_path):
+    """A record saved as JSON loads equal, and prints its identified mode and margins."""
+    from vcnc_gym.plants.shop_floor import shop_floor
+
+    plant = shop_floor("vcnc_feed_drive")
+    rec = record.model_record(plant, plant.nominal(), 1e-4)
+    path = tmp_path / "record.json"
+    rec.save(path)
+    back = record.load(path)
+    assert back == rec
+    text = str(back)
+    assert "mode 150.0 Hz" in text and "PM" in text and "notch" in text
+    g = back.gains()
+    assert g["notch"].shape == (2, 5) and np.all(g["velocity_filter"] > 0)
+    inv = back.inverse()
+    w2 = (2 * math.pi * 150.0) ** 2  # the mode's inverse to second order: c_4 = m / w^2
+    np.testing.assert_allclose(inv.coefficients[:, 3], inv.coefficients[:, 1] / w2)
+
+
+@pytest.mark.slow
+def test_servo_law_filters_compiled_equals_numpy():
+    """The servo law with a velocity filter and a notch: the compiled form gives the NumPy form's commands, and
+    without them the law's commands are those of the plain PID (the filters off change nothing)."""
+    from baselines.feedforward.ff_pid import FeedforwardPIDPolicy
+
+    env = gym.make("VCNC-HeartShop-v1")
+    pol = FeedforwardPIDPolicy.from_env(env)
+    rng = np.random.default_rng(3)
+    obs = rng.normal(scale=0.01, size=(40, 3, pol.layout.size)).astype(np.float32)
+    table = pol.table
+    outs = []
+    for filtered in (True, False):
+        g = pol._gains_row(0)
+        gains = ServoGains(g.kp, g.kd, g.ki, velocity_filter=g.velocity_filter if filtered else None,
+                           notch=g.notch if filtered else None)
+        for compiled in (True, False):
+            pol._set_law(table, gains)
+            pol.reset(n_envs=3)
+            acts = []
+            for o in obs:
+                acts.append(pol.predict(o if compiled else o.astype(np.float64))[0])
+            outs.append(np.array(acts))
+    np.testing.assert_array_equal(outs[0], outs[1])
+    np.testing.assert_array_equal(outs[2], outs[3])
+    assert not np.array_equal(outs[0], outs[2])
+    assert NO_NOTCH == (1.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.slow
+def test_identified_mode_on_plants_from_the_box():
+    """Identified through the env's step and observation only: the first mode of plants drawn from
+    VCNC-HeartShop-v1's box within 2 % in frequency and 20 % in damping of their true values."""
+    env = gym.make("VCNC-HeartShop-v1")
+    task = env.unwrapped.task
+    rng = np.random.default_rng(7)
+    params = np.stack([task.plant.sample(rng) for _ in range(4)])
+    models, _ = identify.identify(task, params, task.plant.inverse(task.nominal_parameters))
+    names = task.plant.parameter_names
+    for p, axes in zip(params, models):
+        for j, a in enumerate(axes):
+            assert a.mode_frequency == pytest.approx(p[j, names.index("mode_frequency")], rel=0.02)
+            assert a.mode_damping == pytest.approx(p[j, names.index("mode_damping")], rel=0.2)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ["VCNC-Heart-v1", "VCNC-HeartShop-v1"])
+def test_commissioned_no_worse_than_the_hand_table(env_id):
+    """The commissioned ff-pid (the shipped record of the nominal machine) against the former hand table's
+    design (the declared nominal model, pole placement at the plant's servo_bandwidth, no filters): no worse
+    than 2 % on the ideal heart, and far better on the shop floor."""
+    from baselines.registry import make
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make(env_id)
+    commissioned = run_episode(make("ff-pid", env), env, seed=0).max_contour_error_um
+    plant = env.unwrapped.task.plant
+    old = make("ff-pid", env, commissioning="model", bandwidth=plant.servo_bandwidth)
+    if "Shop" in env_id:  # the hand table had no filters
+        old._set_law(old.table, ServoGains(old.gains.kp[0], old.gains.kd[0], old.gains.ki[0]))
+        assert commissioned < 0.2 * run_episode(old, env, seed=0).max_contour_error_um
+    else:
+        assert commissioned <= 1.02 * run_episode(old, env, seed=0).max_contour_error_um
