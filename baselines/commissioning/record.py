@@ -241,8 +241,22 @@ def commission(task, source: str = "nominal", parameters=None, experiment: Exper
     p = p[None] if p.ndim == 2 else p
     if source == "model":
         return [model_record(task.plant, q, task.dt, nominal) for q in p]
+    key = (id(task), p.tobytes(), experiment)
+    if key in _MACHINES and _MACHINES[key][0] is task:  # the same machines: one experiment serves every controller
+        return list(_MACHINES[key][1])
     models, meas = identify(task, p, task.plant.inverse(nominal), experiment)
-    return [_record(task, m, "machine", meas.seconds / len(p), nominal) for m in models]
+    records = [_record(task, m, "machine", meas.seconds / len(p), nominal) for m in models]
+    if len(_MACHINES) >= _MACHINES_KEPT:
+        _MACHINES.pop(next(iter(_MACHINES)))
+    _MACHINES[key] = (task, records)
+    return list(records)
+
+
+#: Per-machine records of this process, by (task, parameters, experiment): the ``@machine`` variants of one env
+#: (``ff-pid@machine``, ``zpetc@machine``, ...) commission its machine once, as a CNC does before it runs any
+#: controller on it; the task is kept with its records so that its id is not reused.
+_MACHINES: dict = {}
+_MACHINES_KEPT = 8
 
 
 def shipped(task) -> CommissioningRecord:
