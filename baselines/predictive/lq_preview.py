@@ -17,7 +17,7 @@ term: the preview gains carry the motion).  ``u_lin(k)`` is the linear part of t
 (after the clip to the input limit): the velocity form's anti-windup.
 
 The weights: ``q = 1`` per mm^2 of tracking error and the input-increment weight ``rho`` for which the LQ loop's
-poles have the machine's commissioned bandwidth (:func:`~baselines.servo.commissioning`, the same number ``ff-pid``'s
+poles have the machine's commissioned bandwidth (:func:`~baselines.commissioning.record.nominal_record`, the same number ``ff-pid``'s
 PID is placed at; :func:`.design.input_weight_for_bandwidth`), unless ``input_weight`` is given.
 
 The model
@@ -41,7 +41,8 @@ from vcnc_gym.envs import controller_contract
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import non_negative, positive
 from ..feedforward.tables import inverse_feedforward
-from ..servo import ServoPolicy, commissioning
+from ..commissioning.record import nominal_record
+from ..servo import ServoPolicy
 from .design import axis_model, estimator_gain, input_weight_for_bandwidth, preview_design
 
 __all__ = ["LQPreviewPolicy", "LQPreviewArrays"]
@@ -99,10 +100,13 @@ class LQPreviewPolicy(ServoPolicy):
         if self.stride != 1:
             raise ValueError(f"{self.name} is designed at the control period: it needs decision_period = dt "
                              f"({self.dt} s), got {self.decision_period} s")
-        design = commissioning(self.plant)
-        self.bandwidth = positive("bandwidth", design.bandwidth if bandwidth is None else bandwidth, "rad/s")
+        if bandwidth is None:  # the nominal machine's commissioning (its slower axis), else the plant's ceiling
+            record = nominal_record(self.plant, self.nominal_parameters, self.dt)
+            bandwidth = min(d.bandwidth for d in record.designs) if record is not None else \
+                self.plant.servo_bandwidth
+        self.bandwidth = positive("bandwidth", bandwidth, "rad/s")
         self.friction_time = non_negative(
-            "friction_time", design.friction_time if friction_time is None else friction_time, "s")
+            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s")
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         if models is None:
             models = [self.plant.linear_model(self.nominal_parameters, axis=j) for j in range(2)]
