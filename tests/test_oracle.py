@@ -31,9 +31,10 @@ def stored(monkeypatch):
 
 
 def test_shipped_floor_replays_to_its_stored_figure(stored):
-    """VCNC-Omega-v1's nominal floor, loaded (not solved), replays through gym.make's env to the max contour
-    error stored with it, below its start's own closed-loop episode, which itself matches the stored start."""
-    env = gym.make("VCNC-Omega-v1")
+    """VCNC-OmegaLookaheadShop-v1's nominal floor (seed 0), loaded (not solved), replays through gym.make's env to
+    the max contour error stored with it, below its start's own closed-loop episode, which itself matches the stored
+    start."""
+    env = gym.make("VCNC-OmegaLookaheadShop-v1")
     oracle = baselines.make("oracle", env)
     assert oracle.causal is False
     result = run_episode(oracle, env, seed=0)
