@@ -135,8 +135,19 @@ JAHANPOUR_BASELINES = [n for n in baselines.names() if "vcnc_feed_drive" in base
             and getattr(baselines.registry.policy_class(n), "causal", True)]
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "mpc" else n  # a QP per env
-                                  for n in JAHANPOUR_BASELINES])                             # and period
+def _omega_case(name):
+    """A QP per env and period (mpc) and an identification of 64 machines (@machine) are slow; lq-preview at the
+    nominal machine's commissioned bandwidth diverges on 8 vertices of the S-curve omega (a reference no drive of
+    the box can follow), found when the commissioning replaced the hand table: an open defect, kept visible."""
+    if name == "mpc" or name.endswith("@machine"):
+        return pytest.param(name, marks=pytest.mark.slow)
+    if name == "lq-preview":
+        return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason="diverges on 8 vertices of the S-curve "
+                                                          "omega at the commissioned bandwidth (open)"))
+    return name
+
+
+@pytest.mark.parametrize("name", [_omega_case(n) for n in JAHANPOUR_BASELINES])
 def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
     """All 64 corners of Jahanpour et al.'s box, as one batch of the vector env, the policy's predict on the batch
     (the heart is run on vertices 0 and 63 above)."""
