@@ -43,3 +43,4 @@ test-all: lint docs
 bench: install
 	rm -f bench-out/bench.json
 	$(BIN)/vcnc-bench --json bench-out/bench.json --plots bench-out
+	$(BIN)/python -m vcnc_bench.check --default bench-out/bench.json

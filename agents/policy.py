@@ -101,6 +101,7 @@ class AgentPolicy:
         self.baseline = action_mode.make_baseline(env)
         self._count = None  # control periods since the last decision, per env
         self._held = None   # the agent's held action, per env
+        self._actor = _deterministic_actor(model)
 
     def plan(self, env) -> None:
         """Hand ``env``'s reference to the residual's baseline (a model-based baseline rebuilds its table for a
@@ -129,7 +130,10 @@ class AgentPolicy:
             x = obs2[decide]
             if self.normalization is not None:
                 x = self.normalization.normalize_obs(x)
-            self._held[decide], _ = self.model.predict(x, deterministic=deterministic)
+            if deterministic and self._actor is not None:
+                self._held[decide] = self._actor(x)
+            else:
+                self._held[decide], _ = self.model.predict(x, deterministic=deterministic)
         self._count += 1
         base = None
         if self.baseline is not None:
@@ -139,6 +143,34 @@ class AgentPolicy:
 
     def __repr__(self) -> str:
         return f"AgentPolicy({type(self.model).__name__}, {self.action_mode})"
+
+
+def _deterministic_actor(model):
+    """SB3's deterministic ``model.predict`` of a batch, without its per-call bookkeeping (the eval-mode switch
+    walks every module, the distribution object is built and dropped): for an :class:`ActorCriticPolicy` whose
+    action distribution is a diagonal Gaussian without squashing, the mean action of the actor network, clipped to
+    the action space, the same operations in the same order as SB3's, so the same numbers to the bit
+    (``tests/test_agent_policy.py``); None for any other policy, which then goes through ``model.predict``."""
+    import torch as th
+    from gymnasium import spaces
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy, BaseModel
+
+    policy = getattr(model, "policy", None)
+    if (not isinstance(policy, ActorCriticPolicy) or type(policy.action_dist) is not DiagGaussianDistribution
+            or policy.squash_output or not isinstance(policy.action_space, spaces.Box)):
+        return None
+    policy.set_training_mode(False)
+    low, high, shape = policy.action_space.low, policy.action_space.high, policy.action_space.shape
+
+    def actor(x: np.ndarray) -> np.ndarray:
+        with th.no_grad():
+            obs = th.as_tensor(x, device=policy.device).float()
+            features = BaseModel.extract_features(policy, obs, policy.pi_features_extractor)  # as get_distribution
+            mean = policy.action_net(policy.mlp_extractor.forward_actor(features))
+        return np.clip(mean.cpu().numpy().reshape((-1, *shape)), low, high)
+
+    return actor
 
 
 # -- the env an agent was trained for ------------------------------------------------------------

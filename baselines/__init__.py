@@ -34,6 +34,7 @@ from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPol
 from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy, run_trials
 from .registry import make, names
+from .optimal.oracle import OraclePolicy  # registers the floor (baselines.registry.register_floor)
 
 __all__ = [
     "make",
@@ -50,6 +51,7 @@ __all__ = [
     "ILCPolicy",
     "run_trials",
     "NCTFPolicy",
+    "OraclePolicy",
     "FuzzyScaling",
     "DEFAULT_SCALING",
     "MU",

@@ -3,6 +3,11 @@
 The registry maps a name to a policy class; :func:`make` builds it for an env
 from ``env.unwrapped`` (observation layout, decision period, nominal plant)
 and the keyword parameters, whose defaults are the paper's values.
+
+The causal controllers are listed here (:data:`CONTROLLERS`).  A non-causal
+floor is built from them (the oracle starts from every causal controller), so
+it stands above this module and registers itself (:func:`register_floor`,
+``baselines.optimal.oracle``, imported by ``baselines``).
 """
 
 from __future__ import annotations
@@ -21,13 +26,12 @@ from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPol
 from .feedback.qft import QFTPolicy
 from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy
-from .optimal.oracle import OraclePolicy
 from .predictive.lq_preview import LQPreviewPolicy
 from .predictive.mpc import MPCPolicy
 
-__all__ = ["make", "names", "policy_class", "CONTROLLERS", "REGISTRY", "VARIANTS"]
+__all__ = ["make", "names", "policy_class", "register_floor", "CONTROLLERS", "FLOORS", "REGISTRY", "VARIANTS"]
 
-#: The controllers, by family (each class names itself: its ``name`` attribute is its registry key).
+#: The causal controllers, by family (each class names itself: its ``name`` attribute is its registry key).
 CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     # feedback
     QFTPolicy,  # Jahanpour et al. (2014), section 2c
@@ -51,12 +55,24 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     # predictive
     LQPreviewPolicy,  # Tomizuka and Whitney (1975), Katayama et al. (1985), every plant
     MPCPolicy,  # the same model, cost and preview with the input limit: a QP per control period (DAQP)
-    # optimal (non-causal)
-    OraclePolicy,  # the input sequence optimised on the exact plant, replayed
 )
 
-#: Name -> policy class.
+#: The non-causal floors (``causal = False``), by name: registered by their modules (:func:`register_floor`).
+FLOORS: dict[str, type[BaselinePolicy]] = {}
+
+#: Name -> policy class: the controllers and the floors.
 REGISTRY: dict[str, type[BaselinePolicy]] = {cls.name: cls for cls in CONTROLLERS}
+
+
+def register_floor(cls: type[BaselinePolicy]) -> type[BaselinePolicy]:
+    """Register a non-causal floor under its ``name`` (a module above the registry, which builds it from the
+    causal controllers); returns the class."""
+    if getattr(cls, "causal", True) is not False:
+        raise ValueError(f"{cls.__name__} is causal: list it in CONTROLLERS")
+    if cls.name in REGISTRY and REGISTRY[cls.name] is not cls:
+        raise ValueError(f"baseline name {cls.name!r} is taken by {REGISTRY[cls.name].__name__}")
+    FLOORS[cls.name] = REGISTRY[cls.name] = cls
+    return cls
 
 #: Name -> (registered class name, parameters it fixes): a controller of the
 #: registry with some of its parameters changed, benchmarked under its own name.

@@ -54,6 +54,7 @@ from vcnc_gym.envs import controller_contract
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import positive, non_negative, per_axis
 from .base import BaselinePolicy
+from .commissioning.design import NO_NOTCH, pid_gains
 
 __all__ = ["COMMISSIONING_SOURCES", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
            "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate", "NO_NOTCH"]
@@ -73,10 +74,6 @@ COMMISSIONING_SOURCES = ("nominal", "machine", "model")
 #: the axes' filtered velocities (mm/s) and the notch filters' two states per axis (input unit).
 _M_K, _M_I, _M_J, _M_V, _M_N = 0, 1, 3, 4, 6
 _MEMORY = 10
-
-#: The coefficients of a notch (b0, b1, b2, a1, a2 of ``(b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)``) that
-#: passes its input unchanged: no notch.
-NO_NOTCH = (1.0, 0.0, 0.0, 0.0, 0.0)
 
 #: The position error the PID acts on is bounded at ``ERROR_LIMIT u_max / K_p`` per axis (a saturated-error PD): an
 #: error that alone asks fifty times the input limit asks no more, so the derivative term keeps some authority to
@@ -128,24 +125,6 @@ class ServoGains:
 
 _GAIN_FIELDS = ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit", "coupling_limit", "velocity_filter",
                 "notch")
-
-
-def pid_gains(mass, damping, bandwidth, integral: bool = True):
-    """Pole placement on the nominal axis ``m s^2 + c s`` (input unit per mm/s^2 and mm/s).
-
-    PID: the closed loop ``m s^3 + (c + K_d) s^2 + K_p s + K_i`` with a triple pole at ``-bandwidth``:
-    ``K_d = 3 m w - c``, ``K_p = 3 m w^2``, ``K_i = m w^3``.  PD (``integral=False``): a double pole,
-    ``K_d = 2 m w - c``, ``K_p = m w^2``, ``K_i = 0``.  ``K_d`` is floored at 0 (a plant damped beyond the
-    bandwidth needs no damping).
-
-    Returns
-    -------
-    (kp, kd, ki) : ndarrays, (2,)
-    """
-    m, c, w = (np.asarray(v, dtype=np.float64) for v in (mass, damping, bandwidth))
-    if integral:
-        return 3.0 * m * w**2, np.maximum(3.0 * m * w - c, 0.0), m * w**3
-    return m * w**2, np.maximum(2.0 * m * w - c, 0.0), np.zeros_like(m * w)
 
 
 def reference_table(samples: np.ndarray) -> np.ndarray:

@@ -24,6 +24,7 @@ import numpy as np
 
 import baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
+from baselines.optimal import solutions
 from vcnc_gym.envs.registry import CONTOURING_IDS
 from vcnc_gym.evaluation import run_episode
 
@@ -70,7 +71,9 @@ def main() -> None:
         plot_stored(args.plot_stored)
         return
     os.environ["VCNC_ORACLE_RECOMPUTE"] = "0" if args.stored else "1"
-    if not args.store and not args.stored:
+    if args.store or args.stored:  # the package's: what the bench replays
+        os.environ["VCNC_ORACLE_SOLUTIONS"] = str(solutions.DIRECTORY)
+    elif not args.stored:
         os.environ["VCNC_ORACLE_SOLUTIONS"] = tempfile.mkdtemp(prefix="oracle-")
     curves = {}
     for env_id in args.env or CONTOURING_IDS:

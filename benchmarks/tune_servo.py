@@ -1,7 +1,7 @@
 """The free numbers of the model-based controllers' design rule, per plant: the PID's closed-loop pole and the
 feedforward's friction transition.
 
-``baselines.servo.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
+``baselines.commissioning.design.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
 ``ff-pid`` and ``ff-ccc`` on the nominal plant of each plant's contouring ids over a grid of bandwidths (and of
 coupling gains for ``ff-ccc``) and prints max / RMS contour error, the figures behind
 the bandwidths (now each plant's ``servo_bandwidth`` ceiling, below which ``baselines.commissioning`` designs) and ``baselines.coupling.ccc``'s default coupling (docs/reproduction.md).

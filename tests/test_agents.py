@@ -453,6 +453,18 @@ def test_shipped_agent_completes_its_contour(env_id):
     assert_finished_episode(res)
 
 
+def test_the_agents_deterministic_actor_is_sb3s_predict_to_the_bit():
+    """AgentPolicy's deterministic actor (no eval-mode walk, no distribution object per call) gives SB3's own
+    ``model.predict(x, deterministic=True)``, for a batch and a single row, on observations beyond the clip."""
+    env = gym.make(HEART)
+    policy = load_agent(agents.TRAINED[HEART], env)
+    assert policy._actor is not None
+    x = np.random.default_rng(3).normal(scale=3.0, size=(257, env.observation_space.shape[0])).astype(np.float32)
+    expected, _ = policy.model.predict(x, deterministic=True)
+    assert np.array_equal(policy._actor(x), expected)
+    assert np.array_equal(policy._actor(x[:1]), policy.model.predict(x[:1], deterministic=True)[0])
+
+
 # -- 8. hyperparameters -----------------------------------------------------------------------------
 @pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_every_env_has_an_entry_that_prepares_a_run(tmp_path):

@@ -203,7 +203,7 @@ def test_paper_table_covers_every_env_and_baseline():
 
 def test_resolve_policy_builds_baselines_by_name():
     baselines = pytest.importorskip("baselines")
-    from baselines.bench_plugin import applies
+    from vcnc_bench.kinds.baseline import applies
 
     env = gym.make(OMEGA)
     names = [n for n in baselines.names() if applies(n, env)]

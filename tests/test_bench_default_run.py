@@ -1,9 +1,10 @@
 """vcnc-bench's default run: every env kind it contains through the runner, the reports, the JSON and the plots.
 
-The full default table (``vcnc-bench`` with no option, what ``make bench`` and CI run) is the slow test at the
-end; the fast ones run the same path on one env of each kind with short episodes: the positioning env (Yadav et
-al. (2020)'s step response, whose env has no contour: the reports that look for one must meet it), a G-code
-program (a contouring env with its ISO 230-4 report) and the feed override (the shipped agent, three actions).
+The full default table (``vcnc-bench`` with no option, what ``make bench`` and CI run, checked by
+``python -m vcnc_bench.check --default``) is the slow test at the end; the fast ones run the same path on the
+kinds beside the contouring envs: the positioning env (Yadav et al. (2020)'s step response, whose env has no
+contour: the reports that look for one must meet it) and the feed override (the shipped agent), and a G-code
+program outside the table (a contouring env with its ISO 230-4 report).
 """
 
 from __future__ import annotations
@@ -23,13 +24,18 @@ from vcnc_gym.evaluation import run_episode
 SHORT_PROGRAM = "G21 G90 G17\nG00 X0 Y0\nG01 X2 Y0 F1200\nG03 X2 Y0 I0 J1\nG01 X4 Y0\n"
 
 
-def test_default_ids_are_current_ids_of_every_kind():
+def test_default_ids_are_the_ids_that_carry_a_verdict():
+    """The default table: every id with a shipped agent, and Yadav et al. (2020)'s step response; current ids of the
+    contouring, positioning and feed-override kinds."""
+    import agents
     from vcnc_gym.envs.registry import SUITE
 
     by_id = {e.id: e for e in SUITE}
+    assert set(cli.DEFAULT_IDS) == set(agents.TRAINED) | {"VCNC-Step-v0"}
     assert set(cli.DEFAULT_IDS) <= set(by_id)
     entry_points = {by_id[e].entry_point.rsplit(":", 1)[1] for e in cli.DEFAULT_IDS}
-    assert entry_points == {"ContouringEnv", "GCodeEnv", "RandomContourEnv", "FeedOverrideEnv", "PositioningEnv"}
+    assert entry_points == {"ContouringEnv", "FeedOverrideEnv", "PositioningEnv"}
+    assert sorted(cli.LONGEST_FIRST) == sorted(cli.DEFAULT_IDS)  # the pool's order: every default id, once
 
 
 def test_circular_report_meets_a_positioning_env():
@@ -41,27 +47,43 @@ def test_circular_report_meets_a_positioning_env():
     assert programs.circular_report({"VCNC-Step-v0": {"pi": result}}, {"VCNC-Step-v0": env}) == ([], [])
 
 
-def test_the_default_path_on_a_positioning_env_a_program_and_the_override(tmp_path, capsys):
-    part = tmp_path / "part.nc"
-    part.write_text(SHORT_PROGRAM)
+def test_the_default_path_on_the_positioning_env_and_the_override(tmp_path, capsys):
+    """The default table's kinds beyond the contouring envs (which `make bench` runs in CI, and the slow test at the
+    end): every default policy of the positioning env and of the feed override through the pool, the reports, the
+    JSON and the plots."""
     out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
-    code = cli.main(["--env", "VCNC-Step-v0", "--env", "VCNC-OmegaOverride-v1", "--program", str(part),
-                     "--jobs", "2", "--json", str(out_json), "--plots", str(plots)])
+    code = cli.main(["--env", "VCNC-Step-v0", "--env", "VCNC-OmegaOverride-v1", "--jobs", "2", "--json", str(out_json),
+                     "--plots", str(plots)])
     assert code == 0
     captured = capsys.readouterr()
     data = json.loads(out_json.read_text())
     assert check.problems(data) == []
-    assert list(data["plan"]) == ["VCNC-Step-v0", "VCNC-OmegaOverride-v1", "GCode:part"]
+    assert list(data["plan"]) == ["VCNC-Step-v0", "VCNC-OmegaOverride-v1"]
     assert data["plan"]["VCNC-Step-v0"] == ["hinf", "hinf-reduced", "imc", "pi"]
     assert data["plan"]["VCNC-OmegaOverride-v1"] == ["ppo"]
-    assert "ff-pid" in data["plan"]["GCode:part"]
-    # one progress line per env, the reports of every kind, where the outputs went
-    assert captured.err.count("policies in") == 3
-    assert "Table 2 on VCNC-Step-v0" in captured.out
-    assert "ISO 230-4 circular test" in captured.out
+    # one progress line per env, the reports of every kind (Table 2 prepared in the worker), where the outputs went
+    assert captured.err.count("policies in") == 2
+    assert "Table 2 on VCNC-Step-v0" in captured.out and "Table 2, continuous loop" in captured.out
     assert f"to {out_json}" in captured.out and f"to {plots}" in captured.out
+    assert (plots / "VCNC-Step-v0_step_responses.png").stat().st_size > 1000
+
+
+def test_a_program_through_the_bench_gets_its_iso230_report(tmp_path, capsys):
+    """A G-code program (not in the default table: --program PART) through the same path, with its ISO 230-4
+    circular-test report and plots."""
+    part = tmp_path / "part.nc"
+    part.write_text(SHORT_PROGRAM)
+    out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
+    code = cli.main(["--program", str(part), "--policy", "ff-pid", "--policy", "zpetc@machine", "--jobs", "1",
+                     "--json", str(out_json), "--plots", str(plots)])
+    assert code == 0
+    captured = capsys.readouterr()
+    data = json.loads(out_json.read_text())
+    assert check.problems(data) == []
+    assert data["plan"] == {"GCode:part": ["ff-pid", "zpetc@machine"]}
+    assert "ISO 230-4 circular test" in captured.out
     assert {r["env"] for r in data["records"] if r.get("table") == "iso230-4"} == {"GCode:part"}
-    for name in ("GCode:part_contour.png", "GCode:part_error.png", "VCNC-Step-v0_step_responses.png"):
+    for name in ("GCode:part_contour.png", "GCode:part_error.png"):
         assert (plots / name).stat().st_size > 1000
 
 

@@ -178,3 +178,42 @@ def test_commissioned_no_worse_than_the_hand_table(env_id):
         assert commissioned < 0.2 * run_episode(old, env, seed=0).max_contour_error_um
     else:
         assert commissioned <= 1.02 * run_episode(old, env, seed=0).max_contour_error_um
+
+
+def _nominal_task(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=0)  # the bench's episode (a random contour is drawn at reset)
+    return env.unwrapped.task
+
+
+def test_the_default_tables_machine_runs_are_shipped_for_the_current_code():
+    """The @machine controllers of every contouring id of the default table replay a stored identification run of
+    their nominal machine: stored under a key that covers the machine, the reference and the code the run goes
+    through, so a change to any of them shows here (rebuild: python -m baselines.commissioning.record --machines)."""
+    from vcnc_bench.cli import DEFAULT_IDS
+    from vcnc_gym.envs.registry import CONTOURING_IDS
+
+    missing = []
+    for env_id in DEFAULT_IDS:
+        if env_id in CONTOURING_IDS:
+            task = _nominal_task(env_id)
+            key = record.experiment_key(task, task.nominal_parameters[None])
+            if not (record.MACHINES_SHIPPED / f"{key}.json").is_file():
+                missing.append(env_id)
+    assert not missing, f"python -m baselines.commissioning.record --machines {' '.join(missing)}"
+
+
+@pytest.mark.slow
+def test_a_shipped_machine_run_is_the_run(monkeypatch):
+    """Purtojo et al.'s circle: the stored identification run and one run afresh give the same records (but for
+    the run's wall time)."""
+    task = _nominal_task("VCNC-Circle-v1")
+    record._MACHINES.clear()
+    stored = record.commission(task, "machine")
+    record._MACHINES.clear()
+    monkeypatch.setenv("VCNC_COMMISSION_RECOMPUTE", "1")
+    fresh = record.commission(task, "machine")
+    record._MACHINES.clear()
+    assert stored[0].identification_s > 0
+    strip = [{**r.to_dict(), "identification_s": 0.0} for r in (stored[0], fresh[0])]
+    assert strip[0] == strip[1]

@@ -13,7 +13,8 @@ control = pytest.importorskip("control")
 import baselines  # noqa: E402
 import vcnc_gym  # noqa: E402,F401
 from baselines.feedforward.tables import closed_loop, inverse_feedforward, zpetc_filter  # noqa: E402
-from baselines.servo import coupling_estimate, pid_gains  # noqa: E402
+from baselines.commissioning.design import pid_gains  # noqa: E402
+from baselines.servo import coupling_estimate  # noqa: E402
 from vcnc_gym.envs import step_kernel as sk  # noqa: E402
 from vcnc_gym.evaluation import run_episode  # noqa: E402
 from vcnc_gym.plants import get_plant  # noqa: E402

@@ -26,7 +26,7 @@ def _no_solve(*args, **kwargs):
 def stored(monkeypatch):
     """The shipped solutions only: no recompute, no other directory, no solve."""
     monkeypatch.delenv("VCNC_ORACLE_RECOMPUTE", raising=False)
-    monkeypatch.delenv("VCNC_ORACLE_SOLUTIONS", raising=False)
+    monkeypatch.setenv("VCNC_ORACLE_SOLUTIONS", str(solutions.DIRECTORY))
     monkeypatch.setattr(oracle_module, "solve", _no_solve)
 
 

@@ -248,7 +248,9 @@ def test_construct_nct_rejects_a_table_that_does_not_move():
 
 
 def test_main_prints_the_design_and_the_figures(capsys, tmp_path):
-    assert nctf.main(["--dt", "0.002", "--plot", str(tmp_path / "r.png")]) == 0
+    from vcnc_bench.reports.circle import nctf_main
+
+    assert nctf_main(["--dt", "0.002", "--plot", str(tmp_path / "r.png")]) == 0
     out = capsys.readouterr().out
     assert "h_max 50.7" in out and "h_max 53.1" in out and "RMS radial error" in out
     assert (tmp_path / "r.png").exists()

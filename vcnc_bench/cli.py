@@ -9,8 +9,8 @@ figures beside ours (:mod:`vcnc_bench.papers`)::
     vcnc-bench --env VCNC-Omega-v0 --policy qft --policy smc
     vcnc-bench --json bench.json --plots bench-plots
 
-The default table (:data:`DEFAULT_IDS`) is the ids with a shipped agent and
-one id of every other kind; the policies that learn across episodes (ILC)
+The default table (:data:`DEFAULT_IDS`) is the ids that carry a verdict (a
+shipped agent) and Yadav et al. (2020)'s step response; the policies that learn across episodes (ILC)
 run only with ``--all`` or when named.  The run's first lines say what the
 default left out.  The envs are spread over ``--jobs`` processes (default:
 the cores other processes leave idle; :mod:`vcnc_bench.runner`), one
@@ -87,16 +87,15 @@ from .runner import BuildError, EnvRecipe, EnvRuns, idle_cores, label_of, run_ta
 #: The v0 ids, kept for agents trained on them: benchmarked when named.
 LEGACY_IDS = tuple(e.id for e in LEGACY)
 
-#: The default table (``vcnc-bench`` with no ``--env``): the ids that carry a verdict (a shipped agent against the
-#: strongest causal controller and the floor: ``agents/trained``) and one id of every other kind the suite has (a
-#: G-code test piece, the random contour, the feed override, the positioning env).  ``--all`` runs every id of
-#: ``ENV_IDS``; the ones left out here are the S-curve omega and the look-ahead heart (papers' tasks without an
-#: agent), ``VCNC-GCode-v1`` (by default the ISO 230-4 circle of ``VCNC-ISO230Circle-v1``) and two more test pieces.
-#: Grouped by machine (Jahanpour et al. (2014)'s drive, Simba et al.'s, Purtojo et al.'s table, Yadav et al.
-#: (2020)'s axis); the worker pool takes them in this order.
-DEFAULT_IDS = ("VCNC-Heart-v1", "VCNC-HeartShop-v1", "VCNC-ISO230Circle-v1", "VCNC-RandomContour-v1",
-               "VCNC-OmegaLookahead-v1", "VCNC-OmegaLookaheadShop-v1", "VCNC-OmegaOverride-v1",
-               "VCNC-Corners-v1", "VCNC-CornersSmooth-v1", "VCNC-CornersSmoothShop-v1",
+#: The default table (``vcnc-bench`` with no ``--env``): the ids that carry a verdict, those with a shipped agent
+#: (``agents/trained``) to be set against the strongest causal controller and the floor, and Yadav et al. (2020)'s
+#: step response (the fourth paper's reproduction; a second).  Between them they hold every paper's machine, the
+#: shop floor and the feed override.  ``--all`` runs every id of ``ENV_IDS``: the papers' tasks without an agent
+#: (the S-curve omega, the look-ahead heart), the G-code ids (the ISO 230-4 and NAS 979 test pieces, a part
+#: program) and the random contour.  Grouped by machine (Jahanpour et al. (2014)'s drive, Simba et al.'s, Purtojo
+#: et al.'s table, Yadav et al. (2020)'s axis); the worker pool takes the longest first.
+DEFAULT_IDS = ("VCNC-Heart-v1", "VCNC-HeartShop-v1", "VCNC-OmegaLookahead-v1", "VCNC-OmegaLookaheadShop-v1",
+               "VCNC-OmegaOverride-v1", "VCNC-Corners-v1", "VCNC-CornersSmooth-v1", "VCNC-CornersSmoothShop-v1",
                "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-Step-v0")
 
 __all__ = ["DEFAULT_IDS", "format_table", "main"]
@@ -377,11 +376,20 @@ def _build_quietly(recipes: list[EnvRecipe], built: dict) -> None:
             return
 
 
+#: The default table's envs, the longest run first (as measured on 2 cores: the hearts about 45 s each, the corners
+#: 35, the S-curve omegas 15, the step response 15 with Yadav et al. (2020)'s Table 2, the circles 10, the
+#: override 4): the pool's order when the workers build the envs (:func:`_cost`), so that no long env starts last
+#: while the other core idles.
+LONGEST_FIRST = ("VCNC-Heart-v1", "VCNC-HeartShop-v1", "VCNC-CornersSmoothShop-v1", "VCNC-CornersSmooth-v1",
+                 "VCNC-Corners-v1", "VCNC-OmegaLookaheadShop-v1", "VCNC-Step-v0", "VCNC-OmegaLookahead-v1",
+                 "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-OmegaOverride-v1")
+
+
 def _cost(envs: dict | None):
-    """A recipe's run time estimate for the pool's order: its episode steps (none without the envs: the
-    recipes' order, longest first in :data:`DEFAULT_IDS`)."""
+    """A recipe's run time estimate for the pool's order: its episode steps; without the envs, the default table's
+    measured order (:data:`LONGEST_FIRST`), an env outside it first."""
     if envs is None:
-        return None
+        return lambda r: float(-LONGEST_FIRST.index(r.key)) if r.key in LONGEST_FIRST else 1.0
     return lambda r: float(getattr(envs[r.key].unwrapped, "episode_steps", 0))
 
 
@@ -393,8 +401,8 @@ def _print_plan(args, recipes: list[EnvRecipe], jobs: int) -> None:
           f"(seed {args.seed}), on {jobs} process(es) (--jobs)", flush=True)
     if not (args.env or args.program or args.all):
         left = [e for e in ENV_IDS if e not in DEFAULT_IDS]
-        print(f"  the default table: the ids with a shipped agent and one id of every other kind; left out: "
-              f"{', '.join(left)} (--all runs every id)", flush=True)
+        print(f"  the default table: the ids with a shipped agent and Yadav et al. (2020)'s step response; left out: "
+              f"{', '.join(left)} (--all runs every id, --env ID one)", flush=True)
     if not (args.all or args.policy):
         print("  left out: the policies that learn across episodes (ILC, 10 trials each) and those whose episode "
               "costs minutes (mpc: a QP per period in Python); --all, or --policy NAME", flush=True)
@@ -402,18 +410,20 @@ def _print_plan(args, recipes: list[EnvRecipe], jobs: int) -> None:
           "--help", flush=True)
 
 
-def _progress_line(result: EnvRuns, done: int, total: int) -> None:
-    """One line per finished env on stderr."""
-    print(f"  [{done:>{len(str(total))}}/{total}] {result.key}: {len(result.runs)} policies in {result.wall_s:.1f} s",
-          file=sys.stderr, flush=True)
+def _progress(wall0: float):
+    """One line per finished env on stderr: its policies, its own wall time and the run's so far."""
+    def line(result: EnvRuns, done: int, total: int) -> None:
+        print(f"  [{done:>{len(str(total))}}/{total}] {result.key}: {len(result.runs)} policies in "
+              f"{result.wall_s:.1f} s (run so far {time.perf_counter() - wall0:.0f} s)", file=sys.stderr, flush=True)
+    return line
 
 
-def _run(args, recipes: list[EnvRecipe], envs: dict | None, parser, jobs: int) -> dict:
+def _run(args, recipes: list[EnvRecipe], envs: dict | None, parser, jobs: int, wall0: float) -> dict:
     """{key: EnvRuns} of every recipe; an env or a policy that cannot be built exits 2 naming it."""
     try:
         return run_table(recipes, seed=args.seed, trials=args.trials or DEFAULT_TRIALS, jobs=jobs, envs=envs,
-                         cost=_cost(envs), on_env_done=None if args.no_progress else _progress_line,
-                         plots=args.plots, plot_all=args.plot_all)
+                         cost=_cost(envs), on_env_done=None if args.no_progress else _progress(wall0),
+                         plots=args.plots, plot_all=args.plot_all, prepare=True)
     except BuildError as exc:
         parser.error(str(exc))
 
@@ -429,6 +439,7 @@ def _context(args, envs: dict, results: dict) -> BenchContext:
                 ctx.trials_of[(key, run.label)] = run.trials
         ctx.shown[key] = shown_labels(key, env_runs.runs, everything=args.plot_all)
         ctx.plots_written.extend(env_runs.plots)
+        ctx.prepared[key] = dict(env_runs.prepared)
     return ctx
 
 
@@ -537,12 +548,12 @@ def main(argv: list[str] | None = None) -> int:
     if jobs == 1 or args.trials is not None:  # the runs use these envs, or --trials is checked against them
         envs = _build_envs(recipes, parser)
         _check_sizes(args, envs, parser)
-        results = _run(args, recipes, envs, parser, jobs)
+        results = _run(args, recipes, envs, parser, jobs, wall0)
     else:  # the workers build their own: this process builds the reports' envs while they run
         built: dict = {}
         builder = threading.Thread(target=_build_quietly, args=(recipes, built), daemon=True)
         builder.start()
-        results = _run(args, recipes, None, parser, jobs)
+        results = _run(args, recipes, None, parser, jobs, wall0)
         builder.join()
         envs = _build_envs(recipes, parser, built)
     if not any(env_runs.runs for env_runs in results.values()):

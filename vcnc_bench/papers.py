@@ -4,7 +4,7 @@ Keyed by (env name, policy label): the id without its version
 (:func:`vcnc_gym.envs.registry.env_name`), the task the paper ran (the
 versions differ in how an episode ends, not in the contour or the plant).  Units in the key names.  Yadav et
 al.'s Table 2 and Purtojo et al.'s circle figures are printed in their own shape by the reports of
-:mod:`baselines.bench_plugin` (from ``vcnc_bench.reports.yadav2020`` and ``vcnc_bench.reports.circle``), which
+:mod:`vcnc_bench.kinds.baseline` (from ``vcnc_bench.reports.yadav2020`` and ``vcnc_bench.reports.circle``), which
 hold them.
 """
 

@@ -7,8 +7,8 @@ through the entry-point group ``vcnc_bench.policy_kinds`` of its
 distribution (``pyproject.toml``)::
 
     [project.entry-points."vcnc_bench.policy_kinds"]
-    baseline = "baselines.bench_plugin:KIND"
-    ppo = "agents.bench_plugin:KIND"
+    baseline = "vcnc_bench.kinds.baseline:KIND"
+    ppo = "vcnc_bench.kinds.ppo:KIND"
 
 A spec is ``KIND:ARGUMENT`` (``baseline:qft``, ``ppo:PATH``) or a bare name:
 a name one kind answers to (``qft``, from ``PolicyKind.names``) or a kind
@@ -52,6 +52,9 @@ class BenchContext:
     shown : dict
         ``shown[env_id]``: the policy labels that env's plots show (:func:`vcnc_bench.plots.shown_labels`); a
         report that draws a plot of its own shows those.
+    prepared : dict
+        ``prepared[env_id][kind]``: what that kind's :attr:`PolicyKind.prepare` gave for the env (computed where
+        the env ran, a worker process, while the others ran).
     """
 
     env_ids: list
@@ -63,6 +66,7 @@ class BenchContext:
     records: list = field(default_factory=list)
     plots_written: list = field(default_factory=list)
     shown: dict = field(default_factory=dict)
+    prepared: dict = field(default_factory=dict)
 
     def shown_results(self, env_id: str) -> dict:
         """{label: EpisodeResult} of the runs on ``env_id`` its plots show (all of them if none was chosen)."""
@@ -94,6 +98,11 @@ class PolicyKind:
         Extra report lines printed under the table (a stability check, a
         paper's table in its own shape); it may draw plots into
         ``context.plots``.
+    prepare : callable (env) -> object, optional
+        A report's work on one env that does not depend on the runs (a
+        paper's table over plants of its own): run where the env runs, in
+        a worker process alongside the others, and handed to ``report`` as
+        ``context.prepared[env_id][name]`` (picklable; None: nothing).
     description : str
         One line for ``--help``.
     """
@@ -104,6 +113,7 @@ class PolicyKind:
     defaults: Callable[[Any], list] = field(default=lambda env: [])
     extras: Callable[[Any], list] = field(default=lambda env: [])
     report: Callable | None = None
+    prepare: Callable | None = None
     description: str = ""
 
 

@@ -81,13 +81,14 @@ class PolicyRun:
 
 @dataclass
 class EnvRuns:
-    """Every policy's runs on one env, in the recipe's order, the env's wall time (build, runs and plots), s, and
-    the plots drawn of it."""
+    """Every policy's runs on one env, in the recipe's order, the env's wall time (build, runs, plots and the
+    reports' preparation), s, the plots drawn of it, and what the kinds' ``prepare`` gave ({kind: object})."""
 
     key: str
     runs: list
     wall_s: float
     plots: list = field(default_factory=list)
+    prepared: dict = field(default_factory=dict)
 
 
 def label_of(spec: str, policy) -> str:
@@ -145,17 +146,19 @@ def _policy(spec: str, env, key: str, policies: dict | None):
 
 
 def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: dict | None = None,
-            progress: Callable[[int], object] | None = None, plots=None, plot_all: bool = False) -> EnvRuns:
+            progress: Callable[[int], object] | None = None, plots=None, plot_all: bool = False,
+            prepare: bool = False) -> EnvRuns:
     """Run every spec of ``recipe`` on its env: one deterministic episode each (``trials`` for a policy that
     learns across episodes), with ``env.reset(seed=seed)``; with ``plots`` (a folder), draw the env's plots of the
-    runs :func:`vcnc_bench.plots.shown_labels` chooses (every run with ``plot_all``).
+    runs :func:`vcnc_bench.plots.shown_labels` chooses (every run with ``plot_all``); with ``prepare``, run every
+    kind's :attr:`~vcnc_bench.policies.PolicyKind.prepare` on the env.
 
     ``env`` and ``policies`` (spec -> policy) are used when given (the caller built them), else built here.
     """
     from vcnc_gym.evaluation import run_episode
 
     from .plots import plot_env, shown_labels
-    from .policies import default_specs
+    from .policies import default_specs, policy_kinds
 
     t0 = time.perf_counter()
     own = env is None
@@ -177,9 +180,15 @@ def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: di
     if plots is not None:
         shown = set(shown_labels(recipe.key, runs, everything=plot_all))
         drawn = plot_env(env, recipe.key, {r.label: r.trials[-1] for r in runs if r.label in shown}, plots)
+    prepared = {}
+    if prepare:
+        for kind in policy_kinds().values():
+            data = kind.prepare(env) if kind.prepare is not None else None
+            if data is not None:
+                prepared[kind.name] = data
     if own:
         env.close()
-    return EnvRuns(recipe.key, runs, time.perf_counter() - t0, drawn)
+    return EnvRuns(recipe.key, runs, time.perf_counter() - t0, drawn, prepared)
 
 
 def _worker_init() -> None:
@@ -190,7 +199,7 @@ def _worker_init() -> None:
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 
-def _run_in_worker(recipe: EnvRecipe, seed: int, trials: int, plots, plot_all: bool) -> EnvRuns:
+def _run_in_worker(recipe: EnvRecipe, seed: int, trials: int, plots, plot_all: bool, prepare: bool) -> EnvRuns:
     try:
         import torch
 
@@ -200,13 +209,13 @@ def _run_in_worker(recipe: EnvRecipe, seed: int, trials: int, plots, plot_all: b
     import matplotlib
 
     matplotlib.use("Agg")
-    return run_env(recipe, seed=seed, trials=trials, plots=plots, plot_all=plot_all)
+    return run_env(recipe, seed=seed, trials=trials, plots=plots, plot_all=plot_all, prepare=prepare)
 
 
 def run_table(recipes: list[EnvRecipe], *, seed: int, trials: int, jobs: int = 1, envs: dict | None = None,
               policies: dict | None = None, cost: Callable[[EnvRecipe], float] | None = None,
               on_env_done: Callable[[EnvRuns, int, int], object] | None = None, plots=None,
-              plot_all: bool = False) -> dict[str, EnvRuns]:
+              plot_all: bool = False, prepare: bool = False) -> dict[str, EnvRuns]:
     """Every recipe's runs, {key: EnvRuns} in the recipes' order.
 
     Parameters
@@ -220,8 +229,8 @@ def run_table(recipes: list[EnvRecipe], *, seed: int, trials: int, jobs: int = 1
         An estimate of a recipe's run time (any unit): the pool hands out the costliest first.
     on_env_done : callable (EnvRuns, done, total), optional
         Called in this process as each env finishes.
-    plots, plot_all :
-        As :func:`run_env`: each env's plots are drawn where it ran.
+    plots, plot_all, prepare :
+        As :func:`run_env`: each env's plots are drawn, and its reports prepared, where it ran.
 
     Raises
     ------
@@ -239,12 +248,13 @@ def run_table(recipes: list[EnvRecipe], *, seed: int, trials: int, jobs: int = 1
     if jobs <= 1 or total <= 1:
         for r in recipes:
             finished(run_env(r, seed=seed, trials=trials, env=(envs or {}).get(r.key),
-                             policies=(policies or {}).get(r.key), plots=plots, plot_all=plot_all))
+                             policies=(policies or {}).get(r.key), plots=plots, plot_all=plot_all,
+                             prepare=prepare))
     else:
         order = sorted(recipes, key=cost, reverse=True) if cost is not None else list(recipes)
         with ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
                                  initializer=_worker_init) as pool:
-            futures = [pool.submit(_run_in_worker, r, seed, trials, plots, plot_all) for r in order]
+            futures = [pool.submit(_run_in_worker, r, seed, trials, plots, plot_all, prepare) for r in order]
             try:
                 for f in as_completed(futures):
                     finished(f.result())

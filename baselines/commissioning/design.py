@@ -10,7 +10,7 @@ control period ``T`` (:func:`loop_response`):
 
 with ``P`` the identified axis (:class:`~baselines.commissioning.identify.AxisModel`: rigid body, first mode,
 dead time) under zero-order hold, ``F(z) = (1 - a) / (1 - a z^{-1})`` the velocity low-pass, ``N`` the notch.
-The PID gains are the pole placement of :func:`baselines.servo.pid_gains` (a triple closed-loop pole at the
+The PID gains are the pole placement of :func:`pid_gains` (a triple closed-loop pole at the
 bandwidth ``w_b`` on the identified ``m s^2 + c s``).  The rules (:func:`design_axis`):
 
 - **velocity filter**: where the sensor is quantised or noisy (the experiment measured velocity noise above
@@ -36,12 +36,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from vcnc_gym.plants.contract import INVERSE_ORDER, InverseDynamics
-from ..servo import NO_NOTCH, pid_gains
 from .identify import AxisModel
 
-__all__ = ["PHASE_MARGIN", "GAIN_MARGIN", "SENSITIVITY_PEAK", "MODE_FRACTION", "NOTCH_QS", "VELOCITY_FILTER_RATIOS",
-           "AxisDesign", "Margins", "notch_coefficients", "loop_response", "margins", "design_axis",
+__all__ = ["NO_NOTCH", "pid_gains", "PHASE_MARGIN", "GAIN_MARGIN", "SENSITIVITY_PEAK", "MODE_FRACTION", "NOTCH_QS",
+           "VELOCITY_FILTER_RATIOS", "AxisDesign", "Margins", "notch_coefficients", "loop_response", "margins", "design_axis",
            "inverse_dynamics", "shaper", "discrete_plant", "loop_tf", "closed_loop_poles"]
+
+#: The coefficients of a notch (b0, b1, b2, a1, a2 of ``(b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)``) that
+#: passes its input unchanged: no notch.
+NO_NOTCH = (1.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def pid_gains(mass, damping, bandwidth, integral: bool = True):
+    """Pole placement on the nominal axis ``m s^2 + c s`` (input unit per mm/s^2 and mm/s).
+
+    PID: the closed loop ``m s^3 + (c + K_d) s^2 + K_p s + K_i`` with a triple pole at ``-bandwidth``:
+    ``K_d = 3 m w - c``, ``K_p = 3 m w^2``, ``K_i = m w^3``.  PD (``integral=False``): a double pole,
+    ``K_d = 2 m w - c``, ``K_p = m w^2``, ``K_i = 0``.  ``K_d`` is floored at 0 (a plant damped beyond the
+    bandwidth needs no damping).
+
+    Returns
+    -------
+    (kp, kd, ki) : ndarrays, (2,)
+    """
+    m, c, w = (np.asarray(v, dtype=np.float64) for v in (mass, damping, bandwidth))
+    if integral:
+        return 3.0 * m * w**2, np.maximum(3.0 * m * w - c, 0.0), m * w**3
+    return m * w**2, np.maximum(2.0 * m * w - c, 0.0), np.zeros_like(m * w)
+
 
 #: Minimum phase margin, deg.
 PHASE_MARGIN = 45.0

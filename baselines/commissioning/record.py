@@ -31,7 +31,8 @@ import numpy as np
 from .design import AxisDesign, Margins, design_axis, inverse_dynamics, loop_response
 from .identify import AxisModel, Experiment, frf, identify, model_response
 
-__all__ = ["CommissioningRecord", "commission", "make_record", "model_record", "nominal_record", "model_axes", "machine_key", "load", "shipped", "plot", "SOURCES",
+__all__ = ["CommissioningRecord", "commission", "make_record", "model_record", "nominal_record", "model_axes",
+           "machine_key", "experiment_key", "ship_machines", "load", "shipped", "plot", "SOURCES", "MACHINES_SHIPPED",
            "SHIPPED"]
 
 #: How a record is made (module docstring).
@@ -241,22 +242,89 @@ def commission(task, source: str = "nominal", parameters=None, experiment: Exper
     p = p[None] if p.ndim == 2 else p
     if source == "model":
         return [model_record(task.plant, q, task.dt, nominal) for q in p]
-    key = (id(task), p.tobytes(), experiment)
-    if key in _MACHINES and _MACHINES[key][0] is task:  # the same machines: one experiment serves every controller
-        return list(_MACHINES[key][1])
-    models, meas = identify(task, p, task.plant.inverse(nominal), experiment)
-    records = [_record(task, m, "machine", meas.seconds / len(p), nominal) for m in models]
-    if len(_MACHINES) >= _MACHINES_KEPT:
-        _MACHINES.pop(next(iter(_MACHINES)))
-    _MACHINES[key] = (task, records)
-    return list(records)
+    key = experiment_key(task, p, experiment)
+    if key not in _MACHINES:  # the same machines: one experiment serves every controller
+        records = _load_machines(key)
+        if records is None:
+            models, meas = identify(task, p, task.plant.inverse(nominal), experiment)
+            records = [_record(task, m, "machine", meas.seconds / len(p), nominal) for m in models]
+        if len(_MACHINES) >= _MACHINES_KEPT:
+            _MACHINES.pop(next(iter(_MACHINES)))
+        _MACHINES[key] = records
+    return list(_MACHINES[key])
 
 
-#: Per-machine records of this process, by (task, parameters, experiment): the ``@machine`` variants of one env
+#: Per-machine records of this process, by :func:`experiment_key`: the ``@machine`` variants of one env
 #: (``ff-pid@machine``, ``zpetc@machine``, ...) commission its machine once, as a CNC does before it runs any
-#: controller on it; the task is kept with its records so that its id is not reused.
+#: controller on it.
 _MACHINES: dict = {}
 _MACHINES_KEPT = 8
+#: Where the ``"machine"`` records of the default bench's nominal machines are kept (``<experiment_key>.json``):
+#: the experiment is deterministic (seeded PRBS and sensor noise), so a stored run is the run; rebuilt by
+#: ``python -m baselines.commissioning.record --machines ID ...``; ignored with ``VCNC_COMMISSION_RECOMPUTE=1``.
+MACHINES_SHIPPED = SHIPPED / "machines"
+#: The code an identification run goes through: a change to any of it changes every :func:`experiment_key`, so a
+#: stored run is never replayed for code that would give another.
+_EXPERIMENT_CODE = ("baselines/commissioning/identify.py", "baselines/commissioning/design.py",
+                    "baselines/commissioning/record.py", "baselines/feedforward/tables.py",
+                    "vcnc_gym/envs/step_kernel.py", "vcnc_gym/envs/task.py", "vcnc_gym/plants/*.py")
+
+
+def _code_digest() -> str:
+    global _CODE_DIGEST
+    if _CODE_DIGEST is None:
+        root = Path(__file__).resolve().parents[2]
+        h = hashlib.sha1()
+        for pattern in _EXPERIMENT_CODE:
+            for path in sorted(root.glob(pattern)):
+                h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+        _CODE_DIGEST = h.hexdigest()
+    return _CODE_DIGEST
+
+
+_CODE_DIGEST: str | None = None
+
+
+def experiment_key(task, parameters, experiment: Experiment = Experiment()) -> str:
+    """A digest of everything a ``"machine"`` identification run's records depend on: the plant (name, shop
+    floor or not, every machine's parameters (n, 2, P) and the nominal ones), the control period, the reference
+    the axes follow, the plant's options, the :class:`Experiment` and the source of the code the run goes
+    through (:data:`_EXPERIMENT_CODE`)."""
+    from vcnc_gym.plants.shop_floor import ShopFloorModel
+
+    p = np.ascontiguousarray(np.asarray(parameters, dtype=np.float64))
+    h = hashlib.sha1()
+    h.update(f"{task.plant.name}|{isinstance(task.plant, ShopFloorModel)}|{p.shape}|{experiment!r}|".encode())
+    h.update(json.dumps(task.plant_options, sort_keys=True, default=repr).encode())
+    for a in (p, task.nominal_parameters, np.float64(task.dt), task.reference_arrays.samples):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    h.update(_code_digest().encode())
+    return f"{task.plant.name}-{h.hexdigest()[:16]}"
+
+
+def _load_machines(key: str) -> list | None:
+    """The stored records of :func:`experiment_key` ``key``, or None (none stored, or recomputation asked)."""
+    import os
+
+    path = MACHINES_SHIPPED / f"{key}.json"
+    if os.environ.get("VCNC_COMMISSION_RECOMPUTE", "") not in ("", "0") or not path.exists():
+        return None
+    return [CommissioningRecord.from_dict(d) for d in json.loads(path.read_text())]
+
+
+def ship_machines(task, experiment: Experiment = Experiment()) -> Path:
+    """Run the ``"machine"`` identification of ``task``'s nominal machine afresh and store its records in
+    :data:`MACHINES_SHIPPED`; returns the file."""
+    key = experiment_key(task, task.nominal_parameters[None], experiment)
+    _MACHINES.pop(key, None)
+    nominal = task.nominal_parameters
+    models, meas = identify(task, nominal[None], task.plant.inverse(nominal), experiment)
+    records = [_record(task, m, "machine", meas.seconds, nominal) for m in models]
+    MACHINES_SHIPPED.mkdir(parents=True, exist_ok=True)
+    path = MACHINES_SHIPPED / f"{key}.json"
+    path.write_text(json.dumps([r.to_dict() for r in records], indent=1) + "\n")
+    _MACHINES[key] = records
+    return path
 
 
 def shipped(task) -> CommissioningRecord:
@@ -310,7 +378,8 @@ def plot(record: CommissioningRecord, path, measurement=None, machine: int = 0) 
 
 
 def _main(argv=None) -> None:
-    """Rebuild the shipped records of the suite's contouring envs (``python -m baselines.commissioning.record``)."""
+    """Rebuild the shipped records of the suite's contouring envs (``python -m baselines.commissioning.record``):
+    the nominal records, or with ``--machines`` the ``"machine"`` runs of their nominal machines."""
     import argparse
 
     import gymnasium as gym
@@ -319,9 +388,16 @@ def _main(argv=None) -> None:
 
     parser = argparse.ArgumentParser(description=_main.__doc__)
     parser.add_argument("env_ids", nargs="+", help="env ids whose nominal machines to commission")
+    parser.add_argument("--machines", action="store_true",
+                        help="store the @machine controllers' identification runs (MACHINES_SHIPPED) instead")
     args = parser.parse_args(argv)
     for env_id in args.env_ids:
-        task = gym.make(env_id).unwrapped.task
+        env = gym.make(env_id)
+        env.reset(seed=0)  # the bench's episode: a random contour is drawn at reset
+        task = env.unwrapped.task
+        if args.machines:
+            print(env_id, "->", ship_machines(task).name, flush=True)
+            continue
         record = shipped(task)
         print(env_id, "->", machine_key(task.plant, task.nominal_parameters, task.dt))
         print(record)

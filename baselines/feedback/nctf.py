@@ -120,7 +120,6 @@ __all__ = [
     "fuzzy_compensate",
     "output_memberships",
     "NCTFPolicy",
-    "main",
 ]
 
 #: Linguistic values of every variable, index 0..2.
@@ -676,31 +675,3 @@ class NCTFPolicy(BaselinePolicy):
             st[2] = 1.0
         return out
 
-
-def main(argv=None) -> int:
-    """The NCTF design on Purtojo et al.'s nominal table and its circle figures, printed.
-
-    ``python -c "import baselines.feedback.nctf as m; m.main()" [--omega W] [--dt T] [--zero-rate nct|sample] [--plot PNG]``
-    """
-    import argparse
-
-    from vcnc_bench.reports import circle as cr
-
-    parser = argparse.ArgumentParser(prog="baselines.feedback.nctf.main", description="NCTF design and circle figures")
-    parser.add_argument("--omega", type=float, default=cr.DEFAULT_OMEGA, help="circle frequency, rad/s")
-    parser.add_argument("--dt", type=float, default=cr.DEFAULT_DT, help="control period, s")
-    parser.add_argument("--zero-rate", choices=("nct", "sample"), default=DEFAULT_SETTINGS.zero_rate)
-    parser.add_argument("--plot", help="save the radial-error plot here (PNG)")
-    args = parser.parse_args(argv)
-    model = get_plant("nct_xy_table")
-    policy = NCTFPolicy(cr.circle_layout(), args.dt, model.nominal(), zero_rate=args.zero_rate)
-    print(f"NCTF design at T = {args.dt:g} s (stepwise experiment on the nominal table, Purtojo et al.'s eq. (4)):")
-    for axis, (n, c) in enumerate(zip(policy.nct, policy.compensators)):
-        K, alpha = n.model()
-        print(f"  {'xy'[axis]}: h_max {n.h_max:.3f} mm/s, A {n.A:.3f} mm, m {n.m:.4f} 1/s -> eq. (3): K {K:.2f}, "
-              f"alpha {alpha:.4f}; h_s-res {c.h_s_res:.4g} mm/s, u_i-max {c.u_i_max:.4g}, "
-              f"u_i-s-res {c.u_i_s_res:.4g} mm^2/s")
-    run = cr.run_circle(policy, omega=args.omega, dt=args.dt)
-    print("\n".join(cr.bench_report({"nctf": run}, f"VCNC-Circle-v1, R = 1 mm, omega = {args.omega:g} rad/s",
-                                    plot_path=args.plot)))
-    return 0

@@ -6,7 +6,7 @@ identified dead time, with the identified Coulomb friction of the direction of m
 force along the path (:func:`~baselines.feedforward.tables.path_force_feedforward`) and the backlash crossing
 pre-compensated (:func:`baselines.feedforward.tables.inverse_feedforward`), plus a PID on the measured tracking
 error (derivative on ``v_d - v``, the measured velocity through the commissioned low-pass), its gains by pole
-placement on the identified axis (:func:`baselines.servo.pid_gains`: a triple closed-loop pole at the
+placement on the identified axis (:func:`baselines.commissioning.design.pid_gains`: a triple closed-loop pole at the
 commissioned bandwidth) and its output through the commissioned notch.  The law is :mod:`baselines.servo`'s
 with ``delta = delta' = 0`` and no coupling.
 

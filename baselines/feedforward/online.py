@@ -29,7 +29,8 @@ from numba.extending import overload
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.validation import positive
 from ..base import BaselinePolicy
-from ..servo import ERROR_LIMIT, NO_NOTCH, pid_gains
+from ..commissioning.design import NO_NOTCH, pid_gains
+from ..servo import ERROR_LIMIT
 
 __all__ = ["OnlineFeedforwardPIDPolicy", "OnlineArrays"]
 

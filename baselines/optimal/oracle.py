@@ -39,6 +39,7 @@ import warnings
 import numpy as np
 
 from ..base import BaselinePolicy
+from ..registry import make, register_floor
 from ..servo import ServoPolicy
 from . import solutions
 from .open_loop import OpenLoopPolicy
@@ -151,8 +152,6 @@ class OraclePolicy(BaselinePolicy):
 
     @staticmethod
     def _start(env, sol: Solution):
-        from ..registry import make
-
         return OpenLoopPolicy(sol.table) if sol.table is not None else make(sol.start, env)
 
     @staticmethod
@@ -197,3 +196,6 @@ class OraclePolicy(BaselinePolicy):
             action[i, 1] = min(one, max(-one, base[1] + row[1]))
             steps[i] += 1
         return (action[0] if single else action), state
+
+
+register_floor(OraclePolicy)

@@ -9,7 +9,8 @@ without one is keyed without the seed, its replay being the same for every seed.
 ``python benchmarks/oracle_convergence.py --store``) or in ``$VCNC_ORACLE_SOLUTIONS``: the start's name, the
 correction (float32: the step kernel adds it as float32, so the stored values are the replayed ones), the
 start's recorded commands where it runs open-loop, the replayed figures, the starts' figures and the
-convergence.  ``VCNC_ORACLE_RECOMPUTE=1`` ignores stored solutions (and overwrites them where writable).
+convergence.  A floor solved on this machine is stored in :func:`user_cache` (or ``$VCNC_ORACLE_SOLUTIONS``),
+never in the package.  ``VCNC_ORACLE_RECOMPUTE=1`` ignores stored solutions (and overwrites them where writable).
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import numpy as np
 
 from .search import Solution
 
-__all__ = ["DIRECTORY", "SOLVER_VERSION", "signature", "directory", "load", "store", "recompute_requested"]
+__all__ = ["DIRECTORY", "SOLVER_VERSION", "signature", "user_cache", "directory", "folders", "load", "store",
+           "recompute_requested"]
 
 #: The shipped solutions.
 DIRECTORY = Path(__file__).with_name("solutions")
@@ -32,9 +34,23 @@ DIRECTORY = Path(__file__).with_name("solutions")
 SOLVER_VERSION = 1
 
 
+def user_cache() -> Path:
+    """Where the floors solved on this machine are kept: ``$XDG_CACHE_HOME/vcnc-gym/oracle`` (default
+    ``~/.cache``), never the package (an installed package is not a scratch folder, and a test run must not leave
+    files in the source tree)."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "vcnc-gym" / "oracle"
+
+
 def directory() -> Path:
-    """``$VCNC_ORACLE_SOLUTIONS`` if set, else :data:`DIRECTORY`."""
-    return Path(os.environ.get("VCNC_ORACLE_SOLUTIONS") or DIRECTORY)
+    """Where :func:`store` writes: ``$VCNC_ORACLE_SOLUTIONS`` if set, else :func:`user_cache`."""
+    return Path(os.environ.get("VCNC_ORACLE_SOLUTIONS") or user_cache())
+
+
+def folders() -> list[Path]:
+    """Where :func:`load` looks, in order: ``$VCNC_ORACLE_SOLUTIONS`` alone if set, else the shipped
+    :data:`DIRECTORY` and :func:`user_cache`."""
+    env = os.environ.get("VCNC_ORACLE_SOLUTIONS")
+    return [Path(env)] if env else [DIRECTORY, user_cache()]
 
 
 def recompute_requested() -> bool:
@@ -63,8 +79,8 @@ def signature(env, parameters: np.ndarray, noise_state=None) -> str:
 
 def load(key: str) -> Solution | None:
     """The solution stored under ``key``, or None."""
-    path = directory() / f"{key}.npz"
-    if not path.is_file():
+    path = next((p for p in (folder / f"{key}.npz" for folder in folders()) if p.is_file()), None)
+    if path is None:
         return None
     with np.load(path, allow_pickle=False) as z:
         table = z["table"] if z["table"].size else None
@@ -75,9 +91,10 @@ def load(key: str) -> Solution | None:
                         solve_time_s=float(z["solve_time_s"]), evaluations=int(z["evaluations"]))
 
 
-def store(key: str, solution: Solution) -> Path | None:
-    """Write ``solution`` under ``key``; the path, or None where the directory is not writable."""
-    folder = directory()
+def store(key: str, solution: Solution, folder: Path | None = None) -> Path | None:
+    """Write ``solution`` under ``key`` into ``folder`` (default :func:`directory`); the path, or None where the
+    folder is not writable."""
+    folder = directory() if folder is None else Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{key}.npz"

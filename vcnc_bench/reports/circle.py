@@ -45,6 +45,7 @@ import numpy as np
 from vcnc_gym.validation import non_negative, positive
 
 __all__ = [
+    "nctf_main",
     "DEFAULT_RADIUS",
     "DEFAULT_OMEGA",
     "DEFAULT_DT",
@@ -341,3 +342,38 @@ def plot_radial_error(runs, radius: float = DEFAULT_RADIUS, transient: float = D
         fig.savefig(path, dpi=120)
         plt.close(fig)
     return fig
+
+
+def nctf_main(argv=None) -> int:
+    """The NCTF design on Purtojo et al.'s nominal table and its circle figures, printed.
+
+    ``python -m vcnc_bench.reports.circle [--omega W] [--dt T] [--zero-rate nct|sample] [--plot PNG]``
+    """
+    import argparse
+
+    from baselines.feedback.nctf import DEFAULT_SETTINGS, NCTFPolicy
+    from vcnc_gym.plants import get_plant
+
+    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.circle",
+                                     description="NCTF design and circle figures")
+    parser.add_argument("--omega", type=float, default=DEFAULT_OMEGA, help="circle frequency, rad/s")
+    parser.add_argument("--dt", type=float, default=DEFAULT_DT, help="control period, s")
+    parser.add_argument("--zero-rate", choices=("nct", "sample"), default=DEFAULT_SETTINGS.zero_rate)
+    parser.add_argument("--plot", help="save the radial-error plot here (PNG)")
+    args = parser.parse_args(argv)
+    model = get_plant("nct_xy_table")
+    policy = NCTFPolicy(circle_layout(), args.dt, model.nominal(), zero_rate=args.zero_rate)
+    print(f"NCTF design at T = {args.dt:g} s (stepwise experiment on the nominal table, Purtojo et al.'s eq. (4)):")
+    for axis, (n, c) in enumerate(zip(policy.nct, policy.compensators)):
+        K, alpha = n.model()
+        print(f"  {'xy'[axis]}: h_max {n.h_max:.3f} mm/s, A {n.A:.3f} mm, m {n.m:.4f} 1/s -> eq. (3): K {K:.2f}, "
+              f"alpha {alpha:.4f}; h_s-res {c.h_s_res:.4g} mm/s, u_i-max {c.u_i_max:.4g}, "
+              f"u_i-s-res {c.u_i_s_res:.4g} mm^2/s")
+    run = run_circle(policy, omega=args.omega, dt=args.dt)
+    print("\n".join(bench_report({"nctf": run}, f"VCNC-Circle-v1, R = 1 mm, omega = {args.omega:g} rad/s",
+                                    plot_path=args.plot)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(nctf_main())

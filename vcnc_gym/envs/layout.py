@@ -122,21 +122,24 @@ class ObservationLayout:
             "previous_action": Field("previous_action", 2, "1", 1.0, "last normalised action in [-1, 1]"),
         }
         object.__setattr__(self, "fields", tuple(by_name[n] for n in FIELD_NAMES))
+        slices, start = {}, 0
+        for f in self.fields:  # the offsets, once: a controller reads fields every control period
+            slices[f.name] = slice(start, start + f.size)
+            start += f.size
+        object.__setattr__(self, "_slices", slices)
 
     # -- offsets -------------------------------------------------------------
     @property
     def size(self) -> int:
         """Length of the observation vector."""
-        return sum(f.size for f in self.fields)
+        return self._slices[self.fields[-1].name].stop
 
     def slice(self, name: str) -> slice:
         """The slice of field ``name`` in the observation vector."""
-        start = 0
-        for f in self.fields:
-            if f.name == name:
-                return slice(start, start + f.size)
-            start += f.size
-        raise KeyError(f"no observation field {name!r}; fields are {[f.name for f in self.fields]}")
+        try:
+            return self._slices[name]
+        except KeyError:
+            raise KeyError(f"no observation field {name!r}; fields are {[f.name for f in self.fields]}") from None
 
     def offset(self, name: str) -> int:
         """Index of the first element of field ``name``."""

@@ -1,14 +1,17 @@
 """The ``ppo`` policy kind of vcnc-bench: trained agents, and by default the one shipped for each env.
 
 Found by the bench through the entry point ``ppo`` of the group
-``vcnc_bench.policy_kinds`` (``pyproject.toml``).  ``ppo:PATH`` is an agent
+``vcnc_bench.policy_kinds`` (``pyproject.toml``), like any other package's kind; it lives with the bench, above
+the agents it runs.  ``ppo:PATH`` is an agent
 folder (a run's ``best``) or its ``model.zip``; the bare ``ppo`` is the
 agent shipped for the env in ``agents/trained/``.
 """
 
 from __future__ import annotations
 
-from vcnc_bench.policies import PolicyKind
+import agents  # an install without the agents extra (torch, SB3) skips this kind
+
+from ..policies import PolicyKind
 
 __all__ = ["KIND"]
 
@@ -19,26 +22,22 @@ def _env_id(env) -> str | None:
 
 
 def _shipped(env):
-    from . import TRAINED
-
-    folder = TRAINED.get(_env_id(env))
+    folder = agents.TRAINED.get(_env_id(env))
     return folder if folder is not None and folder.is_dir() else None
 
 
 def _make(path: str, env):
-    from . import load_agent
-
     if path == "":
         path = _shipped(env)
         if path is None:
             raise ValueError(f"no agent is shipped for {_env_id(env)}; give its folder as ppo:PATH")
-    return load_agent(path, env)
+    return agents.load_agent(path, env)
 
 
 def _defaults(env) -> list[str]:
     """The shipped agent, when there is one and it was trained on this env configuration (not, e.g., at
     another ``--feedrate``: ``ppo`` named explicitly then says why it does not fit)."""
-    from .policy import agent_mismatch
+    from agents.policy import agent_mismatch
 
     folder = _shipped(env)
     return ["ppo"] if folder is not None and agent_mismatch(folder, env) is None else []

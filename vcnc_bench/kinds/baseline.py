@@ -1,17 +1,18 @@
 """The ``baseline`` policy kind of vcnc-bench: every classical controller, on the plants it was designed for.
 
 Found by the bench through the entry point ``baseline`` of the group
-``vcnc_bench.policy_kinds`` (``pyproject.toml``).  A bare baseline name
+``vcnc_bench.policy_kinds`` (``pyproject.toml``), like any other package's kind; it lives with the bench, above
+the controllers it runs, so that the layers import downward.  A bare baseline name
 (``qft``) is a spec of this kind; by default the bench runs, on each env,
 every baseline whose ``plants`` include the env's plant.
 """
 
 from __future__ import annotations
 
-from vcnc_bench.policies import PolicyKind
+from baselines.feedback import qft
+from baselines.registry import make, names, policy_class
 
-from .feedback import qft
-from .registry import make, names, policy_class
+from ..policies import PolicyKind
 
 __all__ = ["KIND", "applies"]
 
@@ -56,18 +57,31 @@ def _qft_stability(ctx) -> list[str]:
     return lines
 
 
+def _yadav2020_tables(env) -> dict | None:
+    """Yadav et al.'s Table 2, continuous and through ``env``'s id, when ``env`` is on their plant (cncmt_axis): the
+    report's 90 step responses, prepared where the env runs (:attr:`~vcnc_bench.policies.PolicyKind.prepare`)."""
+    u = env.unwrapped
+    if getattr(getattr(u, "plant", None), "name", None) != "cncmt_axis" or u.spec is None:
+        return None
+    from ..reports import yadav2020 as report
+
+    rows, traces = report.env_step_table(env_id=u.spec.id)
+    return {"continuous": report.table2(dead_time=0.0), "env_rows": rows, "traces": traces}
+
+
 def _yadav2020(ctx) -> list[str]:
     """Yadav et al.'s section 3.5 margins and Table 2, when an env on its plant (cncmt_axis) ran."""
     ran = _plant_envs(ctx, "cncmt_axis")
     if not ran:
         return []
-    from vcnc_bench.reports import yadav2020 as report
+    from ..reports import yadav2020 as report
 
+    tables = ctx.prepared.get(ran[0], {}).get(KIND.name) or _yadav2020_tables(ctx.envs[ran[0]])
     lines = ["Yadav et al. (2020), section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)", "",
              report.format_kharitonov()]
-    lines.append(report.format_table2(report.table2(dead_time=0.0), "\nTable 2, continuous loop without the dead "
+    lines.append(report.format_table2(tables["continuous"], "\nTable 2, continuous loop without the dead "
                                       "time (as the paper computes it); cells: ours / paper's"))
-    rows, traces = report.env_step_table(env_id=ran[0])
+    rows, traces = tables["env_rows"], tables["traces"]
     lines.append(report.format_table2(rows, f"\nTable 2 on {ran[0]} (dead time 0.1 s exact, nominal and 10 plants "
                                             f"across the box); cells: ours / paper's"))
     if ctx.plots is not None:
@@ -86,7 +100,7 @@ def _simba(ctx) -> list[str]:
     ran = _plant_envs(ctx, "current_feed_drive")
     if not ran:
         return []
-    from vcnc_bench.papers import PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT, paper_figures
+    from ..papers import PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT, paper_figures
 
     lines = ["Simba et al., section IV: max contour error ratios, ours (paper)"]
     fb = {}
@@ -119,7 +133,7 @@ def _purtojo(ctx) -> list[str]:
     """Purtojo et al.'s circle figures of every policy that ran on its table, and the radial-error plot."""
     lines = []
     for e in _plant_envs(ctx, "nct_xy_table"):
-        from vcnc_bench.reports import circle as circle_report
+        from ..reports import circle as circle_report
 
         path = ctx.plots / f"{e}_radial_error.png" if ctx.plots is not None else None
         lines += circle_report.bench_report(ctx.results.get(e, {}), label=e, plot_path=path, shown=ctx.shown.get(e))
@@ -135,5 +149,6 @@ KIND = PolicyKind(
     defaults=lambda env: [n for n in names() if applies(n, env) and policy_class(n).in_default_table],
     extras=lambda env: [n for n in names() if applies(n, env) and not policy_class(n).in_default_table],
     report=lambda ctx: _qft_stability(ctx) + _yadav2020(ctx) + _simba(ctx) + _purtojo(ctx) + _oracle(ctx),
+    prepare=_yadav2020_tables,
     description="the papers' classical controllers (baselines.names())",
 )
