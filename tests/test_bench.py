@@ -262,3 +262,4 @@ def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, c
     with pytest.raises(SystemExit) as exc:
         bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "nope", "--no-progress"])
     assert exc.value.code == 2 and "nope" in capsys.readouterr().err
+

@@ -2,8 +2,8 @@
 
 ``vcnc-bench`` (:func:`vcnc_bench.cli.main`) runs every policy on every env
 and prints one table; :mod:`vcnc_bench.policies` turns specs into policies
-through the kinds the other packages register; :mod:`vcnc_bench.papers`
-holds the papers' figures.
+through the kinds found through entry points (the suite's own in
+:mod:`vcnc_bench.kinds`); :mod:`vcnc_bench.papers` holds the papers' figures.
 
 The command line (:mod:`vcnc_bench.cli`, which draws plots and runs the robust evaluation) is imported only when
 ``main`` or ``format_table`` is first used, so a package that declares a policy kind

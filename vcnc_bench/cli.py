@@ -50,12 +50,14 @@ which need the single episodes, are not printed.
 
 A policy is named by a spec (:mod:`vcnc_bench.policies`): a bare name such
 as ``qft``, or ``KIND:ARGUMENT`` such as ``ppo:runs/x/best``.  The kinds
-come from the packages that provide them (``baselines``, ``agents``),
-found through entry points; the bench names none.  By default each env runs
-the policies that apply to its plant (every kind's ``defaults``).
+are found through entry points (the suite's own two in
+:mod:`vcnc_bench.kinds`, another package's alike); this module names none.
+By default each env runs the policies that apply to its plant (every kind's
+``defaults``).
 
-This package is the top layer: it imports ``vcnc_gym`` and finds the
-policy kinds through entry points.
+This package is the top layer: it imports ``vcnc_gym``, ``baselines`` and
+``agents`` (through its kinds and the papers' reports), and nothing imports
+it back (``tests/test_layers.py``).
 """
 
 from __future__ import annotations

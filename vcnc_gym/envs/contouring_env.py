@@ -10,6 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import step_kernel as sk
+from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
 
 __all__ = ["ContouringEnv", "check_actions", "step_info"]
@@ -142,9 +143,14 @@ class ContouringEnv(gym.Env):
       ``"vcnc_feed_drive"`` (Jahanpour et al. (2014)).
     - ``profile`` ("scurve"): the feedrate profile, one of "scurve" (Jahanpour
       et al.'s cubic S-curve: ``feedrate`` and ``ramp_time``), "constant" (the
-      feed from t = 0, no ramps: Simba et al.'s linear path, Purtojo et al.'s circle)
-      or "jlap" (Simba et al.'s jerk-limited profile with the corner speeds of a
-      corner-smoothed path, ``contour="corners-smooth"``).
+      feed from t = 0, no ramps: Simba et al.'s linear path, Purtojo et al.'s circle),
+      "jlap" (Simba et al.'s jerk-limited profile with the corner speeds of a
+      corner-smoothed path, ``contour="corners-smooth"``) or "lookahead" (a
+      CNC's look-ahead: ``feedrate`` along the path, slowed where its
+      curvature asks more than the path limits give; the ``...Lookahead-v1``
+      ids); or a profile object of your own, any object with
+      ``plan(length_mm)`` as :mod:`vcnc_gym.motion`'s profiles (its plan sets
+      the feed: ``feedrate`` and ``ramp_time`` do not apply).
     - ``feedrate`` (mm/s, 100) and ``ramp_time`` (s, S-curve only, default 0.12).
     - ``dt`` (s, 1e-4): the control period, at which the command is held
       and the reference is sampled.  At 1 ms Jahanpour et al.'s QFT loop is unstable
@@ -329,6 +335,8 @@ class ContouringEnv(gym.Env):
             plt.close(self._figure)
             self._figure = None
 
+
+ContouringEnv.__init__.__signature__ = forwarded_signature(ContouringEnv.__init__, ContouringTask.__init__)
 
 _REAL_KINDS = ("f", "i", "u")
 

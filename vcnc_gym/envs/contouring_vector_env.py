@@ -26,6 +26,7 @@ from ..validation import flag, integer, positive
 from . import controller_contract
 from . import step_kernel as sk
 from .contouring_env import check_actions
+from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
 
 __all__ = ["ContouringVectorEnv", "KernelPath"]
@@ -388,3 +389,6 @@ class ContouringVectorEnv(VectorEnv):
         info["time"] = b.k * self.task.dt
         info["_time"] = valid.copy()
         return info
+
+
+ContouringVectorEnv.__init__.__signature__ = forwarded_signature(ContouringVectorEnv.__init__, ContouringTask.__init__)

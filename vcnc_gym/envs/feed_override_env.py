@@ -9,6 +9,7 @@ from gymnasium import spaces
 
 from .contouring_env import ContouringEnv, check_actions
 from .retiming import padded_reference, retime
+from .signatures import forwarded_signature
 from .task import ContouringBatch
 from ..validation import non_negative, positive, real, size
 
@@ -166,3 +167,7 @@ class FeedOverrideEnv(ContouringEnv):
         info["override"] = self._speed
         info["reference_time"] = self._tau * task.dt
         return obs, reward + r_time, terminated, truncated, info
+
+
+FeedOverrideEnv.__init__.__signature__ = forwarded_signature(FeedOverrideEnv.__init__, ContouringEnv.__init__,
+                                                            drop=("completion_timeout",))

@@ -8,6 +8,7 @@ from ..gcode import ARC_RADIUS_TOLERANCE, GCodeError, path_limits, read_program
 from ..gcode.pieces import piece_path
 from .contouring_env import ContouringEnv
 from .contouring_vector_env import ContouringVectorEnv
+from .signatures import forwarded_signature
 
 __all__ = ["GCodeEnv", "GCodeVectorEnv", "DEFAULT_PROGRAM", "gcode_task_kwargs"]
 
@@ -101,3 +102,9 @@ class GCodeVectorEnv(ContouringVectorEnv):
     def toolpath(self):
         """The program's :class:`~vcnc_gym.gcode.Toolpath`."""
         return self.task.path
+
+
+GCodeEnv.__init__.__signature__ = forwarded_signature(GCodeEnv.__init__, gcode_task_kwargs, ContouringEnv.__init__,
+                                                     drop=("contour", "feedrate"))
+GCodeVectorEnv.__init__.__signature__ = forwarded_signature(GCodeVectorEnv.__init__, gcode_task_kwargs,
+                                                           ContouringVectorEnv.__init__, drop=("contour", "feedrate"))

@@ -12,6 +12,7 @@ from ..gcode.random_contour import RandomContourSpec, random_program, spec_for
 from ..plants import get_plant
 from ..validation import positive
 from .contouring_env import ContouringEnv
+from .signatures import forwarded_signature
 
 __all__ = ["RandomContourEnv", "LOOKAHEAD_SPACING", "check_blends_fit"]
 
@@ -121,3 +122,7 @@ class RandomContourEnv(ContouringEnv):
         obs, info = super().reset(seed=None, options=options)
         info["program"] = text
         return obs, info
+
+
+RandomContourEnv.__init__.__signature__ = forwarded_signature(RandomContourEnv.__init__, ContouringEnv.__init__,
+                                                             drop=("contour", "feedrate", "profile"))
