@@ -55,7 +55,7 @@ class BaselinePolicy:
 
     #: Registry name, set by each subclass.
     name: str = "base"
-    #: Names of the plants (``vcnc_gym.plants`` modules) the controller is designed for.
+    #: Names of the plants (``vcnc_gym.plants`` modules) the controller is designed for (:meth:`designed_for`).
     plants: tuple[str, ...] = ()
     #: The source paper that designed this controller, by authors and year ("" for the suite's own designs): the
     #: bench's plots show a paper's controllers beside the strongest causal one.
@@ -65,6 +65,12 @@ class BaselinePolicy:
     in_default_table: bool = True
     #: Per-environment shape of the controller memory; (0,) for a memoryless controller.
     state_shape: tuple = (0,)
+
+    @classmethod
+    def designed_for(cls, plant) -> bool:
+        """True if the controller applies to ``plant`` (a ``PlantModel``): by default, if it is one of
+        :attr:`plants`; a model-based design overrides it to take any plant that declares what it needs."""
+        return plant.name in cls.plants
 
     def __init__(self, layout, decision_period: float, nominal_parameters, plant=None):
         for attr in ("size", "slice"):
@@ -77,9 +83,10 @@ class BaselinePolicy:
                 raise ValueError(f"{type(self).__name__} declares no plant; pass plant=")
             plant = self.plants[0]
         self.plant = get_plant(plant)
-        if self.plants and self.plant.name not in self.plants:
-            raise ValueError(f"baseline {self.name!r} is designed for the plant(s) {list(self.plants)}, "
-                             f"not {self.plant.name!r}")
+        if not type(self).designed_for(self.plant):
+            raise ValueError(f"baseline {self.name!r} is not designed for the plant {self.plant.name!r}"
+                             + (f" (it is for {list(self.plants)})" if self.plants else
+                                " (it needs a plant that declares its inverse dynamics and servo_bandwidth)"))
         p = np.asarray(nominal_parameters)
         if p.dtype.kind not in "iuf":
             raise ValueError(f"nominal_parameters must be numeric, got dtype {p.dtype}")

@@ -170,10 +170,15 @@ class ServoPolicy(BaselinePolicy):
     evaluation loops call after every reset.
     """
 
-    plants = ("vcnc_feed_drive", "current_feed_drive", "nct_xy_table", "cncmt_axis")
     state_shape = (_MEMORY,)
     #: It follows a contour's reference: only contouring envs (vcnc_bench's ``applies``).
     needs_reference = True
+
+    @classmethod
+    def designed_for(cls, plant) -> bool:
+        """Any plant that declares its inverse dynamics (the model the design inverts and the commissioning fits)
+        and its ``servo_bandwidth`` (the ceiling of the commissioning's design rule): a plant is one module."""
+        return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
                  commissioning: str | None = None):

@@ -25,6 +25,7 @@ if "VCNC-Heart-v1" not in gym.envs.registry:  # pragma: no cover
     pytest.skip("vcnc_gym does not register VCNC-Heart-v1", allow_module_level=True)
 
 from vcnc_gym.plants import vcnc_feed_drive as plant  # noqa: E402
+from vcnc_gym.plants import get_plant  # noqa: E402
 
 VERTICES = plant.uncertainty_vertices()
 #: vertex 0: every parameter at its lower bound (slowest, least damped x/y gains);
@@ -131,8 +132,9 @@ def test_evaluate_policy_batched_envs():
 
 #: The controllers of Jahanpour et al.'s plant (not the non-causal oracle, a floor planned offline:
 #: tests/test_feedforward.py).
-JAHANPOUR_BASELINES = [n for n in baselines.names() if "vcnc_feed_drive" in baselines.registry.policy_class(n).plants
-            and getattr(baselines.registry.policy_class(n), "causal", True)]
+JAHANPOUR_BASELINES = [n for n in baselines.names()
+                       if baselines.registry.policy_class(n).designed_for(get_plant("vcnc_feed_drive"))
+                       and getattr(baselines.registry.policy_class(n), "causal", True)]
 
 
 def _omega_case(name):

@@ -115,6 +115,10 @@ def test_check_names_what_is_missing():
     assert any("not the default table" in f for f in found)
     assert "A p: no finite rms_contour_error_um (diverged: None)" in found
     assert "A q: no record" in found and "B: no policy ran" in found
+    stale = {**data, "records": data["records"] + [{"table": "headroom", "env": "A", "strongest": "p",
+                                                      "strongest_max_um": 1.0, "floor_max_um": 1.1,
+                                                      "headroom": 1 / 1.1}]}
+    assert any("A: the floor (1.1 um) is above the strongest causal" in f for f in check.problems(stale))
     assert check.problems([]) != []
 
 

@@ -407,17 +407,20 @@ def test_blends_are_simba_smooth_polyline():
 
 
 def test_random_contours_of_the_xy_table_keep_its_scale_and_path_limits():
-    """Purtojo et al.'s table draws PLANT_SPECS' contours (0.5-3 mm lines, 0.2-2 mm arcs, 30-120 mm/min); the
+    """Purtojo et al.'s table draws the contours its model declares (PlantModel.random_contour: 0.5-3 mm lines,
+    0.2-2 mm arcs, 30-120 mm/min); the
     reference's speed, differenced from its positions, stays within the feed, its acceleration within the path
     limit (30 mm/s^2);
     a spec given as a dict (YAML) is the same spec; a misspelt field is named."""
     import gymnasium as gym
 
     import vcnc_gym  # noqa: F401
-    from vcnc_gym.gcode import PATH_LIMITS
-    from vcnc_gym.gcode.random_contour import PLANT_SPECS, RandomContourSpec, spec_for
+    from vcnc_gym.gcode import path_limits
+    from vcnc_gym.gcode.random_contour import RandomContourSpec, spec_for
 
-    spec = PLANT_SPECS["nct_xy_table"]
+    spec = spec_for("nct_xy_table")
+    assert (spec.line_min, spec.line_max, spec.radius_min, spec.radius_max, spec.feed_min, spec.feed_max) == \
+        (0.5, 3.0, 0.2, 2.0, 30.0, 120.0)
     env = gym.make("VCNC-RandomContour-v1", plant="nct_xy_table", dt=1e-3)
     for seed in (0, 1):
         env.reset(seed=seed)
@@ -430,7 +433,7 @@ def test_random_contours_of_the_xy_table_keep_its_scale_and_path_limits():
         xy = u.reference.position[:-1]  # the last sample is the curve's end, at any distance (Reference)
         speed = np.hypot(*np.diff(xy, axis=0).T) / u.dt
         assert speed.max() <= 1.001 * spec.feed_max / 60
-        assert np.hypot(*u.reference.acceleration.T).max() < 1.05 * PATH_LIMITS["nct_xy_table"][0]
+        assert np.hypot(*u.reference.acceleration.T).max() < 1.05 * path_limits("nct_xy_table")[0] == 1.05 * 30.0
     assert spec_for("nct_xy_table", {"feed_min": 30.0, "feed_max": 120.0}) == RandomContourSpec(feed_min=30.0,
                                                                                                  feed_max=120.0)
     assert spec_for("vcnc_feed_drive") == RandomContourSpec()

@@ -2,7 +2,9 @@
 
 CI runs the README's main job (``make bench``) and then this check: the JSON must exist, hold the plan the run
 printed (every env with the labels of the policies it ran) and, for every env and policy of the plan, a record of
-its scored episode with finite max, mean and RMS errors.  With ``--default`` the plan's envs must also be
+its scored episode with finite max, mean and RMS errors; and every floor must be one: at or below the strongest
+causal controller (a headroom row under 1 says the stored floor is stale, solved before a controller changed).
+With ``--default`` the plan's envs must also be
 :data:`vcnc_bench.cli.DEFAULT_IDS`, every one with at least one policy.  Exit 1 with one line per problem.
 """
 
@@ -30,7 +32,11 @@ def problems(data, default_ids: tuple | None = None) -> list[str]:
         out.append(f"the plan's envs {list(plan)} are not the default table's {list(default_ids)}")
     scored = {}
     for r in records:
-        if "table" in r:  # a report's rows (ISO 230-4)
+        if r.get("table") == "headroom" and not r.get("headroom", 0.0) >= 1.0:
+            out.append(f"{r.get('env')}: the floor ({r.get('floor_max_um')} um) is above the strongest causal "
+                       f"controller ({r.get('strongest')}, {r.get('strongest_max_um')} um): a stale floor; solve it "
+                       f"again (python benchmarks/oracle_convergence.py --env {r.get('env')} --store)")
+        if "table" in r:  # a report's rows (ISO 230-4, headroom)
             continue
         key = (r.get("env"), r.get("policy"))
         trial = r.get("trial")

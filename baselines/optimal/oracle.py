@@ -76,7 +76,7 @@ class OraclePolicy(BaselinePolicy):
     name = "oracle"
     #: Not a controller: it reads the exact plant (:meth:`plan`).
     causal = False
-    plants = ServoPolicy.plants
+    designed_for = ServoPolicy.designed_for  # every plant the causal designs it starts from apply to
     needs_reference = True
     state_shape = (0,)
 

@@ -90,7 +90,7 @@ def causal_names(env) -> list[str]:
     out = []
     for name in names():
         cls = policy_class(name)
-        if getattr(cls, "causal", True) is False or plant is None or plant.name not in cls.plants:
+        if getattr(cls, "causal", True) is False or plant is None or not cls.designed_for(plant):
             continue
         if getattr(cls, "needs_reference", False) and not hasattr(getattr(u, "task", None), "reference_arrays"):
             continue

@@ -28,7 +28,7 @@ def applies(name: str, env) -> bool:
     plant = getattr(u, "plant", None)
     if getattr(cls, "needs_reference", False) and not hasattr(getattr(u, "task", None), "reference_arrays"):
         return False
-    return plant is not None and plant.name in cls.plants
+    return plant is not None and cls.designed_for(plant)
 
 
 def _oracle(ctx) -> list[str]:

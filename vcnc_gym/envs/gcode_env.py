@@ -69,9 +69,9 @@ class GCodeEnv(ContouringEnv):
     - ``tolerance`` (mm, 0.01, or None): the corner blending tolerance.
     - ``plant`` ("vcnc_feed_drive"), and ``acceleration`` (mm/s^2) /
       ``jerk`` (mm/s^3): the path limits of the blends and the look-ahead;
-      by default those the suite plans with for the plant's paper
-      (``vcnc_gym.gcode.PATH_LIMITS``: Jahanpour et al.'s 1000 and 3e4, Simba et al.'s
-      4000 and 1.6e5); other plants need them given.
+      by default those the plant declares (``PlantModel.path_limits``:
+      Jahanpour et al.'s 1000 and 3e4, Simba et al.'s 4000 and 1.6e5); a
+      plant that declares none needs them given.
     - ``arc_tolerance`` (mm, LinuxCNC's 0.0283): largest difference of an
       I/J arc's two radii.
     - ``profile`` ("lookahead"; "scurve" or "constant" for a program with one feed).

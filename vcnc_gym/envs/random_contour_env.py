@@ -69,7 +69,7 @@ class RandomContourEnv(ContouringEnv):
 
     ``tolerance`` (mm, 0.01), ``spec`` (a RandomContourSpec or a dict of
     its fields; default the plant's entry of
-    :data:`~vcnc_gym.gcode.random_contour.PLANT_SPECS`, else the
+    :attr:`PlantModel.random_contour <vcnc_gym.plants.contract.PlantModel>` over the
     defaults above: Purtojo et al.'s table draws contours a tenth of the size
     at 30-120 mm/min), ``plant`` ("vcnc_feed_drive"), ``acceleration`` /
     ``jerk`` (the path limits, as :class:`~vcnc_gym.envs.gcode_env.GCodeEnv`),
@@ -88,11 +88,11 @@ class RandomContourEnv(ContouringEnv):
             if key in kwargs:
                 raise ValueError(f"{key}= is drawn at every reset in VCNC-RandomContour-v1; "
                                  f"shape the draws with spec= (vcnc_gym.gcode.random_contour.RandomContourSpec)")
-        name = get_plant(plant).name  # a name or a model; an unknown name is refused here, naming the known ones
-        self._spec = spec_for(name, spec)
+        model = get_plant(plant)  # a name or a model; an unknown name is refused here, naming the known ones
+        self._spec = spec_for(model, spec)
         # the arcs' scale sets the look-ahead's sampling (0.05 mm for the defaults' 2 mm arcs)
         self._spacing = LOOKAHEAD_SPACING * min(1.0, self._spec.radius_min / RandomContourSpec.radius_min)
-        self._limits = path_limits(name, acceleration, jerk)
+        self._limits = path_limits(model, acceleration, jerk)
         self._tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm")
         if self._tolerance is not None:
             check_blends_fit(self._spec, self._tolerance, *self._limits)

@@ -25,36 +25,29 @@ from .interpreter import ARC_RADIUS_TOLERANCE, MM_PER_INCH, Move, Program, inter
 from .lexer import MAX_LINE_LENGTH, MAX_LINES, MAX_PROGRAM_BYTES, GCodeError, lex
 from .toolpath import PROFILES, Joint, Toolpath, build_toolpath
 
-__all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move", "PATH_LIMITS", "PROFILES", "Program",
+__all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move", "PROFILES", "Program",
            "Toolpath", "build_toolpath", "decode", "interpret", "lex", "load_text", "path_limits", "read_program",
            "read_program_text"]
-
-#: Path acceleration (mm/s^2) and jerk (mm/s^3) limits by plant: those the suite already plans with for
-#: the plant's paper (Jahanpour et al. (2014): motion.lookahead's JAHANPOUR2014_PATH_*; Simba et al.:
-#: motion.jlap's SIMBA_*).  Purtojo et al.'s X-Y table (plants.nct_xy_table) has no path limits in its paper
-#: (which runs a 1 mm circle at 1 mm/s): 30 mm/s^2 is 40 % of its slower (x) axis's acceleration at the rated
-#: input from rest, K alpha u_r = 50.7 x 1.475 = 75 mm/s^2 (Jahanpour et al.'s 1000 mm/s^2 is 38 % of its
-#: drives' ~2.6e3), and the jerk keeps the same 30 1/s ratio to it as theirs.
-PATH_LIMITS = {"vcnc_feed_drive": (1000.0, 3.0e4), "current_feed_drive": (4000.0, 1.6e5),
-               "nct_xy_table": (30.0, 900.0)}
 
 #: File suffixes read as program files when ``program`` is a one-line string.
 SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".txt")
 
 
-def path_limits(plant: str, acceleration: float | None = None, jerk: float | None = None) -> tuple[float, float]:
-    """(acceleration mm/s^2, jerk mm/s^3) for ``plant``: those given, else :data:`PATH_LIMITS`'s."""
+def path_limits(plant, acceleration: float | None = None, jerk: float | None = None) -> tuple[float, float]:
+    """(acceleration mm/s^2, jerk mm/s^3) for ``plant`` (a name of :mod:`vcnc_gym.plants` or a ``PlantModel``):
+    those given, else the ones the plant declares (``PlantModel.path_limits``)."""
+    from ..plants import get_plant
     from ..validation import positive
 
     acceleration = None if acceleration is None else positive("acceleration", acceleration, "mm/s^2")
     jerk = None if jerk is None else positive("jerk", jerk, "mm/s^3")
     if acceleration is not None and jerk is not None:
         return acceleration, jerk
-    name = plant if isinstance(plant, str) else getattr(plant, "name", str(plant))
-    if name not in PATH_LIMITS:
-        raise ValueError(f"no path acceleration and jerk limits are known for plant {name!r} (known: "
-                         f"{sorted(PATH_LIMITS)}); pass acceleration= (mm/s^2) and jerk= (mm/s^3)")
-    a, j = PATH_LIMITS[name]
+    model = get_plant(plant)
+    if model.path_limits is None:
+        raise ValueError(f"plant {model.name!r} declares no path acceleration and jerk limits "
+                         f"(PlantModel.path_limits); pass acceleration= (mm/s^2) and jerk= (mm/s^3)")
+    a, j = model.path_limits
     return float(a if acceleration is None else acceleration), float(j if jerk is None else jerk)
 
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RandomContourSpec", "PLANT_SPECS", "spec_for", "random_program", "MAX_MOVES", "MAX_EXTENT"]
+__all__ = ["RandomContourSpec", "spec_for", "random_program", "MAX_MOVES", "MAX_EXTENT"]
 
 
 @dataclass(frozen=True)
@@ -99,21 +99,14 @@ MAX_EXTENT = 900.0
 _UNITS = {"line": "mm", "turn": "degrees", "radius": "mm", "sweep": "degrees", "feed": "mm/min"}
 
 
-#: The default draws of a plant whose scale is not the defaults' (the defaults are Jahanpour et al. (2014)'s
-#: and Simba et al.'s feed drives: 5-30 mm lines, 33-100 mm/s).  Purtojo et al.'s X-Y table runs its 1 mm circle
-#: at 1 mm/s and tops out at 50 mm/s with the rated input on a 0.7 s time constant: its contours are a tenth of
-#: the size (0.5-3 mm lines, 0.2-2 mm arcs) at 0.5-2 mm/s (30-120 mm/min).
-PLANT_SPECS: dict[str, RandomContourSpec] = {
-    "nct_xy_table": RandomContourSpec(line_min=0.5, line_max=3.0, radius_min=0.2, radius_max=2.0,
-                                      feed_min=30.0, feed_max=120.0),
-}
-
-
-def spec_for(plant: str, spec=None) -> RandomContourSpec:
-    """The draws for the plant named ``plant``: ``spec`` if given (a :class:`RandomContourSpec`, or a mapping of
-    its fields, as a YAML configuration gives it), else :data:`PLANT_SPECS`'s or the defaults."""
+def spec_for(plant, spec=None) -> RandomContourSpec:
+    """The draws for ``plant`` (a name of :mod:`vcnc_gym.plants` or a ``PlantModel``): ``spec`` if given (a
+    :class:`RandomContourSpec`, or a mapping of its fields, as a YAML configuration gives it), else the defaults
+    with the fields the plant declares for its scale (``PlantModel.random_contour``)."""
     if spec is None:
-        return PLANT_SPECS.get(plant, RandomContourSpec())
+        from ..plants import get_plant
+
+        spec = dict(get_plant(plant).random_contour)
     if isinstance(spec, RandomContourSpec):
         return spec
     if isinstance(spec, dict):

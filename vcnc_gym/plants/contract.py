@@ -221,6 +221,16 @@ class PlantModel:
         s, the duration over which a model-based feedforward changes the
         Coulomb level at a velocity reversal of the reference (0: at the
         reversal); default 1 ms.
+    path_limits : (float, float), optional
+        The path acceleration (mm/s^2) and jerk (mm/s^3) a CNC plans this
+        machine's moves with: the G-code ids' corner blends and look-ahead
+        and the random contours (:func:`vcnc_gym.gcode.path_limits`); None:
+        those ids need them given.
+    random_contour : dict, optional
+        Fields of :class:`vcnc_gym.gcode.random_contour.RandomContourSpec`
+        that set this machine's scale of random contours over the defaults
+        (5-30 mm lines at 33-100 mm/s, a ball-screw drive's); empty: the
+        defaults.
     """
 
     name: str
@@ -240,6 +250,8 @@ class PlantModel:
     seed_machine: Callable | None = None
     servo_bandwidth: float | None = None
     friction_time: float = 1e-3
+    path_limits: tuple | None = None
+    random_contour: dict = field(default_factory=dict)
     _index: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):

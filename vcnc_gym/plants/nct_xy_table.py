@@ -190,6 +190,14 @@ MODEL = PlantModel(
     # the position-loop bandwidth ceiling: the best max contour error of ff-pid, zpetc and ff-ccc on the nominal
     # plant of its ids over a grid (python benchmarks/tune_servo.py; docs/reproduction.md)
     servo_bandwidth=30.0,
+    # Purtojo et al. give no path limits (their 1 mm circle runs at 1 mm/s): 30 mm/s^2 is 40 % of the slower (x)
+    # axis's acceleration at the rated input from rest, K alpha u_r = 50.7 x 1.475 = 75 mm/s^2 (Jahanpour et al.'s
+    # 1000 mm/s^2 is 38 % of their drives' ~2.6e3), and the jerk keeps the same 30 1/s ratio to it as theirs
+    path_limits=(30.0, 900.0),
+    # the table runs its 1 mm circle at 1 mm/s and tops out at 50 mm/s with the rated input on a 0.7 s time
+    # constant: its random contours are a tenth of the defaults' size (0.5-3 mm lines, 0.2-2 mm arcs) at 0.5-2 mm/s
+    random_contour={"line_min": 0.5, "line_max": 3.0, "radius_min": 0.2, "radius_max": 2.0, "feed_min": 30.0,
+                    "feed_max": 120.0},
 )
 
 

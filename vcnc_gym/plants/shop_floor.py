@@ -316,6 +316,8 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
         seed_machine=_seed_machine,
         servo_bandwidth=inner.servo_bandwidth,
         friction_time=SHOP_FRICTION_TIME,
+        path_limits=inner.path_limits,
+        random_contour=dict(inner.random_contour),
         inner=inner,
     )
     return model

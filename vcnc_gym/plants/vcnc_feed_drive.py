@@ -358,6 +358,9 @@ MODEL = PlantModel(
     # the position-loop bandwidth ceiling: the best max contour error of ff-pid, zpetc and ff-ccc on the nominal
     # plant of its ids over a grid (python benchmarks/tune_servo.py; docs/reproduction.md)
     servo_bandwidth=1000.0,
+    # the path limits the suite plans Jahanpour et al.'s moves with (motion.lookahead's JAHANPOUR2014_PATH_*):
+    # 1000 mm/s^2 is 38 % of the drives' ~2.6e3 mm/s^2 at the +-5 V saturation
+    path_limits=(1000.0, 3.0e4),
 )
 
 
