@@ -120,3 +120,20 @@ def test_floor_is_at_or_below_every_causal_controller_on_plants_from_the_box(env
         other = runs(baselines.make(name, env))
         assert np.all(floor.max_um <= other.max_um), (name, floor.max_um, other.max_um)
     assert len(list(tmp_path.glob("*.npz"))) == len(plants.kinds)  # solved and stored per plant
+
+
+def test_an_at_machine_start_is_the_controller_commissioned_on_that_machine():
+    """The floor's warm start of an @machine design is the controller the bench runs (its identification run on
+    the machine solved on), not the nominal record's: its replay on the exact plant is the env episode's figure."""
+    from baselines.optimal.rollout import Rollouts
+    from baselines.optimal.search import warm_starts
+
+    env = gym.make("VCNC-Circle-v1")
+    env.reset(seed=0)
+    u = env.unwrapped
+    starts = warm_starts(env, Rollouts(u.task, np.asarray(u.parameters), 1, None),
+                         names=["zpetc", "zpetc@machine"])
+    for name in ("zpetc", "zpetc@machine"):
+        episode = run_episode(baselines.make(name, env), env, seed=0)
+        assert 1e3 * starts[name].max == pytest.approx(episode.max_contour_error_um, rel=1e-12, abs=0.0), name
+    assert starts["zpetc"].max != starts["zpetc@machine"].max  # two designs, not one

@@ -29,6 +29,7 @@ equal with a lower RMS.  Candidates that diverge or do not finish the part score
 from __future__ import annotations
 
 import time
+from types import SimpleNamespace
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -160,6 +161,9 @@ def warm_starts(env, rollouts: Rollouts, *, trials: int = 10, names=None, extra=
             if log:
                 log(f"  warm start {name}: not built ({exc})")
             continue
+        if given is None and hasattr(policy, "plan"):  # as the evaluation loops do after a reset: an @machine
+            # design commissions the machine the floor is solved on (its identification run reads its observation)
+            policy.plan(SimpleNamespace(task=task, parameters=rollouts.parameters))
         learns = getattr(policy, "learns_across_episodes", False)
         compiled = getattr(policy, "compiled", None)
         if not learns and given is None and compiled is not None and compiled(1) is not None:
