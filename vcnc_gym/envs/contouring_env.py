@@ -10,13 +10,14 @@ import numpy as np
 from gymnasium import spaces
 
 from . import step_kernel as sk
+from .pickling import RebuiltOnUnpickle, record_arrays, restore_arrays
 from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
 
 __all__ = ["ContouringEnv", "check_actions", "step_info"]
 
 
-class ContouringEnv(gym.Env):
+class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     r"""Contour following on a biaxial machine, judged by the contour error.
 
     ## Description
@@ -183,6 +184,14 @@ class ContouringEnv(gym.Env):
     - ``max_episode_steps`` (None: the natural length): truncation, decisions.
     - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
 
+    ## Pickling
+
+    ``pickle.dumps(env)`` (and ``copy.deepcopy``, and Gymnasium's
+    ``AsyncVectorEnv``) saves the constructor's arguments, the random
+    generator and the episode state; the unpickled env, rebuilt from them,
+    continues the same episode to the bit (:mod:`vcnc_gym.envs.pickling`).
+    Pickling is not a change of behaviour: no id's version changes.
+
     ## Version History
 
     - The ``...Shop-v1`` ids (``VCNC-HeartShop-v1``, ``VCNC-OmegaLookaheadShop-v1``,
@@ -307,6 +316,27 @@ class ContouringEnv(gym.Env):
             if self.render_mode == "human" and (self._done or len(self._history["t"]) % frame == 0):
                 self.render()
         return self._obs.copy(), float(self._reward[0]), terminated, truncated, info
+
+    # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
+    def _episode_arrays(self) -> dict[str, np.ndarray]:
+        """Every array of the episode state the kernel reads and writes, by name (the ones a pickle saves)."""
+        b = self._batch
+        arrays = dict(record_arrays(b.plant_arrays, "plant"))
+        arrays.update(record_arrays(b.buffers, "buffers"))
+        arrays["batch.parameters"] = b.parameters
+        return arrays
+
+    def _episode_state(self) -> dict:
+        return {"np_random": self._np_random, "np_random_seed": self._np_random_seed, "spec": self.spec,
+                "arrays": {name: a.copy() for name, a in self._episode_arrays().items()},
+                "parameters": self.parameters, "done": self._done, "warned_limit": self._warned_limit,
+                "history": self._history}
+
+    def _restore_episode(self, state: dict) -> None:
+        restore_arrays(self._episode_arrays(), state["arrays"])
+        self._np_random, self._np_random_seed, self.spec = state["np_random"], state["np_random_seed"], state["spec"]
+        self.parameters, self._done = state["parameters"], state["done"]
+        self._warned_limit, self._history = state["warned_limit"], state["history"]
 
     def _check_time_limit(self):
         limits = [self.task.max_episode_steps]

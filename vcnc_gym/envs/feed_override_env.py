@@ -149,6 +149,16 @@ class FeedOverrideEnv(ContouringEnv):
         self._batch.buffers.reference_end[0] = np.iinfo(np.int64).max  # until the re-timed clock gets there
         return obs, info
 
+    def _episode_arrays(self) -> dict[str, np.ndarray]:
+        return {**super()._episode_arrays(), "reference.samples": self._buffer}  # the re-timed reference
+
+    def _episode_state(self) -> dict:
+        return {**super()._episode_state(), "tau": self._tau, "speed": self._speed}
+
+    def _restore_episode(self, state: dict) -> None:
+        super()._restore_episode(state)
+        self._tau, self._speed = state["tau"], state["speed"]
+
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")

@@ -123,6 +123,18 @@ class RandomContourEnv(ContouringEnv):
         info["program"] = text
         return obs, info
 
+    def _episode_state(self) -> dict:
+        return {**super()._episode_state(), "program_text": self.program_text}
+
+    def _restore_episode(self, state: dict) -> None:
+        text = state["program_text"]
+        if text != self.program_text:  # the episode's contour, not the constructor's placeholder
+            space = self.observation_space
+            ContouringEnv.__init__(self, render_mode=self._render, contour=self._toolpath(text), **self._kwargs)
+            self.observation_space = space
+            self.program_text = text
+        super()._restore_episode(state)
+
 
 RandomContourEnv.__init__.__signature__ = forwarded_signature(RandomContourEnv.__init__, ContouringEnv.__init__,
                                                              drop=("contour", "feedrate", "profile"))
