@@ -23,6 +23,11 @@ Example
 
 from pathlib import Path
 
+from vcnc_gym.extras import require_extra
+
+# ruff: noqa: E402  (the imports below follow the extra's check on purpose)
+require_extra("agents", "agents")  # Stable-Baselines3, torch, ...: the extra named if one is missing
+
 from .action_modes import ACTION_MODES, ActionMode, ResidualAction
 from .normalization import NormalizationStats
 from .policy import AgentPolicy, env_signature, load_agent

@@ -19,6 +19,11 @@ Example
 >>> action, _ = policy.predict(obs, episode_start=True)
 """
 
+from vcnc_gym.extras import require_extra
+
+# ruff: noqa: E402  (the imports below follow the extra's check on purpose)
+require_extra("baselines", "baselines")  # python-control, scipy, daqp: the extra named if one is missing
+
 from .base import BaselinePolicy
 from .coupling.contouring_fb import ContouringFBPolicy
 from .feedback.fuzzy import DEFAULT_SCALING, FuzzyPolicy, FuzzyScaling
