@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import step_kernel as sk
-from .pickling import RebuiltOnUnpickle, record_arrays, restore_arrays
+from .pickling import RebuiltOnUnpickle, batch_arrays, restore_arrays
 from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
 
@@ -320,11 +320,7 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
     def _episode_arrays(self) -> dict[str, np.ndarray]:
         """Every array of the episode state the kernel reads and writes, by name (the ones a pickle saves)."""
-        b = self._batch
-        arrays = dict(record_arrays(b.plant_arrays, "plant"))
-        arrays.update(record_arrays(b.buffers, "buffers"))
-        arrays["batch.parameters"] = b.parameters
-        return arrays
+        return batch_arrays(self._batch)
 
     def _episode_state(self) -> dict:
         return {"np_random": self._np_random, "np_random_seed": self._np_random_seed, "spec": self.spec,

@@ -26,6 +26,7 @@ from ..validation import flag, integer, positive
 from . import controller_contract
 from . import step_kernel as sk
 from .contouring_env import check_actions
+from .pickling import RebuiltOnUnpickle, batch_arrays, restore_arrays
 from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
 
@@ -130,7 +131,7 @@ class KernelPath:
         self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (min(cost, 2.0 * old) - old)
 
 
-class ContouringVectorEnv(VectorEnv):
+class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
     """``num_envs`` contouring envs of one configuration, stepped by one kernel call.
 
     Parameters
@@ -161,6 +162,10 @@ class ContouringVectorEnv(VectorEnv):
     ``"reset_mask"`` ((N,) bool: reset only those envs).  ``info`` follows
     Gymnasium's vector convention: one array per key, with a boolean mask
     ``"_key"`` of the envs it is valid for.
+
+    ``pickle.dumps`` saves the constructor's arguments, every env's generator
+    and episode state: the unpickled vector env continues the same episodes
+    (:mod:`vcnc_gym.envs.pickling`).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -238,6 +243,16 @@ class ContouringVectorEnv(VectorEnv):
         self._autoreset[mask] = False
         self._started = True
         return b.obs.copy(), self._info(mask)
+
+    # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
+    def _episode_state(self) -> dict:
+        return {"arrays": {name: a.copy() for name, a in batch_arrays(self._batch).items()}, "rngs": self._rngs,
+                "autoreset": self._autoreset, "started": self._started, "spec": self.spec}
+
+    def _restore_episode(self, state: dict) -> None:
+        restore_arrays(batch_arrays(self._batch), state["arrays"])
+        self._rngs, self._autoreset = list(state["rngs"]), state["autoreset"].copy()
+        self._started, self.spec = state["started"], state["spec"]
 
     def step(self, actions):
         if not self._started:

@@ -13,7 +13,9 @@ fields.  Unpickling constructs a new env from the same arguments (its kernels
 come from numba's cache) and copies the saved arrays into the new env's
 buffers in place, so the new ``StepData`` reads them: a pickled env,
 mid-episode or not, continues the same episode to the bit
-(``tests/test_gym_conventions.py``).
+(``tests/test_gym_conventions.py``).  The native vector env
+(:class:`~vcnc_gym.envs.ContouringVectorEnv`) pickles the same way, with
+every env's generator and autoreset state.
 
 An argument that does not pickle (a ``PlantModel`` made at run time, such as
 one wrapped by :func:`vcnc_gym.plants.shop_floor.shop_floor` and passed as
@@ -30,7 +32,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["RebuiltOnUnpickle", "record_arrays", "restore_arrays"]
+__all__ = ["RebuiltOnUnpickle", "batch_arrays", "record_arrays", "restore_arrays"]
 
 
 def record_arrays(record, prefix: str) -> Iterator[tuple[str, np.ndarray]]:
@@ -40,6 +42,15 @@ def record_arrays(record, prefix: str) -> Iterator[tuple[str, np.ndarray]]:
             yield f"{prefix}.{name}", value
         elif isinstance(value, tuple) and hasattr(value, "_fields"):
             yield from record_arrays(value, f"{prefix}.{name}")
+
+
+def batch_arrays(batch) -> dict[str, np.ndarray]:
+    """Every array of a :class:`~vcnc_gym.envs.task.ContouringBatch`'s episode state, by name: the plant's
+    arrays, the per-env buffers, the parameters in force (the fixed reference and contour are the task's)."""
+    arrays = dict(record_arrays(batch.plant_arrays, "plant"))
+    arrays.update(record_arrays(batch.buffers, "buffers"))
+    arrays["batch.parameters"] = batch.parameters
+    return arrays
 
 
 def restore_arrays(targets: dict[str, np.ndarray], saved: dict[str, np.ndarray]) -> None:
