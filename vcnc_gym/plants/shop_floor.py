@@ -92,7 +92,7 @@ from . import contract
 from .contract import Parameter, PlantModel
 
 __all__ = ["EFFECT_PARAMETERS", "EFFECT_NAMES", "MAX_DELAY", "ShopFloorArrays", "ShopFloorModel", "shop_floor",
-           "effects_off", "mode_response", "splitmix64", "normal_pair"]
+           "mode_response", "splitmix64", "normal_pair"]
 
 #: Longest delay, control periods (command or sensor): the FIFOs hold this many entries plus one.
 MAX_DELAY = 8
@@ -319,11 +319,6 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
         inner=inner,
     )
     return model
-
-
-def effects_off(plant) -> ShopFloorModel:
-    """``plant`` wrapped with every effect off (:data:`OFF`): the inner plant, through the wrapper."""
-    return shop_floor(plant, dict(OFF))
 
 
 def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -> ShopFloorArrays:

@@ -132,7 +132,6 @@ __all__ = [
     "step_feed_drives",
     "table_velocity",
     "table_velocities",
-    "FeedDrivePlant",
 ]
 
 # --------------------------------------------------------------------------
@@ -628,83 +627,3 @@ def _sense(plant, k, out):
                     plant.state[k, i, S_XM], plant.state[k, i, S_W], x_t,
                     plant.params[k, i, IDX_R_G], plant.params[k, i, IDX_BACKLASH])
         return impl
-
-
-# --------------------------------------------------------------------------
-# Python wrapper
-# --------------------------------------------------------------------------
-
-
-class FeedDrivePlant:
-    """N biaxial feed drives of Jahanpour et al. (2014) with validated inputs.
-
-    Holds the parameter and state arrays and calls the kernels; shapes are
-    checked in ``__init__``/``reset``, and ``step`` only converts the
-    voltage.
-
-    Parameters
-    ----------
-    params : array_like, optional
-        ``(2, P)`` or ``(N, 2, P)``; default: nominal parameters.
-    n_machines : int
-        Number of machines N (a ``(2, P)`` parameter set is shared).
-    dt : float
-        Control period [s].
-    substeps : int, optional
-        Substeps per control period; default ``substeps_for(dt)``.
-    """
-
-    def __init__(self, params=None, n_machines: int = 1, dt: float = DEFAULT_DT, substeps: int | None = None):
-        if n_machines < 1:
-            raise ValueError("n_machines must be >= 1")
-        self.n_machines = int(n_machines)
-        self.dt = float(dt)
-        self.substeps = substeps_for(self.dt) if substeps is None else int(substeps)
-        if self.substeps < 1:
-            raise ValueError("substeps must be >= 1")
-        self.params = validate_parameters(nominal_parameters() if params is None else params, self.n_machines)
-        self.state = np.zeros((self.n_machines, 2, 3), dtype=np.float64)
-        self._v = np.empty((self.n_machines, 2), dtype=np.float64)
-
-    def reset(self, positions=None, params=None) -> np.ndarray:
-        """Stop all drives at ``positions`` [mm] ((2,) or (N, 2); default 0).
-
-        Optionally replace the parameters. Returns the state array.
-        """
-        if params is not None:
-            self.params = validate_parameters(params, self.n_machines)
-        pos = np.zeros((self.n_machines, 2)) if positions is None else np.asarray(positions, dtype=np.float64)
-        pos = np.ascontiguousarray(np.broadcast_to(pos, (self.n_machines, 2)))
-        reset_feed_drives(self.state, pos)
-        return self.state
-
-    def step(self, voltage) -> np.ndarray:
-        """Advance by ``dt`` with ``voltage`` [V] ((2,) or (N, 2)); returns the state."""
-        v = np.asarray(voltage, dtype=np.float64)
-        if v.shape != (self.n_machines, 2):
-            v = np.broadcast_to(v, (self.n_machines, 2))
-        self._v[...] = v
-        step_feed_drives(self.state, self._v, self.params, self.dt, self.substeps)
-        return self.state
-
-    @property
-    def table_position(self) -> np.ndarray:
-        """Table positions x_t [mm], (N, 2) (a copy)."""
-        return self.state[:, :, S_XT].copy()
-
-    @property
-    def motor_position(self) -> np.ndarray:
-        """Motor-side positions x_m = r_g theta [mm], (N, 2) (a copy)."""
-        return self.state[:, :, S_XM].copy()
-
-    @property
-    def motor_velocity(self) -> np.ndarray:
-        """Motor angular velocities w [rad/s], (N, 2) (a copy)."""
-        return self.state[:, :, S_W].copy()
-
-    @property
-    def table_velocity(self) -> np.ndarray:
-        """Table velocities [mm/s], (N, 2); see ``table_velocity``."""
-        out = np.empty((self.n_machines, 2))
-        table_velocities(self.state, self.params, out)
-        return out
