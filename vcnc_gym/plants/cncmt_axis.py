@@ -128,7 +128,7 @@ __all__ = [
     "TABLE_1",
     "delay_periods",
     "table1_coefficients",
-    "zoh_coefficients",
+    "zoh_acceleration_input",
     "advance_machine",
 ]
 
@@ -334,8 +334,9 @@ MODEL = PlantModel(
 
 
 @numba.njit(cache=True)
-def zoh_coefficients(a, dt):
-    """Exact ZOH coefficients of ``v' = -a v + w``, ``x' = v`` over ``dt`` (``w`` held):
+def zoh_acceleration_input(a, dt):
+    """Exact ZOH coefficients of ``v' = -a v + w``, ``x' = v`` over ``dt``, the input ``w`` an acceleration
+    (mm/s^2, held; compare :func:`vcnc_gym.plants.nct_xy_table.zoh_velocity_lag`, whose input is a velocity):
     ``(E, g, q)`` with ``v1 = E v0 + g w`` and ``x1 = x0 + g v0 + q w`` (:func:`~vcnc_gym.plants.exact_zoh.first_order`)."""
     return first_order(a, dt)
 
@@ -370,7 +371,7 @@ def advance_machine(state, params, line, head, dt, k, command):
             head[k, i] = 0 if h == n else h
         else:
             applied = u
-        e, g, q = zoh_coefficients(a, dt)
+        e, g, q = zoh_acceleration_input(a, dt)
         w = b * applied
         x = state[k, i, S_X]
         v = state[k, i, S_V]
