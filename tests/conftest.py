@@ -43,7 +43,7 @@ SLOW_BY_MEASUREMENT = (
     "test_contour.py::test_around_centres_of_curvature[heart]",
     "test_agents.py::test_direct_agent_on_the_plain_env_matches_its_repeating_env",
     "test_baselines_closed_loop.py::test_heart_completes[fuzzy-nominal]",
-    "test_agents_reliability.py::test_a_failed_fresh_start_never_blocks_a_retry",
+    "test_agent_files_and_run_data.py::test_a_failed_fresh_start_never_blocks_a_retry",
     "test_docs_guides.py::test_page_code_runs[guides/add-a-contour.md]",
     "test_agents.py::test_residual_agent_on_the_plain_env_matches_its_wrapper",
     "test_envs.py::test_default_control_period_makes_seed_qft_loop_stable_on_every_vertex",
