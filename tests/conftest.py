@@ -46,7 +46,7 @@ SLOW_BY_MEASUREMENT = (
     "test_agent_files_and_run_data.py::test_a_failed_fresh_start_never_blocks_a_retry",
     "test_docs_guides.py::test_page_code_runs[guides/add-a-contour.md]",
     "test_agents.py::test_residual_agent_on_the_plain_env_matches_its_wrapper",
-    "test_envs.py::test_default_control_period_makes_seed_qft_loop_stable_on_every_vertex",
+    "test_envs.py::test_default_control_period_makes_jahanpour_qft_loop_stable_on_every_vertex",
     "test_contour_warm.py::test_concurrent_calls_from_prange_threads",
     "test_baselines_controllers.py::test_sampled_loop_stable_at_0p1_ms_not_at_1_ms",
     "test_baselines_closed_loop.py::test_heart_completes[fuzzy-vertex0]",

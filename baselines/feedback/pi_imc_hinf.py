@@ -141,7 +141,7 @@ def robust_pi_gains(gain_margin_db: float = 10.0, phase_margin_deg: float = 60.0
     Parameters
     ----------
     gain_margin_db, phase_margin_deg : float
-        The design margins (10 dB, 60 degrees in the seed).
+        The design margins (10 dB, 60 degrees in Yadav et al. (2020)).
     alpha_1, b_low, b_high : float
         The plant's interval bounds (7.5 1/s; 3 and 6 m/(V s^2)), section 3.5.
     ratio_digits : int, optional

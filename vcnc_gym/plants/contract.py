@@ -4,7 +4,7 @@ A plant is one module of :mod:`vcnc_gym.plants` (Jahanpour et al. (2014)'s feed 
 :mod:`~vcnc_gym.plants.vcnc_feed_drive`).  It declares, in one place:
 
 - ``MODEL``, a :class:`PlantModel`: the parameters (name, unit, nominal
-  value per axis, uncertainty interval and the seed table each comes from),
+  value per axis, uncertainty interval and the paper's table each comes from),
   the state entries per axis, the input (name, unit, the parameter that is
   its limit), and how to build, reset and describe the plant's arrays;
 - a ``namedtuple`` class holding the arrays of N machines (at least
@@ -197,7 +197,7 @@ class PlantModel:
         Plant-specific consistency checks beyond the sign rules (raise ValueError).
     linear_coefficients : callable (params (2, P), axis) -> (num, den), optional
         Input-to-position transfer function, descending powers of s, where
-        the seed has a linear model.
+        the plant's paper gives one.
     delay : callable (params (2, P), axis) -> float, optional
         Input dead time in s of the linear model (``exp(-delay s)``), if any.
     inverse_dynamics : callable (params (2, P)) -> InverseDynamics, optional
@@ -427,7 +427,7 @@ class PlantModel:
 
     # -- linear model ----------------------------------------------------------
     def linear_model(self, params=None, axis: int = 0):
-        """The seed's linear input-to-position model of one axis as a python-control object.
+        """The paper's linear input-to-position model of one axis as a python-control object.
 
         Parameters
         ----------
@@ -446,7 +446,7 @@ class PlantModel:
         Raises
         ------
         NotImplementedError
-            If the seed gives the plant no linear model.
+            If the plant's paper gives it no linear model.
         """
         if self.linear_coefficients is None:
             raise NotImplementedError(f"plant {self.name} has no linear model")

@@ -107,12 +107,12 @@ def _interval(x_value: float, y_value: float) -> tuple:
 #: The per-axis parameters, in the order of the last axis of a parameter array.
 PARAMETERS = (
     Parameter("K", "mm/s per u_r", nominal=(50.7, 53.1), interval=_interval(50.7, 53.1),
-              source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
+              source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
               description="velocity gain K = h_max / u_r, eq. (3)",
               physical_range=(0.01, 10000),
               range_source="ours: 0.01 mm/s to 10 m/s at the rated input"),
     Parameter("alpha", "1/s", nominal=(1.475, 3.156), interval=_interval(1.475, 3.156),
-              source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
+              source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
               description="velocity pole alpha = -m, eq. (3)",
               physical_range=(0.001, 10000),
               range_source="ours: velocity-loop poles from 1 ms to 1000 s"),

@@ -30,8 +30,8 @@ with
 - ``x_t`` the table position [mm], which follows ``x_m`` through a backlash
   (play / hysteresis operator) of width ``D_b`` (Table 3):
   ``x_t <- clip(x_t, x_m - D_b/2, x_m + D_b/2)``. The table is what is
-  measured and what cuts. The cutting torque ``T_c`` of eq. (1) is zero (the
-  seed simulates air cutting).
+  measured and what cuts. The cutting torque ``T_c`` of eq. (1) is zero (Jahanpour
+  et al. simulate air cutting).
 
 The uncertain parameters and their intervals are those of the paper's
 section 2c: ``r_g`` and ``K_t`` are one value per machine shared by both
