@@ -37,13 +37,13 @@ Kernels
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 from numba import types
+from ..validation import integer, positive
 
 __all__ = [
     "Parameter",
@@ -481,10 +481,8 @@ class PlantModel:
         ``options`` go to the plant's ``make_arrays`` (its own settings); an
         unknown one is a ValueError naming those it takes.
         """
-        if isinstance(n_machines, bool) or int(n_machines) != n_machines or n_machines < 1:
-            raise ValueError(f"n_machines must be an integer >= 1, got {n_machines!r}")
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
+        n_machines = integer("n_machines", n_machines, 1)
+        dt = positive("dt", dt, "s")
         import inspect
 
         accepted = [p for p in inspect.signature(self.make_arrays).parameters][2:]

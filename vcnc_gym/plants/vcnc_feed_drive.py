@@ -93,6 +93,7 @@ from . import contract
 from .contract import Parameter, PlantModel
 from .exact_zoh import first_order
 from .stick_slip import STOPPED, STUCK, StickSlipAxis, stick_slip
+from ..validation import positive
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -251,8 +252,7 @@ def substeps_for(dt: float) -> int:
         ``ceil(dt / DEFAULT_SUBSTEP)`` (at least 1), with ratios within 1e-9
         of an integer rounded to it so that ``substeps_for(1e-4) == 10``.
     """
-    if not (dt > 0.0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be positive and finite, got {dt!r}")
+    dt = positive("dt", dt, "s")
     ratio = dt / DEFAULT_SUBSTEP
     nearest = round(ratio)
     if abs(ratio - nearest) <= 1e-9 * max(1.0, ratio):
@@ -310,9 +310,7 @@ FeedDriveArrays = namedtuple("FeedDriveArrays", ["state", "params", "dt", "n_sub
 
 def _make_arrays(n_machines: int, dt: float, substep: float = DEFAULT_SUBSTEP) -> FeedDriveArrays:
     """Arrays of N machines at rest at the origin, nominal; ``substep`` [s] the integration substep."""
-    if not (isinstance(substep, (int, float)) and not isinstance(substep, bool) and math.isfinite(substep)
-            and substep > 0):
-        raise ValueError(f"substep must be a positive finite number of seconds, got {substep!r}")
+    substep = positive("substep", substep, "s")
     params = np.repeat(MODEL.nominal()[None], n_machines, axis=0)
     return FeedDriveArrays(np.zeros((n_machines, 2, 3)), params, float(dt), max(1, math.ceil(dt / substep - 1e-9)))
 
