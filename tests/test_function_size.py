@@ -56,13 +56,14 @@ def code_lines(fn: ast.FunctionDef, not_code: set[int]) -> int:
 def long_functions(source: str, name: str = "<source>") -> list[tuple[str, int]]:
     """(``name:line function``, code lines) of every non-kernel function of ``source`` over the limit."""
     tree = ast.parse(source)
-    not_code = _comment_or_blank_lines(source)
+    candidates = [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+                  and not _is_kernel(node) and node.end_lineno - node.lineno + 1 > MAX_CODE_LINES]
+    not_code = _comment_or_blank_lines(source) if candidates else set()  # tokenized only where it can matter
     out = []
-    for node in ast.walk(tree):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_kernel(node):
-            n = code_lines(node, not_code)
-            if n > MAX_CODE_LINES:
-                out.append((f"{name}:{node.lineno} {node.name}", n))
+    for node in candidates:
+        n = code_lines(node, not_code)
+        if n > MAX_CODE_LINES:
+            out.append((f"{name}:{node.lineno} {node.name}", n))
     return out
 
 
