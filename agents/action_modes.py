@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 import gymnasium as gym
 import numpy as np
 
+from vcnc_gym.validation import real
+
 __all__ = ["ActionMode", "ResidualAction", "ACTION_MODES"]
 
 #: The action modes and what the agent's action is in each.
@@ -80,7 +82,7 @@ class ActionMode:
             if self.baseline not in baselines.names():
                 raise ValueError(f"residual mode needs a baseline among {baselines.names()}, got {self.baseline!r}")
             c = self.correction
-            if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or not 0 < c <= 2:
+            if not 0 < real("correction", c, "fraction of u_max") <= 2:
                 raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
             object.__setattr__(self, "correction", float(c))
         elif self.baseline is not None or self.correction is not None or self.baseline_params:

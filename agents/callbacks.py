@@ -61,98 +61,105 @@ def make_run_callback(config: dict, run_dir: Path, session: dict, stop, verbose:
     """
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from vcnc_gym.evaluation import run_episode
+    class RunCallback(_RunCallbackSteps, BaseCallback):
+        pass
 
-    checkpoint_freq = config["checkpoint_freq"]
-    eval_freq = config["eval_freq"]  # 0: only at the end
+    return RunCallback(config, run_dir, session, stop, verbose)
 
-    class RunCallback(BaseCallback):
-        def __init__(self):
-            super().__init__(verbose)
-            self.env = make_eval_env(config)
-            self.mode = ActionMode(**config["action_mode"])
-            self.csv = run_dir / "evaluations.csv"
-            rows = read_evaluations(self.csv)
-            self.best = best_of(rows)
-            self.last_eval_row = max((r["steps"] for r in rows), default=None)
-            self.stopped_early = False
-            self.t0 = time.perf_counter()
 
-        def stats(self) -> NormalizationStats:
-            return NormalizationStats.from_vecnormalize(self.model.get_vec_normalize_env())
+class _RunCallbackSteps:
+    """The methods of :func:`make_run_callback`'s callback (mixed into SB3's ``BaseCallback`` there, imported
+    only when a run is made)."""
 
-        def _on_training_start(self) -> None:
-            self.last_checkpoint = self.rollout_start = self.num_timesteps
-            self.last_eval = self.last_eval_row if self.last_eval_row is not None else 0
-            self.rollout_stats = self.stats()
+    def __init__(self, config: dict, run_dir: Path, session: dict, stop, verbose: int):
+        super().__init__(verbose)
+        self._config, self._run_dir, self._session, self._stop = config, run_dir, session, stop
+        self._checkpoint_freq = config["checkpoint_freq"]
+        self._eval_freq = config["eval_freq"]  # 0: only at the end
+        self.env = make_eval_env(self._config)
+        self.mode = ActionMode(**self._config["action_mode"])
+        self.csv = self._run_dir / "evaluations.csv"
+        rows = read_evaluations(self.csv)
+        self.best = best_of(rows)
+        self.last_eval_row = max((r["steps"] for r in rows), default=None)
+        self.stopped_early = False
+        self.t0 = time.perf_counter()
 
-        def _on_rollout_start(self) -> None:
-            n = self.rollout_start = self.num_timesteps
-            self.rollout_stats = self.stats()
-            # on grids of multiples of the periods (at the first update past each), whatever else was saved
-            due_eval = eval_freq > 0 and n // eval_freq > self.last_eval // eval_freq
-            if due_eval or n // checkpoint_freq > self.last_checkpoint // checkpoint_freq:
-                self.checkpoint(n, self.rollout_stats)
-            if due_eval:
-                self.evaluate(n, self.rollout_stats)
+    def stats(self) -> NormalizationStats:
+        return NormalizationStats.from_vecnormalize(self.model.get_vec_normalize_env())
 
-        def _on_step(self) -> bool:
-            if stop.signum is not None:
-                self.stopped_early = True
-                return False
-            return True
+    def _on_training_start(self) -> None:
+        self.last_checkpoint = self.rollout_start = self.num_timesteps
+        self.last_eval = self.last_eval_row if self.last_eval_row is not None else 0
+        self.rollout_stats = self.stats()
 
-        def _on_training_end(self) -> None:
-            if self.stopped_early:  # the model is the one of the rollout's start
-                self.model.num_timesteps = self.rollout_start
-                self.checkpoint(self.rollout_start, self.rollout_stats)
-                return
-            n = self.num_timesteps
-            stats = self.stats()
-            self.checkpoint(n, stats)
-            if n != self.last_eval:
-                self.evaluate(n, stats)
+    def _on_rollout_start(self) -> None:
+        n = self.rollout_start = self.num_timesteps
+        self.rollout_stats = self.stats()
+        # on grids of multiples of the periods (at the first update past each), whatever else was saved
+        due_eval = self._eval_freq > 0 and n // self._eval_freq > self.last_eval // self._eval_freq
+        if due_eval or n // self._checkpoint_freq > self.last_checkpoint // self._checkpoint_freq:
+            self.checkpoint(n, self.rollout_stats)
+        if due_eval:
+            self.evaluate(n, self.rollout_stats)
 
-        def checkpoint(self, n: int, stats: NormalizationStats) -> None:
-            model_zip, norm = checkpoint_files(run_dir / "checkpoints", n)
-            if n == self.last_checkpoint and model_zip.is_file():
-                return
-            model_zip.parent.mkdir(parents=True, exist_ok=True)
-            stats.save(norm)
-            save_model(self.model, model_zip)  # last: the zip completes the pair
-            self.last_checkpoint = n
-            session.update(end_timesteps=n, **session_rates(session["start_timesteps"], n,
-                                                            time.perf_counter() - self.t0,
-                                                            config["action_mode"]["action_repeat"]))
-            record_session(run_dir, session, self.best)
+    def _on_step(self) -> bool:
+        if self._stop.signum is not None:
+            self.stopped_early = True
+            return False
+        return True
 
-        def evaluate(self, n: int, stats: NormalizationStats) -> None:
-            self.last_eval = n
-            if n == self.last_eval_row:
-                return  # this checkpoint was evaluated before the run was resumed
-            policy = AgentPolicy(self.model, stats, self.mode, self.env)
-            r = run_episode(policy, self.env, seed=0)
-            row = evaluation_row(n, r)
-            score = row["score_um"]
-            new = not self.csv.exists()
-            with open(self.csv, "a", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=EVAL_FIELDS)
-                if new:
-                    w.writeheader()
-                w.writerow(row)
-            self.last_eval_row = n
-            for key in ("max_um", "rms_um", "score_um"):
-                self.logger.record(f"eval/contour_{key}", row[key])
-            if math.isfinite(score) and (self.best is None or score < self.best["score_um"]):
-                self.best = row
-                save_agent(run_dir / "best", self.model, stats, config, n, row)
-            if self.verbose:
-                best = f"{self.best['score_um']:.2f}" if self.best else "-"
-                print(f"eval at {n} steps: " + ("diverged" if r.diverged else
-                                                  f"max {r.max_contour_error_um:.2f} um, "
-                                                  f"RMS {r.rms_contour_error_um:.2f} um") + f" (best score {best})")
+    def _on_training_end(self) -> None:
+        if self.stopped_early:  # the model is the one of the rollout's start
+            self.model.num_timesteps = self.rollout_start
+            self.checkpoint(self.rollout_start, self.rollout_stats)
+            return
+        n = self.num_timesteps
+        stats = self.stats()
+        self.checkpoint(n, stats)
+        if n != self.last_eval:
+            self.evaluate(n, stats)
 
-    return RunCallback()
+    def checkpoint(self, n: int, stats: NormalizationStats) -> None:
+        model_zip, norm = checkpoint_files(self._run_dir / "checkpoints", n)
+        if n == self.last_checkpoint and model_zip.is_file():
+            return
+        model_zip.parent.mkdir(parents=True, exist_ok=True)
+        stats.save(norm)
+        save_model(self.model, model_zip)  # last: the zip completes the pair
+        self.last_checkpoint = n
+        rates = session_rates(self._session["start_timesteps"], n, time.perf_counter() - self.t0,
+                              self._config["action_mode"]["action_repeat"])
+        self._session.update(end_timesteps=n, **rates)
+        record_session(self._run_dir, self._session, self.best)
+
+    def evaluate(self, n: int, stats: NormalizationStats) -> None:
+        from vcnc_gym.evaluation import run_episode
+
+        self.last_eval = n
+        if n == self.last_eval_row:
+            return  # this checkpoint was evaluated before the run was resumed
+        policy = AgentPolicy(self.model, stats, self.mode, self.env)
+        r = run_episode(policy, self.env, seed=0)
+        row = evaluation_row(n, r)
+        score = row["score_um"]
+        new = not self.csv.exists()
+        with open(self.csv, "a", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=EVAL_FIELDS)
+            if new:
+                w.writeheader()
+            w.writerow(row)
+        self.last_eval_row = n
+        for key in ("max_um", "rms_um", "score_um"):
+            self.logger.record(f"eval/contour_{key}", row[key])
+        if math.isfinite(score) and (self.best is None or score < self.best["score_um"]):
+            self.best = row
+            save_agent(self._run_dir / "best", self.model, stats, self._config, n, row)
+        if self.verbose:
+            best = f"{self.best['score_um']:.2f}" if self.best else "-"
+            print(f"eval at {n} steps: " + ("diverged" if r.diverged else
+                                              f"max {r.max_contour_error_um:.2f} um, "
+                                              f"RMS {r.rms_contour_error_um:.2f} um") + f" (best score {best})")
 
 
 class StopSignal:

@@ -100,6 +100,22 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(conflict)
     if args.sweep is not None:
         return _sweep_main(parser, args)
+    _check_run_options(parser, args)
+    tensorboard = False if args.no_tensorboard else None
+    with _print_run_warnings():
+        run_dir, config, checkpoint, trainer = _prepare(parser, args, tensorboard)
+        if args.threads is not None or trainer == "lean":
+            import torch
+
+            torch.set_num_threads(args.threads or 1)
+        result = _train(args, trainer, run_dir, config, checkpoint, tensorboard)
+        if isinstance(result, int):
+            return result
+    return _report(result)
+
+
+def _check_run_options(parser, args) -> None:
+    """The options of a new or resumed run that need no file (parser.error: exit 2)."""
     if args.resume is None and args.env is None:
         parser.error("give --env ID for a new run, --resume DIR, or --sweep FILE")
     if args.resume is not None:
@@ -113,61 +129,64 @@ def main(argv: list[str] | None = None) -> int:
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads must be positive, got {args.threads}")
 
+
+def _prepare(parser, args, tensorboard):
+    """Every check, before anything is written, then the run folder prepared: (run_dir, config, checkpoint,
+    trainer)."""
     from .config import DEFAULT_CONFIG
-    from .training import check_env_id, check_training_options, learn, prepare_run
+    from .lean_ppo import check_trainer
+    from .training import check_env_id, check_training_options, prepare_run
 
-    tensorboard = False if args.no_tensorboard else None
-    with _print_run_warnings():
-        try:  # every check, before anything is written
-            check_training_options(checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
-                                   vec_env=args.vec_env, tensorboard=tensorboard)
-            if args.resume is None:
-                check_env_id(args.env)
-                if args.trainer == "lean":  # at once, before the envs are built
-                    from .lean_ppo import check_trainer
+    try:
+        check_training_options(checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
+                               vec_env=args.vec_env, tensorboard=tensorboard)
+        if args.resume is None:
+            check_env_id(args.env)
+            if args.trainer == "lean":  # at once, before the envs are built
+                check_trainer("lean", {"env_id": args.env})
+            config_file = args.config if args.config is not None else DEFAULT_CONFIG
+            run_dir, config, checkpoint = prepare_run(
+                args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
+                n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
+                checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+        else:
+            run_dir, config, checkpoint = prepare_run(
+                args.env, args.resume, resume=True, n_timesteps=args.timesteps,
+                checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+        trainer = check_trainer(args.trainer, config)
+        if trainer == "lean" and args.vec_env != "native":
+            raise ValueError("the lean trainer steps the native vector env: drop --vec-env")
+    except (ValueError, FileNotFoundError, FileExistsError) as exc:
+        parser.error(str(exc))
+    return run_dir, config, checkpoint, trainer
 
-                    check_trainer("lean", {"env_id": args.env})
-                config_file = args.config if args.config is not None else DEFAULT_CONFIG
-                run_dir, config, checkpoint = prepare_run(
-                    args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
-                    n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
-                    checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
-            else:
-                run_dir, config, checkpoint = prepare_run(
-                    args.env, args.resume, resume=True, n_timesteps=args.timesteps,
-                    checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
-            from .lean_ppo import check_trainer
 
-            trainer = check_trainer(args.trainer, config)
-            if trainer == "lean" and args.vec_env != "native":
-                raise ValueError("the lean trainer steps the native vector env: drop --vec-env")
-        except (ValueError, FileNotFoundError, FileExistsError) as exc:
-            parser.error(str(exc))
+def _train(args, trainer: str, run_dir, config, checkpoint, tensorboard):
+    """The training's result, or the exit code of a failure (its one line printed)."""
+    from .training import learn
 
-        if args.threads is not None or trainer == "lean":
-            import torch
+    try:
+        if trainer == "lean":
+            from .lean_ppo import learn as learn_lean
 
-            torch.set_num_threads(args.threads or 1)
-        try:
-            if trainer == "lean":
-                from .lean_ppo import learn as learn_lean
+            return learn_lean(run_dir, config, checkpoint, progress_bar=not args.no_progress, verbose=args.verbose)
+        return learn(run_dir, config, checkpoint, progress_bar=not args.no_progress, tensorboard=tensorboard,
+                     vec_env=args.vec_env, verbose=args.verbose)
+    except KeyboardInterrupt:  # a second Ctrl-C
+        print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+        return 130
+    except OSError as exc:  # disk full, a folder made read-only during the run: one line, no traceback
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"vcnc-train: training failed: cannot write{where}: {exc.strerror or exc}; "
+              f"{_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+        return 1
+    except Exception:
+        print(f"vcnc-train: training failed; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+        raise
 
-                result = learn_lean(run_dir, config, checkpoint, progress_bar=not args.no_progress,
-                                    verbose=args.verbose)
-            else:
-                result = learn(run_dir, config, checkpoint, progress_bar=not args.no_progress, tensorboard=tensorboard,
-                               vec_env=args.vec_env, verbose=args.verbose)
-        except KeyboardInterrupt:  # a second Ctrl-C
-            print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
-            return 130
-        except OSError as exc:  # disk full, a folder made read-only during the run: one line, no traceback
-            where = f" {exc.filename}" if exc.filename else ""
-            print(f"vcnc-train: training failed: cannot write{where}: {exc.strerror or exc}; "
-                  f"{_after_failure(run_dir, checkpoint)}", file=sys.stderr)
-            return 1
-        except Exception:
-            print(f"vcnc-train: training failed; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
-            raise
+
+def _report(result) -> int:
+    """The session's summary printed; the exit code (128 + the signal of a stopped run)."""
     resume = f"vcnc-train --resume {result.run_dir}"
     if result.interrupted is not None:
         print(f"vcnc-train: stopped by {result.interrupted} after {result.session_timesteps} agent steps of this "

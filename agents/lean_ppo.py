@@ -557,143 +557,190 @@ def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True,
 
 
 def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, stagger):
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.utils import set_random_seed
-
-    from .model_file import load_ppo
-    from .policy import AgentPolicy
-
-    h = config["hyperparams"]
-    policy_name, kwargs = ppo_arguments(h)
-    mode = ActionMode(**config["action_mode"])
-    n_envs, total = config["n_envs"], config["n_timesteps"]
-    clock = PhaseClock()
-    rolled_back = None
-    if checkpoint is None:
-        if run_dir.exists():
-            clear_new_run(run_dir, created=False)
-        run_dir.mkdir(parents=True, exist_ok=True)
-        write_yaml(run_dir / CONFIG_FILE, config)
-        done = 0
-    else:
-        done, model_zip, norm_file = checkpoint
-    eval_env = make_eval_env(config)
-    env = None
+    run = _LeanRun(run_dir, config, checkpoint, stop, device=device, verbose=verbose)
+    run.prepare_folder()
+    run.eval_env = make_eval_env(config)
     try:
         if checkpoint is not None:
-            # the checkpoint loads first (on the evaluation env's spaces, as agents.training does); then the
-            # run folder changes: the logs roll back, and only then are the monitor files opened for appending
-            # (opened before, they would be the files roll_back replaces by rename: every row lost)
-            model = load_ppo(model_zip, observation_space=eval_env.observation_space,
-                             action_space=eval_env.action_space, ppo_kwargs=kwargs, device=device)
-            norm = RunningNormalizer(NormalizationStats.load(norm_file), n_envs)
-            intact, damaged = scan_checkpoints(run_dir, n_envs)
-            damaged += [c for c in intact if c[0] > done]  # passed over by latest_checkpoint: tensors unreadable
-            rolled_back = roll_back(run_dir, config, done, damaged)
-            if rolled_back["evaluations"] or rolled_back["episodes"]:
-                note(f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
-                     f"{rolled_back['episodes']} episode(s) logged after that checkpoint (their training was lost)")
-            set_random_seed(config["seed"] + done)
-            write_yaml(run_dir / CONFIG_FILE, config)
-        env = DecisionEnv(config["env_id"], n_envs, mode, h.get("env_kwargs") or {}, config["seed"] + done,
-                          monitor_dir=run_dir / "monitor", start_steps=done, append=checkpoint is not None)
-        if checkpoint is None:
+            run.resume()
+        run.build()
+        run.start(stagger)
+        run.train(progress_bar)
+        run.finish()
+    finally:
+        if run.env is not None:
+            run.env.close()
+        run.eval_env.close()
+    return run.result()
+
+
+class _LeanRun:
+    """One session of :func:`learn`, one method per step: the run folder, the checkpoint resumed (if any), the
+    model and envs, the start (reset, stagger, the evaluation a kill cut short), the training loop with its
+    checkpoints and evaluations, the last checkpoint and the final agent, the session's record."""
+
+    def __init__(self, run_dir, config, checkpoint, stop, *, device, verbose):
+        self.run_dir, self.config, self.checkpoint, self.stop = run_dir, config, checkpoint, stop
+        self.device, self.verbose = device, verbose
+        self.h = config["hyperparams"]
+        self.policy_name, self.kwargs = ppo_arguments(self.h)
+        self.mode = ActionMode(**config["action_mode"])
+        self.n_envs, self.total = config["n_envs"], config["n_timesteps"]
+        self.repeat = config["action_mode"]["action_repeat"]
+        self.clock = PhaseClock()
+        self.rolled_back = None
+        self.env = self.eval_env = self.model = self.norm = None
+        self.interrupted = None
+
+    def prepare_folder(self) -> None:
+        """A fresh run: the folder cleared and its configuration written; a resumed one: its checkpoint."""
+        if self.checkpoint is None:
+            if self.run_dir.exists():
+                clear_new_run(self.run_dir, created=False)
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            write_yaml(self.run_dir / CONFIG_FILE, self.config)
+            self.done = 0
+        else:
+            self.done = self.checkpoint[0]
+
+    def resume(self) -> None:
+        """The checkpoint loads first (on the evaluation env's spaces, as agents.training does); then the run
+        folder changes: the logs roll back, and only then are the monitor files opened for appending (opened
+        before, they would be the files roll_back replaces by rename: every row lost)."""
+        from stable_baselines3.common.utils import set_random_seed
+
+        from .model_file import load_ppo
+
+        done, model_zip, norm_file = self.checkpoint
+        run_dir, config = self.run_dir, self.config
+        self.model = load_ppo(model_zip, observation_space=self.eval_env.observation_space,
+                              action_space=self.eval_env.action_space, ppo_kwargs=self.kwargs, device=self.device)
+        self.norm = RunningNormalizer(NormalizationStats.load(norm_file), self.n_envs)
+        intact, damaged = scan_checkpoints(run_dir, self.n_envs)
+        damaged += [c for c in intact if c[0] > done]  # passed over by latest_checkpoint: tensors unreadable
+        rolled_back = self.rolled_back = roll_back(run_dir, config, done, damaged)
+        if rolled_back["evaluations"] or rolled_back["episodes"]:
+            note(f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
+                 f"{rolled_back['episodes']} episode(s) logged after that checkpoint (their training was lost)")
+        set_random_seed(config["seed"] + done)
+        write_yaml(run_dir / CONFIG_FILE, config)
+
+    def build(self) -> None:
+        """The training envs, the model (fresh unless resumed), the trainer, the evaluations logged so far and the
+        session's record."""
+        from stable_baselines3 import PPO
+
+        config, done, n_envs = self.config, self.done, self.n_envs
+        self.env = env = DecisionEnv(config["env_id"], n_envs, self.mode, self.h.get("env_kwargs") or {},
+                                     config["seed"] + done, monitor_dir=self.run_dir / "monitor", start_steps=done,
+                                     append=self.checkpoint is not None)
+        if self.checkpoint is None:
             stub = _spaces_only(env.observation_space, env.action_space, n_envs)
-            model = PPO(policy_name, stub, seed=config["seed"], device=device, **kwargs)
-            norm = RunningNormalizer.fresh(h, env.observation_space.shape[0], n_envs)
-        model.num_timesteps = done
-        ppo = LeanPPO(model, env, norm, total, clock)
-        rows = read_evaluations(run_dir / "evaluations.csv")
-        best = best_of(rows)
+            self.model = PPO(self.policy_name, stub, seed=config["seed"], device=self.device, **self.kwargs)
+            self.norm = RunningNormalizer.fresh(self.h, env.observation_space.shape[0], n_envs)
+        self.model.num_timesteps = done
+        self.ppo = LeanPPO(self.model, env, self.norm, self.total, self.clock)
+        self.rows = read_evaluations(self.run_dir / "evaluations.csv")
+        self.best = best_of(self.rows)
         # as the SB3 trainer's callback: the schedule is the grid of multiples of eval_freq, so an evaluation
         # that a kill cut short (its checkpoint saved, its row not written) is made up at the session's start
-        last_eval = max((r["steps"] for r in rows), default=0)
-        last_checkpoint = done
-        session = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done, "wall_s": 0.0,
-                   "steps_per_s": 0.0, "control_periods_per_s": 0.0, "n_envs": n_envs, "vec_env": "native",
-                   "trainer": "lean", "status": "running"}
-        if rolled_back is not None:
-            session["rolled_back"] = rolled_back
-        repeat = config["action_mode"]["action_repeat"]
+        self.last_eval = max((r["steps"] for r in self.rows), default=0)
+        self.last_checkpoint = done
+        self.session = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done,
+                        "wall_s": 0.0, "steps_per_s": 0.0, "control_periods_per_s": 0.0, "n_envs": n_envs,
+                        "vec_env": "native", "trainer": "lean", "status": "running"}
+        if self.rolled_back is not None:
+            self.session["rolled_back"] = self.rolled_back
 
-        def save_checkpoint(n):
-            nonlocal last_checkpoint
-            model_zip_, norm_ = checkpoint_files(run_dir / "checkpoints", n)
-            model_zip_.parent.mkdir(parents=True, exist_ok=True)
-            norm.stats().save(norm_)
-            model.num_timesteps = n
-            save_model(model, model_zip_)
-            last_checkpoint = n
-            session.update(end_timesteps=n, **_session_rates(session, n, wall0, clock, repeat))
-            record_session(run_dir, session, best)
-
-        def evaluate(n):
-            nonlocal best, last_eval
-            from vcnc_gym.evaluation import run_episode
-
-            last_eval = n
-            stats = norm.stats()
-            r = run_episode(AgentPolicy(model, stats, mode, eval_env), eval_env, seed=0)
-            row = evaluation_row(n, r)
-            score = row["score_um"]
-            rows.append(row)
-            write_evaluations(run_dir / "evaluations.csv", rows)
-            if math.isfinite(score) and (best is None or score < best["score_um"]):
-                best = row
-                save_agent(run_dir / "best", model, stats, config, n, row)
-            if verbose:
-                print(f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, "
-                      f"diverged {row['diverged']}")
-
-        wall0 = t0 = time.perf_counter()  # set-up excluded, as agents.training.learn's wall time
-        with clock("env"):
-            obs = env.reset()
+    def start(self, stagger: bool) -> None:
+        """The envs reset (and staggered), the trainer started; the evaluation of the checkpoint resumed from, if a
+        kill cut it short."""
+        self.wall0 = t0 = time.perf_counter()  # set-up excluded, as agents.training.learn's wall time
+        with self.clock("env"):
+            obs = self.env.reset()
             if stagger:  # every session: a resumed one starts its envs afresh, in phase
-                obs = env.stagger(obs)
-        session["stagger_s"] = round(time.perf_counter() - t0, 3)
-        ppo.start(obs)
-        eval_freq = config["eval_freq"]
-        if eval_freq > 0 and done > 0 and done // eval_freq > last_eval // eval_freq:
-            evaluate(done)  # the evaluation of the checkpoint resumed from, cut short by a kill
-        bar = _progress(progress_bar, total, done)
-        n = done
-        interrupted = None
-        checkpoint_freq, eval_freq = config["checkpoint_freq"], config["eval_freq"]
-        while n < total:
+                obs = self.env.stagger(obs)
+        self.session["stagger_s"] = round(time.perf_counter() - t0, 3)
+        self.ppo.start(obs)
+        eval_freq, done = self.config["eval_freq"], self.done
+        if eval_freq > 0 and done > 0 and done // eval_freq > self.last_eval // eval_freq:
+            self.evaluate(done)
+        self.n = done
+
+    def train(self, progress_bar: bool) -> None:
+        """Rollouts and updates up to the run's steps or a stop signal, with the checkpoints and evaluations due."""
+        ppo, step = self.ppo, self.ppo.n_steps * self.n_envs
+        checkpoint_freq, eval_freq, total = self.config["checkpoint_freq"], self.config["eval_freq"], self.total
+        bar = _progress(progress_bar, total, self.done)
+        while self.n < total:
             ppo.collect()
-            if stop.signum is not None:  # the rollout is not trained: the checkpoint is the model as of n
-                interrupted = signal.Signals(stop.signum).name
+            if self.stop.signum is not None:  # the rollout is not trained: the checkpoint is the model as of n
+                self.interrupted = signal.Signals(self.stop.signum).name
                 break
-            with clock("update"):
-                ppo.update(n)
-            n += ppo.n_steps * n_envs
-            model.num_timesteps = n
+            with self.clock("update"):
+                ppo.update(self.n)
+            n = self.n = self.n + step
+            self.model.num_timesteps = n
             if bar is not None:
-                bar.update(ppo.n_steps * n_envs)
-            due_eval = eval_freq > 0 and n // eval_freq > last_eval // eval_freq and n < total
-            if n < total and (due_eval or n // checkpoint_freq > last_checkpoint // checkpoint_freq):
-                save_checkpoint(n)
+                bar.update(step)
+            due_eval = eval_freq > 0 and n // eval_freq > self.last_eval // eval_freq and n < total
+            if n < total and (due_eval or n // checkpoint_freq > self.last_checkpoint // checkpoint_freq):
+                self.save_checkpoint(n)
             if due_eval:
-                evaluate(n)
+                self.evaluate(n)
         if bar is not None:
             bar.close()
-        wall = time.perf_counter() - wall0
-        save_checkpoint(n)
-        if interrupted is None:
-            if n != last_eval or not rows:
-                evaluate(n)
-            save_agent(run_dir / "final", model, norm.stats(), config, n)
-        wall = time.perf_counter() - wall0
-    finally:
-        if env is not None:
-            env.close()
-        eval_env.close()
-    session.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
-                   **_session_rates(session, n, wall0, clock, repeat))
-    record_session(run_dir, session, best)
-    return TrainingResult(run_dir=run_dir, timesteps=n, session_timesteps=n - done, wall_s=wall,
-                             steps_per_s=session["steps_per_s"], control_periods_per_s=session["control_periods_per_s"],
-                             best=best, interrupted=interrupted, rolled_back=rolled_back)
+
+    def finish(self) -> None:
+        """The last checkpoint; unless interrupted, the last evaluation (if not just made) and the final agent."""
+        n = self.n
+        self.save_checkpoint(n)
+        if self.interrupted is None:
+            if n != self.last_eval or not self.rows:
+                self.evaluate(n)
+            save_agent(self.run_dir / "final", self.model, self.norm.stats(), self.config, n)
+        self.wall = time.perf_counter() - self.wall0
+
+    def save_checkpoint(self, n: int) -> None:
+        model_zip, norm_file = checkpoint_files(self.run_dir / "checkpoints", n)
+        model_zip.parent.mkdir(parents=True, exist_ok=True)
+        self.norm.stats().save(norm_file)
+        self.model.num_timesteps = n
+        save_model(self.model, model_zip)
+        self.last_checkpoint = n
+        self.session.update(end_timesteps=n, **_session_rates(self.session, n, self.wall0, self.clock, self.repeat))
+        record_session(self.run_dir, self.session, self.best)
+
+    def evaluate(self, n: int) -> None:
+        """One deterministic episode of the agent on the evaluation env, logged; the best agent kept."""
+        from vcnc_gym.evaluation import run_episode
+
+        from .policy import AgentPolicy
+
+        self.last_eval = n
+        stats = self.norm.stats()
+        r = run_episode(AgentPolicy(self.model, stats, self.mode, self.eval_env), self.eval_env, seed=0)
+        row = evaluation_row(n, r)
+        score = row["score_um"]
+        self.rows.append(row)
+        write_evaluations(self.run_dir / "evaluations.csv", self.rows)
+        if math.isfinite(score) and (self.best is None or score < self.best["score_um"]):
+            self.best = row
+            save_agent(self.run_dir / "best", self.model, stats, self.config, n, row)
+        if self.verbose:
+            print(f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, "
+                  f"diverged {row['diverged']}")
+
+    def result(self) -> TrainingResult:
+        """The session recorded (finished or interrupted) and the run's result."""
+        n, session, interrupted = self.n, self.session, self.interrupted
+        session.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
+                       **_session_rates(session, n, self.wall0, self.clock, self.repeat))
+        record_session(self.run_dir, session, self.best)
+        return TrainingResult(run_dir=self.run_dir, timesteps=n, session_timesteps=n - self.done, wall_s=self.wall,
+                              steps_per_s=session["steps_per_s"],
+                              control_periods_per_s=session["control_periods_per_s"], best=self.best,
+                              interrupted=interrupted, rolled_back=self.rolled_back)
 
 
 def _session_rates(session: dict, n: int, wall0: float, clock: PhaseClock, repeat: int) -> dict:

@@ -38,7 +38,7 @@ OMEGA = "VCNC-Omega-v1"
     ({"divergence_bound": -1.0}, "divergence_bound must be > 0"),
     ({"plant": "nope"}, "unknown plant 'nope'"),
     ({"plant_options": {"substeps": 3}}, r"unknown option\(s\) \['substeps'\]"),
-    ({"plant_options": {"substep": 0.0}}, "substep must be a positive"),
+    ({"plant_options": {"substep": 0.0}}, "substep must be > 0"),
     ({"max_episode_steps": 0}, "max_episode_steps must be an integer >= 1"),
     ({"contour": "circle-ish"}, "contour must be one of"),
 ])

@@ -282,7 +282,7 @@ def test_render_rgb_array():
     env.close()
 
 
-def test_default_control_period_makes_seed_qft_loop_stable_on_every_vertex():
+def test_default_control_period_makes_jahanpour_qft_loop_stable_on_every_vertex():
     """Jahanpour et al.'s sec. 2c G(s) with the ZOH plant: stable at the env's dt, not at 1 ms."""
     control = pytest.importorskip("control")
     g = control.tf([22.36, 61.21], [0.0001, 1.326])

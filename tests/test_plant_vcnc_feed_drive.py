@@ -411,20 +411,6 @@ def test_callable_from_njit():
     np.testing.assert_array_equal(s1, s2)
 
 
-def test_feed_drive_plant_wrapper():
-    plant = fd.FeedDrivePlant(n_machines=2)
-    assert plant.substeps == NSUB and plant.params.shape == (2, 2, fd.N_PARAMETERS)
-    plant.reset(positions=[1.0, 2.0])
-    np.testing.assert_array_equal(plant.table_position, [[1.0, 2.0], [1.0, 2.0]])
-    for _ in range(50):
-        plant.step([4.0, -4.0])
-    ref = simulate(fd.nominal_parameters(), np.tile([4.0, -4.0], (50, 1)), x0=[[1.0, 2.0]])[-1, 0]
-    np.testing.assert_array_equal(plant.state[1], ref)
-    assert plant.table_velocity.shape == (2, 2)
-    with pytest.raises(ValueError):
-        plant.reset(params=np.zeros((3, 2, fd.N_PARAMETERS)))
-
-
 # ---------------------------------------------------------------- sampling and vertices
 
 

@@ -151,9 +151,9 @@ def test_bad_dead_times_are_refused():
         c.MODEL.arrays(1, 0.01, dead_time=0.1)
 
 
-def test_zoh_coefficients_series_and_closed_form_agree():
+def test_zoh_acceleration_input_series_and_closed_form_agree():
     for a, dt in [(9.7, 1e-4), (9.7, 1e-2), (11.9, 0.0084), (11.9, 0.0085)]:  # a dt on both sides of 0.1
-        e, g, q = c.zoh_coefficients(a, dt)
+        e, g, q = c.zoh_acceleration_input(a, dt)
         assert e == pytest.approx(math.exp(-a * dt), rel=1e-15)
         assert g == pytest.approx(-math.expm1(-a * dt) / a, rel=1e-13)
         assert q == pytest.approx((dt + math.expm1(-a * dt) / a) / a, rel=1e-9)

@@ -30,6 +30,7 @@ import control
 import numpy as np
 
 from vcnc_gym.plants.cncmt_axis import METRE, PAPER_NOMINAL
+from vcnc_gym.validation import positive
 
 __all__ = [
     "PAPER_CONTROLLERS",
@@ -116,13 +117,10 @@ def imc_controller(mu: float = 1.0, lam: int = 2, a: float = PAPER_NOMINAL["a"],
     control.TransferFunction
         C(s), the unity-feedback IMC controller.
     """
-    if not (isinstance(mu, (int, float)) and math.isfinite(mu) and mu > 0):
-        raise ValueError(f"mu must be a positive filter time constant in s, got {mu!r}")
+    mu = positive("mu", mu, "s, the filter time constant")
     if isinstance(lam, bool) or not isinstance(lam, int) or lam < 2:
         raise ValueError(f"lam (lambda) must be an integer >= 2 (Q proper for a second-order G), got {lam!r}")
-    for label, v in (("a", a), ("b", b)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"{label} must be a positive real, got {v!r}")
+    a, b = positive("a", a, "1/s"), positive("b", b, "mm/(V s^2)")
     filt = np.polynomial.polynomial.polypow([1.0, mu], lam)[::-1]  # (mu s + 1)^lam, descending
     den = b * np.polysub(filt, [1.0])[:-1]  # b ((mu s + 1)^lam - 1) / s
     num = np.array([1.0, a])  # s (s + a) / s
@@ -141,7 +139,7 @@ def robust_pi_gains(gain_margin_db: float = 10.0, phase_margin_deg: float = 60.0
     Parameters
     ----------
     gain_margin_db, phase_margin_deg : float
-        The design margins (10 dB, 60 degrees in the seed).
+        The design margins (10 dB, 60 degrees in Yadav et al. (2020)).
     alpha_1, b_low, b_high : float
         The plant's interval bounds (7.5 1/s; 3 and 6 m/(V s^2)), section 3.5.
     ratio_digits : int, optional

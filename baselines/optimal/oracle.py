@@ -38,6 +38,8 @@ import warnings
 
 import numpy as np
 
+from vcnc_gym.validation import flag, integer
+
 from ..base import BaselinePolicy
 from ..registry import make, register_floor
 from ..servo import ServoPolicy
@@ -87,12 +89,11 @@ class OraclePolicy(BaselinePolicy):
         for key, value, low in (("population", population, 4), ("ilc_iterations", ilc_iterations, 0),
                                 ("rounds", rounds, 0), ("generations", generations, 1), ("windows", windows, 1),
                                 ("trials", trials, 1), ("seed", seed, 0)):
-            if isinstance(value, bool) or int(value) != value or value < low:
-                raise ValueError(f"{key} must be an integer >= {low}, got {value!r}")
+            integer(key, value, low)
         self.search = {"population": int(population), "ilc_iterations": int(ilc_iterations), "rounds": int(rounds),
                        "generations": int(generations), "windows": int(windows), "trials": int(trials),
                        "seed": int(seed)}
-        self.cache = bool(cache)
+        self.cache = flag("cache", cache)
         self.extra_starts = dict(extra_starts or {})
         for label, policy in self.extra_starts.items():
             if not isinstance(label, str) or not hasattr(policy, "predict"):

@@ -242,79 +242,109 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
     t0 = time.perf_counter()
     u = env.unwrapped
     task = u.task
-    dt = task.dt * task.config.n_repeat
-    rng = np.random.default_rng(seed)
     rollouts = Rollouts(task, parameters, population, noise_state)
     starts = warm_starts(env, rollouts, trials=trials, names=names, extra=extra_starts, log=log)
     if not starts:
         raise ValueError(f"no causal controller applies to {getattr(u.spec, 'id', task)}: no start for the floor")
     name = min(starts, key=lambda k: (starts[k].max, starts[k].rms))
-    first = starts[name]
-    rollouts.set_controller(first.policy)
-    length = int(task.max_episode_steps)
-    best, best_peak, best_rms = np.zeros((length, 2)), first.max, first.rms
-    require = first.completed  # the floor must finish the part if its start did
+    search = _Search(task, parameters, rollouts, starts[name], population, seed, log)
+    search.learn_inverse(ilc_iterations)
+    search.cross_entropy(rounds, generations, windows, window_s)
+    final, peak, rms = search.replay()
+    return Solution(start=name, correction=final, table=search.first.table, max_um=1e3 * peak, rms_um=1e3 * rms,
+                    warm_starts={k: (1e3 * v.max, 1e3 * v.rms) for k, v in starts.items()},
+                    history=np.array(search.history), solve_time_s=time.perf_counter() - t0,
+                    evaluations=rollouts.evaluations)
 
-    def score(summary):
+
+class _Search:
+    """The stages of :func:`solve` after the warm starts, about one incumbent (``best``, its peak and RMS,
+    mm): the inverse-model learning, the cross-entropy rounds and the final replay."""
+
+    def __init__(self, task, parameters, rollouts: Rollouts, first, population: int, seed: int, log):
+        self.dt = task.dt * task.config.n_repeat
+        self.rng = np.random.default_rng(seed)
+        self.rollouts, self.first, self.population, self.log = rollouts, first, population, log
+        rollouts.set_controller(first.policy)
+        self.best = np.zeros((int(task.max_episode_steps), 2))
+        self.best_peak, self.best_rms = first.max, first.rms
+        self.require = first.completed  # the floor must finish the part if its start did
+        self.history = [(0, 1e3 * self.best_peak)]
+        self.inverse = task.plant.inverse(parameters)
+        self.u_max = task.plant.input_limits(parameters)  # (2,)
+        ref = task.reference_arrays.samples
+        self.tangent = ref[:, sk.REF_TANGENT:sk.REF_TANGENT + 2]
+
+    def score(self, summary):
+        """Max and RMS per rollout; a rollout that does not finish counts inf if the start finished."""
         peak, rms = figures(summary)
-        if not require:
+        if not self.require:
             done = np.isfinite(summary[:, 0])
             peak, rms = np.where(done, summary[:, 0], np.inf), np.where(done, rms, np.inf)
         return peak, rms
 
-    history = [(0, 1e3 * best_peak)]
-    inverse = task.plant.inverse(parameters)
-    u_max = task.plant.input_limits(parameters)  # (2,)
-    ref = task.reference_arrays.samples
-    tangent = ref[:, sk.REF_TANGENT:sk.REF_TANGENT + 2]
-
-    def normal_error(tracking):
+    def normal_error(self, tracking):
+        """The tracking error's component normal to the reference's tangent."""
+        tangent = self.tangent
         n = min(len(tracking), len(tangent))
         e = np.zeros_like(tracking)
         nrm = np.column_stack([-tangent[:n, 1], tangent[:n, 0]])
         e[:n] = nrm * np.sum(tracking[:n] * nrm, axis=1, keepdims=True)
         return e
 
-    def evaluate(candidates):
-        nonlocal best, best_peak, best_rms
-        summary, _, _ = rollouts.run(np.clip(candidates, -2.0, 2.0))
-        peak, rms = score(summary)
+    def evaluate(self, candidates):
+        """Run the candidates; the incumbent moves to the best of them if it is better."""
+        summary, _, _ = self.rollouts.run(np.clip(candidates, -2.0, 2.0))
+        peak, rms = self.score(summary)
         j = int(np.lexsort((rms, peak))[0])
-        improved = _better(peak[j], rms[j], best_peak, best_rms)
+        improved = _better(peak[j], rms[j], self.best_peak, self.best_rms)
         if improved:
-            best, best_peak, best_rms = np.clip(candidates[j], -2.0, 2.0), float(peak[j]), float(rms[j])
-        history.append((rollouts.evaluations, 1e3 * best_peak))
+            self.best, self.best_peak, self.best_rms = np.clip(candidates[j], -2.0, 2.0), float(peak[j]), float(rms[j])
+        self.history.append((self.rollouts.evaluations, 1e3 * self.best_peak))
         return peak, rms, improved
 
-    # 2. inverse-model learning, a population of gains and Q cut-offs
-    nyquist = 0.5 / dt
-    gains = np.array([0.1, 0.25, 0.5, 1.0])
-    cutoffs = [min(0.02 / dt, 0.8 * nyquist), min(0.06 / dt, 0.8 * nyquist)]
-    for it in range(ilc_iterations):
-        _, _, tracking = rollouts.run(best[None], traces=True)
-        length = len(best)
-        e = normal_error(tracking[0, :length])
-        cands = []
-        for fc in cutoffs:
-            b, a = signal.butter(2, fc, fs=1.0 / dt)
-            step = signal.filtfilt(b, a, linear_inverse(inverse, e, dt), axis=0) / u_max
-            cands += [best + g * step for g in gains]
-        cands = np.array(cands[:population])
-        _, _, improved = evaluate(cands)
-        if log:
-            log(f"  learning {it + 1}: {1e3 * best_peak:.4f} um max, {1e3 * best_rms:.4f} um rms")
-        if not improved and it >= 2:
-            break
+    def learn_inverse(self, iterations: int) -> None:
+        """2. inverse-model learning, a population of gains and Q cut-offs."""
+        dt = self.dt
+        nyquist = 0.5 / dt
+        gains = np.array([0.1, 0.25, 0.5, 1.0])
+        cutoffs = [min(0.02 / dt, 0.8 * nyquist), min(0.06 / dt, 0.8 * nyquist)]
+        for it in range(iterations):
+            best = self.best
+            _, _, tracking = self.rollouts.run(best[None], traces=True)
+            e = self.normal_error(tracking[0, :len(best)])
+            cands = []
+            for fc in cutoffs:
+                b, a = signal.butter(2, fc, fs=1.0 / dt)
+                step = signal.filtfilt(b, a, linear_inverse(self.inverse, e, dt), axis=0) / self.u_max
+                cands += [best + g * step for g in gains]
+            _, _, improved = self.evaluate(np.array(cands[:self.population]))
+            if self.log:
+                self.log(f"  learning {it + 1}: {1e3 * self.best_peak:.4f} um max, {1e3 * self.best_rms:.4f} um rms")
+            if not improved and it >= 2:
+                break
 
-    # 3. cross-entropy search in windows around the largest errors
-    width = max(4, int(round((window_s if window_s is not None else 400 * dt) / dt)))
-    spacing = max(2, width // 10)
-    for rnd in range(rounds):
-        _, errors, _ = rollouts.run(best[None], traces=True)
-        length = len(best)
-        centres = _peaks(errors[0, :length], windows, width // 2)
-        # bumps: per window, centres from (peak - 0.8 width) to (peak + 0.2 width); per axis
-        basis = []  # (start, stop, axis, input correction per unit theta (normalised))
+    def cross_entropy(self, rounds: int, generations: int, windows: int, window_s: float | None) -> None:
+        """3. cross-entropy search in windows around the largest errors."""
+        dt = self.dt
+        width = max(4, int(round((window_s if window_s is not None else 400 * dt) / dt)))
+        for rnd in range(rounds):
+            _, errors, _ = self.rollouts.run(self.best[None], traces=True)
+            centres = _peaks(errors[0, :len(self.best)], windows, width // 2)
+            basis = self._basis(centres, width)
+            if not basis:
+                break
+            self._generations(basis, generations)
+            if self.log:
+                self.log(f"  search round {rnd + 1}: {1e3 * self.best_peak:.4f} um max, {1e3 * self.best_rms:.4f} "
+                         f"um rms (windows at {[round(c * dt, 4) for c in centres]} s, {self.rollouts.evaluations} "
+                         "evaluations)")
+
+    def _basis(self, centres, width: int) -> list:
+        """Bumps: per window, centres from (peak - 0.8 width) to (peak + 0.2 width); per axis.  Each (start,
+        stop, axis, input correction per unit theta (normalised))."""
+        length, spacing = len(self.best), max(2, width // 10)
+        basis = []
         for c in centres:
             lo, hi = max(0, c - int(0.8 * width)), min(length, c + int(0.2 * width))
             pad = 4 * spacing
@@ -324,24 +354,26 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
                 for axis in range(2):
                     x = np.zeros((len(seg), 2))
                     x[:, axis] = g
-                    du = linear_inverse(inverse, x, dt)[:, axis] / u_max[axis]
+                    du = linear_inverse(self.inverse, x, self.dt)[:, axis] / self.u_max[axis]
                     basis.append((seg[0], seg[-1] + 1, axis, du))
-        dim = len(basis)
-        if dim == 0:
-            break
-        scale = 0.25 * 1e3 * best_peak if np.isfinite(best_peak) else 0.5
+        return basis
+
+    def _generations(self, basis: list, generations: int) -> None:
+        """One round's generations of the cross-entropy method over the bumps' amplitudes."""
+        population, dim = self.population, len(basis)
+        scale = 0.25 * 1e3 * self.best_peak if np.isfinite(self.best_peak) else 0.5
         # three quarters of the candidates at the distribution's scale, an eighth at a tenth, an eighth at a
         # hundredth of it (where the reference cannot be followed, the steps that help are small ones)
         spread = np.where(np.arange(population) < 3 * population // 4, 1.0,
                           np.where(np.arange(population) < 7 * population // 8, 0.1, 0.01))
         mean, sigma = np.zeros(dim), np.full(dim, max(0.05, scale))  # um of displacement
-        for gen in range(generations):
-            theta = mean + sigma * rng.standard_normal((population, dim)) * spread[:, None]
+        for _ in range(generations):
+            theta = mean + sigma * self.rng.standard_normal((population, dim)) * spread[:, None]
             theta[0] = mean
-            cands = np.repeat(best[None], population, axis=0)
+            cands = np.repeat(self.best[None], population, axis=0)
             for d, (s0, s1, axis, du) in enumerate(basis):
                 cands[:, s0:s1, axis] += theta[:, d, None] * du[None]
-            peak, rms, improved = evaluate(cands)
+            peak, rms, improved = self.evaluate(cands)
             if improved:  # the incumbent moved: the distribution is now about it
                 mean = mean - theta[int(np.lexsort((rms, peak))[0])]
             order = np.lexsort((rms, peak))
@@ -350,19 +382,16 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
                 elite = elite - theta[order[0]]
             mean = 0.7 * elite.mean(axis=0) + 0.3 * mean
             sigma = 0.7 * elite.std(axis=0) + 0.3 * sigma + 1e-3
-        if log:
-            log(f"  search round {rnd + 1}: {1e3 * best_peak:.4f} um max, {1e3 * best_rms:.4f} um rms "
-                f"(windows at {[round(c * dt, 4) for c in centres]} s, {rollouts.evaluations} evaluations)")
 
-    # the correction as the kernel adds it (float32), trimmed to one trailing zero, replayed once more
-    final = best.astype(np.float32)
-    nonzero = np.flatnonzero(np.any(final != 0, axis=1))
-    final = final[:nonzero[-1] + 2] if len(nonzero) else final[:1]  # the last row (held) is 0
-    summary, _, _ = rollouts.run(final[None])
-    peak, rms = score(summary)
-    if not (peak[0] <= first.max):  # cannot happen (the kernel reads the float32 values it was scored with)
-        raise RuntimeError(f"the floor's replay {1e3 * peak[0]} um is above its start's {1e3 * first.max} um")
-    history.append((rollouts.evaluations, 1e3 * float(peak[0])))
-    return Solution(start=name, correction=final, table=first.table, max_um=1e3 * float(peak[0]),
-                    rms_um=1e3 * float(rms[0]), warm_starts={k: (1e3 * v.max, 1e3 * v.rms) for k, v in starts.items()},
-                    history=np.array(history), solve_time_s=time.perf_counter() - t0, evaluations=rollouts.evaluations)
+    def replay(self) -> tuple[np.ndarray, float, float]:
+        """The correction as the kernel adds it (float32), trimmed to one trailing zero, replayed once more: it,
+        its max and RMS, mm."""
+        final = self.best.astype(np.float32)
+        nonzero = np.flatnonzero(np.any(final != 0, axis=1))
+        final = final[:nonzero[-1] + 2] if len(nonzero) else final[:1]  # the last row (held) is 0
+        summary, _, _ = self.rollouts.run(final[None])
+        peak, rms = self.score(summary)
+        if not (peak[0] <= self.first.max):  # cannot happen (the kernel reads the float32 values it was scored with)
+            raise RuntimeError(f"the floor's replay {1e3 * peak[0]} um is above its start's {1e3 * self.first.max} um")
+        self.history.append((self.rollouts.evaluations, 1e3 * float(peak[0])))
+        return final, float(peak[0]), float(rms[0])

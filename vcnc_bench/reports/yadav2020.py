@@ -47,6 +47,7 @@ from vcnc_gym.analysis import (
 )
 from vcnc_gym.plants import cncmt_axis
 from vcnc_gym.plants.cncmt_axis import IDX_A, IDX_B, IDX_T_D, MODEL
+from vcnc_gym.validation import integer, non_negative
 
 from baselines.feedback.pi_imc_hinf import controller_names, controller_tf
 
@@ -97,8 +98,7 @@ def plant_samples(n: int = 10) -> np.ndarray:
     sequence (bases 2, 3, unscrambled, starting at its second point):
     deterministic and spread over the box.
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be a positive integer number of plants, got {n!r}")
+    n = integer("n (the number of plants)", n, 1)
     from scipy.stats import qmc
 
     (a_lo, a_hi), (b_lo, b_hi) = plant_box()
@@ -189,8 +189,7 @@ def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.
     """
     G = _plant_tf(a, b)
     C = controller_tf(controller)
-    if dead_time < 0.0 or not math.isfinite(dead_time):
-        raise ValueError(f"dead_time must be a finite dead time >= 0 s, got {dead_time!r}")
+    dead_time = non_negative("dead_time", dead_time, "s")
     if dt is None and dead_time == 0.0:
         T = control.feedback(G * C, 1)
         poles = T.poles()

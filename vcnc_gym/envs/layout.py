@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..validation import positive
+
 __all__ = ["ObservationLayout", "Field", "FIELD_NAMES", "ObservationOffsets"]
 
 #: The observation's fields by name, in the order of the vector.  The step
@@ -84,8 +86,7 @@ class ObservationLayout:
         pb, vb, ab, eb = self.position_bound, self.velocity_bound, self.acceleration_bound, self.error_bound
         for name, bound in (("position_bound", pb), ("velocity_bound", vb), ("acceleration_bound", ab),
                             ("error_bound", eb)):
-            if not (isinstance(bound, (int, float)) and np.isfinite(bound) and bound > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {bound!r}")
+            positive(name, bound)
         steps = self.preview_steps
         if (not isinstance(steps, tuple) or not steps
                 or not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in steps)):

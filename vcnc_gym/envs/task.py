@@ -157,6 +157,24 @@ class ContouringTask:
         plant_options: dict | None = None,
         shop_floor: dict | bool | None = None,
     ):
+        self._set_contour_and_plant(contour, plant, shop_floor, plant_options)
+        self._check_settings(dt, action_repeat, randomize, reward_scale, effort_weight, divergence_bound,
+                             tracking_bound, episode_end, settling_time, completion_tolerance, completion_timeout)
+        preview_steps = _as_tuple(preview_steps)
+        contour_ahead = _as_tuple(contour_ahead)
+        self._set_parameters(parameters)
+        samples, reference_end = self._plan_reference(profile, feedrate, ramp_time, max_episode_steps)
+        self._set_observation(preview_steps, contour_ahead, samples, reference_end)
+        self.config = sk.StepConfig(
+            n_repeat=self.action_repeat, reward_scale=self.reward_scale, effort_weight=self.effort_weight,
+            divergence_bound=self.divergence_bound, tracking_bound=self.tracking_bound,
+            episode_end=EPISODE_ENDS[self.episode_end], end_index=self.end_index, episode_steps=self.episode_steps,
+            max_steps=self.max_episode_steps, completion_tolerance=self.completion_tolerance,
+            progress_window=self.tracking_bound, dt=self.dt,
+        )
+
+    def _set_contour_and_plant(self, contour, plant, shop_floor, plant_options) -> None:
+        """The contour (checked regular) and the plant model (on the shop floor if asked)."""
         self.curve, self.path = make_contour(contour)
         self.curve.check_regular()  # no cusp, no turn back (NurbsCurve.check_regular), before the feed is planned
         self.contour_name = contour if isinstance(contour, str) else getattr(self.path, "name", "custom")
@@ -168,6 +186,10 @@ class ContouringTask:
         if plant_options is not None and not isinstance(plant_options, dict):
             raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
         self.plant_options = dict(plant_options or {})
+
+    def _check_settings(self, dt, action_repeat, randomize, reward_scale, effort_weight, divergence_bound,
+                        tracking_bound, episode_end, settling_time, completion_tolerance, completion_timeout) -> None:
+        """The scalar settings, checked (:mod:`vcnc_gym.validation`)."""
         self.dt = positive("dt", dt, "s")
         if not DT_RANGE[0] <= self.dt <= DT_RANGE[1]:
             raise ValueError(f"dt={dt!r} s is outside [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s; dt is the control "
@@ -189,17 +211,19 @@ class ContouringTask:
                                           else settling_time, "s")
         self.completion_tolerance = positive("completion_tolerance", completion_tolerance, "mm")
         self.completion_timeout = non_negative("completion_timeout", completion_timeout, "s")
-        preview_steps = _as_tuple(preview_steps)
-        contour_ahead = _as_tuple(contour_ahead)
 
-        # the plant's parameters
+    def _set_parameters(self, parameters) -> None:
+        """The plant's parameters: nominal, and the fixed ones if given."""
         self.nominal_parameters = self.plant.nominal()
         if parameters is not None and self.randomize:
             raise ValueError("pass either parameters= (a fixed plant) or randomize=True (a plant drawn at "
                              "every reset), not both")
         self.fixed_parameters = None if parameters is None else self.check_parameters(parameters)
 
-        # reference, computed once
+    def _plan_reference(self, profile, feedrate, ramp_time, max_episode_steps) -> tuple[np.ndarray, int]:
+        """The feed plan and the reference (computed once), the projector, the episode's lengths; the
+        reference's samples packed for the kernel and its last control period."""
+        episode_end = self.episode_end
         self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.curve, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
         samples = pack_reference(self.curve, self.reference)
@@ -221,8 +245,11 @@ class ContouringTask:
         self.max_episode_steps = (self.time_limit_steps if max_episode_steps is None else size(
             "max_episode_steps", max_episode_steps, ceiling=self.time_limit_steps,
             why=f"the episode ends at its completion time limit, {self.time_limit_steps} decisions, anyway"))
+        return samples, reference_end
 
-        # observation: nothing shown beyond the contour's end (it would be its end point, silently)
+    def _set_observation(self, preview_steps, contour_ahead, samples: np.ndarray, reference_end: int) -> None:
+        """The observation layout and the reference's arrays: nothing shown beyond the contour's end (it would be
+        its end point, silently)."""
         if isinstance(preview_steps, tuple):
             for s in preview_steps:
                 size("preview_steps", s, ceiling=reference_end,
@@ -243,13 +270,6 @@ class ContouringTask:
         self.reference_arrays = sk.ReferenceArrays(samples, np.array(self.layout.preview_steps, dtype=np.int64),
                                                    np.array(self.layout.contour_ahead, dtype=np.float64))
         self.contour_arrays = self.projector.arrays
-        self.config = sk.StepConfig(
-            n_repeat=self.action_repeat, reward_scale=self.reward_scale, effort_weight=self.effort_weight,
-            divergence_bound=self.divergence_bound, tracking_bound=self.tracking_bound,
-            episode_end=EPISODE_ENDS[episode_end], end_index=self.end_index, episode_steps=self.episode_steps,
-            max_steps=self.max_episode_steps, completion_tolerance=self.completion_tolerance,
-            progress_window=self.tracking_bound, dt=self.dt,
-        )
 
     @property
     def contour_length(self) -> float:

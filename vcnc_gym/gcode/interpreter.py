@@ -65,6 +65,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lexer import Block, GCodeError, Word, lex
+from ..validation import non_negative
 
 __all__ = ["ARC_RADIUS_TOLERANCE", "RADIUS_TOLERANCE", "ZERO_LENGTH", "MAX_COORDINATE", "MAX_FEED", "MM_PER_INCH", "Move", "Program", "interpret",
            "read_program_text"]
@@ -223,21 +224,69 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
     GCodeError
         Naming the line and the word (module docstring).
     """
-    if not (isinstance(arc_tolerance, (int, float)) and math.isfinite(arc_tolerance) and arc_tolerance >= 0):
-        raise ValueError(f"arc_tolerance must be a finite number >= 0 (mm), got {arc_tolerance!r}")
-    state = _State()
-    moves: list[Move] = []
-    ignored: list[tuple[int, str, str]] = []
-    dropped: list[str] = []
-    start = np.zeros(2)
-    rapid_after_cut: tuple[Block, Word] | None = None
+    arc_tolerance = non_negative("arc_tolerance", arc_tolerance, "mm")
+    reader = _Interpreter(arc_tolerance)
     for index, block in enumerate(blocks):
-        err = lambda msg, word=None: GCodeError(msg, block.line, _fmt(word) or None, block.text)  # noqa: E731
+        if reader.block(block):
+            _skip_rest(blocks[index + 1:], reader.ignored)
+            break
+    if not reader.moves:
+        raise GCodeError("the program has no cutting move (G01, G02 or G03 with X/Y): nothing to contour")
+    return Program(moves=reader.moves, start=reader.start, ignored=reader.ignored, warnings=reader.dropped, name=name)
+
+
+def _errors(block: Block):
+    """``err(msg, word=None)``: the GCodeError naming ``block``'s line and ``word``."""
+    return lambda msg, word=None: GCodeError(msg, block.line, _fmt(word) or None, block.text)
+
+
+class _Interpreter:
+    """One pass over the blocks, one method per step of a block (RS-274/NGC's order of execution)."""
+
+    def __init__(self, arc_tolerance: float):
+        self.arc_tolerance = arc_tolerance
+        self.state = _State()
+        self.moves: list[Move] = []
+        self.ignored: list[tuple[int, str, str]] = []
+        self.dropped: list[str] = []
+        self.start = np.zeros(2)
+        self.rapid_after_cut: tuple[Block, Word] | None = None
+
+    def block(self, block: Block) -> bool:
+        """Run one block; True if it ends the program (M02/M30) and the blocks after it are to be skipped."""
+        err = _errors(block)
+        motion_word = self._g_words(block, err)
+        ended = self._other_words(block, err)
+        _check_ranges(block, self.state.scale, err)
+        self._feed(block, err)
+        x, y = block.get("X"), block.get("Y")
+        i, j, r = block.get("I"), block.get("J"), block.get("R")
+        arc_words = [w for w in (i, j, r) if w is not None]
+        arc_to_start = motion_word is not None and motion_word.value in (2.0, 3.0) and bool(arc_words)
+        if x is None and y is None and not arc_to_start:  # an arc back to the start point: a full circle (I/J)
+            self._no_xy(block, motion_word, arc_words, err)  # or an error (R), in _arc
+            return ended
+        if self.state.motion is None:
+            raise err("coordinates without a motion mode (no G00, G01, G02 or G03 in force)", x or y)
+        target = self._target(x, y)
+        if self.state.motion == "rapid":
+            self._rapid(block, target, motion_word or x or y, arc_words, err)
+            return ended
+        self._check_cut(motion_word or x or y, err)
         number = block.get("N")
-        ended = False
-        motion_word = None
-        used = {"G", "N"}
-        # 1. feed, 2. units (table 8 puts feed mode and feed before units; F is converted with the block's units)
+        n = None if number is None else int(number.value)
+        if self.state.motion == "line":
+            if not self._line(block, target, n, arc_words, err):
+                return False  # dropped: the block's M02/M30, if any, is not read (as before the split)
+        else:
+            self.moves.append(_arc(self.state, target, i, j, r, block, n, self.arc_tolerance, err))
+        self.state.position = target
+        return ended
+
+    def _g_words(self, block: Block, err) -> Word | None:
+        """The block's G words (1. feed, 2. units: table 8 puts feed mode and feed before units; F is converted
+        with the block's units); its motion word, if any."""
+        state, motion_word = self.state, None
         for g in block.all("G"):
             if g.value in (20.0, 21.0):
                 state.scale = MM_PER_INCH if g.value == 20.0 else 1.0
@@ -250,90 +299,85 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
             elif g.value == 94.0:
                 pass  # feed per minute: the only mode
             elif g.value in _NO_OPS:
-                ignored.append((block.line, g.text, _NO_OPS[g.value]))
+                self.ignored.append((block.line, g.text, _NO_OPS[g.value]))
             elif g.value in _MOTION:
                 motion_word = g
                 state.motion = _MOTION[g.value]
             else:
                 raise err(f"{g.text} is not supported (read: G00-G03, G17, G20, G21, G90, G91, G94; "
                           f"G40, G49, G54, G80 listed as ignored)", g)
+        return motion_word
+
+    def _other_words(self, block: Block, err) -> bool:
+        """The words listed as ignored, or an error for a letter not read; True if the block ends the program."""
+        ended = False
         for w in block.words:
             if w.letter in _LISTED_LETTERS:
-                ignored.append((block.line, w.text, _LISTED_LETTERS[w.letter]))
+                self.ignored.append((block.line, w.text, _LISTED_LETTERS[w.letter]))
                 if w.letter == "M" and w.value in (2.0, 30.0):
                     ended = True
             elif w.letter not in _USED_LETTERS:
                 raise err(f"word {w.text}: the letter {w.letter} is not supported (read: G, N, F, X, Y, I, J, R, "
                           f"and M, T, S, O, Z listed as ignored)", w)
-        _check_ranges(block, state.scale, err)
+        return ended
+
+    def _feed(self, block: Block, err) -> None:
         f = block.get("F")
         if f is not None:
             if not f.value > 0:
                 raise err(f"feed {f.text} must be > 0", f)
-            state.feed = f.value * state.scale / 60.0
-        used |= {"F"}
-        x, y = block.get("X"), block.get("Y")
-        i, j, r = block.get("I"), block.get("J"), block.get("R")
-        arc_words = [w for w in (i, j, r) if w is not None]
-        if x is None and y is None:
-            if motion_word is not None and motion_word.value in (2.0, 3.0) and arc_words:
-                pass  # an arc back to the start point: a full circle (I/J) or an error (R), below
-            else:
-                if arc_words:
-                    raise err(f"word {arc_words[0].text} has no meaning without an arc move to X/Y", arc_words[0])
-                if motion_word is not None and block.get("Z") is not None:
-                    ignored.append((block.line, motion_word.text, "no X or Y: nothing moves in XY"))
-                if ended:
-                    _skip_rest(blocks[index + 1:], ignored)
-                    break
-                continue
-        if state.motion is None:
-            raise err("coordinates without a motion mode (no G00, G01, G02 or G03 in force)", x or y)
+            self.state.feed = f.value * self.state.scale / 60.0
+
+    def _no_xy(self, block: Block, motion_word, arc_words: list, err) -> None:
+        """A block that moves nothing in XY."""
+        if arc_words:
+            raise err(f"word {arc_words[0].text} has no meaning without an arc move to X/Y", arc_words[0])
+        if motion_word is not None and block.get("Z") is not None:
+            self.ignored.append((block.line, motion_word.text, "no X or Y: nothing moves in XY"))
+
+    def _target(self, x, y) -> np.ndarray:
+        """The end point of the block's move, mm (absolute or incremental)."""
+        state = self.state
         target = state.position.copy()
         for k, w in ((0, x), (1, y)):
             if w is not None:
                 v = w.value * state.scale
                 target[k] = v if state.absolute else target[k] + v
-        if state.motion == "rapid":
-            if arc_words:
-                raise err(f"word {arc_words[0].text} has no meaning in G00", arc_words[0])
-            if moves:
-                if np.hypot(*(target - state.position)) > ZERO_LENGTH:
-                    rapid_after_cut = (block, x or y)
-                ignored.append((block.line, (motion_word or x or y).text, "rapid after the cut"))
-            else:
-                start = target.copy()
-            state.position = target
-            if ended:
-                _skip_rest(blocks[index + 1:], ignored)
-                break
-            continue
-        if state.feed is None:
-            raise err(f"{_code(state.motion)} before any F word: no feed to cut at", motion_word or x or y)
-        if rapid_after_cut is not None:
-            b, w = rapid_after_cut
+        return target
+
+    def _rapid(self, block: Block, target: np.ndarray, word: Word, arc_words: list, err) -> None:
+        """G00: before the first cut it sets the contour's start; after it, it is only allowed not to move."""
+        if arc_words:
+            raise err(f"word {arc_words[0].text} has no meaning in G00", arc_words[0])
+        if self.moves:
+            if np.hypot(*(target - self.state.position)) > ZERO_LENGTH:
+                self.rapid_after_cut = (block, block.get("X") or block.get("Y"))
+            self.ignored.append((block.line, word.text, "rapid after the cut"))
+        else:
+            self.start = target.copy()
+        self.state.position = target
+
+    def _check_cut(self, word: Word, err) -> None:
+        """A cutting move needs a feed, and no rapid may have left the contour before it."""
+        if self.state.feed is None:
+            raise err(f"{_code(self.state.motion)} before any F word: no feed to cut at", word)
+        if self.rapid_after_cut is not None:
+            b, w = self.rapid_after_cut
             raise GCodeError("G00 moves X/Y between cutting moves: the env follows one continuous contour (the "
                              "rapid would leave it); split the program into one contour per part", b.line,
                              _fmt(w), b.text)
-        n = None if number is None else int(number.value)
-        if state.motion == "line":
-            if arc_words:
-                raise err(f"word {arc_words[0].text} has no meaning in G01", arc_words[0])
-            if np.hypot(*(target - state.position)) <= ZERO_LENGTH:
-                msg = f"line {block.line} ({block.text.strip()!r}): G01 to its own start point dropped (zero length)"
-                dropped.append(msg)
-                warnings.warn(msg, stacklevel=3)
-                continue
-            moves.append(Move("line", state.position.copy(), target, state.feed, block.line, n, "G01"))
-        else:
-            moves.append(_arc(state, target, i, j, r, block, n, arc_tolerance, err))
-        state.position = target
-        if ended:
-            _skip_rest(blocks[index + 1:], ignored)
-            break
-    if not moves:
-        raise GCodeError("the program has no cutting move (G01, G02 or G03 with X/Y): nothing to contour")
-    return Program(moves=moves, start=start, ignored=ignored, warnings=dropped, name=name)
+
+    def _line(self, block: Block, target: np.ndarray, n: int | None, arc_words: list, err) -> bool:
+        """A G01 move appended; False if it is dropped (zero length, with a warning)."""
+        if arc_words:
+            raise err(f"word {arc_words[0].text} has no meaning in G01", arc_words[0])
+        if np.hypot(*(target - self.state.position)) <= ZERO_LENGTH:
+            msg = f"line {block.line} ({block.text.strip()!r}): G01 to its own start point dropped (zero length)"
+            self.dropped.append(msg)
+            warnings.warn(msg, stacklevel=5)  # the caller of read_program_text, as before the split
+            return False
+        self.moves.append(Move("line", self.state.position.copy(), target, self.state.feed, block.line, n, "G01"))
+        return True
 
 
 def _check_ranges(block: Block, scale: float, err) -> None:

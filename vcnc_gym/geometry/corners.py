@@ -122,7 +122,7 @@ BEZIER_DEGREE = 5
 ANGLE_TOLERANCE = TURN_BACK_ANGLE
 
 #: The sharpest corner :func:`design_corner` blends, rad (1.2767 deg, found by
-#: bisection to 1e-8 deg; tests/test_reliability_round2.py checks either side):
+#: bisection to 1e-8 deg; tests/test_sizes_and_physical_ranges.py checks either side):
 #: below it the optimal length ratio n = l_1 / l_2 of eqs. (16), (19), (20)
 #: (about 0.0085 per degree of interior angle) falls below the search range's
 #: lower end _N_RANGE[0] = 0.01.

@@ -827,42 +827,12 @@ def interpolate(
     settings = InterpolationSettings(u_start, u_end, dt, plan.v_peak, step_tolerance)
     n = taylor_interpolate_kernel(curve.kernel_args, plan_arrays(plan), settings, out, info)
     end = info[INFO_END_CODE]
-    if end == END_SINGULAR:
-        raise ValueError(
-            f"curve has C'(u) = 0 (or not finite) at u = {float(info[INFO_U_END])!r}: the feed relation of "
-            "Jahanpour et al. (2014), eq. (9), is undefined there"
-        )
-    if end == END_UNRESOLVED:
-        raise ValueError(_unresolved(curve, plan, dt, step_tolerance, float(info[INFO_U_END]), float(t[n - 1])))
-    if end == END_FAILED:
-        k = int(info[INFO_WORST_K])
-        raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u[: k + 2], np.diff(plan.distance(t[: k + 2]))))
+    _check_end(end, info, n, t, u, curve, plan, dt, step_tolerance)
     t, u, pos, vel, acc, tan, feed = (a[:n].copy() for a in (t, u, pos, vel, acc, tan, feed))
     _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed)
 
-    u_taylor, s_planned = float(info[INFO_U_END]), float(info[INFO_S_END])
-    end_gap_u = u_end - u_taylor
-    if end == END_PROFILE and u_taylor < u_end:
-        travelled_left = float(curve.arc_length(max(u_taylor, u_start), u_end))
-    else:  # at or past u_end: overshoot to first order, |C'(u_end)| (u - u_end)
-        speed_end = float(np.linalg.norm(curve.derivatives(u_end, 1)[1]))
-        travelled_left = -speed_end * (u_taylor - u_end)
-    end_gap = travelled_left - (plan.length - s_planned)
-
-    # feedrate fluctuation over the steps made by eq. (8): all but the last
-    v_act = np.linalg.norm(np.diff(pos, axis=0), axis=1)[:-1] / dt
-    v_cmd = np.diff(plan.distance(t))[:-1] / dt
-    if v_act.size:
-        fluctuation = float(np.max(np.abs(v_act - v_cmd)) / plan.v_peak)
-    else:
-        fluctuation = float("nan")
-    t0, t1 = t[:-2], t[1:-1]
-    cruise = (np.abs(plan.velocity(t0) - plan.v_peak) <= 1e-12 * plan.v_peak) \
-        & (np.abs(plan.velocity(t1) - plan.v_peak) <= 1e-12 * plan.v_peak)
-    if np.any(cruise):
-        cruise_pct = float(100.0 * np.max(np.abs(v_act[cruise] - plan.v_peak)) / plan.v_peak)
-    else:
-        cruise_pct = float("nan")
+    end_gap, end_gap_u = _end_gap(curve, plan, info, end)
+    fluctuation, cruise_pct = _fluctuations(pos, t, plan, dt)
 
     return Reference(
         t=t,
@@ -883,6 +853,54 @@ def interpolate(
         feedrate_fluctuation=fluctuation,
         cruise_fluctuation_percent=cruise_pct,
     )
+
+
+def _check_end(end, info, n: int, t, u, curve, plan, dt: float, step_tolerance: float) -> None:
+    """ValueError for a kernel run that ended on a singular point, an unresolved step or a failed one."""
+    if end == END_SINGULAR:
+        raise ValueError(
+            f"curve has C'(u) = 0 (or not finite) at u = {float(info[INFO_U_END])!r}: the feed relation of "
+            "Jahanpour et al. (2014), eq. (9), is undefined there"
+        )
+    if end == END_UNRESOLVED:
+        raise ValueError(_unresolved(curve, plan, dt, step_tolerance, float(info[INFO_U_END]), float(t[n - 1])))
+    if end == END_FAILED:
+        k = int(info[INFO_WORST_K])
+        raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u[: k + 2], np.diff(plan.distance(t[: k + 2]))))
+
+
+def _end_gap(curve, plan, info, end) -> tuple[float, float]:
+    """The signed arc length (mm) and parameter gap the last sample closes (``Reference.end_gap``,
+    ``end_gap_u``)."""
+    u_start, u_end = curve.u_range
+    u_taylor, s_planned = float(info[INFO_U_END]), float(info[INFO_S_END])
+    end_gap_u = u_end - u_taylor
+    if end == END_PROFILE and u_taylor < u_end:
+        travelled_left = float(curve.arc_length(max(u_taylor, u_start), u_end))
+    else:  # at or past u_end: overshoot to first order, |C'(u_end)| (u - u_end)
+        speed_end = float(np.linalg.norm(curve.derivatives(u_end, 1)[1]))
+        travelled_left = -speed_end * (u_taylor - u_end)
+    end_gap = travelled_left - (plan.length - s_planned)
+    return end_gap, end_gap_u
+
+
+def _fluctuations(pos, t, plan, dt: float) -> tuple[float, float]:
+    """The feedrate fluctuation (fraction of V_peak) and the cruise's (percent); NaN where there is none."""
+    # feedrate fluctuation over the steps made by eq. (8): all but the last
+    v_act = np.linalg.norm(np.diff(pos, axis=0), axis=1)[:-1] / dt
+    v_cmd = np.diff(plan.distance(t))[:-1] / dt
+    if v_act.size:
+        fluctuation = float(np.max(np.abs(v_act - v_cmd)) / plan.v_peak)
+    else:
+        fluctuation = float("nan")
+    t0, t1 = t[:-2], t[1:-1]
+    cruise = (np.abs(plan.velocity(t0) - plan.v_peak) <= 1e-12 * plan.v_peak) \
+        & (np.abs(plan.velocity(t1) - plan.v_peak) <= 1e-12 * plan.v_peak)
+    if np.any(cruise):
+        cruise_pct = float(100.0 * np.max(np.abs(v_act[cruise] - plan.v_peak)) / plan.v_peak)
+    else:
+        cruise_pct = float("nan")
+    return fluctuation, cruise_pct
 
 
 def _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, feed) -> None:

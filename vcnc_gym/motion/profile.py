@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["PLAN_COLUMNS", "PlanArrays", "plan_state", "plan_batch", "plan_arrays", "PlanEvaluation"]
+__all__ = ["PLAN_COLUMNS", "PlanArrays", "plan_state", "plan_arrays"]
 
 #: Columns of ``coeffs``: S, V, A/2, J/6, snap/24.
 PLAN_COLUMNS = 5
@@ -68,13 +68,6 @@ def plan_state(t, breaks, coeffs):
     return s, v, a
 
 
-@njit(cache=True)
-def plan_batch(ts, breaks, coeffs, out):
-    """(S, V, A) of every time of ``ts`` into ``out`` (n, 3)."""
-    for i in range(ts.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = plan_state(ts[i], breaks, coeffs)
-
-
 def plan_arrays(plan) -> PlanArrays:
     """``(breaks, coeffs)`` of any plan in this module's form, a :class:`PlanArrays`: ``plan.kernel_args``, a
     cubic (4-column, Simba et al.'s jerk-limited plans) widened with a zero quartic column.
@@ -93,48 +86,3 @@ def plan_arrays(plan) -> PlanArrays:
     if coeffs.shape[1] < PLAN_COLUMNS:
         coeffs = np.hstack([coeffs, np.zeros((coeffs.shape[0], PLAN_COLUMNS - coeffs.shape[1]))])
     return PlanArrays(breaks, coeffs)
-
-
-class PlanEvaluation:
-    """Vectorised ``distance``, ``velocity``, ``acceleration`` and the plan's summary numbers.
-
-    A mixin for plan classes that hold ``length``, ``breaks`` and ``coeffs``
-    in the module's form.
-    """
-
-    @property
-    def kernel_args(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(breaks, coeffs)`` for :func:`plan_state` (and the interpolator)."""
-        return self.breaks, self.coeffs
-
-    @property
-    def duration(self) -> float:
-        """Total motion time, s."""
-        return float(self.breaks[-1])
-
-    @property
-    def v_peak(self) -> float:
-        """The largest feed of the plan, mm/s (at a piece start or at a stationary point inside)."""
-        t = np.linspace(0.0, self.duration, 64 * (len(self.breaks) + 1))
-        return float(max(np.max(self.velocity(t)), np.max(self.coeffs[:, 1])))
-
-    def _evaluate(self, t, column: int):
-        ts = np.asarray(t, dtype=np.float64)
-        flat = np.ascontiguousarray(ts.reshape(-1))
-        out = np.empty((flat.size, 3))
-        plan_batch(flat, self.breaks, self.coeffs, out)
-        if ts.ndim == 0:
-            return float(out[0, column])
-        return out[:, column].reshape(ts.shape)
-
-    def distance(self, t):
-        """Planned distance along the path S(t), mm, for t in s (scalar or array)."""
-        return self._evaluate(t, 0)
-
-    def velocity(self, t):
-        """Commanded feed V(t), mm/s; 0 before the start and after the end."""
-        return self._evaluate(t, 1)
-
-    def acceleration(self, t):
-        """Feed acceleration dV/dt, mm/s^2."""
-        return self._evaluate(t, 2)

@@ -13,25 +13,25 @@ read in the time domain as
 
     \\dot v = -a v + b \\,\\mathrm{sat}(u(t - T_d)), \\qquad \\dot x = v .
 
-Both axes of a machine carry this model (the suite's plants are biaxial; the
-seed has one axis and no second one to copy, so the y axis is a second copy of
+Both axes of a machine carry this model (the suite's plants are biaxial; Yadav et
+al. model one axis and no second one to copy, so the y axis is a second copy of
 the same drive, with its own draw of the uncertain parameters).
 
 Units
 -----
 The input ``u`` is the command voltage of the power amplifier [V]: the
 amplifier gain ``K_1`` is in V/V (Table 1) and Appendix A, eq. (36), writes
-``E(s) = K_1 (U(s) - B(s))``.  The output is the table position.  The seed's
+``E(s) = K_1 (U(s) - B(s))``.  The output is the table position.  Yadav et al.'s
 nomenclature gives the lead-screw pitch ``p`` in m, so ``x_0 = p theta_0``
 (eq. (44)) and eq. (2) are in m: ``b = 4.85 m/(V s^2)``.  The suite works in
-mm, so ``b`` is stored as 4850 mm/(V s^2) and the seed's controllers (V/m)
+mm, so ``b`` is stored as 4850 mm/(V s^2) and Yadav et al.'s controllers (V/m)
 are divided by 1000 to act on mm (``baselines.feedback.pi_imc_hinf``).
 
 Saturation
 ----------
 Yadav et al. (2020) gives no input limit.  ``u_max`` = 10 V, the usual +-10 V analog
-command range of servo amplifiers (our choice).  At a 10 mm step none of the
-seed's controllers comes near it (robust PI, the largest, asks 38.33 V/m x
+command range of servo amplifiers (our choice).  At a 10 mm step none of
+Yadav et al.'s controllers comes near it (robust PI, the largest, asks 38.33 V/m x
 0.01 m = 0.38 V); it bounds what an agent can ask (top speed
 ``b u_max / a`` = 5 m/s at the nominal plant).
 
@@ -46,10 +46,10 @@ plant coefficients ``a = K_1 K_2 n H_2 / (p^2 m + n^2 I_m)`` and
 - ``3 <= b <= 6`` m/(V s^2) (alpha_2 = 3 K_P and beta_3 = 6 K_I of eqs. (17), (31);
   beta_3 = 20.97 x 6 of eq. (35)).
 
-The seed never states an upper bound of ``a`` (the stability margin of
+Yadav et al. never state an upper bound of ``a`` (the stability margin of
 eq. (5) uses only alpha_1); we take ``a <= 11.9``, the lower bound mirrored
-about the nominal 9.7 (our choice).  The dead time ``T_d`` is fixed (the seed
-neglects it in its robustness analysis and gives it no interval).
+about the nominal 9.7 (our choice).  The dead time ``T_d`` is fixed (Yadav et
+al. neglect it in their robustness analysis and give it no interval).
 
 Table 1 disagrees with both, in two ways:
 
@@ -66,7 +66,7 @@ Table 1 disagrees with both, in two ways:
    H_2 are certain), while section 3.5 bounds a and b independently.
 
 We keep eq. (2) as the nominal plant and section 3.5's box (a and b
-independent), the numbers the seed's stability margins are computed from.
+independent), the numbers Yadav et al.'s stability margins are computed from.
 
 Dead time
 ---------
@@ -128,7 +128,7 @@ __all__ = [
     "TABLE_1",
     "delay_periods",
     "table1_coefficients",
-    "zoh_coefficients",
+    "zoh_acceleration_input",
     "advance_machine",
 ]
 
@@ -138,7 +138,7 @@ METRE = 1000.0
 _EQ_2 = "Yadav et al. (2020), eq. (2)"
 _SEC_35 = "Yadav et al. (2020), section 3.5, eqs. (17), (31), (35)"
 
-#: Eq. (2) in the seed's own units: a [1/s], b [m/(V s^2)], T_d [s].
+#: Eq. (2) in Yadav et al.'s own units: a [1/s], b [m/(V s^2)], T_d [s].
 PAPER_NOMINAL = {"a": 9.7, "b": 4.85, "T_d": 0.1}
 
 #: Yadav et al. (2020), Table 1: nominal value and relative uncertainty of the physical
@@ -165,7 +165,7 @@ PARAMETERS = (
               source=f"{_EQ_2} (4.85 m/(V s^2)); interval 3-6 m/(V s^2) of {_SEC_35}",
               description="gain K_1 K_2 n p / (p^2 m + n^2 I_m), eq. (30)",
               physical_range=(1, 1e+07),
-              range_source="ours: 1 mm/(V s^2) to 10 km/(V s^2), 2000 times the seed's 4.85 m/(V s^2) either way"),
+              range_source="ours: 1 mm/(V s^2) to 10 km/(V s^2), 2000 times Yadav et al.'s 4.85 m/(V s^2) either way"),
     Parameter("T_d", "s", nominal=(0.1, 0.1), source=f"{_EQ_2} (T_d = 0.1 s 'for simulation')", sign="nonnegative",
               description="input dead time, a whole number of control periods",
               physical_range=(0, 10),
@@ -228,7 +228,7 @@ def delay_periods(dead_time, dt: float, name: str = "T_d") -> int:
 
 
 def table1_coefficients(**values) -> tuple[float, float]:
-    """Eq. (1)'s plant coefficients from Table 1's physical parameters, in the seed's units.
+    """Eq. (1)'s plant coefficients from Table 1's physical parameters, in Yadav et al.'s units.
 
     Parameters
     ----------
@@ -334,8 +334,9 @@ MODEL = PlantModel(
 
 
 @numba.njit(cache=True)
-def zoh_coefficients(a, dt):
-    """Exact ZOH coefficients of ``v' = -a v + w``, ``x' = v`` over ``dt`` (``w`` held):
+def zoh_acceleration_input(a, dt):
+    """Exact ZOH coefficients of ``v' = -a v + w``, ``x' = v`` over ``dt``, the input ``w`` an acceleration
+    (mm/s^2, held; compare :func:`vcnc_gym.plants.nct_xy_table.zoh_velocity_lag`, whose input is a velocity):
     ``(E, g, q)`` with ``v1 = E v0 + g w`` and ``x1 = x0 + g v0 + q w`` (:func:`~vcnc_gym.plants.exact_zoh.first_order`)."""
     return first_order(a, dt)
 
@@ -370,7 +371,7 @@ def advance_machine(state, params, line, head, dt, k, command):
             head[k, i] = 0 if h == n else h
         else:
             applied = u
-        e, g, q = zoh_coefficients(a, dt)
+        e, g, q = zoh_acceleration_input(a, dt)
         w = b * applied
         x = state[k, i, S_X]
         v = state[k, i, S_V]

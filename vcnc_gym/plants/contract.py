@@ -4,7 +4,7 @@ A plant is one module of :mod:`vcnc_gym.plants` (Jahanpour et al. (2014)'s feed 
 :mod:`~vcnc_gym.plants.vcnc_feed_drive`).  It declares, in one place:
 
 - ``MODEL``, a :class:`PlantModel`: the parameters (name, unit, nominal
-  value per axis, uncertainty interval and the seed table each comes from),
+  value per axis, uncertainty interval and the paper's table each comes from),
   the state entries per axis, the input (name, unit, the parameter that is
   its limit), and how to build, reset and describe the plant's arrays;
 - a ``namedtuple`` class holding the arrays of N machines (at least
@@ -37,13 +37,13 @@ Kernels
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 from numba import types
+from ..validation import integer, positive
 
 __all__ = [
     "Parameter",
@@ -197,7 +197,7 @@ class PlantModel:
         Plant-specific consistency checks beyond the sign rules (raise ValueError).
     linear_coefficients : callable (params (2, P), axis) -> (num, den), optional
         Input-to-position transfer function, descending powers of s, where
-        the seed has a linear model.
+        the plant's paper gives one.
     delay : callable (params (2, P), axis) -> float, optional
         Input dead time in s of the linear model (``exp(-delay s)``), if any.
     inverse_dynamics : callable (params (2, P)) -> InverseDynamics, optional
@@ -439,7 +439,7 @@ class PlantModel:
 
     # -- linear model ----------------------------------------------------------
     def linear_model(self, params=None, axis: int = 0):
-        """The seed's linear input-to-position model of one axis as a python-control object.
+        """The paper's linear input-to-position model of one axis as a python-control object.
 
         Parameters
         ----------
@@ -458,7 +458,7 @@ class PlantModel:
         Raises
         ------
         NotImplementedError
-            If the seed gives the plant no linear model.
+            If the plant's paper gives it no linear model.
         """
         if self.linear_coefficients is None:
             raise NotImplementedError(f"plant {self.name} has no linear model")
@@ -493,10 +493,8 @@ class PlantModel:
         ``options`` go to the plant's ``make_arrays`` (its own settings); an
         unknown one is a ValueError naming those it takes.
         """
-        if isinstance(n_machines, bool) or int(n_machines) != n_machines or n_machines < 1:
-            raise ValueError(f"n_machines must be an integer >= 1, got {n_machines!r}")
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
+        n_machines = integer("n_machines", n_machines, 1)
+        dt = positive("dt", dt, "s")
         import inspect
 
         accepted = [p for p in inspect.signature(self.make_arrays).parameters][2:]

@@ -90,7 +90,7 @@ __all__ = [
     "S_Q_PREV",
     "UNCERTAINTY",
     "quantise",
-    "zoh_coefficients",
+    "zoh_velocity_lag",
     "step_axis",
 ]
 
@@ -107,12 +107,12 @@ def _interval(x_value: float, y_value: float) -> tuple:
 #: The per-axis parameters, in the order of the last axis of a parameter array.
 PARAMETERS = (
     Parameter("K", "mm/s per u_r", nominal=(50.7, 53.1), interval=_interval(50.7, 53.1),
-              source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
+              source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
               description="velocity gain K = h_max / u_r, eq. (3)",
               physical_range=(0.01, 10000),
               range_source="ours: 0.01 mm/s to 10 m/s at the rated input"),
     Parameter("alpha", "1/s", nominal=(1.475, 3.156), interval=_interval(1.475, 3.156),
-              source=f"{_EQ_4}; +-10 % interval chosen here (the seed gives none)",
+              source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
               description="velocity pole alpha = -m, eq. (3)",
               physical_range=(0.001, 10000),
               range_source="ours: velocity-loop poles from 1 ms to 1000 s"),
@@ -213,11 +213,14 @@ def quantise(x, resolution):
 
 
 @numba.njit(cache=True)
-def zoh_coefficients(alpha, dt):
-    """Exact ZOH coefficients of ``v' = alpha (K u - v)``, ``x' = v`` over ``dt``.
+def zoh_velocity_lag(alpha, dt):
+    """Exact ZOH coefficients of ``v' = alpha (K u - v)``, ``x' = v`` over ``dt``: the velocity lags the
+    velocity target ``K u`` (mm/s, held) with rate ``alpha`` (1/s).
 
     Returns ``(E, g, q)`` with ``v1 = E v0 + alpha g K u`` and ``x1 = x0 + g v0 + q K u``:
-    :func:`~vcnc_gym.plants.exact_zoh.first_order`'s ``E`` and ``g``, and ``q = alpha (dt - g) / alpha``.
+    :func:`~vcnc_gym.plants.exact_zoh.first_order`'s ``E`` and ``g``, and ``q = dt - g`` (``alpha`` times
+    its ``q``; :func:`vcnc_gym.plants.cncmt_axis.zoh_acceleration_input` keeps that ``q``, its input being an
+    acceleration).
     """
     e, g, q = first_order(alpha, dt)
     return e, g, alpha * q
@@ -232,7 +235,7 @@ def step_axis(state, k, i, u, params, dt):
     elif u < -u_r:
         u = -u_r
     ku = params[k, i, IDX_K] * u
-    e, g, q = zoh_coefficients(params[k, i, IDX_ALPHA], dt)
+    e, g, q = zoh_velocity_lag(params[k, i, IDX_ALPHA], dt)
     x = state[k, i, S_X]
     v = state[k, i, S_V]
     state[k, i, S_Q_PREV] = quantise(x, params[k, i, IDX_RESOLUTION])

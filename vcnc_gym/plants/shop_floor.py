@@ -49,8 +49,8 @@ Per control period ``dt`` of machine ``k`` (:func:`contract.advance`):
    and Altintas 2012, ch. 6, model the first axial mode of a ball-screw drive
    this way as a second-order lightly damped mode in series with the rigid
    body).  The contour error is measured on this table position.
-5. **The position sensor** (replacing the inner plant's own, e.g. seed
-   003's 1 um encoder, unless both its settings are 0): the table position plus white Gaussian noise of
+5. **The position sensor** (replacing the inner plant's own, e.g. Purtojo
+   et al.'s 1 um encoder, unless both its settings are 0): the table position plus white Gaussian noise of
    standard deviation ``noise_std`` (a per-machine splitmix64 generator,
    seeded from the env's generator at every reset:
    ``PlantModel.seed_machine``), quantised to ``encoder_resolution`` (the
@@ -92,7 +92,7 @@ from . import contract
 from .contract import Parameter, PlantModel
 
 __all__ = ["EFFECT_PARAMETERS", "EFFECT_NAMES", "MAX_DELAY", "ShopFloorArrays", "ShopFloorModel", "shop_floor",
-           "effects_off", "mode_response", "splitmix64", "normal_pair"]
+           "mode_response", "splitmix64", "normal_pair"]
 
 #: Longest delay, control periods (command or sensor): the FIFOs hold this many entries plus one.
 MAX_DELAY = 8
@@ -321,11 +321,6 @@ def shop_floor(plant, settings: dict | bool | None = True) -> ShopFloorModel:
         inner=inner,
     )
     return model
-
-
-def effects_off(plant) -> ShopFloorModel:
-    """``plant`` wrapped with every effect off (:data:`OFF`): the inner plant, through the wrapper."""
-    return shop_floor(plant, dict(OFF))
 
 
 def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -> ShopFloorArrays:

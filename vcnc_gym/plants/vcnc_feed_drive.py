@@ -30,8 +30,8 @@ with
 - ``x_t`` the table position [mm], which follows ``x_m`` through a backlash
   (play / hysteresis operator) of width ``D_b`` (Table 3):
   ``x_t <- clip(x_t, x_m - D_b/2, x_m + D_b/2)``. The table is what is
-  measured and what cuts. The cutting torque ``T_c`` of eq. (1) is zero (the
-  seed simulates air cutting).
+  measured and what cuts. The cutting torque ``T_c`` of eq. (1) is zero (Jahanpour
+  et al. simulate air cutting).
 
 The uncertain parameters and their intervals are those of the paper's
 section 2c: ``r_g`` and ``K_t`` are one value per machine shared by both
@@ -93,6 +93,7 @@ from . import contract
 from .contract import Parameter, PlantModel
 from .exact_zoh import first_order
 from .stick_slip import STOPPED, STUCK, StickSlipAxis, stick_slip
+from ..validation import positive
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -132,7 +133,6 @@ __all__ = [
     "step_feed_drives",
     "table_velocity",
     "table_velocities",
-    "FeedDrivePlant",
 ]
 
 # --------------------------------------------------------------------------
@@ -252,8 +252,7 @@ def substeps_for(dt: float) -> int:
         ``ceil(dt / DEFAULT_SUBSTEP)`` (at least 1), with ratios within 1e-9
         of an integer rounded to it so that ``substeps_for(1e-4) == 10``.
     """
-    if not (dt > 0.0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be positive and finite, got {dt!r}")
+    dt = positive("dt", dt, "s")
     ratio = dt / DEFAULT_SUBSTEP
     nearest = round(ratio)
     if abs(ratio - nearest) <= 1e-9 * max(1.0, ratio):
@@ -311,9 +310,7 @@ FeedDriveArrays = namedtuple("FeedDriveArrays", ["state", "params", "dt", "n_sub
 
 def _make_arrays(n_machines: int, dt: float, substep: float = DEFAULT_SUBSTEP) -> FeedDriveArrays:
     """Arrays of N machines at rest at the origin, nominal; ``substep`` [s] the integration substep."""
-    if not (isinstance(substep, (int, float)) and not isinstance(substep, bool) and math.isfinite(substep)
-            and substep > 0):
-        raise ValueError(f"substep must be a positive finite number of seconds, got {substep!r}")
+    substep = positive("substep", substep, "s")
     params = np.repeat(MODEL.nominal()[None], n_machines, axis=0)
     return FeedDriveArrays(np.zeros((n_machines, 2, 3)), params, float(dt), max(1, math.ceil(dt / substep - 1e-9)))
 
@@ -631,83 +628,3 @@ def _sense(plant, k, out):
                     plant.state[k, i, S_XM], plant.state[k, i, S_W], x_t,
                     plant.params[k, i, IDX_R_G], plant.params[k, i, IDX_BACKLASH])
         return impl
-
-
-# --------------------------------------------------------------------------
-# Python wrapper
-# --------------------------------------------------------------------------
-
-
-class FeedDrivePlant:
-    """N biaxial feed drives of Jahanpour et al. (2014) with validated inputs.
-
-    Holds the parameter and state arrays and calls the kernels; shapes are
-    checked in ``__init__``/``reset``, and ``step`` only converts the
-    voltage.
-
-    Parameters
-    ----------
-    params : array_like, optional
-        ``(2, P)`` or ``(N, 2, P)``; default: nominal parameters.
-    n_machines : int
-        Number of machines N (a ``(2, P)`` parameter set is shared).
-    dt : float
-        Control period [s].
-    substeps : int, optional
-        Substeps per control period; default ``substeps_for(dt)``.
-    """
-
-    def __init__(self, params=None, n_machines: int = 1, dt: float = DEFAULT_DT, substeps: int | None = None):
-        if n_machines < 1:
-            raise ValueError("n_machines must be >= 1")
-        self.n_machines = int(n_machines)
-        self.dt = float(dt)
-        self.substeps = substeps_for(self.dt) if substeps is None else int(substeps)
-        if self.substeps < 1:
-            raise ValueError("substeps must be >= 1")
-        self.params = validate_parameters(nominal_parameters() if params is None else params, self.n_machines)
-        self.state = np.zeros((self.n_machines, 2, 3), dtype=np.float64)
-        self._v = np.empty((self.n_machines, 2), dtype=np.float64)
-
-    def reset(self, positions=None, params=None) -> np.ndarray:
-        """Stop all drives at ``positions`` [mm] ((2,) or (N, 2); default 0).
-
-        Optionally replace the parameters. Returns the state array.
-        """
-        if params is not None:
-            self.params = validate_parameters(params, self.n_machines)
-        pos = np.zeros((self.n_machines, 2)) if positions is None else np.asarray(positions, dtype=np.float64)
-        pos = np.ascontiguousarray(np.broadcast_to(pos, (self.n_machines, 2)))
-        reset_feed_drives(self.state, pos)
-        return self.state
-
-    def step(self, voltage) -> np.ndarray:
-        """Advance by ``dt`` with ``voltage`` [V] ((2,) or (N, 2)); returns the state."""
-        v = np.asarray(voltage, dtype=np.float64)
-        if v.shape != (self.n_machines, 2):
-            v = np.broadcast_to(v, (self.n_machines, 2))
-        self._v[...] = v
-        step_feed_drives(self.state, self._v, self.params, self.dt, self.substeps)
-        return self.state
-
-    @property
-    def table_position(self) -> np.ndarray:
-        """Table positions x_t [mm], (N, 2) (a copy)."""
-        return self.state[:, :, S_XT].copy()
-
-    @property
-    def motor_position(self) -> np.ndarray:
-        """Motor-side positions x_m = r_g theta [mm], (N, 2) (a copy)."""
-        return self.state[:, :, S_XM].copy()
-
-    @property
-    def motor_velocity(self) -> np.ndarray:
-        """Motor angular velocities w [rad/s], (N, 2) (a copy)."""
-        return self.state[:, :, S_W].copy()
-
-    @property
-    def table_velocity(self) -> np.ndarray:
-        """Table velocities [mm/s], (N, 2); see ``table_velocity``."""
-        out = np.empty((self.n_machines, 2))
-        table_velocities(self.state, self.params, out)
-        return out

@@ -13,7 +13,7 @@ from geomdl's derivatives.
 
 Run the fuzz at a larger size, with its tally of outcomes, by
 
-    VCNC_FUZZ_EXAMPLES=1000 python -m pytest -q -s tests/test_reference_reliability.py -k fuzz
+    VCNC_FUZZ_EXAMPLES=1000 python -m pytest -q -s tests/test_reference_guarantees.py -k fuzz
 """
 
 from __future__ import annotations
