@@ -47,7 +47,8 @@ import numpy as np
 from vcnc_gym.validation import integer
 
 __all__ = ["REPS", "CONFIDENCE", "iqm", "stratified_bootstrap_ci", "probability_of_improvement",
-           "paired_difference_ci", "Verdict", "verdict", "decide"]
+           "paired_difference_ci", "Verdict", "verdict", "decide", "sampled_figures", "strongest", "robust_verdicts",
+           "format_verdicts"]
 
 #: Bootstrap replicates by default: Agarwal et al.'s figures use 2 000 for the intervals of their tables (50 000 in
 #: rliable's default); at 2 000 the endpoints of a 95 % percentile interval move by about 1 % of its width from
@@ -296,3 +297,72 @@ def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, 
     return Verdict(figure, x_label, y_label, iqm(a), iqm(b), (xl, xh), (yl, yh), d, low, high,
                    probability_of_improvement(fa, fb), paired, int(fa.size), int(reps), int(seed),
                    decide(low, high))
+
+
+# -- the bench's verdicts (vcnc-bench --plants N) ---------------------------------------------------------------
+def sampled_figures(rec: dict, figure: str) -> np.ndarray:
+    """A robust record's figure (``"max"``, ``"rms"``; um) on its sampled plants, (N,) or, with sensor-noise seeds,
+    (N, K): a diverged run infinite.  The nominal plant and the box's vertices are left out: the bootstrap
+    resamples random draws, and the vertices are not."""
+    sampled = np.array(rec["per_plant"]["kind"]) == "sample"
+    if "per_noise" in rec:
+        shape = tuple(rec["per_noise"]["shape"])
+        x = np.array([np.inf if v is None else v for v in rec["per_noise"][f"{figure}_um"]]).reshape(shape)
+        x = np.where(np.array(rec["per_noise"]["diverged"], dtype=bool).reshape(shape), np.inf, x)
+        return x[:, sampled].T
+    per = rec["per_plant"]
+    x = np.array([np.inf if v is None else v for v in per[f"{figure}_um"]], dtype=np.float64)
+    return np.where(np.array(per["diverged"], dtype=bool), np.inf, x)[sampled]
+
+
+def strongest(records: list[dict], figure: str, candidates) -> dict | None:
+    """The record among ``candidates`` (labels) with the least IQM of ``figure`` over the sampled plants (ties:
+    the least IQM of the other figure); None if there is none."""
+    other = "rms" if figure == "max" else "max"
+    pool = [r for r in records if r["policy"] in candidates]
+    if not pool:
+        return None
+    return min(pool, key=lambda r: (iqm(sampled_figures(r, figure)), iqm(sampled_figures(r, other))))
+
+
+def robust_verdicts(records: list[dict], learned, causal, *, reps: int = REPS, seed: int = 0) -> list[dict]:
+    """Per env, every learned record (label in ``learned``) against the strongest causal controller (the best IQM
+    among the labels in ``causal``, chosen per figure, so each figure meets its own strongest opponent), by
+    :func:`verdict` on the sampled plants (and noise seeds).  Each learned record gets ``verdicts`` =
+    ``{"max": ..., "rms": ...}`` (:meth:`Verdict.to_dict`); returns the rows (``env`` added), one per learned
+    record and figure.
+
+    Choosing the opponent after seeing its figures on the same plants favours the opponent a little (the
+    least of several IQMs is biased low): the rule errs toward "ties" and "loses", never toward "wins"."""
+    rows = []
+    for env_id in dict.fromkeys(r["env"] for r in records):
+        group = [r for r in records if r["env"] == env_id]
+        for rec in (r for r in group if r["policy"] in learned):
+            rec["verdicts"] = {}
+            for figure in ("max", "rms"):
+                opponent = strongest(group, figure, causal)
+                if opponent is None:
+                    continue
+                v = verdict(sampled_figures(rec, figure), sampled_figures(opponent, figure), figure=figure,
+                            x_label=rec["policy"], y_label=opponent["policy"], reps=reps, seed=seed)
+                rec["verdicts"][figure] = v.to_dict()
+                rows.append({"env": env_id, **v.to_dict()})
+    return rows
+
+
+def format_verdicts(rows: list[dict]) -> str:
+    """The verdict rows as a table: env, figure, the learned controller and the strongest causal one with their
+    IQMs and intervals (um), the difference's paired interval, P(X < Y) and the outcome."""
+    def f(v):
+        return "inf" if v is None else f"{v:.4g}"
+
+    head = (f"{'env':<28} {'fig':<3} {'learned':<8} {'IQM [95% CI] um':<28} {'strongest causal':<16} "
+            f"{'IQM [95% CI] um':<28} {'X - Y [95% CI] um':<32} {'P(X<Y)':>6} verdict")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        lines.append(f"{r['env']:<28} {r['figure']:<3} {r['x']:<8} "
+                     f"{f(r['iqm_x']) + ' [' + f(r['ci_x'][0]) + ', ' + f(r['ci_x'][1]) + ']':<28} {r['y']:<16} "
+                     f"{f(r['iqm_y']) + ' [' + f(r['ci_y'][0]) + ', ' + f(r['ci_y'][1]) + ']':<28} "
+                     f"{f(r['difference']) + ' [' + f(r['low']) + ', ' + f(r['high']) + ']':<32} "
+                     f"{r['p_improvement']:>6.2f} {r['outcome']}")
+    return "\n".join(lines)
