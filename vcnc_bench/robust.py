@@ -42,7 +42,7 @@ not reach the end; where the env gives none: steps x decision period on a
 contouring env, none on a positioning env).
 
 Sensor-noise seeds (``noise_seeds``)
------------------------------------
+------------------------------------
 On an id whose plant draws sensor noise (a shop-floor plant: its ``seed_machine``), ``noise_seeds = K`` runs
 every plant K times in the same batch, copy ``k`` of plant ``m`` as env ``k M + m``: the batch's
 ``reset(seed=s)`` seeds env ``i`` with ``s + i``, so each (plant, noise seed) pair meets its own noise
