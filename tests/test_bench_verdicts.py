@@ -112,3 +112,27 @@ def test_provenance(tmp_path):
     assert p["libraries"]["numpy"] == np.__version__
     assert {"threading_layer", "threading_layer_requested", "opt"} <= set(p["numba"])
     json.dumps(p)
+
+
+@pytest.mark.slow
+def test_plants_json_carries_scores_verdicts_noise_and_provenance(tmp_path, capsys):
+    """End to end on a cheap shop-floor id: pd-ref is added, the floor's nominal replay scores every record, the
+    agent gets a verdict per figure, every plant runs over 2 noise seeds, and the JSON is strict."""
+    out = tmp_path / "robust.json"
+    assert cli.main(["--env", "VCNC-OmegaLookaheadShop-v1", "--plants", "3", "--noise-seeds", "2", "--policy",
+                     "ff-pid", "--policy", "ppo", "--no-progress", "--json", str(out)]) == 0
+    text = out.read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    data = json.loads(text)
+    labels = [r["policy"] for r in data["robust"]]
+    assert labels == ["ff-pid", "ppo", "pd-ref"]
+    for r in data["robust"]:
+        assert r["per_noise"]["shape"] == [2, 4] and r["noise"]["noise_seeds"] == 2
+        assert r["score"]["floor"].endswith("(non-causal)")
+    pd = data["robust"][2]
+    assert pd["score"]["max"] == 0.0
+    assert {v["figure"] for v in data["verdicts"]} == {"max", "rms"}
+    assert all(v["x"] == "ppo" and v["y"] == "ff-pid" and v["n"] == 6 for v in data["verdicts"])
+    assert data["settings"]["noise_seeds"] == 2 and "provenance" in data["settings"]
+    printed = capsys.readouterr().out
+    assert "Verdicts" in printed and "Normalised contour score" in printed
