@@ -39,10 +39,11 @@ __all__ = ["FRACTION", "ReferencePDPolicy"]
 
 #: The reference PD's closed-loop double pole as a fraction of the plant's declared ``servo_bandwidth``
 #: (:attr:`vcnc_gym.plants.PlantModel.servo_bandwidth`, rad/s): a fifth of the ceiling (200 rad/s on Jahanpour et
-#: al.'s drive, 400 on Simba et al.'s, 6 on Purtojo et al.'s table).  The lowest round fraction at which the loop
-#: completes every contouring id's nominal plant: at a tenth, Purtojo et al.'s table on the shop floor lags beyond
-#: the tracking bound (0.5 mm) on the circle; at a fifth it completes there (92 um max) and stays stable on the
-#: shop floor's drives, whose structural mode and delays it does not know of (``tests/test_pd_ref.py``).
+#: al.'s drive, 400 on Simba et al.'s, 6 on Purtojo et al.'s table).  Of 0.1, 0.15 and 0.2, the one at which the
+#: loop completes every contouring id's nominal plant: at a tenth Purtojo et al.'s table on the shop floor lags
+#: beyond the tracking bound (0.5 mm) on the circle, at 0.15 it does not finish it; at a fifth it completes there
+#: (92 um max) and stays stable on the shop floor's drives, whose structural mode and delays it does not know of
+#: (``tests/test_pd_ref.py``).
 FRACTION = 0.2
 
 
