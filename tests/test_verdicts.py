@@ -121,3 +121,16 @@ def test_bad_input_names_the_argument():
         v.stratified_bootstrap_ci(np.ones(3), confidence=1.5)
     with pytest.raises(ValueError, match="NaN"):
         v.paired_difference_ci(np.array([1.0, np.nan]), np.ones(2))
+
+
+def test_own_interval_resamples_plants_not_runs():
+    """With noise seeds the runs of one plant are not independent: a controller's own interval resamples plants
+    (then seeds within them), so copying every run K times does not narrow it (a bootstrap over the K N runs as if
+    independent would, by about sqrt(K))."""
+    rng = np.random.default_rng(4)
+    y = rng.lognormal(1.0, 0.8, 15)
+    one = v.verdict(y * 0.9, y, figure="max", x_label="a", y_label="b", reps=2000, seed=1)
+    five = v.verdict(np.repeat((y * 0.9)[:, None], 5, 1), np.repeat(y[:, None], 5, 1), figure="max", x_label="a",
+                     y_label="b", reps=2000, seed=1)
+    w1, w5 = one.ci_y[1] - one.ci_y[0], five.ci_y[1] - five.ci_y[0]
+    assert w5 == pytest.approx(w1, rel=0.25)

@@ -238,8 +238,8 @@ class Verdict:
     iqm_x, iqm_y : float
         um.
     ci_x, ci_y : (float, float)
-        Each one's own stratified-bootstrap interval of the IQM, um (for the table; the verdict reads the
-        paired interval).
+        Each one's own bootstrap interval of the IQM, um, resampling plants and, within each, noise seeds (for
+        the table; the verdict reads the paired interval of the difference).
     difference, low, high : float
         ``IQM(X) - IQM(Y)`` and its paired-bootstrap 95 % interval, um.
     p_improvement : float
@@ -290,8 +290,10 @@ def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, 
     """
     a, b = _scores("x", x, (1, 2)), _scores("y", y, (1, 2))
     d, low, high = paired_difference_ci(a, b, reps=reps, seed=seed, confidence=confidence)
-    _, xl, xh = stratified_bootstrap_ci(a.reshape(-1), reps=reps, seed=seed, confidence=confidence)
-    _, yl, yh = stratified_bootstrap_ci(b.reshape(-1), reps=reps, seed=seed, confidence=confidence)
+    # each one's own interval by the same two-level resampling (plants, then noise seeds within a plant): the
+    # runs of one plant are not independent draws
+    _, xl, xh = paired_difference_ci(a, np.zeros_like(a), reps=reps, seed=seed, confidence=confidence)
+    _, yl, yh = paired_difference_ci(b, np.zeros_like(b), reps=reps, seed=seed, confidence=confidence)
     fa, fb = a.reshape(-1), b.reshape(-1)
     paired = float(np.mean((fa < fb) + 0.5 * (fa == fb)))
     return Verdict(figure, x_label, y_label, iqm(a), iqm(b), (xl, xh), (yl, yh), d, low, high,
