@@ -22,6 +22,7 @@ from .feedforward.online import OnlineFeedforwardPIDPolicy
 from .feedforward.zpetc import ZPETCPolicy
 from .feedback.fuzzy import FuzzyPolicy
 from .feedback.nctf import NCTFPolicy
+from .feedback.pd_ref import ReferencePDPolicy
 from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPolicy, PIPolicy
 from .feedback.qft import QFTPolicy
 from .feedback.smc import SlidingModePolicy
@@ -42,6 +43,7 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     HinfPolicy,  # their eq. (28)
     HinfReducedPolicy,  # their eq. (29)
     NCTFPolicy,  # Purtojo et al., Fig. 1(a), Table I, eqs. (1)-(2)
+    ReferencePDPolicy,  # the normalised score's 0: PD by pole placement at a fixed fraction of servo_bandwidth
     # feedforward
     FeedforwardPIDPolicy,  # inverse-model feedforward + PID, every plant
     ZPETCPolicy,  # Tomizuka (1987), every plant

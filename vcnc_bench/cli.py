@@ -38,8 +38,19 @@ plants diverged or, without diverging, did not complete::
     vcnc-bench --plants 100                     # every policy of the default table's ids: 100 plants (+ vertices)
     vcnc-bench --env VCNC-Omega-v1 --plants 100 --plant-seed 1 --json robust.json --plots robust-plots
 
+Every env's records also get the normalised contour score (:mod:`vcnc_bench.score`: 0 = the reference PD
+``pd-ref``, 1 = the non-causal floor; on the nominal plant, and per plant where the floor ran on them): the bench
+adds ``pd-ref`` to an env's runs, and the floor's replay on the nominal plant where the floor is not among them.
+Where a ``ppo`` agent ran, its **verdict** against the strongest causal controller (per figure, max and RMS) is
+printed with the IQMs over the sampled plants, the paired-bootstrap 95 % interval of their difference and
+P(X < Y) (:mod:`vcnc_bench.verdicts`): "wins" only when the interval lies below zero.  ``--noise-seeds K`` runs
+every plant of an id with a noisy sensor (the shop-floor ids) over K sensor-noise seeds and reports their
+distribution; the verdicts then pair plants and noise seeds::
+
+    vcnc-bench --env VCNC-HeartShop-v1 --plants 20 --noise-seeds 5 --policy ff-pid --policy ppo
+
 There ``--json`` writes ``{"settings": {...}, "robust": [one record per env
-and policy, with every plant's figures]}`` and ``--plots`` one
+and policy, with every plant's figures], "verdicts": [...]}`` and ``--plots`` one
 ``ENV_robust.png`` per env (box plots of max and RMS over the samples, the
 vertices and the nominal plant marked, log scale).  A policy that learns
 across episodes (ILC) runs its first trial unless ``--trials K`` is given
@@ -79,9 +90,10 @@ from vcnc_gym.validation import size
 
 from .options import check_program_options, program_tolerance
 from .papers import paper_figures
-from . import programs, robust
+from . import programs, robust, score, verdicts
 from .plots import shown_labels
-from .headroom import headroom
+from .headroom import NON_CAUSAL, headroom
+from .provenance import provenance
 from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, resolve_policy,
                        split_spec)
 from .runner import BuildError, EnvRecipe, EnvRuns, idle_cores, label_of, run_table
@@ -170,8 +182,13 @@ def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True
     }
 
 
-def _json_safe(rec: dict) -> dict:
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
+def _json_safe(rec):
+    """``rec`` with every non-finite float (at any depth) as None: strict JSON."""
+    if isinstance(rec, dict):
+        return {k: _json_safe(v) for k, v in rec.items()}
+    if isinstance(rec, (list, tuple)):
+        return [_json_safe(v) for v in rec]
+    return None if isinstance(rec, float) and not math.isfinite(rec) else rec
 
 
 # -- command line -------------------------------------------------------------------------
@@ -211,6 +228,9 @@ def _parser() -> argparse.ArgumentParser:
                         "divergences")
     p.add_argument("--plant-seed", type=int, default=0, metavar="S",
                    help="seed of the plants drawn by --plants, >= 0 (default 0)")
+    p.add_argument("--noise-seeds", type=int, default=1, metavar="K",
+                   help="with --plants: every plant of an id with a noisy sensor (the shop-floor ids) over K "
+                        "sensor-noise seeds, their distribution reported and paired in the verdicts (default 1)")
     p.add_argument("--parallel", action="store_true",
                    help="with --plants: spread each batch of plants over numba's threads (faster on idle cores, "
                         "far slower on cores other processes use; default one thread)")
@@ -273,7 +293,9 @@ def _check_sizes(args, envs: dict, parser) -> None:
     try:
         if args.plants is not None:
             for env in envs.values():
-                robust.check_plants(args.plants, env)
+                copies = args.noise_seeds if robust.noisy(env.unwrapped.plant) else 1
+                robust.check_plants((args.plants + 1) * copies, env,
+                                    "--plants" if copies == 1 else "--plants x --noise-seeds")
         if args.trials is not None:
             steps = max(int(env.unwrapped.episode_steps) for env in envs.values())
             size("--trials", args.trials, ceiling=MAX_TRIALS,
@@ -300,6 +322,10 @@ def _check_arguments(args, parser) -> None:
         parser.error(f"--plants must be >= 1, got {args.plants}")
     if args.plant_seed < 0:
         parser.error(f"--plant-seed must be >= 0, got {args.plant_seed}")
+    if args.noise_seeds < 1:
+        parser.error(f"--noise-seeds must be >= 1, got {args.noise_seeds}")
+    if args.noise_seeds > 1 and args.plants is None:
+        parser.error("--noise-seeds K runs every plant of --plants N over K sensor-noise seeds: add --plants N")
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
     if args.parallel and args.plants is None:
@@ -518,7 +544,8 @@ def _write_json(args, results: dict, records: list[dict], jobs: int) -> None:
     """``--json``: the settings, the plan (every env's policy labels) and the records."""
     settings = {"seed": args.seed, "trials": args.trials or DEFAULT_TRIALS, "feedrate": args.feedrate,
                 "plant": args.plant, "all": args.all, "jobs": jobs,
-                "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None}
+                "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None,
+                "provenance": provenance()}
     plan = {key: [run.label for run in env_runs.runs] for key, env_runs in results.items()}
     out = {"settings": settings, "plan": plan, "records": [_json_safe(r) for r in records]}
     args.json.write_text(json.dumps(out, indent=2) + "\n")
@@ -594,11 +621,79 @@ def _robust_main(args, recipes: list[EnvRecipe], parser, wall0: float) -> int:
                 parser.error(f"cannot build policy {spec!r} for {r.key}: {exc}")
     if not runs:
         parser.error(f"no policies to run: {policy_choices()}")
+    runs = _with_reference(runs, envs)
     code = _robust(args, envs, runs)
     for env in envs.values():
         env.close()
     print(f"total wall time {time.perf_counter() - wall0:.1f} s")
     return code
+
+
+def _with_reference(runs: list, envs: dict) -> list:
+    """``runs`` with the normalised score's reference PD (:data:`vcnc_bench.score.REFERENCE`) added to every env
+    it applies to and where it is not already run: a compiled servo law, a fraction of the cheapest run's cost."""
+    out = list(runs)
+    for env_id in dict.fromkeys(e for e, _, _ in runs):
+        if any(label_of(s, p) == score.REFERENCE for e, s, p in runs if e == env_id):
+            continue
+        try:
+            policy = resolve_policy(score.REFERENCE, envs[env_id])
+        except ValueError:  # not a contouring env (the positioning env): no score
+            continue
+        last = max(i for i, (e, _, _) in enumerate(out) if e == env_id)
+        out.insert(last + 1, (env_id, score.REFERENCE, policy))
+    return out
+
+
+def _nominal_floors(args, envs: dict, runs: list) -> dict:
+    """The floor's figures on the nominal plant of every env whose runs hold no floor: the oracle's replay of its
+    shipped solution (only for the ids' own configuration: default feedrate and plant, seed 0; elsewhere a
+    solve costs minutes and the score is left out).  ``{env: {"max_um", "rms_um", "label"}}``."""
+    out = {}
+    if args.feedrate is not None or args.plant is not None or args.seed != 0:
+        return out
+    for env_id in dict.fromkeys(e for e, _, _ in runs):
+        if any(label_of(s, p).endswith(NON_CAUSAL) for e, s, p in runs if e == env_id):
+            continue
+        env = envs[env_id]
+        try:
+            oracle = resolve_policy("oracle", env)
+        except ValueError:
+            continue
+        u = env.unwrapped
+        batch = robust.make_batch(env_id, 1)
+        try:
+            res = robust.run_plants(oracle, batch, u.nominal_parameters[None], decision_period=u.decision_period,
+                                    seed=args.seed)
+        finally:
+            batch.close()
+        out[env_id] = {"max_um": float(res.max_um[0]), "rms_um": float(res.rms_um[0]),
+                       "label": label_of("oracle", oracle)}
+    return out
+
+
+def _print_scores(records: list[dict]) -> None:
+    """The normalised scores of every record (nominal plant; IQM over the plants where the floor ran on them)."""
+    rows = [r for r in records if r.get("score")]
+    if not rows:
+        return
+    first = rows[0]["score"]
+    print(f"\nNormalised contour score (0 = {first['reference']}, the reference PD; 1 = the non-causal floor), "
+          "on the nominal plant, max and RMS contour error (vcnc_bench.score)")
+    width = max(len(r["env"]) for r in rows)
+    pw = max(len(r["policy"]) for r in rows)
+    env = None
+    for r in rows:
+        if r["env"] != env:
+            env = r["env"]
+            s = r["score"]
+            print(f"  {env}: pd-ref {s['reference_nominal_um']['max']:.4g} um, floor "
+                  f"{s['floor_nominal_um']['max']:.4g} um (max)")
+        s = r["score"]
+        cell = " ".join("      -" if s[k] is None else f"{s[k]:7.3f}" for k in ("max", "rms"))
+        iqm = "".join(f"  IQM {k} {s[f'iqm_{k}'][0]:.3f} [{s[f'iqm_{k}'][1]:.3f}, {s[f'iqm_{k}'][2]:.3f}]"
+                      for k in ("max", "rms") if s.get(f"iqm_{k}") and None not in s[f"iqm_{k}"])
+        print(f"  {r['env']:<{width}} {r['policy']:<{pw}} {cell}{iqm}")
 
 
 def _robust(args, envs: dict, runs: list) -> int:
@@ -611,7 +706,13 @@ def _robust(args, envs: dict, runs: list) -> int:
               disable=True if args.no_progress else None) as bar:
         records, plant_sets = robust.evaluate([(e, label_of(s, p), p) for e, s, p in runs], envs, args.plants,
                                               plant_seed=args.plant_seed, seed=args.seed, trials=trials,
-                                              env_kwargs=kwargs, parallel=args.parallel, bar=bar)
+                                              env_kwargs=kwargs, parallel=args.parallel, bar=bar,
+                                              noise_seeds=args.noise_seeds)
+    score.add_scores(records, _nominal_floors(args, envs, runs))
+    learned = {label_of(s, p) for _, s, p in runs if split_spec(s)[0] == "ppo"}
+    causal = {label_of(s, p) for _, s, p in runs
+              if split_spec(s)[0] != "ppo" and getattr(p, "causal", True) is not False}
+    verdict_rows = verdicts.robust_verdicts(records, learned, causal, seed=args.seed)
     print(f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "
           f"{args.plants} plants drawn uniformly from the box (plant seed {args.plant_seed}), worst over them and "
           f"the box's vertices where it has at most {robust.MAX_VERTICES}; cycle time in s; a diverged plant counts "
@@ -628,10 +729,33 @@ def _robust(args, envs: dict, runs: list) -> int:
     nominal_bad = [f"{r['env']} {r['policy']}" for r in records if not r["nominal_completed"]]
     if nominal_bad:
         print(f"\nNOT COMPLETE on the nominal plant (diverged or cut short): {', '.join(nominal_bad)}")
+    noisy = [r for r in records if "noise" in r]
+    if noisy:
+        print(f"\nSensor noise: every plant over {args.noise_seeds} noise seeds (the figures above: seed 0's); "
+              "nominal plant min / median / max over the seeds, median spread (max - min) per sampled plant, IQM "
+              "over every (sampled plant, seed) run, um")
+        for r in noisy:
+            n = r["noise"]
+            print(f"  {r['env']} {r['policy']}: " + "; ".join(
+                f"{k} {n[k]['nominal_min_um']:.4g} / {n[k]['nominal_median_um']:.4g} / {n[k]['nominal_max_um']:.4g}"
+                f", spread {n[k]['median_spread_um']:.3g}, IQM {n[k]['iqm_um']:.4g}" for k in ("max", "rms")))
+    _print_scores(records)
+    if verdict_rows:
+        print(f"\nVerdicts (vcnc_bench.verdicts): the learned controller X against the strongest causal controller Y "
+              f"of each figure, IQM over the {args.plants} sampled plants"
+              + (f" x {args.noise_seeds} noise seeds on noisy sensors" if args.noise_seeds > 1 else "")
+              + f", 95 % stratified-bootstrap intervals ({verdicts.REPS} replicates); X - Y: the paired bootstrap of "
+              "the IQMs' difference (the same plants and noise for both); P(X<Y): X's error the lower (lower is "
+              "better); 'wins'/'loses' only when the difference's interval excludes zero, else 'ties'")
+        print(verdicts.format_verdicts(verdict_rows))
     if args.json is not None:
         settings = {"plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
-                    "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate, "plant": args.plant}
-        out = {"settings": settings, "robust": [_json_safe(r) for r in records]}
+                    "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate, "plant": args.plant,
+                    "noise_seeds": args.noise_seeds, "bootstrap": {"reps": verdicts.REPS, "seed": args.seed,
+                                                                   "confidence": verdicts.CONFIDENCE},
+                    "provenance": provenance()}
+        out = {"settings": settings, "robust": [_json_safe(r) for r in records],
+               "verdicts": [_json_safe(r) for r in verdict_rows]}
         args.json.write_text(json.dumps(out, indent=2) + "\n")
         print(f"\nwrote {len(records)} robust records to {args.json}")
     if args.plots is not None:

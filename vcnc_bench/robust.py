@@ -41,6 +41,16 @@ diverged); the cycle time ``info["cycle_time"]`` (s, NaN if the tool did
 not reach the end; where the env gives none: steps x decision period on a
 contouring env, none on a positioning env).
 
+Sensor-noise seeds (``noise_seeds``)
+------------------------------------
+On an id whose plant draws sensor noise (a shop-floor plant: its ``seed_machine``), ``noise_seeds = K`` runs
+every plant K times in the same batch, copy ``k`` of plant ``m`` as env ``k M + m``: the batch's
+``reset(seed=s)`` seeds env ``i`` with ``s + i``, so each (plant, noise seed) pair meets its own noise
+realisation, and every policy meets the same ones (the verdicts' pairing, :mod:`vcnc_bench.verdicts`).  The
+record's figures above stay copy 0's (reset seed ``s + m``, the run without ``noise_seeds``); ``per_noise``
+holds every copy's, (K, M), and ``noise`` their distribution (:func:`noise_summary`).  On a plant without
+noise the copies would be identical: it runs once.
+
 The figures (:func:`summarize`)
 -------------------------------
 Median and 95th percentile over the N samples (a uniform draw over the box;
@@ -64,7 +74,7 @@ from vcnc_gym.envs import suite_env
 from vcnc_gym.validation import integer, size
 
 __all__ = ["MAX_VERTICES", "PlantSet", "PlantRuns", "SingleEnvBatch", "plant_set", "make_batch", "run_plants",
-           "summarize", "evaluate", "ROBUST_COLUMNS", "plot_robust"]
+           "summarize", "evaluate", "ROBUST_COLUMNS", "plot_robust", "noisy", "noise_summary", "split_noise"]
 
 #: The vertices of the box join the plants when there are at most this many (2^6: at most 6 uncertain coordinates).
 MAX_VERTICES = 64
@@ -355,6 +365,43 @@ def summarize(runs: PlantRuns, plants: PlantSet, plant_model=None) -> dict:
     return rec
 
 
+def noisy(plant) -> bool:
+    """True if ``plant`` (a PlantModel) draws sensor noise per machine at reset (its ``seed_machine``)."""
+    return getattr(plant, "seed_machine", None) is not None
+
+
+def split_noise(runs: PlantRuns, k: int) -> tuple[PlantRuns, dict]:
+    """``runs`` of K copies of M plants (env ``k M + m``) as copy 0's :class:`PlantRuns` (M) and every copy's
+    figures, ``{"max_um", "rms_um", "diverged", "completed"}`` each (K, M)."""
+    m = runs.max_um.size // k
+    shaped = {name: getattr(runs, name).reshape(k, m) for name in
+              ("max_um", "rms_um", "cycle_time_s", "diverged", "completed", "steps")}
+    first = PlantRuns(shaped["max_um"][0], shaped["rms_um"][0], shaped["cycle_time_s"][0], runs.has_cycle_time,
+                      shaped["diverged"][0], shaped["completed"][0], shaped["steps"][0], runs.trials, runs.wall_s)
+    return first, {name: shaped[name] for name in ("max_um", "rms_um", "diverged", "completed")}
+
+
+def noise_summary(per_noise: dict, plants: PlantSet) -> dict:
+    """The distribution over the noise seeds: per figure (max, RMS; um, a diverged run infinite) the nominal
+    plant's min, median and max over the K seeds, and over the sampled plants the median of each plant's spread
+    (max - min over its seeds) and the IQM over every (sampled plant, seed) run."""
+    from .verdicts import iqm
+
+    kinds = np.array(plants.kinds)
+    sampled = kinds == "sample"
+    out: dict = {"noise_seeds": int(per_noise["max_um"].shape[0])}
+    for name in ("max", "rms"):
+        x = np.where(per_noise["diverged"], np.inf, per_noise[f"{name}_um"])  # (K, M)
+        nominal = x[:, 0]
+        with np.errstate(invalid="ignore"):
+            spread = x[:, sampled].max(axis=0) - x[:, sampled].min(axis=0)
+        out[name] = {"nominal_min_um": float(nominal.min()), "nominal_median_um": float(np.median(nominal)),
+                     "nominal_max_um": float(nominal.max()),
+                     "median_spread_um": _quantile(np.where(np.isnan(spread), np.inf, spread), 0.5),
+                     "iqm_um": iqm(x[:, sampled]) if sampled.any() else math.nan}
+    return out
+
+
 def _finite_or_none(x: np.ndarray) -> list:
     return [float(v) if math.isfinite(v) else None for v in x]
 
@@ -442,7 +489,8 @@ def plot_robust(records: list[dict], path, *, title: str | None = None):
 
 # -- the bench's robust mode ------------------------------------------------------------------------
 def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int = 0, trials: int = 1,
-             env_kwargs: dict | None = None, parallel: bool = False, bar=None) -> tuple[list[dict], dict]:
+             env_kwargs: dict | None = None, parallel: bool = False, bar=None,
+             noise_seeds: int = 1) -> tuple[list[dict], dict]:
     """Every (env id, label, policy) of ``runs`` on the plants of its env: the records, env by env.
 
     Parameters
@@ -466,6 +514,9 @@ def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int 
         ``OMP_WAIT_POLICY=PASSIVE``).
     bar : tqdm, optional
         Advanced by one per run; its postfix names the run and its step.
+    noise_seeds : int
+        Sensor-noise seeds per plant on an env whose plant is :func:`noisy` (see the module docstring); 1:
+        one.
 
     Returns
     -------
@@ -478,7 +529,8 @@ def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int 
     for env_id in dict.fromkeys(e for e, _, _ in runs):
         u = envs[env_id].unwrapped
         plants = plant_sets[env_id] = plant_set(u.plant, n_plants, plant_seed, nominal=u.nominal_parameters)
-        parameters = plants.parameters
+        copies = integer("noise_seeds", noise_seeds, 1) if noisy(u.plant) else 1
+        parameters = np.tile(plants.parameters, (copies, 1, 1))
         batch = make_batch(env_id, parameters.shape[0], parallel=parallel, **(env_kwargs or {}))
         try:
             for _, label, policy in (r for r in runs if r[0] == env_id):
@@ -494,7 +546,14 @@ def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int 
                 progress(1, 0)
                 result = run_plants(policy, batch, parameters, decision_period=u.decision_period,
                                     contouring=suite_env(env_id).contouring, seed=seed, trials=k, progress=progress)
-                records.append({"env": env_id, "policy": name, **summarize(result, plants, u.plant)})
+                first, per_noise = split_noise(result, copies)
+                rec = {"env": env_id, "policy": name, **summarize(first, plants, u.plant)}
+                if copies > 1:
+                    rec["noise"] = noise_summary(per_noise, plants)
+                    rec["per_noise"] = {k: (_finite_or_none(v.reshape(-1)) if v.dtype.kind == "f" else
+                                            v.reshape(-1).tolist()) for k, v in per_noise.items()}
+                    rec["per_noise"]["shape"] = list(per_noise["max_um"].shape)
+                records.append(rec)
                 if bar is not None:
                     bar.update(1)
         finally:

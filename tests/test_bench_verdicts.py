@@ -1,0 +1,138 @@
+"""The bench's score, verdicts, noise seeds and provenance (vcnc_bench.score, .verdicts, .robust, .provenance)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from vcnc_bench import cli, robust, score, verdicts
+from vcnc_bench.provenance import cpu, provenance
+
+
+def _record(env, policy, max_um, rms_um, kinds, diverged=None, per_noise=None):
+    n = len(kinds)
+    rec = {"env": env, "policy": policy,
+           "per_plant": {"kind": list(kinds), "max_um": list(map(float, max_um)), "rms_um": list(map(float, rms_um)),
+                         "diverged": list(diverged if diverged is not None else [False] * n)}}
+    if per_noise is not None:
+        rec["per_noise"] = per_noise
+    return rec
+
+
+KINDS = ["nominal"] + ["sample"] * 12 + ["vertex"] * 2
+
+
+def test_normalised_score_by_hand():
+    assert score.normalised_score(10.0, 10.0, 2.0) == 0.0
+    assert score.normalised_score(2.0, 10.0, 2.0) == 1.0
+    assert score.normalised_score(4.0, 10.0, 2.0) == pytest.approx(0.75)
+    assert score.normalised_score(14.0, 10.0, 2.0) == pytest.approx(-0.5)
+    assert score.normalised_score(math.inf, 10.0, 2.0) == -math.inf
+    assert math.isnan(score.normalised_score(4.0, 2.0, 2.0))  # no room between reference and floor: no scale
+    np.testing.assert_allclose(score.normalised_score([10.0, 6.0], [10.0, 20.0], [2.0, 4.0]), [0.0, 0.875])
+
+
+def test_add_scores_nominal_and_per_plant():
+    rng = np.random.default_rng(0)
+    base = rng.uniform(1.0, 2.0, len(KINDS))
+    ref = _record("E", "pd-ref", 10 * base, 5 * base, KINDS)
+    floor = _record("E", "oracle (non-causal)", base, 0.5 * base, KINDS)
+    mid = _record("E", "ff-pid", 5.5 * base, 2.75 * base, KINDS)  # half way on every plant
+    score.add_scores([ref, floor, mid])
+    assert mid["score"]["max"] == pytest.approx(0.5) and mid["score"]["rms"] == pytest.approx(0.5)
+    assert ref["score"]["max"] == 0.0 and floor["score"]["max"] == 1.0
+    assert mid["score"]["iqm_max"] == pytest.approx([0.5, 0.5, 0.5])
+    # the floor only on the nominal plant (its shipped solution): the nominal score, no per-plant IQM
+    ref2, mid2 = _record("F", "pd-ref", 10 * base, 5 * base, KINDS), _record("F", "x", 4 * base, base, KINDS)
+    score.add_scores([ref2, mid2], {"F": {"max_um": base[0], "rms_um": 0.5 * base[0], "label": "oracle"}})
+    assert mid2["score"]["max"] == pytest.approx(6 / 9) and "iqm_max" not in mid2["score"]
+    lone = _record("G", "x", base, base, KINDS)
+    score.add_scores([lone])
+    assert lone["score"] is None and "pd-ref" in lone["score_missing"]
+
+
+def test_robust_verdicts_pick_the_strongest_per_figure_and_pair_the_plants():
+    rng = np.random.default_rng(1)
+    plants = rng.lognormal(0.0, 0.8, len(KINDS))
+    a = _record("E", "a", plants, 2 * plants, KINDS)  # the strongest on max
+    b = _record("E", "b", 1.2 * plants, plants, KINDS)  # the strongest on RMS
+    agent = _record("E", "ppo", 0.9 * plants, 1.5 * plants, KINDS)
+    rows = verdicts.robust_verdicts([a, b, agent], {"ppo"}, {"a", "b"}, reps=500)
+    by = {r["figure"]: r for r in rows}
+    assert by["max"]["y"] == "a" and by["max"]["outcome"] == "wins"
+    assert by["rms"]["y"] == "b" and by["rms"]["outcome"] == "loses"
+    assert by["max"]["n"] == 12  # the sampled plants only
+    assert agent["verdicts"]["max"]["outcome"] == "wins"
+    assert "verdict" in verdicts.format_verdicts(rows)
+
+
+def test_sampled_figures_with_noise_seeds():
+    k, kinds = 3, ["nominal", "sample", "sample"]
+    per_noise = {"shape": [k, 3], "max_um": [float(i) for i in range(9)], "rms_um": [1.0] * 9,
+                 "diverged": [False] * 8 + [True], "completed": [True] * 9}
+    rec = _record("E", "x", [0, 1, 2], [1, 1, 1], kinds, per_noise=per_noise)
+    x = verdicts.sampled_figures(rec, "max")
+    assert x.shape == (2, 3)  # (sampled plants, noise seeds)
+    np.testing.assert_array_equal(x[0], [1.0, 4.0, 7.0])
+    assert x[1, 2] == np.inf  # diverged
+
+
+def test_split_noise_and_summary():
+    k, m = 2, 3
+    runs = robust.PlantRuns(max_um=np.arange(6.0), rms_um=np.ones(6), cycle_time_s=np.ones(6), has_cycle_time=True,
+                            diverged=np.zeros(6, bool), completed=np.ones(6, bool), steps=np.ones(6, int), trials=1,
+                            wall_s=1.0)
+    first, per = robust.split_noise(runs, k)
+    np.testing.assert_array_equal(first.max_um, [0.0, 1.0, 2.0])  # copy 0: envs 0..M-1
+    assert per["max_um"].shape == (k, m)
+    plants = robust.PlantSet(np.zeros((2, 1)), np.zeros((2, 2, 1)), np.zeros((0, 2, 1)), 0)
+    s = robust.noise_summary(per, plants)
+    assert s["max"]["nominal_min_um"] == 0.0 and s["max"]["nominal_max_um"] == 3.0
+    assert s["max"]["median_spread_um"] == 3.0
+
+
+def test_noise_seeds_options_are_checked():
+    with pytest.raises(SystemExit):
+        cli.main(["--env", "VCNC-Heart-v1", "--noise-seeds", "2"])  # without --plants
+    with pytest.raises(SystemExit):
+        cli.main(["--env", "VCNC-Heart-v1", "--plants", "2", "--noise-seeds", "0"])
+
+
+def test_provenance(tmp_path):
+    info = tmp_path / "cpuinfo"
+    info.write_text("processor\t: 0\nmodel name\t: Test CPU 9000\nflags\t\t: sse2 fma avx2\n\n"
+                    "processor\t: 1\nmodel name\t: Test CPU 9000\nflags\t\t: sse2 fma avx2\n")
+    c = cpu(info)
+    assert c["model"] == "Test CPU 9000" and c["flags"] == ["avx2", "fma", "sse2"]
+    p = provenance()
+    assert {"numpy", "numba", "torch", "stable-baselines3", "gymnasium"} <= set(p["libraries"])
+    assert p["libraries"]["numpy"] == np.__version__
+    assert {"threading_layer", "threading_layer_requested", "opt"} <= set(p["numba"])
+    json.dumps(p)
+
+
+@pytest.mark.slow
+def test_plants_json_carries_scores_verdicts_noise_and_provenance(tmp_path, capsys):
+    """End to end on a cheap shop-floor id: pd-ref is added, the floor's nominal replay scores every record, the
+    agent gets a verdict per figure, every plant runs over 2 noise seeds, and the JSON is strict."""
+    out = tmp_path / "robust.json"
+    assert cli.main(["--env", "VCNC-OmegaLookaheadShop-v1", "--plants", "3", "--noise-seeds", "2", "--policy",
+                     "ff-pid", "--policy", "ppo", "--no-progress", "--json", str(out)]) == 0
+    text = out.read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    data = json.loads(text)
+    labels = [r["policy"] for r in data["robust"]]
+    assert labels == ["ff-pid", "ppo", "pd-ref"]
+    for r in data["robust"]:
+        assert r["per_noise"]["shape"] == [2, 4] and r["noise"]["noise_seeds"] == 2
+        assert r["score"]["floor"].endswith("(non-causal)")
+    pd = data["robust"][2]
+    assert pd["score"]["max"] == 0.0
+    assert {v["figure"] for v in data["verdicts"]} == {"max", "rms"}
+    assert all(v["x"] == "ppo" and v["y"] == "ff-pid" and v["n"] == 6 for v in data["verdicts"])
+    assert data["settings"]["noise_seeds"] == 2 and "provenance" in data["settings"]
+    printed = capsys.readouterr().out
+    assert "Verdicts" in printed and "Normalised contour score" in printed
