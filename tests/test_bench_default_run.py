@@ -47,6 +47,7 @@ def test_circular_report_meets_a_positioning_env():
     assert programs.circular_report({"VCNC-Step-v0": {"pi": result}}, {"VCNC-Step-v0": env}) == ([], [])
 
 
+@pytest.mark.slow  # a worker pool: make bench runs this path in CI (.ci/run)
 def test_the_default_path_on_the_positioning_env_and_the_override(tmp_path, capsys):
     """The default table's kinds beyond the contouring envs (which `make bench` runs in CI, and the slow test at the
     end): every default policy of the positioning env and of the feed override through the pool, the reports, the
@@ -87,6 +88,7 @@ def test_a_program_through_the_bench_gets_its_iso230_report(tmp_path, capsys):
         assert (plots / name).stat().st_size > 1000
 
 
+@pytest.mark.slow  # a worker pool: make bench runs this path in CI (.ci/run)
 def test_two_processes_give_the_figures_of_one(tmp_path):
     """The pool's workers build their envs and policies again: the same figures, to the bit, as this process."""
     recipes = [EnvRecipe("VCNC-Step-v0", "VCNC-Step-v0", {}, ("pi", "imc")),
@@ -99,6 +101,7 @@ def test_two_processes_give_the_figures_of_one(tmp_path):
             np.testing.assert_array_equal(a.trials[-1].contour_error, b.trials[-1].contour_error)
 
 
+@pytest.mark.slow  # a worker pool: make bench runs this path in CI (.ci/run)
 def test_a_policy_that_cannot_be_built_exits_2_naming_it(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main(["--env", "VCNC-Step-v0", "--env", "VCNC-Circle-v1", "--policy", f"ppo:{tmp_path / 'nope'}",

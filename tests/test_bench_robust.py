@@ -32,9 +32,13 @@ def omega_robust(tmp_path_factory):
     return json.loads((out / "r.json").read_text()), out
 
 
+def _smc(data) -> dict:
+    return next(r for r in data["robust"] if r["policy"] == "smc")
+
+
 def test_nominal_row_is_the_ordinary_bench_episode(omega_robust):
     data, _ = omega_robust
-    (rec,) = data["robust"]
+    rec = _smc(data)
     env = gym.make(OMEGA)
     single = run_episode(make_baseline("smc", env), env, seed=0)  # what vcnc-bench without --plants runs
     assert rec["nominal_max_um"] == pytest.approx(single.max_contour_error_um, rel=1e-9, abs=0.0)
@@ -45,9 +49,13 @@ def test_nominal_row_is_the_ordinary_bench_episode(omega_robust):
 
 def test_json_has_the_figures_of_every_plant(omega_robust):
     data, out = omega_robust
-    assert data["settings"] == {"plants": N, "plant_seed": 5, "seed": 0, "trials": 1,
-                                "max_vertices": robust.MAX_VERTICES, "feedrate": None, "plant": None}
-    (rec,) = data["robust"]
+    expected = {"plants": N, "plant_seed": 5, "seed": 0, "trials": 1, "max_vertices": robust.MAX_VERTICES,
+                "feedrate": None, "plant": None}
+    assert {k: data["settings"][k] for k in expected} == expected
+    assert "provenance" in data["settings"]
+    # the policy named, and the score's reference PD the bench adds under --plants
+    assert [r["policy"] for r in data["robust"]] == ["smc", "pd-ref"]
+    rec = _smc(data)
     assert (rec["env"], rec["policy"], rec["n_samples"], rec["n_vertices"], rec["n_plants"]) == (OMEGA, "smc", N, 64,
                                                                                                   N + 64)
     for key in ("nominal_max_um", "median_max_um", "p95_max_um", "worst_max_um", "nominal_rms_um", "median_rms_um",
