@@ -16,7 +16,7 @@ import control
 import numpy as np
 from numba import njit
 
-__all__ = ["discretize", "DiscreteLTI", "lti_step"]
+__all__ = ["discretize", "DiscreteLTI", "lti_step", "lti_response"]
 
 
 def discretize(sys, dt: float, method: str = "tustin") -> control.StateSpace:
@@ -87,6 +87,19 @@ def lti_step(A, B, C, D, x, u, y):
     xn = np.empty(x.shape[1])
     for i in range(x.shape[0]):
         lti_advance(A, B, C, D, x[i], u[i], y[i], xn)
+
+
+@njit(cache=True)
+def lti_response(A, B, C, D, u):
+    """The response ``y`` (n, ny) of a discrete LTI system from rest to the input sequence ``u`` (n, nu): the
+    recursion of :func:`lti_advance`, in C (python-control's ``forced_response`` steps it in Python, 11 us a
+    sample)."""
+    x = np.zeros(A.shape[0])
+    xn = np.empty(A.shape[0])
+    y = np.empty((u.shape[0], C.shape[0]))
+    for k in range(u.shape[0]):
+        lti_advance(A, B, C, D, x, u[k], y[k], xn)
+    return y
 
 
 class DiscreteLTI:

@@ -50,6 +50,38 @@ def test_shipped_floor_replays_to_its_stored_figure(stored):
     assert all(sol.max_um <= v[0] for v in sol.warm_starts.values())
 
 
+def test_the_bench_checks_a_stored_floor_by_its_own_episode_and_solves_a_stale_one_again(stored, monkeypatch,
+                                                                                           tmp_path):
+    """With ``check_by_episode`` (the bench's kind) the oracle loads a stored floor without a rollout of its own
+    (none runs), and the bench's runner confirms it by its episode.  A stored figure the episode does not reproduce
+    (here tampered) is refused with a warning, and the runner's second episode is the floor solved again (a stub
+    solve returning the genuine solution)."""
+    from vcnc_bench.runner import EnvRecipe, run_env
+
+    env_id = "VCNC-OmegaLookaheadShop-v1"
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    u = env.unwrapped
+    noise = int(u._batch.plant_arrays.rng[0])
+    key = solutions.signature(env, u.parameters, noise)
+    genuine = solutions.load(key)
+    monkeypatch.setattr(oracle_module.OraclePolicy, "_replay",
+                        staticmethod(lambda *a: pytest.fail("a rollout replay ran: the episode is the check")))
+    runs = run_env(EnvRecipe(env_id, env_id, specs=("oracle",)), seed=0, trials=1)
+    result = runs.runs[0].trials[-1]
+    assert result.max_contour_error_um == genuine.max_um
+
+    tampered = solutions.Solution(**{**genuine.__dict__, "max_um": genuine.max_um * 0.5})
+    solutions.store(key, tampered, tmp_path)
+    monkeypatch.setenv("VCNC_ORACLE_SOLUTIONS", str(tmp_path))
+    solved = []
+    monkeypatch.setattr(oracle_module, "solve", lambda *a, **k: solved.append(1) or genuine)
+    with pytest.warns(UserWarning, match="solving again"):
+        runs = run_env(EnvRecipe(env_id, env_id, specs=("oracle",)), seed=0, trials=1)
+    assert solved == [1]
+    assert [t.max_contour_error_um for t in runs.runs[0].trials] == [genuine.max_um]
+
+
 def test_every_contouring_id_ships_a_floor_within_a_few_megabytes():
     """A stored solution named after every contouring id (the keys: the slow test below), a few MB in all."""
     shipped = {p.name.rsplit("-", 1)[0] for p in solutions.DIRECTORY.glob("*.npz")}

@@ -67,3 +67,28 @@ def test_tables_and_plot(rows, tmp_path):
     assert len(traces["hinf-reduced"]) == 2
     report.plot_step_responses(traces, tmp_path / "steps.png")
     assert (tmp_path / "steps.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("controller, dead_time", [("hinf", 0.0), ("imc", 0.0), ("pi", 0.1)])
+def test_step_responses_are_python_controls(controller, dead_time):
+    """The report's step responses (a compiled recursion) against ``control.step_response`` of the same loop, the
+    continuous one and the sampled one with the dead time, over 3 s."""
+    import control
+
+    from baselines.feedback.pi_imc_hinf import controller_tf
+    from vcnc_bench.reports.yadav2020 import _plant_tf, _step_response
+
+    a, b = 2.0, 100.0
+    G, C = _plant_tf(a, b), controller_tf(controller)
+    if dead_time == 0.0:
+        T = control.feedback(G * C, 1)
+        t = np.linspace(0.0, 3.0, 1501)
+    else:
+        dt = 1e-3
+        Gd = control.series(control.ss(control.tf([1.0], [1.0] + [0.0] * 100, dt)),
+                            control.ss(control.c2d(G, dt, "zoh")))
+        T = control.feedback(control.series(control.c2d(control.ss(C), dt, "tustin"), Gd), 1)
+        t = np.arange(3001) * dt
+    _, expected = control.step_response(T, t)
+    got = _step_response(T, t)
+    assert np.max(np.abs(got - np.asarray(expected).reshape(-1))) <= 1e-9 * max(1.0, np.max(np.abs(got)))

@@ -13,7 +13,8 @@ of the suite on every plant by construction (``tests/test_oracle.py``).
 
 The figure reported is the replay: :meth:`OraclePolicy.predict` returns the start's command plus the
 correction, ``clip(float32(u_c) + float32(c_k), -1, 1)``, the arithmetic the search's kernel ran, so the
-env's episode reproduces the searched figure to the bit (checked each time a stored solution is loaded).
+env's episode reproduces the searched figure to the bit (checked each time a stored solution is loaded: by a
+rollout of its own, or, in the bench, by the bench's episode itself, ``check_by_episode``).
 
 **Shop-floor noise.**  The feedback of the start sees the sensor's noise.  The oracle copies the plant's noise
 generator state from the env right after its reset, so the search runs on the very noise realisation the
@@ -62,6 +63,13 @@ class OraclePolicy(BaselinePolicy):
         The search's budget (:func:`baselines.optimal.search.solve`); the defaults made the shipped solutions.
     cache : bool
         Read and write stored solutions (:mod:`baselines.optimal.solutions`); default True.
+    check_by_episode : bool
+        Default False: :meth:`plan` replays every stored solution it loads (a rollout of the exact plant) and solves
+        again one that does not reproduce its figure.  True: the caller's episode is the replay (the bench's,
+        :func:`vcnc_bench.runner.run_env`): :meth:`plan` loads without a replay of its own, and the caller passes
+        the episode's result to :meth:`confirm`, which says whether it reproduced the stored figure (if not, the
+        next :meth:`plan` solves again).  It spares the rollout kernel's compile per plant and start (4-7 s
+        each on a cold cache).
     extra_starts : dict, optional
         Label -> a causal policy from outside :mod:`baselines` (a trained agent: ``agents.load_agent``), run as a
         start too (its recorded commands, open-loop); a stored solution without these labels among its starts is
@@ -84,7 +92,8 @@ class OraclePolicy(BaselinePolicy):
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, population: int = 16,
                  ilc_iterations: int = 8, rounds: int = 8, generations: int = 12, windows: int = 3,
-                 trials: int = 10, seed: int = 0, cache: bool = True, extra_starts=None):
+                 trials: int = 10, seed: int = 0, cache: bool = True, check_by_episode: bool = False,
+                 extra_starts=None):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         for key, value, low in (("population", population, 4), ("ilc_iterations", ilc_iterations, 0),
                                 ("rounds", rounds, 0), ("generations", generations, 1), ("windows", windows, 1),
@@ -94,6 +103,9 @@ class OraclePolicy(BaselinePolicy):
                        "generations": int(generations), "windows": int(windows), "trials": int(trials),
                        "seed": int(seed)}
         self.cache = flag("cache", cache)
+        self.check_by_episode = flag("check_by_episode", check_by_episode)
+        self._unchecked: list[str] = []  # keys loaded without a replay, for confirm()
+        self._stale: set[str] = set()  # keys whose stored solution an episode did not reproduce
         self.extra_starts = dict(extra_starts or {})
         for label, policy in self.extra_starts.items():
             if not isinstance(label, str) or not hasattr(policy, "predict"):
@@ -117,7 +129,8 @@ class OraclePolicy(BaselinePolicy):
         if task is None or not hasattr(u, "parameters") or not hasattr(u, "_batch"):
             raise ValueError(f"the oracle plans on a vcnc_gym contouring env, got {type(env).__name__}")
         params = np.asarray(u.parameters, dtype=np.float64)
-        params = params[None] if params.ndim == 2 else params
+        single = params.ndim == 2  # a single env: its episode can confirm a stored solution (check_by_episode)
+        params = params[None] if single else params
         arrays = u._batch.plant_arrays
         noise = [int(arrays.rng[i]) if hasattr(arrays, "rng") else None for i in range(params.shape[0])]
         fingerprint = (id(task), params.tobytes(), tuple(noise))
@@ -126,13 +139,18 @@ class OraclePolicy(BaselinePolicy):
         t0 = time.perf_counter()
         current = set(causal_names(env)) | set(self.extra_starts)
         self.solutions, self._starts, self._corrections = [], [], []
+        unchecked = []
         for i, p in enumerate(params):
             key = solutions.signature(env, p, noise[i])
             sol = solutions.load(key) if self.cache and not solutions.recompute_requested() else None
             if sol is not None and not current <= {k.split("#")[0] for k in sol.warm_starts}:
                 sol = None  # a causal controller registered since: it must be among the starts
+            if key in self._stale:
+                sol = None  # an episode did not reproduce it (confirm)
             start = self._start(env, sol) if sol is not None else None
-            if sol is not None:
+            if sol is not None and self.check_by_episode and single:
+                unchecked.append(key)
+            elif sol is not None:
                 replay = self._replay(task, p, noise[i], start, sol.correction)
                 if replay != (sol.max_um, sol.rms_um):
                     warnings.warn(f"the stored floor {key} replays to {replay[0]:.6g} um, not its "
@@ -150,6 +168,25 @@ class OraclePolicy(BaselinePolicy):
         self._steps = [0] * params.shape[0]
         self.solve_time_s = time.perf_counter() - t0
         self._planned_for = fingerprint
+        self._unchecked = unchecked
+
+    def confirm(self, result) -> bool:
+        """With ``check_by_episode``: whether the episode just run after :meth:`plan` (``result``, a
+        :class:`~vcnc_gym.evaluation.EpisodeResult` of a single env) reproduced the stored solution's max contour
+        error to the bit and its RMS to 1e-9 (the episode sums the squares in another order).  If not, a warning,
+        and the next :meth:`plan` solves again: run the episode again.  True when nothing was loaded unchecked."""
+        if not self._unchecked:
+            return True
+        key, sol = self._unchecked[0], self.solutions[0]
+        self._unchecked = []
+        peak, rms = float(result.max_contour_error_um), float(result.rms_contour_error_um)
+        if peak == sol.max_um and abs(rms - sol.rms_um) <= 1e-9 * max(abs(sol.rms_um), 1e-300):
+            return True
+        warnings.warn(f"the stored floor {key} replays to {peak:.6g} um, not its {sol.max_um:.6g} um: solving again",
+                      stacklevel=2)
+        self._stale.add(key)
+        self._planned_for = None
+        return False
 
     @staticmethod
     def _start(env, sol: Solution):

@@ -50,6 +50,7 @@ from vcnc_gym.plants.cncmt_axis import IDX_A, IDX_B, IDX_T_D, MODEL
 from vcnc_gym.validation import integer, non_negative
 
 from baselines.feedback.pi_imc_hinf import controller_names, controller_tf
+from baselines.linear import lti_response
 
 __all__ = [
     "PAPER_TABLE_2",
@@ -205,11 +206,19 @@ def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.
         T = control.feedback(control.series(Cd, Gd), 1)
         stable = bool(np.all(np.abs(T.poles()) < 1.0))
         t = np.arange(int(round(t_end / dt)) + 1) * dt
-    _, y = control.step_response(T, t)
-    y = np.asarray(y, dtype=np.float64).reshape(-1)
+    y = _step_response(T, t)
     m = step_metrics(t, y, 1.0, initial=0.0).as_dict()
     m["stable"] = stable
     return (m, t, y) if return_response else m
+
+
+def _step_response(T, t: np.ndarray) -> np.ndarray:
+    """The unit-step response of the loop ``T`` at the uniform times ``t`` (s), from rest: a continuous ``T``
+    held exactly between samples (``c2d``'s "zoh": exact for a step), stepped by the compiled state-space
+    recursion :func:`baselines.linear.lti_response`.  It is ``control.step_response(T, t)`` to 1e-12 (tested),
+    20 times faster on the continuous loops (python-control steps its recursion in Python)."""
+    Td = control.ss(T if T.isdtime(strict=True) else control.c2d(control.ss(T), t[1] - t[0], "zoh"))
+    return lti_response(Td.A, Td.B, Td.C, Td.D, np.ones((t.size, 1)))[:, 0]
 
 
 def _row(controller: str, plants: np.ndarray, metrics_of) -> dict:
