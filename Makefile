@@ -48,5 +48,5 @@ test-all: lint docs
 # `vcnc-bench --all` runs every id and every policy; `vcnc-bench --plants N` the uncertainty box.
 bench: $(VENV)/.installed-run
 	rm -f bench-out/bench.json
-	$(BIN)/vcnc-bench --json bench-out/bench.json --plots bench-out
+	$(BIN)/vcnc-bench --json bench-out/bench.json --plots bench-out --leaderboard bench-out/leaderboard.md
 	$(BIN)/python -m vcnc_bench.check --default bench-out/bench.json

@@ -76,6 +76,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
 import threading
 import time
@@ -161,12 +162,14 @@ def format_table(records: list[dict], columns: list | None = None) -> str:
     return "\n".join(lines)
 
 
-def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True, trial: int | None = None) -> dict:
+def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True, trial: int | None = None,
+            kind: str | None = None) -> dict:
     paper = paper_figures(env_id, label).get("max_contour_error_um") if compare else None
     ratio = result.max_contour_error_um / paper if paper else None
     return {
         "env": env_id,
         "policy": label if trial is None else f"{label} (trial {trial})",
+        "kind": kind,
         "trial": trial,
         "max_contour_error_um": result.max_contour_error_um,
         "mean_contour_error_um": result.mean_contour_error_um,
@@ -243,6 +246,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--circle", nargs=2, type=float, metavar=("D_MM", "F_MM_PER_MIN"),
                    help="with --program iso230-4: the circle's diameter (mm) and feed (mm/min)")
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
+    p.add_argument("--leaderboard", metavar="PAGE", type=Path,
+                   help="add this run's rows to the leaderboard page PAGE (docs/leaderboard.md; its rows are kept "
+                        "beside it in PAGE's .json), ranked by the normalised score: vcnc_bench.leaderboard")
     p.add_argument("--plots", metavar="DIR", type=Path,
                    help="write ENV_contour.png, ENV_error.png and ENV_deviation.png (the deviation magnified along "
                         "the contour's normal, an inset at every corner) per env into this directory")
@@ -479,7 +485,8 @@ def _table_records(args, ctx: BenchContext, results: dict) -> list[dict]:
         for run in env_runs.runs:
             k = len(run.trials)
             for trial, result in enumerate(run.trials, start=1):
-                records.append(_record(key, run.label, result, compare and trial == k, trial if k > 1 else None))
+                records.append(_record(key, run.label, result, compare and trial == k, trial if k > 1 else None,
+                                       split_spec(run.spec)[0]))
     ctx.records = records
     return records
 
@@ -540,15 +547,15 @@ def _print_reports(ctx: BenchContext, records: list[dict]) -> None:
         records += [{"table": "iso230-4", **r} for r in circular_rows]
 
 
-def _write_json(args, results: dict, records: list[dict], jobs: int) -> None:
-    """``--json``: the settings, the plan (every env's policy labels) and the records."""
-    settings = {"seed": args.seed, "trials": args.trials or DEFAULT_TRIALS, "feedrate": args.feedrate,
+def _bench_json(args, results: dict, records: list[dict], jobs: int) -> dict:
+    """What ``--json`` writes: the settings, the plan (every env's policy labels) and the records."""
+    settings = {"command": args.command, "seed": args.seed, "trials": args.trials or DEFAULT_TRIALS,
+                "feedrate": args.feedrate,
                 "plant": args.plant, "all": args.all, "jobs": jobs,
                 "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None,
                 "provenance": provenance()}
     plan = {key: [run.label for run in env_runs.runs] for key, env_runs in results.items()}
-    out = {"settings": settings, "plan": plan, "records": [_json_safe(r) for r in records]}
-    args.json.write_text(json.dumps(out, indent=2) + "\n")
+    return {"settings": settings, "plan": plan, "records": [_json_safe(r) for r in records]}
 
 
 def _write_trial_plots(ctx: BenchContext) -> None:
@@ -563,10 +570,13 @@ def main(argv: list[str] | None = None) -> int:
     wall0 = time.perf_counter()
     parser = _parser()
     args = parser.parse_args(argv)
+    args.command = "vcnc-bench " + shlex.join(sys.argv[1:] if argv is None else argv)
     _check_arguments(args, parser)
     recipes = _recipes(args, parser)
     if args.json is not None:
         _check_writable(args.json, parser, "file")
+    if args.leaderboard is not None:
+        _check_writable(args.leaderboard, parser, "file")
     if args.plots is not None:
         _check_writable(args.plots, parser, "directory")
     if args.plants is not None:
@@ -594,17 +604,30 @@ def main(argv: list[str] | None = None) -> int:
     _print_reports(ctx, records)
     if args.plots is not None:
         _write_trial_plots(ctx)
+    out = _bench_json(args, results, records, jobs)
     if args.json is not None:
-        _write_json(args, results, records, jobs)
+        args.json.write_text(json.dumps(out, indent=2) + "\n")
         print(f"\nwrote {len(records)} records ({sum(map(len, (r.runs for r in results.values())))} env x policy "
               f"runs) to {args.json}")
     if args.plots is not None:
         print(f"wrote {len(ctx.plots_written)} plots to {args.plots} (each env's: the paper's controllers, the "
               f"strongest causal one, the agent and the floor; --plot-all: every policy)")
+    _add_to_leaderboard(args, out)
     for env in envs.values():
         env.close()
     print(f"total wall time {time.perf_counter() - wall0:.1f} s")
     return 0
+
+
+def _add_to_leaderboard(args, out: dict) -> None:
+    """``--leaderboard PAGE``: this run's rows added to the board (:mod:`vcnc_bench.leaderboard`)."""
+    if args.leaderboard is None:
+        return
+    from . import leaderboard
+
+    rows = leaderboard.rows_of(out)
+    page = leaderboard.write(args.leaderboard, rows)
+    print(f"added {len(rows)} rows to the leaderboard {page}")
 
 
 def _robust_main(args, recipes: list[EnvRecipe], parser, wall0: float) -> int:
@@ -709,9 +732,13 @@ def _robust(args, envs: dict, runs: list) -> int:
                                               env_kwargs=kwargs, parallel=args.parallel, bar=bar,
                                               noise_seeds=args.noise_seeds)
     score.add_scores(records, _nominal_floors(args, envs, runs))
-    learned = {label_of(s, p) for _, s, p in runs if split_spec(s)[0] == "ppo"}
+    kinds = {(e, label_of(s, p)): split_spec(s)[0] for e, s, p in runs}
+    for r in records:
+        r["kind"] = kinds.get((r["env"], r["policy"]))
+    # every policy that is not a classical baseline (an agent, a user's kind) meets the strongest causal baseline
+    learned = {label_of(s, p) for _, s, p in runs if split_spec(s)[0] != "baseline"}
     causal = {label_of(s, p) for _, s, p in runs
-              if split_spec(s)[0] != "ppo" and getattr(p, "causal", True) is not False}
+              if split_spec(s)[0] == "baseline" and getattr(p, "causal", True) is not False}
     verdict_rows = verdicts.robust_verdicts(records, learned, causal, seed=args.seed)
     print(f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "
           f"{args.plants} plants drawn uniformly from the box (plant seed {args.plant_seed}), worst over them and "
@@ -748,16 +775,18 @@ def _robust(args, envs: dict, runs: list) -> int:
               "the IQMs' difference (the same plants and noise for both); P(X<Y): X's error the lower (lower is "
               "better); 'wins'/'loses' only when the difference's interval excludes zero, else 'ties'")
         print(verdicts.format_verdicts(verdict_rows))
-    if args.json is not None:
-        settings = {"plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
+    if args.json is not None or args.leaderboard is not None:
+        settings = {"command": args.command, "plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
                     "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate, "plant": args.plant,
                     "noise_seeds": args.noise_seeds, "bootstrap": {"reps": verdicts.REPS, "seed": args.seed,
                                                                    "confidence": verdicts.CONFIDENCE},
                     "provenance": provenance()}
         out = {"settings": settings, "robust": [_json_safe(r) for r in records],
                "verdicts": [_json_safe(r) for r in verdict_rows]}
-        args.json.write_text(json.dumps(out, indent=2) + "\n")
-        print(f"\nwrote {len(records)} robust records to {args.json}")
+        if args.json is not None:
+            args.json.write_text(json.dumps(out, indent=2) + "\n")
+            print(f"\nwrote {len(records)} robust records to {args.json}")
+        _add_to_leaderboard(args, out)
     if args.plots is not None:
         for env_id in plant_sets:
             robust.plot_robust([r for r in records if r["env"] == env_id], args.plots / f"{env_id}_robust.png")

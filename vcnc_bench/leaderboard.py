@@ -1,0 +1,267 @@
+"""The leaderboard: per id, every controller and agent ranked by the normalised contour score, with its interval
+and its verdict, as a page of the docs site generated from bench JSONs.
+
+::
+
+    python -m vcnc_bench.leaderboard bench-out/bench.json [more.json ...] --out docs/leaderboard.md
+    vcnc-bench --env VCNC-Heart-v1 --policy ppo:runs/mine/best --leaderboard docs/leaderboard.md   # add yours
+
+**Rows.**  One per id and policy, from the records of ``vcnc-bench --json`` (the default table: the nominal plant)
+or of ``vcnc-bench --plants N --json`` (the uncertainty box).  The page's rows are kept beside it
+(``leaderboard.json``); the rows of a new JSON replace those of the same id and policy, so a user's policy joins
+the board with one command (the bench's ``--leaderboard``).  Each row keeps the command line and the host that
+produced it (:mod:`vcnc_bench.provenance`).
+
+**Rank.**  By the normalised score of the max contour error on the nominal plant (:mod:`vcnc_bench.score`:
+0 = ``pd-ref``, the reference PD; 1 = the non-causal floor; the figure of merit is the max), the RMS's score
+breaking ties.  A row whose id has no ``pd-ref`` or no floor on the board has no score and ranks last.
+
+**Intervals and verdicts.**  Where a row came from a ``--plants`` run: the IQM of the max and RMS contour error
+over the sampled plants (and sensor-noise seeds) with its 95 % stratified-bootstrap interval
+(:func:`vcnc_bench.verdicts.stratified_bootstrap_ci`), and, for a policy that is not a classical baseline (an
+agent, yours), the verdict of :func:`vcnc_bench.verdicts.robust_verdicts` against the strongest causal
+controller of the same run: wins or loses only where the paired interval of the difference excludes zero.  A
+row from the nominal plant alone carries no verdict ("nominal only"): one plant is no evidence.
+
+**Performance profile** (Agarwal et al. (2021)): for each policy that ran on at least three ids, the fraction of
+those ids on which its nominal score of the max is at least tau, tau from 0 to 1, drawn beside the page
+(``leaderboard_profile.png``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .headroom import NON_CAUSAL
+from .score import REFERENCE, normalised_score
+from .verdicts import sampled_figures, stratified_bootstrap_ci
+
+__all__ = ["rows_of", "merge", "ranked", "profile", "format_page", "write", "main"]
+
+_TRIAL = re.compile(r" \(trial (\d+)\)$")
+
+
+def _role(policy: str, kind: str | None) -> str:
+    if policy.endswith(NON_CAUSAL):
+        return "floor"
+    if policy == REFERENCE:
+        return "reference"
+    return "classical" if kind in (None, "baseline") else "learned or yours"
+
+
+def _finite(v):
+    return v if isinstance(v, (int, float)) and math.isfinite(v) else None
+
+
+def _interval(rec: dict, figure: str):
+    x = sampled_figures(rec, figure)
+    if x.size == 0:
+        return None
+    return [_finite(v) for v in stratified_bootstrap_ci(x)]
+
+
+def _robust_row(r: dict) -> dict:
+    verdicts = {k: {"outcome": v["outcome"], "opponent": v["y"], "difference": [v["difference"], v["low"], v["high"]]}
+                for k, v in (r.get("verdicts") or {}).items()}
+    ok = r["nominal_completed"] and not r["nominal_diverged"]
+    return {"env": r["env"], "policy": r["policy"], "kind": r.get("kind"),
+            "max_um": r["nominal_max_um"] if ok else None, "rms_um": r["nominal_rms_um"] if ok else None,
+            "plants": r["n_samples"], "iqm_max": _interval(r, "max"), "iqm_rms": _interval(r, "rms"),
+            "verdicts": verdicts}
+
+
+def _nominal_rows(records: list[dict]) -> list[dict]:
+    last: dict = {}
+    for r in records:
+        label = _TRIAL.sub("", r["policy"])
+        trial = int(r["trial"]) if r.get("trial") else 0
+        if (r["env"], label) not in last or trial >= last[(r["env"], label)][0]:
+            last[(r["env"], label)] = (trial, r)
+    rows = []
+    for (env, label), (_, r) in last.items():
+        ok = r["completed"] and not r["diverged"]
+        rows.append({"env": env, "policy": label, "kind": r.get("kind"),
+                     "max_um": r["max_contour_error_um"] if ok else None,
+                     "rms_um": r["rms_contour_error_um"] if ok else None,
+                     "plants": 0, "iqm_max": None, "iqm_rms": None, "verdicts": {}})
+    return rows
+
+
+def rows_of(bench: dict) -> list[dict]:
+    """The board's rows of one ``vcnc-bench --json`` output (default or ``--plants``): one per id and policy (a
+    policy that learns across episodes: its last trial), each with the command and host that produced it."""
+    if not isinstance(bench, dict) or not isinstance(bench.get("records") or bench.get("robust"), list):
+        raise ValueError("expected the object vcnc-bench --json writes, with its 'records' or 'robust' list")
+    records = [r for r in bench.get("records") or bench.get("robust") if "table" not in r and "policy" in r]
+    robust = [r for r in records if "per_plant" in r]
+    rows = [_robust_row(r) for r in robust] + _nominal_rows([r for r in records if "per_plant" not in r])
+    settings = bench.get("settings", {})
+    prov = settings.get("provenance") or {}
+    source = {"command": settings.get("command"), "cpu": (prov.get("cpu") or {}).get("model"),
+              "version": (prov.get("libraries") or {}).get("vcnc-gym")}
+    for row in rows:
+        row["role"] = _role(row["policy"], row["kind"])
+        row["source"] = source
+    return rows
+
+
+def merge(old: list[dict], new: list[dict]) -> list[dict]:
+    """``old`` with each row of ``new`` replacing the row of the same id and policy (or added)."""
+    keyed = {(r["env"], r["policy"]): r for r in old}
+    keyed.update({(r["env"], r["policy"]): r for r in new})
+    return list(keyed.values())
+
+
+def _scores(rows: list[dict]) -> None:
+    """Each row's nominal ``score_max`` and ``score_rms`` from its id's ``pd-ref`` and floor rows (None without)."""
+    for env in dict.fromkeys(r["env"] for r in rows):
+        group = [r for r in rows if r["env"] == env]
+        ref = next((r for r in group if r["role"] == "reference"), None)
+        floor = next((r for r in group if r["role"] == "floor"), None)
+        for r in group:
+            for k in ("max", "rms"):
+                s = None
+                if ref is not None and floor is not None and None not in (ref[f"{k}_um"], floor[f"{k}_um"]):
+                    e = r[f"{k}_um"] if r[f"{k}_um"] is not None else math.inf
+                    s = _finite(float(normalised_score(e, ref[f"{k}_um"], floor[f"{k}_um"])))
+                r[f"score_{k}"] = s
+
+
+def ranked(rows: list[dict]) -> dict[str, list[dict]]:
+    """Per id (in first-seen order), its rows by descending score of the max, then of the RMS (no score last)."""
+    _scores(rows)
+    out = {}
+    for env in dict.fromkeys(r["env"] for r in rows):
+        group = [r for r in rows if r["env"] == env]
+        out[env] = sorted(group, key=lambda r: (r["score_max"] is None, -(r["score_max"] or 0.0),
+                                                 -(r["score_rms"] or 0.0) if r["score_rms"] is not None else 0.0))
+    return out
+
+
+def profile(board: dict[str, list[dict]], taus=None, min_ids: int = 3) -> dict[str, np.ndarray]:
+    """Agarwal et al. (2021)'s performance profile over ids: per policy that has a score on at least ``min_ids``
+    ids, the fraction of those ids with a nominal max score >= tau, for each tau of ``taus`` (default 0 to 1)."""
+    taus = np.linspace(0.0, 1.0, 101) if taus is None else np.asarray(taus, dtype=np.float64)
+    scores: dict[str, list[float]] = {}
+    for rows in board.values():
+        for r in rows:
+            if r["score_max"] is not None:
+                scores.setdefault(r["policy"], []).append(r["score_max"])
+    return {p: np.mean(np.asarray(s)[:, None] >= taus[None, :], axis=0) for p, s in scores.items()
+            if len(s) >= min_ids}
+
+
+def _cell(v, fmt="{:.4f}") -> str:
+    return "-" if v is None else fmt.format(v)
+
+
+def _ci(v) -> str:
+    if not v or v[0] is None:
+        return "-"
+    return f"{v[0]:.4g} [{_cell(v[1], '{:.4g}')}, {_cell(v[2], '{:.4g}')}]"
+
+
+def _verdict(r: dict) -> str:
+    if r["role"] != "learned or yours":
+        return ""
+    if not r["verdicts"]:
+        return "nominal only"
+    return "; ".join(f"{k}: {v['outcome']} ({v['opponent']})" for k, v in r["verdicts"].items())
+
+
+def format_page(board: dict[str, list[dict]], figure: str | None) -> str:
+    """The leaderboard page (MyST Markdown)."""
+    lines = ["# Leaderboard", "",
+             "Generated by `python -m vcnc_bench.leaderboard` (module `vcnc_bench.leaderboard`) from bench JSONs; "
+             "do not edit by hand.  Per id, every policy ranked by its **normalised contour score** on the nominal "
+             f"plant (0 = `{REFERENCE}`, the reference PD loop; 1 = the non-causal floor, never a controller; "
+             "`vcnc_bench.score`), of the max contour error, the RMS's breaking ties.  IQM columns: over the "
+             "sampled plants of a `--plants` run, with the 95 % stratified-bootstrap interval.  Verdict: a policy "
+             "that is not a classical baseline against the strongest causal controller of its run; wins or loses "
+             "only where the paired interval of the difference excludes zero.", "",
+             "Add your policy: `vcnc-bench --env ID --policy KIND:ARG [--plants 20] --leaderboard "
+             "docs/leaderboard.md`.", ""]
+    if figure:
+        lines += [f"![performance profile]({figure})", "",
+                  "Performance profile (Agarwal et al. (2021)): the fraction of ids on which a policy's nominal "
+                  "score of the max is at least tau.", ""]
+    for env, rows in board.items():
+        lines += [f"## {env}", "",
+                  "| rank | policy | role | score max | score RMS | max, um | RMS, um | plants | IQM max, um | "
+                  "IQM RMS, um | verdict |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for i, r in enumerate(rows, start=1):
+            lines.append(f"| {i} | `{r['policy']}` | {r['role']} | {_cell(r['score_max'])} | "
+                         f"{_cell(r['score_rms'])} | {_cell(r['max_um'], '{:.4g}')} | {_cell(r['rms_um'], '{:.4g}')} | "
+                         f"{r['plants'] or '-'} | {_ci(r['iqm_max'])} | {_ci(r['iqm_rms'])} | {_verdict(r)} |")
+        commands = sorted({r["source"]["command"] for r in rows if r["source"].get("command")})
+        if commands:
+            lines += ["", "From: " + "; ".join(f"`{c}`" for c in commands)]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _plot(curves: dict[str, np.ndarray], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    taus = np.linspace(0.0, 1.0, 101)
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    order = sorted(curves, key=lambda p: -float(np.mean(curves[p])))
+    cmap = plt.get_cmap("tab20")
+    for i, p in enumerate(order):
+        ax.step(taus, curves[p], where="post", label=p, color=cmap(i % 20), lw=1.6)
+    ax.set_xlabel("normalised contour score of the max, tau (0 = pd-ref, 1 = floor)")
+    ax.set_ylabel("fraction of ids with score >= tau")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write(page: Path, new_rows: list[dict], add: bool = True) -> Path:
+    """Merge ``new_rows`` into the board beside ``page`` (its ``leaderboard.json``; replaced unless ``add``), and
+    write the page and its profile figure; returns the page."""
+    page = Path(page)
+    data = page.with_name(page.stem + ".json")
+    old = json.loads(data.read_text())["rows"] if add and data.is_file() else []
+    rows = merge(old, new_rows)
+    board = ranked(rows)
+    curves = profile(board)
+    figure = page.with_name(page.stem + "_profile.png")
+    if curves:
+        _plot(curves, figure)
+    page.write_text(format_page(board, figure.name if curves else None) + "\n")
+    data.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
+    return page
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("json", nargs="+", type=Path, help="vcnc-bench --json outputs (default or --plants)")
+    p.add_argument("--out", type=Path, default=Path("docs/leaderboard.md"), help="the page (default %(default)s)")
+    p.add_argument("--replace", action="store_true", help="start the board afresh instead of adding to it")
+    args = p.parse_args(argv)
+    rows: list[dict] = []
+    for path in args.json:
+        try:
+            rows = merge(rows, rows_of(json.loads(path.read_text())))
+        except (OSError, ValueError, KeyError) as exc:
+            p.error(f"{path}: not a vcnc-bench JSON ({exc})")
+    page = write(args.out, rows, add=not args.replace)
+    print(f"wrote {page} ({len(rows)} rows from {len(args.json)} JSON file(s))")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
