@@ -67,13 +67,13 @@ def action_mode(args, config_file):
     if all(v is None for v in given.values()):
         return None
     # start from the config entry's mode and change what the options name
-    base = action_mode_of(load_hyperparameters(args.env, config_file)).to_dict()
-    mode = given["action_mode"] or base["mode"]
+    base = action_mode_of(load_hyperparameters(args.env, config_file))
+    mode = given["action_mode"] or base.mode
     d = {"mode": mode,
-         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base["action_repeat"]}
+         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base.action_repeat}
     if mode == "residual":
-        d["baseline"] = given["baseline"] or base.get("baseline", "smc")
-        d["correction"] = given["correction"] if given["correction"] is not None else base.get("correction", 0.2)
+        d["baseline"] = given["baseline"] or base.baseline or "smc"
+        d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
     elif given["baseline"] is not None or given["correction"] is not None:
         raise ValueError("--baseline and --correction apply to --action-mode residual")
     return ActionMode(**d)

@@ -188,8 +188,8 @@ def agent_mismatch(path, env) -> str | None:
     Reads only the agent's config.yml (no model); for choosing default
     policies, e.g. the bench's shipped agent at a non-default feedrate.
     """
-    config = _read_config(agent_files(path)[2])
-    recorded = (config.get("env") or {}).get("signature") or {"id": config.get("env_id")}
+    data = _read_config(agent_files(path)[2])
+    recorded = (data.get("env") or {}).get("signature") or {"id": data.get("env_id")}
     try:
         check_signature(recorded, env_signature(env), what=f"the agent in {str(path)!r}")
     except ValueError as exc:
@@ -199,12 +199,12 @@ def agent_mismatch(path, env) -> str | None:
 
 def _read_config(config_file: Path) -> dict:
     try:
-        config = yaml.safe_load(config_file.read_text())
+        data = yaml.safe_load(config_file.read_text())
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ValueError(f"{config_file} is not valid YAML: {exc}") from None
-    if not isinstance(config, dict) or not isinstance(config.get("action_mode", {}), dict):
+    if not isinstance(data, dict) or not isinstance(data.get("action_mode", {}), dict):
         raise ValueError(f"{config_file} is not an agent's config.yml (a mapping with env_id and action_mode)")
-    return config
+    return data
 
 
 def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> AgentPolicy:
@@ -240,12 +240,12 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     from .model_file import load_ppo
 
     model_file, norm_file, config_file = agent_files(path)
-    config = _read_config(config_file)
-    recorded = (config.get("env") or {}).get("signature")
+    data = _read_config(config_file)
+    recorded = (data.get("env") or {}).get("signature")
     if isinstance(recorded, dict):
         check_env_signature(recorded, env, what=f"the agent in {str(path)!r}", allow_mismatch=allow_mismatch)
     else:
-        check_env_signature({"id": config.get("env_id")}, env, what=f"the agent in {str(path)!r}",
+        check_env_signature({"id": data.get("env_id")}, env, what=f"the agent in {str(path)!r}",
                             allow_mismatch=allow_mismatch)
         warnings.warn(f"{config_file} records no env configuration (an agent from an older vcnc-train): only its "
                       "env id and observation size are checked", stacklevel=2)
@@ -255,10 +255,10 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
         raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
                          f"shape {obs_shape}: it belongs to another agent or env configuration")
     try:
-        mode = ActionMode(**config.get("action_mode", {}))
+        mode = ActionMode(**data.get("action_mode", {}))
     except TypeError as exc:
         raise ValueError(f"{config_file}: action_mode is not an action mode ({exc})") from None
-    _, ppo_kwargs = ppo_arguments(config.get("hyperparams") or {})
+    _, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
     model = load_ppo(model_file, observation_space=env.unwrapped.observation_space,
                      action_space=env.unwrapped.action_space, ppo_kwargs=ppo_kwargs, device=device)
     return AgentPolicy(model, stats, mode, env)
