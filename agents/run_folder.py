@@ -24,7 +24,7 @@ the benchmark count.
 
 What the run folder guarantees
 ------------------------------
-- Nothing is written before every option is checked (:func:`agents.training.prepare_run`):
+- Nothing is written before every option is checked (:func:`agents.run_session.prepare_run`):
   a bad option leaves no folder behind.  A new run that fails before its
   first checkpoint removes what it created; after one, it can be resumed.
 - Checkpoints are written between PPO updates, each file atomically (a

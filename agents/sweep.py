@@ -29,7 +29,7 @@ The searchable parameters are :data:`SEARCH_KEYS`: the options of
 direct-mode trial ignores ``baseline`` and ``correction``.  Every value of a
 list or choice and both bounds of a range are checked by the trainer's own
 rules, and every combination of the action-mode values is set up once
-(:func:`agents.training.prepare_run`: env, baseline, policy) before Ray starts.
+(:func:`agents.run_session.prepare_run`: env, baseline, policy) before Ray starts.
 
 Each trial is one run of :func:`agents.training.train` with the arguments of
 one ``vcnc-train`` command line, in its own folder of the sweep's::
@@ -255,7 +255,7 @@ def load_sweep(path) -> SweepSpec:
     Checks, before anything runs: the keys (misspellings get a hint), the
     env id, the hyperparameter file and its entry with the overrides, every
     value of the search space against the trainer's rules, and one set-up of
-    every combination of the action-mode values (:func:`agents.training.prepare_run`,
+    every combination of the action-mode values (:func:`agents.run_session.prepare_run`,
     which builds the env, the residual's baseline and the policy; nothing is written).
     """
     from .config import DEFAULT_CONFIG, refuse_unknown, count, ppo_arguments, read_yaml
@@ -356,7 +356,7 @@ def trial_argv(spec: SweepSpec, settings: dict, config_file, output) -> list[str
 
 
 def _train_kwargs(argv: list[str]) -> dict:
-    """The arguments of :func:`agents.training.prepare_run` that ``vcnc-train ARGV`` runs with."""
+    """The arguments of :func:`agents.run_session.prepare_run` that ``vcnc-train ARGV`` runs with."""
     from .arguments import action_mode, parser
 
     args = parser().parse_args(argv)
