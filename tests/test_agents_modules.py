@@ -1,6 +1,7 @@
 """agents/ split into one module per topic (issue 22): the typed run configuration reads every shipped
 config.yml, no module takes another's private names or imports around a loop, and a short training run gives
-the numbers it gave before the split, bit for bit, with both trainers."""
+the numbers it gave before the split, bit for bit, with both trainers.  Issue 34: the configuration travels as a
+typed RunConfig (no module subscripts a config mapping) and a training option is one field of it."""
 
 import ast
 import hashlib
