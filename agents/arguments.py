@@ -18,7 +18,7 @@ def parser() -> argparse.ArgumentParser:
     from vcnc_gym import ENV_IDS
 
     from .action_modes import ACTION_MODES
-    from .training import DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ
+    from .run_config import OPTION_FIELDS
 
     p = argparse.ArgumentParser(prog="vcnc-train", description="Train Stable-Baselines3 PPO on a VCNC env.")
     p.add_argument("--env", metavar="ID", help=f"env id: {', '.join(ENV_IDS)}")
@@ -42,11 +42,9 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--baseline", help="residual mode: the baseline corrected (e.g. smc, qft)")
     g.add_argument("--correction", type=float, help="residual mode: largest correction, fraction of u_max")
     g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
-    p.add_argument("--checkpoint-freq", type=int, metavar="N",
-                   help=f"agent steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ}; resume: the run's)")
-    p.add_argument("--eval-freq", type=int, metavar="N",
-                   help=f"agent steps between deterministic evaluations on the nominal plant, 0: only at the end "
-                        f"(default {DEFAULT_EVAL_FREQ}; resume: the run's)")
+    for name, f in OPTION_FIELDS.items():  # the training options: one field of RunConfig each
+        p.add_argument(f"--{name.replace('_', '-')}", type=int, metavar="N",
+                       help=f"{f.metadata['help']} (default {f.metadata['default']}; resume: the run's)")
     p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default="native",
                    help="native: the vector env steps every env in one compiled call (default); dummy: SB3's "
                         "DummyVecEnv, one env after another; subproc: one process per env")
@@ -69,13 +67,13 @@ def action_mode(args, config_file):
     if all(v is None for v in given.values()):
         return None
     # start from the config entry's mode and change what the options name
-    base = action_mode_of(load_hyperparameters(args.env, config_file)).to_dict()
-    mode = given["action_mode"] or base["mode"]
+    base = action_mode_of(load_hyperparameters(args.env, config_file))
+    mode = given["action_mode"] or base.mode
     d = {"mode": mode,
-         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base["action_repeat"]}
+         "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base.action_repeat}
     if mode == "residual":
-        d["baseline"] = given["baseline"] or base.get("baseline", "smc")
-        d["correction"] = given["correction"] if given["correction"] is not None else base.get("correction", 0.2)
+        d["baseline"] = given["baseline"] or base.baseline or "smc"
+        d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
     elif given["baseline"] is not None or given["correction"] is not None:
         raise ValueError("--baseline and --correction apply to --action-mode residual")
     return ActionMode(**d)

@@ -30,7 +30,7 @@ __all__ = ["main"]
 @contextmanager
 def _print_run_warnings():
     """Show the trainer's RunWarnings as one plain line each on stderr."""
-    from .training import RunWarning
+    from .run_warning import RunWarning
 
     show = warnings.showwarning
 
@@ -48,11 +48,19 @@ def _print_run_warnings():
 
 def _after_failure(run_dir: Path, checkpoint) -> str:
     """What a failed or aborted session left: a resumable run or nothing."""
-    from .training import latest_checkpoint
+    from .run_folder import latest_checkpoint
 
     if run_dir.is_dir() and latest_checkpoint(run_dir) is not None:
         return f"resume from the last checkpoint with: vcnc-train --resume {run_dir}"
     return f"{run_dir} holds no checkpoint and was cleared: start again with the same command"
+
+
+def _training_options(args) -> dict:
+    """The training options of the command line (:data:`agents.run_config.TRAINING_OPTIONS`), None where not
+    given."""
+    from .run_config import TRAINING_OPTIONS
+
+    return {name: getattr(args, name) for name in TRAINING_OPTIONS}
 
 
 def _sweep_conflict(args) -> str | None:
@@ -60,7 +68,7 @@ def _sweep_conflict(args) -> str | None:
     if args.sweep is None:
         return "--ray-address applies to --sweep FILE" if args.ray_address is not None else None
     given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
-                                                  *MODE_OPTIONS, "checkpoint_freq", "eval_freq", "threads")
+                                                  *MODE_OPTIONS, *_training_options(args), "threads")
              if getattr(args, k) is not None]
     given += ["--vec-env"] * (args.vec_env != "native") + ["--trainer"] * (args.trainer is not None)
     return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
@@ -135,25 +143,24 @@ def _prepare(parser, args, tensorboard):
     trainer)."""
     from .config import DEFAULT_CONFIG
     from .lean_ppo import check_trainer
-    from .training import check_env_id, check_training_options, prepare_run
+    from .run_config import check_env_id, check_training_options
+    from .run_session import prepare_run
 
     try:
-        check_training_options(checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
-                               vec_env=args.vec_env, tensorboard=tensorboard)
+        options = _training_options(args)
+        check_training_options(vec_env=args.vec_env, tensorboard=tensorboard, **options)
         if args.resume is None:
             check_env_id(args.env)
             if args.trainer == "lean":  # at once, before the envs are built
-                check_trainer("lean", {"env_id": args.env})
+                check_trainer("lean", args.env)
             config_file = args.config if args.config is not None else DEFAULT_CONFIG
             run_dir, config, checkpoint = prepare_run(
                 args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
-                n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
-                checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
+                n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file), **options)
         else:
-            run_dir, config, checkpoint = prepare_run(
-                args.env, args.resume, resume=True, n_timesteps=args.timesteps,
-                checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq)
-        trainer = check_trainer(args.trainer, config)
+            run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps,
+                                                      **options)
+        trainer = check_trainer(args.trainer, config.env_id, config.trainer)
         if trainer == "lean" and args.vec_env != "native":
             raise ValueError("the lean trainer steps the native vector env: drop --vec-env")
     except (ValueError, FileNotFoundError, FileExistsError) as exc:

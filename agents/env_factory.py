@@ -5,6 +5,9 @@
   Monitor file; the lean trainer's envs share their construction (:func:`agents.vec_env.native_batch`).
 - :func:`make_eval_env`: the plain env the evaluations run on (nominal plant, action_repeat=1).
 - :func:`check_envs`: build them once before a run starts, so bad env or policy arguments fail early.
+
+Each reads the run's :class:`agents.run_config.RunConfig` (its env id, seed, n_envs, action mode and env
+arguments).
 """
 
 from __future__ import annotations
@@ -19,8 +22,8 @@ import vcnc_gym  # noqa: F401  (registers the VCNC ids with Gymnasium)
 from vcnc_gym.envs.registry import suite_env
 
 from .action_modes import ActionMode
-from .policy import env_signature
 from .run_warning import note
+from .signature import env_signature
 
 __all__ = ["StepStamp", "make_training_venv", "make_eval_env", "eval_kwargs", "check_envs"]
 
@@ -53,12 +56,12 @@ def _gym_env_factory(env_id: str, env_kwargs: dict, mode: ActionMode, start: int
     return make
 
 
-def make_training_venv(config: dict, run_dir: Path, *, vec_env: str = "native", start_steps: int = 0,
+def make_training_venv(config, run_dir: Path, *, vec_env: str = "native", start_steps: int = 0,
                        append: bool = False):
     """The run's training VecEnv (without normalisation): n_envs envs with their Monitor files.
 
-    Env i is seeded ``seed + start_steps + i`` (a resumed session draws new
-    plants); the Monitor files ``monitor/<i>.monitor.csv`` are appended to
+    ``config`` is the run's :class:`agents.run_config.RunConfig`.  Env i is seeded ``seed + start_steps + i``
+    (a resumed session draws new plants); the Monitor files ``monitor/<i>.monitor.csv`` are appended to
     (``append``, a resumed run) or started, and record the run's step count
     at the end of every episode (column ``steps``).
     The one place that builds the training envs: ``vec_env="native"`` (the
@@ -69,21 +72,19 @@ def make_training_venv(config: dict, run_dir: Path, *, vec_env: str = "native", 
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    mode = ActionMode(**config["action_mode"])
-    env_kwargs = dict(config["hyperparams"].get("env_kwargs") or {})
+    env_id, n_envs, seed = config.env_id, config.n_envs, config.seed + start_steps
     (run_dir / "monitor").mkdir(parents=True, exist_ok=True)
-    if vec_env == "native" and suite_env(config["env_id"]).vector_entry_point is None:
-        note(f"{config['env_id']} has no native vector env: training on SB3's DummyVecEnv")
+    if vec_env == "native" and suite_env(env_id).vector_entry_point is None:
+        note(f"{env_id} has no native vector env: training on SB3's DummyVecEnv")
         vec_env = "dummy"
     if vec_env == "native":
         from .vec_env import VcncVecEnv
 
-        return VcncVecEnv(config["env_id"], config["n_envs"], mode, env_kwargs, seed=config["seed"] + start_steps,
+        return VcncVecEnv(env_id, n_envs, config.mode, config.env_kwargs, seed=seed,
                           monitor_dir=run_dir / "monitor", start_steps=start_steps, append=append)
     cls = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv}[vec_env]
-    return make_vec_env(_gym_env_factory(config["env_id"], env_kwargs, mode, start_steps, config["n_envs"]),
-                        n_envs=config["n_envs"], seed=config["seed"] + start_steps, vec_env_cls=cls,
-                        monitor_dir=str(run_dir / "monitor"),
+    return make_vec_env(_gym_env_factory(env_id, config.env_kwargs, config.mode, start_steps, n_envs),
+                        n_envs=n_envs, seed=seed, vec_env_cls=cls, monitor_dir=str(run_dir / "monitor"),
                         monitor_kwargs={"info_keywords": ("steps",), "override_existing": not append})
 
 
@@ -92,17 +93,19 @@ def eval_kwargs(env_kwargs: dict) -> dict:
     return {k: v for k, v in env_kwargs.items() if k not in ("action_repeat", "randomize", "parameters")}
 
 
-def make_eval_env(config: dict):
-    return gym.make(config["env_id"], **eval_kwargs(config["hyperparams"].get("env_kwargs") or {}))
+def make_eval_env(config):
+    """The plain env the run's evaluations take (``config``: its :class:`agents.run_config.RunConfig`)."""
+    return gym.make(config.env_id, **eval_kwargs(config.env_kwargs))
 
 
-def check_envs(env_id: str, hyperparams: dict, mode: ActionMode, ppo_kwargs: dict) -> dict:
+def check_envs(config) -> dict:
     """Build the run's training and evaluation envs and its policy once; the env block of config.yml.
 
-    Raises ValueError naming env_kwargs or policy_kwargs when the env or the
-    policy network cannot be built from them.
+    ``config`` is the run's :class:`agents.run_config.RunConfig`.  Raises ValueError naming env_kwargs or
+    policy_kwargs when the env or the policy network cannot be built from them.
     """
-    env_kwargs = hyperparams.get("env_kwargs") or {}
+    env_id, mode = config.env_id, config.mode
+    env_kwargs = config.hyperparams.get("env_kwargs") or {}
     if not isinstance(env_kwargs, dict):
         raise ValueError(f"env_kwargs must be a mapping of env arguments, got {env_kwargs!r}")
     try:
@@ -112,13 +115,13 @@ def check_envs(env_id: str, hyperparams: dict, mode: ActionMode, ppo_kwargs: dic
     except (TypeError, ValueError) as exc:
         raise ValueError(f"env_kwargs {env_kwargs} do not make a {env_id} env for the {mode.mode} action mode: "
                          f"{exc}") from None
+    policy_kwargs = config.ppo_arguments()[1].get("policy_kwargs")
     try:
         from stable_baselines3.common.policies import ActorCriticPolicy
 
-        ActorCriticPolicy(eval_env.observation_space, eval_env.action_space, lambda _: 3e-4,
-                          **ppo_kwargs.get("policy_kwargs", {}))
+        ActorCriticPolicy(eval_env.observation_space, eval_env.action_space, lambda _: 3e-4, **(policy_kwargs or {}))
     except (TypeError, ValueError, AssertionError, AttributeError, KeyError) as exc:
-        raise ValueError(f"policy_kwargs {ppo_kwargs.get('policy_kwargs')} do not make a policy: {exc}") from None
+        raise ValueError(f"policy_kwargs {policy_kwargs} do not make a policy: {exc}") from None
     signature = env_signature(eval_env)
     eval_env.close()
     return {"id": env_id, "kwargs": dict(env_kwargs), "signature": signature}

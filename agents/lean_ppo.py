@@ -42,7 +42,6 @@ epochs) and other (normalisation, GAE, logging, checkpoints, evaluation).
 from __future__ import annotations
 
 import math
-import signal
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,15 +49,13 @@ from pathlib import Path
 import numpy as np
 
 from .action_modes import ActionMode
-from .config import normalize_kwargs, ppo_arguments
-from .callbacks import StopSignal, evaluation_row, stop_on_signals
+from .config import normalize_kwargs
 from .env_factory import make_eval_env
 from .normalization import NormalizationStats
-from .policy import CONFIG_FILE
-from .training import TrainingResult, prepare_run
-from .run_warning import note
-from .run_folder import (best_of, checkpoint_files, clear_new_run, read_evaluations, record_session, roll_back,
-                         run_lock, save_agent, save_model, scan_checkpoints, write_evaluations, write_yaml)
+from .policy import evaluate_model
+from .run_config import RunConfig
+from .run_folder import best_of, checkpoint_files, read_evaluations, save_agent, save_model, write_evaluations
+from .run_session import Session, TrainingResult, open_run, prepare_run, roll_back_to, start_folder
 from .vec_env import monitor_writers, native_batch
 
 __all__ = ["TRAINERS", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
@@ -67,17 +64,16 @@ __all__ = ["TRAINERS", "check_trainer", "DecisionEnv", "RunningNormalizer", "Pha
 TRAINERS = ("sb3", "lean")
 
 
-def check_trainer(trainer: str, config: dict) -> str:
+def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None) -> str:
     """The trainer a run goes on with; ValueError, before anything is written, when it cannot.
 
-    ``trainer`` is the one asked for (None: the run's, or ``"sb3"`` for a new run); ``config`` the run's
-    configuration (:func:`agents.training.prepare_run`'s).  A resumed run goes on with the trainer it was
-    started with; the lean trainer steps the native vector env, which an id must have
-    (``vcnc_gym.envs.registry.VECTOR_IDS``).
+    ``trainer`` is the one asked for (None: the run's, or ``"sb3"`` for a new run); ``env_id`` the run's env and
+    ``recorded`` the trainer its config records (:attr:`agents.run_config.RunConfig.trainer`).  A resumed run
+    goes on with the trainer it was started with; the lean trainer steps the native vector env, which an id must
+    have (``vcnc_gym.envs.registry.VECTOR_IDS``).
     """
     from vcnc_gym.envs.registry import VECTOR_IDS
 
-    recorded = config.get("trainer")
     if trainer is None:
         trainer = recorded or "sb3"
     if trainer not in TRAINERS:
@@ -85,8 +81,8 @@ def check_trainer(trainer: str, config: dict) -> str:
     if recorded is not None and trainer != recorded:
         raise ValueError(f"the run was trained with the {recorded!r} trainer and goes on with it; drop --trainer "
                          f"{trainer}")
-    if trainer == "lean" and config["env_id"] not in VECTOR_IDS:
-        raise ValueError(f"the lean trainer steps the native vector env, which {config['env_id']} does not have "
+    if trainer == "lean" and env_id not in VECTOR_IDS:
+        raise ValueError(f"the lean trainer steps the native vector env, which {env_id} does not have "
                          f"(ids with one: {', '.join(VECTOR_IDS)}); train it with --trainer sb3")
     return trainer
 
@@ -521,16 +517,16 @@ class LeanPPO:
 
 
 # -- the run -----------------------------------------------------------------------------------------------------
-def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True, device: str = "cpu",
-          verbose: int = 0, stagger: bool = True):
-    """Train the run :func:`agents.training.prepare_run` set up with the lean trainer (from ``checkpoint`` if
-    not None); the run folder, its guarantees and the returned :class:`agents.training.TrainingResult` are
-    those of :func:`agents.training.learn`.
+def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = True, device: str = "cpu",
+          verbose: int = 0, stagger: bool = True) -> TrainingResult:
+    """Train the run :func:`agents.run_session.prepare_run` set up with the lean trainer (from ``checkpoint`` if
+    not None); the run folder, its guarantees and the returned :class:`agents.run_session.TrainingResult` are
+    those of :func:`agents.training.learn`, and so is the scaffolding (:mod:`agents.run_session`).
 
     Parameters
     ----------
     run_dir, config, checkpoint
-        As :func:`agents.training.prepare_run` returns them.
+        As :func:`agents.run_session.prepare_run` returns them.
     progress_bar : bool
         A tqdm bar of agent steps.
     device : str
@@ -540,104 +536,69 @@ def learn(run_dir: Path, config: dict, checkpoint, *, progress_bar: bool = True,
     stagger : bool
         Spread the envs along the episode before training (see the module docstring).
     """
-    check_trainer("lean", config)  # before the run folder is made
-    config = dict(config, trainer="lean")
-    fresh = checkpoint is None
-    created = fresh and not run_dir.exists()
-    run_dir.mkdir(parents=True, exist_ok=True)
-    stop = StopSignal()
-    with run_lock(run_dir), stop_on_signals(stop):
+    check_trainer("lean", config.env_id, config.trainer)  # before the run folder is made
+    config = config.with_trainer("lean")
+    with open_run(run_dir, checkpoint) as stop:
+        run = _LeanRun(run_dir, config, checkpoint, stop, device=device, verbose=verbose)
+        run.eval_env = make_eval_env(config)
         try:
-            return _learn(run_dir, config, checkpoint, stop, progress_bar=progress_bar, device=device,
-                          verbose=verbose, stagger=stagger)
-        except BaseException:
-            if fresh and not scan_checkpoints(run_dir)[0]:
-                clear_new_run(run_dir, created)
-            raise
-
-
-def _learn(run_dir, config, checkpoint, stop, *, progress_bar, device, verbose, stagger):
-    run = _LeanRun(run_dir, config, checkpoint, stop, device=device, verbose=verbose)
-    run.prepare_folder()
-    run.eval_env = make_eval_env(config)
-    try:
-        if checkpoint is not None:
-            run.resume()
-        run.build()
-        run.start(stagger)
-        run.train(progress_bar)
-        run.finish()
-    finally:
-        if run.env is not None:
-            run.env.close()
-        run.eval_env.close()
-    return run.result()
+            run.prepare_folder()
+            run.build()
+            run.start(stagger)
+            run.train(progress_bar)
+            run.finish()
+        finally:
+            if run.env is not None:
+                run.env.close()
+            run.eval_env.close()
+        return run.session.end(run.n, run.best, run.interrupted)
 
 
 class _LeanRun:
-    """One session of :func:`learn`, one method per step: the run folder, the checkpoint resumed (if any), the
-    model and envs, the start (reset, stagger, the evaluation a kill cut short), the training loop with its
-    checkpoints and evaluations, the last checkpoint and the final agent, the session's record."""
+    """One session of :func:`learn`, one method per step: the run folder (a new one, or the checkpoint resumed and
+    the folder rolled back to it), the model and envs, the start (reset, stagger, the evaluation a kill cut
+    short), the training loop with its checkpoints and evaluations, the last checkpoint and the final agent."""
 
-    def __init__(self, run_dir, config, checkpoint, stop, *, device, verbose):
+    def __init__(self, run_dir, config: RunConfig, checkpoint, stop, *, device, verbose):
         self.run_dir, self.config, self.checkpoint, self.stop = run_dir, config, checkpoint, stop
         self.device, self.verbose = device, verbose
-        self.h = config["hyperparams"]
-        self.policy_name, self.kwargs = ppo_arguments(self.h)
-        self.mode = ActionMode(**config["action_mode"])
-        self.n_envs, self.total = config["n_envs"], config["n_timesteps"]
-        self.repeat = config["action_mode"]["action_repeat"]
+        self.policy_name, self.kwargs = config.ppo_arguments()
+        self.mode = config.mode
+        self.n_envs, self.total = config.n_envs, config.n_timesteps
         self.clock = PhaseClock()
-        self.rolled_back = None
         self.env = self.eval_env = self.model = self.norm = None
         self.interrupted = None
 
     def prepare_folder(self) -> None:
-        """A fresh run: the folder cleared and its configuration written; a resumed one: its checkpoint."""
+        """A fresh run: the folder cleared and its configuration written; a resumed one: its checkpoint loaded
+        (on the evaluation env's spaces, as agents.training does), then the folder rolled back to it.  The
+        monitor files are opened (for appending) only after that (:func:`agents.run_session.roll_back_to`)."""
+        rolled_back = None
         if self.checkpoint is None:
-            if self.run_dir.exists():
-                clear_new_run(self.run_dir, created=False)
-            self.run_dir.mkdir(parents=True, exist_ok=True)
-            write_yaml(self.run_dir / CONFIG_FILE, self.config)
-            self.done = 0
+            self.done = start_folder(self.run_dir, self.config)
         else:
-            self.done = self.checkpoint[0]
+            from .model_file import load_ppo
 
-    def resume(self) -> None:
-        """The checkpoint loads first (on the evaluation env's spaces, as agents.training does); then the run
-        folder changes: the logs roll back, and only then are the monitor files opened for appending (opened
-        before, they would be the files roll_back replaces by rename: every row lost)."""
-        from stable_baselines3.common.utils import set_random_seed
-
-        from .model_file import load_ppo
-
-        done, model_zip, norm_file = self.checkpoint
-        run_dir, config = self.run_dir, self.config
-        self.model = load_ppo(model_zip, observation_space=self.eval_env.observation_space,
-                              action_space=self.eval_env.action_space, ppo_kwargs=self.kwargs, device=self.device)
-        self.norm = RunningNormalizer(NormalizationStats.load(norm_file), self.n_envs)
-        intact, damaged = scan_checkpoints(run_dir, self.n_envs)
-        damaged += [c for c in intact if c[0] > done]  # passed over by latest_checkpoint: tensors unreadable
-        rolled_back = self.rolled_back = roll_back(run_dir, config, done, damaged)
-        if rolled_back["evaluations"] or rolled_back["episodes"]:
-            note(f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
-                 f"{rolled_back['episodes']} episode(s) logged after that checkpoint (their training was lost)")
-        set_random_seed(config["seed"] + done)
-        write_yaml(run_dir / CONFIG_FILE, config)
+            self.done, model_zip, norm_file = self.checkpoint
+            self.model = load_ppo(model_zip, observation_space=self.eval_env.observation_space,
+                                  action_space=self.eval_env.action_space, ppo_kwargs=self.kwargs, device=self.device)
+            self.norm = RunningNormalizer(NormalizationStats.load(norm_file), self.n_envs)
+            rolled_back = roll_back_to(self.run_dir, self.config, self.done)
+        self.session = Session(self.run_dir, self.config, self.done, vec_env="native", rolled_back=rolled_back,
+                               clock=self.clock)
 
     def build(self) -> None:
-        """The training envs, the model (fresh unless resumed), the trainer, the evaluations logged so far and the
-        session's record."""
+        """The training envs, the model (fresh unless resumed), the trainer and the evaluations logged so far."""
         from stable_baselines3 import PPO
 
         config, done, n_envs = self.config, self.done, self.n_envs
-        self.env = env = DecisionEnv(config["env_id"], n_envs, self.mode, self.h.get("env_kwargs") or {},
-                                     config["seed"] + done, monitor_dir=self.run_dir / "monitor", start_steps=done,
+        self.env = env = DecisionEnv(config.env_id, n_envs, self.mode, config.env_kwargs, config.seed + done,
+                                     monitor_dir=self.run_dir / "monitor", start_steps=done,
                                      append=self.checkpoint is not None)
         if self.checkpoint is None:
             stub = _spaces_only(env.observation_space, env.action_space, n_envs)
-            self.model = PPO(self.policy_name, stub, seed=config["seed"], device=self.device, **self.kwargs)
-            self.norm = RunningNormalizer.fresh(self.h, env.observation_space.shape[0], n_envs)
+            self.model = PPO(self.policy_name, stub, seed=config.seed, device=self.device, **self.kwargs)
+            self.norm = RunningNormalizer.fresh(config.hyperparams, env.observation_space.shape[0], n_envs)
         self.model.num_timesteps = done
         self.ppo = LeanPPO(self.model, env, self.norm, self.total, self.clock)
         self.rows = read_evaluations(self.run_dir / "evaluations.csv")
@@ -646,23 +607,19 @@ class _LeanRun:
         # that a kill cut short (its checkpoint saved, its row not written) is made up at the session's start
         self.last_eval = max((r["steps"] for r in self.rows), default=0)
         self.last_checkpoint = done
-        self.session = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done,
-                        "wall_s": 0.0, "steps_per_s": 0.0, "control_periods_per_s": 0.0, "n_envs": n_envs,
-                        "vec_env": "native", "trainer": "lean", "status": "running"}
-        if self.rolled_back is not None:
-            self.session["rolled_back"] = self.rolled_back
 
     def start(self, stagger: bool) -> None:
         """The envs reset (and staggered), the trainer started; the evaluation of the checkpoint resumed from, if a
         kill cut it short."""
-        self.wall0 = t0 = time.perf_counter()  # set-up excluded, as agents.training.learn's wall time
+        self.session.start_clock()  # set-up excluded, as agents.training.learn's wall time
+        t0 = time.perf_counter()
         with self.clock("env"):
             obs = self.env.reset()
             if stagger:  # every session: a resumed one starts its envs afresh, in phase
                 obs = self.env.stagger(obs)
-        self.session["stagger_s"] = round(time.perf_counter() - t0, 3)
+        self.session.row["stagger_s"] = round(time.perf_counter() - t0, 3)
         self.ppo.start(obs)
-        eval_freq, done = self.config["eval_freq"], self.done
+        eval_freq, done = self.config.eval_freq, self.done
         if eval_freq > 0 and done > 0 and done // eval_freq > self.last_eval // eval_freq:
             self.evaluate(done)
         self.n = done
@@ -670,12 +627,12 @@ class _LeanRun:
     def train(self, progress_bar: bool) -> None:
         """Rollouts and updates up to the run's steps or a stop signal, with the checkpoints and evaluations due."""
         ppo, step = self.ppo, self.ppo.n_steps * self.n_envs
-        checkpoint_freq, eval_freq, total = self.config["checkpoint_freq"], self.config["eval_freq"], self.total
+        checkpoint_freq, eval_freq, total = self.config.checkpoint_freq, self.config.eval_freq, self.total
         bar = _progress(progress_bar, total, self.done)
         while self.n < total:
             ppo.collect()
             if self.stop.signum is not None:  # the rollout is not trained: the checkpoint is the model as of n
-                self.interrupted = signal.Signals(self.stop.signum).name
+                self.interrupted = self.stop.name
                 break
             with self.clock("update"):
                 ppo.update(self.n)
@@ -699,7 +656,6 @@ class _LeanRun:
             if n != self.last_eval or not self.rows:
                 self.evaluate(n)
             save_agent(self.run_dir / "final", self.model, self.norm.stats(), self.config, n)
-        self.wall = time.perf_counter() - self.wall0
 
     def save_checkpoint(self, n: int) -> None:
         model_zip, norm_file = checkpoint_files(self.run_dir / "checkpoints", n)
@@ -708,19 +664,13 @@ class _LeanRun:
         self.model.num_timesteps = n
         save_model(self.model, model_zip)
         self.last_checkpoint = n
-        self.session.update(end_timesteps=n, **_session_rates(self.session, n, self.wall0, self.clock, self.repeat))
-        record_session(self.run_dir, self.session, self.best)
+        self.session.checkpointed(n, self.best)
 
     def evaluate(self, n: int) -> None:
         """One deterministic episode of the agent on the evaluation env, logged; the best agent kept."""
-        from vcnc_gym.evaluation import run_episode
-
-        from .policy import AgentPolicy
-
         self.last_eval = n
         stats = self.norm.stats()
-        r = run_episode(AgentPolicy(self.model, stats, self.mode, self.eval_env), self.eval_env, seed=0)
-        row = evaluation_row(n, r)
+        row = evaluate_model(self.model, stats, self.config, self.eval_env, n)
         score = row["score_um"]
         self.rows.append(row)
         write_evaluations(self.run_dir / "evaluations.csv", self.rows)
@@ -730,25 +680,6 @@ class _LeanRun:
         if self.verbose:
             print(f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, "
                   f"diverged {row['diverged']}")
-
-    def result(self) -> TrainingResult:
-        """The session recorded (finished or interrupted) and the run's result."""
-        n, session, interrupted = self.n, self.session, self.interrupted
-        session.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
-                       **_session_rates(session, n, self.wall0, self.clock, self.repeat))
-        record_session(self.run_dir, session, self.best)
-        return TrainingResult(run_dir=self.run_dir, timesteps=n, session_timesteps=n - self.done, wall_s=self.wall,
-                              steps_per_s=session["steps_per_s"],
-                              control_periods_per_s=session["control_periods_per_s"], best=self.best,
-                              interrupted=interrupted, rolled_back=self.rolled_back)
-
-
-def _session_rates(session: dict, n: int, wall0: float, clock: PhaseClock, repeat: int) -> dict:
-    wall = max(time.perf_counter() - wall0, 1e-9)
-    steps = n - session["start_timesteps"]
-    return {"wall_s": wall, "steps_per_s": steps / wall, "control_periods_per_s": steps * repeat / wall,
-            "time_shares": clock.shares(wall), "phase_s": {k: round(v, 3) for k, v in clock.seconds.items()
-                                                           if k != "other"}}
 
 
 def _progress(enabled: bool, total: int, done: int):
@@ -761,8 +692,8 @@ def _progress(enabled: bool, total: int, done: int):
 
 def train_lean(env_id: str | None = None, run_dir=None, *, progress_bar: bool = True, device: str = "cpu",
                verbose: int = 0, stagger: bool = True, **options):
-    """:func:`agents.training.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
-    resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`agents.training.TrainingResult`."""
+    """:func:`agents.run_session.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
+    resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`agents.run_session.TrainingResult`."""
     run_dir, config, checkpoint = prepare_run(env_id, run_dir, **options)
     return learn(run_dir, config, checkpoint, progress_bar=progress_bar, device=device, verbose=verbose,
                  stagger=stagger)

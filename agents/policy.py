@@ -24,8 +24,6 @@ wrappers do.  Its ``predict`` has SB3's signature.
 
 from __future__ import annotations
 
-import hashlib
-import math
 import warnings
 from pathlib import Path
 
@@ -34,15 +32,12 @@ import yaml
 
 from .action_modes import ActionMode
 from .normalization import NormalizationStats
+from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, evaluation_row
+from .signature import ANY_CONTOUR_IDS, MACHINE_FIELDS, check_env_signature, check_signature, env_signature
 
-__all__ = ["AgentPolicy", "load_agent", "agent_files", "agent_mismatch", "env_signature", "check_env_signature",
-           "check_signature",
-           "MODEL_FILE",
-           "NORMALIZATION_FILE", "CONFIG_FILE"]
+__all__ = ["AgentPolicy", "load_agent", "evaluate_model", "agent_files", "agent_mismatch", "env_signature", "check_env_signature",
+           "check_signature", "ANY_CONTOUR_IDS", "MACHINE_FIELDS", "MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE"]
 
-MODEL_FILE = "model.zip"
-NORMALIZATION_FILE = "vecnormalize.npz"
-CONFIG_FILE = "config.yml"
 _PICKLED_NORMALIZATION = "vecnormalize.pkl"
 
 
@@ -173,106 +168,18 @@ def _deterministic_actor(model):
     return actor
 
 
-# -- the env an agent was trained for ------------------------------------------------------------
-#: Fields of :func:`env_signature` with their unit, in the order they are reported.
-_SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "dt": " s",
-                    "feedrate": " mm/s", "ramp_time": " s", "preview_steps": " control periods",
-                    "observation_shape": "", "action_shape": ""}
+def evaluate_model(model, stats: NormalizationStats, config, env, steps: int) -> dict:
+    """One deterministic episode of a model in training on the evaluation env, as both trainers take it: its
+    evaluations.csv row (:func:`agents.run_folder.evaluation_row`).
 
-
-def _attr(obj, dotted: str):
-    for name in dotted.split("."):
-        obj = getattr(obj, name, None)
-        if obj is None:
-            return None
-    return obj
-
-
-def _curve_digest(curve) -> str | None:
-    if curve is None:
-        return None
-    h = hashlib.sha256(str(int(curve.degree)).encode())
-    for a in (curve.control_points, curve.weights, curve.knots):
-        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
-    return h.hexdigest()[:16]
-
-
-def env_signature(env) -> dict:
-    """What an agent's observations and decisions depend on, read from a plain (``action_repeat=1``) env.
-
-    A YAML-safe dict: env id (None for an env not made by ``gym.make``), contour
-    name and a digest of its NURBS, plant name and options, control period
-    ``dt`` (s), feedrate (mm/s) and ramp time (s) of the reference, preview
-    steps, observation and action shapes.  Reward scale and episode bounds
-    are not part of it: they change the score, not what the agent sees.
+    ``model`` is the SB3 PPO model, ``stats`` its normalisation, ``config`` the run's
+    :class:`agents.run_config.RunConfig` (the action mode), ``env`` the plain env
+    (:func:`agents.env_factory.make_eval_env`) and ``steps`` the run's agent steps; the episode runs through
+    :func:`vcnc_gym.evaluation.run_episode`, as the benchmark's, with seed 0.
     """
-    u = env.unwrapped
-    spec = getattr(u, "spec", None)
-    options = _attr(u, "task.plant_options") or {}
-    floats = {k: _attr(u, a) for k, a in (("dt", "dt"), ("feedrate", "feedrate_profile.feedrate"),
-                                          ("ramp_time", "feedrate_profile.ramp_time"))}
-    preview = _attr(u, "layout.preview_steps")
-    return {
-        "id": spec.id if spec is not None else None,
-        "contour": _attr(u, "contour_name"),
-        "curve_sha256": _curve_digest(_attr(u, "curve")),
-        "plant": _attr(u, "plant.name"),
-        "plant_options": yaml.safe_load(yaml.safe_dump(dict(options))),
-        **{k: None if v is None else float(v) for k, v in floats.items()},
-        "preview_steps": None if preview is None else [int(s) for s in preview],
-        "observation_shape": [int(n) for n in u.observation_space.shape],
-        "action_shape": [int(n) for n in u.action_space.shape],
-    }
+    from vcnc_gym.evaluation import run_episode
 
-
-def _same(a, b) -> bool:
-    if isinstance(a, float) and isinstance(b, (int, float)) and not isinstance(b, bool):
-        return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
-    return a == b
-
-
-#: Ids whose contour and feed are drawn anew at every reset: an agent trained there (a generalist) runs on any
-#: contour and feed of the same machine, so only the :data:`MACHINE_FIELDS` of its signature are compared.
-ANY_CONTOUR_IDS = ("VCNC-RandomContour-v1",)
-
-#: The signature fields that describe the machine and the observation, not the part.
-MACHINE_FIELDS = ("plant", "plant_options", "dt", "preview_steps", "observation_shape", "action_shape")
-
-
-def check_signature(recorded: dict, given: dict, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
-    """ValueError listing every field where the ``given`` :func:`env_signature` differs from the ``recorded`` one.
-
-    An unknown id on either side (an env made without ``gym.make``) is not
-    compared; fields the recorded signature lacks are not compared; an agent
-    trained on an id of :data:`ANY_CONTOUR_IDS` is compared on the
-    :data:`MACHINE_FIELDS` only.  With ``allow_mismatch`` the differences are
-    a warning instead, except a different observation or action shape, which
-    no agent can run on.
-    """
-    diffs, fatal = [], False
-    generalist = recorded.get("id") in ANY_CONTOUR_IDS
-    for key, unit in _SIGNATURE_UNITS.items():
-        if key not in recorded or key not in given or (key == "id" and (recorded[key] is None or given[key] is None)):
-            continue
-        if generalist and key not in MACHINE_FIELDS:
-            continue
-        if not _same(recorded[key], given[key]):
-            diffs.append(f"{key}: trained on {recorded[key]}{unit}, this env has {given[key]}{unit}")
-            fatal |= key in ("observation_shape", "action_shape")
-    if not diffs:
-        return
-    head = (f"{what} was trained on {recorded['id']}, not {given['id']}"
-            if recorded.get("id") and given.get("id") and recorded["id"] != given["id"]
-            else f"{what} was trained on another env configuration")
-    message = f"{head}: " + "; ".join(diffs)
-    if fatal or not allow_mismatch:
-        raise ValueError(message + ("" if fatal else " (allow_mismatch=True runs it anyway)"))
-    warnings.warn(message, stacklevel=3)
-
-
-def check_env_signature(recorded: dict, env, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
-    """:func:`check_signature` of ``env``'s :func:`env_signature` against ``recorded``."""
-    check_signature(recorded, env_signature(env), what=what, allow_mismatch=allow_mismatch)
+    return evaluation_row(steps, run_episode(AgentPolicy(model, stats, config.mode, env), env, seed=0))
 
 
 def agent_mismatch(path, env) -> str | None:
@@ -281,8 +188,8 @@ def agent_mismatch(path, env) -> str | None:
     Reads only the agent's config.yml (no model); for choosing default
     policies, e.g. the bench's shipped agent at a non-default feedrate.
     """
-    config = _read_config(agent_files(path)[2])
-    recorded = (config.get("env") or {}).get("signature") or {"id": config.get("env_id")}
+    data = _read_config(agent_files(path)[2])
+    recorded = (data.get("env") or {}).get("signature") or {"id": data.get("env_id")}
     try:
         check_signature(recorded, env_signature(env), what=f"the agent in {str(path)!r}")
     except ValueError as exc:
@@ -292,12 +199,12 @@ def agent_mismatch(path, env) -> str | None:
 
 def _read_config(config_file: Path) -> dict:
     try:
-        config = yaml.safe_load(config_file.read_text())
+        data = yaml.safe_load(config_file.read_text())
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ValueError(f"{config_file} is not valid YAML: {exc}") from None
-    if not isinstance(config, dict) or not isinstance(config.get("action_mode", {}), dict):
+    if not isinstance(data, dict) or not isinstance(data.get("action_mode", {}), dict):
         raise ValueError(f"{config_file} is not an agent's config.yml (a mapping with env_id and action_mode)")
-    return config
+    return data
 
 
 def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> AgentPolicy:
@@ -333,12 +240,12 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     from .model_file import load_ppo
 
     model_file, norm_file, config_file = agent_files(path)
-    config = _read_config(config_file)
-    recorded = (config.get("env") or {}).get("signature")
+    data = _read_config(config_file)
+    recorded = (data.get("env") or {}).get("signature")
     if isinstance(recorded, dict):
         check_env_signature(recorded, env, what=f"the agent in {str(path)!r}", allow_mismatch=allow_mismatch)
     else:
-        check_env_signature({"id": config.get("env_id")}, env, what=f"the agent in {str(path)!r}",
+        check_env_signature({"id": data.get("env_id")}, env, what=f"the agent in {str(path)!r}",
                             allow_mismatch=allow_mismatch)
         warnings.warn(f"{config_file} records no env configuration (an agent from an older vcnc-train): only its "
                       "env id and observation size are checked", stacklevel=2)
@@ -348,10 +255,10 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
         raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
                          f"shape {obs_shape}: it belongs to another agent or env configuration")
     try:
-        mode = ActionMode(**config.get("action_mode", {}))
+        mode = ActionMode(**data.get("action_mode", {}))
     except TypeError as exc:
         raise ValueError(f"{config_file}: action_mode is not an action mode ({exc})") from None
-    _, ppo_kwargs = ppo_arguments(config.get("hyperparams") or {})
+    _, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
     model = load_ppo(model_file, observation_space=env.unwrapped.observation_space,
                      action_space=env.unwrapped.action_space, ppo_kwargs=ppo_kwargs, device=device)
     return AgentPolicy(model, stats, mode, env)

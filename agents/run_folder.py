@@ -24,7 +24,7 @@ the benchmark count.
 
 What the run folder guarantees
 ------------------------------
-- Nothing is written before every option is checked (:func:`agents.training.prepare_run`):
+- Nothing is written before every option is checked (:func:`agents.run_session.prepare_run`):
   a bad option leaves no folder behind.  A new run that fails before its
   first checkpoint removes what it created; after one, it can be resumed.
 - Checkpoints are written between PPO updates, each file atomically (a
@@ -56,14 +56,19 @@ import yaml
 
 from .model_file import check_model_data, check_tensor_files, read_model_data, recorded_shape
 from .normalization import NormalizationStats, atomic_write_bytes
-from .policy import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE
-from .run_config import RunConfig
 from .run_warning import note
 
-__all__ = ["CHECKPOINT_PREFIX", "RUN_ENTRIES", "EVAL_FIELDS", "checkpoint_files", "check_checkpoint",
-           "scan_checkpoints", "latest_checkpoint", "write_yaml", "save_model", "save_agent", "read_evaluations",
+__all__ = ["MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE", "CHECKPOINT_PREFIX", "RUN_ENTRIES", "EVAL_FIELDS",
+           "evaluation_score", "evaluation_row", "checkpoint_files", "check_checkpoint",
+           "scan_checkpoints", "latest_checkpoint", "write_yaml", "write_config", "save_model", "save_agent", "read_evaluations",
            "write_evaluations", "best_of", "roll_back", "read_summary", "record_session", "session_rates",
            "run_lock", "check_output_folder", "stale_run", "read_run_config", "clear_new_run"]
+
+#: The files of an agent folder (a run's ``best/`` and ``final/``, a shipped agent): what
+#: :func:`agents.load_agent` reads.
+MODEL_FILE = "model.zip"
+NORMALIZATION_FILE = "vecnormalize.npz"
+CONFIG_FILE = "config.yml"
 
 CHECKPOINT_PREFIX = "rl_model"
 CHECKPOINT_NAME = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
@@ -72,6 +77,31 @@ RUN_ENTRIES = {CONFIG_FILE, "checkpoints", "best", "final", "evaluations.csv", "
                ".lock"}
 LOCK_FILE = ".lock"
 EVAL_FIELDS = ("steps", "max_um", "mean_um", "rms_um", "score_um", "diverged")
+
+
+# -- evaluations ---------------------------------------------------------------------------
+def evaluation_score(max_um: float, rms_um: float) -> float:
+    """Selection score of an evaluation, um: the geometric mean of max and RMS contour error
+    (inf if either is not finite; a diverged episode is scored inf by the caller)."""
+    return math.sqrt(max_um * rms_um) if math.isfinite(max_um) and math.isfinite(rms_um) else math.inf
+
+
+def evaluation_row(steps: int, result) -> dict:
+    """The evaluations.csv row of an evaluation episode (``vcnc_gym.evaluation.run_episode``'s result), as both
+    trainers write it.
+
+    A diverged episode's errors cover only the part before it left the bounds (a table that never moved has
+    0.0 um there): its figures are written as inf, the bench's figure for a diverged plant, never as perfect.
+    An episode cut by the completion time limit covers part of the contour only: its score is inf (no
+    candidate for best/).
+    """
+    diverged = bool(result.diverged)
+    completed = bool(result.completed)
+    figures = ((math.inf,) * 3 if diverged else
+               (result.max_contour_error_um, result.mean_contour_error_um, result.rms_contour_error_um))
+    score = math.inf if diverged or not completed else evaluation_score(figures[0], figures[2])
+    return {"steps": int(steps), "max_um": float(figures[0]), "mean_um": float(figures[1]),
+            "rms_um": float(figures[2]), "score_um": float(score), "diverged": diverged}
 
 
 # -- checkpoints ------------------------------------------------------------------------
@@ -154,14 +184,20 @@ def write_yaml(path: Path, data: dict) -> None:
     write_text(path, yaml.safe_dump(data, sort_keys=False))
 
 
+def write_config(folder: Path, config, **extra) -> None:
+    """Write ``folder/config.yml``: the run's configuration (:class:`agents.run_config.RunConfig`, or any record
+    whose ``to_dict()`` is config.yml's mapping), then ``extra`` (an agent folder's ``agent`` block)."""
+    write_yaml(folder / CONFIG_FILE, {**config.to_dict(), **extra})
+
+
 def save_model(model, path: Path) -> None:
     buffer = io.BytesIO()
     model.save(buffer)
     atomic_write_bytes(path, buffer.getvalue())
 
 
-def save_agent(folder: Path, model, stats: NormalizationStats, config: dict, steps: int, evaluation=None) -> None:
-    """Write an agent folder (model, statistics, config with the agent's step count) as a whole.
+def save_agent(folder: Path, model, stats: NormalizationStats, config, steps: int, evaluation=None) -> None:
+    """Write an agent folder (model, statistics, the run's ``config`` with the agent's step count) as a whole.
 
     The files are written into a temporary folder that then replaces ``folder``.
     """
@@ -171,7 +207,7 @@ def save_agent(folder: Path, model, stats: NormalizationStats, config: dict, ste
     tmp.mkdir(parents=True)
     save_model(model, tmp / MODEL_FILE)
     stats.save(tmp / NORMALIZATION_FILE)
-    write_yaml(tmp / CONFIG_FILE, dict(config, agent={"timesteps": int(steps), "evaluation": evaluation}))
+    write_config(tmp, config, agent={"timesteps": int(steps), "evaluation": evaluation})
     replace_dir(tmp, folder)
 
 
@@ -246,7 +282,7 @@ def roll_back_monitor(path: Path, steps: int) -> int:
     return dropped
 
 
-def roll_back(run_dir: Path, config: dict, steps: int, damaged: list) -> dict:
+def roll_back(run_dir: Path, config, steps: int, damaged: list) -> dict:
     """Bring the run's logs and best/ back to the checkpoint at ``steps`` (see the module docstring)."""
     csv_path = run_dir / "evaluations.csv"
     rows = read_evaluations(csv_path)
@@ -269,7 +305,7 @@ def roll_back(run_dir: Path, config: dict, steps: int, damaged: list) -> dict:
     return {"evaluations": len(rows) - len(kept), "episodes": episodes}
 
 
-def rebuild_best(run_dir: Path, config: dict, rows: list[dict], steps: int) -> None:
+def rebuild_best(run_dir: Path, config, rows: list[dict], steps: int) -> None:
     """Make best/ the checkpoint of the best of ``rows`` if it holds a model of lost training (past
     ``steps``) or not that best one, or is missing; a best/ of unknown origin (older runs) is left alone.
 
@@ -307,7 +343,7 @@ def rebuild_best(run_dir: Path, config: dict, rows: list[dict], steps: int) -> N
     tmp.mkdir()
     shutil.copyfile(model_zip, tmp / MODEL_FILE)
     shutil.copyfile(norm, tmp / NORMALIZATION_FILE)
-    write_yaml(tmp / CONFIG_FILE, dict(config, agent={"timesteps": best["steps"], "evaluation": best}))
+    write_config(tmp, config, agent={"timesteps": best["steps"], "evaluation": best})
     replace_dir(tmp, folder)
 
 
@@ -409,6 +445,8 @@ def stale_run(run_dir: Path) -> bool:
 
 
 def read_run_config(run_dir: Path) -> dict:
+    """The mapping of a run folder's config.yml, for :meth:`agents.run_config.RunConfig.read` to type; ValueError
+    or FileNotFoundError saying why it cannot be resumed."""
     path = run_dir / CONFIG_FILE
     if not path.is_file():
         raise FileNotFoundError(f"cannot resume: {run_dir} has no {CONFIG_FILE}; is it a vcnc-train run folder?")
@@ -418,10 +456,6 @@ def read_run_config(run_dir: Path) -> dict:
         raise ValueError(f"cannot resume: {path} is not valid YAML: {exc}") from None
     if not isinstance(config, dict) or not {"env_id", "n_envs", "seed", "action_mode", "hyperparams"} <= set(config):
         raise ValueError(f"cannot resume: {path} is not the config.yml of a vcnc-train run")
-    try:
-        RunConfig.from_dict(config, source=str(path))
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"cannot resume: {exc}") from None
     return config
 
 

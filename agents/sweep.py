@@ -29,7 +29,7 @@ The searchable parameters are :data:`SEARCH_KEYS`: the options of
 direct-mode trial ignores ``baseline`` and ``correction``.  Every value of a
 list or choice and both bounds of a range are checked by the trainer's own
 rules, and every combination of the action-mode values is set up once
-(:func:`agents.training.prepare_run`: env, baseline, policy) before Ray starts.
+(:func:`agents.run_session.prepare_run`: env, baseline, policy) before Ray starts.
 
 Each trial is one run of :func:`agents.training.train` with the arguments of
 one ``vcnc-train`` command line, in its own folder of the sweep's::
@@ -69,10 +69,12 @@ import tempfile
 import time
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
+
+from .run_config import TRAINING_OPTIONS
 
 __all__ = ["SweepSpec", "SweepResult", "load_sweep", "run_sweep", "trial_argv", "import_ray", "SEARCH_KEYS",
            "RESULT_FIELDS"]
@@ -86,8 +88,8 @@ _FLAGS = {"seed": "--seed", "n_envs": "--n-envs", "timesteps": "--timesteps", "a
 #: Search-space forms: which kinds of parameter each applies to.
 _DOMAINS = {"choice": ("int", "float", "str"), "uniform": ("float",), "loguniform": ("float",), "randint": ("int",)}
 #: Keys of a sweep file.
-_FILE_KEYS = ("env", "hyperparams", "overrides", "search", "num_samples", "search_seed", "checkpoint_freq",
-              "eval_freq", "vec_env", "cpus_per_trial", "max_concurrent_trials")
+_FILE_KEYS = ("env", "hyperparams", "overrides", "search", "num_samples", "search_seed", *TRAINING_OPTIONS,
+              "vec_env", "cpus_per_trial", "max_concurrent_trials")
 #: Hyperparameter keys of the entry that a searched parameter sets (refused in overrides, set in two places).
 _ENTRY_KEYS = {"learning_rate": "learning_rate", "n_envs": "n_envs", "timesteps": "n_timesteps"}
 #: Columns of sweep_results.csv.
@@ -105,6 +107,8 @@ class SweepSpec:
 
     ``search`` maps each searched parameter to ``(form, value)``: ``("value", v)``,
     ``("grid", [v, ...])``, ``("choice", [v, ...])``, ``("uniform" | "loguniform" | "randint", (lo, hi))``.
+    ``options`` holds the file's training options (:data:`agents.run_config.TRAINING_OPTIONS`), None where it
+    sets none.
     """
 
     path: Path
@@ -114,8 +118,7 @@ class SweepSpec:
     search: dict
     num_samples: int = 1
     search_seed: int = 0
-    checkpoint_freq: int | None = None
-    eval_freq: int | None = None
+    options: dict = field(default_factory=dict)
     vec_env: str = "native"
     cpus_per_trial: int = 1
     max_concurrent_trials: int | None = None
@@ -160,7 +163,7 @@ def _value_rules():
 
     from .action_modes import ACTION_MODES, ActionMode
     from .config import count, ppo_arguments
-    from .training import check_seed
+    from .run_config import check_seed
 
     def one_of(name, allowed):
         def check(v):
@@ -252,11 +255,11 @@ def load_sweep(path) -> SweepSpec:
     Checks, before anything runs: the keys (misspellings get a hint), the
     env id, the hyperparameter file and its entry with the overrides, every
     value of the search space against the trainer's rules, and one set-up of
-    every combination of the action-mode values (:func:`agents.training.prepare_run`,
+    every combination of the action-mode values (:func:`agents.run_session.prepare_run`,
     which builds the env, the residual's baseline and the policy; nothing is written).
     """
     from .config import DEFAULT_CONFIG, refuse_unknown, count, ppo_arguments, read_yaml
-    from .training import check_env_id, check_training_options
+    from .run_config import check_env_id, check_training_options
 
     path = Path(path)
     data = read_yaml("sweep file", path)
@@ -279,7 +282,7 @@ def load_sweep(path) -> SweepSpec:
         twice = [f"{k} (search: {s})" for s, k in _ENTRY_KEYS.items() if s in search and k in overrides]
         if twice:
             raise ValueError(f"overrides set {', '.join(twice)}, which the search sets: keep one")
-        options = {k: data.get(k) for k in ("checkpoint_freq", "eval_freq")}
+        options = {k: data.get(k) for k in TRAINING_OPTIONS}
         vec_env = data.get("vec_env", "native")
         check_training_options(vec_env=vec_env, tensorboard=None, **options)
         spec = SweepSpec(
@@ -287,7 +290,7 @@ def load_sweep(path) -> SweepSpec:
             search={k: _parse_domain(k, v) for k, v in search.items()},
             num_samples=count("num_samples", data.get("num_samples", 1)),
             search_seed=count("search_seed", data.get("search_seed", 0), 0),
-            checkpoint_freq=options["checkpoint_freq"], eval_freq=options["eval_freq"], vec_env=vec_env,
+            options=options, vec_env=vec_env,
             cpus_per_trial=count("cpus_per_trial", data.get("cpus_per_trial", 1)),
             max_concurrent_trials=(None if data.get("max_concurrent_trials") is None
                                    else count("max_concurrent_trials", data["max_concurrent_trials"])))
@@ -304,7 +307,8 @@ def _check_trials(spec: SweepSpec) -> None:
     The other parameters take their first value (a range: its low end); their
     every value was checked on its own by :func:`load_sweep`.
     """
-    from .training import RunWarning, prepare_run
+    from .run_session import prepare_run
+    from .run_warning import RunWarning
 
     mode_keys = ("action_mode", "baseline", "action_repeat")
     axes = {k: _values(*spec.search[k]) for k in mode_keys if k in spec.search}
@@ -343,23 +347,23 @@ def trial_argv(spec: SweepSpec, settings: dict, config_file, output) -> list[str
     for key, flag in _FLAGS.items():
         if key in settings:
             argv += [flag, _format(key, settings[key])]
-    for key in ("checkpoint_freq", "eval_freq"):
-        if getattr(spec, key) is not None:
-            argv += [f"--{key.replace('_', '-')}", str(getattr(spec, key))]
+    for key, value in spec.options.items():
+        if value is not None:
+            argv += [f"--{key.replace('_', '-')}", str(value)]
     if spec.vec_env != "native":
         argv += ["--vec-env", spec.vec_env]
     return argv + ["--threads", str(spec.cpus_per_trial), "--output", str(output)]
 
 
 def _train_kwargs(argv: list[str]) -> dict:
-    """The arguments of :func:`agents.training.prepare_run` that ``vcnc-train ARGV`` runs with."""
+    """The arguments of :func:`agents.run_session.prepare_run` that ``vcnc-train ARGV`` runs with."""
     from .arguments import action_mode, parser
 
     args = parser().parse_args(argv)
     return {"env_id": args.env, "run_dir": args.output, "n_timesteps": args.timesteps,
             "seed": 0 if args.seed is None else args.seed, "n_envs": args.n_envs, "config_file": args.config,
-            "action_mode": action_mode(args, args.config), "checkpoint_freq": args.checkpoint_freq,
-            "eval_freq": args.eval_freq}
+            "action_mode": action_mode(args, args.config),
+            **{name: getattr(args, name) for name in TRAINING_OPTIONS}}
 
 
 def _write_entry(spec: SweepSpec, settings: dict, path: Path) -> None:
@@ -374,7 +378,9 @@ def _trial(settings: dict, *, spec: SweepSpec, sweep_dir: str) -> None:
     import torch
     from ray import tune
 
-    from .training import RunWarning, train
+    from .run_config import RunConfig
+    from .run_warning import RunWarning
+    from .training import train
 
     name = tune.get_context().get_trial_name()
     folder = Path(sweep_dir) / "trials" / name
@@ -388,13 +394,13 @@ def _trial(settings: dict, *, spec: SweepSpec, sweep_dir: str) -> None:
         warnings.simplefilter("always", RunWarning)
         result = train(**_train_kwargs(argv), progress_bar=False, vec_env=spec.vec_env)
     wall = time.perf_counter() - t0
-    run = yaml.safe_load((folder / "run" / "config.yml").read_text())
-    mode = run["action_mode"]
+    run = RunConfig.read(folder / "run")
+    mode = run.mode
     best = result.best or {}
     tune.report({
-        "trial": name, "seed": run["seed"], "learning_rate": run["hyperparams"].get("learning_rate"),
-        "action_mode": mode["mode"], "baseline": mode.get("baseline"), "correction": mode.get("correction"),
-        "action_repeat": mode["action_repeat"], "n_envs": run["n_envs"], "timesteps": run["n_timesteps"],
+        "trial": name, "seed": run.seed, "learning_rate": run.hyperparams.get("learning_rate"),
+        "action_mode": mode.mode, "baseline": mode.baseline, "correction": mode.correction,
+        "action_repeat": mode.action_repeat, "n_envs": run.n_envs, "timesteps": run.n_timesteps,
         "max_um": best.get("max_um", math.inf), "rms_um": best.get("rms_um", math.inf),
         "score_um": best.get("score_um", math.inf), "best_steps": best.get("steps"),
         "trained_steps": result.timesteps, "wall_s": wall, "train_wall_s": result.wall_s,

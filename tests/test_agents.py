@@ -477,9 +477,9 @@ def test_every_env_has_an_entry_that_prepares_a_run(tmp_path):
             warnings.simplefilter("ignore", agents.RunWarning)  # n_timesteps rounded up to whole rollouts
             run_dir, config, checkpoint = agents.training.prepare_run(env_id, tmp_path / env_id)
         assert checkpoint is None and not run_dir.exists()
-        mode = ActionMode(**config["action_mode"])
+        mode = config.mode
         assert mode.mode == "residual" and mode.baseline in baselines.names()
-        assert config["n_timesteps"] % (config["hyperparams"]["n_steps"] * config["n_envs"]) == 0
+        assert config.n_timesteps % (config.hyperparams["n_steps"] * config.n_envs) == 0
     # Yadav et al.'s positioning entry, as its helper proposed it
     step = load_hyperparameters("VCNC-Step-v0")
     assert action_mode_of(step) == ActionMode("residual", action_repeat=1, baseline="hinf-reduced", correction=0.05)

@@ -1,6 +1,7 @@
 """agents/ split into one module per topic (issue 22): the typed run configuration reads every shipped
 config.yml, no module takes another's private names or imports around a loop, and a short training run gives
-the numbers it gave before the split, bit for bit, with both trainers."""
+the numbers it gave before the split, bit for bit, with both trainers.  Issue 34: the configuration travels as a
+typed RunConfig (no module subscripts a config mapping) and a training option is one field of it."""
 
 import ast
 import hashlib
@@ -113,3 +114,50 @@ def test_a_short_run_trains_the_model_it_trained_before_the_split(trainer, tmp_p
     assert result.best["rms_um"] == pytest.approx(before_rms, rel=1e-5)
     if (result.best["max_um"], result.best["rms_um"]) == (before_max, before_rms):  # the same CPU's rounding
         assert digest == before_digest
+
+
+# -- issue 34: a typed RunConfig travels, and a training option is one field of it ----------------------------------
+def test_no_module_subscripts_a_run_config_as_a_dict():
+    """The run's configuration travels as :class:`RunConfig`: outside run_config.py (which reads config.yml's
+    mapping) no module subscripts a ``config`` mapping or turns a record back into a dict to read it."""
+    import re
+
+    pattern = re.compile(r"(?<![.\w])config\[|(?<![.\w])config\.get\(|\.to_dict\(\)\[")
+    found = [f"{path.name}:{i}: {line.strip()}" for path in sorted(AGENTS.glob("*.py")) if path.name != "run_config.py"
+             for i, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]
+    assert found == []
+    assert pattern.search('x = config["eval_freq"]') and pattern.search("mode.to_dict()['mode']")  # it can fail
+
+
+def test_a_training_option_is_a_flag_a_keyword_a_check_and_a_config_key_from_its_field(tmp_path):
+    """Each field of RunConfig made by ``training_option`` is, with nothing else written: a ``vcnc-train`` flag
+    with its default in the help, checked with an error naming it, filled with its default or the run's on resume,
+    and a key of config.yml."""
+    from dataclasses import fields, replace
+
+    import agents
+    from agents.arguments import parser
+    from agents.run_config import TRAINING_OPTIONS, check_training_options
+
+    assert TRAINING_OPTIONS == tuple(f.name for f in fields(RunConfig) if f.metadata.get("option")) \
+        == ("checkpoint_freq", "eval_freq")
+    data = yaml.safe_load((AGENTS / "trained" / "VCNC-Heart-v1" / "config.yml").read_text())
+    shipped = RunConfig.from_dict(data)
+    helps = {a.dest: a.help for a in parser()._actions}
+    for name in TRAINING_OPTIONS:
+        default = RunConfig.__dataclass_fields__[name].metadata["default"]
+        assert f"default {default}" in helps[name]
+        assert getattr(parser().parse_args([f"--{name.replace('_', '-')}", "7"]), name) == 7
+        with pytest.raises(ValueError, match=name):
+            check_training_options(vec_env="native", tensorboard=None, **{name: -1})
+        with pytest.raises(ValueError, match=name):
+            RunConfig.from_dict(dict(data, **{name: -1}))
+        unrecorded = replace(shipped, **{name: None})
+        assert name not in unrecorded.to_dict()
+        assert getattr(unrecorded.with_options(), name) == default  # a config.yml that recorded none
+        assert getattr(shipped.with_options(), name) == data[name]  # the run's
+        assert getattr(shipped.with_options(**{name: 3}), name) == 3 and shipped.with_options(**{name: 3}).to_dict()[
+            name] == 3
+    with pytest.raises(TypeError, match="eval_frq"):
+        agents.train("VCNC-Heart-v1", tmp_path / "run", eval_frq=100)
+    assert not (tmp_path / "run").exists()

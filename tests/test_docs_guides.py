@@ -27,7 +27,8 @@ DOCS = Path(__file__).resolve().parent.parent / "docs"
 _FENCE = re.compile(r"^```(?:python|\{code-block\} python)[ \t]*\n((?::[\w-]+:[^\n]*\n)*)(.*?)^```[ \t]*$",
                     re.MULTILINE | re.DOTALL)
 
-PAGES = ["getting-started.md", "guides/add-a-plant.md", "guides/add-a-contour.md", "guides/add-a-controller.md"]
+PAGES = ["getting-started.md", "guides/add-a-plant.md", "guides/add-a-contour.md", "guides/add-a-controller.md",
+         "guides/add-a-training-option.md"]
 
 
 def code_blocks(page: Path) -> list[tuple[str | None, str]]:

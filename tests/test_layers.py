@@ -4,11 +4,14 @@ itself round a loop (what ``farm-studio look`` draws: 0 upward arrows, 0 circles
 The order, from the ground: ``vcnc_gym`` (envs, plants, contours), ``baselines`` (the classical controllers),
 ``agents`` (training, and the agents that correct a baseline), ``vcnc_bench`` (the bench that runs them all, its
 policy kinds in ``vcnc_bench/kinds``).
+
+Within ``agents`` the modules stand on at most :data:`AGENTS_MAX_FLOORS` floors, its storage on leaves (issue 34).
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -20,8 +23,10 @@ def _module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+@functools.cache
 def _imports() -> dict[str, set[str]]:
-    """Module -> the project modules it imports anywhere in its text (top level or inside a function)."""
+    """Module -> the project modules it imports anywhere in its text (top level or inside a function); read once
+    per session (do not change what it returns)."""
     modules = {_module_name(p): p for layer in LAYERS for p in (ROOT / layer).rglob("*.py")}
     graph = {}
     for name, path in modules.items():
@@ -81,3 +86,42 @@ def test_no_module_imports_itself_round_a_loop():
         visit(module, [module])
     assert loops == []
 
+
+
+#: The most floors ``agents/`` may stand on (issue 34: it stood on 11): floor 1 is a module that imports no other
+#: module of the package, and a module stands one floor above the highest it imports (``farm-studio look agents``).
+AGENTS_MAX_FLOORS = 7
+
+#: The storage and IO of ``agents``: the run folder, the model file, the normalisation file, the env signature an
+#: agent records and the run's warnings.  Each imports no module of the package but leaves.
+AGENTS_STORAGE = ("agents.run_folder", "agents.model_file", "agents.normalization", "agents.signature",
+                  "agents.run_warning")
+
+
+def _floors(package: str) -> dict[str, int]:
+    """Module of ``package`` -> its floor among the package's modules (1: imports none of them)."""
+    graph = _imports()
+    inside = {m: {d for d in deps if d == package or d.startswith(package + ".")}
+              for m, deps in graph.items() if m == package or m.startswith(package + ".")}
+    floors: dict[str, int] = {}
+
+    def floor(module: str) -> int:
+        if module not in floors:
+            floors[module] = 1 + max((floor(d) for d in inside[module]), default=0)
+        return floors[module]
+
+    for module in inside:
+        floor(module)
+    return floors
+
+
+def test_the_agents_package_stands_on_at_most_seven_floors_with_its_storage_on_leaves():
+    floors = _floors("agents")
+    assert {"agents", "agents.cli", "agents.training", "agents.lean_ppo", "agents.run_session"} <= set(floors)
+    assert floors["agents.cli"] > floors["agents.training"] > floors["agents.run_session"] > 1  # the reading sees
+    too_high = {m: f for m, f in floors.items() if f > AGENTS_MAX_FLOORS}
+    assert too_high == {}, f"above floor {AGENTS_MAX_FLOORS}: {too_high}"
+    graph = _imports()
+    for module in AGENTS_STORAGE:
+        above_ground = sorted(d for d in graph[module] if d.startswith("agents") and floors[d] > 1)
+        assert above_ground == [], f"{module} is storage and imports {above_ground}"

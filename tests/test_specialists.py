@@ -13,7 +13,7 @@ import yaml
 import agents
 import baselines
 import vcnc_gym
-from agents.action_modes import ActionMode, ResidualAction
+from agents.action_modes import ResidualAction
 from agents.policy import ANY_CONTOUR_IDS, check_signature, env_signature
 from vcnc_gym.envs.registry import CONTOURING_IDS
 
@@ -40,9 +40,9 @@ def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline
             run_dir, config, checkpoint = agents.training.prepare_run(env_id, tmp_path / env_id,
                                                                        config_file=SPECIALISTS)
         assert checkpoint is None and not run_dir.exists()
-        mode = ActionMode(**config["action_mode"])
+        mode = config.mode
         assert mode.mode == "residual"
-        assert config["hyperparams"]["env_kwargs"]["randomize"] is True
+        assert config.env_kwargs["randomize"] is True
         policy = baselines.make(mode.baseline, gym.make(env_id))
         assert hasattr(policy, "compiled"), mode.baseline
 

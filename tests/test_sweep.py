@@ -106,7 +106,7 @@ def test_tiny_sweep_retrain_command_is_the_trials_run(tiny, tmp_path):
     trial = yaml.safe_load((Path(best["run_dir"]) / "config.yml").read_text())
     for key in ("env_id", "seed", "n_envs", "n_timesteps", "eval_freq", "checkpoint_freq", "action_mode",
                 "hyperparams"):
-        assert config[key] == trial[key], key
+        assert getattr(config, key) == trial[key], key
 
 
 BAD_FILES = [

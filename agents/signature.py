@@ -1,0 +1,119 @@
+"""The env an agent was trained for: its signature, and the check of an env against it.
+
+:func:`env_signature` reads what an agent's observations and decisions depend on from a plain env (contour,
+plant, control period, feed, preview, shapes); :func:`check_signature` compares two of them, as
+:func:`agents.load_agent` does for an agent folder's ``config.yml`` and a resumed run does for its own.  A leaf
+of ``agents``: it reads the env only.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import warnings
+
+import numpy as np
+import yaml
+
+__all__ = ["env_signature", "check_signature", "check_env_signature", "ANY_CONTOUR_IDS", "MACHINE_FIELDS"]
+
+
+#: Fields of :func:`env_signature` with their unit, in the order they are reported.
+_SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "dt": " s",
+                    "feedrate": " mm/s", "ramp_time": " s", "preview_steps": " control periods",
+                    "observation_shape": "", "action_shape": ""}
+
+
+def _attr(obj, dotted: str):
+    for name in dotted.split("."):
+        obj = getattr(obj, name, None)
+        if obj is None:
+            return None
+    return obj
+
+
+def _curve_digest(curve) -> str | None:
+    if curve is None:
+        return None
+    h = hashlib.sha256(str(int(curve.degree)).encode())
+    for a in (curve.control_points, curve.weights, curve.knots):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]
+
+
+def env_signature(env) -> dict:
+    """What an agent's observations and decisions depend on, read from a plain (``action_repeat=1``) env.
+
+    A YAML-safe dict: env id (None for an env not made by ``gym.make``), contour
+    name and a digest of its NURBS, plant name and options, control period
+    ``dt`` (s), feedrate (mm/s) and ramp time (s) of the reference, preview
+    steps, observation and action shapes.  Reward scale and episode bounds
+    are not part of it: they change the score, not what the agent sees.
+    """
+    u = env.unwrapped
+    spec = getattr(u, "spec", None)
+    options = _attr(u, "task.plant_options") or {}
+    floats = {k: _attr(u, a) for k, a in (("dt", "dt"), ("feedrate", "feedrate_profile.feedrate"),
+                                          ("ramp_time", "feedrate_profile.ramp_time"))}
+    preview = _attr(u, "layout.preview_steps")
+    return {
+        "id": spec.id if spec is not None else None,
+        "contour": _attr(u, "contour_name"),
+        "curve_sha256": _curve_digest(_attr(u, "curve")),
+        "plant": _attr(u, "plant.name"),
+        "plant_options": yaml.safe_load(yaml.safe_dump(dict(options))),
+        **{k: None if v is None else float(v) for k, v in floats.items()},
+        "preview_steps": None if preview is None else [int(s) for s in preview],
+        "observation_shape": [int(n) for n in u.observation_space.shape],
+        "action_shape": [int(n) for n in u.action_space.shape],
+    }
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, float) and isinstance(b, (int, float)) and not isinstance(b, bool):
+        return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
+    return a == b
+
+
+#: Ids whose contour and feed are drawn anew at every reset: an agent trained there (a generalist) runs on any
+#: contour and feed of the same machine, so only the :data:`MACHINE_FIELDS` of its signature are compared.
+ANY_CONTOUR_IDS = ("VCNC-RandomContour-v1",)
+
+#: The signature fields that describe the machine and the observation, not the part.
+MACHINE_FIELDS = ("plant", "plant_options", "dt", "preview_steps", "observation_shape", "action_shape")
+
+
+def check_signature(recorded: dict, given: dict, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
+    """ValueError listing every field where the ``given`` :func:`env_signature` differs from the ``recorded`` one.
+
+    An unknown id on either side (an env made without ``gym.make``) is not
+    compared; fields the recorded signature lacks are not compared; an agent
+    trained on an id of :data:`ANY_CONTOUR_IDS` is compared on the
+    :data:`MACHINE_FIELDS` only.  With ``allow_mismatch`` the differences are
+    a warning instead, except a different observation or action shape, which
+    no agent can run on.
+    """
+    diffs, fatal = [], False
+    generalist = recorded.get("id") in ANY_CONTOUR_IDS
+    for key, unit in _SIGNATURE_UNITS.items():
+        if key not in recorded or key not in given or (key == "id" and (recorded[key] is None or given[key] is None)):
+            continue
+        if generalist and key not in MACHINE_FIELDS:
+            continue
+        if not _same(recorded[key], given[key]):
+            diffs.append(f"{key}: trained on {recorded[key]}{unit}, this env has {given[key]}{unit}")
+            fatal |= key in ("observation_shape", "action_shape")
+    if not diffs:
+        return
+    head = (f"{what} was trained on {recorded['id']}, not {given['id']}"
+            if recorded.get("id") and given.get("id") and recorded["id"] != given["id"]
+            else f"{what} was trained on another env configuration")
+    message = f"{head}: " + "; ".join(diffs)
+    if fatal or not allow_mismatch:
+        raise ValueError(message + ("" if fatal else " (allow_mismatch=True runs it anyway)"))
+    warnings.warn(message, stacklevel=3)
+
+
+def check_env_signature(recorded: dict, env, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
+    """:func:`check_signature` of ``env``'s :func:`env_signature` against ``recorded``."""
+    check_signature(recorded, env_signature(env), what=what, allow_mismatch=allow_mismatch)
