@@ -28,8 +28,13 @@ def parser() -> argparse.ArgumentParser:
                    help="run the Ray Tune sweep of a sweep file (agents/sweeps/README.md); --output: the sweep's "
                         "folder (default runs/sweep_NAME); needs pip install 'vcnc-gym[sweep]'")
     p.add_argument("--ray-address", metavar="ADDR",
-                   help="with --sweep: the address of an existing Ray cluster (auto, HOST:PORT, ray://HOST:10001); "
-                        "default: a local Ray sized to this machine")
+                   help="with --sweep or --seeds: the address of an existing Ray cluster (auto, HOST:PORT, "
+                        "ray://HOST:10001); default: --sweep a local Ray sized to this machine, --seeds local processes")
+    p.add_argument("--seeds", type=int, metavar="K",
+                   help="train K seeds (--seed S, S+1, ..., default from 0) with the same options, one run folder "
+                        "each (OUTPUT/seedS, default runs/ENV_seedS), on --jobs local processes (agents.seeds)")
+    p.add_argument("--jobs", type=int, metavar="J",
+                   help="with --seeds: seeds trained at a time (default: the idle cores, at least 1)")
     p.add_argument("--timesteps", type=int, metavar="N",
                    help="total agent steps, rounded up to whole PPO rollouts (default: the config entry's)")
     p.add_argument("--seed", type=int, help="seed of the envs and of PPO, in [0, 2**32 - 1] (default 0)")

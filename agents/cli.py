@@ -7,6 +7,7 @@
     vcnc-train --resume runs/omega3 --timesteps 400000   # ... to a new total
     vcnc-train --sweep agents/sweeps/omega.yml           # a Ray Tune sweep (runs/sweep_omega), local Ray
     vcnc-train --sweep agents/sweeps/omega.yml --ray-address auto   # ... on an existing Ray cluster
+    vcnc-train --env VCNC-Heart-v1 --seeds 5 --output runs/heart   # seeds 0-4: runs/heart/seed0 ... (agents.seeds)
 
 Every option, the hyperparameter file and the env arguments are checked
 before the run folder is created; a bad one exits with status 2 and a
@@ -66,7 +67,11 @@ def _training_options(args) -> dict:
 def _sweep_conflict(args) -> str | None:
     """What is wrong with combining ``--sweep`` with the other options, or None."""
     if args.sweep is None:
-        return "--ray-address applies to --sweep FILE" if args.ray_address is not None else None
+        if args.ray_address is not None and args.seeds is None:
+            return "--ray-address applies to --sweep FILE or --seeds K"
+        return "--jobs applies to --seeds K" if args.jobs is not None and args.seeds is None else None
+    if args.seeds is not None:
+        return "the sweep file sets every trial's seed; drop --seeds"
     given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
                                                   *MODE_OPTIONS, *_training_options(args), "threads")
              if getattr(args, k) is not None]
@@ -98,6 +103,24 @@ def _sweep_main(parser, args) -> int:
     return 0 if result.best is not None else 1
 
 
+def _seeds_main(parser, args, argv: list[str]) -> int:
+    """``vcnc-train --seeds K``: 0 every seed done, else the first seed's failing exit code; 2 bad options."""
+    from .run_config import check_env_id
+    from .seeds import run_seeds
+
+    if args.resume is not None:
+        parser.error("--seeds starts new runs; resume each seed's folder on its own (--resume DIR)")
+    if args.seeds < 1 or (args.jobs is not None and args.jobs < 1):
+        parser.error(f"--seeds and --jobs must be positive, got {args.seeds} and {args.jobs}")
+    try:
+        check_env_id(args.env)
+        runs = run_seeds(argv, args.env, 0 if args.seed is None else args.seed, args.seeds, args.output,
+                         jobs=args.jobs, ray_address=args.ray_address)
+    except (ValueError, ImportError) as exc:
+        parser.error(str(exc))
+    return next((r.code for r in runs if r.code != 0), 0)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``vcnc-train``: 0 done, 1 the run folder could not be written (disk full, permissions), 2 bad
     options (nothing written), 130/143 stopped by SIGINT/SIGTERM."""
@@ -109,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.sweep is not None:
         return _sweep_main(parser, args)
     _check_run_options(parser, args)
+    if args.seeds is not None:
+        return _seeds_main(parser, args, sys.argv[1:] if argv is None else list(argv))
     tensorboard = False if args.no_tensorboard else None
     with _print_run_warnings():
         run_dir, config, checkpoint, trainer = _prepare(parser, args, tensorboard)

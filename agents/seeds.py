@@ -1,0 +1,158 @@
+"""``vcnc-train --seeds K``: the same training run with K seeds, one run folder each.
+
+A verdict on a learned controller rests on several training seeds (Henderson et al. (2018); Agarwal et al.
+(2021)): ``vcnc-train --env ID --seeds 5 [--seed S] [options]`` runs seeds ``S, S+1, ..., S+K-1`` (``S`` default
+0) with every other option unchanged.  Each seed is one ``vcnc-train`` process with ``--seed s`` and its own run
+folder: ``OUTPUT/seed<s>`` with ``--output OUTPUT``, else ``runs/<ID>_seed<s>`` as a single run's.  They run on
+``--jobs`` local processes at a time (default: every core but what other processes keep busy, at least 1;
+each trains on one torch thread), or, with ``--ray-address ADDR``, as Ray tasks on that cluster (one CPU each;
+the run folders must be on a file system the nodes share).  A seed's output goes to ``<run folder>.log``; its
+last line is printed when it ends, and a summary table of every seed's best evaluation at the end
+(``seeds.json`` beside the folders).  The bench evaluates the K agents (``vcnc-bench --policy ppo:FOLDER``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from .run_config import check_seed
+
+__all__ = ["SeedRun", "seed_folders", "seed_argv", "run_seeds"]
+
+#: Options of the parent command that each seed's command sets itself (value-taking).
+_OWN = ("--seeds", "--seed", "--output", "--jobs", "--ray-address")
+
+
+@dataclass
+class SeedRun:
+    """One seed's run: its seed, folder, exit code, wall time (s) and best evaluation (um; None without one)."""
+
+    seed: int
+    folder: str
+    code: int
+    wall_s: float
+    best_max_um: float | None = None
+    best_rms_um: float | None = None
+
+
+def seed_folders(env_id: str, seeds: list[int], output: Path | None) -> list[Path]:
+    """The run folder of each seed: ``output/seed<s>``, or ``runs/<env_id>_seed<s>``."""
+    return [output / f"seed{s}" if output is not None else Path("runs") / f"{env_id}_seed{s}" for s in seeds]
+
+
+def seed_argv(argv: list[str], seed: int, folder: Path) -> list[str]:
+    """``argv`` (the parent's options) without :data:`_OWN`, plus ``--seed``, ``--output`` and ``--no-progress``."""
+    out, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+            continue
+        name = a.split("=", 1)[0]
+        if name in _OWN:
+            skip = "=" not in a
+            continue
+        out.append(a)
+    extra = [] if "--no-progress" in out else ["--no-progress"]
+    return out + ["--seed", str(seed), "--output", str(folder), *extra]
+
+
+def _idle_cores() -> int:
+    cores = os.cpu_count() or 1
+    try:
+        busy = os.getloadavg()[0]
+    except OSError:
+        busy = 0.0
+    return max(1, min(cores, round(cores - busy)))
+
+
+def _run_one(argv: list[str], folder: str) -> tuple[int, float, str]:
+    """One seed's ``vcnc-train`` in a fresh process (one torch thread); (exit code, wall s, its last line)."""
+    t0 = time.perf_counter()
+    log = Path(f"{folder}.log")
+    log.parent.mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    with log.open("w") as f:
+        code = subprocess.run([sys.executable, "-m", "agents.cli", *argv, "--threads", "1"], stdout=f,
+                              stderr=subprocess.STDOUT, env=env).returncode
+    lines = [ln for ln in log.read_text().splitlines() if ln.strip()]
+    return code, time.perf_counter() - t0, lines[-1] if lines else ""
+
+
+def _best(folder: Path) -> tuple[float | None, float | None]:
+    """The best evaluation's max and RMS contour error (um) recorded in a run folder's summary, if any."""
+    try:
+        best = json.loads((folder / "summary.json").read_text()).get("best") or {}
+    except (OSError, ValueError):
+        return None, None
+    return best.get("max_um"), best.get("rms_um")
+
+
+def _local(tasks: list[tuple[list[str], str]], jobs: int, report) -> list[tuple[int, float, str]]:
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(jobs) as pool:
+        futures = [pool.submit(_run_one, argv, folder) for argv, folder in tasks]
+        results = []
+        for (_, folder), f in zip(tasks, futures):
+            results.append(f.result())
+            report(folder, results[-1])
+    return results
+
+
+def _ray(tasks: list[tuple[list[str], str]], address: str, report) -> list[tuple[int, float, str]]:
+    try:
+        import ray
+    except ImportError:
+        raise ImportError("vcnc-train --seeds --ray-address runs on Ray, an optional extra that is not installed: "
+                          "pip install 'vcnc-gym[sweep]'") from None
+    ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    remote = ray.remote(num_cpus=1)(_run_one)
+    refs = [remote.remote(argv, folder) for argv, folder in tasks]
+    results = []
+    for (_, folder), ref in zip(tasks, refs):
+        results.append(ray.get(ref))
+        report(folder, results[-1])
+    return results
+
+
+def run_seeds(argv: list[str], env_id: str, first: int, count: int, output: Path | None, *, jobs: int | None = None,
+              ray_address: str | None = None) -> list[SeedRun]:
+    """Train seeds ``first .. first + count - 1`` with the options ``argv`` (see the module docstring); the runs,
+    in seed order, written to ``seeds.json`` in the folders' parent.  ValueError for a bad seed range or a run
+    folder that exists."""
+    seeds = [check_seed(s) for s in (first, first + count - 1)]
+    seeds = list(range(seeds[0], seeds[1] + 1))
+    folders = seed_folders(env_id, seeds, output)
+    taken = [str(f) for f in folders if f.exists()]
+    if taken:
+        raise ValueError(f"run folder(s) already exist: {', '.join(taken)}; choose another --output or --seed")
+    tasks = [(seed_argv(argv, s, f), str(f)) for s, f in zip(seeds, folders)]
+    jobs = jobs or _idle_cores()
+    where = f"the Ray cluster at {ray_address}" if ray_address else f"{min(jobs, count)} local process(es)"
+    print(f"vcnc-train: {count} seeds ({seeds[0]}..{seeds[-1]}) of {env_id} on {where}; each seed's output in "
+          f"its folder's .log", flush=True)
+
+    def report(folder, result):
+        code, wall, last = result
+        print(f"  {folder}: {'done' if code == 0 else f'exit {code}'} in {wall:.0f} s: {last}", flush=True)
+
+    results = _ray(tasks, ray_address, report) if ray_address else _local(tasks, jobs, report)
+    runs = [SeedRun(s, str(f), code, wall, *_best(f)) for s, f, (code, wall, _) in zip(seeds, folders, results)]
+    summary = folders[0].parent / "seeds.json"
+    summary.write_text(json.dumps({"env": env_id, "argv": argv, "runs": [asdict(r) for r in runs]}, indent=1) + "\n")
+    _print_table(runs, summary)
+    return runs
+
+
+def _print_table(runs: list[SeedRun], summary: Path) -> None:
+    print("seed  exit  wall_s  best max um  best RMS um  folder")
+    for r in runs:
+        cells = [f"{v:11.4g}" if v is not None else f"{'-':>11}" for v in (r.best_max_um, r.best_rms_um)]
+        print(f"{r.seed:4d}  {r.code:4d}  {r.wall_s:6.0f}  {cells[0]}  {cells[1]}  {r.folder}")
+    print(f"summary: {summary} (the agents' verdicts: vcnc-bench --env ID --policy ppo:FOLDER --plants N)")

@@ -1,0 +1,49 @@
+"""``vcnc-train --seeds K`` (agents.seeds): K runs of the same options, one folder and one seed each."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from agents import cli
+from agents.seeds import seed_argv, seed_folders
+
+
+def test_each_seed_runs_the_parents_options_with_its_own_seed_and_folder():
+    argv = ["--env", "VCNC-Heart-v1", "--seeds", "3", "--seed=4", "--output", "runs/x", "--jobs", "2", "--timesteps",
+            "4096", "--ray-address=auto"]
+    assert seed_argv(argv, 5, Path("runs/x/seed5")) == ["--env", "VCNC-Heart-v1", "--timesteps", "4096", "--seed",
+                                                        "5", "--output", "runs/x/seed5", "--no-progress"]
+    assert seed_folders("VCNC-Heart-v1", [0, 1], None) == [Path("runs/VCNC-Heart-v1_seed0"),
+                                                           Path("runs/VCNC-Heart-v1_seed1")]
+    assert seed_folders("E", [7], Path("out")) == [Path("out/seed7")]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--env", "VCNC-Heart-v1", "--seeds", "0"], "--seeds and --jobs must be positive"),
+    (["--resume", "runs/x", "--seeds", "2"], "--seeds starts new runs"),
+    (["--env", "VCNC-Heart-v1", "--jobs", "2"], "--jobs applies to --seeds K"),
+    (["--sweep", "agents/sweeps/omega.yml", "--seeds", "2"], "drop --seeds"),
+    (["--env", "VCNC-Heart-v1", "--seeds", "2", "--seed", "4294967295"], "seed must be an integer"),
+])
+def test_bad_seed_options_exit_2_naming_them(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_two_seeds_train_into_their_own_folders(tmp_path, capsys):
+    code = cli.main(["--env", "VCNC-Circle-v1", "--seeds", "2", "--seed", "3", "--timesteps", "2048", "--n-envs",
+                     "8", "--trainer", "lean", "--output", str(tmp_path / "circle"), "--jobs", "2"])
+    assert code == 0, capsys.readouterr()
+    for s in (3, 4):
+        config = (tmp_path / "circle" / f"seed{s}" / "config.yml").read_text()
+        assert f"seed: {s}" in config
+        assert (tmp_path / "circle" / f"seed{s}" / "final").is_dir()
+    runs = json.loads((tmp_path / "circle" / "seeds.json").read_text())["runs"]
+    assert [r["seed"] for r in runs] == [3, 4] and all(r["code"] == 0 for r in runs)
+    assert "seed  exit" in capsys.readouterr().out
