@@ -246,8 +246,7 @@ def commission(task, source: str = "nominal", parameters=None, experiment: Exper
     if key not in _MACHINES:  # the same machines: one experiment serves every controller
         records = _load_machines(key)
         if records is None:
-            models, meas = identify(task, p, task.plant.inverse(nominal), experiment)
-            records = [_record(task, m, "machine", meas.seconds / len(p), nominal) for m in models]
+            records = _identify_machines(task, p, experiment)
         if len(_MACHINES) >= _MACHINES_KEPT:
             _MACHINES.pop(next(iter(_MACHINES)))
         _MACHINES[key] = records
@@ -302,6 +301,15 @@ def experiment_key(task, parameters, experiment: Experiment = Experiment()) -> s
     return f"{task.plant.name}-{h.hexdigest()[:16]}"
 
 
+def _identify_machines(task, parameters, experiment: Experiment) -> list:
+    """One identification run on the machines ``parameters`` (n, 2, P) of ``task``, through its step and sensor
+    (:func:`~baselines.commissioning.identify.identify`): a ``"machine"`` record per machine, each with its share of
+    the run's time."""
+    nominal = task.nominal_parameters
+    models, meas = identify(task, parameters, task.plant.inverse(nominal), experiment)
+    return [_record(task, m, "machine", meas.seconds / len(parameters), nominal) for m in models]
+
+
 def _load_machines(key: str) -> list | None:
     """The stored records of :func:`experiment_key` ``key``, or None (none stored, or recomputation asked)."""
     import os
@@ -317,9 +325,7 @@ def ship_machines(task, experiment: Experiment = Experiment()) -> Path:
     :data:`MACHINES_SHIPPED`; returns the file."""
     key = experiment_key(task, task.nominal_parameters[None], experiment)
     _MACHINES.pop(key, None)
-    nominal = task.nominal_parameters
-    models, meas = identify(task, nominal[None], task.plant.inverse(nominal), experiment)
-    records = [_record(task, m, "machine", meas.seconds, nominal) for m in models]
+    records = _identify_machines(task, task.nominal_parameters[None], experiment)
     MACHINES_SHIPPED.mkdir(parents=True, exist_ok=True)
     path = MACHINES_SHIPPED / f"{key}.json"
     path.write_text(json.dumps([r.to_dict() for r in records], indent=1) + "\n")
