@@ -2,7 +2,8 @@
 # (what CI runs: `make lint`, `make docs`, then pytest without the slow tests; `make test-all` runs them too).
 # Both create .venv, install the CPU build of PyTorch from the pinned file
 # first (an unpinned torch pulls gigabytes of CUDA packages), then the project,
-# then compile its numba kernels once (python -m vcnc_gym.warmup).
+# then compile its numba kernels once (python -m vcnc_gym.warmup: the envs'; python -m vcnc_bench.warmup: the
+# controllers' laws the main job runs).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -19,6 +20,7 @@ $(VENV)/.installed-run: pyproject.toml | $(BIN)/python
 	$(BIN)/pip install -q torch==2.13.0
 	$(BIN)/pip install -q -e ".[baselines,agents,gcode]"
 	$(BIN)/python -m vcnc_gym.warmup
+	$(BIN)/python -m vcnc_bench.warmup
 	touch $@
 
 $(VENV)/.installed: $(VENV)/.installed-run

@@ -138,3 +138,17 @@ def test_the_default_table_runs_to_its_end(tmp_path):
     out_json = tmp_path / "bench.json"
     assert cli.main(["--json", str(out_json), "--no-progress"]) == 0
     assert check.problems(json.loads(out_json.read_text()), default_ids=cli.DEFAULT_IDS) == []
+
+
+def test_the_bench_warm_up_compiles_every_machine_of_the_default_table_once():
+    """``python -m vcnc_bench.warmup`` (the install's second warm-up): one env per machine of the default table
+    (plant, ideal or shop floor), the ideal heart first beside the step response; on the step response it steps
+    each of the four classical policies the bench runs there."""
+    from vcnc_bench.cli import DEFAULT_IDS
+    from vcnc_bench.warmup import _one_per_machine, warm_env
+    from vcnc_gym.envs.registry import suite_env
+
+    ids = _one_per_machine(list(DEFAULT_IDS))
+    machines = {(suite_env(i).kwargs.get("plant"), bool(suite_env(i).kwargs.get("shop_floor"))) for i in DEFAULT_IDS}
+    assert len(ids) == len(machines) and set(ids) <= set(DEFAULT_IDS)
+    assert warm_env("VCNC-Step-v0") == 4
