@@ -37,7 +37,7 @@ from vcnc_gym.validation import integer, positive
 
 from .policy import check_env_signature, env_signature
 
-__all__ = ["BehaviourCloning", "dataset_pairs", "fit", "load_bc", "FORMAT", "main"]
+__all__ = ["BehaviourCloning", "dataset_pairs", "stack_history", "fit", "load_bc", "FORMAT", "main"]
 
 #: The file format's name and version, in the header.
 FORMAT = "vcnc-gym behaviour cloning v1"
@@ -73,19 +73,41 @@ class BehaviourCloning:
     #: Not a learning-across-episodes policy, and causal: it reads the observation only.
     causal = True
 
+    @property
+    def history(self) -> int:
+        """Observations per input: the current one and the ``history - 1`` before it (``header["history"]``)."""
+        return int(self.header.get("history", 1))
+
     def forward(self, obs: np.ndarray) -> np.ndarray:
-        """The actions of a batch of observations, (M, D) -> (M, A), float32."""
+        """The actions of a batch of inputs, (M, history x D) -> (M, A), float32 (newest observation first)."""
         x = (np.asarray(obs, dtype=np.float32) - self.obs_mean) / self.obs_std
         for w, b in zip(self.weights, self.biases):
             x = np.tanh(x @ w + b)
         return x
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        """SB3's ``predict``: the action for one observation (D,) or a batch (M, D); ``state`` is passed back."""
+        """SB3's ``predict``: the action for one observation (D,) or a batch (M, D); ``state`` is passed back.
+
+        With ``history`` > 1 the policy keeps each env's last observations; an env whose ``episode_start`` is
+        True (or the first call, or a batch of another size) starts its history with the current observation
+        repeated, as :func:`dataset_pairs` pads an episode's start."""
         obs = np.asarray(observation, dtype=np.float32)
-        if obs.ndim == 1:
-            return self.forward(obs[None])[0], state
-        return self.forward(obs), state
+        single = obs.ndim == 1
+        obs = obs[None] if single else obs
+        k = self.history
+        if k > 1:
+            buf = getattr(self, "_history", None)
+            if buf is None or buf.shape[0] != obs.shape[0]:
+                buf = self._history = np.repeat(obs[:, None], k, axis=1)
+            else:
+                start = (np.ones(obs.shape[0], dtype=bool) if episode_start is None
+                         else np.asarray(episode_start, dtype=bool).reshape(-1))
+                buf[:, 1:] = buf[:, :-1].copy()
+                buf[:, 0] = obs
+                buf[start] = obs[start][:, None]
+            obs = buf.reshape(obs.shape[0], -1)
+        action = self.forward(obs)
+        return (action[0] if single else action), state
 
     def check_env(self, env) -> None:
         """ValueError naming every field where ``env`` differs from the env the dataset came from."""
@@ -93,8 +115,9 @@ class BehaviourCloning:
         if recorded:
             check_env_signature(recorded, env, what="the behaviour-cloning policy")
         d = int(np.prod(env.observation_space.shape))
-        if d != self.obs_mean.size:
-            raise ValueError(f"env has {d} observation entries, the behaviour-cloning policy {self.obs_mean.size}")
+        if d * self.history != self.obs_mean.size:
+            raise ValueError(f"env has {d} observation entries, the behaviour-cloning policy "
+                             f"{self.obs_mean.size // self.history}")
 
     def save(self, path) -> Path:
         """Write the data-only ``.npz`` (numbers and a JSON header, nothing pickled); returns its path."""
@@ -135,12 +158,22 @@ def load_bc(path, env=None) -> BehaviourCloning:
     return policy
 
 
-def dataset_pairs(dataset) -> tuple[np.ndarray, np.ndarray]:
-    """Every decision step's (observation, action) of a Minari dataset: ((S, D) float32, (S, A) float32), the
-    observation the action answered (each episode's last observation has no action and is left out)."""
+def stack_history(observations: np.ndarray, history: int) -> np.ndarray:
+    """One episode's inputs with ``history`` observations each: row t is ``o_t, o_(t-1), ..., o_(t-history+1)``
+    (newest first), an episode's start padded with its first observation; (T, D) -> (T, history x D)."""
+    o = np.asarray(observations, dtype=np.float32)
+    history = integer("history", history, 1)
+    idx = np.maximum(np.arange(o.shape[0])[:, None] - np.arange(history)[None], 0)
+    return o[idx].reshape(o.shape[0], -1)
+
+
+def dataset_pairs(dataset, history: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Every decision step's (input, action) of a Minari dataset: ((S, history x D) float32, (S, A) float32),
+    the input the observation the action answered and the ``history - 1`` before it (:func:`stack_history`;
+    each episode's last observation has no action and is left out)."""
     obs, act = [], []
     for ep in dataset.iterate_episodes():
-        obs.append(np.asarray(ep.observations[:-1], dtype=np.float32))
+        obs.append(stack_history(ep.observations[:-1], history))
         act.append(np.asarray(ep.actions, dtype=np.float32))
     if not obs:
         raise ValueError("dataset has no episodes")
@@ -149,12 +182,13 @@ def dataset_pairs(dataset) -> tuple[np.ndarray, np.ndarray]:
 
 def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_size: int = 1024,
         learning_rate: float = 1e-3, validation: float = 0.05, seed: int = 0, signature: dict | None = None,
-        source: str | None = None, progress=None) -> BehaviourCloning:
+        source: str | None = None, history: int = 1, progress=None) -> BehaviourCloning:
     """Fit an MLP to ``(observations, actions)`` by mean squared error (torch, Adam, on the CPU).
 
     Parameters
     ----------
-    observations : array, (S, D)
+    observations : array, (S, history x D)
+        The inputs (:func:`dataset_pairs` with the same ``history``).
     actions : array, (S, A), in [-1, 1]
         Values outside are clipped (the env clips them too).
     hidden : sequence of int
@@ -171,6 +205,8 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
         The env's :func:`agents.policy.env_signature`, checked when the policy is loaded for an env.
     source : str, optional
         Where the pairs came from (a dataset id), kept in the header.
+    history : int
+        Observations per input (the policy keeps that many per env when it runs).
     progress : callable (epoch, train_mse, validation_mse), optional
 
     Returns
@@ -188,6 +224,9 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
                          f"and {act.shape}")
     if not (np.isfinite(obs).all() and np.isfinite(act).all()):
         raise ValueError("observations and actions must be finite")
+    history = integer("history", history, 1)
+    if obs.shape[1] % history:
+        raise ValueError(f"history={history} does not divide the input's {obs.shape[1]} entries")
     hidden = [integer("hidden", h, 1) for h in hidden]
     epochs = integer("epochs", epochs, 1)
     batch_size = integer("batch_size", batch_size, 1)
@@ -236,7 +275,7 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
         if progress is not None:
             progress(epoch + 1, losses["train"][-1], losses["validation"][-1])
     linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    header = {"format": FORMAT, "signature": signature, "source": source, "losses": losses,
+    header = {"format": FORMAT, "signature": signature, "source": source, "losses": losses, "history": history,
               "settings": {"hidden": hidden, "epochs": epochs, "batch_size": batch_size,
                            "learning_rate": learning_rate, "validation": validation, "seed": seed,
                            "pairs": int(obs.shape[0]), "train_s": time.perf_counter() - t0}}
@@ -258,6 +297,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--batch-size", type=int, default=1024)
     p.add_argument("--learning-rate", type=float, default=1e-3)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--history", type=int, default=1, help="observations per input (default 1: the current one)")
     args = p.parse_args(argv)
     from vcnc_gym.extras import require_extra
 
@@ -269,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
     pairs, spec_ids = [], set()
     for name in args.dataset:
         ds = minari.load_dataset(name)
-        pairs.append(dataset_pairs(ds))
+        pairs.append(dataset_pairs(ds, args.history))
         env = ds.recover_environment()
         signature = env_signature(env)
         spec_ids.add(env.spec.id)
@@ -286,7 +326,7 @@ def main(argv: list[str] | None = None) -> int:
 
     bc = fit(obs, act, hidden=args.hidden, epochs=args.epochs, batch_size=args.batch_size,
              learning_rate=args.learning_rate, seed=args.seed, signature=signature,
-             source=" + ".join(args.dataset), progress=report)
+             source=" + ".join(args.dataset), history=args.history, progress=report)
     print(f"wrote {bc.save(args.out)} (initial train MSE {bc.header['losses']['initial_train']:.4g}, "
           f"{bc.header['settings']['train_s']:.1f} s)")
     return 0

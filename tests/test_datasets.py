@@ -135,3 +135,29 @@ def test_behaviour_cloning_fits_and_round_trips(tiny, tmp_path):
 
     register_policy_kind(KIND)
     assert np.array_equal(resolve_policy(f"bc:{path}", env).predict(obs[:5])[0], bc.predict(obs[:5])[0])
+
+
+@pytest.mark.slow  # torch and Stable-Baselines3 imported (agents)
+def test_a_clone_with_history_sees_the_observations_it_was_fitted_on(tiny):
+    """With history 3 the policy's own buffer gives, step by step, the inputs the fit saw: o_t, o_t-1, o_t-2
+    (written out here, the start padded with o_0), and a new episode starts its buffer again."""
+    from agents.behaviour_cloning import dataset_pairs, fit
+
+    _, ds = tiny
+    x, act = dataset_pairs(ds, history=3)
+    o = next(ds.iterate_episodes()).observations[:-1].astype(np.float32)
+    by_hand = np.concatenate([o, np.r_[o[:1], o[:-1]], np.r_[o[:1], o[:1], o[:-2]]], axis=1)
+    np.testing.assert_array_equal(x, by_hand)
+    bc = fit(x, act, hidden=(16,), epochs=2, batch_size=64, history=3)
+    for _ in range(2):  # the second episode restarts the history
+        stepped = np.stack([bc.predict(o[t], episode_start=np.array([t == 0]))[0] for t in range(20)])
+        np.testing.assert_allclose(stepped, bc.forward(by_hand[:20]), rtol=0, atol=1e-6)
+    two = bc.predict(np.stack([o[0], o[0]]), episode_start=np.array([True, True]))[0]
+    np.testing.assert_allclose(two, np.repeat(bc.forward(by_hand[:1]), 2, axis=0), rtol=0, atol=1e-6)
+
+
+def test_the_command_names_a_bad_argument(tmp_path, capsys):
+    assert datasets.main(["--env", ENV, "--plants", "-1", "--out", str(tmp_path)]) == 2
+    assert "--plants" in capsys.readouterr().err
+    assert datasets.main(["--env", "VCNC-Nope-v1", "--policy", "strongest", "--out", str(tmp_path)]) == 2
+    assert "Nope" in capsys.readouterr().err
