@@ -22,6 +22,7 @@ EXTRAS: dict[str, tuple[tuple[str, str], ...]] = {
     "agents": (("stable_baselines3", "stable-baselines3"), ("torch", "torch"), ("yaml", "pyyaml"),
                ("tqdm", "tqdm"), ("rich", "rich")),
     "gcode": (("pygcode", "pygcode"),),
+    "datasets": (("minari", "minari"), ("h5py", "h5py")),
 }
 
 
@@ -46,7 +47,7 @@ def require_extra(extra: str, package: str) -> None:
     Parameters
     ----------
     extra : str
-        A key of :data:`EXTRAS` ("baselines", "agents", "gcode").
+        A key of :data:`EXTRAS` ("baselines", "agents", "gcode", "datasets").
     package : str
         What is being imported (for the message), e.g. ``"baselines"``.
     """
