@@ -39,7 +39,8 @@ never finished.
 
 subject to ``|u_j(l) + c_j(l)| <= u_max`` (the plant's input limit on the whole command, ``c`` the Coulomb
 pre-compensation), ``0 <= v_theta(l) <= min(v_max, v_feed(theta_bar))`` (``v_feed`` the programmed S-curve's feed
-as it accelerates from rest, then its peak: an override runs the programmed feed slower, never faster), ``theta(l) <= `` the path's length and
+as it accelerates from rest, then its peak: an override runs the programmed feed slower, never faster; and
+``sqrt(2 a_max (length - theta_bar))``, the speed from which the progress still stops at the path's end), ``theta(l) <= `` the path's length and
 ``|a_theta| <= a_max``.  The axes' model is each axis' nominal linear model discretised at the control period
 (:func:`.design.axis_model`, the one ``mpc`` and ``lq-preview`` use), over a block ``x <- A^L x + sum_i A^i B u``;
 its state is estimated from the measured position and velocity (:func:`.design.estimator_gain`).  The problem is
@@ -58,7 +59,8 @@ How it acts on the env
 It sets the progress itself, so it runs on a feed-override id (``VCNC-OmegaOverride-v1``,
 :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`), the third action its override dial: the dial is set
 so that the interpolator's clock (its arc ``s_c``, found from the observed reference point on the programmed path)
-follows ``theta``: override ``= (v_theta + (theta + 0.2 mm - s_c) / tau_c) / v_feed(s_c)``, ``tau_c`` = 20 ms (the
+follows ``theta``: override ``= (v_theta + (theta + 0.2 mm - s_c) / tau_c) / v_ref(s_c)`` (``v_ref`` the
+programmed reference's speed at the clock), ``tau_c`` = 20 ms (the
 override reaches its dial at a bounded rate; a clock ahead of the tool costs nothing, one behind it costs time).  A plain
 contouring id ends its episode ``completion_timeout`` (0.1 s) after its reference's end and measures the cycle
 time from its own clock, so a controller that runs slower than the programmed feed cannot finish there:
@@ -100,7 +102,7 @@ _A_SCALE = 1000.0
 _CLOCK_TIME = 20e-3
 _CLOCK_LEAD = 0.2
 #: Axis speed (mm/s) over which the Coulomb pre-compensation turns from one level to the other (tanh).
-_COULOMB_SPEED = 0.5
+_COULOMB_SPEED = 0.05
 
 
 @dataclass(frozen=True)
@@ -109,12 +111,13 @@ class PathTable:
     ``tangent`` (K, 2) unit; ``feed`` (K,) mm/s, the largest programmed speed up to 1 ms after the reference passes
     each arc: the S-curve's start, which an override cannot run faster than (1 ms ahead, so that the start, at
     rest, is not a zero feed), then its peak, where the progress' own bounds do the braking (the S-curve's stop at
-    the end is the constraint ``theta <= length``)."""
+    the end is the constraint ``theta <= length``); ``speed`` (K,) mm/s, the reference's own speed there."""
 
     arc: np.ndarray
     point: np.ndarray
     tangent: np.ndarray
     feed: np.ndarray
+    speed: np.ndarray
 
     @property
     def length(self) -> float:
@@ -147,7 +150,7 @@ def path_table(samples, dt: float) -> PathTable:
     if keep.sum() < 2:
         raise ValueError("samples must move along a path (their arc length never increases)")
     return PathTable(arc=arc[keep] - arc[0], point=s[keep, sk.REF_POSITION:sk.REF_POSITION + 2],
-                     tangent=s[keep, sk.REF_TANGENT:sk.REF_TANGENT + 2], feed=feed[keep])
+                     tangent=s[keep, sk.REF_TANGENT:sk.REF_TANGENT + 2], feed=feed[keep], speed=speed[keep])
 
 
 def linearised_errors(q, theta, theta_bar, path: PathTable):
@@ -323,7 +326,7 @@ class MPCCPolicy(BaselinePolicy):
     progress_weight : float
         ``q_v``, per mm/s and control period (default 10: 100 mm/s is worth 1000 um^2 of squared error).
     advance_weight : float
-        ``q_theta``, per mm of progress and control period (default 1000; module docstring).
+        ``q_theta``, per mm of progress and control period (default 200; module docstring).
     input_weight, path_weight : float
         ``r_u`` per input unit^2 of change between blocks, ``r_a`` per (1000 mm/s^2)^2 (defaults 1e-3, 1e-2).
     a_max : float, optional
@@ -351,7 +354,7 @@ class MPCCPolicy(BaselinePolicy):
         return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, override_rate,
-                 v_max=None, contour_weight=1.0, lag_weight=1.0, progress_weight=10.0, advance_weight=1e3, input_weight=1e-3,
+                 v_max=None, contour_weight=1.0, lag_weight=1.0, progress_weight=10.0, advance_weight=200.0, input_weight=1e-3,
                  path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.dt = positive("dt", dt, "s")
@@ -472,7 +475,8 @@ class MPCCPolicy(BaselinePolicy):
         v_bar = np.full(b, v0)
         u_prev = mem[s["u"]:s["u"] + 2]
         for _ in range(FIRST_ITERATIONS if mem[s["k"]] == 0 else 1):
-            v_cap = np.minimum(self.v_max, self.path.feed_at(theta_bar))
+            v_cap = np.minimum(np.minimum(self.v_max, self.path.feed_at(theta_bar)),  # and the braking curve
+                               np.sqrt(2.0 * self.a_max * np.maximum(self.path.length - theta_bar, 0.0)))
             comp = self._comp(theta_bar, v_bar)
             qp = contouring_qp(self.predictions, self.path, x0, theta0, v0, theta_bar, u_prev, mem[s["a"]],
                                comp, self.u_max, v_cap, self.a_max, self.weights)
@@ -497,7 +501,7 @@ class MPCCPolicy(BaselinePolicy):
         mem[s["u"]:s["u"] + 2] = applied - comp[:, 0]
         theta, vel = mem[s["theta"]], mem[s["v"]]
         mem[s["theta"]] = min(theta + self.dt * vel + 0.5 * self.dt ** 2 * a0, self.path.length)
-        mem[s["v"]] = max(vel + self.dt * a0, 0.0)
+        mem[s["v"]] = max(vel + self.dt * a0, 0.0) if mem[s["theta"]] < self.path.length else 0.0  # stopped at the end
         mem[s["a"]] = a0
         mem[s["plan"]:s["plan"] + b] = theta_plan
         mem[s["k"]] += 1
@@ -511,9 +515,9 @@ class MPCCPolicy(BaselinePolicy):
         window = path.point[k:k + 400]
         k += int(np.argmin(np.sum((window - r) ** 2, axis=1)))
         mem[s["clock"]] = k
-        feed = path.feed[k]
+        speed = path.speed[k]  # the clock's speed at 100 %
         want = mem[s["v"]] + (mem[s["theta"]] + _CLOCK_LEAD - path.arc[k]) / _CLOCK_TIME
-        override = 1.0 if feed <= 1e-9 else min(max(want / feed, 0.0), 1.0)
+        override = 1.0 if speed <= 1e-9 * path.feed[-1] else min(max(want / speed, 0.0), 1.0)
         return 2.0 * override - 1.0
 
     def _command(self, obs):
