@@ -40,19 +40,19 @@ never finished.
 subject to ``|u_j(l) + c_j(l)| <= u_max`` (the plant's input limit on the whole command, ``c`` the Coulomb
 pre-compensation), ``0 <= v_theta(l) <= min(v_max, v_feed(theta_bar))`` (``v_feed`` the programmed S-curve's feed
 as it accelerates from rest, then its peak: an override runs the programmed feed slower, never faster; and
-``sqrt(2 a_max (length - theta_bar))``, the speed from which the progress still stops at the path's end), ``theta(l) <= `` the path's length and
-``|a_theta| <= a_max``.  The axes' model is each axis' nominal linear model discretised at the control period
+``sqrt(2 a_max (length - theta_bar))``, the speed from which the progress still stops at the path's end),
+``theta(l) <= length`` (the path's) and ``|a_theta| <= a_max``.  The axes' model is each axis' nominal linear model discretised at the control period
 (:func:`.design.axis_model`, the one ``mpc`` and ``lq-preview`` use), over a block ``x <- A^L x + sum_i A^i B u``;
 its state is estimated from the measured position and velocity (:func:`.design.estimator_gain`).  The problem is
 condensed (the inputs only) and solved as one dense QP per control period by DAQP (the solver ``mpc`` measured
 fastest at its size, :mod:`.mpc`), re-linearised about the previous solution's shifted progress; the first call
 re-linearises :data:`FIRST_ITERATIONS` times about its own solution.
 
-The horizon (:data:`DEFAULT_BLOCKS`): 40 ms, six short blocks for the servo loop (1 to 4 control periods), then
-1 ms blocks.  Braking from 100 mm/s to the ~22 mm/s at which the omega's 0.19 mm corners ask the drives'
-~2.6e3 mm/s^2 sideways (``sqrt(a r)``) takes ~30 ms at that acceleration: a shorter horizon sees the corner too
-late to brake for it; the 1 ms blocks are 0.1 mm of path at 100 mm/s, so a corner's 0.6 mm of turn falls on
-several stages.
+The horizon (:data:`DEFAULT_BLOCKS`): 40 ms, seven short blocks for the servo loop (1 to 8 control periods), then
+1 ms and 2 ms blocks (30 blocks, 90 variables).  Braking from 100 mm/s to the ~22 mm/s at which the omega's
+0.19 mm corners ask the drives' ~2.6e3 mm/s^2 sideways (``sqrt(a r)``) takes ~30 ms at that acceleration: a
+shorter horizon sees the corner too late to brake for it; the 1 ms blocks are 0.1 mm of path at 100 mm/s, so a
+corner's 0.6 mm of turn falls on several stages once it is near.
 
 How it acts on the env
 ----------------------
@@ -60,8 +60,8 @@ It sets the progress itself, so it runs on a feed-override id (``VCNC-OmegaOverr
 :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`), the third action its override dial: the dial is set
 so that the interpolator's clock (its arc ``s_c``, found from the observed reference point on the programmed path)
 follows ``theta``: override ``= (v_theta + (theta + 0.2 mm - s_c) / tau_c) / v_ref(s_c)`` (``v_ref`` the
-programmed reference's speed at the clock), ``tau_c`` = 20 ms (the
-override reaches its dial at a bounded rate; a clock ahead of the tool costs nothing, one behind it costs time).  A plain
+programmed reference's speed at the clock), ``tau_c`` = 20 ms (the override reaches its dial at a bounded rate; a
+clock ahead of the tool costs nothing, one behind it costs time).  A plain
 contouring id ends its episode ``completion_timeout`` (0.1 s) after its reference's end and measures the cycle
 time from its own clock, so a controller that runs slower than the programmed feed cannot finish there:
 :meth:`MPCCPolicy.from_env` refuses it.
@@ -71,9 +71,10 @@ as the interpolator computed them before the override, the geometry the env give
 the nominal plant's linear model and its commissioning record's Coulomb levels, the override's slew rate; the
 observation's reference point, tracking error and velocity.  No true plant, nothing beyond the programmed path.
 
-Cost per step: ``python benchmarks/mpcc_cost.py`` (the module's figures are in ``docs/reproduction.md``,
-"Contouring MPC").
-"""
+Cost per step (``python benchmarks/mpcc_cost.py --steps 1500``, ``predict`` alone on the omega's first 1500
+periods, shared 2-core host): 3.2 ms per control period, 7.0 times ``mpc``'s 0.46 ms (which solves its two
+10-variable QPs only where the unconstrained minimiser leaves the bounds); an omega episode takes 25-70 s.  The
+front on the omega is in ``docs/reproduction.md``, "Contouring MPC"."""
 
 from __future__ import annotations
 
@@ -89,8 +90,8 @@ from .design import axis_model, estimator_gain
 __all__ = ["MPCCPolicy", "PathTable", "path_table", "linearised_errors", "BlockPrediction", "block_prediction",
            "ContouringQP", "contouring_qp", "solve_qp", "DEFAULT_BLOCKS", "FIRST_ITERATIONS"]
 
-#: Block lengths of the horizon, control periods: six short blocks (22 periods), then 1 ms blocks to 40 ms
-#: (at 0.1 ms; module docstring).
+#: Block lengths of the horizon, control periods: seven short blocks (22 periods), then eight of 1 ms and fifteen
+#: of 2 ms, to 40.2 ms (at 0.1 ms; module docstring).
 DEFAULT_BLOCKS = (1, 1, 2, 2, 4, 4, 8) + (10,) * 8 + (20,) * 15
 #: Re-linearisations of the first call about its own solution (later calls start from the shifted previous one).
 FIRST_ITERATIONS = 4
@@ -342,7 +343,7 @@ class MPCCPolicy(BaselinePolicy):
     """
 
     name = "mpcc"
-    #: A 135-variable QP per control period in Python: the bench runs it when named (``--policy mpcc``).
+    #: A 90-variable QP per control period in Python: the bench runs it when named (``--policy mpcc``).
     in_default_table = False
     needs_reference = True
     #: It sets the env's feed override (a third action): feed-override ids only (vcnc_bench's ``applies``).

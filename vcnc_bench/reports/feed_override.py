@@ -56,8 +56,9 @@ SCURVE = ("qft",)
 OPERATOR = "ff-pid-online"
 
 
-#: The caps of the contouring MPC's progress speed, mm/s (its ``v_max``; the programmed feed is 100 mm/s).
-MPCC_SPEEDS = (100.0, 80.0, 60.0, 40.0, 25.0)
+#: The caps of the contouring MPC's progress speed, mm/s (its ``v_max``; the programmed feed is 100 mm/s; below
+#: ~30 mm/s the omega's 51 mm take longer than the env's time limit, three times the S-curve's 0.63 s).
+MPCC_SPEEDS = (100.0, 80.0, 60.0, 45.0, 35.0)
 
 #: The kinds of run on the front: a classical controller on a planned look-ahead feed, a controller on the S-curve
 #: itself, a classical controller under an operator's fixed override, the agent with its own override, the
