@@ -72,8 +72,9 @@ the nominal plant's linear model and its commissioning record's Coulomb levels, 
 observation's reference point, tracking error and velocity.  No true plant, nothing beyond the programmed path.
 
 Cost per step (``python benchmarks/mpcc_cost.py --steps 1500``, ``predict`` alone on the omega's first 1500
-periods, shared 2-core host): 3.2 ms per control period, 7.0 times ``mpc``'s 0.46 ms (which solves its two
-10-variable QPs only where the unconstrained minimiser leaves the bounds); an omega episode takes 25-70 s.  The
+periods, shared 2-core host, two runs): 3.2 and 4.0 ms per control period, 7.0 and 6.7 times ``mpc``'s 0.46 and
+0.60 ms (which solves its two 10-variable QPs only where the unconstrained minimiser leaves the bounds); an omega
+episode takes 25-70 s.  The
 front on the omega is in ``docs/reproduction.md``, "Contouring MPC"."""
 
 from __future__ import annotations
