@@ -46,7 +46,9 @@ as it accelerates from rest, then its peak: an override runs the programmed feed
 its state is estimated from the measured position and velocity (:func:`.design.estimator_gain`).  The problem is
 condensed (the inputs only) and solved as one dense QP per control period by DAQP (the solver ``mpc`` measured
 fastest at its size, :mod:`.mpc`), re-linearised about the previous solution's shifted progress; the first call
-re-linearises :data:`FIRST_ITERATIONS` times about its own solution.
+re-linearises :data:`FIRST_ITERATIONS` times about its own solution.  Where the progress' bounds cannot all be met
+(a speed cap or the path's end closer than full braking reaches with the inputs held over whole blocks) they are
+relaxed to what full braking reaches, and if DAQP still finds the QP infeasible they become soft constraints.
 
 The horizon (:data:`DEFAULT_BLOCKS`): 40 ms, seven short blocks for the servo loop (1 to 8 control periods), then
 1 ms and 2 ms blocks (30 blocks, 90 variables).  Braking from 100 mm/s to the ~22 mm/s at which the omega's
@@ -68,8 +70,8 @@ time from its own clock, so a controller that runs slower than the programmed fe
 
 What it reads: the programmed path and feed (the reference samples ``env.unwrapped.task.reference_arrays.samples``
 as the interpolator computed them before the override, the geometry the env gives every model-based controller),
-the nominal plant's linear model and its commissioning record's Coulomb levels, the override's slew rate; the
-observation's reference point, tracking error and velocity.  No true plant, nothing beyond the programmed path.
+the nominal plant's linear model and its commissioning record's Coulomb levels; the observation's reference point,
+tracking error and velocity.  No true plant, nothing beyond the programmed path.
 
 Cost per step (``python benchmarks/mpcc_cost.py --steps 1500``, ``predict`` alone on the omega's first 1500
 periods, shared 2-core host, two runs): 3.2 and 4.0 ms per control period, 7.0 and 6.7 times ``mpc``'s 0.46 and
@@ -319,8 +321,6 @@ class MPCCPolicy(BaselinePolicy):
         The programmed path and feed: the env's packed reference samples before any override.
     dt : float
         The env's control period, s.
-    override_rate : float
-        How fast the env's override follows its dial, 1/s.
     v_max : float, optional
         Largest progress speed, mm/s; default the programmed feed's peak.
     contour_weight, lag_weight : float
@@ -355,8 +355,8 @@ class MPCCPolicy(BaselinePolicy):
         """A plant with a linear model per axis and declared inverse dynamics (its Coulomb levels)."""
         return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, override_rate,
-                 v_max=None, contour_weight=1.0, lag_weight=1.0, progress_weight=10.0, advance_weight=200.0, input_weight=1e-3,
+    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, v_max=None,
+                 contour_weight=1.0, lag_weight=1.0, progress_weight=10.0, advance_weight=200.0, input_weight=1e-3,
                  path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.dt = positive("dt", dt, "s")
@@ -364,7 +364,6 @@ class MPCCPolicy(BaselinePolicy):
             raise ValueError(f"mpcc is designed at the control period: it needs decision_period = dt ({self.dt} s), "
                              f"got {self.decision_period} s")
         self.path = path_table(reference, self.dt)
-        self.override_rate = positive("override_rate", override_rate, "1/s")
         peak = float(self.path.feed.max())
         self.v_max = peak if v_max is None else positive("v_max", v_max, "mm/s")
         self.weights = (positive("contour_weight", contour_weight, "per um^2") * 1e6,
@@ -427,8 +426,7 @@ class MPCCPolicy(BaselinePolicy):
                              f"feed-override id (VCNC-OmegaOverride-v1), got {type(u).__name__}; a plain contouring "
                              "id ends the episode completion_timeout after its reference's end, which a controller "
                              "slower than the programmed feed cannot meet")
-        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt,
-                                override_rate=u.override_rate, **params)
+        return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         """As :meth:`BaselinePolicy.predict`, the action (3,) or (n_envs, 3): the axes' normalised commands and
