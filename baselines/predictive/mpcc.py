@@ -324,7 +324,8 @@ class MPCCPolicy(BaselinePolicy):
     v_max : float, optional
         Largest progress speed, mm/s; default the programmed feed's peak.
     contour_weight, lag_weight : float
-        ``q_c``, ``q_l``, per um^2 and control period (default 1 and 1).
+        ``q_c``, ``q_l``, per um^2 and control period (default 4 and 1: on the omega at 100 mm/s, ``q_c`` 1 gave
+        7.50 um max, 4 gave 3.97 um and 16 3.99 um, all in 0.687 s).
     progress_weight : float
         ``q_v``, per mm/s and control period (default 10: 100 mm/s is worth 1000 um^2 of squared error).
     advance_weight : float
@@ -356,7 +357,7 @@ class MPCCPolicy(BaselinePolicy):
         return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, v_max=None,
-                 contour_weight=1.0, lag_weight=1.0, progress_weight=10.0, advance_weight=200.0, input_weight=1e-3,
+                 contour_weight=4.0, lag_weight=1.0, progress_weight=10.0, advance_weight=200.0, input_weight=1e-3,
                  path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.dt = positive("dt", dt, "s")
