@@ -29,6 +29,7 @@ from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy
 from .predictive.lq_preview import LQPreviewPolicy
 from .predictive.mpc import MPCPolicy
+from .predictive.mpcc import MPCCPolicy
 
 __all__ = ["make", "names", "policy_class", "register_floor", "CONTROLLERS", "FLOORS", "REGISTRY", "VARIANTS"]
 
@@ -57,6 +58,7 @@ CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
     # predictive
     LQPreviewPolicy,  # Tomizuka and Whitney (1975), Katayama et al. (1985), every plant
     MPCPolicy,  # the same model, cost and preview with the input limit: a QP per control period (DAQP)
+    MPCCPolicy,  # Lam, Manzie and Good (2010, 2013): contouring MPC with its own progress, on feed-override ids
 )
 
 #: The non-causal floors (``causal = False``), by name: registered by their modules (:func:`register_floor`).

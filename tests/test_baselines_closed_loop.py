@@ -131,10 +131,11 @@ def test_evaluate_policy_batched_envs():
 
 
 #: The controllers of Jahanpour et al.'s plant (not the non-causal oracle, a floor planned offline:
-#: tests/test_feedforward.py).
+#: tests/test_feedforward.py; not mpcc, which sets its own progress on a feed-override id: tests/test_mpcc.py).
 JAHANPOUR_BASELINES = [n for n in baselines.names()
                        if baselines.registry.policy_class(n).designed_for(get_plant("vcnc_feed_drive"))
-                       and getattr(baselines.registry.policy_class(n), "causal", True)]
+                       and getattr(baselines.registry.policy_class(n), "causal", True)
+                       and not getattr(baselines.registry.policy_class(n), "sets_feed_override", False)]
 
 
 def _omega_case(name):

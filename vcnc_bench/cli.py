@@ -439,7 +439,7 @@ def _print_plan(args, recipes: list[EnvRecipe], jobs: int) -> None:
               f"{', '.join(left)} (--all runs every id, --env ID one)", flush=True)
     if not (args.all or args.policy):
         print("  left out: the policies that learn across episodes (ILC, 10 trials each) and those whose episode "
-              "costs minutes (mpc: a QP per period in Python); --all, or --policy NAME", flush=True)
+              "costs minutes (mpc, mpcc: a QP per period in Python); --all, or --policy NAME", flush=True)
     print("  more: --plants N (the uncertainty box: median and worst over N plants), --program PART (your G-code), "
           "--help", flush=True)
 

@@ -20,9 +20,13 @@ __all__ = ["KIND", "applies"]
 def applies(name: str, env) -> bool:
     """True if baseline ``name`` was designed for the plant of ``env`` (and, for a controller that follows a
     contour's reference, ``env`` has one), and the env takes the two axis commands a controller gives (not a
-    third action such as ``VCNC-OmegaOverride-v1``'s feed override)."""
+    third action such as ``VCNC-OmegaOverride-v1``'s feed override); a controller that sets the feed override
+    itself (``mpcc``, ``sets_feed_override``) applies to the feed-override envs only."""
     cls = policy_class(name)
     u = env.unwrapped
+    if getattr(cls, "sets_feed_override", False):  # mpcc: its own progress, through the feed override
+        return getattr(u, "retimes_reference", False) and getattr(u.action_space, "shape", None) == (3,) \
+            and cls.designed_for(u.plant)
     if getattr(u.action_space, "shape", None) != (2,):
         return False
     plant = getattr(u, "plant", None)

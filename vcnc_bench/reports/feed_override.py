@@ -15,12 +15,15 @@ side on the nominal plant:
   override never exceeds the cap, as an operator limits the dial).
 - **operator**: the classical servo that runs under an override (``ff-pid-online``) on ``VCNC-OmegaOverride-v1``
   with the dial held at each cap from the start, as an operator who turns the override down for the whole part.
+- **mpcc**: the contouring MPC (:mod:`baselines.predictive.mpcc`, Lam, Manzie and Good 2010) on
+  ``VCNC-OmegaOverride-v1``, which chooses its own progress along the path and sets the override from it; one
+  point per cap of its progress speed (:data:`MPCC_SPEEDS`), the classical answer to the agent.
 
 :func:`pareto` keeps the points no other point beats in both cycle time and max error: the classical front is
 the Pareto set of every planned run.
 
 Run ``python -m vcnc_bench.reports.feed_override --plot bench-out/omega_front.png`` (the shipped agent, or
-``--agent FOLDER``).
+``--agent FOLDER``; ``--no-mpcc`` leaves out the contouring MPC, whose episodes take a minute or more each).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["FrontPoint", "KINDS", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
-           "SCURVE", "classical_front", "scurve_points", "operator_front", "agent_front", "pareto", "verdicts",
+           "SCURVE", "MPCC_SPEEDS", "classical_front", "scurve_points", "operator_front", "agent_front", "mpcc_front",
+           "pareto", "verdicts",
            "format_front", "plot_front", "main"]
 
 #: Look-ahead settings of the planned runs: (programmed feed mm/s, path acceleration limit mm/s^2).  The suite's
@@ -52,9 +56,14 @@ SCURVE = ("qft",)
 OPERATOR = "ff-pid-online"
 
 
+#: The caps of the contouring MPC's progress speed, mm/s (its ``v_max``; the programmed feed is 100 mm/s; below
+#: ~30 mm/s the omega's 51 mm take longer than the env's time limit, three times the S-curve's 0.63 s).
+MPCC_SPEEDS = (100.0, 80.0, 60.0, 45.0, 35.0)
+
 #: The kinds of run on the front: a classical controller on a planned look-ahead feed, a controller on the S-curve
-#: itself, a classical controller under an operator's fixed override, the agent with its own override.
-KINDS = ("planned", "s-curve", "operator", "agent")
+#: itself, a classical controller under an operator's fixed override, the agent with its own override, the
+#: contouring MPC with its own progress.
+KINDS = ("planned", "s-curve", "operator", "agent", "mpcc")
 
 
 @dataclass(frozen=True)
@@ -173,6 +182,22 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
     return points
 
 
+def mpcc_front(speeds=MPCC_SPEEDS, **params) -> list[FrontPoint]:
+    """The contouring MPC (``mpcc``) on ``VCNC-OmegaOverride-v1``, nominal plant, once per cap of its progress
+    speed (mm/s); ``params`` go to :func:`baselines.make` (its weights)."""
+    import gymnasium as gym
+
+    import baselines
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make("VCNC-OmegaOverride-v1")
+    points = [_point("mpcc", f"v_max {v:g} mm/s", run_episode(baselines.make("mpcc", env, v_max=float(v), **params),
+                                                                env), "mpcc")
+              for v in speeds]
+    env.close()
+    return points
+
+
 def format_front(points) -> str:
     """The points as a table, um and s."""
     lines = [f"{'policy':26s} {'setting':26s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 82]
@@ -196,11 +221,11 @@ def scurve_points(policies=SCURVE) -> list[FrontPoint]:
 
 
 def verdicts(points) -> list[str]:
-    """For each finished agent point: the classical (planned) run that beats it in both cycle time and max error,
-    or that none does."""
+    """For each finished agent and contouring-MPC point: the classical (planned) run that beats it in both cycle
+    time and max error, or that none does."""
     front = pareto([p for p in points if p.kind == "planned"])
     lines = []
-    for a in (p for p in points if p.kind == "agent" and math.isfinite(p.cycle_time_s)):
+    for a in (p for p in points if p.kind in ("agent", "mpcc") and math.isfinite(p.cycle_time_s)):
         better = [c for c in front if c.cycle_time_s <= a.cycle_time_s and c.max_um <= a.max_um]
         lines.append(f"{a.policy} {a.setting} ({a.cycle_time_s:.4f} s, {a.max_um:.3f} um): " + (
             f"beaten by {better[0].policy} at {better[0].setting} ({better[0].cycle_time_s:.4f} s, "
@@ -228,12 +253,15 @@ def plot_front(points, path) -> None:
             label="classical front (look-ahead)")
     for kind, name in dict.fromkeys((p.kind, p.policy) for p in finished if p.kind != "planned"):
         mine = sorted((p for p in finished if (p.kind, p.policy) == (kind, name)), key=lambda p: p.cycle_time_s)
-        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], "o-" if kind == "agent" else "x:", ms=7,
-                lw=1.5, label=f"{name} (S-curve)" if kind == "s-curve" else name)
+        style = {"agent": "o-", "mpcc": "s--"}.get(kind, "x:")
+        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], style, ms=7, lw=1.5,
+                label=f"{name} (S-curve)" if kind == "s-curve" else
+                ("mpcc (own progress, override)" if kind == "mpcc" else name))
     ax.set_yscale("log")
     ax.set_xlabel("cycle time (s)")
     ax.set_ylabel("max contour error (um)")
-    ax.set_title("Omega, nominal plant: planned look-ahead (classical) vs online feed override (agent)", fontsize=9)
+    ax.set_title("Omega, nominal plant: planned look-ahead (classical) vs online feed override (agent, MPCC)",
+                 fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -246,6 +274,8 @@ def main(argv=None) -> int:
         "\n\n")[0])
     parser.add_argument("--agent", help="the feed-override agent's folder (default: the shipped one)")
     parser.add_argument("--plot", help="write the front as a PNG here")
+    parser.add_argument("--no-mpcc", action="store_true",
+                        help="leave out the contouring MPC (a QP per control period: a minute or more per point)")
     args = parser.parse_args(argv)
     agent = args.agent
     if agent is None:
@@ -254,7 +284,8 @@ def main(argv=None) -> int:
         agent = TRAINED.get("VCNC-OmegaOverride-v1")
         if agent is None or not agent.is_dir():
             parser.error("no agent is shipped for VCNC-OmegaOverride-v1: give --agent FOLDER")
-    points = classical_front() + scurve_points() + operator_front() + agent_front(agent)
+    points = classical_front() + scurve_points() + operator_front() + agent_front(agent) + \
+        ([] if args.no_mpcc else mpcc_front())
     print(format_front(points))
     print("\nclassical front (look-ahead runs no other beats in both cycle time and max error):")
     print(format_front(pareto([p for p in points if p.kind == "planned"])))

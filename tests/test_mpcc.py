@@ -1,0 +1,158 @@
+"""The contouring MPC (baselines/predictive/mpcc.py) against independent computations: its linearised contour and
+lag errors against the env's exact projection onto the whole contour (vcnc_gym.contour.ContourProjector), its QP
+against a second solver (OSQP), its block prediction against stepping the model, and a closed loop."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import vcnc_gym  # noqa: F401  (registers the ids)
+import baselines
+from baselines.predictive import mpcc as M
+from vcnc_gym.envs import step_kernel as sk
+
+
+@pytest.fixture(scope="module")
+def override_env():
+    env = gym.make("VCNC-OmegaOverride-v1")
+    yield env
+    env.close()
+
+
+def _foot_arc(samples, u):
+    """The arc (mm) of curve parameter ``u`` on the reference's samples (the path table's arc)."""
+    keep = np.concatenate([[True], np.diff(samples[:, sk.REF_ARC]) > 0])
+    return np.interp(u, samples[keep, sk.REF_U], samples[keep, sk.REF_ARC] - samples[0, sk.REF_ARC])
+
+
+def test_linearised_errors_against_the_exact_projection(override_env):
+    """Points up to 5 um off the omega (its 0.19 mm corners included): linearised about the exact foot point's arc,
+    |e_c| is the exact distance and e_l is 0 (to the path table's chords, 0.07 um at the corners); about an arc
+    off by delta, both move by at most Lam et al.'s second-order terms, kappa (|d| |delta| + delta^2)."""
+    u = override_env.unwrapped
+    samples, projector = u.task.reference_arrays.samples, u.task.projector
+    path = M.path_table(samples, u.task.dt)
+    rng = np.random.default_rng(0)
+    arcs = np.concatenate([rng.uniform(1.0, path.length - 1.0, 40), [5.97, 45.18, 5.9, 45.1]])  # and the corners
+    p, t = path.at(arcs)
+    n = np.column_stack([-t[:, 1], t[:, 0]])
+    d = rng.uniform(-5e-3, 5e-3, arcs.size)
+    q = p + d[:, None] * n
+    dist, foot_u = projector.project(q)
+    foot = _foot_arc(samples, foot_u)
+    kappa = np.abs(samples[:, sk.REF_CURVATURE]).max()
+    e_c, e_l = M.linearised_errors(q, foot, foot, path)
+    np.testing.assert_allclose(np.abs(e_c), dist, rtol=0, atol=2e-4)
+    np.testing.assert_allclose(e_l, 0.0, atol=2e-4)
+    assert np.max(dist) > 4e-3  # the points are off the path, not on it
+    for delta in (-2e-2, 5e-3, 2e-2):
+        e_c, e_l = M.linearised_errors(q, foot, foot + delta, path)
+        bound = kappa * (np.abs(d) * abs(delta) + delta ** 2) + 2e-4
+        assert np.all(np.abs(np.abs(e_c) - dist) <= bound)
+        assert np.all(np.abs(e_l) <= bound)
+    # the lag error is the arc between the foot point and theta, to first order
+    e_c, e_l = M.linearised_errors(q, foot + 0.01, foot, path)
+    np.testing.assert_allclose(e_l, -0.01, atol=2e-4)
+
+
+def test_block_prediction_is_the_model_stepped_period_by_period(override_env):
+    pol = baselines.make("mpcc", override_env)
+    model, pred = pol.models[1], pol.predictions[1]
+    rng = np.random.default_rng(1)
+    x0, z = rng.normal(size=model.n), rng.normal(size=pred.blocks.size)
+    x, ends = x0.copy(), []
+    for level, L in zip(z, pred.blocks):
+        for _ in range(L):
+            x = model.A @ x + model.B * level
+        ends.append(model.C @ x)
+    np.testing.assert_allclose(pred.Px @ x0 + pred.Su @ z, ends, rtol=1e-9, atol=1e-12)
+    a = rng.normal(size=pred.blocks.size) * 100.0
+    theta, v = 0.3, 20.0
+    for m, L in enumerate(pred.blocks):  # the double integrator, period by period
+        for _ in range(L):
+            theta += v * pol.dt + 0.5 * a[m] * pol.dt ** 2
+            v += a[m] * pol.dt
+    np.testing.assert_allclose(0.3 + pred.times[-1] * 20.0 + pred.St[-1] @ a, theta, rtol=1e-12)
+    np.testing.assert_allclose(20.0 + pred.Sv[-1] @ a, v, rtol=1e-12)
+
+
+def _braking_qp(pol):
+    """One call's QP with the tool 0.2 mm off the path at 50 mm/s and the progress capped at 30 mm/s: the input
+    limits and the speed bounds are active."""
+    path, b = pol.path, pol.n_blocks
+    theta0, v0 = 5.5, 50.0
+    p, t = path.at(theta0)
+    y = p + 0.2 * np.array([-t[1], t[0]])
+    x0 = np.stack([np.linalg.pinv(m.measurement()) @ np.array([y[j], v0 * t[j]])[:m.measurement().shape[0]]
+                   for j, m in enumerate(pol.models)])
+    theta_bar = theta0 + pol.predictions[0].times * v0
+    return M.contouring_qp(pol.predictions, path, x0, theta0, v0, theta_bar, np.zeros(2), 0.0, np.zeros((2, b)),
+                           pol.u_max, np.full(b, 30.0), pol.a_max, pol.weights)
+
+
+def test_qp_against_a_second_solver(override_env):
+    """DAQP's minimiser of one call's QP against OSQP's (an ADMM method) on the same problem."""
+    osqp = pytest.importorskip("osqp")
+    from scipy import sparse
+
+    pol = baselines.make("mpcc", override_env)
+    qp = _braking_qp(pol)
+    z = M.solve_qp(qp)
+    nz = qp.f.size
+    A = sparse.csc_matrix(np.vstack([np.eye(nz), qp.G]))
+    lower, upper = np.maximum(qp.lower, -1e30), np.minimum(qp.upper, 1e30)
+    solver = osqp.OSQP()
+    solver.setup(sparse.csc_matrix(np.triu(qp.H)), qp.f, A, lower, upper, eps_abs=1e-10, eps_rel=1e-10,
+                 max_iter=200000, polishing=True, verbose=False)
+    ref = solver.solve().x
+    active = np.isclose(np.concatenate([z, qp.G @ z]), upper, atol=1e-7) | \
+        np.isclose(np.concatenate([z, qp.G @ z]), lower, atol=1e-7)
+    assert active[:nz].any() and active[nz:].any()  # input limits and progress bounds both bind
+    cost = lambda w: 0.5 * w @ qp.H @ w + qp.f @ w  # noqa: E731
+    assert abs(cost(z) - cost(ref)) <= 1e-8 * abs(cost(ref))
+    b = pol.n_blocks
+    first = [0, b, 2 * b]  # the moves applied: the axes' inputs and the progress' acceleration of the first block
+    np.testing.assert_allclose(z[first], ref[first], rtol=0, atol=1e-5)
+    # the horizon's last blocks barely move the cost (their inputs act for a few ms before the horizon ends)
+    np.testing.assert_allclose(z, ref, atol=2e-3 * np.abs(ref).max())
+
+
+def test_it_runs_on_feed_override_ids_only_and_refuses_bad_arguments(override_env):
+    from vcnc_bench.kinds.baseline import applies
+
+    plain = gym.make("VCNC-Omega-v1")
+    with pytest.raises(ValueError, match="feed-override id"):
+        baselines.make("mpcc", plain)
+    assert applies("mpcc", override_env) and not applies("mpcc", plain)
+    assert not applies("ff-pid", override_env)
+    for name, value in (("v_max", -1.0), ("progress_weight", float("nan")), ("a_max", 0.0)):
+        with pytest.raises(ValueError, match=name):
+            baselines.make("mpcc", override_env, **{name: value})
+    with pytest.raises(ValueError, match="blocks"):
+        baselines.make("mpcc", override_env, blocks=())
+
+
+def test_first_steps_respect_the_input_limit_and_set_the_dial(override_env):
+    """Fifty control periods from rest: the action is the axes' commands and the dial, within [-1, 1]; the
+    progress and the tool leave the start together."""
+    pol = baselines.make("mpcc", override_env)
+    obs, _ = override_env.reset(seed=0)
+    for k in range(50):
+        a, _ = pol.predict(obs, episode_start=k == 0)
+        assert a.shape == (3,) and a.dtype == np.float32 and np.all(np.abs(a) <= 1.0)
+        obs, _, term, trunc, info = override_env.step(a)
+        assert not (term or trunc)
+    assert 0.0 < pol.controller_state[0, 0] < 0.05 and info["contour_error"] < 5e-3
+
+
+@pytest.mark.slow
+def test_an_episode_on_the_override_omega_finishes_within_the_input_limit():
+    """The whole omega under the override (~7000 control periods, a QP each: a minute or more)."""
+    from vcnc_gym.evaluation import run_episode
+
+    env = gym.make("VCNC-OmegaOverride-v1")
+    pol = baselines.make("mpcc", env, v_max=60.0)
+    result = run_episode(pol, env)
+    assert result.completed and not result.diverged
+    assert result.max_contour_error_um < 50.0
+    assert result.cycle_time_s < 3.0 * env.unwrapped.task.reference.t[-1]
