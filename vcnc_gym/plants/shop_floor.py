@@ -139,8 +139,8 @@ STAGES = ("command", "force", "table", "reading", "sense")
 class Effect:
     """One shop-floor effect, declared in one place: subclass it (the class is the declaration, never instantiated).
 
-    Class attributes
-    ----------------
+    Attributes
+    ----------
     parameters : tuple of Parameter
         Appended to the inner plant's, in this order (so ``randomize`` and
         ``--plants`` draw them).
@@ -160,9 +160,6 @@ class Effect:
     command, force, table, reading, sense : numba functions (s, plant, k, x) -> None, optional
         The effect's step in each stage (module docstring); ``njit(cache=True)``
         (``inline="always"`` keeps the composed kernel one function).
-    uses_force_gain : bool
-        True if the effect needs the plant's ``force_gain`` when switched on
-        (the ``force`` stage's effects).
 
     The kernel calls the hooks through the ``Arrays`` class, a module-level
     name (``Effect.Arrays``) that pickles by reference, so the composed
@@ -192,6 +189,7 @@ class Effect:
 
     @classmethod
     def uses_force_gain(cls) -> bool:
+        """True if the effect needs the plant's ``force_gain`` when switched on (it has a ``force`` step)."""
         return cls.force is not None
 
     @classmethod
