@@ -139,6 +139,11 @@ STAGES = ("command", "force", "table", "reading", "sense")
 class Effect:
     """One shop-floor effect, declared in one place: subclass it (the class is the declaration, never instantiated).
 
+    The kernel calls the hooks through the ``Arrays`` class, a module-level
+    name (``Effect.Arrays``) that pickles by reference, so the composed
+    kernel caches across processes (jitted functions passed as arguments
+    would not: ``docs/architecture.md``, the plant contract).
+
     Attributes
     ----------
     parameters : tuple of Parameter
@@ -150,7 +155,7 @@ class Effect:
     counts : tuple of str
         The parameters counted in whole numbers (a setting must be an integer).
     state : dict
-        ``{name: (shape, dtype)}``: per-machine arrays, allocated (N, *shape)
+        ``{name: (shape, dtype)}``: per-machine arrays, allocated ``(N, *shape)``
         and zeroed; with ``params`` the fields of the effect's numba
         namedtuple ``Arrays`` (made by the subclass statement).
     reset : staticmethod (s, plant, k) -> None, optional
@@ -160,11 +165,6 @@ class Effect:
     command, force, table, reading, sense : numba functions (s, plant, k, x) -> None, optional
         The effect's step in each stage (module docstring); ``njit(cache=True)``
         (``inline="always"`` keeps the composed kernel one function).
-
-    The kernel calls the hooks through the ``Arrays`` class, a module-level
-    name (``Effect.Arrays``) that pickles by reference, so the composed
-    kernel caches across processes (jitted functions passed as arguments
-    would not: ``docs/architecture.md``, the plant contract).
     """
 
     parameters: tuple = ()
