@@ -274,9 +274,15 @@ def test_the_effects_declare_the_parameters_and_the_switches():
     assert [p.name for p in model.parameters[-len(sf.EFFECT_NAMES):]] == list(sf.EFFECT_NAMES)
     arrays = model.arrays(2, DT)
     assert [type(s) for s in arrays.effects] == [e.Arrays for e in sf.EFFECTS]
-    # an effect's params are a view of the plant's parameter columns: what the env writes there, the effect reads
+    # an effect's columns: its parameters in the plant's, its state in the plant's state arrays (no copies)
+    s = arrays.effects[sf.EFFECTS.index(sf.CommandDelay)]
+    assert s.params == model.index("command_delay")
     arrays.params[1, :, model.index("command_delay")] = 3.0
-    assert arrays.effects[sf.EFFECTS.index(sf.CommandDelay)].params[1, 0, 0] == 3.0
+    views = sf.CommandDelay.views(arrays, s)
+    assert views.params[1, 0, 0] == 3.0 and views.commands.shape == (2, sf.MAX_DELAY + 1, 2)
+    views.commands[1, 2, 1] = 7.0
+    assert arrays.fstate[1, s.commands + 2 * 2 + 1] == 7.0
+    assert arrays.fstate.shape[1] == sum(e.sizes()[0] for e in sf.EFFECTS)
 
 
 def test_a_composition_is_refused_with_an_error_naming_it():

@@ -36,17 +36,12 @@ __all__ = ["RebuiltOnUnpickle", "batch_arrays", "record_arrays", "restore_arrays
 
 
 def record_arrays(record, prefix: str) -> Iterator[tuple[str, np.ndarray]]:
-    """Every numpy array of a (nested) ``NamedTuple`` of arrays, by dotted field name under ``prefix`` (a plain
-    tuple of records, such as a shop-floor plant's ``effects``, by index)."""
+    """Every numpy array of a (nested) ``NamedTuple`` of arrays, by dotted field name under ``prefix``."""
     for name, value in zip(record._fields, record):
         if isinstance(value, np.ndarray):
             yield f"{prefix}.{name}", value
         elif isinstance(value, tuple) and hasattr(value, "_fields"):
             yield from record_arrays(value, f"{prefix}.{name}")
-        elif isinstance(value, tuple):
-            for j, item in enumerate(value):
-                if hasattr(item, "_fields"):
-                    yield from record_arrays(item, f"{prefix}.{name}.{j}")
 
 
 def batch_arrays(batch) -> dict[str, np.ndarray]:

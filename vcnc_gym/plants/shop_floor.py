@@ -56,12 +56,17 @@ in the order of the composition's effects:
    table, the reading and its velocity written; the effects may replace what
    the controller sees (the sensor delay's FIFO).
 
-Every hook is ``hook(s, plant, k, x)``: ``s`` the effect's arrays (its
-``params`` (N, 2, its parameters' count), a view of the plant's parameters,
-and its ``state``), ``plant`` the :data:`ShopFloorArrays`, whose ``memory``
-holds the last period's table (``M_*`` columns), ``dt`` and ``rng`` (the
-machine's splitmix64 noise generator, seeded from the env's generator at
-every reset: ``PlantModel.seed_machine``).
+Every hook is ``hook(s, plant, k, x)``: ``s`` the effect's columns (its
+``Arrays`` record of integers: ``s.params`` the column of its first
+parameter in ``plant.params``, each state array's first column in
+``plant.fstate`` (float64) or ``plant.istate`` (int64), row-major),
+``plant`` the :data:`ShopFloorArrays`, whose ``memory`` holds the last
+period's table (``M_*`` columns), ``dt`` and ``rng`` (the machine's
+splitmix64 noise generator, seeded from the env's generator at every reset:
+``PlantModel.seed_machine``).  The effects' state lives in the plant's two
+state arrays, not in arrays of their own: a record of arrays taken from a
+tuple inside the env's kernel would be reference-counted (atomic
+operations) at every use, which costs more than the effects themselves.
 
 The observation therefore shows the quantised, noisy, delayed measurement;
 the exact contour error (on the true table position) stays in ``info``.
@@ -79,8 +84,8 @@ Arrays
 ``params`` a view of the first P columns of ``params``), ``state`` (the
 inner plant's state array itself, so a NaN written there diverges the
 episode), ``params`` (N, 2, P + E), ``dt``, the force gain, the table's
-memory, scratch, the noise generators and ``effects``, the tuple of the
-effects' arrays.
+memory, scratch, the noise generators, the effects' state ``fstate`` and
+``istate`` and ``effects``, the tuple of the effects' column records.
 """
 
 from __future__ import annotations
@@ -142,7 +147,11 @@ class Effect:
     The kernel calls the hooks through the ``Arrays`` class, a module-level
     name (``Effect.Arrays``) that pickles by reference, so the composed
     kernel caches across processes (jitted functions passed as arguments
-    would not: ``docs/architecture.md``, the plant contract).
+    would not: ``docs/architecture.md``, the plant contract).  In numba an
+    ``Arrays`` record holds the effect's columns (integers, module
+    docstring); in Python (``reset``, tests) :meth:`views` gives the same
+    record holding numpy views: ``params`` (N, 2, E) and each state array
+    ``(N, *shape)``.
 
     Attributes
     ----------
@@ -155,13 +164,13 @@ class Effect:
     counts : tuple of str
         The parameters counted in whole numbers (a setting must be an integer).
     state : dict
-        ``{name: (shape, dtype)}``: per-machine arrays, allocated ``(N, *shape)``
-        and zeroed; with ``params`` the fields of the effect's numba
-        namedtuple ``Arrays`` (made by the subclass statement).
-    reset : staticmethod (s, plant, k) -> None, optional
+        ``{name: (shape, dtype)}``: per-machine arrays, dtype ``np.float64``
+        or ``np.int64``, zeroed at creation; with ``params`` the fields of
+        the effect's namedtuple ``Arrays`` (made by the subclass statement).
+    reset : staticmethod (v, plant, k) -> None, optional
         Python: machine ``k`` reset (the inner plant and the table's memory
-        already at rest: ``plant.memory[k]``); derive constants from
-        ``s.params[k]`` (2, E) here.
+        already at rest: ``plant.memory[k]``), ``v`` the effect's
+        :meth:`views`; derive constants from ``v.params[k]`` (2, E) here.
     command, force, table, reading, sense : numba functions (s, plant, k, x) -> None, optional
         The effect's step in each stage (module docstring); ``njit(cache=True)``
         (``inline="always"`` keeps the composed kernel one function).
@@ -181,6 +190,9 @@ class Effect:
         unknown = sorted(set(cls.switches + cls.counts) - set(names))
         if unknown:
             raise ValueError(f"effect {cls.__name__}: switches/counts {unknown} are not among its parameters {names}")
+        for name, (_, dtype) in cls.state.items():
+            if np.dtype(dtype) not in (np.dtype(np.float64), np.dtype(np.int64)):
+                raise ValueError(f"effect {cls.__name__}: state {name} must be float64 or int64, got {dtype}")
         arrays = namedtuple(f"{cls.__name__}Arrays", ["params", *cls.state])
         arrays.__module__ = cls.__module__
         arrays.__qualname__ = f"{cls.__qualname__}.Arrays"
@@ -193,10 +205,39 @@ class Effect:
         return cls.force is not None
 
     @classmethod
-    def make(cls, params: np.ndarray):
-        """The effect's arrays for ``params`` (N, 2, E), a view of the plant's parameter columns."""
-        n = params.shape[0]
-        return cls.Arrays(params, *(np.zeros((n, *shape), dtype=dtype) for shape, dtype in cls.state.values()))
+    def sizes(cls) -> tuple[int, int]:
+        """Columns the effect's state takes in ``fstate`` and in ``istate``."""
+        sizes = {np.dtype(np.float64): 0, np.dtype(np.int64): 0}
+        for shape, dtype in cls.state.values():
+            sizes[np.dtype(dtype)] += math.prod(shape)
+        return sizes[np.dtype(np.float64)], sizes[np.dtype(np.int64)]
+
+    @classmethod
+    def columns(cls, param: int, fcol: int, icol: int):
+        """The effect's ``Arrays`` record of columns: its first parameter at ``param``, its state from ``fcol``
+        in ``fstate`` and ``icol`` in ``istate``."""
+        starts = [param]
+        for shape, dtype in cls.state.values():
+            if np.dtype(dtype) == np.dtype(np.float64):
+                starts.append(fcol)
+                fcol += math.prod(shape)
+            else:
+                starts.append(icol)
+                icol += math.prod(shape)
+        return cls.Arrays(*starts)
+
+    @classmethod
+    def views(cls, plant, s):
+        """The ``Arrays`` record of numpy views of the plant's arrays ``plant`` for the columns ``s``: ``params``
+        (N, 2, E) and each state array (N, *shape); writing them writes the plant's."""
+        n = plant.params.shape[0]
+        views = [plant.params[:, :, s.params:s.params + len(cls.parameters)]]
+        for (shape, dtype), start in zip(cls.state.values(), s[1:]):
+            pool = plant.fstate if np.dtype(dtype) == np.dtype(np.float64) else plant.istate
+            view = pool[:, start:start + math.prod(shape)].reshape((n, *shape))
+            assert np.shares_memory(view, pool)
+            views.append(view)
+        return cls.Arrays(*views)
 
 
 # --------------------------------------------------------------------------
@@ -265,9 +306,9 @@ class PositionSensor(Effect):
     switches = ("encoder_resolution", "noise_std")
 
     @staticmethod
-    def reset(s, plant, k):
+    def reset(v, plant, k):
         """At rest the reading is the true position's count, the velocity read 0."""
-        r, sigma = s.params[k, 0, 0], s.params[k, 0, 1]
+        r, sigma = v.params[k, 0, 0], v.params[k, 0, 1]
         if r > 0.0 or sigma > 0.0:
             x = plant.memory[k, :, M_TABLE]
             plant.memory[k, :, M_READING] = r * np.floor(x / r + 0.5) if r > 0.0 else x
@@ -276,8 +317,8 @@ class PositionSensor(Effect):
     @staticmethod
     @njit(cache=True, _nrt=False, inline="always")
     def reading(s, plant, k, x):
-        r = s.params[k, 0, 0]
-        sigma = s.params[k, 0, 1]
+        r = plant.params[k, 0, s.params]
+        sigma = plant.params[k, 0, s.params + 1]
         if r == 0.0 and sigma == 0.0:
             return
         n0 = 0.0
@@ -311,26 +352,27 @@ class CommandDelay(Effect):
     state = {"commands": ((_FIFO, 2), np.float64), "delay": ((), np.int64), "head": ((), np.int64)}
 
     @staticmethod
-    def reset(s, plant, k):
-        s.delay[k] = int(math.floor(s.params[k, 0, 0] + 0.5))
-        s.commands[k] = 0.0
-        s.head[k] = 0
+    def reset(v, plant, k):
+        v.delay[k] = int(math.floor(v.params[k, 0, 0] + 0.5))
+        v.commands[k] = 0.0
+        v.head[k] = 0
 
     @staticmethod
     @njit(cache=True, _nrt=False, inline="always")
     def command(s, plant, k, x):
-        head = s.head[k]
-        s.commands[k, head, 0] = x[0]
-        s.commands[k, head, 1] = x[1]
-        slot = head - s.delay[k]  # the ring's index arithmetic without a modulo (a division)
+        f = plant.fstate
+        head = plant.istate[k, s.head]
+        f[k, s.commands + 2 * head] = x[0]
+        f[k, s.commands + 2 * head + 1] = x[1]
+        slot = head - plant.istate[k, s.delay]  # the ring's index arithmetic without a modulo (a division)
         if slot < 0:
             slot += _FIFO
-        x[0] = s.commands[k, slot, 0]
-        x[1] = s.commands[k, slot, 1]
+        x[0] = f[k, s.commands + 2 * slot]
+        x[1] = f[k, s.commands + 2 * slot + 1]
         head += 1
         if head == _FIFO:
             head = 0
-        s.head[k] = head
+        plant.istate[k, s.head] = head
 
 
 class SensorDelay(Effect):
@@ -348,32 +390,34 @@ class SensorDelay(Effect):
     state = {"readings": ((_FIFO, 4), np.float64), "delay": ((), np.int64), "head": ((), np.int64)}
 
     @staticmethod
-    def reset(s, plant, k):
-        s.delay[k] = int(math.floor(s.params[k, 0, 0] + 0.5))
-        s.readings[k, :, 0:2] = plant.memory[k, :, M_READING]
-        s.readings[k, :, 2:4] = plant.memory[k, :, M_READING_VELOCITY]
-        s.head[k] = 0
+    def reset(v, plant, k):
+        v.delay[k] = int(math.floor(v.params[k, 0, 0] + 0.5))
+        v.readings[k, :, 0:2] = plant.memory[k, :, M_READING]
+        v.readings[k, :, 2:4] = plant.memory[k, :, M_READING_VELOCITY]
+        v.head[k] = 0
 
     @staticmethod
     @njit(cache=True, _nrt=False, inline="always")
     def reading(s, plant, k, x):
-        head = s.head[k] + 1
+        head = plant.istate[k, s.head] + 1
         if head == _FIFO:
             head = 0
-        s.head[k] = head
+        plant.istate[k, s.head] = head
+        row = s.readings + 4 * head
         for i in range(2):
-            s.readings[k, head, i] = x[i, A_READING]
-            s.readings[k, head, 2 + i] = x[i, A_READING_VELOCITY]
+            plant.fstate[k, row + i] = x[i, A_READING]
+            plant.fstate[k, row + 2 + i] = x[i, A_READING_VELOCITY]
 
     @staticmethod
     @njit(cache=True, _nrt=False, inline="always")
     def sense(s, plant, k, x):
-        slot = s.head[k] - s.delay[k]
+        slot = plant.istate[k, s.head] - plant.istate[k, s.delay]
         if slot < 0:
             slot += _FIFO
+        row = s.readings + 4 * slot
         for i in range(2):
-            x[contract.SENSE_MEASURED + i] = s.readings[k, slot, i]
-            x[contract.SENSE_VELOCITY + i] = s.readings[k, slot, 2 + i]
+            x[contract.SENSE_MEASURED + i] = plant.fstate[k, row + i]
+            x[contract.SENSE_VELOCITY + i] = plant.fstate[k, row + 2 + i]
 
 
 def mode_transition(frequency: float, damping: float, dt: float) -> np.ndarray:
@@ -424,27 +468,28 @@ class StructuralMode(Effect):
     state = {"phi": ((2, 4), np.float64)}
 
     @staticmethod
-    def reset(s, plant, k):
+    def reset(v, plant, k):
         for i in range(2):
-            f = s.params[k, i, 0]
-            phi = mode_transition(f, s.params[k, i, 1], plant.dt) if f > 0 else np.eye(2)
-            s.phi[k, i] = phi.ravel()
+            f = v.params[k, i, 0]
+            phi = mode_transition(f, v.params[k, i, 1], plant.dt) if f > 0 else np.eye(2)
+            v.phi[k, i] = phi.ravel()
 
     @staticmethod
     @njit(cache=True, _nrt=False, inline="always")
     def table(s, plant, k, x):
         m = plant.memory
+        f = plant.fstate
         dt = plant.dt
         for i in range(2):
-            if s.params[k, i, 0] > 0.0:
+            if plant.params[k, i, s.params] > 0.0:
                 x_d = x[i, A_DRIVE]
                 x_d0 = m[k, i, M_DRIVE]
                 slope = (x_d - x_d0) / dt
                 e = m[k, i, M_TABLE] - x_d0
                 de = m[k, i, M_TABLE_VELOCITY] - slope
-                phi = s.phi[k, i]
-                e1 = phi[0] * e + phi[1] * de
-                de1 = phi[2] * e + phi[3] * de
+                phi = s.phi + 4 * i
+                e1 = f[k, phi] * e + f[k, phi + 1] * de
+                de1 = f[k, phi + 2] * e + f[k, phi + 3] * de
                 x[i, A_TABLE] = x_d + e1
                 x[i, A_TABLE_VELOCITY] = slope + de1
                 x[i, A_READING] += e1
@@ -479,24 +524,24 @@ class CuttingForce(Effect):
     state = {"phase": ((), np.float64), "phase_step": ((), np.float64)}
 
     @staticmethod
-    def reset(s, plant, k):
-        e = s.params[k]
-        s.phase[k] = 0.0
-        s.phase_step[k] = 2.0 * math.pi * e[0, 2] * e[0, 3] / 60.0 * plant.dt
+    def reset(v, plant, k):
+        e = v.params[k]
+        v.phase[k] = 0.0
+        v.phase_step[k] = 2.0 * math.pi * e[0, 2] * e[0, 3] / 60.0 * plant.dt
 
     @staticmethod
     @njit(cache=True, _nrt=False, inline="always")
     def force(s, plant, k, x):
-        f_cut = s.params[k, 0, 0]
-        f_rip = s.params[k, 0, 1]
+        f_cut = plant.params[k, 0, s.params]
+        f_rip = plant.params[k, 0, s.params + 1]
         if f_cut > 0.0 or f_rip > 0.0:
             m = plant.memory
             speed = math.hypot(m[k, 0, M_MEAN_VELOCITY], m[k, 1, M_MEAN_VELOCITY])
             if speed > 0.0:
-                cutting = (f_cut + f_rip * math.cos(s.phase[k])) / speed
+                cutting = (f_cut + f_rip * math.cos(plant.fstate[k, s.phase])) / speed
                 for i in range(2):
                     x[i] -= cutting * m[k, i, M_MEAN_VELOCITY]
-            s.phase[k] += s.phase_step[k]
+            plant.fstate[k, s.phase] += plant.fstate[k, s.phase_step]
 
 
 class StribeckFriction(Effect):
@@ -524,9 +569,9 @@ class StribeckFriction(Effect):
     @njit(cache=True, _nrt=False, inline="always")
     def force(s, plant, k, x):
         for i in range(2):
-            f = s.params[k, i, 0]
+            f = plant.params[k, i, s.params]
             if f > 0.0:
-                vs = s.params[k, i, 1]
+                vs = plant.params[k, i, s.params + 1]
                 v = plant.memory[k, i, M_MEAN_VELOCITY]
                 x[i] -= f * math.exp(-(v / vs) ** 2) * math.tanh(v / (STRIBECK_SIGN_WIDTH * vs))
 
@@ -550,11 +595,12 @@ OFF = {name: 0.0 for effect in EFFECTS for name in effect.switches}
 #: The arrays of N shop-floor machines (the contract's plant namedtuple): ``inner`` (the inner plant's arrays),
 #: ``state`` (= ``inner.state``), ``params`` (N, 2, P + E), ``dt`` (s), ``n_inner`` (P), ``gain`` (N, 2) (the
 #: plant's force gain, input per N), ``memory`` (N, 2, M_SIZE), ``rng`` (N,) uint64 (the noise generators' states),
-#: scratch ``applied`` (N, 2), ``force`` (N, 2), ``table`` (N, 2, A_SIZE) and ``sensed`` (N, SENSE_SIZE), and
-#: ``effects`` (the tuple of the effects' ``Arrays``, in the composition's order).
+#: scratch ``applied`` (N, 2), ``force`` (N, 2), ``table`` (N, 2, A_SIZE) and ``sensed`` (N, SENSE_SIZE), the
+#: effects' state ``fstate`` (N, F) float64 and ``istate`` (N, I) int64, and ``effects`` (the tuple of the effects'
+#: ``Arrays`` records of columns, in the composition's order).
 ShopFloorArrays = namedtuple("ShopFloorArrays", [
     "inner", "state", "params", "dt", "n_inner", "gain", "memory", "rng", "applied", "force", "table", "sensed",
-    "effects"])
+    "fstate", "istate", "effects"])
 
 
 def _stage(name: str):
@@ -728,15 +774,16 @@ def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -
     params[:, :, :P] = arrays.params
     arrays = arrays._replace(params=params[:, :, :P])
     n = n_machines
-    effects, column = [], P
+    effects, column, fcol, icol = [], P, 0, 0
     for effect in model.effects:
-        effects.append(effect.make(params[:, :, column:column + len(effect.parameters)]))
+        effects.append(effect.columns(column, fcol, icol))
         column += len(effect.parameters)
+        fcol, icol = fcol + effect.sizes()[0], icol + effect.sizes()[1]
     out = ShopFloorArrays(
         inner=arrays, state=arrays.state, params=params, dt=float(dt), n_inner=P, gain=np.zeros((n, 2)),
         memory=np.zeros((n, 2, M_SIZE)), rng=np.zeros(n, dtype=np.uint64), applied=np.zeros((n, 2)),
         force=np.zeros((n, 2)), table=np.zeros((n, 2, A_SIZE)), sensed=np.zeros((n, contract.SENSE_SIZE)),
-        effects=tuple(effects))
+        fstate=np.zeros((n, fcol)), istate=np.zeros((n, icol), dtype=np.int64), effects=tuple(effects))
     for k in range(n):
         _reset_machine(model, out, k, np.zeros(2))
     return out
@@ -761,7 +808,7 @@ def _reset_machine(model: ShopFloorModel, arrays: ShopFloorArrays, k: int, posit
     arrays.rng[k] = np.uint64(k)
     for effect, s in zip(model.effects, arrays.effects):
         if effect.reset is not None:
-            effect.reset(s, arrays, k)
+            effect.reset(effect.views(arrays, s), arrays, k)
 
 
 def _seed_machine(arrays: ShopFloorArrays, k: int, rng: np.random.Generator) -> None:
@@ -778,9 +825,13 @@ def _sense_inner(inner, k, out):
     contract.sense(inner, k, out)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, _nrt=False)
 def _advance_shop(plant, k, command):
-    """One control period of shop-floor machine ``k``: the stages of the module docstring."""
+    """One control period of shop-floor machine ``k``: the stages of the module docstring.
+
+    Compiled on its own, without numba's reference counting, and called: inlined into the env's kernel (which
+    counts references), every hook's copy of ``plant`` would count each of its arrays twice (atomic operations,
+    ~20 ns per effect and period), more than this call costs."""
     effects = plant.effects
     memory = plant.memory
     applied = plant.applied[k]
@@ -819,6 +870,17 @@ def _advance_shop(plant, k, command):
         memory[k, i, M_READING_VELOCITY] = x[i, A_READING_VELOCITY]
 
 
+@njit(cache=True, _nrt=False)
+def _sense_shop(plant, k, out):
+    """What machine ``k``'s sensors give (``contract.sense``): the table, the reading, then the ``sense`` stage
+    (compiled on its own, as :func:`_advance_shop`)."""
+    for i in range(2):
+        out[contract.SENSE_POSITION + i] = plant.memory[k, i, M_TABLE]
+        out[contract.SENSE_MEASURED + i] = plant.memory[k, i, M_READING]
+        out[contract.SENSE_VELOCITY + i] = plant.memory[k, i, M_READING_VELOCITY]
+    sense_stage(plant.effects, plant, k, out)
+
+
 @overload(contract.advance, inline="always", jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, ShopFloorArrays):
@@ -831,9 +893,5 @@ def _advance(plant, k, command):
 def _sense(plant, k, out):
     if contract.is_plant(plant, ShopFloorArrays):
         def impl(plant, k, out):
-            for i in range(2):
-                out[contract.SENSE_POSITION + i] = plant.memory[k, i, M_TABLE]
-                out[contract.SENSE_MEASURED + i] = plant.memory[k, i, M_READING]
-                out[contract.SENSE_VELOCITY + i] = plant.memory[k, i, M_READING_VELOCITY]
-            sense_stage(plant.effects, plant, k, out)
+            _sense_shop(plant, k, out)
         return impl
