@@ -229,7 +229,7 @@ class Effect:
     @classmethod
     def views(cls, plant, s):
         """The ``Arrays`` record of numpy views of the plant's arrays ``plant`` for the columns ``s``: ``params``
-        (N, 2, E) and each state array (N, *shape); writing them writes the plant's."""
+        (N, 2, E) and each state array ``(N, *shape)``; writing them writes the plant's."""
         n = plant.params.shape[0]
         views = [plant.params[:, :, s.params:s.params + len(cls.parameters)]]
         for (shape, dtype), start in zip(cls.state.values(), s[1:]):
