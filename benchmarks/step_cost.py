@@ -1,6 +1,7 @@
 """Per-step cost of the VCNC envs against CartPole, and numba start-up time.
 
-Run: ``python benchmarks/step_cost.py`` (``--steps N`` to change the count).
+Run: ``python benchmarks/step_cost.py`` (``--steps N`` to change the count, ``--ids`` the envs: Jahanpour et
+al.'s drive, e.g. ``VCNC-HeartShop-v1``, for the PD gains below).
 
 1. Steps ``gym.make("CartPole-v1")`` and ``gym.make("VCNC-Heart-v1")`` (both
    with the wrappers gym.make adds) in the same process and prints the cost
@@ -82,6 +83,8 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=100_000, help="steps timed per env (default 100000)")
     parser.add_argument("--repeats", type=int, default=3, help="timing repeats, best kept (default 3)")
     parser.add_argument("--no-start-up", action="store_true", help="skip the cold/warm start-up timing")
+    parser.add_argument("--ids", nargs="+", default=list(ENV_IDS), help="env ids on Jahanpour et al.'s drive "
+                        f"(default {' '.join(ENV_IDS)})")
     args = parser.parse_args(argv)
 
     import gymnasium as gym
@@ -92,16 +95,17 @@ def main(argv=None):
     cart_actions = np.random.default_rng(0).integers(0, 2, args.steps)
     rows = []
     cart_cost = min(time_steps(cart, cart_actions) for _ in range(args.repeats))
-    for env_id in ENV_IDS:
+    for env_id in args.ids:
         env = gym.make(env_id)
         actions = pd_actions(env_id, args.steps)
         cost = min(time_steps(env, actions) for _ in range(args.repeats))
         rows.append((env_id, cost))
 
-    print(f"{'env':<16} {'us/step':>9} {'x CartPole':>11}")
-    print(f"{'CartPole-v1':<16} {cart_cost * 1e6:9.2f} {1.0:11.2f}")
+    width = max(16, *(len(env_id) for env_id in args.ids))
+    print(f"{'env':<{width}} {'us/step':>9} {'x CartPole':>11}")
+    print(f"{'CartPole-v1':<{width}} {cart_cost * 1e6:9.2f} {1.0:11.2f}")
     for env_id, cost in rows:
-        print(f"{env_id:<16} {cost * 1e6:9.2f} {cost / cart_cost:11.2f}")
+        print(f"{env_id:<{width}} {cost * 1e6:9.2f} {cost / cart_cost:11.2f}")
     print(f"(best of {args.repeats} x {args.steps} steps, gym.make wrappers included; "
           f"plant substeps per step: {gym.make('VCNC-Heart-v1').unwrapped._batch.plant_arrays.n_substeps})")
     if not args.no_start_up:

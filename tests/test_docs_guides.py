@@ -28,7 +28,8 @@ _FENCE = re.compile(r"^```(?:python|\{code-block\} python)[ \t]*\n((?::[\w-]+:[^
                     re.MULTILINE | re.DOTALL)
 
 PAGES = ["getting-started.md", "guides/add-a-plant.md", "guides/add-a-contour.md", "guides/add-a-controller.md",
-         "guides/add-a-training-option.md"]
+         "guides/add-a-training-option.md",
+         "guides/add-a-shop-floor-effect.md"]
 
 
 def code_blocks(page: Path) -> list[tuple[str | None, str]]:
@@ -90,7 +91,8 @@ def _script(page: Path, folder: Path) -> Path:
     return script
 
 
-@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if "plant" in p else p for p in PAGES])
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if "plant" in p or "effect" in p else p
+                                  for p in PAGES])
 def test_page_code_runs(page, tmp_path):
     script = _script(DOCS / page, tmp_path)
     env = {**os.environ, "MPLBACKEND": "Agg"}

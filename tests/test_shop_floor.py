@@ -40,9 +40,10 @@ def _run(arrays, commands, true, measured, velocity, disturbance, drive):
             drive[j, i] = arrays.memory[0, i, sf.M_DRIVE]
 
 
-def simulate(settings, commands, plant=PLANT, dt=DT, seed=None):
+def simulate(settings, commands, plant=PLANT, dt=DT, seed=None, effects=sf.EFFECTS):
     """One machine of ``plant`` on the shop floor with ``settings`` over every other effect off."""
-    model = sf.shop_floor(plant, {**sf.OFF, **settings})
+    off = {name: value for name, value in sf.OFF.items() if name in {p.name for e in effects for p in e.parameters}}
+    model = sf.shop_floor(plant, {**off, **settings}, effects=effects)
     arrays = model.arrays(1, dt, model.nominal())
     model.reset_machine(arrays, 0, np.zeros(2))
     if seed is not None:
@@ -262,3 +263,49 @@ def test_compiled_baselines_run_on_a_shop_id_as_their_python_path(baseline, monk
     actions = tv._actions(60)
     compiled = tv._run_vec(True, actions, baseline, 0.2, {"randomize": True})
     tv._assert_same(compiled, tv._run_vec(False, actions, baseline, 0.2, {"randomize": True}))
+
+
+# -- the composition -----------------------------------------------------------------------------------------------
+def test_the_effects_declare_the_parameters_and_the_switches():
+    assert sf.EFFECT_PARAMETERS == tuple(p for e in sf.EFFECTS for p in e.parameters)
+    assert set(sf.OFF) == {name for e in sf.EFFECTS for name in e.switches} and not any(sf.OFF.values())
+    model = sf.shop_floor(PLANT)
+    assert model.effects == sf.EFFECTS
+    assert [p.name for p in model.parameters[-len(sf.EFFECT_NAMES):]] == list(sf.EFFECT_NAMES)
+    arrays = model.arrays(2, DT)
+    assert [type(s) for s in arrays.effects] == [e.Arrays for e in sf.EFFECTS]
+    # an effect's columns: its parameters in the plant's, its state in the plant's state arrays (no copies)
+    s = arrays.effects[sf.EFFECTS.index(sf.CommandDelay)]
+    assert s.params == model.index("command_delay")
+    arrays.params[1, :, model.index("command_delay")] = 3.0
+    views = sf.CommandDelay.views(arrays, s)
+    assert views.params[1, 0, 0] == 3.0 and views.commands.shape == (2, sf.MAX_DELAY + 1, 2)
+    views.commands[1, 2, 1] = 7.0
+    assert arrays.fstate[1, s.commands + 2 * 2 + 1] == 7.0
+    assert arrays.fstate.shape[1] == sum(e.sizes()[0] for e in sf.EFFECTS)
+
+
+def test_a_composition_is_refused_with_an_error_naming_it():
+    with pytest.raises(ValueError, match="effects must be a tuple of Effect subclasses"):
+        sf.shop_floor(PLANT, effects=(object,))
+    with pytest.raises(ValueError, match=r"\['command_delay'\] appear twice"):
+        sf.shop_floor(PLANT, effects=(sf.CommandDelay, sf.CommandDelay))
+    with pytest.raises(ValueError, match="unknown shop-floor setting.*noise_std"):
+        sf.shop_floor(PLANT, {"noise_std": 0.0}, effects=(sf.CommandDelay,))
+    with pytest.raises(ValueError, match="switches/counts.*not among its parameters"):
+        type("Bad", (sf.Effect,), {"parameters": sf.CommandDelay.parameters, "switches": ("delay",)})
+    with pytest.raises(ValueError, match="declares no force_gain.*stribeck_force"):
+        sf.shop_floor("cncmt_axis", {**sf.OFF, "stribeck_force": 30.0})
+
+
+@pytest.mark.slow
+def test_a_subset_of_the_effects_is_the_whole_shop_floor_with_the_others_off():
+    """Composing only the mode and the command delay (another kernel) gives the shop floor with every other effect
+    off, to the bit."""
+    settings = {"mode_frequency": 150.0, "mode_damping": 0.05, "command_delay": 2}
+    commands = chirp(2000)
+    whole = simulate(settings, commands)
+    part = simulate(settings, commands, effects=(sf.CommandDelay, sf.StructuralMode))
+    for key in ("true", "measured", "velocity", "drive"):
+        np.testing.assert_array_equal(part[key], whole[key])
+    assert np.ptp(part["true"] - part["drive"]) > 0.0  # the mode acted
