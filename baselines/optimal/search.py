@@ -81,7 +81,8 @@ class Solution:
 
 def causal_names(env) -> list[str]:
     """The causal controllers of :mod:`baselines` (registry names and variants) that apply to ``env``: designed
-    for its plant, given a reference where they need one, and the env takes two axis commands; not those that
+    for its plant, given a reference where they need one, and the env takes two axis commands (so not those that set
+    the feed override, ``mpcc``); not those that
     declare ``oracle_start = False`` (the normalised score's reference PD, ``pd-ref``: a deliberately plain loop
     that is never the best start, and which would otherwise make every stored solution be solved again)."""
     from ..registry import names, policy_class
@@ -96,6 +97,8 @@ def causal_names(env) -> list[str]:
         if getattr(cls, "causal", True) is False or plant is None or not cls.designed_for(plant):
             continue
         if getattr(cls, "oracle_start", True) is False:  # a reference design (pd-ref): never the best start
+            continue
+        if getattr(cls, "sets_feed_override", False):  # a third action (mpcc): not on an env of two axis commands
             continue
         if getattr(cls, "needs_reference", False) and not hasattr(getattr(u, "task", None), "reference_arrays"):
             continue
