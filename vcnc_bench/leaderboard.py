@@ -148,7 +148,7 @@ def ranked(rows: list[dict]) -> dict[str, list[dict]]:
 def profile(board: dict[str, list[dict]], taus=None, min_ids: int = 3) -> dict[str, np.ndarray]:
     """Agarwal et al. (2021)'s performance profile over ids: per policy that has a score on at least ``min_ids``
     ids, the fraction of those ids with a nominal max score >= tau, for each tau of ``taus`` (default 0 to 1)."""
-    taus = np.linspace(0.0, 1.0, 101) if taus is None else np.asarray(taus, dtype=np.float64)
+    taus = np.linspace(0.0, 1.0, 1001) if taus is None else np.asarray(taus, dtype=np.float64)
     scores: dict[str, list[float]] = {}
     for rows in board.values():
         for r in rows:
@@ -207,23 +207,38 @@ def format_page(board: dict[str, list[dict]], figure: str | None) -> str:
     return "\n".join(lines)
 
 
-def _plot(curves: dict[str, np.ndarray], path: Path) -> None:
+def _shown(curves: dict[str, np.ndarray], board: dict[str, list[dict]], most: int = 8) -> list[str]:
+    """The curves worth a reader's look, at most ``most``: the floor, the reference, every policy that is not a
+    classical baseline, then the classical ones by their mean over tau (the area under the profile)."""
+    roles = {r["policy"]: r["role"] for rows in board.values() for r in rows}
+    first = [p for p in curves if roles.get(p) in ("floor", "reference", "learned or yours")]
+    rest = sorted((p for p in curves if p not in first), key=lambda p: -float(np.mean(curves[p])))
+    return (first + rest)[:max(most, len(first))]
+
+
+def _plot(curves: dict[str, np.ndarray], board: dict[str, list[dict]], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    taus = np.linspace(0.0, 1.0, 101)
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    order = sorted(curves, key=lambda p: -float(np.mean(curves[p])))
-    cmap = plt.get_cmap("tab20")
-    for i, p in enumerate(order):
-        ax.step(taus, curves[p], where="post", label=p, color=cmap(i % 20), lw=1.6)
-    ax.set_xlabel("normalised contour score of the max, tau (0 = pd-ref, 1 = floor)")
-    ax.set_ylabel("fraction of ids with score >= tau")
-    ax.set_ylim(-0.02, 1.02)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="lower left")
+    taus = np.linspace(0.0, 1.0, 1001)
+    shown = _shown(curves, board)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), gridspec_kw={"width_ratios": [1, 1]})
+    cmap = plt.get_cmap("tab10")
+    for ax, (lo, title) in zip(axes, ((0.0, "the whole scale"), (0.9, "the last tenth (the strong controllers)"))):
+        for i, p in enumerate(shown):
+            ax.step(taus, curves[p], where="post", label=p, color=cmap(i % 10), lw=2.0 if i < 3 else 1.4,
+                    ls="-" if i < 10 else "--")
+        ax.set_xlim(lo, 1.0)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("normalised contour score of the max, tau")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("fraction of ids with score >= tau")
+    axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"Performance profile over ids (0 = {REFERENCE}, 1 = the floor); {len(curves) - len(shown)} more "
+                 "policies in the tables", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -240,7 +255,7 @@ def write(page: Path, new_rows: list[dict], add: bool = True) -> Path:
     curves = profile(board)
     figure = page.with_name(page.stem + "_profile.png")
     if curves:
-        _plot(curves, figure)
+        _plot(curves, board, figure)
     page.write_text(format_page(board, figure.name if curves else None) + "\n")
     data.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
     return page
