@@ -114,7 +114,9 @@ class Machines:
     """``n`` machines of an env's task, stepped one control period at a time: the experiment's only access.
 
     ``parameters`` (n, 2, P) are handed to the simulator to *build* the machines (on a real shop floor the
-    machines exist); the experiment itself calls only :meth:`step` and reads the observation.
+    machines exist); the experiment itself calls only :meth:`step` and reads the observation.  Every machine's
+    sensor is seeded with ``seed``, whatever its place in the batch: a machine identified among others gets the
+    record it gets alone (the floor's search commissions each machine alone, the robust bench in one batch).
     """
 
     def __init__(self, task, parameters, seed: int = 0):
@@ -126,7 +128,7 @@ class Machines:
         self.n = p.shape[0]
         self._batch = ContouringBatch(task, self.n)
         for i in range(self.n):
-            self._batch.reset_env(i, task.check_parameters(p[i]), np.random.default_rng(seed + i))
+            self._batch.reset_env(i, task.check_parameters(p[i]), np.random.default_rng(seed))
         self._batch.run()
         #: the nominal input limit (a builder's data), input unit
         self.u_max = task.plant.input_limits(task.nominal_parameters)
