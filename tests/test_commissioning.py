@@ -237,3 +237,20 @@ def test_a_machine_identified_among_others_reads_what_it_reads_alone():
         b.append(pair.step(np.stack([-c, c]))[1])
     np.testing.assert_array_equal(np.array(a), np.array(b))
     assert not np.array_equal(np.array(a), np.array(r))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ["VCNC-Circle-v1", "VCNC-CircleShop-v1"])
+def test_a_machines_record_is_the_same_alone_and_in_a_batch(env_id):
+    """One identification run over three plants of the box gives each the record it gets alone (the same PRBS and
+    sensor seed for every machine): the floor's search commissions each machine alone, the robust bench in a
+    batch, and the floor is at or below the @machine controller only if the two are one controller."""
+    from vcnc_bench import robust
+
+    task = _nominal_task(env_id)
+    P = robust.plant_set(task.plant, 2, seed=5, max_vertices=0).parameters
+    batch = record.commission(task, "machine", P)
+    for i in range(P.shape[0]):
+        a, b = batch[i].to_dict(), record.commission(task, "machine", P[i:i + 1])[0].to_dict()
+        a.pop("identification_s"), b.pop("identification_s")
+        assert a == b, i

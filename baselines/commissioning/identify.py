@@ -196,7 +196,9 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     total = start + legs * per_leg
     level = experiment.prbs_level * machines.u_max
     r = np.zeros((n, total, 2))
-    r[:, :K] = level * np.where(rng.random((n, K, 2)) < 0.5, -1.0, 1.0)
+    # one PRBS for every machine (drawn as a batch of one draws it): a machine's record does not depend on its place
+    # in a batch
+    r[:, :K] = level * np.where(rng.random((K, 2)) < 0.5, -1.0, 1.0)[None]
     offset_rate = np.zeros((total, 2))  # the reversal legs' moves on top of the reference, mm/s
     for leg, speeds in enumerate(schedule):
         a = start + leg * per_leg

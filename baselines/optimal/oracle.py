@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -147,7 +148,7 @@ class OraclePolicy(BaselinePolicy):
                 sol = None  # a causal controller registered since: it must be among the starts
             if key in self._stale:
                 sol = None  # an episode did not reproduce it (confirm)
-            start = self._start(env, sol) if sol is not None else None
+            start = self._start(env, sol, task, p) if sol is not None else None
             if sol is not None and self.check_by_episode and single:
                 unchecked.append(key)
             elif sol is not None:
@@ -158,7 +159,7 @@ class OraclePolicy(BaselinePolicy):
                     sol = None
             if sol is None:
                 sol = solve(env, p, noise_state=noise[i], extra_starts=self.extra_starts or None, **self.search)
-                start = self._start(env, sol)
+                start = self._start(env, sol, task, p)
                 if self.cache:
                     solutions.store(key, sol)
             self.solutions.append(sol)
@@ -189,8 +190,16 @@ class OraclePolicy(BaselinePolicy):
         return False
 
     @staticmethod
-    def _start(env, sol: Solution):
-        return OpenLoopPolicy(sol.table) if sol.table is not None else make(sol.start, env)
+    def _start(env, sol: Solution, task, parameters):
+        """The solution's start, built as the search built it: an @machine design commissioned on the machine
+        ``parameters`` (2, P) the floor was solved on (:func:`~baselines.optimal.search.warm_starts`), whichever
+        plants ``env`` holds (a vector env's, or the nominal one it was built with)."""
+        if sol.table is not None:
+            return OpenLoopPolicy(sol.table)
+        start = make(sol.start, env)
+        if hasattr(start, "plan"):
+            start.plan(SimpleNamespace(task=task, parameters=parameters))
+        return start
 
     @staticmethod
     def _replay(task, parameters, noise_state, start, correction) -> tuple[float, float]:
