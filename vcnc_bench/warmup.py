@@ -17,10 +17,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
-import time
-from concurrent.futures import ThreadPoolExecutor
+
+from vcnc_gym.warmup import warm_in_processes
 
 __all__ = ["warm_env", "main"]
 
@@ -69,12 +68,6 @@ def _one_per_machine(ids: list[str]) -> list[str]:
     return out
 
 
-def _warm(env_id: str) -> tuple[str, float, str]:
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", _ONE.format(id=env_id)], capture_output=True, text=True)
-    return env_id, time.perf_counter() - t0, "" if proc.returncode == 0 else proc.stderr[-2000:]
-
-
 def main(argv=None) -> int:
     from .cli import DEFAULT_IDS, LONGEST_FIRST
 
@@ -90,19 +83,8 @@ def main(argv=None) -> int:
     rank = {ids[0]: 0, "VCNC-Step-v0": 1}
     ids.sort(key=lambda i: rank.get(i, 2))
     print(f"vcnc_bench.warmup: compiling the controllers' kernels on {len(ids)} envs, one per machine of the default "
-          "table, "
-          f"{args.jobs} at a time", flush=True)
-    t0 = time.perf_counter()
-    failed = []
-    with ThreadPoolExecutor(args.jobs) as pool:
-        for env_id, seconds, error in pool.map(_warm, ids):
-            print(f"  {env_id:26s} {seconds:6.1f} s{'  FAILED' if error else ''}", flush=True)
-            if error:
-                failed.append((env_id, error))
-    print(f"vcnc_bench.warmup: done in {time.perf_counter() - t0:.0f} s", flush=True)
-    for env_id, error in failed:
-        print(f"\n{env_id} failed:\n{error}", file=sys.stderr)
-    return 1 if failed else 0
+          f"table, {args.jobs} at a time", flush=True)
+    return warm_in_processes("vcnc_bench.warmup", ids, _ONE, args.jobs)
 
 
 if __name__ == "__main__":

@@ -39,10 +39,27 @@ if e.vector_entry_point is not None:
 """
 
 
-def _warm(env_id: str) -> tuple[str, float, str]:
+def _warm(script: str, env_id: str) -> tuple[str, float, str]:
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", _ONE.format(id=env_id)], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-c", script.format(id=env_id)], capture_output=True, text=True)
     return env_id, time.perf_counter() - t0, "" if proc.returncode == 0 else proc.stderr[-2000:]
+
+
+def warm_in_processes(name: str, ids: list[str], script: str, jobs: int) -> int:
+    """Run ``script`` (Python, ``{id}`` the env id) in one fresh process per id of ``ids``, ``jobs`` at a time,
+    printing each one's time under ``name``; 1 (and each failure's stderr) if any failed, else 0.  The suite's
+    other warm-ups (:mod:`vcnc_bench.warmup`, the controllers' laws) run through it too."""
+    t0 = time.perf_counter()
+    failed = []
+    with ThreadPoolExecutor(jobs) as pool:
+        for env_id, seconds, error in pool.map(lambda i: _warm(script, i), ids):
+            print(f"  {env_id:26s} {seconds:6.1f} s{'  FAILED' if error else ''}", flush=True)
+            if error:
+                failed.append((env_id, error))
+    print(f"{name}: done in {time.perf_counter() - t0:.0f} s", flush=True)
+    for env_id, error in failed:
+        print(f"\n{env_id} failed:\n{error}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 def main(argv=None) -> int:
@@ -53,17 +70,7 @@ def main(argv=None) -> int:
         p.error(f"--jobs must be >= 1, got {args.jobs}")
     ids = [e.id for e in SUITE]
     print(f"vcnc_gym.warmup: compiling the kernels of {len(ids)} envs, {args.jobs} at a time", flush=True)
-    t0 = time.perf_counter()
-    failed = []
-    with ThreadPoolExecutor(args.jobs) as pool:
-        for env_id, seconds, error in pool.map(_warm, ids):
-            print(f"  {env_id:26s} {seconds:6.1f} s{'  FAILED' if error else ''}", flush=True)
-            if error:
-                failed.append((env_id, error))
-    print(f"vcnc_gym.warmup: done in {time.perf_counter() - t0:.0f} s", flush=True)
-    for env_id, error in failed:
-        print(f"\n{env_id} failed:\n{error}", file=sys.stderr)
-    return 1 if failed else 0
+    return warm_in_processes("vcnc_gym.warmup", ids, _ONE, args.jobs)
 
 
 if __name__ == "__main__":
