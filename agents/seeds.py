@@ -5,7 +5,7 @@ A verdict on a learned controller rests on several training seeds (Henderson et 
 0) with every other option unchanged.  Each seed is one ``vcnc-train`` process with ``--seed s`` and its own run
 folder: ``OUTPUT/seed<s>`` with ``--output OUTPUT``, else ``runs/<ID>_seed<s>`` as a single run's.  They run on
 ``--jobs`` local processes at a time (default: every core but what other processes keep busy, at least 1;
-each trains on one torch thread), or, with ``--ray-address ADDR``, as Ray tasks on that cluster (one CPU each;
+each trains on one torch thread unless ``--threads`` says otherwise), or, with ``--ray-address ADDR``, as Ray tasks on that cluster (one CPU each;
 the run folders must be on a file system the nodes share).  A seed's output goes to ``<run folder>.log``; its
 last line is printed when it ends, and a summary table of every seed's best evaluation at the end
 (``seeds.json`` beside the folders).  The bench evaluates the K agents (``vcnc-bench --policy ppo:FOLDER``).
@@ -78,7 +78,8 @@ def _run_one(argv: list[str], folder: str) -> tuple[int, float, str]:
     log.parent.mkdir(parents=True, exist_ok=True)
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     with log.open("w") as f:
-        code = subprocess.run([sys.executable, "-m", "agents.cli", *argv, "--threads", "1"], stdout=f,
+        threads = [] if any(a.split("=", 1)[0] == "--threads" for a in argv) else ["--threads", "1"]
+        code = subprocess.run([sys.executable, "-m", "agents.cli", *argv, *threads], stdout=f,
                               stderr=subprocess.STDOUT, env=env).returncode
     lines = [ln for ln in log.read_text().splitlines() if ln.strip()]
     return code, time.perf_counter() - t0, lines[-1] if lines else ""

@@ -141,7 +141,7 @@ def ranked(rows: list[dict]) -> dict[str, list[dict]]:
     for env in dict.fromkeys(r["env"] for r in rows):
         group = [r for r in rows if r["env"] == env]
         out[env] = sorted(group, key=lambda r: (r["score_max"] is None, -(r["score_max"] or 0.0),
-                                                 -(r["score_rms"] or 0.0) if r["score_rms"] is not None else 0.0))
+                                                 -(r["score_rms"] or 0.0)))
     return out
 
 
