@@ -16,7 +16,7 @@
 Example
 -------
 >>> import gymnasium as gym, vcnc_gym
->>> from agents import load_agent, TRAINED
+>>> from vcnc_agents import load_agent, TRAINED
 >>> env = gym.make("VCNC-Heart-v1")
 >>> agent = load_agent(TRAINED["VCNC-Heart-v1"], env)      # doctest: +SKIP
 """
@@ -26,7 +26,7 @@ from pathlib import Path
 from vcnc_gym.extras import require_extra
 
 # ruff: noqa: E402  (the imports below follow the extra's check on purpose)
-require_extra("agents", "agents")  # Stable-Baselines3, torch, ...: the extra named if one is missing
+require_extra("agents", "vcnc_agents")  # Stable-Baselines3, torch, ...: the extra named if one is missing
 
 from .action_modes import ACTION_MODES, ActionMode, ResidualAction
 from .normalization import NormalizationStats
@@ -39,7 +39,7 @@ _SHIPPED = sorted(p for p in (Path(__file__).parent / "trained").iterdir() if p.
 TRAINED = {folder.name: folder for folder in _SHIPPED if folder.name.startswith("VCNC-")}
 
 #: Plant name -> folder of the generalist shipped for it (``agents/trained/generalist-<plant>``): trained on
-#: ``VCNC-RandomContour-v1``, it runs on any contouring env of that plant (:data:`agents.policy.ANY_CONTOUR_IDS`).
+#: ``VCNC-RandomContour-v1``, it runs on any contouring env of that plant (:data:`vcnc_agents.policy.ANY_CONTOUR_IDS`).
 GENERALISTS = {folder.name.removeprefix("generalist-"): folder for folder in _SHIPPED
                if folder.name.startswith("generalist-")}
 

@@ -8,7 +8,7 @@ evaluation:
   ``action_repeat`` (an env argument: ``gym.make(id, action_repeat=10)``),
   held inside the env's jitted step.
 - **residual**: the agent's action a in [-1, 1]^2 corrects a classical
-  baseline of the :mod:`baselines` package::
+  baseline of the :mod:`vcnc_baselines` package::
 
       u / u_max = clip(u_baseline(obs_k) / u_max + correction * a, -1, 1)
 
@@ -59,7 +59,7 @@ class ActionMode:
     action_repeat : int
         Control periods per agent decision (>= 1).
     baseline : str
-        Residual mode: the baseline name of :func:`baselines.names` ("smc", "qft", ...).
+        Residual mode: the baseline name of :func:`vcnc_baselines.names` ("smc", "qft", ...).
     correction : float
         Residual mode: the largest correction, as a fraction of u_max (0 < correction <= 2).
     baseline_params : dict
@@ -77,10 +77,10 @@ class ActionMode:
             raise ValueError(f"action mode must be one of {sorted(ACTION_MODES)}, got {self.mode!r}")
         object.__setattr__(self, "action_repeat", _check_repeat(self.action_repeat))
         if self.mode == "residual":
-            import baselines
+            import vcnc_baselines
 
-            if self.baseline not in baselines.names():
-                raise ValueError(f"residual mode needs a baseline among {baselines.names()}, got {self.baseline!r}")
+            if self.baseline not in vcnc_baselines.names():
+                raise ValueError(f"residual mode needs a baseline among {vcnc_baselines.names()}, got {self.baseline!r}")
             c = self.correction
             if not 0 < real("correction", c, "fraction of u_max") <= 2:
                 raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
@@ -104,9 +104,9 @@ class ActionMode:
         """The residual's baseline for ``env`` (a control-period env), or None in direct mode."""
         if self.mode != "residual":
             return None
-        import baselines
+        import vcnc_baselines
 
-        return baselines.make(self.baseline, env, **self.baseline_params)
+        return vcnc_baselines.make(self.baseline, env, **self.baseline_params)
 
     def command(self, baseline_action: np.ndarray | None, agent_action: np.ndarray) -> np.ndarray:
         """Normalised command (float32, clipped to [-1, 1]) from the baseline's and the agent's actions, in float32
@@ -143,7 +143,7 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         A vcnc_gym contouring env made with ``action_repeat=1`` (the baseline
         runs at its control period), possibly wrapped (``gym.make``).
     baseline : str
-        Baseline name of :func:`baselines.names`, e.g. "smc" or "qft".
+        Baseline name of :func:`vcnc_baselines.names`, e.g. "smc" or "qft".
     correction : float
         Largest correction as a fraction of u_max, in (0, 2].
     action_repeat : int

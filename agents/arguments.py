@@ -1,6 +1,6 @@
 """The command line of ``vcnc-train``: its parser and the action mode its options ask for.
 
-One home for both, read by :mod:`agents.cli` (the command) and :mod:`agents.sweep` (each trial runs what the
+One home for both, read by :mod:`vcnc_agents.cli` (the command) and :mod:`vcnc_agents.sweep` (each trial runs what the
 parser makes of its command line), so that neither imports the other.
 """
 
@@ -32,7 +32,7 @@ def parser() -> argparse.ArgumentParser:
                         "ray://HOST:10001); default: --sweep a local Ray sized to this machine, --seeds local processes")
     p.add_argument("--seeds", type=int, metavar="K",
                    help="train K seeds (--seed S, S+1, ..., default from 0) with the same options, one run folder "
-                        "each (OUTPUT/seedS, default runs/ENV_seedS), on --jobs local processes (agents.seeds)")
+                        "each (OUTPUT/seedS, default runs/ENV_seedS), on --jobs local processes (vcnc_agents.seeds)")
     p.add_argument("--jobs", type=int, metavar="J",
                    help="with --seeds: seeds trained at a time (default: the idle cores, at least 1)")
     p.add_argument("--timesteps", type=int, metavar="N",
@@ -56,7 +56,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's; the lean trainer: 1)")
     p.add_argument("--trainer", choices=("sb3", "lean"),
                    help="sb3: Stable-Baselines3's PPO (default); lean: the same PPO and agent files over the native "
-                        "vector env without SB3's per-step work (agents.lean_ppo); --resume: the run's")
+                        "vector env without SB3's per-step work (vcnc_agents.lean_ppo); --resume: the run's")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs even if it is installed")
     p.add_argument("-v", "--verbose", action="count", default=0, help="SB3 verbosity and evaluation lines")

@@ -9,14 +9,14 @@ reads the reference ahead) is cloned from the observation alone: what BC can and
 figure.
 
 The trained policy is saved as a **data-only** ``.npz`` (weights, biases, the observation statistics, and a JSON
-header with the env signature, :func:`agents.policy.env_signature`, and the training's settings and losses) and
+header with the env signature, :func:`vcnc_agents.policy.env_signature`, and the training's settings and losses) and
 loaded without unpickling (``allow_pickle=False``); it runs with numpy, without torch, as a policy with SB3's
 ``predict`` (``vcnc-bench --policy bc:PATH``).
 
 Example
 -------
 >>> import minari, gymnasium as gym, vcnc_gym
->>> from agents.behaviour_cloning import dataset_pairs, fit, load_bc
+>>> from vcnc_agents.behaviour_cloning import dataset_pairs, fit, load_bc
 >>> obs, act = dataset_pairs(minari.load_dataset("vcnc/Heart-v1/strongest-v0"))   # doctest: +SKIP
 >>> bc = fit(obs, act, epochs=20)                                                     # doctest: +SKIP
 >>> bc.save("heart-bc.npz")                                                            # doctest: +SKIP
@@ -60,7 +60,7 @@ class BehaviourCloning:
     obs_mean, obs_std : ndarray, (D,)
         The dataset's observation statistics (inputs are ``(o - mean) / std``).
     header : dict
-        ``format``, ``signature`` (the env's :func:`agents.policy.env_signature`, or None), the training's
+        ``format``, ``signature`` (the env's :func:`vcnc_agents.policy.env_signature`, or None), the training's
         ``settings`` and ``losses`` (train and validation MSE per epoch), ``source`` (the dataset id, optional).
     """
 
@@ -202,7 +202,7 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
     seed : int
         Seeds the split, the initial weights and the batches.
     signature : dict, optional
-        The env's :func:`agents.policy.env_signature`, checked when the policy is loaded for an env.
+        The env's :func:`vcnc_agents.policy.env_signature`, checked when the policy is loaded for an env.
     source : str, optional
         Where the pairs came from (a dataset id), kept in the header.
     history : int
@@ -285,11 +285,11 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m agents.behaviour_cloning DATASET_ID --out FILE``: fit to a local Minari dataset and save."""
+    """``python -m vcnc_agents.behaviour_cloning DATASET_ID --out FILE``: fit to a local Minari dataset and save."""
     import argparse
     import sys
 
-    p = argparse.ArgumentParser(prog="python -m agents.behaviour_cloning", description=main.__doc__)
+    p = argparse.ArgumentParser(prog="python -m vcnc_agents.behaviour_cloning", description=main.__doc__)
     p.add_argument("dataset", nargs="+", help="local Minari dataset id(s) (vcnc-datasets); pairs pooled")
     p.add_argument("--out", required=True, help="the .npz to write")
     p.add_argument("--epochs", type=int, default=20)
@@ -301,7 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     from vcnc_gym.extras import require_extra
 
-    require_extra("datasets", "agents.behaviour_cloning's command")
+    require_extra("datasets", "vcnc_agents.behaviour_cloning's command")
     import minari
 
     import vcnc_gym  # noqa: F401  (registers the ids recover_environment makes)

@@ -1,9 +1,9 @@
 """What runs during SB3's training besides PPO: checkpoints, evaluations and the stop on a signal.
 
 As SB3's ``common/callbacks.py``: :func:`make_run_callback` is the SB3 callback of a run (checkpoint and
-evaluate between PPO updates, stop when :class:`agents.run_session.StopSignal` says so).  The rows it writes
-and ranks are :mod:`agents.run_folder`'s (:func:`agents.run_folder.evaluation_row`), the session it records
-:class:`agents.run_session.Session`'s, handed in by the trainer.
+evaluate between PPO updates, stop when :class:`vcnc_agents.run_session.StopSignal` says so).  The rows it writes
+and ranks are :mod:`vcnc_agents.run_folder`'s (:func:`vcnc_agents.run_folder.evaluation_row`), the session it records
+:class:`vcnc_agents.run_session.Session`'s, handed in by the trainer.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ __all__ = ["make_run_callback"]
 def make_run_callback(config, run_dir: Path, session, stop, verbose: int):
     """The callback that checkpoints and evaluates, both between PPO updates, and stops on a signal.
 
-    ``config`` is the run's :class:`agents.run_config.RunConfig`, ``session`` its
-    :class:`agents.run_session.Session` (recorded at every checkpoint), ``stop`` its
-    :class:`agents.run_session.StopSignal`.
+    ``config`` is the run's :class:`vcnc_agents.run_config.RunConfig`, ``session`` its
+    :class:`vcnc_agents.run_session.Session` (recorded at every checkpoint), ``stop`` its
+    :class:`vcnc_agents.run_session.StopSignal`.
 
     SB3 calls ``_on_rollout_start`` after each policy update, so a checkpoint
     or an evaluation there holds the model trained on every step counted in

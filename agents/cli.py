@@ -7,7 +7,7 @@
     vcnc-train --resume runs/omega3 --timesteps 400000   # ... to a new total
     vcnc-train --sweep agents/sweeps/omega.yml           # a Ray Tune sweep (runs/sweep_omega), local Ray
     vcnc-train --sweep agents/sweeps/omega.yml --ray-address auto   # ... on an existing Ray cluster
-    vcnc-train --env VCNC-Heart-v1 --seeds 5 --output runs/heart   # seeds 0-4: runs/heart/seed0 ... (agents.seeds)
+    vcnc-train --env VCNC-Heart-v1 --seeds 5 --output runs/heart   # seeds 0-4: runs/heart/seed0 ... (vcnc_agents.seeds)
 
 Every option, the hyperparameter file and the env arguments are checked
 before the run folder is created; a bad one exits with status 2 and a
@@ -57,7 +57,7 @@ def _after_failure(run_dir: Path, checkpoint) -> str:
 
 
 def _training_options(args) -> dict:
-    """The training options of the command line (:data:`agents.run_config.TRAINING_OPTIONS`), None where not
+    """The training options of the command line (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`), None where not
     given."""
     from .run_config import TRAINING_OPTIONS
 

@@ -10,7 +10,7 @@ RL Baselines3 Zoo, so the same file drives both trainers::
 An entry has the Zoo's keys: ``n_timesteps``, ``n_envs``, ``policy``,
 ``normalize`` (bool or a dict string such as ``"{'norm_obs': True,
 'norm_reward': True}"``), ``env_kwargs``, ``env_wrapper`` (the residual
-action mode is ``agents.action_modes.ResidualAction`` with its arguments) and
+action mode is ``vcnc_agents.action_modes.ResidualAction`` with its arguments) and
 every other key a PPO constructor argument; a float hyperparameter may be a
 linear schedule ``"lin_3e-4"``, as in the Zoo.
 
@@ -31,6 +31,7 @@ import copy
 import difflib
 import math
 import numbers
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +58,10 @@ __all__ = [
 DEFAULT_CONFIG = Path(__file__).parent / "hyperparams" / "ppo.yml"
 
 #: The import path of the residual wrapper, as the Zoo's ``env_wrapper`` names it.
-RESIDUAL_WRAPPER = "agents.action_modes.ResidualAction"
+RESIDUAL_WRAPPER = "vcnc_agents.action_modes.ResidualAction"
+#: Its path before the package was installed as ``vcnc_agents`` (0.2.0; issue 36), still read in a run's config.yml
+#: or a hyperparameter file with a DeprecationWarning, until 0.4.
+_OLD_RESIDUAL_WRAPPER = "agents.action_modes.ResidualAction"
 
 #: Keys of a Zoo entry that are not PPO constructor arguments and that vcnc-train understands.
 _ZOO_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "env_kwargs", "env_wrapper")
@@ -200,7 +204,7 @@ def _literal(node: ast.AST, text: str):
         return {k.arg: _literal(k.value, text) for k in node.keywords}
     if isinstance(node, (ast.Name, ast.Attribute)):
         return _named(ast.unparse(node))
-    raise ValueError(f"policy_kwargs may hold only literals, dict(...) and the names of agents.config.TORCH_NAMES; "
+    raise ValueError(f"policy_kwargs may hold only literals, dict(...) and the names of vcnc_agents.config.TORCH_NAMES; "
                      f"{ast.unparse(node)!r} in {text!r} is none of them")
 
 
@@ -298,6 +302,10 @@ def _wrappers(spec) -> list[tuple[str, dict]]:
             out.append((name, dict(kwargs or {})))
         else:
             raise ValueError(f"env_wrapper entries must be 'module.Class' or {{'module.Class': {{kwargs}}}}, got {item!r}")
+    if any(name == _OLD_RESIDUAL_WRAPPER for name, _ in out):
+        warnings.warn(f"env_wrapper {_OLD_RESIDUAL_WRAPPER} is now {RESIDUAL_WRAPPER} (the package installs as "
+                      "vcnc_agents); the old path is read until vcnc-gym 0.4", DeprecationWarning, stacklevel=3)
+        out = [(RESIDUAL_WRAPPER if name == _OLD_RESIDUAL_WRAPPER else name, kwargs) for name, kwargs in out]
     return out
 
 

@@ -1,12 +1,12 @@
 """The training and evaluation envs of a run: the one place that builds them.
 
 - :func:`make_training_venv`: the run's n_envs training envs as an SB3 VecEnv (the native vector env
-  :class:`agents.vec_env.VcncVecEnv`, or SB3's DummyVecEnv / SubprocVecEnv over Gymnasium envs), each with its
-  Monitor file; the lean trainer's envs share their construction (:func:`agents.vec_env.native_batch`).
+  :class:`vcnc_agents.vec_env.VcncVecEnv`, or SB3's DummyVecEnv / SubprocVecEnv over Gymnasium envs), each with its
+  Monitor file; the lean trainer's envs share their construction (:func:`vcnc_agents.vec_env.native_batch`).
 - :func:`make_eval_env`: the plain env the evaluations run on (nominal plant, action_repeat=1).
 - :func:`check_envs`: build them once before a run starts, so bad env or policy arguments fail early.
 
-Each reads the run's :class:`agents.run_config.RunConfig` (its env id, seed, n_envs, action mode and env
+Each reads the run's :class:`vcnc_agents.run_config.RunConfig` (its env id, seed, n_envs, action mode and env
 arguments).
 """
 
@@ -60,13 +60,13 @@ def make_training_venv(config, run_dir: Path, *, vec_env: str = "native", start_
                        append: bool = False):
     """The run's training VecEnv (without normalisation): n_envs envs with their Monitor files.
 
-    ``config`` is the run's :class:`agents.run_config.RunConfig`.  Env i is seeded ``seed + start_steps + i``
+    ``config`` is the run's :class:`vcnc_agents.run_config.RunConfig`.  Env i is seeded ``seed + start_steps + i``
     (a resumed session draws new plants); the Monitor files ``monitor/<i>.monitor.csv`` are appended to
     (``append``, a resumed run) or started, and record the run's step count
     at the end of every episode (column ``steps``).
     The one place that builds the training envs: ``vec_env="native"`` (the
     default) steps all envs with one kernel call per control period
-    (:class:`agents.vec_env.VcncVecEnv`, the residual baseline batched);
+    (:class:`vcnc_agents.vec_env.VcncVecEnv`, the residual baseline batched);
     "dummy" and "subproc" are SB3's per-env VecEnvs over Gymnasium envs.
     """
     from stable_baselines3.common.env_util import make_vec_env
@@ -94,14 +94,14 @@ def eval_kwargs(env_kwargs: dict) -> dict:
 
 
 def make_eval_env(config):
-    """The plain env the run's evaluations take (``config``: its :class:`agents.run_config.RunConfig`)."""
+    """The plain env the run's evaluations take (``config``: its :class:`vcnc_agents.run_config.RunConfig`)."""
     return gym.make(config.env_id, **eval_kwargs(config.env_kwargs))
 
 
 def check_envs(config) -> dict:
     """Build the run's training and evaluation envs and its policy once; the env block of config.yml.
 
-    ``config`` is the run's :class:`agents.run_config.RunConfig`.  Raises ValueError naming env_kwargs or
+    ``config`` is the run's :class:`vcnc_agents.run_config.RunConfig`.  Raises ValueError naming env_kwargs or
     policy_kwargs when the env or the policy network cannot be built from them.
     """
     env_id, mode = config.env_id, config.mode

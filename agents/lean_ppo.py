@@ -13,11 +13,11 @@ rest: the rollout is preallocated torch tensors filled from the env's arrays,
 the policy's forward pass is written out (Gaussian with a state-independent
 log std), and the envs' statistics are kept as arrays.
 
-What it writes is what ``vcnc-train`` writes (``agents.training``): the run
+What it writes is what ``vcnc-train`` writes (``vcnc_agents.training``): the run
 folder with config.yml (plus ``trainer: lean``), checkpoints (SB3
 ``model.zip`` + data-only ``vecnormalize.npz``), best/, final/,
 evaluations.csv, monitor/ and summary.json; an agent is an SB3 PPO file that
-:func:`agents.load_agent` and ``vcnc-bench --policy ppo:PATH`` load without
+:func:`vcnc_agents.load_agent` and ``vcnc-bench --policy ppo:PATH`` load without
 unpickling anything.  ``vcnc-train --resume`` goes on with the trainer the run
 was started with.
 
@@ -60,7 +60,7 @@ from .vec_env import monitor_writers, native_batch
 
 __all__ = ["TRAINERS", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
 
-#: The trainers of ``vcnc-train --trainer``: SB3's PPO (agents.training) and this module's.
+#: The trainers of ``vcnc-train --trainer``: SB3's PPO (vcnc_agents.training) and this module's.
 TRAINERS = ("sb3", "lean")
 
 
@@ -68,7 +68,7 @@ def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None)
     """The trainer a run goes on with; ValueError, before anything is written, when it cannot.
 
     ``trainer`` is the one asked for (None: the run's, or ``"sb3"`` for a new run); ``env_id`` the run's env and
-    ``recorded`` the trainer its config records (:attr:`agents.run_config.RunConfig.trainer`).  A resumed run
+    ``recorded`` the trainer its config records (:attr:`vcnc_agents.run_config.RunConfig.trainer`).  A resumed run
     goes on with the trainer it was started with; the lean trainer steps the native vector env, which an id must
     have (``vcnc_gym.envs.registry.VECTOR_IDS``).
     """
@@ -110,7 +110,7 @@ class DecisionEnv:
     seed : int
         Env i is seeded ``seed + i``.
     monitor_dir : path, optional
-        SB3 Monitor files ``<i>.monitor.csv`` (columns r, l, t, steps), as ``agents.vec_env.VcncVecEnv`` writes.
+        SB3 Monitor files ``<i>.monitor.csv`` (columns r, l, t, steps), as ``vcnc_agents.vec_env.VcncVecEnv`` writes.
     start_steps : int
         The run's agent steps when this session starts (the monitor's ``steps`` column).
     append : bool
@@ -519,14 +519,14 @@ class LeanPPO:
 # -- the run -----------------------------------------------------------------------------------------------------
 def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = True, device: str = "cpu",
           verbose: int = 0, stagger: bool = True) -> TrainingResult:
-    """Train the run :func:`agents.run_session.prepare_run` set up with the lean trainer (from ``checkpoint`` if
-    not None); the run folder, its guarantees and the returned :class:`agents.run_session.TrainingResult` are
-    those of :func:`agents.training.learn`, and so is the scaffolding (:mod:`agents.run_session`).
+    """Train the run :func:`vcnc_agents.run_session.prepare_run` set up with the lean trainer (from ``checkpoint`` if
+    not None); the run folder, its guarantees and the returned :class:`vcnc_agents.run_session.TrainingResult` are
+    those of :func:`vcnc_agents.training.learn`, and so is the scaffolding (:mod:`vcnc_agents.run_session`).
 
     Parameters
     ----------
     run_dir, config, checkpoint
-        As :func:`agents.run_session.prepare_run` returns them.
+        As :func:`vcnc_agents.run_session.prepare_run` returns them.
     progress_bar : bool
         A tqdm bar of agent steps.
     device : str
@@ -571,8 +571,8 @@ class _LeanRun:
 
     def prepare_folder(self) -> None:
         """A fresh run: the folder cleared and its configuration written; a resumed one: its checkpoint loaded
-        (on the evaluation env's spaces, as agents.training does), then the folder rolled back to it.  The
-        monitor files are opened (for appending) only after that (:func:`agents.run_session.roll_back_to`)."""
+        (on the evaluation env's spaces, as vcnc_agents.training does), then the folder rolled back to it.  The
+        monitor files are opened (for appending) only after that (:func:`vcnc_agents.run_session.roll_back_to`)."""
         rolled_back = None
         if self.checkpoint is None:
             self.done = start_folder(self.run_dir, self.config)
@@ -611,7 +611,7 @@ class _LeanRun:
     def start(self, stagger: bool) -> None:
         """The envs reset (and staggered), the trainer started; the evaluation of the checkpoint resumed from, if a
         kill cut it short."""
-        self.session.start_clock()  # set-up excluded, as agents.training.learn's wall time
+        self.session.start_clock()  # set-up excluded, as vcnc_agents.training.learn's wall time
         t0 = time.perf_counter()
         with self.clock("env"):
             obs = self.env.reset()
@@ -692,8 +692,8 @@ def _progress(enabled: bool, total: int, done: int):
 
 def train_lean(env_id: str | None = None, run_dir=None, *, progress_bar: bool = True, device: str = "cpu",
                verbose: int = 0, stagger: bool = True, **options):
-    """:func:`agents.run_session.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
-    resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`agents.run_session.TrainingResult`."""
+    """:func:`vcnc_agents.run_session.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
+    resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`vcnc_agents.run_session.TrainingResult`."""
     run_dir, config, checkpoint = prepare_run(env_id, run_dir, **options)
     return learn(run_dir, config, checkpoint, progress_bar=progress_bar, device=device, verbose=verbose,
                  stagger=stagger)

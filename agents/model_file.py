@@ -160,7 +160,7 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
         The spaces the model will run on; the shapes recorded in the file
         must equal theirs.
     ppo_kwargs : dict
-        The checked PPO arguments of the run (:func:`agents.config.ppo_arguments`):
+        The checked PPO arguments of the run (:func:`vcnc_agents.config.ppo_arguments`):
         ``learning_rate``, ``clip_range``, ``clip_range_vf`` and
         ``policy_kwargs`` replace the file's entries.
     env : VecEnv, optional

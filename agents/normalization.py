@@ -29,7 +29,7 @@ float32, so an agent loaded from the file acts bit for bit as in training.
 Converting an old ``vecnormalize.pkl`` needs unpickling it, which is safe only
 for a file you trust (one you wrote yourself)::
 
-    python -m agents.normalization --convert-trusted-pickle RUN/best/vecnormalize.pkl
+    python -m vcnc_agents.normalization --convert-trusted-pickle RUN/best/vecnormalize.pkl
 """
 
 from __future__ import annotations
@@ -217,10 +217,10 @@ def convert_trusted_pickle(pkl_path, npz_path=None) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m agents.normalization --convert-trusted-pickle FILE.pkl [FILE.pkl ...]``"""
+    """``python -m vcnc_agents.normalization --convert-trusted-pickle FILE.pkl [FILE.pkl ...]``"""
     import argparse
 
-    p = argparse.ArgumentParser(prog="python -m agents.normalization",
+    p = argparse.ArgumentParser(prog="python -m vcnc_agents.normalization",
                                 description="Convert VecNormalize pickles you trust into data-only .npz files.")
     p.add_argument("--convert-trusted-pickle", nargs="+", metavar="PKL", required=True, type=Path,
                    help="pickles to convert (each becomes a .npz next to it); unpickling runs the file's code")

@@ -5,14 +5,14 @@ An agent is a folder (a run's ``best/`` or ``final/``, or a shipped agent in
 
 - ``model.zip``: the SB3 PPO model;
 - ``vecnormalize.npz``: the observation normalisation it was trained with
-  (:class:`agents.normalization.NormalizationStats`, plain numbers);
+  (:class:`vcnc_agents.normalization.NormalizationStats`, plain numbers);
 - ``config.yml``: the run's configuration, whose ``action_mode`` says what
-  the action means (:class:`agents.action_modes.ActionMode`) and whose
+  the action means (:class:`vcnc_agents.action_modes.ActionMode`) and whose
   ``env`` block records the env it was trained for (:func:`env_signature`).
 
 Loading an agent runs no code from its folder: the YAML is read with
 ``yaml.safe_load``, the statistics with ``numpy.load(allow_pickle=False)``
-and the model through :func:`agents.model_file.load_ppo`, which unpickles
+and the model through :func:`vcnc_agents.model_file.load_ppo`, which unpickles
 nothing of the file.
 
 :class:`AgentPolicy` runs it on the plain env, the one the baselines run on
@@ -58,7 +58,7 @@ def agent_files(path) -> tuple[Path, Path, Path]:
         raise ValueError(
             f"agent folder {str(folder)!r} holds its normalisation as {_PICKLED_NORMALIZATION} (a pickle, which runs "
             f"code when loaded) instead of {NORMALIZATION_FILE}; if you trust the folder, convert it once with "
-            f"python -m agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}")
+            f"python -m vcnc_agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}")
     if missing:
         raise FileNotFoundError(f"agent folder {str(folder)!r} lacks {', '.join(missing)}")
     return files
@@ -170,11 +170,11 @@ def _deterministic_actor(model):
 
 def evaluate_model(model, stats: NormalizationStats, config, env, steps: int) -> dict:
     """One deterministic episode of a model in training on the evaluation env, as both trainers take it: its
-    evaluations.csv row (:func:`agents.run_folder.evaluation_row`).
+    evaluations.csv row (:func:`vcnc_agents.run_folder.evaluation_row`).
 
     ``model`` is the SB3 PPO model, ``stats`` its normalisation, ``config`` the run's
-    :class:`agents.run_config.RunConfig` (the action mode), ``env`` the plain env
-    (:func:`agents.env_factory.make_eval_env`) and ``steps`` the run's agent steps; the episode runs through
+    :class:`vcnc_agents.run_config.RunConfig` (the action mode), ``env`` the plain env
+    (:func:`vcnc_agents.env_factory.make_eval_env`) and ``steps`` the run's agent steps; the episode runs through
     :func:`vcnc_gym.evaluation.run_episode`, as the benchmark's, with seed 0.
     """
     from vcnc_gym.evaluation import run_episode

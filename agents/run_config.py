@@ -1,11 +1,11 @@
 """The configuration of a training run: checked options and the ``config.yml`` a run folder keeps.
 
-As RL Zoo's ``exp_manager``: the hyperparameter entry of ``agents/hyperparams/ppo.yml`` (:mod:`agents.config`)
+As RL Zoo's ``exp_manager``: the hyperparameter entry of ``agents/hyperparams/ppo.yml`` (:mod:`vcnc_agents.config`)
 plus the command line's options (env id, seed, n_envs, total steps, action mode, checkpoint and evaluation
 periods) make a run's config (:func:`new_config`).  :class:`RunConfig` is its typed record: what travels from
-:func:`agents.run_session.prepare_run` to the trainers, the env factory and the callbacks (they read its
+:func:`vcnc_agents.run_session.prepare_run` to the trainers, the env factory and the callbacks (they read its
 fields, never a dict), what ``RUN/config.yml`` holds (:meth:`RunConfig.to_dict`, written by
-:mod:`agents.run_folder`) and what a resume reads back (:meth:`RunConfig.read`, which checks every field and
+:mod:`vcnc_agents.run_folder`) and what a resume reads back (:meth:`RunConfig.read`, which checks every field and
 keeps the ones it does not know, e.g. an agent's ``agent`` block).  Every check names the argument
 (:mod:`vcnc_gym.validation`).  A new training option is a field here and its use (``docs/guides``, "add a
 training option").
@@ -51,8 +51,8 @@ ENV_BYTES = 12_000
 
 def training_option(default: int, minimum: int, help: str):
     """A field of :class:`RunConfig` that is a training option: ``vcnc-train --NAME N`` (the flag and its help
-    made from it, :mod:`agents.arguments`), a keyword of :func:`agents.training.train` and
-    :func:`agents.run_session.prepare_run`, a key of a sweep file, checked (an integer >= ``minimum``, the error
+    made from it, :mod:`vcnc_agents.arguments`), a keyword of :func:`vcnc_agents.training.train` and
+    :func:`vcnc_agents.run_session.prepare_run`, a key of a sweep file, checked (an integer >= ``minimum``, the error
     naming it), recorded in config.yml, and changeable on resume (None: the run's, else ``default``)."""
     return field(default=None, metadata={"option": True, "default": default, "minimum": minimum, "help": help})
 
@@ -84,7 +84,7 @@ class RunConfig:
     config_file : str or None
         The hyperparameter file the entry came from.
     trainer : str or None
-        The trainer that trains it, "lean" (:mod:`agents.lean_ppo`); None: SB3's (:mod:`agents.training`).
+        The trainer that trains it, "lean" (:mod:`vcnc_agents.lean_ppo`); None: SB3's (:mod:`vcnc_agents.training`).
     extra : dict
         Keys this record does not interpret (an agent folder's ``agent``), kept as read.
     """
@@ -194,7 +194,7 @@ class RunConfig:
         return replace(self, n_timesteps=total, hyperparams=dict(self.hyperparams, n_timesteps=total))
 
     def with_env(self, env: dict) -> RunConfig:
-        """The env block (:func:`agents.env_factory.check_envs`) recorded."""
+        """The env block (:func:`vcnc_agents.env_factory.check_envs`) recorded."""
         return replace(self, env=env)
 
     def with_trainer(self, trainer: str | None) -> RunConfig:
@@ -247,7 +247,7 @@ def check_options(options: dict) -> None:
 
 
 def check_training_options(*, vec_env, tensorboard, **options) -> None:
-    """ValueError for a bad training option of :func:`agents.training.train` (the run-independent ones; None =
+    """ValueError for a bad training option of :func:`vcnc_agents.training.train` (the run-independent ones; None =
     the run's): the :data:`TRAINING_OPTIONS` given, ``vec_env`` and ``tensorboard``."""
     check_options(options)
     if vec_env not in VEC_ENVS:
@@ -288,7 +288,7 @@ def check_n_envs(n_envs: int, n_steps: int | None = None, observation_size: int 
 
 def new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, **options) -> RunConfig:
     """A new run's config from the hyperparameter entry and the options, all checked but the envs
-    (:func:`agents.env_factory.check_envs` builds them and gives the env block, :meth:`RunConfig.with_env`)."""
+    (:func:`vcnc_agents.env_factory.check_envs` builds them and gives the env block, :meth:`RunConfig.with_env`)."""
     h = load_hyperparameters(env_id, config_file)
     ppo_arguments(h)  # refuse a bad entry before anything else
     mode = action_mode if action_mode is not None else action_mode_of(h)

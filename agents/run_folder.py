@@ -24,7 +24,7 @@ the benchmark count.
 
 What the run folder guarantees
 ------------------------------
-- Nothing is written before every option is checked (:func:`agents.run_session.prepare_run`):
+- Nothing is written before every option is checked (:func:`vcnc_agents.run_session.prepare_run`):
   a bad option leaves no folder behind.  A new run that fails before its
   first checkpoint removes what it created; after one, it can be resumed.
 - Checkpoints are written between PPO updates, each file atomically (a
@@ -65,7 +65,7 @@ __all__ = ["MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE", "CHECKPOINT_PREFIX
            "run_lock", "check_output_folder", "stale_run", "read_run_config", "clear_new_run"]
 
 #: The files of an agent folder (a run's ``best/`` and ``final/``, a shipped agent): what
-#: :func:`agents.load_agent` reads.
+#: :func:`vcnc_agents.load_agent` reads.
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.npz"
 CONFIG_FILE = "config.yml"
@@ -185,7 +185,7 @@ def write_yaml(path: Path, data: dict) -> None:
 
 
 def write_config(folder: Path, config, **extra) -> None:
-    """Write ``folder/config.yml``: the run's configuration (:class:`agents.run_config.RunConfig`, or any record
+    """Write ``folder/config.yml``: the run's configuration (:class:`vcnc_agents.run_config.RunConfig`, or any record
     whose ``to_dict()`` is config.yml's mapping), then ``extra`` (an agent folder's ``agent`` block)."""
     write_yaml(folder / CONFIG_FILE, {**config.to_dict(), **extra})
 
@@ -445,7 +445,7 @@ def stale_run(run_dir: Path) -> bool:
 
 
 def read_run_config(run_dir: Path) -> dict:
-    """The mapping of a run folder's config.yml, for :meth:`agents.run_config.RunConfig.read` to type; ValueError
+    """The mapping of a run folder's config.yml, for :meth:`vcnc_agents.run_config.RunConfig.read` to type; ValueError
     or FileNotFoundError saying why it cannot be resumed."""
     path = run_dir / CONFIG_FILE
     if not path.is_file():

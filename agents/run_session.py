@@ -1,11 +1,11 @@
-"""The scaffolding of a training session, one for both trainers (SB3's :mod:`agents.training` and
-:mod:`agents.lean_ppo`): set-up, lock, signals, clean-up, roll-back and the session's record.
+"""The scaffolding of a training session, one for both trainers (SB3's :mod:`vcnc_agents.training` and
+:mod:`vcnc_agents.lean_ppo`): set-up, lock, signals, clean-up, roll-back and the session's record.
 
 A session runs in five steps, each a name here:
 
-1. :func:`prepare_run`: every option checked and the run's :class:`agents.run_config.RunConfig` built (a new
+1. :func:`prepare_run`: every option checked and the run's :class:`vcnc_agents.run_config.RunConfig` built (a new
    run, or the one in ``RUN/config.yml`` to resume, with the checkpoint it goes on from); nothing is written.
-2. :func:`open_run`: the run folder made and locked (:func:`agents.run_folder.run_lock`), SIGINT and SIGTERM
+2. :func:`open_run`: the run folder made and locked (:func:`vcnc_agents.run_folder.run_lock`), SIGINT and SIGTERM
    turned into a :class:`StopSignal`, and a new run that fails before its first checkpoint cleared.
 3. :func:`start_folder` (a new run: config.yml written) or :func:`roll_back_to` (a resumed run: the logs
    brought back to its checkpoint, the seeds set, config.yml written).
@@ -85,15 +85,15 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
                 resume: bool = False, **options) -> tuple[Path, RunConfig, tuple | None]:
     """Check every option and build the run's config; nothing is written.
 
-    ``options`` are the training options (:data:`agents.run_config.TRAINING_OPTIONS`: ``checkpoint_freq``,
+    ``options`` are the training options (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`: ``checkpoint_freq``,
     ``eval_freq``; None or left out: the default, or on resume the run's).
 
-    Returns (run folder, :class:`agents.run_config.RunConfig`, checkpoint to resume from or None).  Raises
+    Returns (run folder, :class:`vcnc_agents.run_config.RunConfig`, checkpoint to resume from or None).  Raises
     ValueError / FileNotFoundError / FileExistsError with a clear message for
     an unknown env, a bad hyperparameter file or entry, env kwargs that make no
     env, a bad step count or seed, a resume folder without an intact
     checkpoint, or a new run into a folder that holds one.  An ``n_timesteps``
-    that is not a whole number of rollouts is rounded up (:class:`agents.run_warning.RunWarning`).
+    that is not a whole number of rollouts is rounded up (:class:`vcnc_agents.run_warning.RunWarning`).
     """
     check_training_options(vec_env="native", tensorboard=None, **options)
     if resume:
@@ -215,7 +215,7 @@ def start_folder(run_dir: Path, config: RunConfig) -> int:
 
 def roll_back_to(run_dir: Path, config: RunConfig, done: int) -> dict:
     """A resumed run's folder, once its checkpoint at ``done`` steps has loaded: the logs and best/ rolled back to
-    it (:func:`agents.run_folder.roll_back`, with a :class:`RunWarning` for what was dropped), the damaged or
+    it (:func:`vcnc_agents.run_folder.roll_back`, with a :class:`RunWarning` for what was dropped), the damaged or
     unreadable newer checkpoints set aside, the seeds set to ``seed + done`` and config.yml written.
 
     The monitor files must be opened (for appending) only after this: roll_back replaces them.  Returns

@@ -79,7 +79,7 @@ def _run_one(argv: list[str], folder: str) -> tuple[int, float, str]:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     with log.open("w") as f:
         threads = [] if any(a.split("=", 1)[0] == "--threads" for a in argv) else ["--threads", "1"]
-        code = subprocess.run([sys.executable, "-m", "agents.cli", *argv, *threads], stdout=f,
+        code = subprocess.run([sys.executable, "-m", "vcnc_agents.cli", *argv, *threads], stdout=f,
                               stderr=subprocess.STDOUT, env=env).returncode
     lines = [ln for ln in log.read_text().splitlines() if ln.strip()]
     return code, time.perf_counter() - t0, lines[-1] if lines else ""

@@ -2,7 +2,7 @@
 
 :func:`env_signature` reads what an agent's observations and decisions depend on from a plain env (contour,
 plant, control period, feed, preview, shapes); :func:`check_signature` compares two of them, as
-:func:`agents.load_agent` does for an agent folder's ``config.yml`` and a resumed run does for its own.  A leaf
+:func:`vcnc_agents.load_agent` does for an agent folder's ``config.yml`` and a resumed run does for its own.  A leaf
 of ``agents``: it reads the env only.
 """
 

@@ -29,9 +29,9 @@ The searchable parameters are :data:`SEARCH_KEYS`: the options of
 direct-mode trial ignores ``baseline`` and ``correction``.  Every value of a
 list or choice and both bounds of a range are checked by the trainer's own
 rules, and every combination of the action-mode values is set up once
-(:func:`agents.run_session.prepare_run`: env, baseline, policy) before Ray starts.
+(:func:`vcnc_agents.run_session.prepare_run`: env, baseline, policy) before Ray starts.
 
-Each trial is one run of :func:`agents.training.train` with the arguments of
+Each trial is one run of :func:`vcnc_agents.training.train` with the arguments of
 one ``vcnc-train`` command line, in its own folder of the sweep's::
 
     SWEEP/
@@ -42,7 +42,7 @@ one ``vcnc-train`` command line, in its own folder of the sweep's::
       sweep_results.csv       one row per trial: settings, max / RMS contour error, score, wall time, command
       sweep_results.md        the trials sorted by score, the best one's figures and the command retraining it
 
-The metric is vcnc-train's evaluation score (:func:`agents.training.evaluation_score`):
+The metric is vcnc-train's evaluation score (:func:`vcnc_agents.training.evaluation_score`):
 sqrt(max x RMS) contour error, um, of the run's best deterministic evaluation
 on the nominal plant, lower is better; a run whose every evaluation diverged
 scores inf.  The retrain command is the trial's own command line with another
@@ -107,7 +107,7 @@ class SweepSpec:
 
     ``search`` maps each searched parameter to ``(form, value)``: ``("value", v)``,
     ``("grid", [v, ...])``, ``("choice", [v, ...])``, ``("uniform" | "loguniform" | "randint", (lo, hi))``.
-    ``options`` holds the file's training options (:data:`agents.run_config.TRAINING_OPTIONS`), None where it
+    ``options`` holds the file's training options (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`), None where it
     sets none.
     """
 
@@ -159,7 +159,7 @@ def _error(path, message: str) -> ValueError:
 
 def _value_rules():
     """Check of one value of each searchable parameter: the trainer's own rules."""
-    import baselines
+    import vcnc_baselines
 
     from .action_modes import ACTION_MODES, ActionMode
     from .config import count, ppo_arguments
@@ -179,8 +179,8 @@ def _value_rules():
     return {"seed": check_seed,
             "learning_rate": learning_rate,
             "action_mode": one_of("action_mode", ACTION_MODES),
-            "baseline": one_of("baseline", baselines.names()),
-            "correction": lambda v: ActionMode("residual", baseline=baselines.names()[0], correction=v).correction,
+            "baseline": one_of("baseline", vcnc_baselines.names()),
+            "correction": lambda v: ActionMode("residual", baseline=vcnc_baselines.names()[0], correction=v).correction,
             "action_repeat": lambda v: count("action_repeat", v),
             "n_envs": lambda v: count("n_envs", v),
             "timesteps": lambda v: count("timesteps", v)}
@@ -255,7 +255,7 @@ def load_sweep(path) -> SweepSpec:
     Checks, before anything runs: the keys (misspellings get a hint), the
     env id, the hyperparameter file and its entry with the overrides, every
     value of the search space against the trainer's rules, and one set-up of
-    every combination of the action-mode values (:func:`agents.run_session.prepare_run`,
+    every combination of the action-mode values (:func:`vcnc_agents.run_session.prepare_run`,
     which builds the env, the residual's baseline and the policy; nothing is written).
     """
     from .config import DEFAULT_CONFIG, refuse_unknown, count, ppo_arguments, read_yaml
@@ -356,7 +356,7 @@ def trial_argv(spec: SweepSpec, settings: dict, config_file, output) -> list[str
 
 
 def _train_kwargs(argv: list[str]) -> dict:
-    """The arguments of :func:`agents.run_session.prepare_run` that ``vcnc-train ARGV`` runs with."""
+    """The arguments of :func:`vcnc_agents.run_session.prepare_run` that ``vcnc-train ARGV`` runs with."""
     from .arguments import action_mode, parser
 
     args = parser().parse_args(argv)

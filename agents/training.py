@@ -4,14 +4,14 @@
 :func:`learn` (train, checkpoint, evaluate; :class:`TrainingResult`).  The parts live in one module each, as
 Stable-Baselines3 splits its ``common`` package:
 
-- :mod:`agents.run_config`: the typed run configuration (:class:`agents.run_config.RunConfig`, what travels
+- :mod:`vcnc_agents.run_config`: the typed run configuration (:class:`vcnc_agents.run_config.RunConfig`, what travels
   between the modules) and the checks of the options;
-- :mod:`agents.run_folder`: the run folder's layout (``config.yml``, ``checkpoints/``, ``best/``, ``final/``,
+- :mod:`vcnc_agents.run_folder`: the run folder's layout (``config.yml``, ``checkpoints/``, ``best/``, ``final/``,
   ``evaluations.csv``, ``monitor/``, ``summary.json``), its guarantees and the resume's roll-back;
-- :mod:`agents.env_factory`: the training and evaluation envs;
-- :mod:`agents.run_session`: the scaffolding this trainer shares with the lean one (:mod:`agents.lean_ppo`):
+- :mod:`vcnc_agents.env_factory`: the training and evaluation envs;
+- :mod:`vcnc_agents.run_session`: the scaffolding this trainer shares with the lean one (:mod:`vcnc_agents.lean_ppo`):
   :func:`prepare_run`, the lock, signals and clean-up, the session's record;
-- :mod:`agents.callbacks`: checkpoints and evaluations between PPO updates, the stop on a signal.
+- :mod:`vcnc_agents.callbacks`: checkpoints and evaluations between PPO updates, the stop on a signal.
 
 The names they export that this module exported before are importable from here too.
 """
@@ -60,7 +60,7 @@ def train(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = 
     n_envs : int, optional
         Parallel training envs (the entry's by default).
     config_file : path
-        Hyperparameter YAML in RL Zoo's format (:mod:`agents.config`).
+        Hyperparameter YAML in RL Zoo's format (:mod:`vcnc_agents.config`).
     action_mode : ActionMode, optional
         Overrides the entry's action mode.
     resume : bool
@@ -77,8 +77,8 @@ def train(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = 
     verbose : int
         SB3 verbosity.
     **options
-        The training options, each a field of :class:`agents.run_config.RunConfig`
-        (:data:`agents.run_config.TRAINING_OPTIONS`; None or left out: its default, or when resuming the run's):
+        The training options, each a field of :class:`vcnc_agents.run_config.RunConfig`
+        (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`; None or left out: its default, or when resuming the run's):
 
         - ``checkpoint_freq`` (int): agent steps between checkpoints (default 50 000);
         - ``eval_freq`` (int): agent steps between deterministic evaluations, 0 for only at the end
@@ -98,7 +98,7 @@ def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = 
     """Train the run :func:`prepare_run` set up (from ``checkpoint`` if not None); options as :func:`train`.
 
     A new run that fails before its first checkpoint removes what it wrote;
-    a resume that fails before training starts changes nothing (:func:`agents.run_session.open_run`).
+    a resume that fails before training starts changes nothing (:func:`vcnc_agents.run_session.open_run`).
     """
     check_training_options(vec_env=vec_env, tensorboard=tensorboard)
     with open_run(run_dir, checkpoint) as stop:
@@ -121,7 +121,7 @@ def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = 
 
 
 def _model_and_envs(run_dir, config: RunConfig, checkpoint, *, tensorboard, vec_env, device, verbose):
-    """(PPO model, its normalised training VecEnv, the :class:`agents.run_session.Session`): a new one, or the
+    """(PPO model, its normalised training VecEnv, the :class:`vcnc_agents.run_session.Session`): a new one, or the
     checkpoint's with the run folder rolled back to it."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize

@@ -1,7 +1,7 @@
 """An SB3 ``VecEnv`` over the native vector env: N envs stepped by one kernel call per control period.
 
 :class:`VcncVecEnv` is what ``vcnc-train`` trains on.  It runs an action mode
-(:class:`agents.action_modes.ActionMode`) over all N envs at once:
+(:class:`vcnc_agents.action_modes.ActionMode`) over all N envs at once:
 
 - **direct**: the agent's action is the plant command, held for the env's own
   ``action_repeat`` inside the compiled step;
@@ -14,7 +14,7 @@
   (``ContouringVectorEnv.step_controlled``).  Any other runs its batched
   ``predict`` once per control period, the same commands to the bit.
 
-It gives what :class:`~agents.action_modes.ResidualAction` on a single env
+It gives what :class:`~vcnc_agents.action_modes.ResidualAction` on a single env
 gives: the reward of a decision is the mean of the control periods' rewards
 (over ``action_repeat``), ``info["contour_error_max"]`` the largest over the
 decision, and an episode ending inside a decision ends the decision for that

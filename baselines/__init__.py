@@ -12,9 +12,9 @@ The three controllers Jahanpour et al. (2014) compare:
 
 Example
 -------
->>> import gymnasium as gym, vcnc_gym, baselines
+>>> import gymnasium as gym, vcnc_gym, vcnc_baselines
 >>> env = gym.make("VCNC-Omega-v1")
->>> policy = baselines.make("qft", env)
+>>> policy = vcnc_baselines.make("qft", env)
 >>> obs, info = env.reset()
 >>> action, _ = policy.predict(obs, episode_start=True)
 """
@@ -22,7 +22,7 @@ Example
 from vcnc_gym.extras import require_extra
 
 # ruff: noqa: E402  (the imports below follow the extra's check on purpose)
-require_extra("baselines", "baselines")  # python-control, scipy, daqp: the extra named if one is missing
+require_extra("baselines", "vcnc_baselines")  # python-control, scipy, daqp: the extra named if one is missing
 
 from .base import BaselinePolicy
 from .coupling.contouring_fb import ContouringFBPolicy
@@ -39,7 +39,7 @@ from .feedback.pi_imc_hinf_policies import HinfPolicy, HinfReducedPolicy, IMCPol
 from .feedback.smc import SlidingModePolicy
 from .learning.ilc import ILCPolicy, run_trials
 from .registry import make, names
-from .optimal.oracle import OraclePolicy  # registers the floor (baselines.registry.register_floor)
+from .optimal.oracle import OraclePolicy  # registers the floor (vcnc_baselines.registry.register_floor)
 
 __all__ = [
     "make",

@@ -1,4 +1,4 @@
-"""Baselines by name: ``baselines.make("qft", env)``.
+"""Baselines by name: ``vcnc_baselines.make("qft", env)``.
 
 The registry maps a name to a policy class; :func:`make` builds it for an env
 from ``env.unwrapped`` (observation layout, decision period, nominal plant)
@@ -7,7 +7,7 @@ and the keyword parameters, whose defaults are the paper's values.
 The causal controllers are listed here (:data:`CONTROLLERS`).  A non-causal
 floor is built from them (the oracle starts from every causal controller), so
 it stands above this module and registers itself (:func:`register_floor`,
-``baselines.optimal.oracle``, imported by ``baselines``).
+``vcnc_baselines.optimal.oracle``, imported by ``baselines``).
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     # Koren and Lo (1991)'s variable-gain CCC, without feedforward.
     "vgccc": ("ccc", {"variable": True}),
     # The model-based controllers commissioned per machine: an identification run on each plant before its
-    # episode (baselines.commissioning); the bare names use the nominal machine's shipped record.
+    # episode (vcnc_baselines.commissioning); the bare names use the nominal machine's shipped record.
     "ff-pid@machine": ("ff-pid", {"commissioning": "machine"}),
     "zpetc@machine": ("zpetc", {"commissioning": "machine"}),
     "ccc@machine": ("ccc", {"commissioning": "machine"}),

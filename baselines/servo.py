@@ -64,7 +64,7 @@ __all__ = ["COMMISSIONING_SOURCES", "ServoGains", "ServoPolicy", "ServoArrays", 
 U_FF, OFFSET, VELOCITY_OFFSET, TANGENT, CURVATURE = 0, 2, 4, 6, 8
 TABLE_COLUMNS = 9
 
-#: How a model-based controller is commissioned (:mod:`baselines.commissioning.record`): ``"nominal"`` (the
+#: How a model-based controller is commissioned (:mod:`vcnc_baselines.commissioning.record`): ``"nominal"`` (the
 #: identification run on the env's nominal machine, shipped with the project), ``"machine"`` (an identification run
 #: on each plant instance in :meth:`ServoPolicy.plan`, before its episode), ``"model"`` (the design rules on the model
 #: the parameters declare, no experiment: non-causal when they are a plant's true ones).
@@ -154,7 +154,7 @@ class ServoPolicy(BaselinePolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant
-        As :class:`~baselines.base.BaselinePolicy`.
+        As :class:`~vcnc_baselines.base.BaselinePolicy`.
     reference : ndarray, (K, REF_COLUMNS)
         The env's packed reference samples (:data:`vcnc_gym.envs.step_kernel.REF_POSITION` ...), one per
         control period; :meth:`from_env` reads ``env.unwrapped.task.reference_arrays.samples``.
@@ -220,7 +220,7 @@ class ServoPolicy(BaselinePolicy):
             if self.commissioning is not None:
                 raise ValueError(f"baseline {self.name!r}: commissioning={self.commissioning!r} needs the env's task "
                                  "(build it with from_env) or a shipped record of its nominal machine "
-                                 "(python -m baselines.commissioning.record ENV_ID)")
+                                 "(python -m vcnc_baselines.commissioning.record ENV_ID)")
         return model_record(self.plant, self.nominal_parameters, self.dt)
 
     def _commission_machines(self, env) -> bool:

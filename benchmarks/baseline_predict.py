@@ -18,7 +18,7 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401
 
 
@@ -38,7 +38,7 @@ def main(argv=None) -> None:
     obs, _ = env.reset(seed=0)
     print(f"{'baseline':9s} {'compiled us':>12s} {'NumPy us':>9s} {'ratio':>6s}")
     for name in ("smc", "qft"):
-        policy = baselines.make(name, env)
+        policy = vcnc_baselines.make(name, env)
         compiled = seconds_per_call(policy, obs, args.calls)
         plain = seconds_per_call(policy, obs.astype(np.float64), args.calls)
         print(f"{name:9s} {compiled * 1e6:12.1f} {plain * 1e6:9.1f} {plain / compiled:6.2f}")

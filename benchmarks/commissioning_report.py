@@ -4,7 +4,7 @@ chosen bandwidth as a fraction of the mode, and the margins (docs/reproduction.m
     python benchmarks/commissioning_report.py VCNC-HeartShop-v1 --plants 20
 
 The plants are those of ``vcnc-bench --plants N`` (:func:`vcnc_bench.robust.plant_set`: the nominal plant, then
-N draws with ``--plant-seed``); the experiment reads only the observation (:mod:`baselines.commissioning`)."""
+N draws with ``--plant-seed``); the experiment reads only the observation (:mod:`vcnc_baselines.commissioning`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 import vcnc_gym  # noqa: F401
-from baselines.commissioning.record import commission
+from vcnc_baselines.commissioning.record import commission
 from vcnc_bench.robust import plant_set
 
 

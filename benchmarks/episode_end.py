@@ -14,7 +14,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401
 
 CASES = [("VCNC-Heart-v1", ["qft", "smc", "fuzzy"]), ("VCNC-Omega-v1", ["qft", "smc", "fuzzy"]),
@@ -26,7 +26,7 @@ BANDS_UM = (20, 5, 2, 1)
 def arrival(env_id: str, name: str):
     env = gym.make(env_id, completion_tolerance=1e-5, completion_timeout=3.0 if "Circle" in env_id else 0.5)
     u = env.unwrapped
-    policy = baselines.make(name, env)
+    policy = vcnc_baselines.make(name, env)
     obs, _ = env.reset(seed=0)
     left, times = [], []
     done = False

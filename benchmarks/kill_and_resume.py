@@ -57,7 +57,7 @@ VCNC-Omega-v1:
 """
 _MODES = {
     "direct": "  env_kwargs:\n    action_repeat: 10",
-    "residual": "  env_wrapper:\n    - agents.action_modes.ResidualAction:\n        baseline: qft\n"
+    "residual": "  env_wrapper:\n    - vcnc_agents.action_modes.ResidualAction:\n        baseline: qft\n"
                 "        correction: 0.3\n        action_repeat: 10",
 }
 
@@ -70,7 +70,7 @@ def write_config(folder: Path, mode: str = "direct") -> Path:
 
 
 def _command(*args) -> list[str]:
-    return [sys.executable, "-m", "agents.cli", "--no-progress", "--no-tensorboard", "--threads", "1", *args]
+    return [sys.executable, "-m", "vcnc_agents.cli", "--no-progress", "--no-tensorboard", "--threads", "1", *args]
 
 
 def monitor_rows(path: Path) -> list[dict]:

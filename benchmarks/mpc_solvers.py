@@ -22,9 +22,9 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401
-from baselines.predictive import mpc as mpc_module
+from vcnc_baselines.predictive import mpc as mpc_module
 
 
 def collect(env_id: str, steps: int):
@@ -38,7 +38,7 @@ def collect(env_id: str, steps: int):
         return solve(H, f, lower, upper, active)
 
     env = gym.make(env_id)
-    policy = baselines.make("mpc", env)
+    policy = vcnc_baselines.make("mpc", env)
     mpc_module.solve_box_qp = keeping
     try:
         obs, _ = env.reset(seed=0)
@@ -128,7 +128,7 @@ def main(argv=None) -> None:
     for _ in range(10000):
         qp0.unconstrained(X, 0.0, R)
     unconstrained = (time.perf_counter() - t0) / 10000
-    lq = baselines.make("lq-preview", env)
+    lq = vcnc_baselines.make("lq-preview", env)
     obs, _ = env.reset(seed=0)
     lq.predict(obs, episode_start=True)
     t0 = time.perf_counter()

@@ -17,13 +17,13 @@ import gymnasium as gym
 import numpy as np
 
 import vcnc_gym  # noqa: F401  (registers the ids)
-import baselines
+import vcnc_baselines
 
 
 def timed(name: str, env_id: str, steps: int, **params) -> tuple[float, int]:
     """Mean wall time of ``predict`` per control period (s) over ``steps`` periods, and the QPs it solved."""
     env = gym.make(env_id)
-    policy = baselines.make(name, env, **params)
+    policy = vcnc_baselines.make(name, env, **params)
     obs, _ = env.reset(seed=0)
     spent = 0.0
     for k in range(steps):

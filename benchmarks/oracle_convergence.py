@@ -22,9 +22,9 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
-from baselines.optimal import solutions
+from vcnc_baselines.optimal import solutions
 from vcnc_gym.envs.registry import CONTOURING_IDS
 from vcnc_gym.evaluation import run_episode
 
@@ -36,8 +36,8 @@ QUICK = {"population": 8, "ilc_iterations": 4, "rounds": 4, "generations": 8, "t
 def _specialist(env) -> dict:
     """The agent shipped for the env (what ``vcnc-bench --policy ppo`` runs), as a start of the floor: a causal
     controller too."""
-    from agents import TRAINED, load_agent
-    from agents.policy import agent_mismatch
+    from vcnc_agents import TRAINED, load_agent
+    from vcnc_agents.policy import agent_mismatch
 
     folder = TRAINED.get(env.unwrapped.spec.id)
     if folder is None or not folder.is_dir() or agent_mismatch(folder, env) is not None:
@@ -79,7 +79,7 @@ def main() -> None:
     for env_id in args.env or CONTOURING_IDS:
         env = gym.make(env_id)
         extra = _specialist(env) if args.agents else {}
-        oracle = baselines.make("oracle", env, extra_starts=extra, **(QUICK if args.quick else {}))
+        oracle = vcnc_baselines.make("oracle", env, extra_starts=extra, **(QUICK if args.quick else {}))
         env.reset(seed=args.seed)
         t0 = time.perf_counter()
         oracle.plan(env)
@@ -121,7 +121,7 @@ def plot(curves: dict, path: str) -> None:
 
 def plot_stored(path: str) -> None:
     """:func:`plot` of the convergence stored with every shipped solution (no replay)."""
-    from baselines.optimal import solutions
+    from vcnc_baselines.optimal import solutions
 
     curves = {}
     for f in sorted(solutions.DIRECTORY.glob("*.npz")):

@@ -3,7 +3,7 @@
 The oracle (``baselines/optimal``) treats a stored solution whose starts lack a causal controller that now
 applies as stale, and solves again (minutes per id).  This script runs each missing controller closed-loop on the
 stored solution's own env (the nominal plant, seed 0: the shipped ones) with the search's own start evaluation
-(:func:`baselines.optimal.search.warm_starts`), and
+(:func:`vcnc_baselines.optimal.search.warm_starts`), and
 
 - where none beats the stored floor (max contour error, then RMS), records their figures among the solution's
   starts: the floor is at or below them, measured;
@@ -22,9 +22,9 @@ import gymnasium as gym
 import numpy as np
 
 import vcnc_gym  # noqa: F401
-from baselines.optimal import solutions
-from baselines.optimal.rollout import Rollouts
-from baselines.optimal.search import causal_names, solve, warm_starts
+from vcnc_baselines.optimal import solutions
+from vcnc_baselines.optimal.rollout import Rollouts
+from vcnc_baselines.optimal.search import causal_names, solve, warm_starts
 from vcnc_gym.envs import CONTOURING_IDS
 
 

@@ -69,10 +69,10 @@ import torch
 if threads != "default":
     torch.set_num_threads(int(threads))
 import numpy as np
-import agents, vcnc_gym
+import vcnc_agents, vcnc_gym
 import vcnc_gym.evaluation as evaluation
-from agents.config import load_hyperparameters, ppo_arguments, normalize_kwargs, action_mode_of
-from agents.vec_env import VcncVecEnv
+from vcnc_agents.config import load_hyperparameters, ppo_arguments, normalize_kwargs, action_mode_of
+from vcnc_agents.vec_env import VcncVecEnv
 
 clock = {"env": 0.0, "forward": 0.0, "update": 0.0, "eval": 0.0, "eval_cpu": 0.0}
 def cpu():  # CPU seconds of this process, every thread
@@ -102,9 +102,9 @@ if trainer in ("sb3", "lean"):
         timed(VcncVecEnv, "step_wait", "env")
         timed(ActorCriticPolicy, "forward", "forward")
         timed(PPO, "train", "update")
-        run = lambda d, n: agents.train(env_id, d, n_timesteps=n, progress_bar=False, tensorboard=False, **options)
+        run = lambda d, n: vcnc_agents.train(env_id, d, n_timesteps=n, progress_bar=False, tensorboard=False, **options)
     else:
-        from agents.lean_ppo import train_lean
+        from vcnc_agents.lean_ppo import train_lean
         run = lambda d, n: train_lean(env_id, d, n_timesteps=n, progress_bar=False, **options)
     run(f"{out_dir}/warmup", rollout)  # compiles or loads the caches
     for k in clock:
@@ -122,8 +122,8 @@ if trainer in ("sb3", "lean"):
 else:  # SBX over the same VecEnv and VecNormalize as vcnc-train
     import sbx
     from stable_baselines3.common.vec_env import VecNormalize
-    from agents.normalization import NormalizationStats
-    from agents.policy import AgentPolicy
+    from vcnc_agents.normalization import NormalizationStats
+    from vcnc_agents.policy import AgentPolicy
     import gymnasium as gym
     _, kwargs = ppo_arguments(h)
     policy_kwargs = kwargs.pop("policy_kwargs", {})

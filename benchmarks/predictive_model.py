@@ -8,7 +8,7 @@ The second model is, per axis, the plant's nominal ``linear_model`` times the mo
 shop floor's *nominal* frequency and damping, with its nominal command delay: what commissioning would identify on
 the nominal machine, standing in for the commissioned model (the controller still never reads the plant it runs
 on).  Its state is not determined by the measured position and velocity, so the controller estimates it with its
-steady-state Kalman filter (:func:`baselines.predictive.design.estimator_gain`).  One nominal episode each.
+steady-state Kalman filter (:func:`vcnc_baselines.predictive.design.estimator_gain`).  One nominal episode each.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import control
 import gymnasium as gym
 import numpy as np
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401
 from vcnc_gym.evaluation import run_episode
 
@@ -49,7 +49,7 @@ def main(argv=None) -> None:
     for name in args.policy or ["lq-preview"]:
         for label, params in (("nominal linear model", {}), ("with the mode and the delay",
                                                              {"models": models, "delays": delays})):
-            policy = baselines.make(name, env, **params)
+            policy = vcnc_baselines.make(name, env, **params)
             t0 = time.perf_counter()
             r = run_episode(policy, env)
             print(f"{args.env} {name}, {label}: max {r.max_contour_error_um:.2f} um, RMS {r.rms_contour_error_um:.3f} "

@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     import gymnasium as gym
 
     import vcnc_gym  # noqa: F401
-    from agents.model_file import read_model_data
+    from vcnc_agents.model_file import read_model_data
     from vcnc_gym.gcode import read_program_text
 
     ok = True

@@ -61,7 +61,7 @@ root, config_file, out_dir, env_id, steps, n_envs = sys.argv[1:7]
 sys.path.insert(0, root)
 import torch
 torch.set_num_threads(1)
-import agents, baselines, vcnc_gym
+import vcnc_agents, baselines, vcnc_gym
 import vcnc_gym.evaluation as evaluation
 warnings.simplefilter("ignore")
 for module in (agents, baselines, vcnc_gym):
@@ -76,18 +76,18 @@ def timed_run_episode(*args, **kwargs):
     finally:
         eval_wall.append(time.perf_counter() - t0)
 evaluation.run_episode = timed_run_episode
-new = hasattr(agents.training, "VEC_ENVS")  # the trainer with the native vector env
+new = hasattr(vcnc_agents.training, "VEC_ENVS")  # the trainer with the native vector env
 # only at the end: the old trainer reads None that way, the new one 0
 options = dict(config_file=config_file, seed=0, n_envs=int(n_envs), progress_bar=False, tensorboard=False,
                checkpoint_freq=10**9, eval_freq=0 if new else None)
 from stable_baselines3.common.vec_env import VecNormalize  # noqa: F401  (imported before timing, as SB3 is)
-h = agents.config.load_hyperparameters(env_id, config_file)
+h = vcnc_agents.config.load_hyperparameters(env_id, config_file)
 rollout = int(h["n_steps"]) * int(n_envs)
-agents.train(env_id, f"{out_dir}/warmup", n_timesteps=rollout, **options)  # numba compiles or loads its cache
+vcnc_agents.train(env_id, f"{out_dir}/warmup", n_timesteps=rollout, **options)  # numba compiles or loads its cache
 eval_wall.clear()
-r = agents.train(env_id, f"{out_dir}/run", n_timesteps=int(steps), **options)
+r = vcnc_agents.train(env_id, f"{out_dir}/run", n_timesteps=int(steps), **options)
 summary = json.load(open(f"{out_dir}/run/summary.json"))["sessions"][-1]
-print(json.dumps({"agents": agents.__file__, "vcnc_gym": vcnc_gym.__file__, "steps": r.session_timesteps,
+print(json.dumps({"agents": vcnc_agents.__file__, "vcnc_gym": vcnc_gym.__file__, "steps": r.session_timesteps,
                   "wall_s": r.wall_s, "steps_per_s": r.steps_per_s, "control_periods_per_s": r.control_periods_per_s,
                   "eval_s": sum(eval_wall), "summary_steps_per_s": summary["steps_per_s"],
                   "vec_env": summary.get("vec_env")}))
@@ -129,7 +129,7 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
 
     entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENTRY]
-    repeat = entry["env_wrapper"][0]["agents.action_modes.ResidualAction"]["action_repeat"]
+    repeat = entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]["action_repeat"]
     made = not args.worktree.exists()
     if made:
         subprocess.run(["git", "worktree", "add", "--detach", str(args.worktree), args.before], cwd=ROOT, check=True,
@@ -138,7 +138,7 @@ def main(argv=None) -> None:
         with tempfile.TemporaryDirectory(prefix="vcnc_train_throughput_") as tmp:
             tmp = Path(tmp)
             config_file = _heart_entry_file(tmp)
-            mode = entry["env_wrapper"][0]["agents.action_modes.ResidualAction"]
+            mode = entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]
             print(f"{ENV_ID} with {ENTRY}'s hyperparameters: {args.steps} agent steps per run (whole rollouts "
                   f"of n_steps {entry['n_steps']} x n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
                   f"{repeat}), 1 torch + 1 numba thread; before = {args.before}, after = the working tree")

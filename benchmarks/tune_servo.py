@@ -1,10 +1,10 @@
 """The free numbers of the model-based controllers' design rule, per plant: the PID's closed-loop pole and the
 feedforward's friction transition.
 
-``baselines.commissioning.design.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
+``vcnc_baselines.commissioning.design.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
 ``ff-pid`` and ``ff-ccc`` on the nominal plant of each plant's contouring ids over a grid of bandwidths (and of
 coupling gains for ``ff-ccc``) and prints max / RMS contour error, the figures behind
-the bandwidths (now each plant's ``servo_bandwidth`` ceiling, below which ``baselines.commissioning`` designs) and ``baselines.coupling.ccc``'s default coupling (docs/reproduction.md).
+the bandwidths (now each plant's ``servo_bandwidth`` ceiling, below which ``vcnc_baselines.commissioning`` designs) and ``vcnc_baselines.coupling.ccc``'s default coupling (docs/reproduction.md).
 ``--transitions`` runs ``zpetc``, ``ff-pid`` and ``ff-ccc`` over a grid of the durations over which the
 feedforward's Coulomb level (``friction_time``) and the backlash crossing (``backlash_time``) change at a
 reversal, and ``--shop-floor`` the bandwidth grid on the shop-floor ids, the rest of the former hand table (now ``PlantModel.friction_time``)::
@@ -21,7 +21,7 @@ import argparse
 
 import gymnasium as gym
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
 from vcnc_gym.evaluation import run_episode
 
@@ -57,7 +57,7 @@ def shop_floor(env_ids) -> None:
             for name in ("ff-pid", "zpetc", "ff-ccc"):
                 for w in bandwidths:
                     for ft in frictions:
-                        r = run_episode(baselines.make(name, env, bandwidth=w, friction_time=ft), env)
+                        r = run_episode(vcnc_baselines.make(name, env, bandwidth=w, friction_time=ft), env)
                         print(f"{env_id:26s} {name:8s} {w:9g} {ft * 1e3:11g} "
                               f"{r.max_contour_error_um:8.3f} {r.rms_contour_error_um:8.4f}", flush=True)
 
@@ -74,7 +74,7 @@ def transitions(env_ids) -> None:
             for name in ("zpetc", "ff-pid", "ff-ccc"):
                 for ft in FRICTION_TIMES:
                     for bt in backlash:
-                        r = run_episode(baselines.make(name, env, friction_time=ft, backlash_time=bt), env)
+                        r = run_episode(vcnc_baselines.make(name, env, friction_time=ft, backlash_time=bt), env)
                         print(f"{env_id:26s} {name:8s} {ft * 1e3:11g} {bt * 1e3:11g} "
                               f"{r.max_contour_error_um:8.4f} {r.rms_contour_error_um:8.5f}", flush=True)
 
@@ -101,7 +101,7 @@ def main() -> None:
                 runs = [("ff-pid", None)] + [("ff-ccc", c) for c in COUPLINGS]
                 for name, coupling in runs:
                     params = {"bandwidth": w} | ({"coupling": coupling} if coupling is not None else {})
-                    r = run_episode(baselines.make(name, env, **params), env)
+                    r = run_episode(vcnc_baselines.make(name, env, **params), env)
                     flag = " diverged" if r.diverged else ""
                     print(f"{env_id:26s} {name:8s} {w:9g} {coupling if coupling is not None else '':>8} "
                           f"{r.max_contour_error_um:8.3f} {r.rms_contour_error_um:8.4f}{flag}", flush=True)

@@ -3,7 +3,7 @@
 Markdown pages through myst-parser, the furo theme (Gymnasium's), the API
 reference from the numpydoc docstrings (autodoc + napoleon, numpy style).
 The env and controller pages are generated at build time from
-``vcnc_gym.envs.registry.SUITE`` and ``baselines.registry`` by
+``vcnc_gym.envs.registry.SUITE`` and ``vcnc_baselines.registry`` by
 ``_ext/vcnc_pages.py``.  No network: no intersphinx.
 """
 

@@ -1,4 +1,4 @@
-"""agents.model_file: a model.zip whose members inflate beyond the documented ceilings is refused before
+"""vcnc_agents.model_file: a model.zip whose members inflate beyond the documented ceilings is refused before
 anything is inflated."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import zipfile
 
 import pytest
 
-from agents.model_file import MAX_DATA_BYTES, read_model_data
+from vcnc_agents.model_file import MAX_DATA_BYTES, read_model_data
 
 
 def _bomb(path, name: str, size: int) -> None:

@@ -37,14 +37,14 @@ import pytest
 import torch
 import yaml
 
-import agents
+import vcnc_agents
 import vcnc_gym  # noqa: F401
-from agents import TRAINED, load_agent
-from agents.cli import main as train_main
-from agents.config import parse_policy_kwargs
-from agents.model_file import PPO_DATA_KEYS, read_model_data
-from agents.normalization import NormalizationStats
-from agents.training import RunWarning, latest_checkpoint, prepare_run, scan_checkpoints
+from vcnc_agents import TRAINED, load_agent
+from vcnc_agents.cli import main as train_main
+from vcnc_agents.config import parse_policy_kwargs
+from vcnc_agents.model_file import PPO_DATA_KEYS, read_model_data
+from vcnc_agents.normalization import NormalizationStats
+from vcnc_agents.training import RunWarning, latest_checkpoint, prepare_run, scan_checkpoints
 
 OMEGA = "VCNC-Omega-v1"
 HEART = "VCNC-Heart-v1"
@@ -237,7 +237,7 @@ def test_an_agent_refuses_another_env_configuration(omega_agent):
         load_agent(omega_agent, slow)
     with pytest.warns(UserWarning, match="feedrate"):
         policy = load_agent(omega_agent, slow, allow_mismatch=True)
-    assert isinstance(policy, agents.AgentPolicy)
+    assert isinstance(policy, vcnc_agents.AgentPolicy)
     # a normalisation file of another observation size: refused even with allow_mismatch
     stats = NormalizationStats.load(omega_agent / "vecnormalize.npz")
     NormalizationStats(**{**stats.__dict__, "obs_mean": stats.obs_mean[:-1], "obs_var": stats.obs_var[:-1]}).save(
@@ -485,7 +485,7 @@ def test_a_failed_resume_leaves_config_yml_alone(base_run, tmp_path, capsys):
 
 
 def test_a_failed_fresh_start_never_blocks_a_retry(tiny, base_run, tmp_path, monkeypatch):
-    import agents.training as training
+    import vcnc_agents.training as training
 
     run = tmp_path / "run"
 
@@ -494,11 +494,11 @@ def test_a_failed_fresh_start_never_blocks_a_retry(tiny, base_run, tmp_path, mon
 
     monkeypatch.setattr(training, "make_training_venv", broken)
     with pytest.raises(RuntimeError):
-        agents.train(OMEGA, run, config_file=tiny, n_timesteps=512, progress_bar=False, tensorboard=False)
+        vcnc_agents.train(OMEGA, run, config_file=tiny, n_timesteps=512, progress_bar=False, tensorboard=False)
     assert not run.exists()
     run.mkdir()  # a folder that existed (empty) before the start stays, empty
     with pytest.raises(RuntimeError):
-        agents.train(OMEGA, run, config_file=tiny, n_timesteps=512, progress_bar=False, tensorboard=False)
+        vcnc_agents.train(OMEGA, run, config_file=tiny, n_timesteps=512, progress_bar=False, tensorboard=False)
     assert [p.name for p in run.iterdir() if p.name != ".lock"] == []
     monkeypatch.undo()
     # a run killed before its first checkpoint (config.yml and monitor/ only) is started over
@@ -518,11 +518,11 @@ def test_a_failed_fresh_start_never_blocks_a_retry(tiny, base_run, tmp_path, mon
 
     monkeypatch.setattr(vcnc_gym.evaluation, "run_episode", failing_episode)
     with pytest.raises(RuntimeError, match="evaluation failed"):
-        agents.train(OMEGA, run, config_file=tiny, n_timesteps=1024, eval_freq=512, checkpoint_freq=256,
+        vcnc_agents.train(OMEGA, run, config_file=tiny, n_timesteps=1024, eval_freq=512, checkpoint_freq=256,
                      progress_bar=False, tensorboard=False)
     assert latest_checkpoint(run)[0] == 512
     monkeypatch.undo()
-    result = agents.train(run_dir=run, resume=True, progress_bar=False, tensorboard=False)
+    result = vcnc_agents.train(run_dir=run, resume=True, progress_bar=False, tensorboard=False)
     assert result.timesteps == 1024 and _eval_steps(run) == [512, 1024] and _chain_breaks(run) == 0
 
 
@@ -594,7 +594,7 @@ def test_the_bench_runs_the_shipped_agent_only_on_its_own_configuration(capsys):
     import vcnc_bench
     from vcnc_bench.policies import default_specs
 
-    from agents.policy import agent_mismatch
+    from vcnc_agents.policy import agent_mismatch
 
     assert "ppo" in default_specs(gym.make(SHIPPED))
     slow = gym.make(SHIPPED, feedrate=20.0)

@@ -18,7 +18,7 @@ import time
 import warnings
 from pathlib import Path
 
-import baselines
+import vcnc_baselines
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -26,11 +26,11 @@ import stable_baselines3  # noqa: F401  (imported here so the fail-fast timings 
 import torch
 import yaml
 
-import agents
+import vcnc_agents
 import vcnc_gym
-from agents import ActionMode, ResidualAction, load_agent
-from agents.cli import main as train_main
-from agents.config import action_mode_of, load_hyperparameters, normalize_kwargs, ppo_arguments, with_action_mode
+from vcnc_agents import ActionMode, ResidualAction, load_agent
+from vcnc_agents.cli import main as train_main
+from vcnc_agents.config import action_mode_of, load_hyperparameters, normalize_kwargs, ppo_arguments, with_action_mode
 import vcnc_bench as bench
 from vcnc_gym.evaluation import run_episode
 
@@ -53,13 +53,13 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 def omega_run(tmp_path_factory):
     """One PPO rollout on the omega with the shipped entry; a checkpoint asked for every half rollout."""
     run_dir = tmp_path_factory.mktemp("omega") / "run"
-    result = agents.train(OMEGA, run_dir, n_timesteps=ROLLOUT, n_envs=2, eval_freq=ROLLOUT,
+    result = vcnc_agents.train(OMEGA, run_dir, n_timesteps=ROLLOUT, n_envs=2, eval_freq=ROLLOUT,
                           checkpoint_freq=ROLLOUT // 2, progress_bar=False)
     return result
 
 
 def model_timesteps(zip_path) -> int:
-    from agents.model_file import model_timesteps as recorded
+    from vcnc_agents.model_file import model_timesteps as recorded
 
     return recorded(zip_path)
 
@@ -119,7 +119,7 @@ def test_trained_agents_run_a_benchmark_episode(omega_run, omega_episodes):
     assert results["best"].rms_contour_error_um == pytest.approx(omega_run.best["rms_um"], rel=1e-9)
     # load_agent also takes the model.zip itself
     policy = load_agent(omega_run.run_dir / "final" / "model.zip", env)
-    assert isinstance(policy, agents.AgentPolicy) and policy.action_mode.mode == "residual"
+    assert isinstance(policy, vcnc_agents.AgentPolicy) and policy.action_mode.mode == "residual"
 
 
 def test_the_final_model_is_evaluated(omega_run, omega_episodes):
@@ -130,7 +130,7 @@ def test_the_final_model_is_evaluated(omega_run, omega_episodes):
 
 
 def test_the_newest_checkpoint_is_the_final_model(omega_run):
-    from agents.model_file import read_model_data
+    from vcnc_agents.model_file import read_model_data
 
     d = omega_run.run_dir
     final = read_model_data(d / "final" / "model.zip")
@@ -145,7 +145,7 @@ def resumed_run(omega_run, tmp_path_factory):
     """A copy of the shared run resumed through the Python API to two rollouts (checkpoint at the end)."""
     run_dir = tmp_path_factory.mktemp("resume") / "run"
     shutil.copytree(omega_run.run_dir, run_dir)
-    result = agents.train(run_dir=run_dir, resume=True, n_timesteps=2 * ROLLOUT, eval_freq=0,
+    result = vcnc_agents.train(run_dir=run_dir, resume=True, n_timesteps=2 * ROLLOUT, eval_freq=0,
                           checkpoint_freq=ROLLOUT, progress_bar=False, tensorboard=False)
     return result
 
@@ -232,7 +232,7 @@ def test_train_api_refuses_bad_runs_before_training(tmp_path, omega_run):
         before = _snapshot(folder)
         t0 = time.perf_counter()
         with pytest.raises(exc_type) as exc:
-            agents.train(progress_bar=False, **kwargs)
+            vcnc_agents.train(progress_bar=False, **kwargs)
         for text in must_name:
             assert text in str(exc.value), f"{name}: {text!r} not in {exc.value}"
         _assert_nothing_trained(folder, before, t0)
@@ -245,7 +245,7 @@ def residual_smc(**kwargs):
 
 def test_residual_with_zero_action_is_the_baseline_every_fifth_period():
     env = gym.make(OMEGA)
-    res = run_episode(baselines.make("smc", env), env, seed=0)
+    res = run_episode(vcnc_baselines.make("smc", env), env, seed=0)
     w = residual_smc()
     w.reset(seed=0)
     positions = []
@@ -263,7 +263,7 @@ def test_residual_command_and_reward_against_a_hand_written_loop():
     """command = clip(baseline + 0.3 a) x 5 V; reward = mean of the control periods'; same trajectory."""
     w = residual_smc()
     plain = gym.make(OMEGA)
-    base = baselines.make("smc", plain)
+    base = vcnc_baselines.make("smc", plain)
     obs_w, _ = w.reset(seed=0)
     obs, _ = plain.reset(seed=0)
     start = np.array([True])
@@ -352,7 +352,7 @@ def test_action_mode_command_and_dict_round_trip():
 def direct_run(tmp_path_factory):
     """A tiny direct-mode agent deciding every 4 control periods (1024 steps, 1 env)."""
     run_dir = tmp_path_factory.mktemp("direct") / "run"
-    return agents.train(OMEGA, run_dir, n_timesteps=1024, n_envs=1, action_mode=ActionMode("direct", action_repeat=4),
+    return vcnc_agents.train(OMEGA, run_dir, n_timesteps=1024, n_envs=1, action_mode=ActionMode("direct", action_repeat=4),
                         eval_freq=0, checkpoint_freq=10**6, progress_bar=False, tensorboard=False)
 
 
@@ -442,9 +442,9 @@ def test_bench_refuses_a_missing_or_mismatched_agent(omega_run, tmp_path, capsys
 
 # -- 7. the shipped agents --------------------------------------------------------------------------
 @pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
-@pytest.mark.parametrize("env_id", sorted(agents.TRAINED))
+@pytest.mark.parametrize("env_id", sorted(vcnc_agents.TRAINED))
 def test_shipped_agent_completes_its_contour(env_id):
-    folder = agents.TRAINED[env_id]
+    folder = vcnc_agents.TRAINED[env_id]
     assert sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) < 5 * 2**20
     for name in AGENT_FILES:
         assert (folder / name).is_file()
@@ -457,7 +457,7 @@ def test_the_agents_deterministic_actor_is_sb3s_predict_to_the_bit():
     """AgentPolicy's deterministic actor (no eval-mode walk, no distribution object per call) gives SB3's own
     ``model.predict(x, deterministic=True)``, for a batch and a single row, on observations beyond the clip."""
     env = gym.make(HEART)
-    policy = load_agent(agents.TRAINED[HEART], env)
+    policy = load_agent(vcnc_agents.TRAINED[HEART], env)
     assert policy._actor is not None
     x = np.random.default_rng(3).normal(scale=3.0, size=(257, env.observation_space.shape[0])).astype(np.float32)
     expected, _ = policy.model.predict(x, deterministic=True)
@@ -474,11 +474,11 @@ def test_every_env_has_an_entry_that_prepares_a_run(tmp_path):
     assert set(entries) == set(vcnc_gym.ENV_IDS)
     for env_id in vcnc_gym.ENV_IDS:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", agents.RunWarning)  # n_timesteps rounded up to whole rollouts
-            run_dir, config, checkpoint = agents.training.prepare_run(env_id, tmp_path / env_id)
+            warnings.simplefilter("ignore", vcnc_agents.RunWarning)  # n_timesteps rounded up to whole rollouts
+            run_dir, config, checkpoint = vcnc_agents.training.prepare_run(env_id, tmp_path / env_id)
         assert checkpoint is None and not run_dir.exists()
         mode = config.mode
-        assert mode.mode == "residual" and mode.baseline in baselines.names()
+        assert mode.mode == "residual" and mode.baseline in vcnc_baselines.names()
         assert config.n_timesteps % (config.hyperparams["n_steps"] * config.n_envs) == 0
     # Yadav et al.'s positioning entry, as its helper proposed it
     step = load_hyperparameters("VCNC-Step-v0")
@@ -492,8 +492,8 @@ def test_an_env_without_a_native_vector_env_trains_on_sb3s(tmp_path):
     assert "VCNC-Step-v0" not in vcnc_gym.envs.VECTOR_IDS
     entry = load_hyperparameters("VCNC-Step-v0")
     rollout = entry["n_steps"] * entry["n_envs"]
-    with pytest.warns(agents.RunWarning, match="no native vector env"):
-        result = agents.train("VCNC-Step-v0", tmp_path / "run", n_timesteps=rollout, progress_bar=False,
+    with pytest.warns(vcnc_agents.RunWarning, match="no native vector env"):
+        result = vcnc_agents.train("VCNC-Step-v0", tmp_path / "run", n_timesteps=rollout, progress_bar=False,
                               tensorboard=False)
     assert result.timesteps == rollout and result.best is not None
     assert sessions(result.run_dir)[-1]["status"] == "finished"

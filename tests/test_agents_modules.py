@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from agents.run_config import RunConfig
+from vcnc_agents.run_config import RunConfig
 
 AGENTS = Path(__file__).resolve().parents[1] / "agents"
 
@@ -97,8 +97,8 @@ def test_a_short_run_trains_the_model_it_trained_before_the_split(trainer, tmp_p
 
     if (torch.__version__, numpy.__version__, stable_baselines3.__version__) != BEFORE_SPLIT["versions"]:
         pytest.skip("the fingerprints were taken with other versions of torch, numpy and SB3")
-    from agents.lean_ppo import learn as learn_lean
-    from agents.training import learn, prepare_run
+    from vcnc_agents.lean_ppo import learn as learn_lean
+    from vcnc_agents.training import learn, prepare_run
 
     run_dir, config, checkpoint = prepare_run("VCNC-Heart-v1", tmp_path / trainer, n_timesteps=4096, seed=7,
                                               checkpoint_freq=2048, eval_freq=0)
@@ -135,9 +135,9 @@ def test_a_training_option_is_a_flag_a_keyword_a_check_and_a_config_key_from_its
     and a key of config.yml."""
     from dataclasses import fields, replace
 
-    import agents
-    from agents.arguments import parser
-    from agents.run_config import TRAINING_OPTIONS, check_training_options
+    import vcnc_agents
+    from vcnc_agents.arguments import parser
+    from vcnc_agents.run_config import TRAINING_OPTIONS, check_training_options
 
     assert TRAINING_OPTIONS == tuple(f.name for f in fields(RunConfig) if f.metadata.get("option")) \
         == ("checkpoint_freq", "eval_freq")
@@ -159,5 +159,5 @@ def test_a_training_option_is_a_flag_a_keyword_a_check_and_a_config_key_from_its
         assert getattr(shipped.with_options(**{name: 3}), name) == 3 and shipped.with_options(**{name: 3}).to_dict()[
             name] == 3
     with pytest.raises(TypeError, match="eval_frq"):
-        agents.train("VCNC-Heart-v1", tmp_path / "run", eval_frq=100)
+        vcnc_agents.train("VCNC-Heart-v1", tmp_path / "run", eval_frq=100)
     assert not (tmp_path / "run").exists()

@@ -18,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import baselines
+import vcnc_baselines
 
 vcnc_gym = pytest.importorskip("vcnc_gym")
 if "VCNC-Heart-v1" not in gym.envs.registry:  # pragma: no cover
@@ -43,7 +43,7 @@ def rollout(name, env_id, parameters=None, **env_kwargs):
     if parameters is not None:
         kwargs["parameters"] = parameters
     env = gym.make(env_id, **kwargs)
-    policy = baselines.make(name, env)
+    policy = vcnc_baselines.make(name, env)
     obs, _ = env.reset(seed=0)
     start, worst, steps = True, 0.0, 0
     while True:
@@ -99,7 +99,7 @@ def test_evaluate_policy_runs_and_resets_memory(name):
     from stable_baselines3.common.evaluation import evaluate_policy
 
     vec = make_vec_env("VCNC-Omega-v1", n_envs=1, seed=0)
-    policy = baselines.make(name, vec)
+    policy = vcnc_baselines.make(name, vec)
     rewards, lengths = evaluate_policy(policy, vec, n_eval_episodes=2, deterministic=True,
                                        return_episode_rewards=True)
     assert len(rewards) == 2 and lengths[0] == lengths[1]
@@ -107,7 +107,7 @@ def test_evaluate_policy_runs_and_resets_memory(name):
     assert rewards[0] == pytest.approx(rewards[1], rel=1e-12)
     # the same return as a hand-written rollout on a fresh env
     env = gym.make("VCNC-Omega-v1")
-    pol = baselines.make(name, env)
+    pol = vcnc_baselines.make(name, env)
     obs, _ = env.reset(seed=0)
     total, start = 0.0, True
     while True:
@@ -125,24 +125,28 @@ def test_evaluate_policy_batched_envs():
     from stable_baselines3.common.evaluation import evaluate_policy
 
     vec = make_vec_env("VCNC-Omega-v1", n_envs=3, seed=0)
-    policy = baselines.make("fuzzy", vec)
+    policy = vcnc_baselines.make("fuzzy", vec)
     rewards, _ = evaluate_policy(policy, vec, n_eval_episodes=3, return_episode_rewards=True)
     assert len(rewards) == 3 and np.ptp(rewards) <= 1e-9 * abs(np.mean(rewards))
 
 
 #: The controllers of Jahanpour et al.'s plant (not the non-causal oracle, a floor planned offline:
 #: tests/test_feedforward.py; not mpcc, which sets its own progress on a feed-override id: tests/test_mpcc.py).
-JAHANPOUR_BASELINES = [n for n in baselines.names()
-                       if baselines.registry.policy_class(n).designed_for(get_plant("vcnc_feed_drive"))
-                       and getattr(baselines.registry.policy_class(n), "causal", True)
-                       and not getattr(baselines.registry.policy_class(n), "sets_feed_override", False)]
+JAHANPOUR_BASELINES = [n for n in vcnc_baselines.names()
+                       if vcnc_baselines.registry.policy_class(n).designed_for(get_plant("vcnc_feed_drive"))
+                       and getattr(vcnc_baselines.registry.policy_class(n), "causal", True)
+                       and not getattr(vcnc_baselines.registry.policy_class(n), "sets_feed_override", False)]
 
 
 def _omega_case(name):
     """A QP per env and period (mpc) and an identification of 64 machines (@machine) are slow; lq-preview at the
     nominal machine's commissioned bandwidth diverges on 8 vertices of the S-curve omega (a reference no drive of
-    the box can follow), found when the commissioning replaced the hand table: an open defect, kept visible."""
-    if name in ("mpc", "pd-ref") or name.endswith("@machine"):  # pd-ref: the score's reference, tested elsewhere
+    the box can follow), found when the commissioning replaced the hand table, and mpc on the same 8: an open
+    defect, kept visible."""
+    if name == "mpc":  # the same 8 vertices as lq-preview, whose model and preview it shares (found at 82c5693)
+        return pytest.param(name, marks=[pytest.mark.slow, pytest.mark.xfail(
+            strict=True, reason="diverges on the 8 vertices lq-preview diverges on (open)")])
+    if name == "pd-ref" or name.endswith("@machine"):  # pd-ref: the score's reference, tested elsewhere
         return pytest.param(name, marks=pytest.mark.slow)
     if name == "lq-preview":
         return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason="diverges on 8 vertices of the S-curve "
@@ -157,7 +161,7 @@ def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
     from vcnc_bench.robust import make_batch, run_plants
 
     env = gym.make("VCNC-Omega-v1")
-    runs = run_plants(baselines.make(name, env), make_batch("VCNC-Omega-v1", len(VERTICES)), np.array(VERTICES),
+    runs = run_plants(vcnc_baselines.make(name, env), make_batch("VCNC-Omega-v1", len(VERTICES)), np.array(VERTICES),
                       decision_period=env.unwrapped.decision_period)
     assert not runs.diverged.any(), f"{name} diverged on vertices {np.flatnonzero(runs.diverged).tolist()}"
     assert np.all(runs.steps <= env.unwrapped.task.time_limit_steps)

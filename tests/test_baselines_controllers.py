@@ -17,10 +17,10 @@ import scipy.signal as ss
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import baselines
-from baselines.feedback import fuzzy as fz
-from baselines.feedback import qft
-from baselines.feedback.smc import SlidingModePolicy
+import vcnc_baselines
+from vcnc_baselines.feedback import fuzzy as fz
+from vcnc_baselines.feedback import qft
+from vcnc_baselines.feedback.smc import SlidingModePolicy
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.plants import vcnc_feed_drive as plant
 
@@ -50,7 +50,7 @@ def make_obs(n=None, *, e=0.0, v_ref=0.0, a_ref=0.0, v=0.0, x_ref=0.0):
 # --------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def qft_policy():
-    return baselines.make("qft", fake_env())
+    return vcnc_baselines.make("qft", fake_env())
 
 
 def _freqs(dt, fraction=0.1, n=200):
@@ -96,7 +96,7 @@ def test_qft_paper_transfer_functions(qft_policy):
 
 def test_qft_policy_output_matches_scipy_filters():
     """u = G(H v_r + e) from the numba kernel vs scipy's bilinear + lfilter."""
-    pol = baselines.make("qft", fake_env())
+    pol = vcnc_baselines.make("qft", fake_env())
     rng = np.random.default_rng(0)
     n = 400
     v_r = np.cumsum(rng.normal(0, 1.0, (n, 2)), axis=0)   # mm/s
@@ -161,10 +161,10 @@ def test_sampled_loop_stable_at_0p1_ms_not_at_1_ms():
 
 def test_qft_warns_when_decision_period_makes_loop_unstable():
     with pytest.warns(RuntimeWarning, match="unstable"):
-        baselines.make("qft", fake_env(dt=1e-3))
+        vcnc_baselines.make("qft", fake_env(dt=1e-3))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        baselines.make("qft", fake_env(dt=1e-4))
+        vcnc_baselines.make("qft", fake_env(dt=1e-4))
 
 
 # --------------------------------------------------------------------------
@@ -200,7 +200,7 @@ def skfuzzy_system():
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_fuzzy_inference_matches_skfuzzy(skfuzzy_system):
-    pol = baselines.make("fuzzy", fake_env())
+    pol = vcnc_baselines.make("fuzzy", fake_env())
     E, D, U = pol.scaling.error_scale, pol.scaling.rate_scale, pol.scaling.output_scale
     grid = np.linspace(-1.2, 1.2, 17)  # beyond +-1 as well: both clip to the universe
     ours = pol.surface(grid[:, None] * E * np.ones((1, grid.size)), grid[None, :] * D * np.ones((grid.size, 1)))
@@ -216,7 +216,7 @@ def test_fuzzy_inference_matches_skfuzzy(skfuzzy_system):
 
 
 def test_fuzzy_surface_shape():
-    pol = baselines.make("fuzzy", fake_env())
+    pol = vcnc_baselines.make("fuzzy", fake_env())
     S = pol.scaling
     assert pol.surface(0.0, 0.0) == pytest.approx(0.0, abs=1e-12)
     assert pol.surface(S.error_scale, S.rate_scale) == pytest.approx(S.output_scale)
@@ -231,7 +231,7 @@ def test_fuzzy_surface_shape():
 # Sliding mode
 # --------------------------------------------------------------------------
 def test_smc_equivalent_model_from_nominal_plant():
-    pol = baselines.make("smc", fake_env())
+    pol = vcnc_baselines.make("smc", fake_env())
     p = plant.nominal_parameters()
     gain = p[:, plant.IDX_K_T] * p[:, plant.IDX_K_A] * p[:, plant.IDX_R_G]
     np.testing.assert_allclose(pol.m, p[:, plant.IDX_J] / gain)
@@ -257,7 +257,7 @@ def test_smc_projection_keeps_estimate_in_bounds(steps):
 
 
 def test_smc_projection_stops_at_the_limits():
-    pol = baselines.make("smc", fake_env())
+    pol = vcnc_baselines.make("smc", fake_env())
     for k in range(2000):
         pol.predict(make_obs(e=(1.0, -1.0)), episode_start=k == 0)
     np.testing.assert_array_equal(pol.disturbance_estimate[0], [0.43, -0.54])
@@ -265,7 +265,7 @@ def test_smc_projection_stops_at_the_limits():
 
 def _simulate_smc(d_true, reference, T=2.0, x0_offset=0.05):
     """Axes m a + c v + d_true = u (exact ZOH), SMC in the loop; returns S, e, d_hat histories."""
-    pol = baselines.make("smc", fake_env())
+    pol = vcnc_baselines.make("smc", fake_env())
     m, c = pol.m, pol.c
     plants = []
     for a in range(2):  # state (x, v), input u - d
@@ -327,27 +327,27 @@ def test_smc_disturbance_beyond_limit_leaves_predicted_offset():
 # Registry, validation and the predict contract
 # --------------------------------------------------------------------------
 def test_names_and_unknown_name():
-    assert {"fuzzy", "qft", "qft-g", "smc"} <= set(baselines.names())
-    assert baselines.names() == sorted(baselines.names())
+    assert {"fuzzy", "qft", "qft-g", "smc"} <= set(vcnc_baselines.names())
+    assert vcnc_baselines.names() == sorted(vcnc_baselines.names())
     from vcnc_gym.plants import get_plant, plant_names
 
-    for name in baselines.names():  # every baseline applies to one of the suite's plants at least
-        cls = baselines.registry.policy_class(name)
+    for name in vcnc_baselines.names():  # every baseline applies to one of the suite's plants at least
+        cls = vcnc_baselines.registry.policy_class(name)
         assert any(cls.designed_for(get_plant(p)) for p in plant_names()), name
     with pytest.raises(ValueError, match="unknown baseline"):
-        baselines.make("pid", fake_env())
+        vcnc_baselines.make("pid", fake_env())
     with pytest.raises(ValueError, match="unknown baseline"):
-        baselines.make(3, fake_env())
+        vcnc_baselines.make(3, fake_env())
 
 
 def test_qft_g_variant_is_qft_without_prefilter():
     env = fake_env()
-    variant = baselines.make("qft-g", env)
-    assert isinstance(variant, baselines.QFTPolicy)
+    variant = vcnc_baselines.make("qft-g", env)
+    assert isinstance(variant, vcnc_baselines.QFTPolicy)
     np.testing.assert_allclose(variant.F.num[0][0], variant.F.den[0][0])  # F = 1
-    assert baselines.make("qft", env).F.den[0][0].size == 3  # the paper's second-order F
+    assert vcnc_baselines.make("qft", env).F.den[0][0].size == 3  # the paper's second-order F
     with pytest.raises(ValueError, match="fixes"):
-        baselines.make("qft-g", env, prefilter=((1.0,), (1.0,)))
+        vcnc_baselines.make("qft-g", env, prefilter=((1.0,), (1.0,)))
 
 
 @pytest.mark.parametrize("name, params", [
@@ -375,23 +375,23 @@ def test_qft_g_variant_is_qft_without_prefilter():
 ])
 def test_bad_parameters_raise_value_error(name, params):
     with pytest.raises(ValueError):
-        baselines.make(name, fake_env(), **params)
+        vcnc_baselines.make(name, fake_env(), **params)
 
 
 def test_bad_env_raises_value_error():
     with pytest.raises(ValueError):
-        baselines.make("smc", SimpleNamespace(unwrapped=SimpleNamespace(layout=LAYOUT)))
+        vcnc_baselines.make("smc", SimpleNamespace(unwrapped=SimpleNamespace(layout=LAYOUT)))
     with pytest.raises(ValueError):
-        baselines.make("smc", fake_env(dt=-1.0))
+        vcnc_baselines.make("smc", fake_env(dt=-1.0))
     with pytest.raises(ValueError):
-        baselines.make("smc", fake_env(parameters=np.zeros((2, 3))))
+        vcnc_baselines.make("smc", fake_env(parameters=np.zeros((2, 3))))
 
 
 def test_parameters_are_constructor_arguments_with_seed_defaults():
-    pol = baselines.make("smc", fake_env(), lam=(150.0, 180.0))
+    pol = vcnc_baselines.make("smc", fake_env(), lam=(150.0, 180.0))
     np.testing.assert_array_equal(pol.lam, [150.0, 180.0])
-    np.testing.assert_array_equal(baselines.make("smc", fake_env()).K_s, [0.3, 0.3])
-    assert baselines.make("fuzzy", fake_env(), error_scale=0.02).scaling.error_scale == 0.02
+    np.testing.assert_array_equal(vcnc_baselines.make("smc", fake_env()).K_s, [0.3, 0.3])
+    assert vcnc_baselines.make("fuzzy", fake_env(), error_scale=0.02).scaling.error_scale == 0.02
 
 
 def _sequence(n_steps, n_envs, seed, scale=1.0):
@@ -405,8 +405,8 @@ def _sequence(n_steps, n_envs, seed, scale=1.0):
 @pytest.mark.parametrize("name", ["qft", "smc", "fuzzy"])
 def test_predict_single_and_batched(name):
     seq = _sequence(30, 3, seed=1)
-    batch = baselines.make(name, fake_env())
-    singles = [baselines.make(name, fake_env()) for _ in range(3)]
+    batch = vcnc_baselines.make(name, fake_env())
+    singles = [vcnc_baselines.make(name, fake_env()) for _ in range(3)]
     for k in range(seq.shape[0]):
         a, state = batch.predict(seq[k], episode_start=np.full(3, k == 0))
         assert a.shape == (3, 2) and a.dtype == np.float32 and state is None
@@ -420,11 +420,11 @@ def test_predict_single_and_batched(name):
 @pytest.mark.parametrize("name", ["qft", "smc"])
 def test_episode_start_resets_only_that_env(name):
     seq = _sequence(40, 3, seed=2, scale=1e-3)
-    pol = baselines.make(name, fake_env())
+    pol = vcnc_baselines.make(name, fake_env())
     for k in range(20):
         pol.predict(seq[k], episode_start=np.full(3, k == 0))
-    fresh = baselines.make(name, fake_env())
-    cont = baselines.make(name, fake_env())
+    fresh = vcnc_baselines.make(name, fake_env())
+    cont = vcnc_baselines.make(name, fake_env())
     for k in range(20):
         cont.predict(seq[k], episode_start=np.full(3, k == 0))
     differs = False
@@ -440,7 +440,7 @@ def test_episode_start_resets_only_that_env(name):
 
 
 def test_predict_rejects_wrong_shapes():
-    pol = baselines.make("fuzzy", fake_env())
+    pol = vcnc_baselines.make("fuzzy", fake_env())
     with pytest.raises(ValueError):
         pol.predict(np.zeros(5, dtype=np.float32))
     with pytest.raises(ValueError):
@@ -448,6 +448,6 @@ def test_predict_rejects_wrong_shapes():
 
 
 def test_action_saturates_at_u_max():
-    pol = baselines.make("fuzzy", fake_env())
+    pol = vcnc_baselines.make("fuzzy", fake_env())
     a, _ = pol.predict(make_obs(e=(5.0, -5.0)))
     np.testing.assert_array_equal(a, np.array([1.0, -1.0], dtype=np.float32))

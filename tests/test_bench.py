@@ -197,21 +197,21 @@ def test_paper_table_covers_every_env_and_baseline():
     assert bench.paper_figures("VCNC-Heart-v1", "qft")["max_contour_error_um"] == 10.14
     assert bench.paper_figures("VCNC-Omega-v0", "fuzzy")["max_contour_error_um"] == 44.19
     assert bench.paper_figures("VCNC-OmegaLookahead-v1", "fuzzy") == {}  # the paper ran the S-curve
-    baselines = pytest.importorskip("baselines")
-    assert {p for _, p in bench.PAPER_TABLE_4} <= set(baselines.names())
+    vcnc_baselines = pytest.importorskip("vcnc_baselines")
+    assert {p for _, p in bench.PAPER_TABLE_4} <= set(vcnc_baselines.names())
 
 
 def test_resolve_policy_builds_baselines_by_name():
-    baselines = pytest.importorskip("baselines")
+    vcnc_baselines = pytest.importorskip("vcnc_baselines")
     from vcnc_bench.kinds.baseline import applies
 
     env = gym.make(OMEGA)
-    names = [n for n in baselines.names() if applies(n, env)]
+    names = [n for n in vcnc_baselines.names() if applies(n, env)]
     assert {"qft", "smc", "fuzzy"} <= set(names)
     for name in names:
         for spec in (name, f"baseline:{name}"):
             policy = bench.resolve_policy(spec, env)
-            assert type(policy) is type(baselines.make(name, env))
+            assert type(policy) is type(vcnc_baselines.make(name, env))
             assert bench.policy_label(spec) == name
 
 
@@ -229,8 +229,8 @@ def test_unknown_env_or_policy_exits_2_naming_the_valid_choices(argv, must_name,
     for name in must_name:
         assert name in err
     if "--policy" in argv:
-        baselines = pytest.importorskip("baselines")
-        for name in baselines.names():
+        vcnc_baselines = pytest.importorskip("vcnc_baselines")
+        for name in vcnc_baselines.names():
             assert name in err
 
 
@@ -248,7 +248,7 @@ def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, caps
 def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, capsys):
     """--plant NAME makes every env with plant=NAME: the bench's figure is run_episode's on that env (an
     independent gym.make), the papers' columns stay empty, and a bad name is an argument error naming it."""
-    import baselines
+    import vcnc_baselines
 
     out = tmp_path / "plant.json"
     assert bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "current_feed_drive",
@@ -256,7 +256,7 @@ def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, c
     (record,) = json.loads(out.read_text())["records"]
     env = gym.make("VCNC-Butterfly-v1", plant="current_feed_drive")
     assert env.unwrapped.plant.name == "current_feed_drive"
-    mine = run_episode(baselines.make("zpetc", env), env)
+    mine = run_episode(vcnc_baselines.make("zpetc", env), env)
     assert record["max_contour_error_um"] == pytest.approx(mine.max_contour_error_um, rel=1e-12)
     assert record["paper_max_contour_error_um"] is None
     with pytest.raises(SystemExit) as exc:

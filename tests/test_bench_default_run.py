@@ -27,11 +27,11 @@ SHORT_PROGRAM = "G21 G90 G17\nG00 X0 Y0\nG01 X2 Y0 F1200\nG03 X2 Y0 I0 J1\nG01 X
 def test_default_ids_are_the_ids_that_carry_a_verdict():
     """The default table: every id with a shipped agent, and Yadav et al. (2020)'s step response; current ids of the
     contouring, positioning and feed-override kinds."""
-    import agents
+    import vcnc_agents
     from vcnc_gym.envs.registry import SUITE
 
     by_id = {e.id: e for e in SUITE}
-    assert set(cli.DEFAULT_IDS) == set(agents.TRAINED) | {"VCNC-Step-v0"}
+    assert set(cli.DEFAULT_IDS) == set(vcnc_agents.TRAINED) | {"VCNC-Step-v0"}
     assert set(cli.DEFAULT_IDS) <= set(by_id)
     entry_points = {by_id[e].entry_point.rsplit(":", 1)[1] for e in cli.DEFAULT_IDS}
     assert entry_points == {"ContouringEnv", "FeedOverrideEnv", "PositioningEnv"}
@@ -41,7 +41,7 @@ def test_default_ids_are_the_ids_that_carry_a_verdict():
 def test_circular_report_meets_a_positioning_env():
     """The crash of the first `make bench`: the ISO 230-4 report looked for a contour on the positioning env."""
     env = gym.make("VCNC-Step-v0")
-    from baselines import make
+    from vcnc_baselines import make
 
     result = run_episode(make("pi", env), env, seed=0)
     assert programs.circular_report({"VCNC-Step-v0": {"pi": result}}, {"VCNC-Step-v0": env}) == ([], [])

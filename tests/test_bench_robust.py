@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import vcnc_bench as bench
-from baselines import make as make_baseline
+from vcnc_baselines import make as make_baseline
 from vcnc_bench import robust
 from vcnc_gym.envs import CONTOURING_IDS, SUITE, VECTOR_IDS
 from vcnc_gym.evaluation import run_episode

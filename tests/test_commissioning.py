@@ -1,4 +1,4 @@
-"""Commissioning (baselines.commissioning) against what no one here wrote: python-control's frequency responses,
+"""Commissioning (vcnc_baselines.commissioning) against what no one here wrote: python-control's frequency responses,
 stability margins and discretisation, scipy.signal's notch, and the machines' declared parameters."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from scipy import signal
 control = pytest.importorskip("control")
 
 import vcnc_gym  # noqa: E402,F401
-from baselines.commissioning import design, identify, record  # noqa: E402
-from baselines.servo import NO_NOTCH, ServoGains  # noqa: E402
+from vcnc_baselines.commissioning import design, identify, record  # noqa: E402
+from vcnc_baselines.servo import NO_NOTCH, ServoGains  # noqa: E402
 
 
 def _axis(mode=150.0, zeta=0.05, delay=1.5e-4, noise=0.8):
@@ -119,7 +119,7 @@ def test_record_round_trips_through_json(tmp_path):
 def test_servo_law_filters_compiled_equals_numpy():
     """The servo law with a velocity filter and a notch: the compiled form gives the NumPy form's commands, and
     without them the law's commands are those of the plain PID (the filters off change nothing)."""
-    from baselines.feedforward.ff_pid import FeedforwardPIDPolicy
+    from vcnc_baselines.feedforward.ff_pid import FeedforwardPIDPolicy
 
     env = gym.make("VCNC-HeartShop-v1")
     pol = FeedforwardPIDPolicy.from_env(env)
@@ -166,7 +166,7 @@ def test_commissioned_no_worse_than_the_hand_table(env_id):
     """The commissioned ff-pid (the shipped record of the nominal machine) against the former hand table's
     design (the declared nominal model, pole placement at the plant's servo_bandwidth, no filters): no worse
     than 2 % on the ideal heart, and far better on the shop floor."""
-    from baselines.registry import make
+    from vcnc_baselines.registry import make
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make(env_id)
@@ -189,7 +189,7 @@ def _nominal_task(env_id):
 def test_the_default_tables_machine_runs_are_shipped_for_the_current_code():
     """The @machine controllers of every contouring id of the default table replay a stored identification run of
     their nominal machine: stored under a key that covers the machine, the reference and the code the run goes
-    through, so a change to any of them shows here (rebuild: python -m baselines.commissioning.record --machines)."""
+    through, so a change to any of them shows here (rebuild: python -m vcnc_baselines.commissioning.record --machines)."""
     from vcnc_bench.cli import DEFAULT_IDS
     from vcnc_gym.envs.registry import CONTOURING_IDS
 
@@ -200,7 +200,7 @@ def test_the_default_tables_machine_runs_are_shipped_for_the_current_code():
             key = record.experiment_key(task, task.nominal_parameters[None])
             if not (record.MACHINES_SHIPPED / f"{key}.json").is_file():
                 missing.append(env_id)
-    assert not missing, f"python -m baselines.commissioning.record --machines {' '.join(missing)}"
+    assert not missing, f"python -m vcnc_baselines.commissioning.record --machines {' '.join(missing)}"
 
 
 @pytest.mark.slow

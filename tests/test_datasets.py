@@ -17,7 +17,7 @@ pytest.importorskip("torch")
 import minari  # noqa: E402
 
 import vcnc_gym  # noqa: E402,F401
-from baselines.registry import make  # noqa: E402
+from vcnc_baselines.registry import make  # noqa: E402
 from vcnc_bench import datasets  # noqa: E402
 from vcnc_bench.score import normalised_score  # noqa: E402
 from vcnc_gym.evaluation import run_episode  # noqa: E402
@@ -108,8 +108,8 @@ def test_an_existing_dataset_is_not_overwritten_unless_asked(tiny, monkeypatch):
 
 @pytest.mark.slow  # torch and Stable-Baselines3 imported (agents): ~10 s before the fit
 def test_behaviour_cloning_fits_and_round_trips(tiny, tmp_path):
-    from agents.behaviour_cloning import BehaviourCloning, dataset_pairs, fit, load_bc
-    from agents.policy import env_signature
+    from vcnc_agents.behaviour_cloning import BehaviourCloning, dataset_pairs, fit, load_bc
+    from vcnc_agents.policy import env_signature
 
     _, ds = tiny
     obs, act = dataset_pairs(ds)
@@ -141,7 +141,7 @@ def test_behaviour_cloning_fits_and_round_trips(tiny, tmp_path):
 def test_a_clone_with_history_sees_the_observations_it_was_fitted_on(tiny):
     """With history 3 the policy's own buffer gives, step by step, the inputs the fit saw: o_t, o_t-1, o_t-2
     (written out here, the start padded with o_0), and a new episode starts its buffer again."""
-    from agents.behaviour_cloning import dataset_pairs, fit
+    from vcnc_agents.behaviour_cloning import dataset_pairs, fit
 
     _, ds = tiny
     x, act = dataset_pairs(ds, history=3)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from geomdl_curve import geomdl_curve
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
 from vcnc_gym.envs.registry import LEGACY, SUITE
 
@@ -41,7 +41,7 @@ class GeomdlPath:
 
 def _smc_episode(env_id, **kwargs):
     env = gym.make(env_id, **kwargs)
-    policy = baselines.make("smc", env)
+    policy = vcnc_baselines.make("smc", env)
     obs, info = env.reset(seed=0)
     infos = [info]
     done = False
@@ -89,7 +89,7 @@ def test_progress_follows_the_closest_point_and_starts_at_zero_on_closed_contour
         u = env.unwrapped
         path = GeomdlPath(u.curve)
         obs, _ = env.reset(seed=0)
-        policy = baselines.make("smc" if "Heart" in env_id else "nctf", env)
+        policy = vcnc_baselines.make("smc" if "Heart" in env_id else "nctf", env)
         spacing = np.max(np.linalg.norm(np.diff(u.reference.position, axis=0), axis=1))
         for t in range(3000):
             action, _ = policy.predict(obs, deterministic=True)
@@ -108,7 +108,7 @@ def test_the_contour_ahead_matches_geomdl(env_id):
     u = env.unwrapped
     lay = u.layout
     path = GeomdlPath(u.curve)
-    policy = baselines.make({"VCNC-Omega-v1": "qft", "VCNC-CornersSmooth-v1": "contouring-fb",
+    policy = vcnc_baselines.make({"VCNC-Omega-v1": "qft", "VCNC-CornersSmooth-v1": "contouring-fb",
                              "VCNC-Circle-v1": "nctf"}[env_id], env)
     obs, _ = env.reset(seed=0)
     checked = 0
@@ -158,7 +158,7 @@ def test_the_vector_env_reports_cycle_times_only_for_arrived_envs():
     env = gym.make_vec("VCNC-Omega-v1", num_envs=3, vectorization_mode="vector_entry_point",
                        autoreset_mode="Disabled")
     single = gym.make("VCNC-Omega-v1")
-    policy = baselines.make("smc", single)
+    policy = vcnc_baselines.make("smc", single)
     obs, info = env.reset(seed=0)
     done = np.zeros(3, dtype=bool)
     cycle = np.full(3, math.nan)

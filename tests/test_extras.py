@@ -1,4 +1,4 @@
-"""A missing extra is named in the import error (issue 36): ``import baselines`` / ``import agents`` without it."""
+"""A missing extra is named in the import error (issue 36): ``import vcnc_baselines`` / ``import vcnc_agents`` without it."""
 
 from __future__ import annotations
 
@@ -18,14 +18,15 @@ def import_hiding(module: str, package: str) -> subprocess.CompletedProcess:
                           env={**os.environ, "PYTHONWARNINGS": "ignore"})
 
 
-@pytest.mark.parametrize(("package", "module"), [("baselines", "control"), ("agents", "torch")])
-def test_import_without_the_extra_names_it(package, module):
+@pytest.mark.parametrize(("package", "extra", "module"),
+                         [("vcnc_baselines", "baselines", "control"), ("vcnc_agents", "agents", "torch")])
+def test_import_without_the_extra_names_it(package, extra, module):
     result = import_hiding(module, package)
     assert result.returncode != 0
     last = result.stderr.strip().splitlines()[-1]
     assert last.startswith("ModuleNotFoundError: ")
-    assert f"pip install 'vcnc-gym[{package}]'" in last
-    assert f"{package} needs the '{package}' extra" in last
+    assert f"pip install 'vcnc-gym[{extra}]'" in last
+    assert f"{package} needs the '{extra}' extra" in last
 
 
 def test_missing_modules_are_named_by_distribution(monkeypatch):
@@ -34,7 +35,7 @@ def test_missing_modules_are_named_by_distribution(monkeypatch):
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)
     assert missing_modules("agents") == ["stable-baselines3", "pyyaml"]
     with pytest.raises(ModuleNotFoundError, match=r"missing: stable-baselines3, pyyaml\): pip install 'vcnc-gym\[agents\]'") as error:
-        require_extra("agents", "agents")
+        require_extra("agents", "vcnc_agents")
     assert error.value.name == "stable_baselines3"
     with pytest.raises(ValueError, match="extra must be one of"):
         missing_modules("nope")

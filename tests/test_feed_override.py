@@ -6,9 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
-from agents.action_modes import ResidualAction
+from vcnc_agents.action_modes import ResidualAction
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.envs.retiming import padded_reference, retime
 from vcnc_gym.envs.task import pack_reference
@@ -40,7 +40,7 @@ def test_full_override_is_the_omega_to_the_bit(omega):
     """At 100 % the override env is VCNC-Omega-v1: the same observations, rewards (plus the time cost) and
     cycle time under the same commands."""
     env = gym.make(ID).unwrapped
-    policy = baselines.make("ff-pid-online", omega)
+    policy = vcnc_baselines.make("ff-pid-online", omega)
     o1, _ = omega.reset(seed=0)
     o2, _ = env.reset(seed=0)
     assert np.array_equal(o1, o2)
@@ -83,7 +83,7 @@ def test_half_override_doubles_the_time_and_zero_runs_out_of_it():
     first), with the reference clock at its end; held at 0 the reference stops and the episode ends at the
     time limit, incomplete, paying for the contour left."""
     env = gym.make(ID).unwrapped
-    policy = baselines.make("ff-pid-online", env)
+    policy = vcnc_baselines.make("ff-pid-online", env)
     duration = env.reference.t[-1]
     infos, terminated, _ = _episode(env, policy, 0.0)
     info = infos[-1][1]
@@ -107,7 +107,7 @@ def test_bad_arguments_and_actions_are_named():
         with pytest.raises(ValueError, match=word):
             gym.make(ID, **kwargs)
     with pytest.raises(ValueError, match="ff-pid-online"):
-        baselines.make("ff-pid", env)
+        vcnc_baselines.make("ff-pid", env)
 
 
 def test_checkers_pass():
@@ -137,11 +137,11 @@ def test_residual_action_passes_the_override_through():
 
 def test_online_feedforward_is_the_tables_linear_part(omega):
     """ff-pid-online's feedforward from the observed reference equals ff-pid's table (its linear part, read
-    half a period ahead: baselines.feedforward.tables.inverse_feedforward) within the second-order term of
+    half a period ahead: vcnc_baselines.feedforward.tables.inverse_feedforward) within the second-order term of
     reading ahead by v + a T / 2."""
-    from baselines.feedforward.tables import inverse_feedforward
+    from vcnc_baselines.feedforward.tables import inverse_feedforward
 
-    online = baselines.make("ff-pid-online", omega)
+    online = vcnc_baselines.make("ff-pid-online", omega)
     samples = omega.task.reference_arrays.samples
     table = inverse_feedforward(online.inverse, samples, omega.dt, friction=False, backlash=False)
     v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
@@ -157,7 +157,7 @@ def test_running_out_of_time_pays_for_the_whole_contour_left():
     """The incomplete penalty counts the contour from the tool to the contour's end, however far the re-timed
     reference lags (the buffer's last row stays the contour's end)."""
     env = gym.make(ID).unwrapped
-    policy = baselines.make("ff-pid-online", env)
+    policy = vcnc_baselines.make("ff-pid-online", env)
     infos, terminated, _ = _episode(env, policy, -0.96)  # 2 %: a few mm in the time limit
     info = infos[-1][1]
     assert terminated and not info["completed"]
@@ -173,14 +173,14 @@ def test_operator_fixed_override_is_the_held_dial():
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make(ID).unwrapped
-    infos, terminated, _ = _episode(env, baselines.make("ff-pid-online", env), 2 * 0.6 - 1.0)
-    result = run_episode(FixedOverride(baselines.make("ff-pid-online", env), 0.6), env)
+    infos, terminated, _ = _episode(env, vcnc_baselines.make("ff-pid-online", env), 2 * 0.6 - 1.0)
+    result = run_episode(FixedOverride(vcnc_baselines.make("ff-pid-online", env), 0.6), env)
     assert terminated and result.completed
     assert result.cycle_time_s == infos[-1][1]["cycle_time"]
     assert result.max_contour_error_um == pytest.approx(1e3 * max(i["contour_error"] for _, i in infos), rel=1e-12)
     for bad in (0.0, 1.5):
         with pytest.raises(ValueError, match="override"):
-            FixedOverride(baselines.make("ff-pid-online", env), bad)
+            FixedOverride(vcnc_baselines.make("ff-pid-online", env), bad)
 
 
 def test_the_front_keeps_exactly_the_points_nothing_beats():

@@ -1,4 +1,4 @@
-"""The model-based controllers (baselines.feedforward, baselines.coupling.ccc, baselines.optimal) against what no
+"""The model-based controllers (vcnc_baselines.feedforward, vcnc_baselines.coupling.ccc, vcnc_baselines.optimal) against what no
 one here wrote: python-control's simulation of the plants' linear models, its frequency responses, the exact
 distance to a circle."""
 
@@ -10,11 +10,11 @@ import pytest
 
 control = pytest.importorskip("control")
 
-import baselines  # noqa: E402
+import vcnc_baselines  # noqa: E402
 import vcnc_gym  # noqa: E402,F401
-from baselines.feedforward.tables import closed_loop, inverse_feedforward, zpetc_filter  # noqa: E402
-from baselines.commissioning.design import pid_gains  # noqa: E402
-from baselines.servo import coupling_estimate  # noqa: E402
+from vcnc_baselines.feedforward.tables import closed_loop, inverse_feedforward, zpetc_filter  # noqa: E402
+from vcnc_baselines.commissioning.design import pid_gains  # noqa: E402
+from vcnc_baselines.servo import coupling_estimate  # noqa: E402
 from vcnc_gym.envs import step_kernel as sk  # noqa: E402
 from vcnc_gym.evaluation import run_episode  # noqa: E402
 from vcnc_gym.plants import get_plant  # noqa: E402
@@ -163,21 +163,21 @@ def test_koren_lo_estimate_is_the_distance_to_a_circle_to_second_order():
 
 def test_strongest_causal_controller_reaches_2_um_on_the_heart(heart):
     """Issue 18's target: at most 2 um max contour error on VCNC-Heart-v1's nominal plant."""
-    best = min(run_episode(baselines.make(n, heart), heart).max_contour_error_um for n in ("zpetc", "ff-ccc"))
+    best = min(run_episode(vcnc_baselines.make(n, heart), heart).max_contour_error_um for n in ("zpetc", "ff-ccc"))
     assert best <= 2.0
 
 
 def test_servo_controllers_refuse_a_positioning_env():
     env = gym.make("VCNC-Step-v0")
     with pytest.raises(ValueError, match="contouring env"):
-        baselines.make("ff-pid", env)
+        vcnc_baselines.make("ff-pid", env)
 
 
 def test_servo_controller_follows_a_contour_drawn_at_reset():
     """VCNC-RandomContour-v1 draws its contour at reset: plan() (called by run_episode) rebuilds the table from
     the new reference, and ff-ccc follows every contour to within a few micrometres."""
     env = gym.make("VCNC-RandomContour-v1")
-    policy = baselines.make("ff-ccc", env)
+    policy = vcnc_baselines.make("ff-ccc", env)
     for seed in (3, 4):
         result = run_episode(policy, env, seed=seed)
         assert policy.reference is env.unwrapped.task.reference_arrays.samples

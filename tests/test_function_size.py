@@ -12,10 +12,9 @@ from __future__ import annotations
 import ast
 import io
 import tokenize
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("vcnc_gym", "baselines", "agents", "vcnc_bench")
+from package_layout import ROOT, TOP
+
 MAX_CODE_LINES = 80
 #: Decorators of compiled numba code (by their last name: ``numba.njit``, ``njit(cache=True)``, ...).
 KERNEL_DECORATORS = {"njit", "jit", "overload", "overload_method", "overload_attribute", "register_jitable",
@@ -85,8 +84,8 @@ def test_the_counter_counts_code_lines_only():
 
 def test_no_function_is_longer_than_80_code_lines():
     found = []
-    for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob("*.py")):
+    for top in TOP.values():
+        for path in sorted(top.rglob("*.py")):
             found += long_functions(path.read_text(encoding="utf-8"), str(path.relative_to(ROOT)))
     assert not found, "split these into named steps (<= 80 code lines each): " + ", ".join(
         f"{where} ({n} lines)" for where, n in found)

@@ -1,33 +1,29 @@
 """The house's layers: every import of the four packages, lazy ones included, runs downward, and no module imports
 itself round a loop (what ``farm-studio look`` draws: 0 upward arrows, 0 circles).
 
-The order, from the ground: ``vcnc_gym`` (envs, plants, contours), ``baselines`` (the classical controllers),
-``agents`` (training, and the agents that correct a baseline), ``vcnc_bench`` (the bench that runs them all, its
+The order, from the ground: ``vcnc_gym`` (envs, plants, contours), ``vcnc_baselines`` (the classical controllers,
+folder ``baselines/``), ``vcnc_agents`` (training, and the agents that correct a baseline, folder ``agents/``),
+``vcnc_bench`` (the bench that runs them all, its
 policy kinds in ``vcnc_bench/kinds``).
 
-Within ``agents`` the modules stand on at most :data:`AGENTS_MAX_FLOORS` floors, its storage on leaves (issue 34).
+Within ``vcnc_agents`` the modules stand on at most :data:`AGENTS_MAX_FLOORS` floors, its storage on leaves (issue 34).
 """
 
 from __future__ import annotations
 
 import ast
 import functools
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ("vcnc_gym", "baselines", "agents", "vcnc_bench")
+from package_layout import TOP, module_name
 
-
-def _module_name(path: Path) -> str:
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+LAYERS = tuple(TOP)  # from the ground: vcnc_gym, vcnc_baselines, vcnc_agents, vcnc_bench
 
 
 @functools.cache
 def _imports() -> dict[str, set[str]]:
     """Module -> the project modules it imports anywhere in its text (top level or inside a function); read once
     per session (do not change what it returns)."""
-    modules = {_module_name(p): p for layer in LAYERS for p in (ROOT / layer).rglob("*.py")}
+    modules = {module_name(p): p for layer in LAYERS for p in TOP[layer].rglob("*.py")}
     graph = {}
     for name, path in modules.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
@@ -61,9 +57,9 @@ def test_every_import_runs_down_the_layers():
     graph = _imports()
     assert len(graph) > 100 and set(LAYERS) <= set(graph)
     # the reading sees relative, absolute and lazy imports
-    assert "baselines.commissioning.design" in graph["baselines.servo"]
-    assert "baselines.registry" in graph["vcnc_bench.kinds.baseline"]
-    assert "agents" in graph["vcnc_bench.kinds.ppo"] and "agents.policy" in graph["vcnc_bench.kinds.ppo"]
+    assert "vcnc_baselines.commissioning.design" in graph["vcnc_baselines.servo"]
+    assert "vcnc_baselines.registry" in graph["vcnc_bench.kinds.baseline"]
+    assert "vcnc_agents" in graph["vcnc_bench.kinds.ppo"] and "vcnc_agents.policy" in graph["vcnc_bench.kinds.ppo"]
     upward = sorted(f"{m} -> {d}" for m, deps in graph.items() for d in deps if _layer(d) > _layer(m))
     assert upward == []
 
@@ -88,14 +84,14 @@ def test_no_module_imports_itself_round_a_loop():
 
 
 
-#: The most floors ``agents/`` may stand on (issue 34: it stood on 11): floor 1 is a module that imports no other
+#: The most floors ``vcnc_agents`` (``agents/``) may stand on (issue 34: it stood on 11): floor 1 is a module that imports no other
 #: module of the package, and a module stands one floor above the highest it imports (``farm-studio look agents``).
 AGENTS_MAX_FLOORS = 7
 
-#: The storage and IO of ``agents``: the run folder, the model file, the normalisation file, the env signature an
+#: The storage and IO of ``vcnc_agents``: the run folder, the model file, the normalisation file, the env signature an
 #: agent records and the run's warnings.  Each imports no module of the package but leaves.
-AGENTS_STORAGE = ("agents.run_folder", "agents.model_file", "agents.normalization", "agents.signature",
-                  "agents.run_warning")
+AGENTS_STORAGE = ("vcnc_agents.run_folder", "vcnc_agents.model_file", "vcnc_agents.normalization", "vcnc_agents.signature",
+                  "vcnc_agents.run_warning")
 
 
 def _floors(package: str) -> dict[str, int]:
@@ -116,12 +112,12 @@ def _floors(package: str) -> dict[str, int]:
 
 
 def test_the_agents_package_stands_on_at_most_seven_floors_with_its_storage_on_leaves():
-    floors = _floors("agents")
-    assert {"agents", "agents.cli", "agents.training", "agents.lean_ppo", "agents.run_session"} <= set(floors)
-    assert floors["agents.cli"] > floors["agents.training"] > floors["agents.run_session"] > 1  # the reading sees
+    floors = _floors("vcnc_agents")
+    assert {"vcnc_agents", "vcnc_agents.cli", "vcnc_agents.training", "vcnc_agents.lean_ppo", "vcnc_agents.run_session"} <= set(floors)
+    assert floors["vcnc_agents.cli"] > floors["vcnc_agents.training"] > floors["vcnc_agents.run_session"] > 1  # the reading sees
     too_high = {m: f for m, f in floors.items() if f > AGENTS_MAX_FLOORS}
     assert too_high == {}, f"above floor {AGENTS_MAX_FLOORS}: {too_high}"
     graph = _imports()
     for module in AGENTS_STORAGE:
-        above_ground = sorted(d for d in graph[module] if d.startswith("agents") and floors[d] > 1)
+        above_ground = sorted(d for d in graph[module] if d.startswith("vcnc_agents") and floors[d] > 1)
         assert above_ground == [], f"{module} is storage and imports {above_ground}"

@@ -1,4 +1,4 @@
-"""agents.lean_ppo: the lean PPO's pieces against Stable-Baselines3's own, and a short run that vcnc-bench loads.
+"""vcnc_agents.lean_ppo: the lean PPO's pieces against Stable-Baselines3's own, and a short run that vcnc-bench loads.
 
 The pieces are checked against SB3 (which no one here wrote): the advantage
 estimate against ``RolloutBuffer.compute_returns_and_advantage``, the
@@ -21,12 +21,12 @@ import yaml
 
 import vcnc_bench as bench
 import vcnc_gym  # noqa: F401
-from agents import load_agent
-from agents.cli import main as train_main
-from agents.config import load_hyperparameters
-from agents.lean_ppo import DecisionEnv, LeanPPO, PhaseClock, RunningNormalizer, _gae
-from agents.action_modes import ActionMode
-from agents.model_file import model_timesteps
+from vcnc_agents import load_agent
+from vcnc_agents.cli import main as train_main
+from vcnc_agents.config import load_hyperparameters
+from vcnc_agents.lean_ppo import DecisionEnv, LeanPPO, PhaseClock, RunningNormalizer, _gae
+from vcnc_agents.action_modes import ActionMode
+from vcnc_agents.model_file import model_timesteps
 
 HEART = "VCNC-Heart-v1"
 N_ENVS, N_STEPS = 4, 32
@@ -124,7 +124,7 @@ def test_written_out_log_probability_equals_the_policy_s(small_entry):
     env = DecisionEnv(HEART, 3, ActionMode("residual", 10, "smc", 0.2), {}, seed=0)
     from stable_baselines3 import PPO
 
-    from agents.lean_ppo import _spaces_only
+    from vcnc_agents.lean_ppo import _spaces_only
 
     model = PPO("MlpPolicy", _spaces_only(env.observation_space, env.action_space, 3), n_steps=4, batch_size=6,
                 policy_kwargs=dict(log_std_init=-1.5), seed=0)
@@ -184,7 +184,7 @@ def test_a_lean_run_writes_the_run_folder_of_vcnc_train(lean_run):
 
 def test_the_agent_loads_as_data_and_runs_in_vcnc_bench(lean_run, tmp_path):
     env = gym.make(HEART)
-    policy = load_agent(lean_run / "best", env)  # no unpickling: agents.model_file.load_ppo
+    policy = load_agent(lean_run / "best", env)  # no unpickling: vcnc_agents.model_file.load_ppo
     assert policy.action_mode == ActionMode("residual", 10, "smc", 0.2)
     out = tmp_path / "bench.json"
     spec = f"ppo:{lean_run / 'best'}"
@@ -208,7 +208,7 @@ def test_a_lean_run_resumes_from_its_last_checkpoint(lean_run, tmp_path):
 
 
 def test_the_lean_entries_are_valid_hyperparameters():
-    from agents.config import DEFAULT_CONFIG, ppo_arguments
+    from vcnc_agents.config import DEFAULT_CONFIG, ppo_arguments
 
     lean = DEFAULT_CONFIG.with_name("ppo_lean.yml")
     for env_id in ("VCNC-Heart-v1", "VCNC-HeartLookahead-v1"):
@@ -375,13 +375,13 @@ def test_a_read_only_run_folder_is_refused_on_resume_before_anything_is_written(
 def test_a_full_disk_ends_the_run_with_one_line_naming_the_file(trainer, tmp_path, monkeypatch, capsys):
     import errno
 
-    import agents.callbacks
-    import agents.lean_ppo
-    import agents.run_folder
+    import vcnc_agents.callbacks
+    import vcnc_agents.lean_ppo
+    import vcnc_agents.run_folder
 
     config = tmp_path / "short.yml"
     config.write_text(_SHORT)
-    original, calls = agents.run_folder.save_model, []
+    original, calls = vcnc_agents.run_folder.save_model, []
 
     def full(model, path):
         calls.append(path)
@@ -389,7 +389,7 @@ def test_a_full_disk_ends_the_run_with_one_line_naming_the_file(trainer, tmp_pat
             raise OSError(errno.ENOSPC, "No space left on device", str(path))
         return original(model, path)
 
-    for module in (agents.run_folder, agents.lean_ppo, agents.callbacks):
+    for module in (vcnc_agents.run_folder, vcnc_agents.lean_ppo, vcnc_agents.callbacks):
         monkeypatch.setattr(module, "save_model", full)
     run = tmp_path / "run"
     code = train_main(["--env", "VCNC-GCode-v1", "--trainer", trainer, "--config", str(config), "--output", str(run),

@@ -251,7 +251,7 @@ def test_default_limits_from_jahanpour_drive():
     """A: below what 5 V gives the weaker axis at 100 mm/s against friction at the worst vertex of the
     box (1262 mm/s^2), about half its nominal (2105); the braking deceleration (friction helping) gives
     the issue's 1.9 mm stop from 100 mm/s.  J: A lambda / (2 pi), lambda of the SMC in Jahanpour et al.'s Table 2."""
-    from baselines.feedback.smc import SMC_TABLE2
+    from vcnc_baselines.feedback.smc import SMC_TABLE2
     from vcnc_gym.plants import vcnc_feed_drive as fd
 
     def capability(p, v, braking):

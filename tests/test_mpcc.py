@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import vcnc_gym  # noqa: F401  (registers the ids)
-import baselines
-from baselines.predictive import mpcc as M
+import vcnc_baselines
+from vcnc_baselines.predictive import mpcc as M
 from vcnc_gym.envs import step_kernel as sk
 
 
@@ -56,7 +56,7 @@ def test_linearised_errors_against_the_exact_projection(override_env):
 
 
 def test_block_prediction_is_the_model_stepped_period_by_period(override_env):
-    pol = baselines.make("mpcc", override_env)
+    pol = vcnc_baselines.make("mpcc", override_env)
     model, pred = pol.models[1], pol.predictions[1]
     rng = np.random.default_rng(1)
     x0, z = rng.normal(size=model.n), rng.normal(size=pred.blocks.size)
@@ -95,7 +95,7 @@ def test_qp_against_a_second_solver(override_env):
     osqp = pytest.importorskip("osqp")
     from scipy import sparse
 
-    pol = baselines.make("mpcc", override_env)
+    pol = vcnc_baselines.make("mpcc", override_env)
     qp = _braking_qp(pol)
     z = M.solve_qp(qp)
     nz = qp.f.size
@@ -122,20 +122,20 @@ def test_it_runs_on_feed_override_ids_only_and_refuses_bad_arguments(override_en
 
     plain = gym.make("VCNC-Omega-v1")
     with pytest.raises(ValueError, match="feed-override id"):
-        baselines.make("mpcc", plain)
+        vcnc_baselines.make("mpcc", plain)
     assert applies("mpcc", override_env) and not applies("mpcc", plain)
     assert not applies("ff-pid", override_env)
     for name, value in (("v_max", -1.0), ("progress_weight", float("nan")), ("a_max", 0.0)):
         with pytest.raises(ValueError, match=name):
-            baselines.make("mpcc", override_env, **{name: value})
+            vcnc_baselines.make("mpcc", override_env, **{name: value})
     with pytest.raises(ValueError, match="blocks"):
-        baselines.make("mpcc", override_env, blocks=())
+        vcnc_baselines.make("mpcc", override_env, blocks=())
 
 
 def test_first_steps_respect_the_input_limit_and_set_the_dial(override_env):
     """Fifty control periods from rest: the action is the axes' commands and the dial, within [-1, 1]; the
     progress and the tool leave the start together."""
-    pol = baselines.make("mpcc", override_env)
+    pol = vcnc_baselines.make("mpcc", override_env)
     obs, _ = override_env.reset(seed=0)
     for k in range(50):
         a, _ = pol.predict(obs, episode_start=k == 0)
@@ -151,7 +151,7 @@ def test_an_episode_on_the_override_omega_finishes_within_the_input_limit():
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-OmegaOverride-v1")
-    pol = baselines.make("mpcc", env, v_max=60.0)
+    pol = vcnc_baselines.make("mpcc", env, v_max=60.0)
     result = run_episode(pol, env)
     assert result.completed and not result.diverged
     assert result.max_contour_error_um < 50.0

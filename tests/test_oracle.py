@@ -9,10 +9,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401
-from baselines.optimal import oracle as oracle_module, solutions
-from baselines.optimal.search import causal_names
+from vcnc_baselines.optimal import oracle as oracle_module, solutions
+from vcnc_baselines.optimal.search import causal_names
 from vcnc_bench.headroom import NON_CAUSAL, headroom
 from vcnc_gym.envs.registry import CONTOURING_IDS
 from vcnc_gym.evaluation import run_episode
@@ -35,14 +35,14 @@ def test_shipped_floor_replays_to_its_stored_figure(stored):
     the max contour error stored with it, below its start's own closed-loop episode, which itself matches the stored
     start."""
     env = gym.make("VCNC-OmegaLookaheadShop-v1")
-    oracle = baselines.make("oracle", env)
+    oracle = vcnc_baselines.make("oracle", env)
     assert oracle.causal is False
     result = run_episode(oracle, env, seed=0)
     sol = oracle.solutions[0]
     assert result.completed
     assert result.max_contour_error_um == sol.max_um
     assert result.rms_contour_error_um == pytest.approx(sol.rms_um, rel=1e-12)
-    start = run_episode(baselines.make(sol.start, env), env, seed=0)
+    start = run_episode(vcnc_baselines.make(sol.start, env), env, seed=0)
     assert start.max_contour_error_um == pytest.approx(sol.warm_starts[sol.start][0], rel=1e-12)
     assert result.max_contour_error_um <= start.max_contour_error_um
     # the stored starts are every causal controller that applies, the floor at or below each
@@ -108,12 +108,12 @@ def test_every_contouring_id_ships_its_nominal_floor(stored):
 
 def test_oracle_refuses_to_act_without_a_plan():
     env = gym.make("VCNC-Circle-v1")
-    oracle = baselines.make("oracle", env)
+    oracle = vcnc_baselines.make("oracle", env)
     obs, _ = env.reset(seed=0)
     with pytest.raises(RuntimeError, match="plan"):
         oracle.predict(obs)
     with pytest.raises(ValueError, match="population"):
-        baselines.make("oracle", env, population=2)
+        vcnc_baselines.make("oracle", env, population=2)
 
 
 def test_headroom_is_the_strongest_causal_figure_over_the_floors():
@@ -145,11 +145,11 @@ def test_floor_is_at_or_below_every_causal_controller_on_plants_from_the_box(env
         batch = robust.make_batch(env_id, len(plants.kinds))
         return robust.run_plants(policy, batch, plants.parameters, decision_period=period, seed=3)
 
-    floor = runs(baselines.make("oracle", env, population=4, ilc_iterations=1, rounds=1, generations=2, trials=2))
+    floor = runs(vcnc_baselines.make("oracle", env, population=4, ilc_iterations=1, rounds=1, generations=2, trials=2))
     names = causal_names(env)
     assert {"ff-pid", "zpetc", "nctf"} <= set(names)
     for name in names:
-        other = runs(baselines.make(name, env))
+        other = runs(vcnc_baselines.make(name, env))
         assert np.all(floor.max_um <= other.max_um), (name, floor.max_um, other.max_um)
     assert len(list(tmp_path.glob("*.npz"))) == len(plants.kinds)  # solved and stored per plant
 
@@ -157,8 +157,8 @@ def test_floor_is_at_or_below_every_causal_controller_on_plants_from_the_box(env
 def test_an_at_machine_start_is_the_controller_commissioned_on_that_machine():
     """The floor's warm start of an @machine design is the controller the bench runs (its identification run on
     the machine solved on), not the nominal record's: its replay on the exact plant is the env episode's figure."""
-    from baselines.optimal.rollout import Rollouts
-    from baselines.optimal.search import warm_starts
+    from vcnc_baselines.optimal.rollout import Rollouts
+    from vcnc_baselines.optimal.search import warm_starts
 
     env = gym.make("VCNC-Circle-v1")
     env.reset(seed=0)
@@ -166,6 +166,6 @@ def test_an_at_machine_start_is_the_controller_commissioned_on_that_machine():
     starts = warm_starts(env, Rollouts(u.task, np.asarray(u.parameters), 1, None),
                          names=["zpetc", "zpetc@machine"])
     for name in ("zpetc", "zpetc@machine"):
-        episode = run_episode(baselines.make(name, env), env, seed=0)
+        episode = run_episode(vcnc_baselines.make(name, env), env, seed=0)
         assert 1e3 * starts[name].max == pytest.approx(episode.max_contour_error_um, rel=1e-12, abs=0.0), name
     assert starts["zpetc"].max != starts["zpetc@machine"].max  # two designs, not one

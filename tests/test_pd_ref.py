@@ -8,9 +8,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import baselines
+import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
-from baselines.feedback.pd_ref import FRACTION
+from vcnc_baselines.feedback.pd_ref import FRACTION
 from vcnc_gym.envs import CONTOURING_IDS
 from vcnc_gym.evaluation import run_episode
 
@@ -21,7 +21,7 @@ def test_poles_are_the_declared_double_pole_on_the_plants_transfer_function():
     """The loop kp + kd s around the nominal linear model of each axis (python-control's, from the plant module)
     has the double pole at -FRACTION * servo_bandwidth the design places, and no feedforward in its table."""
     env = gym.make("VCNC-Heart-v1")
-    policy = baselines.make("pd-ref", env)
+    policy = vcnc_baselines.make("pd-ref", env)
     u = env.unwrapped
     w = FRACTION * u.plant.servo_bandwidth
     assert policy.bandwidth == pytest.approx(w)
@@ -33,12 +33,12 @@ def test_poles_are_the_declared_double_pole_on_the_plants_transfer_function():
         assert np.allclose(slowest, -w, rtol=1e-3, atol=1e-6 * w), (axis, poles)
     assert not np.any(policy.table[..., :6]), "pd-ref has no feedforward and no loop offsets"
     assert np.all(policy.gains.ki == 0)
-    assert "pd-ref" not in baselines.optimal.search.causal_names(env)  # never one of the floor's starts
+    assert "pd-ref" not in vcnc_baselines.optimal.search.causal_names(env)  # never one of the floor's starts
 
 
 def _episode(env_id):
     env = gym.make(env_id)
-    result = run_episode(baselines.make("pd-ref", env), env, seed=0)
+    result = run_episode(vcnc_baselines.make("pd-ref", env), env, seed=0)
     assert result.completed and not result.diverged, (env_id, result.max_contour_error_um)
     assert np.isfinite(result.max_contour_error_um)
     return result
@@ -54,6 +54,6 @@ def test_completes_on_every_contouring_id(env_id):
     env = gym.make(env_id)
     if getattr(env.unwrapped, "retimes_reference", False):
         with pytest.raises(ValueError, match="re-times its reference"):
-            baselines.make("pd-ref", env)  # a table-based law: no score on the feed override (said so)
+            vcnc_baselines.make("pd-ref", env)  # a table-based law: no score on the feed override (said so)
         return
     _episode(env_id)

@@ -9,9 +9,9 @@ import pytest
 from scipy import linalg, optimize
 
 import vcnc_gym  # noqa: F401  (registers the ids)
-import baselines
-from baselines.predictive.design import axis_model, input_weight_for_bandwidth, preview_design, closed_loop_bandwidth
-from baselines.predictive.mpc import condensed_qp, solve_box_qp
+import vcnc_baselines
+from vcnc_baselines.predictive.design import axis_model, input_weight_for_bandwidth, preview_design, closed_loop_bandwidth
+from vcnc_baselines.predictive.mpc import condensed_qp, solve_box_qp
 from vcnc_gym.plants import get_plant
 
 DT = 1e-4
@@ -146,7 +146,7 @@ def test_mpc_qp_against_a_second_solver():
 
 def _run_pair(env, name, steps, **params):
     """The same policy's compiled law (float32 observations) and NumPy law (float64) from one trajectory."""
-    compiled, numpy_law = baselines.make(name, env, **params), baselines.make(name, env, **params)
+    compiled, numpy_law = vcnc_baselines.make(name, env, **params), vcnc_baselines.make(name, env, **params)
     obs, _ = env.reset(seed=0)
     worst = 0.0
     for k in range(steps):
@@ -172,11 +172,11 @@ def test_compiled_law_is_the_numpy_law():
 def test_bad_arguments_are_refused_by_name():
     env = gym.make("VCNC-Heart-v1")
     with pytest.raises(ValueError, match="models"):
-        baselines.make("lq-preview", env, models=[control.tf([1.0], [1.0, 0.0])], input_weight=1e-5)
+        vcnc_baselines.make("lq-preview", env, models=[control.tf([1.0], [1.0, 0.0])], input_weight=1e-5)
     with pytest.raises(ValueError, match="delay"):
         axis_model(control.tf([1.0], [1.0, 1.0, 0.0]), DT, delay=1.0)
     with pytest.raises(ValueError, match="blocks"):
-        baselines.make("mpc", env, blocks=(1, 0), input_weight=1e-5)
+        vcnc_baselines.make("mpc", env, blocks=(1, 0), input_weight=1e-5)
 
 
 @pytest.mark.slow
@@ -187,7 +187,7 @@ def test_closed_loop_on_the_heart():
     figures = {}
     for name in ("ff-pid", "lq-preview", "mpc"):
         env = gym.make("VCNC-Heart-v1")
-        policy = baselines.make(name, env)
+        policy = vcnc_baselines.make(name, env)
         figures[name] = run_episode(policy, env).max_contour_error_um
         if name == "mpc":
             assert 0 < policy.solves < policy.calls
@@ -199,11 +199,11 @@ def test_the_estimator_reads_the_velocity_only_from_an_exact_sensor():
     """Purtojo et al.'s table reads a 1 um encoder (its velocity a difference of counts): position only, through the
     Kalman filter; Jahanpour et al.'s drive reads the exact state: the estimate is the measurement."""
     heart, circle = gym.make("VCNC-Heart-v1"), gym.make("VCNC-Circle-v1")
-    exact = baselines.make("mpc", heart, input_weight=1e-5, models=[heart.unwrapped.plant.linear_model(axis=j)
+    exact = vcnc_baselines.make("mpc", heart, input_weight=1e-5, models=[heart.unwrapped.plant.linear_model(axis=j)
                                                                     for j in range(2)])
     assert exact.velocity and exact.axis_models[0].Cv is not None
     L = exact.estimator_gains[0]
     np.testing.assert_allclose(L @ exact.axis_models[0].measurement(), np.eye(2), atol=1e-12)
-    quantised = baselines.make("lq-preview", circle, input_weight=1.0)
+    quantised = vcnc_baselines.make("lq-preview", circle, input_weight=1.0)
     assert not quantised.velocity and quantised.axis_models[0].Cv is None
     assert quantised.estimator_gains[0].shape == (2, 1) and 0 < np.abs(quantised.estimator_gains[0]).max()

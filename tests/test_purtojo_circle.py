@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.feedback.nctf import NCTFPolicy
+from vcnc_baselines.feedback.nctf import NCTFPolicy
 from vcnc_bench.reports import circle as cr
 from vcnc_gym.geometry import SHAPES
 from vcnc_gym.geometry.shapes import circle

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import baselines
-from baselines.feedback import nctf
-from baselines.feedback.nctf import NCTFPolicy
+import vcnc_baselines
+from vcnc_baselines.feedback import nctf
+from vcnc_baselines.feedback.nctf import NCTFPolicy
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.plants import get_plant
 from vcnc_gym.plants import nct_xy_table as nt
@@ -216,12 +216,12 @@ def test_registered_and_built_from_an_env():
     from vcnc_gym.envs import ContouringEnv
 
     env = ContouringEnv(contour="circle", plant="nct_xy_table", feedrate=1.0, ramp_time=0.05, dt=DT)
-    pol = baselines.make("nctf", env)
+    pol = vcnc_baselines.make("nctf", env)
     assert isinstance(pol, NCTFPolicy) and pol.decision_period == DT
-    assert "nctf" in baselines.names()
+    assert "nctf" in vcnc_baselines.names()
     jahanpour_env = ContouringEnv(contour="omega", plant="vcnc_feed_drive")
     with pytest.raises(ValueError, match="nct_xy_table"):
-        baselines.make("nctf", jahanpour_env)
+        vcnc_baselines.make("nctf", jahanpour_env)
 
 
 @pytest.mark.parametrize("kwargs, words", [

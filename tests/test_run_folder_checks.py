@@ -1,4 +1,4 @@
-"""agents.run_folder.check_writable: a run folder that cannot be written is refused before a resume writes."""
+"""vcnc_agents.run_folder.check_writable: a run folder that cannot be written is refused before a resume writes."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from agents.run_folder import check_writable
+from vcnc_agents.run_folder import check_writable
 
 
 def test_a_run_folder_that_cannot_be_written_is_named(tmp_path, monkeypatch):

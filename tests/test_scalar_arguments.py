@@ -44,7 +44,7 @@ def _layout(v):
 
 def _imc(argument):
     def call(v):
-        from baselines.feedback.pi_imc_hinf import imc_controller
+        from vcnc_baselines.feedback.pi_imc_hinf import imc_controller
 
         imc_controller(**{argument: v})
     return call
@@ -63,7 +63,7 @@ def _yadav_plants(v):
 
 
 def _correction(v):
-    from agents.action_modes import ActionMode
+    from vcnc_agents.action_modes import ActionMode
 
     ActionMode(mode="residual", baseline="qft", correction=v)
 

@@ -92,7 +92,7 @@ def _options(parser) -> dict[str, object]:
 
 
 def _cli_parsers():
-    from agents.arguments import parser as train_parser
+    from vcnc_agents.arguments import parser as train_parser
     from vcnc_bench.cli import _parser as bench_parser
 
     return {"vcnc-bench": bench_parser(), "vcnc-train": train_parser()}
@@ -108,13 +108,13 @@ def test_every_option_has_its_help(command):
 def test_every_option_the_docs_name_exists():
     """``--option`` written after ``vcnc-bench`` or ``vcnc-train`` in the README, the commands' docstrings and the
     docs' pages is an option of that command."""
-    import agents.cli
+    import vcnc_agents.cli
     import vcnc_bench.cli
 
     options = {name: set(_options(p)) for name, p in _cli_parsers().items()}
     texts = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs" / "guides").glob("*.md"))]
     sources = [(t.name, t.read_text()) for t in texts]
-    sources += [("vcnc_bench.cli", vcnc_bench.cli.__doc__), ("agents.cli", agents.cli.__doc__)]
+    sources += [("vcnc_bench.cli", vcnc_bench.cli.__doc__), ("vcnc_agents.cli", vcnc_agents.cli.__doc__)]
     unknown = []
     for name, text in sources:
         for command, line in re.findall(r"(vcnc-bench|vcnc-train)([^\n`|]*)", text):

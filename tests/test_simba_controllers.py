@@ -15,9 +15,9 @@ import control
 import numpy as np
 import pytest
 
-import baselines
-from baselines.coupling.contouring_fb import ContouringFBPolicy, contouring_feedback
-from baselines.learning.ilc import ILCPolicy, run_trials
+import vcnc_baselines
+from vcnc_baselines.coupling.contouring_fb import ContouringFBPolicy, contouring_feedback
+from vcnc_baselines.learning.ilc import ILCPolicy, run_trials
 from vcnc_gym.envs import ContouringEnv
 from vcnc_gym.envs.layout import ObservationLayout
 from vcnc_gym.evaluation import run_episode
@@ -46,13 +46,13 @@ def make_obs(x_d=0.0, v_d=0.0, a_d=0.0, e=0.0, v=0.0, preview=0.0):
 
 
 def test_gains_are_table_1():
-    fb = baselines.make("contouring-fb", fake_env())
+    fb = vcnc_baselines.make("contouring-fb", fake_env())
     np.testing.assert_array_equal(fb.k_p, [70000.0, 70000.0])
     np.testing.assert_array_equal(fb.k_d, [240.0, 240.0])
-    ilc = baselines.make("ilc", fake_env())
+    ilc = vcnc_baselines.make("ilc", fake_env())
     table_1 = (200, 0.2, 10, 30, 0.005, 1, None)
     assert (ilc.k_pl, ilc.k_il, ilc.k_dl, ilc.alpha, ilc.beta, ilc.q, ilc.q_cutoff) == table_1
-    assert baselines.make("ilc-q", fake_env()).q_cutoff == 20.0
+    assert vcnc_baselines.make("ilc-q", fake_env()).q_cutoff == 20.0
     np.testing.assert_array_equal(fb.m, [0.088, 0.097])
     np.testing.assert_array_equal(fb.k_f, [235.62, 331.12])
 
@@ -61,7 +61,7 @@ def test_gains_are_table_1():
 
 
 def test_linearising_current_gives_the_commanded_acceleration():
-    fb = baselines.make("contouring-fb", fake_env())
+    fb = vcnc_baselines.make("contouring-fb", fake_env())
     v_cmd = np.array([1500.0, -2500.0])
     for vel in ([20.0, -35.0], [-3.0, 7.0]):
         i = fb.linearising_current(v_cmd, np.array(vel))
@@ -142,7 +142,7 @@ def test_tangential_and_normal_errors_follow_the_designed_second_order_dynamics(
 
 
 def test_path_angle_from_the_observation():
-    fb = baselines.make("contouring-fb", fake_env(dt=1e-3))
+    fb = vcnc_baselines.make("contouring-fb", fake_env(dt=1e-3))
     memory = np.zeros((1, 3))
 
     def frame(obs):
@@ -163,7 +163,7 @@ def test_stuck_axis_error_stays_within_the_coulomb_dead_zone():
     """Along a y-parallel segment the x drive stands still: with sgn(0) = 0 in eq. (5) it stays stuck
     while m k_P |e_x| <= f_c, so the contour error there is at most f_c / (m k_P) = 7.8 um."""
     env = ContouringEnv(contour=polyline([(0, 0), (10, 0), (10, 20)]), plant="current_feed_drive", feedrate=50)
-    out = run_episode(baselines.make("contouring-fb", env), env)
+    out = run_episode(vcnc_baselines.make("contouring-fb", env), env)
     assert not out.diverged and out.max_contour_error_um < 200.0
     on_segment = (out.reference_position[:, 1] > 10.0) & (out.reference_position[:, 1] < 19.0)
     bound = FC[0] / (M[0] * K_P)
@@ -184,8 +184,8 @@ def _sequence(n, seed):
 
 def test_trial_1_is_the_contouring_controller():
     seq = _sequence(60, 0)
-    fb = baselines.make("contouring-fb", fake_env())
-    ilc = baselines.make("ilc", fake_env())
+    fb = vcnc_baselines.make("contouring-fb", fake_env())
+    ilc = vcnc_baselines.make("ilc", fake_env())
     for k, obs in enumerate(seq):
         np.testing.assert_array_equal(ilc.predict(obs, episode_start=k == 0)[0],
                                       fb.predict(obs, episode_start=k == 0)[0])
@@ -217,11 +217,11 @@ def _learned_input(seq, dt, fb):
 def test_second_trial_adds_the_learning_law_of_eq_11():
     dt = 1e-4
     seq = _sequence(80, 1)
-    ilc = baselines.make("ilc", fake_env(dt))
-    fb = baselines.make("contouring-fb", fake_env(dt))
+    ilc = vcnc_baselines.make("ilc", fake_env(dt))
+    fb = vcnc_baselines.make("contouring-fb", fake_env(dt))
     for k, obs in enumerate(seq):
         ilc.predict(obs, episode_start=k == 0)
-    expected = _learned_input(seq, dt, baselines.make("contouring-fb", fake_env(dt)))
+    expected = _learned_input(seq, dt, vcnc_baselines.make("contouring-fb", fake_env(dt)))
     assert ilc.trials_done.tolist() == [0]
     for k, obs in enumerate(seq):
         a2 = ilc.predict(obs, episode_start=k == 0)[0].astype(np.float64)
@@ -234,8 +234,8 @@ def test_second_trial_adds_the_learning_law_of_eq_11():
 
 def test_learning_survives_episode_start_and_reset_learning_forgets():
     seq = _sequence(40, 2)
-    ilc = baselines.make("ilc", fake_env())
-    fb = baselines.make("contouring-fb", fake_env())
+    ilc = vcnc_baselines.make("ilc", fake_env())
+    fb = vcnc_baselines.make("contouring-fb", fake_env())
     first = [ilc.predict(o, episode_start=k == 0)[0] for k, o in enumerate(seq)]
     second = [ilc.predict(o, episode_start=k == 0)[0] for k, o in enumerate(seq)]
     assert not np.array_equal(np.array(first), np.array(second))
@@ -250,8 +250,8 @@ def test_learning_survives_episode_start_and_reset_learning_forgets():
 def test_batched_trials_are_per_env():
     """Two envs whose episodes start at different calls learn like two separate policies."""
     seqs = [_sequence(30, 3), _sequence(30, 4)]
-    batch = baselines.make("ilc", fake_env())
-    singles = [baselines.make("ilc", fake_env()) for _ in range(2)]
+    batch = vcnc_baselines.make("ilc", fake_env())
+    singles = [vcnc_baselines.make("ilc", fake_env()) for _ in range(2)]
     # env 0 runs episodes of 30 calls, env 1 of 20 (its episodes restart at calls 20 and 40)
     k1 = 0
     for call in range(60):
@@ -269,8 +269,8 @@ def test_calls_after_an_ended_episode_are_not_part_of_the_trial():
     """A batch runs on after env 0's episode ended (vcnc_bench.robust): what env 0 learns is what a policy
     that saw only its episode learns."""
     seqs = [_sequence(30, 5), _sequence(30, 6)]
-    batch = baselines.make("ilc", fake_env())
-    single = baselines.make("ilc", fake_env())
+    batch = vcnc_baselines.make("ilc", fake_env())
+    single = vcnc_baselines.make("ilc", fake_env())
     for trial in range(2):
         for k in range(30):
             obs = np.stack([seqs[0][min(k, 19)], seqs[1][k]])  # env 0's episode is 20 calls long
@@ -291,13 +291,13 @@ def test_learning_gain_against_python_control():
     the 20 Hz low-pass of ``ilc-q`` makes every frequency converge."""
     dt = 1e-4
     f = np.logspace(-1, np.log10(0.49 / dt), 3000)
-    ilc = baselines.make("ilc", fake_env(dt), k_pl=0.0, k_il=0.0, k_dl=0.0)
+    ilc = vcnc_baselines.make("ilc", fake_env(dt), k_pl=0.0, k_il=0.0, k_dl=0.0)
     loop = control.ss([[1, dt], [0, 1]], [[dt * dt / 2], [dt]], [[K_P, K_D]], 0, dt)
     s_i = np.abs(1.0 / (1.0 + np.squeeze(loop(np.exp(2j * np.pi * f * dt)))))
     np.testing.assert_allclose(ilc.learning_gain(f), s_i, rtol=1e-6)
-    g = baselines.make("ilc", fake_env(dt)).learning_gain(f)
+    g = vcnc_baselines.make("ilc", fake_env(dt)).learning_gain(f)
     assert 1.2 < g.max() < 1.3 and 30 < f[np.argmax(g > 1)] < 40
-    assert baselines.make("ilc-q", fake_env(dt)).learning_gain(f).max() < 0.15
+    assert vcnc_baselines.make("ilc-q", fake_env(dt)).learning_gain(f).max() < 0.15
 
 
 @pytest.fixture(scope="module")
@@ -308,7 +308,7 @@ def corner_env():
 
 
 def test_ilc_q_error_falls_over_trials_on_the_nominal_plant(corner_env):
-    res = run_trials(baselines.make("ilc-q", corner_env), corner_env, 4)
+    res = run_trials(vcnc_baselines.make("ilc-q", corner_env), corner_env, 4)
     mx = [r.max_contour_error_um for r in res]
     rms = [r.rms_contour_error_um for r in res]
     assert not any(r.diverged for r in res)
@@ -350,13 +350,13 @@ def test_ilc_removes_a_model_error_in_one_trial():
 ])
 def test_bad_parameters_raise_value_error(name, params, match):
     with pytest.raises(ValueError, match=match):
-        baselines.make(name, fake_env(), **params)
+        vcnc_baselines.make(name, fake_env(), **params)
 
 
 def test_wrong_plant_and_trial_count():
     env = SimpleNamespace(unwrapped=SimpleNamespace(layout=LAYOUT, decision_period=1e-4, plant="vcnc_feed_drive",
                                                     nominal_parameters=cfd.MODEL.nominal()))
     with pytest.raises(ValueError, match="current_feed_drive"):
-        baselines.make("ilc", env)
+        vcnc_baselines.make("ilc", env)
     with pytest.raises(ValueError, match="n_trials"):
-        run_trials(baselines.make("ilc", fake_env()), None, 0)
+        run_trials(vcnc_baselines.make("ilc", fake_env()), None, 0)

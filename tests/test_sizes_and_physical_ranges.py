@@ -53,7 +53,7 @@ def _bench(argv) -> tuple[int, str]:
 
 
 def _train(argv) -> tuple[int, str, str]:
-    from agents.cli import main
+    from vcnc_agents.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -369,7 +369,7 @@ def test_case_8_n_envs_is_limited_by_open_files_and_memory(tiny_config, tmp_path
                            "--n-envs", str(10**6)])
     assert code == 2 and "n_envs must be at most" in err and "Traceback" not in err, err
     assert not out.exists() and time.perf_counter() - t0 < 10.0
-    from agents import run_config
+    from vcnc_agents import run_config
 
     monkeypatch.setattr(validation, "available_memory", lambda: 10**9)
     each = 2048 * (40 + 2 + 6) * 4 + run_config.ENV_BYTES  # float32 rollout rows, plus the env's own

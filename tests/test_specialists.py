@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
-import agents
-import baselines
+import vcnc_agents
+import vcnc_baselines
 import vcnc_gym
-from agents.action_modes import ResidualAction
-from agents.policy import ANY_CONTOUR_IDS, check_signature, env_signature
+from vcnc_agents.action_modes import ResidualAction
+from vcnc_agents.policy import ANY_CONTOUR_IDS, check_signature, env_signature
 from vcnc_gym.envs.registry import CONTOURING_IDS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,8 +23,8 @@ SPECIALISTS = ROOT / "agents" / "hyperparams" / "specialists.yml"
 
 def test_shipped_agents_are_on_current_ids_only():
     """No agent is left on an id a newer version replaced (the v0 ids), and every generalist names a plant."""
-    assert set(agents.TRAINED) <= set(vcnc_gym.ENV_IDS), sorted(set(agents.TRAINED) - set(vcnc_gym.ENV_IDS))
-    for plant, folder in agents.GENERALISTS.items():
+    assert set(vcnc_agents.TRAINED) <= set(vcnc_gym.ENV_IDS), sorted(set(vcnc_agents.TRAINED) - set(vcnc_gym.ENV_IDS))
+    for plant, folder in vcnc_agents.GENERALISTS.items():
         config = yaml.safe_load((folder / "config.yml").read_text())
         assert config["env_id"] in ANY_CONTOUR_IDS and config["env"]["signature"]["plant"] == plant
 
@@ -36,14 +36,14 @@ def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline
     assert set(entries) <= set(CONTOURING_IDS)
     for env_id in entries:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", agents.RunWarning)  # n_timesteps rounded up to whole rollouts
-            run_dir, config, checkpoint = agents.training.prepare_run(env_id, tmp_path / env_id,
+            warnings.simplefilter("ignore", vcnc_agents.RunWarning)  # n_timesteps rounded up to whole rollouts
+            run_dir, config, checkpoint = vcnc_agents.training.prepare_run(env_id, tmp_path / env_id,
                                                                        config_file=SPECIALISTS)
         assert checkpoint is None and not run_dir.exists()
         mode = config.mode
         assert mode.mode == "residual"
         assert config.env_kwargs["randomize"] is True
-        policy = baselines.make(mode.baseline, gym.make(env_id))
+        policy = vcnc_baselines.make(mode.baseline, gym.make(env_id))
         assert hasattr(policy, "compiled"), mode.baseline
 
 
@@ -85,7 +85,7 @@ NAMED_CONTOUR = {"vcnc_feed_drive": "VCNC-Heart-v1", "current_feed_drive": "VCNC
 def test_a_generalist_is_shipped_for_every_contouring_plant():
     """One generalist per plant a contouring id runs on (Yadav et al.'s axis has positioning ids only)."""
     plants = {gym.make(env_id).unwrapped.plant.name for env_id in CONTOURING_IDS}  # a shop floor's is its machine's
-    assert plants == set(agents.GENERALISTS) == set(NAMED_CONTOUR)
+    assert plants == set(vcnc_agents.GENERALISTS) == set(NAMED_CONTOUR)
 
 
 @pytest.mark.slow  # > 10 s on 2 cores: one whole episode per generalist
@@ -96,7 +96,7 @@ def test_a_generalist_finishes_a_named_contour_it_never_saw(plant):
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make(NAMED_CONTOUR[plant])
-    mine = run_episode(agents.load_agent(agents.GENERALISTS[plant], env), env, seed=0)
-    base = run_episode(baselines.make("ff-ccc", env), env, seed=0)
+    mine = run_episode(vcnc_agents.load_agent(vcnc_agents.GENERALISTS[plant], env), env, seed=0)
+    base = run_episode(vcnc_baselines.make("ff-ccc", env), env, seed=0)
     assert mine.completed and not mine.diverged
     assert mine.max_contour_error_um < 2 * base.max_contour_error_um + 0.01

@@ -19,10 +19,10 @@ import vcnc_gym
 
 pytest.importorskip("ray.tune", reason="the sweep needs Ray Tune: pip install 'vcnc-gym[sweep]'")
 
-from agents.arguments import parser as _parser  # noqa: E402
-from agents.cli import main  # noqa: E402
-from agents.sweep import RESULT_FIELDS, _train_kwargs, load_sweep  # noqa: E402
-from agents.training import evaluation_score, prepare_run  # noqa: E402
+from vcnc_agents.arguments import parser as _parser  # noqa: E402
+from vcnc_agents.cli import main  # noqa: E402
+from vcnc_agents.sweep import RESULT_FIELDS, _train_kwargs, load_sweep  # noqa: E402
+from vcnc_agents.training import evaluation_score, prepare_run  # noqa: E402
 
 SWEEPS = Path(__file__).parents[1] / "agents" / "sweeps"
 #: The omega's id as registered now (its version follows the env's behaviour).

@@ -1,4 +1,4 @@
-"""``vcnc-train --seeds K`` (agents.seeds): K runs of the same options, one folder and one seed each."""
+"""``vcnc-train --seeds K`` (vcnc_agents.seeds): K runs of the same options, one folder and one seed each."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from agents import cli
-from agents.seeds import seed_argv, seed_folders
+from vcnc_agents import cli
+from vcnc_agents.seeds import seed_argv, seed_folders
 
 
 def test_each_seed_runs_the_parents_options_with_its_own_seed_and_folder():

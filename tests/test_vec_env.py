@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
-import baselines
-from agents.action_modes import ActionMode, ResidualAction
-from agents.vec_env import VcncVecEnv
+import vcnc_baselines
+from vcnc_agents.action_modes import ActionMode, ResidualAction
+from vcnc_agents.vec_env import VcncVecEnv
 from vcnc_gym.envs import controller_contract
 
 ENV_ID = "VCNC-Omega-v1"
@@ -94,7 +94,7 @@ def test_compiled_law_is_the_numpy_law_to_the_bit(name):
     float64 ones: the same commands and memory, on random observations (1e-3 to 1e2) and a random memory."""
     env = gym.make(ENV_ID)
     layout = env.unwrapped.layout
-    policy = baselines.make(name, env)
+    policy = vcnc_baselines.make(name, env)
     rng = np.random.default_rng(1)
     n = 500
     obs = (rng.normal(size=(n, layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(n, layout.size)))
@@ -118,7 +118,7 @@ def test_compiled_law_is_the_numpy_law_to_the_bit(name):
 def test_step_controlled_refuses_bad_arguments():
     venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point",
                          autoreset_mode=AutoresetMode.DISABLED)
-    controller = baselines.make("smc", venv).compiled(2)
+    controller = vcnc_baselines.make("smc", venv).compiled(2)
     with pytest.raises(RuntimeError, match="before reset"):
         venv.unwrapped.step_controlled(controller, np.zeros((2, 2)), 0.2, 10)
     venv.reset(seed=0)
@@ -127,7 +127,7 @@ def test_step_controlled_refuses_bad_arguments():
         with pytest.raises(ValueError, match=message):
             venv.unwrapped.step_controlled(controller, *args)
     for wrong, message in [(None, "compiled controller"), ((np.zeros((2, 2)),), "compiled controller"),
-                           (baselines.make("smc", venv).compiled(3), "must have 2 rows")]:
+                           (vcnc_baselines.make("smc", venv).compiled(3), "must have 2 rows")]:
         with pytest.raises(ValueError, match=message):
             venv.unwrapped.step_controlled(wrong, np.zeros((2, 2)), 0.2, 10)
     other = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")

@@ -27,3 +27,13 @@ def test_warmup_reports_a_failing_env(monkeypatch, capsys):
 def test_warmup_refuses_bad_jobs(jobs):
     with pytest.raises(SystemExit):
         warmup.main(["--jobs", jobs])
+
+
+def test_warmup_takes_some_ids_and_names_an_unknown_one(monkeypatch, capsys):
+    monkeypatch.setattr(warmup, "SUITE", (suite_env("VCNC-Heart-v1"), suite_env("VCNC-Step-v0")))
+    assert warmup.main(["--jobs", "1", "--ids", "VCNC-Step-v0"]) == 0
+    out = capsys.readouterr().out
+    assert "VCNC-Step-v0" in out and "VCNC-Heart-v1" not in out
+    with pytest.raises(SystemExit):
+        warmup.main(["--ids", "VCNC-Nope-v1"])
+    assert "--ids: VCNC-Nope-v1 not among the current ids" in capsys.readouterr().err

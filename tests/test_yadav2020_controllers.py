@@ -1,4 +1,4 @@
-"""Yadav et al.'s controllers (baselines.feedback.pi_imc_hinf): transfer functions, discretisation, policies.
+"""Yadav et al.'s controllers (vcnc_baselines.feedback.pi_imc_hinf): transfer functions, discretisation, policies.
 
 Independent references: python-control's continuous frequency responses,
 its discrete simulation (``forced_response``) of the c2d system, and the
@@ -12,8 +12,8 @@ import pytest
 import vcnc_gym  # noqa: F401  (registers the ids)
 
 control = pytest.importorskip("control")
-baselines = pytest.importorskip("baselines")
-from baselines.feedback import pi_imc_hinf as ctl  # noqa: E402
+vcnc_baselines = pytest.importorskip("vcnc_baselines")
+from vcnc_baselines.feedback import pi_imc_hinf as ctl  # noqa: E402
 
 NAMES = ctl.controller_names()
 
@@ -93,7 +93,7 @@ def test_discrete_frequency_response_below_nyquist(name, dt):
 def ctl_policy(name, dt):
     e = gym.make("VCNC-Step-v0", dt=dt)
     try:
-        return baselines.make(name, e)
+        return vcnc_baselines.make(name, e)
     finally:
         e.close()
 
@@ -102,7 +102,7 @@ def ctl_policy(name, dt):
 def test_policy_runs_the_discretised_controller(env, name):
     """predict(obs) x u_max equals python-control's simulation of C_d on the same error sequence, per axis,
     for a batch of two envs, and episode_start resets the memory."""
-    policy = baselines.make(name, env)
+    policy = vcnc_baselines.make(name, env)
     layout = env.unwrapped.layout
     rng = np.random.default_rng(3)
     errors = rng.uniform(-0.02, 0.02, size=(40, 2, 2))  # (time, env, axis) mm: small, no saturation
@@ -121,7 +121,7 @@ def test_policy_runs_the_discretised_controller(env, name):
     # a new episode for env 1 only: its memory restarts, env 0's does not
     obs[:, layout.slice("position_error")] = errors[0]
     a_new, _ = policy.predict(obs, episode_start=np.array([False, True]))
-    first, _ = baselines.make(name, env).predict(obs[1], episode_start=True)
+    first, _ = vcnc_baselines.make(name, env).predict(obs[1], episode_start=True)
     np.testing.assert_allclose(a_new[1], first, rtol=1e-6)
 
 
@@ -129,14 +129,14 @@ def test_policies_refuse_other_envs_and_plants():
     contouring = gym.make("VCNC-Omega-v1")
     try:
         with pytest.raises(ValueError, match="designed for the plant"):
-            baselines.make("pi", contouring)
+            vcnc_baselines.make("pi", contouring)
     finally:
         contouring.close()
     with pytest.raises(ValueError, match="unknown baseline 'lqr'"):
-        baselines.make("lqr", gym.make("VCNC-Step-v0"))
+        vcnc_baselines.make("lqr", gym.make("VCNC-Step-v0"))
     step_env = gym.make("VCNC-Step-v0")
     with pytest.raises(ValueError, match="unknown parameter"):
-        baselines.make("pi", step_env, gain=2.0)
+        vcnc_baselines.make("pi", step_env, gain=2.0)
     # the plant carries a dead time, the policies a plain loop: nothing else is needed from the env
-    assert {"pi", "imc", "hinf", "hinf-reduced"} <= set(baselines.names())
+    assert {"pi", "imc", "hinf", "hinf-reduced"} <= set(vcnc_baselines.names())
     step_env.close()

@@ -18,7 +18,7 @@ from vcnc_gym.envs.positioning_env import PositioningEnv
 from vcnc_gym.envs.registry import suite_env
 from vcnc_gym.plants import cncmt_axis as c
 
-baselines = pytest.importorskip("baselines")
+vcnc_baselines = pytest.importorskip("vcnc_baselines")
 report = pytest.importorskip("vcnc_bench.reports.yadav2020")
 from vcnc_gym.evaluation import run_episode  # noqa: E402
 
@@ -56,7 +56,7 @@ def test_sb3_env_checker():
 def test_episode_metrics_equal_the_sampled_loop_of_python_control(name):
     """The env + policy at dt = 10 ms is python-control's ZOH plant x z^-10 under the Tustin controller."""
     env = gym.make("VCNC-Step-v0")
-    result = run_episode(baselines.make(name, env), env)
+    result = run_episode(vcnc_baselines.make(name, env), env)
     assert result.truncated and not result.diverged
     ours = env.unwrapped.step_metrics()
     ref = report.loop_step_metrics(name, 9.7, 4850.0, dead_time=0.1, dt=0.01, t_end=15.0)
@@ -70,11 +70,11 @@ def test_episode_metrics_equal_the_sampled_loop_of_python_control(name):
 
 def test_pi_is_unstable_with_the_dead_time_and_reproduces_table_2_without_it():
     env = gym.make("VCNC-Step-v0")
-    result = run_episode(baselines.make("pi", env), env)
+    result = run_episode(vcnc_baselines.make("pi", env), env)
     assert result.diverged and result.terminated and result.episode_steps < 200
     env.close()
     env = gym.make("VCNC-Step-v0", parameters=nominal(0.0), dt=1e-3)
-    result = run_episode(baselines.make("pi", env), env)
+    result = run_episode(vcnc_baselines.make("pi", env), env)
     m = env.unwrapped.step_metrics()["x"]
     assert not result.diverged
     # Yadav et al. (2020), Table 2, robust PI nominal: OS 41.2 %, ST 0.88 s; our 10-90 % rise time, 0.097 s,

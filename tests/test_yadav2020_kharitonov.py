@@ -21,7 +21,7 @@ from vcnc_gym.analysis import (
 
 control = pytest.importorskip("control")
 report = pytest.importorskip("vcnc_bench.reports.yadav2020")
-from baselines.feedback.pi_imc_hinf import controller_names, controller_tf  # noqa: E402
+from vcnc_baselines.feedback.pi_imc_hinf import controller_names, controller_tf  # noqa: E402
 
 
 def roots_stable(poly) -> bool:

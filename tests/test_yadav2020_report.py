@@ -75,7 +75,7 @@ def test_step_responses_are_python_controls(controller, dead_time):
     continuous one and the sampled one with the dead time, over 3 s."""
     import control
 
-    from baselines.feedback.pi_imc_hinf import controller_tf
+    from vcnc_baselines.feedback.pi_imc_hinf import controller_tf
     from vcnc_bench.reports.yadav2020 import _plant_tf, _step_response
 
     a, b = 2.0, 100.0

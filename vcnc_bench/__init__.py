@@ -1,4 +1,4 @@
-"""vcnc-bench: the layer above ``vcnc_gym``, ``baselines`` and ``agents`` that runs them all.
+"""vcnc-bench: the layer above ``vcnc_gym``, ``vcnc_baselines`` and ``vcnc_agents`` that runs them all.
 
 ``vcnc-bench`` (:func:`vcnc_bench.cli.main`) runs every policy on every env
 and prints one table; :mod:`vcnc_bench.policies` turns specs into policies

@@ -66,8 +66,8 @@ are found through entry points (the suite's own two in
 By default each env runs the policies that apply to its plant (every kind's
 ``defaults``).
 
-This package is the top layer: it imports ``vcnc_gym``, ``baselines`` and
-``agents`` (through its kinds and the papers' reports), and nothing imports
+This package is the top layer: it imports ``vcnc_gym``, ``vcnc_baselines`` and
+``vcnc_agents`` (through its kinds and the papers' reports), and nothing imports
 it back (``tests/test_layers.py``).
 """
 

@@ -15,7 +15,7 @@ The behaviour policies (default all four)
   episode on the nominal plant, the least max contour error winning (ties: the least RMS), the rule of
   :func:`vcnc_bench.headroom.headroom`; ``--strongest NAME`` names it instead;
 - ``smc``: a paper's feedback controller (Jahanpour et al. (2014)'s sliding mode);
-- ``oracle``: the non-causal floor (:mod:`baselines.optimal`, the score's 1): it reads the exact plant and plans
+- ``oracle``: the non-causal floor (:mod:`vcnc_baselines.optimal`, the score's 1): it reads the exact plant and plans
   the whole episode ahead, so it is **no controller**, and its dataset says so (``algorithm_name`` and
   ``description`` carry "non-causal").  A floor on a plant other than the nominal one costs a search (minutes
   per plant), so its dataset holds the nominal plant only unless ``--oracle-on-samples``.
@@ -103,6 +103,9 @@ def code_version() -> dict:
 
     out = {"vcnc_gym": vcnc_gym.__version__, "commit": None, "dirty": None}
     root = Path(vcnc_gym.__file__).resolve().parent.parent
+    if not (root / ".git").exists():  # an installed wheel (site-packages): no commit of ours to name
+        out["provenance"] = provenance()
+        return out
     try:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
         if head.returncode == 0:
@@ -245,7 +248,7 @@ def strongest_causal(env_id: str, env_kwargs: dict | None = None, seed: int = 0)
     """
     import gymnasium as gym
 
-    from baselines.registry import policy_class
+    from vcnc_baselines.registry import policy_class
 
     from .policies import policy_kinds
 

@@ -1,7 +1,7 @@
 """Headroom: how far the strongest causal controller is above the floor, per env.
 
 Per env, the headroom is the strongest causal controller's max contour error divided by the non-causal floor's
-(the ``oracle`` of :mod:`baselines.optimal`): the factor a learned controller can still win on that env.  1.0
+(the ``oracle`` of :mod:`vcnc_baselines.optimal`): the factor a learned controller can still win on that env.  1.0
 means the strongest controller is at the floor; 1.25, that it is 25 % above it.  The bench marks a non-causal
 policy's label with :data:`NON_CAUSAL` (``vcnc_bench.cli``); any such label is the floor here.
 """

@@ -6,9 +6,9 @@ For a figure ``e`` (the max contour error, and the RMS, um) of a policy on an id
 
     s = \\frac{e_{ref} - e}{e_{ref} - e_{floor}}
 
-with ``e_ref`` the reference PD loop's figure (``pd-ref``, :mod:`baselines.feedback.pd_ref`: a fixed PD by pole
+with ``e_ref`` the reference PD loop's figure (``pd-ref``, :mod:`vcnc_baselines.feedback.pd_ref`: a fixed PD by pole
 placement at a fifth of the plant's declared servo bandwidth, no feedforward, no commissioning) and ``e_floor``
-the non-causal floor's (today's ``oracle``, :mod:`baselines.optimal`: the best causal controller on the exact plant
+the non-causal floor's (today's ``oracle``, :mod:`vcnc_baselines.optimal`: the best causal controller on the exact plant
 plus an optimised correction; never a controller).  As D4RL's normalised score (Fu et al., 2020) runs from a random
 policy (0) to an expert (1), this one runs from a PD commissioned by nobody (0) to what no causal controller can
 beat (1): above 1 is impossible for a causal controller up to the floor's search tolerance, below 0 is worse than

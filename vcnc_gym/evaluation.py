@@ -2,7 +2,7 @@
 
 A policy is anything with Stable-Baselines3's ``predict(observation,
 state=None, episode_start=None, deterministic=True) -> (action, state)``: a
-classical controller of the ``baselines`` package or a trained SB3 agent.
+classical controller of the ``vcnc_baselines`` package or a trained SB3 agent.
 :func:`run_episode` drives it through one pass along the contour and keeps
 the traces a person would plot; :func:`plot_contours` and
 :func:`plot_contour_errors` draw them for several policies on one env.
@@ -12,10 +12,10 @@ are in um, and say so in their names and labels.
 
 Example
 -------
->>> import gymnasium as gym, vcnc_gym, baselines
+>>> import gymnasium as gym, vcnc_gym, vcnc_baselines
 >>> from vcnc_gym.evaluation import run_episode
 >>> env = gym.make("VCNC-Omega-v1")
->>> result = run_episode(baselines.make("qft", env), env)   # doctest: +SKIP
+>>> result = run_episode(vcnc_baselines.make("qft", env), env)   # doctest: +SKIP
 >>> result.max_contour_error_um                             # doctest: +SKIP
 """
 

@@ -1,6 +1,6 @@
 """The optional extras of ``pip install vcnc-gym[...]``: an import that needs one names it.
 
-``baselines`` and ``agents`` stand on packages that a plain ``pip install
+``vcnc_baselines`` and ``vcnc_agents`` stand on packages that a plain ``pip install
 vcnc-gym`` does not install (``pyproject.toml``'s
 ``[project.optional-dependencies]``).  Each checks its extra when it is
 imported (:func:`require_extra`), so a missing package ends in a
@@ -49,7 +49,7 @@ def require_extra(extra: str, package: str) -> None:
     extra : str
         A key of :data:`EXTRAS` ("baselines", "agents", "gcode", "datasets").
     package : str
-        What is being imported (for the message), e.g. ``"baselines"``.
+        What is being imported (for the message), e.g. ``"vcnc_baselines"``.
     """
     missing = missing_modules(extra)
     if missing:

@@ -11,7 +11,7 @@ install time, so that a new user's first env starts warm.
 
 For every current id it makes the env, resets it and steps it once, and
 does the same with the native vector env at 16 envs (its parallel kernel),
-one fresh process per id, ``--jobs`` at a time.
+one fresh process per id, ``--jobs`` at a time (``--ids ID ...``: only those).
 """
 
 from __future__ import annotations
@@ -65,10 +65,15 @@ def warm_in_processes(name: str, ids: list[str], script: str, jobs: int) -> int:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="processes at a time (default: the cores)")
+    p.add_argument("--ids", nargs="+", metavar="ID", help="only these ids (default: every current id)")
     args = p.parse_args(argv)
     if args.jobs < 1:
         p.error(f"--jobs must be >= 1, got {args.jobs}")
     ids = [e.id for e in SUITE]
+    unknown = sorted(set(args.ids or ()) - set(ids))
+    if unknown:
+        p.error(f"--ids: {', '.join(unknown)} not among the current ids ({', '.join(ids)})")
+    ids = [i for i in ids if args.ids is None or i in args.ids]
     print(f"vcnc_gym.warmup: compiling the kernels of {len(ids)} envs, {args.jobs} at a time", flush=True)
     return warm_in_processes("vcnc_gym.warmup", ids, _ONE, args.jobs)
 

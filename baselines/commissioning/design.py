@@ -1,14 +1,14 @@
 """Design rules from an identified axis: the loop's bandwidth from its margins, a notch at the mode, the velocity
 filter, the feedforward's model; written once for every plant.
 
-The loop analysed is the servo law of :mod:`baselines.servo` as it runs, per axis, in discrete time at the
+The loop analysed is the servo law of :mod:`vcnc_baselines.servo` as it runs, per axis, in discrete time at the
 control period ``T`` (:func:`loop_response`):
 
 .. math::
 
     L(z) = N(z) \\Big(K_p + K_i \\frac{T z^{-1}}{1 - z^{-1}} + K_d F(z) \\frac{1 - z^{-1}}{T}\\Big) P(z)
 
-with ``P`` the identified axis (:class:`~baselines.commissioning.identify.AxisModel`: rigid body, first mode,
+with ``P`` the identified axis (:class:`~vcnc_baselines.commissioning.identify.AxisModel`: rigid body, first mode,
 dead time) under zero-order hold, ``F(z) = (1 - a) / (1 - a z^{-1})`` the velocity low-pass, ``N`` the notch.
 The PID gains are the pole placement of :func:`pid_gains` (a triple closed-loop pole at the
 bandwidth ``w_b`` on the identified ``m s^2 + c s``).  The rules (:func:`design_axis`):

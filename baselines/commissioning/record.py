@@ -6,7 +6,7 @@ fitted model, the loop with its margins and notch).  It is made three ways (:fun
 
 - ``"nominal"``: the identification run on the *nominal* machine of an env, what a machine builder ships with
   every machine of a series.  The records of the suite's machines are shipped as JSON data
-  (``baselines/commissioning/shipped/``, rebuilt by ``python -m baselines.commissioning.record``), so a run does
+  (``baselines/commissioning/shipped/``, rebuilt by ``python -m vcnc_baselines.commissioning.record``), so a run does
   not repeat the experiment; a machine without a shipped record is commissioned when first asked (a few
   seconds) and kept for the process;
 - ``"machine"``: an identification run on each plant instance before its episode (commissioning a real machine);
@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+import vcnc_gym
 
 from .design import AxisDesign, Margins, design_axis, inverse_dynamics, loop_response
 from .identify import AxisModel, Experiment, frf, identify, model_response
@@ -85,7 +87,7 @@ class CommissioningRecord:
     contour: str = ""
 
     def inverse(self, with_mode: bool = True):
-        """The identified inverse dynamics (:func:`~baselines.commissioning.design.inverse_dynamics`)."""
+        """The identified inverse dynamics (:func:`~vcnc_baselines.commissioning.design.inverse_dynamics`)."""
         return inverse_dynamics(self.axes, self.backlash, with_mode=with_mode)
 
     @property
@@ -260,23 +262,29 @@ _MACHINES: dict = {}
 _MACHINES_KEPT = 8
 #: Where the ``"machine"`` records of the default bench's nominal machines are kept (``<experiment_key>.json``):
 #: the experiment is deterministic (seeded PRBS and sensor noise), so a stored run is the run; rebuilt by
-#: ``python -m baselines.commissioning.record --machines ID ...``; ignored with ``VCNC_COMMISSION_RECOMPUTE=1``.
+#: ``python -m vcnc_baselines.commissioning.record --machines ID ...``; ignored with ``VCNC_COMMISSION_RECOMPUTE=1``.
 MACHINES_SHIPPED = SHIPPED / "machines"
-#: The code an identification run goes through: a change to any of it changes every :func:`experiment_key`, so a
-#: stored run is never replayed for code that would give another.
-_EXPERIMENT_CODE = ("baselines/commissioning/identify.py", "baselines/commissioning/design.py",
-                    "baselines/commissioning/record.py", "baselines/feedforward/tables.py",
-                    "vcnc_gym/envs/step_kernel.py", "vcnc_gym/envs/task.py", "vcnc_gym/plants/*.py")
+#: The code an identification run goes through, as (package, file pattern in it): a change to any of it changes
+#: every :func:`experiment_key`, so a stored run is never replayed for code that would give another.  Found through
+#: the packages, so that a checkout and an installed wheel (where ``baselines/`` is ``vcnc_baselines/``) hash the
+#: same files under the same names.
+_EXPERIMENT_CODE = (("vcnc_baselines", "commissioning/identify.py"), ("vcnc_baselines", "commissioning/design.py"),
+                    ("vcnc_baselines", "commissioning/record.py"), ("vcnc_baselines", "feedforward/tables.py"),
+                    ("vcnc_gym", "envs/step_kernel.py"), ("vcnc_gym", "envs/task.py"), ("vcnc_gym", "plants/*.py"))
+
+
+_PACKAGE_ROOTS = {"vcnc_baselines": Path(__file__).resolve().parents[1],
+                  "vcnc_gym": Path(vcnc_gym.__file__).resolve().parent}
 
 
 def _code_digest() -> str:
     global _CODE_DIGEST
     if _CODE_DIGEST is None:
-        root = Path(__file__).resolve().parents[2]
         h = hashlib.sha1()
-        for pattern in _EXPERIMENT_CODE:
+        for package, pattern in _EXPERIMENT_CODE:
+            root = _PACKAGE_ROOTS[package]
             for path in sorted(root.glob(pattern)):
-                h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+                h.update(f"{package}/{path.relative_to(root).as_posix()}".encode() + b"\0" + path.read_bytes())
         _CODE_DIGEST = h.hexdigest()
     return _CODE_DIGEST
 
@@ -303,7 +311,7 @@ def experiment_key(task, parameters, experiment: Experiment = Experiment()) -> s
 
 def _identify_machines(task, parameters, experiment: Experiment) -> list:
     """One identification run on the machines ``parameters`` (n, 2, P) of ``task``, through its step and sensor
-    (:func:`~baselines.commissioning.identify.identify`): a ``"machine"`` record per machine, each with its share of
+    (:func:`~vcnc_baselines.commissioning.identify.identify`): a ``"machine"`` record per machine, each with its share of
     the run's time."""
     nominal = task.nominal_parameters
     models, meas = identify(task, parameters, task.plant.inverse(nominal), experiment)
@@ -384,7 +392,7 @@ def plot(record: CommissioningRecord, path, measurement=None, machine: int = 0) 
 
 
 def _main(argv=None) -> None:
-    """Rebuild the shipped records of the suite's contouring envs (``python -m baselines.commissioning.record``):
+    """Rebuild the shipped records of the suite's contouring envs (``python -m vcnc_baselines.commissioning.record``):
     the nominal records, or with ``--machines`` the ``"machine"`` runs of their nominal machines."""
     import argparse
 

@@ -4,5 +4,5 @@
 - :mod:`.ccc`: Koren (1980)'s cross-coupled controller and Koren and Lo (1991)'s variable-gain CCC, with or
   without model-based feedforward.
 
-A new coupling controller is one module here plus a line in :mod:`baselines.registry`.
+A new coupling controller is one module here plus a line in :mod:`vcnc_baselines.registry`.
 """

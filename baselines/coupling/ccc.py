@@ -1,9 +1,9 @@
 """Cross-coupled control: Koren (1980), and the variable gains of Koren and Lo (1991) (``ccc``, ``vgccc``, ``ff-ccc``).
 
-Each axis keeps its PID loop (:mod:`baselines.feedforward.ff_pid`'s, with or without the inverse-model
+Each axis keeps its PID loop (:mod:`vcnc_baselines.feedforward.ff_pid`'s, with or without the inverse-model
 feedforward); a coupling controller acts on the contour error estimated from both axes' tracking errors
 ``E = x_d - x`` and the reference's tangent angle ``theta`` and curvature ``kappa``, and returns its output
-to the axes along the contour normal (:mod:`baselines.servo`):
+to the axes along the contour normal (:mod:`vcnc_baselines.servo`):
 
 - Koren (1980): ``epsilon = -E_x sin(theta) + E_y cos(theta)`` (the normal error), corrections
   ``(-C_x w, C_y w)`` with ``C_x = sin(theta)``, ``C_y = cos(theta)``;
@@ -32,7 +32,7 @@ class CrossCoupledPolicy(FeedforwardPIDPolicy):
     ----------
     layout, decision_period, nominal_parameters, plant, reference, dt, bandwidth, integral, friction_time,
     backlash_time
-        As :class:`~baselines.feedforward.ff_pid.FeedforwardPIDPolicy`.
+        As :class:`~vcnc_baselines.feedforward.ff_pid.FeedforwardPIDPolicy`.
     feedforward : bool
         Default False: Koren's CCC runs the axis loops without feedforward (``ff-ccc`` adds it).
     coupling : float

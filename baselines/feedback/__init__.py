@@ -7,5 +7,5 @@
   H-infinity designs for the CNCMT axis;
 - :mod:`.nctf`: fuzzy nominal-characteristic-trajectory-following control, Purtojo et al.
 
-A new feedback controller is one module here plus a line in :mod:`baselines.registry`.
+A new feedback controller is one module here plus a line in :mod:`vcnc_baselines.registry`.
 """

@@ -7,7 +7,7 @@ commissioning run:
 
     u_j = K_{p,j} (x_{d,j}[k] - x_j) + K_{d,j} (v_{d,j}[k] - v_j)
 
-with the gains of :func:`baselines.commissioning.design.pid_gains` ``(..., integral=False)``: pole placement of a
+with the gains of :func:`vcnc_baselines.commissioning.design.pid_gains` ``(..., integral=False)``: pole placement of a
 double closed-loop pole at ``w = FRACTION * servo_bandwidth`` on the *nominal, declared* axis ``m s^2 + c s``
 (``m``, ``c`` from :meth:`vcnc_gym.plants.PlantModel.inverse` of the nominal parameters), so that
 
@@ -17,12 +17,12 @@ double closed-loop pole at ``w = FRACTION * servo_bandwidth`` on the *nominal, d
 
 This is the textbook position loop of a feed drive designed by pole placement on the rigid-body model
 (Altintas, *Manufacturing Automation*, 2nd ed., 2012, the design of CNC feed drives; the suite's rule,
-:func:`~baselines.commissioning.design.pid_gains`, with the integral off), at a fixed fraction of the bandwidth the drive declares it supports: a deliberately plain
+:func:`~vcnc_baselines.commissioning.design.pid_gains`, with the integral off), at a fixed fraction of the bandwidth the drive declares it supports: a deliberately plain
 loop, the reference *weak* policy of the normalised score (:mod:`vcnc_bench.score`), as D4RL's random policy
 (Fu et al., 2020) is theirs.  Its design is one formula of the nominal model; it is never re-tuned per id, so a
 score of 0 means "as good as a PD loop commissioned by nobody".
 
-It reads the reference at its own call count as the other servo controllers do (:mod:`baselines.servo`: the
+It reads the reference at its own call count as the other servo controllers do (:mod:`vcnc_baselines.servo`: the
 servo law with a table of zero feedforward and zero offsets, and no coupling), so it runs in the native vector
 env and under ``--plants``.  The default ``vcnc-bench`` table runs it (a compiled law: well under a second an
 episode), so that its JSON carries every policy's score (the leaderboard, :mod:`vcnc_bench.leaderboard`).
@@ -53,12 +53,12 @@ class ReferencePDPolicy(ServoPolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant, reference, dt, task
-        As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them); ``task`` is accepted and unused
+        As :class:`~vcnc_baselines.servo.ServoPolicy` (:meth:`from_env` fills them); ``task`` is accepted and unused
         (no commissioning).
     """
 
     name = "pd-ref"
-    #: Not among the oracle's starts (:func:`baselines.optimal.search.causal_names`): a reference design is never
+    #: Not among the oracle's starts (:func:`vcnc_baselines.optimal.search.causal_names`): a reference design is never
     #: the best start, and a new start would make every stored floor be solved again.
     oracle_start = False
 

@@ -6,9 +6,9 @@ Each axis runs the unity-feedback loop of Yadav et al. (2020) (Figs. 3(b) and 4(
 
 with ``e`` the observation's ``position_error`` field (set-point minus the
 measured position, mm) and ``C(z)`` the controller of
-:func:`~baselines.feedback.pi_imc_hinf.controller_tf` (V/mm) discretised once
+:func:`~vcnc_baselines.feedback.pi_imc_hinf.controller_tf` (V/mm) discretised once
 by :func:`control.c2d` (Tustin by default) at the env's decision period and
-stepped by :func:`baselines.linear.lti_step`.  The controller's state starts
+stepped by :func:`vcnc_baselines.linear.lti_step`.  The controller's state starts
 at zero at every episode start (the loop at rest before the step).
 """
 
@@ -45,7 +45,7 @@ class Yadav2020Policy(BaselinePolicy):
     paper = "Yadav et al. (2020)"
     @property
     def controller_name(self) -> str:
-        """Which of Yadav et al.'s controllers (:func:`~baselines.feedback.pi_imc_hinf.controller_names`): the
+        """Which of Yadav et al.'s controllers (:func:`~vcnc_baselines.feedback.pi_imc_hinf.controller_names`): the
         subclass's registry ``name``."""
         return self.name
 

@@ -42,7 +42,7 @@ left-half plane onto the unit disc, keeps G's and H's DC gains exactly and
 matches their frequency responses to within (omega T)^2/12 in relative terms
 well below the Nyquist frequency.  The two discrete systems are joined with
 :func:`control.series` into one 2-input (v_r, e), 1-output (u) state-space
-model, stepped per axis by :func:`baselines.linear.lti_step`.
+model, stepped per axis by :func:`vcnc_baselines.linear.lti_step`.
 
 Robustness figures (computed by the functions below)
 ----------------------------------------------------
@@ -267,7 +267,7 @@ QFTArrays = namedtuple("QFTArrays", ["x", "A", "B", "C", "D", "u_max", "inputs",
 @njit(cache=True, _nrt=False)
 def _qft_command(q, i, obs, o, out):
     """:meth:`QFTPolicy._command` and ``predict``'s normalisation for env ``i``, in the same floating-point
-    operations (:func:`~baselines.linear.lti_advance` on the inputs (v_r, e) of each axis)."""
+    operations (:func:`~vcnc_baselines.linear.lti_advance` on the inputs (v_r, e) of each axis)."""
     inputs = q.inputs[i]
     for j in range(2):
         inputs[0] = np.float64(obs[o.reference_velocity + j])

@@ -5,5 +5,5 @@
 - :mod:`.ff_pid`: inverse-model feedforward with friction and backlash pre-compensation plus PID;
 - :mod:`.zpetc`: Tomizuka (1987)'s zero-phase-error tracking controller of the discretised closed loop.
 
-A new feedforward controller is one module here plus a line in :mod:`baselines.registry`.
+A new feedforward controller is one module here plus a line in :mod:`vcnc_baselines.registry`.
 """

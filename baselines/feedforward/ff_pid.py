@@ -1,13 +1,13 @@
 """Inverse-model feedforward plus PID: what every CNC feed drive runs (``ff-pid``).
 
 The command of each axis is the commissioned machine's inverse dynamics along the reference (the identified
-rigid body with its first mode, :mod:`baselines.commissioning`), read ahead by half a control period and the
+rigid body with its first mode, :mod:`vcnc_baselines.commissioning`), read ahead by half a control period and the
 identified dead time, with the identified Coulomb friction of the direction of motion, the identified process
-force along the path (:func:`~baselines.feedforward.tables.path_force_feedforward`) and the backlash crossing
-pre-compensated (:func:`baselines.feedforward.tables.inverse_feedforward`), plus a PID on the measured tracking
+force along the path (:func:`~vcnc_baselines.feedforward.tables.path_force_feedforward`) and the backlash crossing
+pre-compensated (:func:`vcnc_baselines.feedforward.tables.inverse_feedforward`), plus a PID on the measured tracking
 error (derivative on ``v_d - v``, the measured velocity through the commissioned low-pass), its gains by pole
-placement on the identified axis (:func:`baselines.commissioning.design.pid_gains`: a triple closed-loop pole at the
-commissioned bandwidth) and its output through the commissioned notch.  The law is :mod:`baselines.servo`'s
+placement on the identified axis (:func:`vcnc_baselines.commissioning.design.pid_gains`: a triple closed-loop pole at the
+commissioned bandwidth) and its output through the commissioned notch.  The law is :mod:`vcnc_baselines.servo`'s
 with ``delta = delta' = 0`` and no coupling.
 
 ``commissioning`` says which record: ``"nominal"`` (default where the nominal machine has one: the shipped
@@ -38,7 +38,7 @@ class FeedforwardPIDPolicy(ServoPolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant, reference, dt
-        As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
+        As :class:`~vcnc_baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
     bandwidth : float, optional
         Closed-loop pole of the PID design, rad/s; default the commissioning record's.
     integral : bool
@@ -52,10 +52,10 @@ class FeedforwardPIDPolicy(ServoPolicy):
         s, the Coulomb level's change at a reversal; default the plant's declaration
         (:attr:`vcnc_gym.plants.PlantModel.friction_time`).
     commissioning : str, optional
-        ``"nominal"``, ``"machine"`` or ``"model"`` (:data:`baselines.servo.COMMISSIONING_SOURCES`); None: the
+        ``"nominal"``, ``"machine"`` or ``"model"`` (:data:`vcnc_baselines.servo.COMMISSIONING_SOURCES`); None: the
         nominal machine's record where there is one, else the model's.
     backlash_time : float
-        s; both as :func:`~baselines.feedforward.tables.inverse_feedforward`.
+        s; both as :func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`.
     """
 
     name = "ff-pid"
@@ -119,7 +119,7 @@ class FeedforwardPIDPolicy(ServoPolicy):
 
 def shaped_reference(samples: np.ndarray, record, kind: str, dt: float) -> np.ndarray:
     """The reference samples with position, velocity and acceleration through the ZV or ZVD shaper of each
-    axis' identified mode (:func:`baselines.commissioning.design.shaper`), each impulse rounded to whole
+    axis' identified mode (:func:`vcnc_baselines.commissioning.design.shaper`), each impulse rounded to whole
     control periods (the shaped signal of a linear shaper is the same combination of delayed samples; before
     the first sample the reference's start holds)."""
     from ..commissioning.design import shaper

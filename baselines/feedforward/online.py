@@ -10,9 +10,9 @@ the current observation, per axis ``j``::
     u_ff = c_1 v_h + c_2 a_d + F_c(sgn v_h)    (the nominal linear part and Coulomb level of the direction)
     u = u_ff + K_p e + K_d (v_d - v) + K_i I,  e = clip(x_d - x, +-50 u_max / K_p),  I <- clip(I + e T)
 
-with ``c_n``, ``F_c`` of the nominal machine's commissioning record (:mod:`baselines.commissioning`: the
+with ``c_n``, ``F_c`` of the nominal machine's commissioning record (:mod:`vcnc_baselines.commissioning`: the
 identified rigid body and Coulomb levels) and its gains and filters: the derivative acts on the measured
-velocity through the record's low-pass, the feedback part passes its notch (as :mod:`baselines.servo`'s law).  What it gives up against
+velocity through the record's low-pass, the feedback part passes its notch (as :mod:`vcnc_baselines.servo`'s law).  What it gives up against
 ``ff-pid``: the friction switch's zero-phase spread before a reversal, the backlash crossing's lead and the
 jerk and snap terms (zero for the two drives it serves: their models are second order), and any dead time
 (so it serves the plants without one).
@@ -41,7 +41,7 @@ class OnlineFeedforwardPIDPolicy(BaselinePolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant
-        As :class:`~baselines.base.BaselinePolicy`.
+        As :class:`~vcnc_baselines.base.BaselinePolicy`.
     bandwidth : float, optional
         Closed-loop pole of the PID design, rad/s; default the commissioning record's.
     integral : bool
@@ -73,7 +73,7 @@ class OnlineFeedforwardPIDPolicy(BaselinePolicy):
             record = nominal_record(self.plant, self.nominal_parameters, self.decision_period)
             if record is None and commissioning == "nominal":
                 raise ValueError("ff-pid-online: no shipped record of this nominal machine "
-                                 "(python -m baselines.commissioning.record ENV_ID)")
+                                 "(python -m vcnc_baselines.commissioning.record ENV_ID)")
         self.record = record or model_record(self.plant, self.nominal_parameters, self.decision_period)
         self.inverse = self.record.inverse(with_mode=False)
         gains = self.record.gains()

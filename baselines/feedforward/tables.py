@@ -115,7 +115,7 @@ def closed_loop(inverse: InverseDynamics, axis: int, dt: float, kp: float, kd: f
 
     The nominal axis ``m x'' + c x' = u(t - T_d)`` under zero-order hold (its dead time ``n_d`` whole samples):
     ``x = N_x / (D z^n_d) u`` and ``v = N_v (z - 1) / (D z^n_d) u`` (python-control's ``c2d`` of
-    ``1 / (m s^2 + c s)`` and ``1 / (m s + c)``), under the servo law of :mod:`baselines.servo` with ZPETC's
+    ``1 / (m s^2 + c s)`` and ``1 / (m s + c)``), under the servo law of :mod:`vcnc_baselines.servo` with ZPETC's
     offsets, ``u_k = K_p (r_k - x_k) + K_d ((r_k - r_{k-1}) / T - v_k) + K_i I_k``,
     ``I_{k+1} = I_k + T (r_k - x_k)``.  With ``C = K_p (z - 1) + K_i T``, by polynomial algebra (a state-space
     conversion loses the coefficients of a long dead time)::
@@ -183,7 +183,7 @@ def zpetc_reference(filters, positions: np.ndarray) -> np.ndarray:
 
 def path_force_feedforward(force, samples: np.ndarray, dt: float, delay) -> np.ndarray:
     """The input (K, 2) that cancels a process force along the path, ``F_j v_j / |v|`` per axis with ``F`` (2,)
-    the identified force in input units (:func:`baselines.commissioning.identify.friction_levels`: a cutting
+    the identified force in input units (:func:`vcnc_baselines.commissioning.identify.friction_levels`: a cutting
     force against the path's motion shares itself among the axes as the motion does), ``v`` the reference
     velocity, read ahead as :func:`inverse_feedforward` reads it (``delay`` (2,) s); zero where the reference
     stands still (below a thousandth of its peak speed)."""

@@ -4,7 +4,7 @@ Each axis runs the PID loop ``u_k = K_p (r_k - x_k) + K_d (\\Delta r_k / T - v_k
 placement as ``ff-pid``) plus the nominal Coulomb-friction and backlash pre-compensation, and its loop reference ``r``
 is ZPETC's: the discretised closed loop ``G_c(z^-1) = z^-d B_a B_u / A`` (the nominal axis under
 zero-order hold, its dead time a whole number of samples) inverted except for its unacceptable zeros,
-whose phase is cancelled by their mirror image (:func:`baselines.feedforward.tables.zpetc_filter`).  The
+whose phase is cancelled by their mirror image (:func:`vcnc_baselines.feedforward.tables.zpetc_filter`).  The
 inverse of the loop is not causal (the delay ``d`` and the preview ``s`` of the mirrored zeros) and not
 stable (the zero-order hold's sampling zero near -1): ZPETC reads the reference ``d + s`` samples ahead,
 from the table computed when the controller is built.
@@ -28,15 +28,15 @@ class ZPETCPolicy(ServoPolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant, reference, dt
-        As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
+        As :class:`~vcnc_baselines.servo.ServoPolicy` (:meth:`from_env` fills them).
     bandwidth : float, optional
         Closed-loop pole of the PID design, rad/s; default the commissioning record's.
     friction_time : float, optional
         s, the Coulomb level's change at a reversal; default the plant's declaration.
     commissioning : str, optional
-        As :class:`~baselines.feedforward.ff_pid.FeedforwardPIDPolicy`'s.
+        As :class:`~vcnc_baselines.feedforward.ff_pid.FeedforwardPIDPolicy`'s.
     backlash_time : float
-        s; both as :func:`~baselines.feedforward.tables.inverse_feedforward`.
+        s; both as :func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`.
 
     Attributes
     ----------

@@ -32,17 +32,17 @@ How the equations are read
   filtered part: v_{j+1} = x_d'' + Q[w_j + L e_vn,j] + K e_{l,j+1} with
   w_j = v_j - x_d''.  With Q = 1 this is eq. (9) exactly, and trial 1
   (w_0 = 0) is the contouring controller of eq. (7),
-  :class:`~baselines.coupling.contouring_fb.ContouringFBPolicy`.
+  :class:`~vcnc_baselines.coupling.contouring_fb.ContouringFBPolicy`.
 * **The stored v_j(t) is what was applied**: the current after the
   amplifier's limit, mapped back through eq. (5)
-  (:meth:`~baselines.coupling.contouring_fb.ContouringFBPolicy.applied_acceleration`).
+  (:meth:`~vcnc_baselines.coupling.contouring_fb.ContouringFBPolicy.applied_acceleration`).
   Storing the unsaturated demand would let the stored input grow trial after
   trial wherever the current saturates (learning wind-up).
 * **R_n is the projection on the path normal**, N N^T with
   N = (-sin theta, cos theta): e_vn = e_n N.  Eq. (8) prints the first row
   with the opposite sign ([-sin^2, sin cos]), which would turn the x
   component of the learning into positive feedback wherever sin theta != 0.
-* **Units**: as for eq. (7) (see :mod:`baselines.coupling.contouring_fb`), Table I's
+* **Units**: as for eq. (7) (see :mod:`vcnc_baselines.coupling.contouring_fb`), Table I's
   "A" gains act on the virtual input, an acceleration: k_PL in 1/s^2,
   k_IL in 1/s^3 (on the time integral of e_vn), k_DL in 1/s (on its
   derivative, the backward difference over T).  So the learning does not
@@ -89,9 +89,9 @@ like every baseline: env i of the batch is its own sequence of trials.
 Running K trials::
 
     import gymnasium as gym, vcnc_gym, baselines
-    from baselines.learning.ilc import run_trials
+    from vcnc_baselines.learning.ilc import run_trials
     env = gym.make("VCNC-CornersSmooth-v1")
-    policy = baselines.make("ilc", env)             # or "ilc-q" (20 Hz low-pass Q)
+    policy = vcnc_baselines.make("ilc", env)             # or "ilc-q" (20 Hz low-pass Q)
     results = run_trials(policy, env, 10)          # ten EpisodeResults, trial 1 first
     [r.max_contour_error_um for r in results]
     policy.reset_learning()                        # forget: the next episode is trial 1 again
@@ -123,7 +123,7 @@ class ILCPolicy(ContouringFBPolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant, k_p, k_d
-        As :class:`~baselines.coupling.contouring_fb.ContouringFBPolicy` (the feedback
+        As :class:`~vcnc_baselines.coupling.contouring_fb.ContouringFBPolicy` (the feedback
         K e_l of eq. (9) is its eq. (7)).
     k_pl : float
         Proportional learning gain in 1/s^2, >= 0.  Default 200.

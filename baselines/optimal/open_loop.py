@@ -1,9 +1,9 @@
 """A recorded input sequence as a compiled controller: the command of step ``k`` is row ``k`` of a table.
 
-The floor (:mod:`baselines.optimal.oracle`) starts from the best causal controller's run on the exact plant.
+The floor (:mod:`vcnc_baselines.optimal.oracle`) starts from the best causal controller's run on the exact plant.
 Where that controller has no compiled form, or learns across episodes (ILC: its k-th trial is not the
 policy's first), its applied commands are recorded and replayed as this controller, which the floor's
-search then corrects like any other (:mod:`baselines.optimal.rollout`).
+search then corrects like any other (:mod:`vcnc_baselines.optimal.rollout`).
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 
 For each env and each plant instance the oracle holds the best input it found offline with what no causal
 controller may read: the exact plant (its true, possibly randomised parameters, saturation, friction, backlash
-and shop-floor effects) and the whole reference.  It is the best causal controller of :mod:`baselines` on that
+and shop-floor effects) and the whole reference.  It is the best causal controller of :mod:`vcnc_baselines` on that
 plant (closed-loop, its compiled form in the loop) plus an additive correction of its command at every decision
-step, found by :func:`baselines.optimal.search.solve`: every candidate is a whole episode of the env's own step
+step, found by :func:`vcnc_baselines.optimal.search.solve`: every candidate is a whole episode of the env's own step
 kernel on the exact plant, starting from every causal controller that applies (QFT, contouring FB, ``ff-pid``,
 ... : the best is the start), then inverse-model learning with a population of gains, then a cross-entropy
 search in windows around the largest contour errors.  The objective is the max contour error, then the RMS.
@@ -22,7 +22,7 @@ episode will see: the floor is deterministic per seed and keyed by it (a plant w
 it).  A solution does not carry over to another seed's noise (its replay stays a valid, not an optimal, input).
 
 **Cache.**  A solve costs minutes (``python benchmarks/oracle_convergence.py``), so solutions are stored
-(:mod:`baselines.optimal.solutions`): the nominal plant of every contouring id is shipped; another plant or seed
+(:mod:`vcnc_baselines.optimal.solutions`): the nominal plant of every contouring id is shipped; another plant or seed
 is solved on first use and stored where the directory is writable; ``VCNC_ORACLE_RECOMPUTE=1`` solves again.
 A stored solution whose starts do not include a causal controller registered since is solved again.
 
@@ -59,11 +59,11 @@ class OraclePolicy(BaselinePolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant
-        As :class:`~baselines.base.BaselinePolicy`.
+        As :class:`~vcnc_baselines.base.BaselinePolicy`.
     population, ilc_iterations, rounds, generations, windows, trials, seed
-        The search's budget (:func:`baselines.optimal.search.solve`); the defaults made the shipped solutions.
+        The search's budget (:func:`vcnc_baselines.optimal.search.solve`); the defaults made the shipped solutions.
     cache : bool
-        Read and write stored solutions (:mod:`baselines.optimal.solutions`); default True.
+        Read and write stored solutions (:mod:`vcnc_baselines.optimal.solutions`); default True.
     check_by_episode : bool
         Default False: :meth:`plan` replays every stored solution it loads (a rollout of the exact plant) and solves
         again one that does not reproduce its figure.  True: the caller's episode is the replay (the bench's,
@@ -72,7 +72,7 @@ class OraclePolicy(BaselinePolicy):
         next :meth:`plan` solves again).  It spares the rollout kernel's compile per plant and start (4-7 s
         each on a cold cache).
     extra_starts : dict, optional
-        Label -> a causal policy from outside :mod:`baselines` (a trained agent: ``agents.load_agent``), run as a
+        Label -> a causal policy from outside :mod:`vcnc_baselines` (a trained agent: ``vcnc_agents.load_agent``), run as a
         start too (its recorded commands, open-loop); a stored solution without these labels among its starts is
         solved again.  ``benchmarks/oracle_convergence.py`` passes the shipped specialist of each id.
 
@@ -192,7 +192,7 @@ class OraclePolicy(BaselinePolicy):
     @staticmethod
     def _start(env, sol: Solution, task, parameters):
         """The solution's start, built as the search built it: an @machine design commissioned on the machine
-        ``parameters`` (2, P) the floor was solved on (:func:`~baselines.optimal.search.warm_starts`), whichever
+        ``parameters`` (2, P) the floor was solved on (:func:`~vcnc_baselines.optimal.search.warm_starts`), whichever
         plants ``env`` holds (a vector env's, or the nominal one it was built with)."""
         if sol.table is not None:
             return OpenLoopPolicy(sol.table)

@@ -1,6 +1,6 @@
 """Whole episodes of open-loop input sequences on the exact plant, through the env's own step kernel.
 
-The floor (:mod:`baselines.optimal.oracle`) is an input sequence, one normalised command ``u / u_max`` per
+The floor (:mod:`vcnc_baselines.optimal.oracle`) is an input sequence, one normalised command ``u / u_max`` per
 decision step, found offline on the plant instance the episode runs on.  :class:`Rollouts` holds a private
 :class:`~vcnc_gym.envs.task.ContouringBatch` of that task whose machines are all set to one plant (its exact
 parameters and, on the shop floor, the state of its sensor's noise generator right after the env's reset), and
@@ -66,7 +66,7 @@ def rollout_serial(d, controller, corrections, out, errors, tracking):
     """A whole episode of every env of ``d`` in MODE_STEP under the compiled ``controller``
     (:mod:`~vcnc_gym.envs.controller_contract`) plus env ``i``'s correction ``corrections[i]`` ((N, L, 2),
     normalised, the last row held): at step k the action is ``clip(float32(u_c) + float32(c_k), -1, 1)`` in
-    float32, what :class:`~baselines.optimal.oracle.OraclePolicy` returns.  Writes ``out`` (N, 5) (the ``OUT_*``
+    float32, what :class:`~vcnc_baselines.optimal.oracle.OraclePolicy` returns.  Writes ``out`` (N, 5) (the ``OUT_*``
     columns) and, for the first ``errors.shape[1]`` steps, the contour error ``errors`` (N, L') mm and the true
     tracking error ``tracking`` (N, L', 2) mm (pass arrays with 0 columns to skip the traces)."""
     plant, reference, contour, config, offsets, buffers = d.plant, d.reference, d.contour, d.config, d.offsets, \
@@ -115,7 +115,7 @@ class Rollouts:
 
     def set_controller(self, policy) -> None:
         """Run ``policy`` (a baseline with a compiled form, or an
-        :class:`~baselines.optimal.open_loop.OpenLoopPolicy`) in the loop of every machine."""
+        :class:`~vcnc_baselines.optimal.open_loop.OpenLoopPolicy`) in the loop of every machine."""
         self.policy = policy
         self.controller = policy.compiled(self.n)
         if self.controller is None:

@@ -2,10 +2,10 @@
 
 :func:`solve` finds, for one plant instance of one task, the open-loop input sequence (the normalised command
 ``u / u_max`` per decision step) with the least max contour error (then RMS), every candidate a whole episode of
-the exact simulator (:class:`~baselines.optimal.rollout.Rollouts`: the env's own step kernel, the plant's true
+the exact simulator (:class:`~vcnc_baselines.optimal.rollout.Rollouts`: the env's own step kernel, the plant's true
 saturation, friction, backlash and shop-floor effects).  Three stages, every figure the replayed one:
 
-1. **Warm starts** (:func:`warm_starts`): every causal controller of :mod:`baselines` that applies to the env
+1. **Warm starts** (:func:`warm_starts`): every causal controller of :mod:`vcnc_baselines` that applies to the env
    runs closed-loop on the exact plant (with the env's noise realisation on the shop floor), and its applied
    commands are recorded; a learning controller (ILC) runs ``trials`` trials and each trial is a start.
    Replayed open-loop, a recorded sequence reproduces its run's true trajectory to the bit (the plant is
@@ -13,7 +13,7 @@ saturation, friction, backlash and shop-floor effects).  Three stages, every fig
    RMS) is the incumbent: so the floor is at or below every causal controller by construction.
 2. **Inverse-model learning** with a population of gains (the old oracle's update, now open-loop and
    everywhere): ``U + gamma Q(P^{-1} e_n)``, ``e_n`` the incumbent's true tracking error along the contour
-   normal, ``P^{-1}`` the exact plant's linear inverse (:func:`baselines.feedforward.tables.linear_inverse`),
+   normal, ``P^{-1}`` the exact plant's linear inverse (:func:`vcnc_baselines.feedforward.tables.linear_inverse`),
    ``Q`` a zero-phase Butterworth low-pass; each candidate is scored on the exact plant and kept only if
    better (a learning step that drifts is never kept).
 3. **Cross-entropy search** (Rubinstein 1999; de Boer et al. 2005) in windows around the incumbent's largest
@@ -80,7 +80,7 @@ class Solution:
 
 
 def causal_names(env) -> list[str]:
-    """The causal controllers of :mod:`baselines` (registry names and variants) that apply to ``env``: designed
+    """The causal controllers of :mod:`vcnc_baselines` (registry names and variants) that apply to ``env``: designed
     for its plant, given a reference where they need one, and the env takes two axis commands (so not those that set
     the feed override, ``mpcc``); not those that
     declare ``oracle_start = False`` (the normalised score's reference PD, ``pd-ref``: a deliberately plain loop
@@ -138,7 +138,7 @@ def _record(policy, task, parameters, noise_state, trials: int):
 @dataclass
 class Start:
     """A causal controller's run on the exact plant: ``policy`` (its compiled form runs in the floor's loop; an
-    :class:`~baselines.optimal.open_loop.OpenLoopPolicy` of its recorded commands where it has none or learns
+    :class:`~vcnc_baselines.optimal.open_loop.OpenLoopPolicy` of its recorded commands where it has none or learns
     across trials), its replayed max and RMS contour error (mm) and whether the tool finished the part."""
 
     policy: object
@@ -152,7 +152,7 @@ def warm_starts(env, rollouts: Rollouts, *, trials: int = 10, names=None, extra=
     """Every causal controller of ``names`` (default :func:`causal_names`) closed-loop on the exact plant of
     ``rollouts``: name -> :class:`Start`.  A controller that learns across episodes runs ``trials`` trials,
     each a start (``ilc#3``: its third), replayed open-loop.  ``extra`` (label -> policy with SB3's ``predict``,
-    e.g. a trained agent) adds causal policies from outside :mod:`baselines`, replayed open-loop too."""
+    e.g. a trained agent) adds causal policies from outside :mod:`vcnc_baselines`, replayed open-loop too."""
     from ..registry import make
 
     task = rollouts.task
@@ -238,9 +238,9 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
     trials : int
         Trials of a learning controller among the starts.
     names : list of str, optional
-        The :mod:`baselines` controllers run as starts; default :func:`causal_names`.
+        The :mod:`vcnc_baselines` controllers run as starts; default :func:`causal_names`.
     extra_starts : dict, optional
-        Label -> causal policy from outside :mod:`baselines` (a trained agent), run as a start too.
+        Label -> causal policy from outside :mod:`vcnc_baselines` (a trained agent), run as a start too.
     seed : int
         The search's own generator.
     log : callable, optional

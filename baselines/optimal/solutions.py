@@ -1,6 +1,6 @@
 """The floor's solutions, cached: the bench replays a stored solution instead of solving again.
 
-A solution (:class:`~baselines.optimal.search.Solution`) is keyed by :func:`signature`: the env's id and keyword
+A solution (:class:`~vcnc_baselines.optimal.search.Solution`) is keyed by :func:`signature`: the env's id and keyword
 arguments (``env.spec``), a hash of its packed reference, its control and decision periods, the plant's name and
 exact parameters, and, on a plant with a random state (the shop floor's sensor noise), that state right after the
 env's reset (a function of the reset's seed: the closed-loop starts, and so the floor, see that noise); a plant

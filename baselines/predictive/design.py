@@ -264,7 +264,7 @@ def preview_system(model: AxisModel, M: int, q: float = 1.0):
 def closed_loop_bandwidth(model: AxisModel, rho: float, q: float = 1.0) -> float:
     """The geometric mean, rad/s, of the continuous equivalents ``|ln z| / T`` of the ``1 + order`` slowest poles
     of the LQ loop ``Phi_c`` (the integral and the plant's own states; the dead time's are left out): for a
-    triple pole at ``-w`` (the PID design of :func:`baselines.commissioning.design.pid_gains`) it is ``w``."""
+    triple pole at ``-w`` (the PID design of :func:`vcnc_baselines.commissioning.design.pid_gains`) it is ``w``."""
     *_, K = _riccati(model, q, rho)
     Phi, Gamma, _ = augmented(model)
     z = np.linalg.eigvals(Phi - np.outer(Gamma, K)).astype(complex)

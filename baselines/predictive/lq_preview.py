@@ -11,13 +11,13 @@ Each axis runs the law of :mod:`.design` at the control period ``T``: per call `
 
 with ``e = x_d - x`` the observation's tracking error (mm), ``y_m`` the measured position ``x_d - e`` (mm) and
 velocity (mm/s), ``r`` the reference positions of the table ahead (the CNC interpolator's output, as
-:mod:`baselines.servo` reads it: "Where the reference comes from"), and ``u_c`` the Coulomb-friction and backlash
-pre-compensation of ``ff-pid`` (:func:`baselines.feedforward.tables.inverse_feedforward` without the motion
+:mod:`vcnc_baselines.servo` reads it: "Where the reference comes from"), and ``u_c`` the Coulomb-friction and backlash
+pre-compensation of ``ff-pid`` (:func:`vcnc_baselines.feedforward.tables.inverse_feedforward` without the motion
 term: the preview gains carry the motion).  ``u_lin(k)`` is the linear part of the command the plant received
 (after the clip to the input limit): the velocity form's anti-windup.
 
 The weights: ``q = 1`` per mm^2 of tracking error and the input-increment weight ``rho`` for which the LQ loop's
-poles have the machine's commissioned bandwidth (:func:`~baselines.commissioning.record.nominal_record`, the same number ``ff-pid``'s
+poles have the machine's commissioned bandwidth (:func:`~vcnc_baselines.commissioning.record.nominal_record`, the same number ``ff-pid``'s
 PID is placed at; :func:`.design.input_weight_for_bandwidth`), unless ``input_weight`` is given.
 
 The model
@@ -58,7 +58,7 @@ class LQPreviewPolicy(ServoPolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant, reference, dt
-        As :class:`~baselines.servo.ServoPolicy` (:meth:`from_env` fills them); the decision period must be the
+        As :class:`~vcnc_baselines.servo.ServoPolicy` (:meth:`from_env` fills them); the decision period must be the
         control period.
     bandwidth : float, optional
         rad/s, the LQ loop's (:func:`.design.closed_loop_bandwidth`); default the machine's commissioning.
@@ -71,7 +71,7 @@ class LQPreviewPolicy(ServoPolicy):
     delays : (2,) float, optional
         Per axis input dead time, s; default the plant's nominal dead time (with ``models``: 0).
     friction_time, backlash_time : float
-        s, as ``ff-pid`` (:func:`~baselines.feedforward.tables.inverse_feedforward`); ``friction_time`` defaults to
+        s, as ``ff-pid`` (:func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`); ``friction_time`` defaults to
         the machine's commissioning.
     velocity : bool, optional
         Whether the estimator reads the measured velocity; default: unless the plant declares a position sensor

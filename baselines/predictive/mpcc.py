@@ -316,7 +316,7 @@ class MPCCPolicy(BaselinePolicy):
     Parameters
     ----------
     layout, decision_period, nominal_parameters, plant
-        As :class:`~baselines.base.BaselinePolicy`; the decision period must be the control period ``dt``.
+        As :class:`~vcnc_baselines.base.BaselinePolicy`; the decision period must be the control period ``dt``.
     reference : ndarray, (K, REF_COLUMNS)
         The programmed path and feed: the env's packed reference samples before any override.
     dt : float

@@ -3,7 +3,7 @@
 - ``envs/``: one page per env id of :data:`vcnc_gym.envs.registry.SUITE` (its
   summary, registered arguments, spaces, observation fields, plant and a
   picture of its contour), and an index that lists the legacy ids too;
-- ``controllers.md``: the controllers of :mod:`baselines.registry`, grouped by
+- ``controllers.md``: the controllers of :mod:`vcnc_baselines.registry`, grouped by
   the family folders of ``baselines/`` (feedback, feedforward, coupling,
   learning, predictive, optimal), with the variants;
 - ``api/``: one page per package, an ``automodule`` per public module found
@@ -35,8 +35,8 @@ FAMILIES = {
 #: The packages of the API reference, with a one-line heading each.
 API_PACKAGES = {
     "vcnc_gym": "vcnc_gym: the environments",
-    "baselines": "baselines: the classical controllers",
-    "agents": "agents: PPO training and trained agents",
+    "vcnc_baselines": "vcnc_baselines: the classical controllers (folder baselines/)",
+    "vcnc_agents": "vcnc_agents: PPO training and trained agents (folder agents/)",
     "vcnc_bench": "vcnc_bench: the benchmark",
 }
 
@@ -163,7 +163,7 @@ def _first_paragraph(obj) -> str:
 
 
 def write_controllers_page(docs: Path) -> None:
-    from baselines import registry
+    from vcnc_baselines import registry
 
     by_family: dict[str, list[str]] = {f: [] for f in FAMILIES}
     for name in registry.REGISTRY:
@@ -171,16 +171,16 @@ def write_controllers_page(docs: Path) -> None:
         by_family.setdefault(family, []).append(name)
     lines = ["# Controllers", "",
              "The classical controllers, as policies with Stable-Baselines3's `predict`, built for an env by "
-             "name: `baselines.make(\"qft\", env)` ({py:func}`baselines.registry.make`).  They are grouped by "
-             "the family folders of `baselines/`.  Generated from {py:data}`baselines.registry.REGISTRY` and "
-             "{py:data}`baselines.registry.VARIANTS`.", "",
-             "```python", "import gymnasium as gym", "import baselines", "import vcnc_gym", "",
-             'env = gym.make("VCNC-Heart-v1")', 'policy = baselines.make("qft", env)',
+             "name: `vcnc_baselines.make(\"qft\", env)` ({py:func}`vcnc_baselines.registry.make`).  They are grouped by "
+             "the family folders of `baselines/`.  Generated from {py:data}`vcnc_baselines.registry.REGISTRY` and "
+             "{py:data}`vcnc_baselines.registry.VARIANTS`.", "",
+             "```python", "import gymnasium as gym", "import vcnc_baselines", "import vcnc_gym", "",
+             'env = gym.make("VCNC-Heart-v1")', 'policy = vcnc_baselines.make("qft", env)',
              "action, _ = policy.predict(env.reset(seed=0)[0])", "```", ""]
     for family, names in by_family.items():
         if not names:
             continue
-        package = importlib.import_module(f"baselines.{family}")
+        package = importlib.import_module(f"vcnc_baselines.{family}")
         lines += [f"## {FAMILIES.get(family, family)}", "", _first_paragraph(package), "",
                   "| name | class | what |", "|---|---|---|"]
         for name in names:

@@ -9,8 +9,8 @@ every baseline whose ``plants`` include the env's plant.
 
 from __future__ import annotations
 
-from baselines.feedback import qft
-from baselines.registry import FLOORS, make, names, policy_class
+from vcnc_baselines.feedback import qft
+from vcnc_baselines.registry import FLOORS, make, names, policy_class
 
 from ..policies import PolicyKind
 
@@ -160,5 +160,5 @@ KIND = PolicyKind(
     extras=lambda env: [n for n in names() if applies(n, env) and not policy_class(n).in_default_table],
     report=lambda ctx: _qft_stability(ctx) + _yadav2020(ctx) + _simba(ctx) + _purtojo(ctx) + _oracle(ctx),
     prepare=_yadav2020_tables,
-    description="the papers' classical controllers (baselines.names())",
+    description="the papers' classical controllers (vcnc_baselines.names())",
 )

@@ -9,7 +9,7 @@ agent shipped for the env in ``agents/trained/``.
 
 from __future__ import annotations
 
-import agents  # an install without the agents extra (torch, SB3) skips this kind
+import vcnc_agents  # an install without the agents extra (torch, SB3) skips this kind
 
 from ..policies import PolicyKind
 
@@ -22,7 +22,7 @@ def _env_id(env) -> str | None:
 
 
 def _shipped(env):
-    folder = agents.TRAINED.get(_env_id(env))
+    folder = vcnc_agents.TRAINED.get(_env_id(env))
     return folder if folder is not None and folder.is_dir() else None
 
 
@@ -31,13 +31,13 @@ def _make(path: str, env):
         path = _shipped(env)
         if path is None:
             raise ValueError(f"no agent is shipped for {_env_id(env)}; give its folder as ppo:PATH")
-    return agents.load_agent(path, env)
+    return vcnc_agents.load_agent(path, env)
 
 
 def _defaults(env) -> list[str]:
     """The shipped agent, when there is one and it was trained on this env configuration (not, e.g., at
     another ``--feedrate``: ``ppo`` named explicitly then says why it does not fit)."""
-    from agents.policy import agent_mismatch
+    from vcnc_agents.policy import agent_mismatch
 
     folder = _shipped(env)
     return ["ppo"] if folder is not None and agent_mismatch(folder, env) is None else []

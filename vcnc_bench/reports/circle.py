@@ -351,7 +351,7 @@ def nctf_main(argv=None) -> int:
     """
     import argparse
 
-    from baselines.feedback.nctf import DEFAULT_SETTINGS, NCTFPolicy
+    from vcnc_baselines.feedback.nctf import DEFAULT_SETTINGS, NCTFPolicy
     from vcnc_gym.plants import get_plant
 
     parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.circle",

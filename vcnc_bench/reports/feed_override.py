@@ -15,7 +15,7 @@ side on the nominal plant:
   override never exceeds the cap, as an operator limits the dial).
 - **operator**: the classical servo that runs under an override (``ff-pid-online``) on ``VCNC-OmegaOverride-v1``
   with the dial held at each cap from the start, as an operator who turns the override down for the whole part.
-- **mpcc**: the contouring MPC (:mod:`baselines.predictive.mpcc`, Lam, Manzie and Good 2010) on
+- **mpcc**: the contouring MPC (:mod:`vcnc_baselines.predictive.mpcc`, Lam, Manzie and Good 2010) on
   ``VCNC-OmegaOverride-v1``, which chooses its own progress along the path and sets the override from it; one
   point per cap of its progress speed (:data:`MPCC_SPEEDS`), the classical answer to the agent.
 
@@ -89,7 +89,7 @@ def classical_front(policies=CLASSICAL, settings=LOOKAHEAD) -> list[FrontPoint]:
     ``settings``, nominal plant."""
     import gymnasium as gym
 
-    import baselines
+    import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
     from vcnc_gym.motion import LookaheadFeedrate
 
@@ -101,7 +101,7 @@ def classical_front(policies=CLASSICAL, settings=LOOKAHEAD) -> list[FrontPoint]:
         env = gym.make("VCNC-OmegaLookahead-v1", feedrate=float(feed), profile=profile)
         for name in policies:
             points.append(_point(name, f"{feed:g} mm/s, {acceleration:g} mm/s^2",
-                                 run_episode(baselines.make(name, env), env), "planned"))
+                                 run_episode(vcnc_baselines.make(name, env), env), "planned"))
         env.close()
     return points
 
@@ -154,12 +154,12 @@ def operator_front(policy: str = OPERATOR, caps=CAPS) -> list[FrontPoint]:
     """``policy`` on ``VCNC-OmegaOverride-v1`` (the S-curve) with the override held at each cap, nominal plant."""
     import gymnasium as gym
 
-    import baselines
+    import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-OmegaOverride-v1")
     points = [_point(f"{policy} @ override", f"{100 * c:g} %",
-                     run_episode(FixedOverride(baselines.make(policy, env), c), env), "operator") for c in caps]
+                     run_episode(FixedOverride(vcnc_baselines.make(policy, env), c), env), "operator") for c in caps]
     env.close()
     return points
 
@@ -169,7 +169,7 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
     once per override cap."""
     import gymnasium as gym
 
-    from agents import load_agent
+    from vcnc_agents import load_agent
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-OmegaOverride-v1")
@@ -184,14 +184,14 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
 
 def mpcc_front(speeds=MPCC_SPEEDS, **params) -> list[FrontPoint]:
     """The contouring MPC (``mpcc``) on ``VCNC-OmegaOverride-v1``, nominal plant, once per cap of its progress
-    speed (mm/s); ``params`` go to :func:`baselines.make` (its weights)."""
+    speed (mm/s); ``params`` go to :func:`vcnc_baselines.make` (its weights)."""
     import gymnasium as gym
 
-    import baselines
+    import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-OmegaOverride-v1")
-    points = [_point("mpcc", f"v_max {v:g} mm/s", run_episode(baselines.make("mpcc", env, v_max=float(v), **params),
+    points = [_point("mpcc", f"v_max {v:g} mm/s", run_episode(vcnc_baselines.make("mpcc", env, v_max=float(v), **params),
                                                                 env), "mpcc")
               for v in speeds]
     env.close()
@@ -210,11 +210,11 @@ def scurve_points(policies=SCURVE) -> list[FrontPoint]:
     """Each of ``policies`` on ``VCNC-Omega-v1`` itself (the S-curve at 100 mm/s, no override), nominal plant."""
     import gymnasium as gym
 
-    import baselines
+    import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-Omega-v1")
-    points = [_point(name, "S-curve, 100 mm/s", run_episode(baselines.make(name, env), env), "s-curve")
+    points = [_point(name, "S-curve, 100 mm/s", run_episode(vcnc_baselines.make(name, env), env), "s-curve")
               for name in policies]
     env.close()
     return points
@@ -279,7 +279,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     agent = args.agent
     if agent is None:
-        from agents import TRAINED
+        from vcnc_agents import TRAINED
 
         agent = TRAINED.get("VCNC-OmegaOverride-v1")
         if agent is None or not agent.is_dir():

@@ -7,7 +7,7 @@ and computes the stability margin of eq. (5) from them; Table 2 gives the
 overshoot, settling and rise time of the step response for the nominal plant
 and for 10 plants across the box.
 
-Everything here is computed from :func:`~baselines.feedback.pi_imc_hinf.controller_tf`
+Everything here is computed from :func:`~vcnc_baselines.feedback.pi_imc_hinf.controller_tf`
 and the plant's box (:mod:`vcnc_gym.plants.cncmt_axis`), with the generic
 tools of :mod:`vcnc_gym.analysis`:
 
@@ -49,8 +49,8 @@ from vcnc_gym.plants import cncmt_axis
 from vcnc_gym.plants.cncmt_axis import IDX_A, IDX_B, IDX_T_D, MODEL
 from vcnc_gym.validation import integer, non_negative
 
-from baselines.feedback.pi_imc_hinf import controller_names, controller_tf
-from baselines.linear import lti_response
+from vcnc_baselines.feedback.pi_imc_hinf import controller_names, controller_tf
+from vcnc_baselines.linear import lti_response
 
 __all__ = [
     "PAPER_TABLE_2",
@@ -165,7 +165,7 @@ def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.
     Parameters
     ----------
     controller : str
-        One of :func:`~baselines.feedback.pi_imc_hinf.controller_names`.
+        One of :func:`~vcnc_baselines.feedback.pi_imc_hinf.controller_names`.
     a, b : float
         The plant [1/s], [mm/(V s^2)].
     dead_time : float
@@ -215,7 +215,7 @@ def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.
 def _step_response(T, t: np.ndarray) -> np.ndarray:
     """The unit-step response of the loop ``T`` at the uniform times ``t`` (s), from rest: a continuous ``T``
     held exactly between samples (``c2d``'s "zoh": exact for a step), stepped by the compiled state-space
-    recursion :func:`baselines.linear.lti_response`.  It is ``control.step_response(T, t)`` to 1e-12 (tested),
+    recursion :func:`vcnc_baselines.linear.lti_response`.  It is ``control.step_response(T, t)`` to 1e-12 (tested),
     20 times faster on the continuous loops (python-control steps its recursion in Python)."""
     Td = control.ss(T if T.isdtime(strict=True) else control.c2d(control.ss(T), t[1] - t[0], "zoh"))
     return lti_response(Td.A, Td.B, Td.C, Td.D, np.ones((t.size, 1)))[:, 0]
@@ -368,7 +368,7 @@ def env_step_table(controllers=None, n_plants: int = 10, dead_time: float | None
     """
     import gymnasium as gym
 
-    import baselines
+    import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
 
     nominal = MODEL.nominal()
@@ -383,7 +383,7 @@ def env_step_table(controllers=None, n_plants: int = 10, dead_time: float | None
             p[:, IDX_A], p[:, IDX_B] = plant
         env = gym.make(env_id, parameters=p, **env_kwargs)
         try:
-            result = run_episode(baselines.make(name, env), env, seed=0)
+            result = run_episode(vcnc_baselines.make(name, env), env, seed=0)
             u = env.unwrapped
             t, x = u.trajectory
             m = dict(u.step_metrics()["x"])

@@ -303,7 +303,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
 
         Each control period env i commands ``clip(u_c / u_max + correction * a_i, -1, 1)`` (float32), u_c the
         controller's command on the period's observation and ``a_i = clip(actions[i], -1, 1)`` held: the
-        residual action mode (``agents.action_modes``) without a Python call per period.  An env whose
+        residual action mode (``vcnc_agents.action_modes``) without a Python call per period.  An env whose
         episode ends inside the decision stops there.  Only with ``autoreset_mode=AutoresetMode.DISABLED``:
         finished envs wait for ``reset(options={"reset_mask": ...})``.
 

@@ -5,7 +5,7 @@ baseline) costs a Python call per period when it runs as a policy's
 ``predict``; compiled into the kernel, a whole decision of N envs (``repeat``
 control periods, each with the controller's command) is one numba call
 (:func:`vcnc_gym.envs.step_kernel.step_controlled_parallel`).  The core package names
-no controller: a controller's module (in :mod:`baselines`) declares
+no controller: a controller's module (in :mod:`vcnc_baselines`) declares
 
 - a ``namedtuple`` class holding its per-env memory, first (an array
   whose first axis is the env, shared with the Python policy, so that

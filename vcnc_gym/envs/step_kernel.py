@@ -455,7 +455,7 @@ def _control_env(plant, reference, c, cfg, o, b, i, controller, loop):
     """A decision of env ``i`` (in MODE_STEP) with a compiled controller in the loop: ``loop.repeat`` control
     periods (fewer if the episode ends), each commanding ``clip(u_c / u_max + correction * a, -1, 1)`` in float32,
     u_c the controller's command on the current observation (:mod:`~vcnc_gym.envs.controller_contract`), ``a``
-    the agent's held correction: the arithmetic of ``agents.action_modes.ActionMode.command``, to the bit."""
+    the agent's held correction: the arithmetic of ``vcnc_agents.action_modes.ActionMode.command``, to the bit."""
     if b.mode[i] != MODE_STEP:
         return
     one = np.float32(1.0)

@@ -25,7 +25,7 @@ amplifier gain ``K_1`` is in V/V (Table 1) and Appendix A, eq. (36), writes
 nomenclature gives the lead-screw pitch ``p`` in m, so ``x_0 = p theta_0``
 (eq. (44)) and eq. (2) are in m: ``b = 4.85 m/(V s^2)``.  The suite works in
 mm, so ``b`` is stored as 4850 mm/(V s^2) and Yadav et al.'s controllers (V/m)
-are divided by 1000 to act on mm (``baselines.feedback.pi_imc_hinf``).
+are divided by 1000 to act on mm (``vcnc_baselines.feedback.pi_imc_hinf``).
 
 Saturation
 ----------

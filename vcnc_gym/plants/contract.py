@@ -215,7 +215,7 @@ class PlantModel:
     servo_bandwidth : float, optional
         The highest position-loop bandwidth the drive supports, rad/s: the
         ceiling below which commissioning's design rule
-        (:mod:`baselines.commissioning.design`) searches; the margins, a
+        (:mod:`vcnc_baselines.commissioning.design`) searches; the margins, a
         mode and the delays it identifies lower it.
     friction_time : float
         s, the duration over which a model-based feedforward changes the
