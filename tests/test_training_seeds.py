@@ -47,3 +47,21 @@ def test_two_seeds_train_into_their_own_folders(tmp_path, capsys):
     runs = json.loads((tmp_path / "circle" / "seeds.json").read_text())["runs"]
     assert [r["seed"] for r in runs] == [3, 4] and all(r["code"] == 0 for r in runs)
     assert "seed  exit" in capsys.readouterr().out
+
+
+def test_the_bench_reads_a_seeds_folder_as_every_seeds_agent(tmp_path):
+    """``vcnc-bench --policy ppo:FOLDER`` of a ``vcnc-train --seeds`` folder: one spec per seed's best agent, in
+    seed order (judged as one controller: tests/test_verdicts.py); a seed without a best agent is named."""
+    from vcnc_bench.policies import expand_spec
+
+    runs = []
+    for seed in (3, 4):
+        (tmp_path / f"seed{seed}" / "best").mkdir(parents=True)
+        runs.append({"seed": seed, "folder": f"somewhere/else/seed{seed}", "code": 0})
+    (tmp_path / "seeds.json").write_text(json.dumps({"env": "VCNC-Heart-v1", "argv": [], "runs": runs}))
+    assert expand_spec(f"ppo:{tmp_path}") == [f"ppo:{tmp_path / 'seed3' / 'best'}", f"ppo:{tmp_path / 'seed4' / 'best'}"]
+    assert expand_spec("ppo:runs/x/best") == ["ppo:runs/x/best"] and expand_spec("ff-pid") == ["ff-pid"]
+    runs[1]["code"] = 1
+    (tmp_path / "seeds.json").write_text(json.dumps({"env": "VCNC-Heart-v1", "argv": [], "runs": runs}))
+    with pytest.raises(ValueError, match="no best agent for seed 4"):
+        expand_spec(f"ppo:{tmp_path}")

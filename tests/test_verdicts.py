@@ -134,3 +134,65 @@ def test_own_interval_resamples_plants_not_runs():
                      y_label="b", reps=2000, seed=1)
     w1, w5 = one.ci_y[1] - one.ci_y[0], five.ci_y[1] - five.ci_y[0]
     assert w5 == pytest.approx(w1, rel=0.25)
+
+
+# -- training seeds (issue 33): a learned controller is the draw of its training run as much as of the plant --------
+def test_training_seeds_are_resampled_with_the_plants_by_hand():
+    """X of 3 training seeds on the same 20 plants: each replicate draws the plants (shared with Y), then the
+    seeds (with replacement); the interval is the percentiles of the IQMs' differences, recomputed here from the
+    same generator with scipy's trim_mean."""
+    rng = np.random.default_rng(5)
+    plants = rng.lognormal(1.0, 0.6, 20)
+    x = plants[None, :] * np.array([0.9, 1.0, 1.1])[:, None]  # three training runs: one good, one even, one poor
+    d, low, high = v.paired_difference_ci(x[:, :, None], plants, reps=800, seed=3)  # (seeds, plants, 1 noise seed)
+    gen = np.random.default_rng(3)
+    p_idx = gen.integers(0, 20, size=(800, 20))
+    s_idx = gen.integers(0, 3, size=(800, 3))
+    xa = np.stack([x[s_idx[r]][:, p_idx[r]].reshape(-1) for r in range(800)])
+    diffs = scipy.stats.trim_mean(xa, 0.25, axis=1) - scipy.stats.trim_mean(plants[p_idx], 0.25, axis=1)
+    assert (low, high) == pytest.approx(tuple(np.percentile(diffs, [2.5, 97.5])), rel=1e-12)
+    assert d == pytest.approx(scipy.stats.trim_mean(x.reshape(-1), 0.25) - scipy.stats.trim_mean(plants, 0.25))
+
+
+def test_one_training_seed_gives_the_interval_it_gave_without_the_axis():
+    rng = np.random.default_rng(6)
+    y = rng.lognormal(1.0, 0.5, (10, 3))
+    x = y * 0.95
+    assert v.paired_difference_ci(x[None], y, seed=4) == v.paired_difference_ci(x, y, seed=4)
+
+
+def test_a_seed_that_failed_its_training_keeps_a_win_from_being_declared():
+    """Four seeds 5 % better on every plant win; a fifth that diverged on a third of the plants makes it no win:
+    the seeds are resampled, so a poor training run cannot hide behind the good ones."""
+    rng = np.random.default_rng(7)
+    y = rng.lognormal(1.0, 0.5, 24)
+    good = np.repeat((y * 0.95)[None, :, None], 4, axis=0)  # (seeds, plants, 1 noise seed)
+    assert v.verdict(good, y, figure="max", x_label="a", y_label="b").outcome == "wins"
+    bad = y * 0.95
+    bad[::3] = np.inf
+    out = v.verdict(np.vstack([good, bad[None, :, None]]), y, figure="max", x_label="a", y_label="b")
+    assert out.outcome != "wins" and out.n == 5 * 24
+
+
+def _record(policy, max_um, group=None):
+    rec = {"env": "E", "policy": policy,
+           "per_plant": {"kind": ["nominal"] + ["sample"] * len(max_um), "max_um": [1.0, *max_um],
+                         "rms_um": [0.1, *(m / 10 for m in max_um)], "diverged": [False] * (len(max_um) + 1)}}
+    if group is not None:
+        rec["group"] = group
+    return rec
+
+
+def test_the_bench_judges_the_seeds_of_one_run_as_one_controller():
+    rng = np.random.default_rng(8)
+    y = rng.lognormal(1.0, 0.5, 16)
+    records = [_record("ff-pid", y)] + [_record(f"ppo:run/seed{s}/best", y * f, group="ppo:run")
+                                       for s, f in enumerate((0.9, 0.92, 0.95))]
+    rows = v.robust_verdicts(records, {r["policy"] for r in records[1:]}, {"ff-pid"}, reps=500)
+    assert [(r["x"], r["figure"], r["training_seeds"], r["outcome"]) for r in rows] == [
+        ("ppo:run", "max", 3, "wins"), ("ppo:run", "rms", 3, "wins")]
+    assert all(r["verdicts"]["max"]["x"] == "ppo:run" for r in records[1:])
+    expected = v.verdict(np.stack([y * 0.9, y * 0.92, y * 0.95])[:, :, None], y, figure="max", x_label="ppo:run",
+                         y_label="ff-pid", reps=500)
+    assert rows[0]["low"] == expected.low and rows[0]["high"] == expected.high
+    assert "ppo:run (3 seeds)" in v.format_verdicts(rows)

@@ -95,8 +95,8 @@ from . import programs, robust, score, verdicts
 from .plots import shown_labels
 from .headroom import NON_CAUSAL, headroom
 from .provenance import provenance
-from .policies import (BenchContext, check_policy_spec, default_specs, policy_choices, policy_kinds, resolve_policy,
-                       split_spec)
+from .policies import (BenchContext, check_policy_spec, default_specs, expand_spec, policy_choices, policy_kinds,
+                       policy_label, resolve_policy, split_spec)
 from .runner import BuildError, EnvRecipe, EnvRuns, idle_cores, label_of, run_table
 
 #: The v0 ids, kept for agents trained on them: benchmarked when named.
@@ -365,12 +365,15 @@ def _recipes(args, parser) -> list[EnvRecipe]:
     """One :class:`~vcnc_bench.runner.EnvRecipe` per env of the table: its id and arguments, the policies named by
     ``--policy`` (none: the defaults of every kind; those that learn across episodes and the kinds' extras only
     with ``--all``)."""
-    specs = tuple(_unique(args.policy or []))
-    for spec in specs:
+    for spec in _unique(args.policy or []):
         try:
             check_policy_spec(spec)
         except ValueError as exc:
             parser.error(str(exc))
+    try:
+        specs = tuple(_unique(m for spec in args.policy or [] for m in expand_spec(spec)))
+    except (ValueError, OSError, KeyError) as exc:
+        parser.error(f"--policy: {exc}")
     everything = bool(args.all)
     kwargs = _env_kwargs(args)
     recipes = [EnvRecipe(e, e, kwargs, specs, everything) for e in _env_ids(args, parser)]
@@ -719,6 +722,17 @@ def _print_scores(records: list[dict]) -> None:
         print(f"  {r['env']:<{width}} {r['policy']:<{pw}} {cell}{iqm}")
 
 
+def _training_seed_groups(args) -> dict:
+    """{label of a member: label of the spec it came from} for the ``--policy`` specs that stand for several (the
+    seeds of one training run, :func:`vcnc_bench.policies.expand_spec`), judged as one controller."""
+    groups = {}
+    for spec in _unique(args.policy or []):
+        members = expand_spec(spec)
+        if members != [spec]:
+            groups.update({policy_label(m): policy_label(spec) for m in members})
+    return groups
+
+
 def _robust(args, envs: dict, runs: list) -> int:
     """``--plants N``: every run on the nominal plant, N sampled plants and the vertices (vcnc_bench.robust)."""
     from tqdm import tqdm
@@ -733,8 +747,11 @@ def _robust(args, envs: dict, runs: list) -> int:
                                               noise_seeds=args.noise_seeds)
     score.add_scores(records, _nominal_floors(args, envs, runs))
     kinds = {(e, label_of(s, p)): split_spec(s)[0] for e, s, p in runs}
+    groups = _training_seed_groups(args)
     for r in records:
         r["kind"] = kinds.get((r["env"], r["policy"]))
+        if r["policy"] in groups:
+            r["group"] = groups[r["policy"]]
     # every policy that is not a classical baseline (an agent, a user's kind) meets the strongest causal baseline
     learned = {label_of(s, p) for _, s, p in runs if split_spec(s)[0] != "baseline"}
     causal = {label_of(s, p) for _, s, p in runs

@@ -24,7 +24,7 @@ from typing import Any, Callable
 
 __all__ = ["BenchContext", "PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec",
            "policy_label",
-           "check_policy_spec", "resolve_policy", "default_specs", "policy_choices"]
+           "check_policy_spec", "expand_spec", "resolve_policy", "default_specs", "policy_choices"]
 
 ENTRY_POINT_GROUP = "vcnc_bench.policy_kinds"
 
@@ -105,6 +105,9 @@ class PolicyKind:
         ``context.prepared[env_id][name]`` (picklable; None: nothing).
     description : str
         One line for ``--help``.
+    expand : callable (argument: str) -> list of str, optional
+        The arguments one argument stands for, each run as a policy of its own and judged together (a folder of
+        training seeds: each seed's agent); None, or a list of the argument alone: itself.
     """
 
     name: str
@@ -115,6 +118,7 @@ class PolicyKind:
     report: Callable | None = None
     prepare: Callable | None = None
     description: str = ""
+    expand: Callable[[str], list] | None = None
 
 
 #: Kind name -> PolicyKind: those registered, and those of the entry points once loaded.
@@ -168,6 +172,17 @@ def split_spec(spec: str) -> tuple[str, str]:
     if spec in bare:
         return bare[spec], spec
     return spec, ""
+
+
+def expand_spec(spec: str) -> list[str]:
+    """The specs ``spec`` stands for: its kind's :attr:`PolicyKind.expand` of its argument (``ppo:FOLDER`` of
+    training seeds: one ``ppo:`` spec per seed's agent), else ``[spec]``.  ValueError from the kind for a bad
+    argument."""
+    kind, arg = split_spec(spec)
+    found = policy_kinds().get(kind)
+    if found is None or found.expand is None or not arg:
+        return [spec]
+    return [f"{kind}:{a}" for a in found.expand(arg)] or [spec]
 
 
 def policy_label(spec: str) -> str:

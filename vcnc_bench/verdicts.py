@@ -171,15 +171,26 @@ def probability_of_improvement(x, y) -> float:
     return float(np.mean(out))
 
 
+def _runs(name: str, x) -> np.ndarray:
+    """``x`` as (training seeds, plants, noise seeds): (plants,) and (plants, noise) are one training seed; a 3-D
+    array is several, each on the same plants and noise seeds."""
+    a = _scores(name, x, (1, 2, 3))
+    a = a[:, None] if a.ndim == 1 else a
+    return a[None] if a.ndim == 2 else a
+
+
 def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0,
                          confidence: float = CONFIDENCE) -> tuple[float, float, float]:
     """The paired bootstrap of ``statistic(X) - statistic(Y)`` (see the module docstring).
 
     Parameters
     ----------
-    x, y : array_like, (plants,) or (plants, noise_seeds)
-        The two controllers' figures on the same plants (rows) and, where given, the same sensor-noise seeds
-        (columns), same shape.
+    x : array_like, (plants,), (plants, noise_seeds) or (training_seeds, plants, noise_seeds)
+        The learned controller's figures; with a leading axis, one row per training seed, each on the same
+        plants and noise seeds.  Each replicate resamples the training seeds too (with replacement, independently
+        of the plants): a learned controller is its training run's draw as much as the plant is the box's.
+    y : array_like, (plants,) or (plants, noise_seeds)
+        The classical controller's figures on the same plants (rows) and sensor-noise seeds (columns).
     statistic : callable
         :func:`iqm` (vectorised over the replicates) or any function of an array (called per replicate).
 
@@ -188,17 +199,21 @@ def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0
     (difference, low, high) : floats
         ``statistic(x) - statistic(y)`` and its interval; negative: X is the lower.
     """
-    a, b = _scores("x", x, (1, 2)), _scores("y", y, (1, 2))
-    if a.shape != b.shape:
-        raise ValueError(f"x and y must be paired: the same plants and noise seeds, got shapes {a.shape} and {b.shape}")
-    a, b = (a[:, None] if a.ndim == 1 else a), (b[:, None] if b.ndim == 1 else b)
+    a, b = _runs("x", x), _scores("y", y, (1, 2))
+    b = b[:, None] if b.ndim == 1 else b
+    if a.shape[1:] != b.shape:
+        raise ValueError(f"x and y must be paired: the same plants and noise seeds, got shapes {np.shape(x)} and "
+                         f"{np.shape(y)}")
     reps = integer("reps", reps, 1)
     confidence = _confidence(confidence)
-    n, k = a.shape
+    trained, n, k = a.shape
     rng = np.random.default_rng(integer("seed", seed, 0))
     plants = rng.integers(0, n, size=(reps, n))[:, :, None]
     noise = rng.integers(0, k, size=(reps, n, k)) if k > 1 else np.zeros((reps, n, 1), dtype=np.int64)
-    ra, rb = a[plants, noise].reshape(reps, -1), b[plants, noise].reshape(reps, -1)
+    # drawn after the plants and noise, so that one training seed gives the intervals it gave before the axis existed
+    runs = rng.integers(0, trained, size=(reps, trained)) if trained > 1 else np.zeros((reps, 1), dtype=np.int64)
+    ra = a[runs[:, :, None, None], plants[:, None], noise[:, None]].reshape(reps, -1)
+    rb = b[plants, noise].reshape(reps, -1)
     if statistic is iqm:
         sa, sb = iqm(ra, axis=1), iqm(rb, axis=1)
     else:
@@ -286,16 +301,18 @@ def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, 
             confidence: float = CONFIDENCE) -> Verdict:
     """The verdict of X (a learned controller) against Y (the strongest causal controller) on one figure.
 
-    ``x``, ``y``: (plants,) or (plants, noise_seeds) errors (um) on the same plants and noise seeds.
+    ``x``: (plants,) or (plants, noise_seeds) errors (um), or (training_seeds, plants, noise_seeds) for an agent
+    trained from several seeds; ``y``: (plants,) or (plants, noise_seeds), on the same plants and noise seeds.
     """
-    a, b = _scores("x", x, (1, 2)), _scores("y", y, (1, 2))
+    a, b = _runs("x", x), _scores("y", y, (1, 2))
+    b = b[:, None] if b.ndim == 1 else b
     d, low, high = paired_difference_ci(a, b, reps=reps, seed=seed, confidence=confidence)
-    # each one's own interval by the same two-level resampling (plants, then noise seeds within a plant): the
+    # each one's own interval by the same resampling (training seeds, plants, then noise seeds within a plant): the
     # runs of one plant are not independent draws
-    _, xl, xh = paired_difference_ci(a, np.zeros_like(a), reps=reps, seed=seed, confidence=confidence)
+    _, xl, xh = paired_difference_ci(a, np.zeros_like(b), reps=reps, seed=seed, confidence=confidence)
     _, yl, yh = paired_difference_ci(b, np.zeros_like(b), reps=reps, seed=seed, confidence=confidence)
     fa, fb = a.reshape(-1), b.reshape(-1)
-    paired = float(np.mean((fa < fb) + 0.5 * (fa == fb)))
+    paired = float(np.mean((a < b) + 0.5 * (a == b)))  # every training seed against Y on its plant and noise
     return Verdict(figure, x_label, y_label, iqm(a), iqm(b), (xl, xh), (yl, yh), d, low, high,
                    probability_of_improvement(fa, fb), paired, int(fa.size), int(reps), int(seed),
                    decide(low, high))
@@ -328,27 +345,36 @@ def strongest(records: list[dict], figure: str, candidates) -> dict | None:
 
 
 def robust_verdicts(records: list[dict], learned, causal, *, reps: int = REPS, seed: int = 0) -> list[dict]:
-    """Per env, every learned record (label in ``learned``) against the strongest causal controller (the best IQM
-    among the labels in ``causal``, chosen per figure, so each figure meets its own strongest opponent), by
-    :func:`verdict` on the sampled plants (and noise seeds).  Each learned record gets ``verdicts`` =
-    ``{"max": ..., "rms": ...}`` (:meth:`Verdict.to_dict`); returns the rows (``env`` added), one per learned
-    record and figure.
+    """Per env, every learned controller (records with a label in ``learned``) against the strongest causal
+    controller (the best IQM among the labels in ``causal``, chosen per figure, so each figure meets its own
+    strongest opponent), by :func:`verdict` on the sampled plants (and noise seeds).  Records that share a
+    ``"group"`` (the agents of one training run's seeds: ``vcnc-bench --policy ppo:FOLDER`` of a
+    ``vcnc-train --seeds`` folder) are one controller, its training seeds resampled with the plants.  Each learned
+    record gets ``verdicts`` = ``{"max": ..., "rms": ...}`` (:meth:`Verdict.to_dict`, its group's); returns the rows
+    (``env`` added), one per learned controller and figure.
 
     Choosing the opponent after seeing its figures on the same plants favours the opponent a little (the
     least of several IQMs is biased low): the rule errs toward "ties" and "loses", never toward "wins"."""
     rows = []
     for env_id in dict.fromkeys(r["env"] for r in records):
         group = [r for r in records if r["env"] == env_id]
+        controllers: dict[str, list[dict]] = {}
         for rec in (r for r in group if r["policy"] in learned):
-            rec["verdicts"] = {}
+            controllers.setdefault(rec.get("group") or rec["policy"], []).append(rec)
+        for label, members in controllers.items():
+            for rec in members:
+                rec["verdicts"] = {}
             for figure in ("max", "rms"):
                 opponent = strongest(group, figure, causal)
                 if opponent is None:
                     continue
-                v = verdict(sampled_figures(rec, figure), sampled_figures(opponent, figure), figure=figure,
-                            x_label=rec["policy"], y_label=opponent["policy"], reps=reps, seed=seed)
-                rec["verdicts"][figure] = v.to_dict()
-                rows.append({"env": env_id, **v.to_dict()})
+                x = np.stack([_runs("x", sampled_figures(r, figure))[0] for r in members])
+                v = verdict(x, sampled_figures(opponent, figure), figure=figure, x_label=label,
+                            y_label=opponent["policy"], reps=reps, seed=seed).to_dict()
+                v["training_seeds"] = len(members)
+                for rec in members:
+                    rec["verdicts"][figure] = v
+                rows.append({"env": env_id, **v})
     return rows
 
 
@@ -358,11 +384,14 @@ def format_verdicts(rows: list[dict]) -> str:
     def f(v):
         return "inf" if v is None else f"{v:.4g}"
 
-    head = (f"{'env':<28} {'fig':<3} {'learned':<8} {'IQM [95% CI] um':<28} {'strongest causal':<16} "
+    w = max([8] + [len(r["x"]) + (len(f" ({r['training_seeds']} seeds)") if r.get("training_seeds", 1) > 1 else 0)
+                   for r in rows])
+    head = (f"{'env':<28} {'fig':<3} {'learned':<{w}} {'IQM [95% CI] um':<28} {'strongest causal':<16} "
             f"{'IQM [95% CI] um':<28} {'X - Y [95% CI] um':<32} {'P(X<Y)':>6} verdict")
     lines = [head, "-" * len(head)]
     for r in rows:
-        lines.append(f"{r['env']:<28} {r['figure']:<3} {r['x']:<8} "
+        x = r["x"] + (f" ({r['training_seeds']} seeds)" if r.get("training_seeds", 1) > 1 else "")
+        lines.append(f"{r['env']:<28} {r['figure']:<3} {x:<{w}} "
                      f"{f(r['iqm_x']) + ' [' + f(r['ci_x'][0]) + ', ' + f(r['ci_x'][1]) + ']':<28} {r['y']:<16} "
                      f"{f(r['iqm_y']) + ' [' + f(r['ci_y'][0]) + ', ' + f(r['ci_y'][1]) + ']':<28} "
                      f"{f(r['difference']) + ' [' + f(r['low']) + ', ' + f(r['high']) + ']':<32} "

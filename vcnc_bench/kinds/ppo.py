@@ -4,10 +4,16 @@ Found by the bench through the entry point ``ppo`` of the group
 ``vcnc_bench.policy_kinds`` (``pyproject.toml``), like any other package's kind; it lives with the bench, above
 the agents it runs.  ``ppo:PATH`` is an agent
 folder (a run's ``best``) or its ``model.zip``; the bare ``ppo`` is the
-agent shipped for the env in ``agents/trained/``.
+agent shipped for the env in ``agents/trained/``.  ``ppo:FOLDER`` of a
+``vcnc-train --seeds K`` run (its ``seeds.json``) stands for the K seeds'
+agents (each run's ``best``), run one by one and judged as one controller
+(:func:`vcnc_bench.verdicts.robust_verdicts`).
 """
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import vcnc_agents  # an install without the agents extra (torch, SB3) skips this kind
 
@@ -34,6 +40,21 @@ def _make(path: str, env):
     return vcnc_agents.load_agent(path, env)
 
 
+def _expand(path: str) -> list[str]:
+    """The ``best`` agent of every seed of a ``vcnc-train --seeds`` folder (``seeds.json``), in seed order; a
+    seed whose run failed or kept no best agent is named in the ValueError; any other path: itself."""
+    summary = Path(path) / "seeds.json"
+    if not summary.is_file():
+        return [path]
+    runs = json.loads(summary.read_text())["runs"]
+    folders = [Path(path) / Path(r["folder"]).name for r in runs]
+    missing = [f"seed {r['seed']} ({f})" for r, f in zip(runs, folders) if r["code"] != 0 or not (f / "best").is_dir()]
+    if missing:
+        raise ValueError(f"{summary}: no best agent for {', '.join(missing)}; train it again or name the other "
+                         "seeds' folders one by one")
+    return [str(f / "best") for f in folders]
+
+
 def _defaults(env) -> list[str]:
     """The shipped agent, when there is one and it was trained on this env configuration (not, e.g., at
     another ``--feedrate``: ``ppo`` named explicitly then says why it does not fit)."""
@@ -47,5 +68,7 @@ KIND = PolicyKind(
     name="ppo",
     make=_make,
     defaults=_defaults,
-    description="a trained PPO agent: ppo:FOLDER, or ppo for the agent shipped for the env",
+    description="a trained PPO agent: ppo:FOLDER, or ppo for the agent shipped for the env; ppo:FOLDER of a "
+                "vcnc-train --seeds run: every seed's agent, judged as one",
+    expand=_expand,
 )
