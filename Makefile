@@ -39,9 +39,9 @@ docs: install
 # CI runs `make test`: lint, the docs build and every test but those marked slow (> 10 s each on 2 cores;
 # tests/conftest.py), which keeps the whole CI run well under 15 minutes.  `make test-all` runs them too.
 # The tests run on 2 processes (pytest-xdist), each test file on one of them (--dist loadfile: a module's shared
-# fixtures are built once).
+# fixtures are built once); the 15 slowest tests are listed at the end, to keep the CI run in its budget.
 test: lint docs
-	$(BIN)/python -m pytest -q -m "not slow" -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -m "not slow" -n 2 --dist loadfile --durations=15
 
 test-all: lint docs
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile

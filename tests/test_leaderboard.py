@@ -87,7 +87,8 @@ def test_a_plants_record_gives_its_iqm_interval_and_verdict():
     assert row["plants"] == 20
     assert row["iqm_max"][0] == pytest.approx(stats.trim_mean(x, 0.25))
     assert row["iqm_max"][1] < row["iqm_max"][0] < row["iqm_max"][2]
-    assert row["verdicts"]["max"] == {"outcome": "ties", "opponent": "ff-pid", "difference": [0.1, -0.1, 0.2]}
+    assert row["verdicts"]["max"] == {"outcome": "ties", "opponent": "ff-pid", "difference": [0.1, -0.1, 0.2],
+                                      "controller": None, "training_seeds": 1}
 
 
 def test_the_command_line_refuses_what_is_not_a_bench_json(tmp_path, capsys):
@@ -96,3 +97,14 @@ def test_the_command_line_refuses_what_is_not_a_bench_json(tmp_path, capsys):
     with pytest.raises(SystemExit):
         leaderboard.main([str(bad), "--out", str(tmp_path / "lb.md")])
     assert "not a vcnc-bench JSON" in capsys.readouterr().err
+
+
+def test_a_seed_of_a_run_says_its_verdict_is_its_runs():
+    """The agents of one vcnc-train --seeds run are judged as one controller (tests/test_verdicts.py): each seed's
+    row gives its own IQM and says whose verdict it carries."""
+    from vcnc_bench.leaderboard import _verdict
+
+    v = {"outcome": "loses", "opponent": "ff-pid@machine", "difference": [1.0, 0.5, 2.0], "controller": "ppo:run",
+         "training_seeds": 5}
+    cell = _verdict({"role": "learned or yours", "verdicts": {"max": v}})
+    assert cell == "max: loses (ff-pid@machine) (with its run's other seeds: 5 seeds judged as one, `ppo:run`)"

@@ -208,8 +208,8 @@ print(vcnc_baselines.make("pi", env).predict(obs)[0])
 def test_the_installed_commands_run(installed):
     _, python, env, work, site = installed
     read_only, bin_dir = _read_only(site), python.parent
-    _run([*read_only, bin_dir / "vcnc-bench", "--env", ENV, "--policy", "pi", "--json", "bench.json", "--no-progress"],
-         cwd=work, env=env)
+    _run([*read_only, bin_dir / "vcnc-bench", "--env", ENV, "--policy", "pi", "--json", "bench.json", "--no-progress",
+          "--jobs", "1"], cwd=work, env=env)
     records = json.loads((work / "bench.json").read_text())["records"]
     assert (ENV, "pi") in [(r.get("env"), r.get("policy")) for r in records]
     _run([*read_only, bin_dir / "vcnc-train", "--env", ENV, "--timesteps", "1", "--n-envs", "2", "--no-progress",

@@ -68,7 +68,8 @@ def _interval(rec: dict, figure: str):
 
 
 def _robust_row(r: dict) -> dict:
-    verdicts = {k: {"outcome": v["outcome"], "opponent": v["y"], "difference": [v["difference"], v["low"], v["high"]]}
+    verdicts = {k: {"outcome": v["outcome"], "opponent": v["y"], "difference": [v["difference"], v["low"], v["high"]],
+                    "controller": v.get("x"), "training_seeds": v.get("training_seeds", 1)}
                 for k, v in (r.get("verdicts") or {}).items()}
     ok = r["nominal_completed"] and not r["nominal_diverged"]
     return {"env": r["env"], "policy": r["policy"], "kind": r.get("kind"),
@@ -173,7 +174,10 @@ def _verdict(r: dict) -> str:
         return ""
     if not r["verdicts"]:
         return "nominal only"
-    return "; ".join(f"{k}: {v['outcome']} ({v['opponent']})" for k, v in r["verdicts"].items())
+    seeds = max(v.get("training_seeds", 1) for v in r["verdicts"].values())
+    judged = (f" (with its run's other seeds: {seeds} seeds judged as one, "
+              f"`{next(iter(r['verdicts'].values()))['controller']}`)" if seeds > 1 else "")
+    return "; ".join(f"{k}: {v['outcome']} ({v['opponent']})" for k, v in r["verdicts"].items()) + judged
 
 
 def format_page(board: dict[str, list[dict]], figure: str | None) -> str:
