@@ -14,17 +14,11 @@ from __future__ import annotations
 import argparse
 import json
 
-import numpy as np
-
-from vcnc_bench.verdicts import sampled_figures, stratified_bootstrap_ci, verdict
+from vcnc_bench.verdicts import sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
 
 
 def _f(v) -> str:
     return "inf" if v is None else f"{v:.4g}"
-
-
-def _as_runs(x: np.ndarray) -> np.ndarray:
-    return x[:, None] if x.ndim == 1 else x  # (plants, noise seeds)
 
 
 def tables(data: dict, base: str) -> list[str]:
@@ -54,9 +48,8 @@ def tables(data: dict, base: str) -> list[str]:
     if members and against is not None:
         cells = []
         for figure in ("max", "rms"):
-            x = np.stack([_as_runs(sampled_figures(r, figure)) for r in members])
-            v = verdict(x, sampled_figures(against, figure), figure=figure, x_label=members[0]["group"],
-                        y_label=base)
+            v = verdict(seed_figures(members, figure), sampled_figures(against, figure), figure=figure,
+                        x_label=members[0]["group"], y_label=base)
             cells.append(f"{figure} {v.outcome}, X - Y {_f(v.difference)} [{_f(v.low)}, {_f(v.high)}] um")
         out += ["", f"Against their base `{base}`, the {len(members)} seeds of `{members[0]['group']}` as one: "
                 + "; ".join(cells) + "."]

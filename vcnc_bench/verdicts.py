@@ -47,7 +47,8 @@ import numpy as np
 from vcnc_gym.validation import integer
 
 __all__ = ["REPS", "CONFIDENCE", "iqm", "stratified_bootstrap_ci", "probability_of_improvement",
-           "paired_difference_ci", "Verdict", "verdict", "decide", "sampled_figures", "strongest", "robust_verdicts",
+           "paired_difference_ci", "Verdict", "verdict", "decide", "sampled_figures", "seed_figures", "strongest",
+           "robust_verdicts",
            "format_verdicts"]
 
 #: Bootstrap replicates by default: Agarwal et al.'s figures use 2 000 for the intervals of their tables (50 000 in
@@ -334,6 +335,12 @@ def sampled_figures(rec: dict, figure: str) -> np.ndarray:
     return np.where(np.array(per["diverged"], dtype=bool), np.inf, x)[sampled]
 
 
+def seed_figures(records: list[dict], figure: str) -> np.ndarray:
+    """The figure of the records of one controller's training seeds (each on the same plants and noise seeds),
+    (seeds, plants, noise seeds): the ``x`` of :func:`verdict` for a controller trained from several seeds."""
+    return np.stack([_runs("x", sampled_figures(r, figure))[0] for r in records])
+
+
 def strongest(records: list[dict], figure: str, candidates) -> dict | None:
     """The record among ``candidates`` (labels) with the least IQM of ``figure`` over the sampled plants (ties:
     the least IQM of the other figure); None if there is none."""
@@ -368,7 +375,7 @@ def robust_verdicts(records: list[dict], learned, causal, *, reps: int = REPS, s
                 opponent = strongest(group, figure, causal)
                 if opponent is None:
                     continue
-                x = np.stack([_runs("x", sampled_figures(r, figure))[0] for r in members])
+                x = seed_figures(members, figure)
                 v = verdict(x, sampled_figures(opponent, figure), figure=figure, x_label=label,
                             y_label=opponent["policy"], reps=reps, seed=seed).to_dict()
                 v["training_seeds"] = len(members)
