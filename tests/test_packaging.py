@@ -115,8 +115,8 @@ def _read_only(site: Path) -> list[str]:
     if os.geteuid() != 0:
         return []
     prefix = ["unshare", "--mount", "--", "sh", "-c", _READ_ONLY, "sh", str(site)]
-    probe = subprocess.run([*prefix, "sh", "-c", f"! touch {site}/probe 2>/dev/null"], capture_output=True)
-    if shutil.which("unshare") is None or probe.returncode != 0:
+    if (shutil.which("unshare") is None
+            or subprocess.run([*prefix, "sh", "-c", f"! touch {site}/probe 2>/dev/null"], capture_output=True).returncode):
         pytest.skip("root here, and no mount namespace to make site-packages read-only in")
     return prefix
 
