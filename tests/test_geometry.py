@@ -541,3 +541,33 @@ def test_check_regular_is_cached():
     first = _message(curve)
     assert curve._regularity == first
     assert _message(curve) == first
+
+
+def test_the_python_arc_length_is_written_once():
+    """One Gauss-Legendre arc length on the Python side (vcnc_gym.geometry.quadrature) and its compiled twin
+    (vcnc_gym.geometry.arclength): no other module builds a Gauss-Legendre rule (issue 34)."""
+    from pathlib import Path
+
+    import vcnc_gym
+
+    root = Path(vcnc_gym.__file__).parent
+    builders = sorted(str(p.relative_to(root)) for p in root.rglob("*.py") if "leggauss(" in p.read_text())
+    assert builders == ["geometry/arclength.py", "geometry/quadrature.py"]
+
+
+def test_bezier_arc_length_through_a_cusp():
+    """A cubic Bezier whose speed is zero at h = 1/2 (control points (0,0), (1,1), (0,1), (1,0): a cusp); the
+    shared quadrature against scipy's QUADPACK on the same |dp/dh|, written here from Bernstein's formula."""
+    from vcnc_gym.geometry.corners import bezier_arc_length
+    from vcnc_gym.geometry.quadrature import arc_length
+
+    p = np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 1.0], [1.0, 0.0]])
+
+    def speed(h):
+        d = 3 * ((1 - h) ** 2 * (p[1] - p[0]) + 2 * h * (1 - h) * (p[2] - p[1]) + h**2 * (p[3] - p[2]))
+        return float(np.hypot(*d))
+
+    ref = quad(speed, 0, 0.5, epsabs=0, epsrel=1e-13)[0] + quad(speed, 0.5, 1, epsabs=0, epsrel=1e-13)[0]
+    assert speed(0.5) == 0.0
+    assert bezier_arc_length(p) == pytest.approx(ref, rel=1e-11)
+    assert arc_length(np.vectorize(speed, otypes=[float]), np.array([0.0, 0.5, 1.0]), nodes=7) == pytest.approx(ref, rel=1e-11)

@@ -16,6 +16,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from .quadrature import arc_length
+
 __all__ = [
     "NurbsCurve",
     "NurbsArrays",
@@ -393,23 +395,11 @@ class NurbsCurve:
     def arc_length(self, u_start: float | None = None, u_end: float | None = None) -> float:
         """Arc length in mm between two parameters (adaptive Gauss-Legendre per knot span).
 
-        Every non-empty knot span is cut in 8 pieces; a piece's 16-node
-        Gauss-Legendre value is compared with the sum over its two halves and
-        the piece is bisected again until they agree to 1e-12 relative (or to
-        the length of 4 floating-point steps of u, which is all a knot span
-        very narrow for its |u| resolves).  A fixed rule is not enough for
-        curves whose parametric speed |C'(u)| is sharply peaked (large weight
-        ratios, short spans): it was off by up to ~1e-4 relative on random
-        rational curves.
-
-        The compiled :func:`vcnc_gym.geometry.arclength.arc_between` computes
-        the same integral (they agree to ~1e-15 on the heart, the omega and
-        random curves of degree 1-5) and is the home of the kernels' arc
-        lengths; this one stays because :mod:`~vcnc_gym.geometry.arclength`
-        is built on this module's evaluator (calling it from here would be an
-        import circle) and because its stopping rule differs: relative, with
-        a floor at the resolution of u, where ``arc_between`` takes an
-        absolute tolerance and bisects down to the resolution of u.
+        :func:`vcnc_gym.geometry.quadrature.arc_length` on |C'(u)|, cut at the knots between: every knot
+        span starts as 8 pieces of 16 nodes, bisected until a piece and its halves agree to 1e-12 relative (or
+        to the resolution of u).  The compiled :func:`vcnc_gym.geometry.arclength.arc_between` computes the
+        same integral (they agree to ~1e-15 on the heart, the omega and random curves of degree 1-5) and is the
+        home of the kernels' arc lengths; its stopping rule is an absolute tolerance.
         """
         lo, hi = self.u_range
         a = lo if u_start is None else float(u_start)
@@ -418,36 +408,7 @@ class NurbsCurve:
         if b < a:
             raise ValueError("u_end must not be smaller than u_start")
         breaks = np.unique(np.concatenate([[a, b], self.knots[(self.knots > a) & (self.knots < b)]]))
-        pieces = np.concatenate([np.linspace(s, e, 9)[:-1] for s, e in zip(breaks[:-1], breaks[1:])] + [[b]])
-        x, wq = np.polynomial.legendre.leggauss(16)
-
-        def gauss(lo_e, hi_e):
-            """16-node values of the pieces, and their resolution: the length of 4 floating-point steps of u."""
-            half = 0.5 * (hi_e - lo_e)
-            us = half[:, None] * x + 0.5 * (hi_e + lo_e)[:, None]
-            us = np.minimum(us, np.nextafter(hi_e, lo_e)[:, None])  # a knot evaluates on its right span
-            speed = np.linalg.norm(self.derivatives_array(us.reshape(-1), 1)[:, 1, :], axis=1).reshape(-1, x.size)
-            resolution = 4.0 * np.max(speed, axis=1) * np.spacing(np.maximum(np.abs(lo_e), np.abs(hi_e)))
-            return half * (speed @ wq), resolution
-
-        lo_e, hi_e = pieces[:-1], pieces[1:]
-        whole, _ = gauss(lo_e, hi_e)
-        total = 0.0
-        for _ in range(40):
-            if lo_e.size == 0:
-                break
-            mid = 0.5 * (lo_e + hi_e)
-            left, res_left = gauss(lo_e, mid)
-            right, res_right = gauss(mid, hi_e)
-            halves = left + right
-            # the rounding of the nodes to floats limits what a narrow piece can resolve
-            done = np.abs(halves - whole) <= 1e-12 * np.abs(halves) + 1e-15 + res_left + res_right
-            total += float(np.sum(halves[done]))
-            keep = ~done
-            lo_e = np.concatenate([lo_e[keep], mid[keep]])
-            hi_e = np.concatenate([mid[keep], hi_e[keep]])
-            whole = np.concatenate([left[keep], right[keep]])
-        return total + float(np.sum(whole))
+        return arc_length(lambda us: np.linalg.norm(self.derivatives_array(us, 1)[:, 1, :], axis=1), breaks)
 
     def knot_turns(self) -> tuple[np.ndarray, np.ndarray]:
         """The distinct knots strictly inside the curve's range, and the angle (rad, in [0, pi]) by which the
