@@ -33,7 +33,8 @@ import yaml
 from .action_modes import ActionMode
 from .normalization import NormalizationStats
 from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, evaluation_row
-from .signature import ANY_CONTOUR_IDS, MACHINE_FIELDS, check_env_signature, check_signature, env_signature
+from .signature import (ANY_CONTOUR_IDS, MACHINE_FIELDS, as_seen_through, check_env_signature, check_signature,
+                        env_signature, observation_pick)
 
 __all__ = ["AgentPolicy", "load_agent", "evaluate_model", "agent_files", "agent_mismatch", "env_signature", "check_env_signature",
            "check_signature", "ANY_CONTOUR_IDS", "MACHINE_FIELDS", "MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE"]
@@ -78,18 +79,24 @@ class AgentPolicy:
     env : gymnasium.Env
         The plain env (``action_repeat=1``) the policy will run on; builds
         the residual's baseline and checks the observation space.
+    pick : array of int, optional
+        The entries of the env's observation the model sees, in its order
+        (:func:`vcnc_agents.signature.observation_pick`: an agent trained
+        with a smaller preview); None: all of them.  The baseline sees all.
     """
 
-    def __init__(self, model, normalization, action_mode: ActionMode, env):
+    def __init__(self, model, normalization, action_mode: ActionMode, env, pick=None):
         u = env.unwrapped
         if u.action_repeat != 1:
             raise ValueError(f"an agent is evaluated on the plain env (action_repeat=1), got {u.action_repeat}")
         if model.action_space.shape != u.action_space.shape:
             raise ValueError(f"the agent acts with shape {model.action_space.shape}, "
                              f"the env takes {u.action_space.shape}")
-        if model.observation_space.shape != u.observation_space.shape:
+        seen = u.observation_space.shape if pick is None else (len(pick),)
+        if model.observation_space.shape != seen:
             raise ValueError(f"the agent observes shape {model.observation_space.shape}, "
-                             f"the env gives {u.observation_space.shape}: it was trained with another layout")
+                             f"the env gives {seen}: it was trained with another layout")
+        self.pick = pick
         self.model = model
         self.normalization = normalization
         self.action_mode = action_mode
@@ -122,7 +129,7 @@ class AgentPolicy:
             self._count[start] = 0
         decide = self._count % self.action_mode.action_repeat == 0
         if decide.any():
-            x = obs2[decide]
+            x = obs2[decide] if self.pick is None else obs2[decide][:, self.pick]
             if self.normalization is not None:
                 x = self.normalization.normalize_obs(x)
             if deterministic and self._actor is not None:
@@ -191,6 +198,8 @@ def agent_mismatch(path, env) -> str | None:
     data = _read_config(agent_files(path)[2])
     recorded = (data.get("env") or {}).get("signature") or {"id": data.get("env_id")}
     try:
+        if observation_pick(recorded, env) is not None:
+            recorded = as_seen_through(recorded, env)
         check_signature(recorded, env_signature(env), what=f"the agent in {str(path)!r}")
     except ValueError as exc:
         return str(exc)
@@ -212,7 +221,10 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
 
     Runs no code from the folder (see the module docstring).  The env must
     be the configuration the agent was trained for: its config.yml's ``env``
-    block (:func:`env_signature`) is compared with ``env``.
+    block (:func:`env_signature`) is compared with ``env``.  An agent trained
+    with a smaller preview (fewer ``preview_steps`` or ``contour_ahead``
+    points, or none) runs on an env that gives more: it sees its own points
+    (:func:`vcnc_agents.signature.observation_pick`).
 
     Parameters
     ----------
@@ -242,6 +254,9 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     model_file, norm_file, config_file = agent_files(path)
     data = _read_config(config_file)
     recorded = (data.get("env") or {}).get("signature")
+    pick = observation_pick(recorded, env) if isinstance(recorded, dict) else None
+    if pick is not None:  # trained with a smaller preview: it sees its own fields of this env's observation
+        recorded = as_seen_through(recorded, env)
     if isinstance(recorded, dict):
         check_env_signature(recorded, env, what=f"the agent in {str(path)!r}", allow_mismatch=allow_mismatch)
     else:
@@ -250,7 +265,10 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
         warnings.warn(f"{config_file} records no env configuration (an agent from an older vcnc-train): only its "
                       "env id and observation size are checked", stacklevel=2)
     stats = NormalizationStats.load(norm_file)
-    obs_shape = tuple(env.unwrapped.observation_space.shape)
+    space = env.unwrapped.observation_space
+    if pick is not None:
+        space = type(space)(space.low[pick], space.high[pick], dtype=space.dtype)
+    obs_shape = tuple(space.shape)
     if (stats.observation_size,) != obs_shape:
         raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
                          f"shape {obs_shape}: it belongs to another agent or env configuration")
@@ -259,6 +277,6 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     except TypeError as exc:
         raise ValueError(f"{config_file}: action_mode is not an action mode ({exc})") from None
     _, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
-    model = load_ppo(model_file, observation_space=env.unwrapped.observation_space,
-                     action_space=env.unwrapped.action_space, ppo_kwargs=ppo_kwargs, device=device)
-    return AgentPolicy(model, stats, mode, env)
+    model = load_ppo(model_file, observation_space=space, action_space=env.unwrapped.action_space,
+                     ppo_kwargs=ppo_kwargs, device=device)
+    return AgentPolicy(model, stats, mode, env, pick=pick)

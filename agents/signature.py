@@ -8,6 +8,7 @@ of ``agents``: it reads the env only.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import warnings
@@ -15,13 +16,14 @@ import warnings
 import numpy as np
 import yaml
 
-__all__ = ["env_signature", "check_signature", "check_env_signature", "ANY_CONTOUR_IDS", "MACHINE_FIELDS"]
+__all__ = ["env_signature", "check_signature", "check_env_signature", "observation_pick", "as_seen_through",
+           "ANY_CONTOUR_IDS", "MACHINE_FIELDS", "LAYOUT_FIELDS"]
 
 
 #: Fields of :func:`env_signature` with their unit, in the order they are reported.
 _SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "dt": " s",
                     "feedrate": " mm/s", "ramp_time": " s", "preview_steps": " control periods",
-                    "observation_shape": "", "action_shape": ""}
+                    "contour_ahead": " mm", "observation_shape": "", "action_shape": ""}
 
 
 def _attr(obj, dotted: str):
@@ -47,7 +49,7 @@ def env_signature(env) -> dict:
     A YAML-safe dict: env id (None for an env not made by ``gym.make``), contour
     name and a digest of its NURBS, plant name and options, control period
     ``dt`` (s), feedrate (mm/s) and ramp time (s) of the reference, preview
-    steps, observation and action shapes.  Reward scale and episode bounds
+    steps, contour preview arc lengths (mm), observation and action shapes.  Reward scale and episode bounds
     are not part of it: they change the score, not what the agent sees.
     """
     u = env.unwrapped
@@ -56,6 +58,7 @@ def env_signature(env) -> dict:
     floats = {k: _attr(u, a) for k, a in (("dt", "dt"), ("feedrate", "feedrate_profile.feedrate"),
                                           ("ramp_time", "feedrate_profile.ramp_time"))}
     preview = _attr(u, "layout.preview_steps")
+    ahead = _attr(u, "layout.contour_ahead")
     return {
         "id": spec.id if spec is not None else None,
         "contour": _attr(u, "contour_name"),
@@ -64,6 +67,7 @@ def env_signature(env) -> dict:
         "plant_options": yaml.safe_load(yaml.safe_dump(dict(options))),
         **{k: None if v is None else float(v) for k, v in floats.items()},
         "preview_steps": None if preview is None else [int(s) for s in preview],
+        "contour_ahead": None if ahead is None else [float(a) for a in ahead],
         "observation_shape": [int(n) for n in u.observation_space.shape],
         "action_shape": [int(n) for n in u.action_space.shape],
     }
@@ -80,7 +84,8 @@ def _same(a, b) -> bool:
 ANY_CONTOUR_IDS = ("VCNC-RandomContour-v1",)
 
 #: The signature fields that describe the machine and the observation, not the part.
-MACHINE_FIELDS = ("plant", "plant_options", "dt", "preview_steps", "observation_shape", "action_shape")
+MACHINE_FIELDS = ("plant", "plant_options", "dt", "preview_steps", "contour_ahead", "observation_shape",
+                  "action_shape")
 
 
 def check_signature(recorded: dict, given: dict, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
@@ -117,3 +122,45 @@ def check_signature(recorded: dict, given: dict, *, what: str = "the agent", all
 def check_env_signature(recorded: dict, env, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
     """:func:`check_signature` of ``env``'s :func:`env_signature` against ``recorded``."""
     check_signature(recorded, env_signature(env), what=what, allow_mismatch=allow_mismatch)
+
+
+#: The signature fields that describe the observation's layout: an agent that sees part of the env's observation
+#: (:func:`observation_pick`) is compared on the others only.
+LAYOUT_FIELDS = ("preview_steps", "contour_ahead", "observation_shape")
+
+
+def observation_pick(recorded: dict, env) -> np.ndarray | None:
+    """The entries of ``env``'s observation an agent recorded with a smaller preview sees, in its order.
+
+    An agent trained with fewer ``preview_steps`` or ``contour_ahead`` points than ``env`` gives (an ablation's
+    agent trained without the preview) observes the same fields by name, the preview fields holding only its own
+    points: the answer is the index array that picks them out of ``env``'s observation.  None where the agent's
+    layout is ``env``'s, or the ``recorded`` signature does not say (an older agent: its observation shape is
+    checked as before).  ValueError naming the points the env does not give.
+    """
+    layout = getattr(env.unwrapped, "layout", None)
+    steps, ahead = recorded.get("preview_steps"), recorded.get("contour_ahead")
+    if layout is None or steps is None:
+        return None
+    steps = tuple(int(s) for s in steps)
+    ahead = layout.contour_ahead if ahead is None else tuple(float(a) for a in ahead)
+    if steps == layout.preview_steps and ahead == layout.contour_ahead:
+        return None
+    missing = ([f"preview step {s}" for s in steps if s not in layout.preview_steps]
+               + [f"contour preview at {a:g} mm" for a in ahead if a not in layout.contour_ahead])
+    if missing:
+        raise ValueError(f"the agent observes {', '.join(missing)}, which this env's observation does not give "
+                         f"(preview_steps {list(layout.preview_steps)}, contour_ahead {list(layout.contour_ahead)})")
+    agent = dataclasses.replace(layout, preview_steps=steps, contour_ahead=ahead)
+    columns = {"preview": [2 * layout.preview_steps.index(s) + k for s in steps for k in (0, 1)],
+               "contour_preview": [2 * layout.contour_ahead.index(a) + k for a in ahead for k in (0, 1)],
+               "contour_curvature": [layout.contour_ahead.index(a) for a in ahead]}
+    pick = [layout.slice(f.name).start + c for f in agent.fields for c in columns.get(f.name, range(f.size))]
+    return np.array(pick, dtype=np.int64)
+
+
+def as_seen_through(recorded: dict, env) -> dict:
+    """``recorded`` with its :data:`LAYOUT_FIELDS` replaced by ``env``'s: what :func:`check_signature` compares
+    for an agent that sees part of ``env``'s observation (:func:`observation_pick`)."""
+    given = env_signature(env)
+    return {**recorded, **{k: given[k] for k in LAYOUT_FIELDS if k in recorded}}

@@ -195,6 +195,34 @@ def test_the_agent_loads_as_data_and_runs_in_vcnc_bench(lean_run, tmp_path):
     assert record["max_contour_error_um"] == pytest.approx(best["max_um"], rel=1e-9)
 
 
+def test_an_agent_trained_without_the_preview_runs_on_the_full_observation(small_entry, tmp_path):
+    """The ablation's agent (issue 33): trained with ``preview_steps: []`` and one contour-preview point, it loads
+    on the id's own env, sees its own entries of the full observation, and scores there what its run's evaluation
+    on its own env scored."""
+    entry = yaml.safe_load(small_entry.read_text())[HEART]
+    entry["env_kwargs"] = {**(entry.get("env_kwargs") or {}), "preview_steps": [], "contour_ahead": [0.5]}
+    config = tmp_path / "no_preview.yml"
+    config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
+    run_dir = tmp_path / "run"
+    assert train_main(["--env", HEART, "--trainer", "lean", "--config", str(config), "--timesteps", str(ROLLOUT),
+                       "--eval-freq", "0", "--output", str(run_dir), "--no-progress"]) == 0
+    recorded = yaml.safe_load((run_dir / "best" / "config.yml").read_text())
+    assert recorded["env"]["signature"]["preview_steps"] == []
+    assert recorded["env"]["signature"]["contour_ahead"] == [0.5]
+    env = gym.make(HEART)
+    policy = load_agent(run_dir / "best", env)
+    lay = env.unwrapped.layout
+    start = lay.offset("contour_preview")
+    assert policy.pick.tolist() == (list(range(lay.offset("preview"))) + [start + 2, start + 3]
+                                    + [lay.offset("contour_curvature") + 1, lay.offset("previous_action"),
+                                       lay.offset("previous_action") + 1])
+    out = tmp_path / "bench.json"
+    assert bench.main(["--env", HEART, "--policy", f"ppo:{run_dir / 'best'}", "--no-progress", "--json",
+                       str(out)]) == 0
+    record = json.loads(out.read_text())["records"][0]
+    assert record["max_contour_error_um"] == pytest.approx(recorded["agent"]["evaluation"]["max_um"], rel=1e-9)
+
+
 def test_a_lean_run_resumes_from_its_last_checkpoint(lean_run, tmp_path):
     import shutil
 

@@ -90,3 +90,38 @@ def test_clipping_is_counted_in_info():
         if term or trunc:
             break
     assert clipped > 0
+
+
+@pytest.mark.parametrize("steps, ahead", [((), ()), ((50,), (1.0, 4.0)), ((100, 10), ())])
+def test_a_smaller_preview_is_picked_out_of_the_full_observation(steps, ahead):
+    """An env with a smaller preview (an ablation's agent: ``preview_steps=()`` and ``contour_ahead=()`` remove
+    the fields) observes exactly the entries ``vcnc_agents.signature.observation_pick`` picks out of the full env's
+    observation, step for step under the same commands; the env itself is the independent computation."""
+    from vcnc_agents.signature import env_signature, observation_pick
+
+    full = gym.make("VCNC-OmegaLookahead-v1")
+    small = gym.make("VCNC-OmegaLookahead-v1", preview_steps=steps, contour_ahead=ahead)
+    pick = observation_pick(env_signature(small), full)
+    assert pick is not None and len(pick) == small.observation_space.shape[0]
+    assert small.observation_space.shape[0] == 15 + 2 * len(steps) + 3 * len(ahead)
+    a, _ = full.reset(seed=3)
+    b, _ = small.reset(seed=3)
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        np.testing.assert_array_equal(a[pick], b)
+        u = rng.uniform(-0.2, 0.2, 2).astype(np.float32)
+        a = full.step(u)[0]
+        b = small.step(u)[0]
+    assert observation_pick(env_signature(full), full) is None
+
+
+def test_a_preview_the_env_does_not_give_is_refused_by_name():
+    from vcnc_agents.signature import env_signature, observation_pick
+
+    more = gym.make("VCNC-OmegaLookahead-v1", preview_steps=(10, 20))
+    with pytest.raises(ValueError, match="preview step 20"):
+        observation_pick(env_signature(more), gym.make("VCNC-OmegaLookahead-v1"))
+    with pytest.raises(ValueError, match="contouring-fb.*preview_steps is empty"):
+        from vcnc_bench.policies import resolve_policy
+
+        resolve_policy("contouring-fb", gym.make("VCNC-Corners-v1", preview_steps=()))

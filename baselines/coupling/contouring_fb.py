@@ -178,6 +178,9 @@ class ContouringFBPolicy(BaselinePolicy):
         p = self.nominal_parameters
         self.m, self.c, self.f_c, self.k_f = (p[:, self.plant.index(n)] for n in ("m", "c", "f_c", "k_f"))
         lay = layout
+        if not lay.preview_steps:
+            raise ValueError("contouring-fb reads the path direction from the observation's last preview point; "
+                             "the env's preview_steps is empty")
         last_preview = lay.offset("preview") + 2 * (len(lay.preview_steps) - 1)
         self._offsets = np.array([lay.offset("reference_velocity"), lay.offset("reference_acceleration"),
                                   lay.offset("tracking_error"), lay.offset("velocity"), last_preview],

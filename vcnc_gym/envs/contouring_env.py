@@ -168,7 +168,8 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       episode ends ``settling_time``, s, default 0.01, after the
       reference's end); ``completion_tolerance`` (mm, 0.02) and
       ``completion_timeout`` (s, 0.1).
-    - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods.
+    - ``preview_steps`` ((10, 50, 100)): preview offsets in control periods; ``()``: no preview field (the
+      controllers read their preview from the reference; ``contouring-fb`` refuses it).
     - ``contour_ahead`` ((0.25, 0.5, 1, 2, 4)): arc lengths, mm, of the
       contour preview.
     - ``plant_options`` (None): the plant's own settings, e.g.

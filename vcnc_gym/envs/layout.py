@@ -61,7 +61,9 @@ class ObservationLayout:
     ----------
     preview_steps : tuple of int
         Offsets, in control periods, of the upcoming reference points given
-        relative to the tool (the "preview" field).
+        relative to the tool (the "preview" field); empty: no such field (an
+        agent's ablation: the controllers read their preview from the
+        reference, not from the observation).
     contour_ahead : tuple of float
         Arc lengths in mm beyond the tool's closest point at which the
         contour itself is shown (the "contour_preview" and
@@ -88,10 +90,9 @@ class ObservationLayout:
                             ("error_bound", eb)):
             positive(name, bound)
         steps = self.preview_steps
-        if (not isinstance(steps, tuple) or not steps
+        if (not isinstance(steps, tuple)
                 or not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in steps)):
-            raise ValueError(f"preview_steps must be a non-empty tuple of integers >= 1 (control periods), "
-                             f"got {steps!r}")
+            raise ValueError(f"preview_steps must be a tuple of integers >= 1 (control periods), got {steps!r}")
         object.__setattr__(self, "preview_steps", tuple(int(s) for s in steps))
         ahead = self.contour_ahead
         if (not isinstance(ahead, tuple)
