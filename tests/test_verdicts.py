@@ -196,3 +196,24 @@ def test_the_bench_judges_the_seeds_of_one_run_as_one_controller():
                          y_label="ff-pid", reps=500)
     assert rows[0]["low"] == expected.low and rows[0]["high"] == expected.high
     assert "ppo:run (3 seeds)" in v.format_verdicts(rows)
+
+
+def test_a_y_with_training_seeds_is_resampled_after_everything_else():
+    """An ablation's variant against its agent: both with seeds.  Y's seeds are drawn after the plants, the noise
+    and X's seeds, so a Y of one training seed gives exactly the intervals it gave as a plain (plants, noise)
+    array; a Y that is X shifted by 1 um is judged 1 um worse at its point estimate, with X's and Y's seeds
+    drawn independently (the interval is wider than the plants' alone); X against itself ties at 0."""
+    from vcnc_bench.verdicts import paired_difference_ci, verdict
+
+    rng = np.random.default_rng(5)
+    x = rng.lognormal(0.0, 0.3, size=(4, 30, 3))
+    y = rng.lognormal(0.1, 0.3, size=(30, 3))
+    assert paired_difference_ci(x, y[None], reps=500) == paired_difference_ci(x, y, reps=500)
+    assert verdict(x, y[None], figure="max", x_label="x", y_label="y", reps=500) == \
+        verdict(x, y, figure="max", x_label="x", y_label="y", reps=500)
+    d, low, high = paired_difference_ci(x, x + 1.0, reps=500)
+    assert d == pytest.approx(-1.0) and low < -1.0 < high
+    same = verdict(x, x.copy(), figure="max", x_label="x", y_label="x", reps=500)
+    assert same.difference == 0.0 and same.outcome == "ties"
+    with pytest.raises(ValueError, match="paired"):
+        paired_difference_ci(x, np.stack([y[:29]] * 2))

@@ -190,8 +190,10 @@ def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0
         The learned controller's figures; with a leading axis, one row per training seed, each on the same
         plants and noise seeds.  Each replicate resamples the training seeds too (with replacement, independently
         of the plants): a learned controller is its training run's draw as much as the plant is the box's.
-    y : array_like, (plants,) or (plants, noise_seeds)
-        The classical controller's figures on the same plants (rows) and sensor-noise seeds (columns).
+    y : array_like, (plants,), (plants, noise_seeds) or (training_seeds, plants, noise_seeds)
+        The classical controller's figures on the same plants (rows) and sensor-noise seeds (columns); with a
+        leading axis, another learned controller's seeds (an ablation against its agent), resampled as ``x``'s and
+        independently of them.
     statistic : callable
         :func:`iqm` (vectorised over the replicates) or any function of an array (called per replicate).
 
@@ -200,21 +202,19 @@ def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0
     (difference, low, high) : floats
         ``statistic(x) - statistic(y)`` and its interval; negative: X is the lower.
     """
-    a, b = _runs("x", x), _scores("y", y, (1, 2))
-    b = b[:, None] if b.ndim == 1 else b
-    if a.shape[1:] != b.shape:
+    a, b = _runs("x", x), _runs("y", y)
+    if a.shape[1:] != b.shape[1:]:
         raise ValueError(f"x and y must be paired: the same plants and noise seeds, got shapes {np.shape(x)} and "
                          f"{np.shape(y)}")
     reps = integer("reps", reps, 1)
     confidence = _confidence(confidence)
-    trained, n, k = a.shape
+    _, n, k = a.shape
     rng = np.random.default_rng(integer("seed", seed, 0))
     plants = rng.integers(0, n, size=(reps, n))[:, :, None]
     noise = rng.integers(0, k, size=(reps, n, k)) if k > 1 else np.zeros((reps, n, 1), dtype=np.int64)
     # drawn after the plants and noise, so that one training seed gives the intervals it gave before the axis existed
-    runs = rng.integers(0, trained, size=(reps, trained)) if trained > 1 else np.zeros((reps, 1), dtype=np.int64)
-    ra = a[runs[:, :, None, None], plants[:, None], noise[:, None]].reshape(reps, -1)
-    rb = b[plants, noise].reshape(reps, -1)
+    ra = a[_seed_draws(rng, a, reps)[:, :, None, None], plants[:, None], noise[:, None]].reshape(reps, -1)
+    rb = b[_seed_draws(rng, b, reps)[:, :, None, None], plants[:, None], noise[:, None]].reshape(reps, -1)
     if statistic is iqm:
         sa, sb = iqm(ra, axis=1), iqm(rb, axis=1)
     else:
@@ -223,6 +223,13 @@ def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0
     diff = _difference(np.asarray(sa), np.asarray(sb))
     low, high = _percentiles(diff, confidence)
     return float(_difference(np.float64(statistic(a)), np.float64(statistic(b)))), low, high
+
+
+def _seed_draws(rng, runs: np.ndarray, reps: int) -> np.ndarray:
+    """(reps, S) training seeds drawn with replacement for each replicate of ``runs`` (S, plants, noise); no draw
+    (zeros) for one seed."""
+    trained = runs.shape[0]
+    return rng.integers(0, trained, size=(reps, trained)) if trained > 1 else np.zeros((reps, 1), dtype=np.int64)
 
 
 def _difference(a, b):
@@ -303,17 +310,19 @@ def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, 
     """The verdict of X (a learned controller) against Y (the strongest causal controller) on one figure.
 
     ``x``: (plants,) or (plants, noise_seeds) errors (um), or (training_seeds, plants, noise_seeds) for an agent
-    trained from several seeds; ``y``: (plants,) or (plants, noise_seeds), on the same plants and noise seeds.
+    trained from several seeds; ``y``: the same shapes, on the same plants and noise seeds (with seeds: another
+    agent, e.g. an ablation's variant against the agent it varies).
     """
-    a, b = _runs("x", x), _scores("y", y, (1, 2))
-    b = b[:, None] if b.ndim == 1 else b
+    a, b = _runs("x", x), _runs("y", y)
     d, low, high = paired_difference_ci(a, b, reps=reps, seed=seed, confidence=confidence)
     # each one's own interval by the same resampling (training seeds, plants, then noise seeds within a plant): the
     # runs of one plant are not independent draws
-    _, xl, xh = paired_difference_ci(a, np.zeros_like(b), reps=reps, seed=seed, confidence=confidence)
-    _, yl, yh = paired_difference_ci(b, np.zeros_like(b), reps=reps, seed=seed, confidence=confidence)
+    zero = np.zeros_like(b[0])
+    _, xl, xh = paired_difference_ci(a, zero, reps=reps, seed=seed, confidence=confidence)
+    _, yl, yh = paired_difference_ci(b, zero, reps=reps, seed=seed, confidence=confidence)
     fa, fb = a.reshape(-1), b.reshape(-1)
-    paired = float(np.mean((a < b) + 0.5 * (a == b)))  # every training seed against Y on its plant and noise
+    # every training seed of X against every one of Y, on the same plant and noise
+    paired = float(np.mean((a[:, None] < b[None]) + 0.5 * (a[:, None] == b[None])))
     return Verdict(figure, x_label, y_label, iqm(a), iqm(b), (xl, xh), (yl, yh), d, low, high,
                    probability_of_improvement(fa, fb), paired, int(fa.size), int(reps), int(seed),
                    decide(low, high))
