@@ -1,0 +1,160 @@
+"""Ablations of a specialist (issue 33, item 5): the agent against itself with one thing changed, by the verdict rule.
+
+    python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--seeds 5] [--jobs 2] [--plants 20]
+        [--output runs/ablations] [--agent runs/seeds/ID] [--table JSON]
+
+The agent is the id's entry of ``agents/hyperparams/specialists.yml`` (the recipe of the shipped specialists).
+Each variant changes one thing of that entry:
+
+- ``direct``: no residual; the agent's action is the normalised amplifier command itself, at the same decision
+  period;
+- ``no-preview``: the observation without the reference preview and the contour preview (the env's
+  ``preview_steps=()`` and ``contour_ahead=()``: 15 numbers instead of 36);
+- ``repeat-R``: a decision every R control periods, half and twice the agent's;
+- ``correction-C``: the correction bound (a fraction of the input limit), a quarter and five times the agent's
+  (at most 1).
+
+Every variant trains ``--seeds`` seeds with the agent's budget of agent steps (``vcnc-train --trainer lean
+--seeds K``, one folder per variant under ``OUTPUT/ID``; a variant whose ``seeds.json`` exists is not trained
+again); ``--agent`` names the agent's own seeds folder if it was trained already (``vcnc-train --config
+agents/hyperparams/specialists.yml --seeds K``), else it is trained as a variant.  Then one ``vcnc-bench --plants N``
+run evaluates every seed of every variant, with the id's default causal controllers, into ``OUTPUT/ID.json``, and the
+table is printed as Markdown: per variant the IQM of max and RMS contour error over plants and seeds with its 95 %
+interval, the verdict against the agent (``X`` = the variant; "wins": the variant is better, the change helps), and
+against the strongest causal controller.  ``--table JSON`` prints the table of an earlier run's JSON and trains
+nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+from vcnc_agents.action_modes import ActionMode
+from vcnc_agents.config import action_mode_of, load_hyperparameters, with_action_mode
+from vcnc_bench.verdicts import seed_figures, verdict
+
+SPECIALISTS = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "specialists.yml"
+AGENT = "agent"
+
+
+def variants(entry: dict) -> dict[str, dict]:
+    """The agent's entry and its ablations, by name (see the module docstring)."""
+    mode = action_mode_of(entry)
+    if mode.mode != "residual":
+        raise ValueError("the ablations vary a residual specialist; this entry is direct")
+    out = {AGENT: entry,
+           "direct": with_action_mode(entry, ActionMode("direct", action_repeat=mode.action_repeat))}
+    bare = dict(entry)
+    bare["env_kwargs"] = {**(entry.get("env_kwargs") or {}), "preview_steps": [], "contour_ahead": []}
+    out["no-preview"] = bare
+    for r in (max(1, mode.action_repeat // 2), 2 * mode.action_repeat):
+        out[f"repeat-{r}"] = with_action_mode(entry, ActionMode("residual", r, mode.baseline, mode.correction,
+                                                                mode.baseline_params))
+    for c in (mode.correction / 4, min(1.0, 5 * mode.correction)):
+        out[f"correction-{c:g}"] = with_action_mode(entry, ActionMode("residual", mode.action_repeat, mode.baseline,
+                                                                       c, mode.baseline_params))
+    return out
+
+
+def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs: int, agent: Path | None) -> dict:
+    """Train every variant's seeds (skipping finished ones); their seeds folders by name."""
+    folders = {}
+    for name, entry in configs.items():
+        if name == AGENT and agent is not None:
+            folders[name] = agent
+            continue
+        out = folder / name
+        folders[name] = out
+        if (out / "seeds.json").is_file():
+            print(f"{name}: trained already ({out / 'seeds.json'})", flush=True)
+            continue
+        out.mkdir(parents=True, exist_ok=True)
+        config = folder / f"{name}.yml"
+        config.write_text(yaml.safe_dump({env_id: entry}, sort_keys=False))
+        print(f"{name}: training {seeds} seeds into {out}", flush=True)
+        subprocess.run([sys.executable, "-m", "vcnc_agents.cli", "--trainer", "lean", "--config", str(config),
+                        "--env", env_id, "--seeds", str(seeds), "--jobs", str(jobs), "--eval-freq", "262144",
+                        "--output", str(out), "--no-progress", "--no-tensorboard"], check=True)
+    return folders
+
+
+def evaluate(env_id: str, folders: dict, plants: int, out: Path) -> None:
+    """One vcnc-bench --plants run of every variant's seeds and the id's default causal controllers."""
+    import gymnasium as gym
+
+    from vcnc_bench.policies import default_specs
+
+    env = gym.make(env_id)
+    # not the floor: the oracle solves every sampled plant afresh (minutes each); its nominal figure is in the README
+    specs = [s for s in default_specs(env) if s not in ("ppo", "oracle")] + [f"ppo:{f}" for f in folders.values()]
+    command = [sys.executable, "-m", "vcnc_bench.cli", "--env", env_id, "--plants", str(plants), "--json", str(out)]
+    for s in specs:
+        command += ["--policy", s]
+    subprocess.run(command, check=True)
+
+
+def _f(v) -> str:
+    return "inf" if v is None else f"{v:.4g}"
+
+
+def table(data: dict) -> list[str]:
+    """The Markdown lines: every variant against the agent and against the strongest causal controller (the
+    variants' groups are ``data["ablations"]``, written by :func:`main`)."""
+    records = data["robust"]
+    by_name = {name: [r for r in records if r.get("group") == group] for name, group in data["ablations"].items()}
+    agent_name = AGENT
+    agent = by_name[AGENT]
+    verdicts = {(v["x"], v["figure"]): v for v in data["verdicts"]}
+    env = records[0]["env"]
+    out = [f"**{env}** (`{data['settings']['command']}`)", "",
+           "| variant | seeds | fig | IQM [95 % CI], um | variant - agent [95 % CI], um | against the agent | "
+           "strongest causal: IQM, um | against it |", "|---|---|---|---|---|---|---|---|"]
+    for name, members in by_name.items():
+        for figure in ("max", "rms"):
+            x = seed_figures(members, figure)
+            own = verdict(x, x, figure=figure, x_label=name, y_label=name)
+            if name == agent_name:
+                cells = "—", "—"
+            else:
+                v = verdict(x, seed_figures(agent, figure), figure=figure, x_label=name, y_label=agent_name)
+                cells = f"{_f(v.difference)} [{_f(v.low)}, {_f(v.high)}]", v.outcome
+            row = verdicts.get((members[0]["group"], figure))
+            causal = (f"`{row['y']}` {_f(row['iqm_y'])}", row["outcome"]) if row else ("—", "—")
+            out.append(f"| {name} | {len(members)} | {figure} | {_f(own.iqm_x)} [{_f(own.ci_x[0])}, "
+                       f"{_f(own.ci_x[1])}] | {cells[0]} | {cells[1]} | {causal[0]} | {causal[1]} |")
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--env", default="VCNC-OmegaLookahead-v1", help="a specialist's id (default %(default)s)")
+    p.add_argument("--seeds", type=int, default=5, help="training seeds per variant (default 5)")
+    p.add_argument("--jobs", type=int, default=2, help="seeds trained at a time (default 2)")
+    p.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20)")
+    p.add_argument("--output", type=Path, default=Path("runs/ablations"), help="folder (default runs/ablations)")
+    p.add_argument("--agent", type=Path, help="the agent's own seeds folder, trained already")
+    p.add_argument("--table", type=Path, help="print the table of this JSON and stop")
+    args = p.parse_args(argv)
+    if args.table is not None:
+        print("\n".join(table(json.loads(args.table.read_text()))))
+        return 0
+    configs = variants(load_hyperparameters(args.env, SPECIALISTS))
+    folder = args.output / args.env
+    folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent)
+    out = args.output / f"{args.env}.json"
+    evaluate(args.env, folders, args.plants, out)
+    data = json.loads(out.read_text())
+    data["ablations"] = {name: f"ppo:{folder}" for name, folder in folders.items()}
+    out.write_text(json.dumps(data, indent=1))
+    print("\n".join(table(data)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
