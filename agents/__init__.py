@@ -1,8 +1,11 @@
 """Reinforcement-learning agents on the vcnc-gym envs: Stable-Baselines3 PPO.
 
-- :func:`train` (console script ``vcnc-train``): PPO on a VCNC env with the
-  hyperparameters of ``agents/hyperparams/ppo.yml`` (RL Zoo's format),
-  VecNormalize, checkpoints, resume, TensorBoard; one folder per run.
+- :func:`train`: SB3's PPO on a VCNC env with the hyperparameters of
+  ``agents/hyperparams/ppo.yml`` (RL Zoo's format), VecNormalize,
+  checkpoints, resume, TensorBoard; one folder per run.  The console script
+  ``vcnc-train`` runs the same PPO by default through the lean trainer
+  (:func:`vcnc_agents.lean_ppo.train_lean`, same run folder and agents) and
+  this one with ``--trainer sb3``.
 - :class:`ActionMode`, :class:`ResidualAction`: the agent's action is the
   amplifier command ("direct") or a correction of a baseline's ("residual"),
   with action repeat.

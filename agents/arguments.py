@@ -52,13 +52,18 @@ def parser() -> argparse.ArgumentParser:
                        help=f"{f.metadata['help']} (default {f.metadata['default']}; resume: the run's)")
     p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default="native",
                    help="native: the vector env steps every env in one compiled call (default); dummy: SB3's "
-                        "DummyVecEnv, one env after another; subproc: one process per env")
+                        "DummyVecEnv, one env after another; subproc: one process per env (dummy and subproc: SB3's "
+                        "trainer)")
     p.add_argument("--threads", type=int, metavar="N", help="torch threads (default: torch's; the lean trainer: 1)")
     p.add_argument("--trainer", choices=("sb3", "lean"),
-                   help="sb3: Stable-Baselines3's PPO (default); lean: the same PPO and agent files over the native "
-                        "vector env without SB3's per-step work (vcnc_agents.lean_ppo); --resume: the run's")
+                   help="lean (default): Stable-Baselines3's PPO and agent files without SB3's per-step work, over "
+                        "the native vector env where the id has one (vcnc_agents.lean_ppo; no TensorBoard logs: "
+                        "evaluations.csv and the monitor files); sb3: Stable-Baselines3's own trainer (the default "
+                        "where the run needs it: --vec-env dummy/subproc, a policy other than MlpPolicy, use_sde); "
+                        "--resume: the run's")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs even if it is installed")
+    p.add_argument("--no-tensorboard", action="store_true",
+                   help="no TensorBoard logs even if it is installed (SB3's trainer)")
     p.add_argument("-v", "--verbose", action="count", default=0, help="SB3 verbosity and evaluation lines")
     return p
 

@@ -167,7 +167,7 @@ def _prepare(parser, args, tensorboard):
     """Every check, before anything is written, then the run folder prepared: (run_dir, config, checkpoint,
     trainer)."""
     from .config import DEFAULT_CONFIG
-    from .lean_ppo import check_trainer
+    from .lean_ppo import check_trainer, sb3_only
     from .run_config import check_env_id, check_training_options
     from .run_session import prepare_run
 
@@ -176,8 +176,6 @@ def _prepare(parser, args, tensorboard):
         check_training_options(vec_env=args.vec_env, tensorboard=tensorboard, **options)
         if args.resume is None:
             check_env_id(args.env)
-            if args.trainer == "lean":  # at once, before the envs are built
-                check_trainer("lean", args.env)
             config_file = args.config if args.config is not None else DEFAULT_CONFIG
             run_dir, config, checkpoint = prepare_run(
                 args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
@@ -185,9 +183,8 @@ def _prepare(parser, args, tensorboard):
         else:
             run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps,
                                                       **options)
-        trainer = check_trainer(args.trainer, config.env_id, config.trainer)
-        if trainer == "lean" and args.vec_env != "native":
-            raise ValueError("the lean trainer steps the native vector env: drop --vec-env")
+        trainer = check_trainer(args.trainer, config.env_id, config.trainer,
+                                needs_sb3=sb3_only(config, args.vec_env))
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
         parser.error(str(exc))
     return run_dir, config, checkpoint, trainer

@@ -56,34 +56,48 @@ from .policy import evaluate_model
 from .run_config import RunConfig
 from .run_folder import best_of, checkpoint_files, read_evaluations, save_agent, save_model, write_evaluations
 from .run_session import Session, TrainingResult, open_run, prepare_run, roll_back_to, start_folder
-from .vec_env import monitor_writers, native_batch
+from .run_warning import note
+from .vec_env import monitor_writers, native_batch, per_env_batch
 
-__all__ = ["TRAINERS", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
+__all__ = ["TRAINERS", "sb3_only", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
 
 #: The trainers of ``vcnc-train --trainer``: SB3's PPO (vcnc_agents.training) and this module's.
 TRAINERS = ("sb3", "lean")
 
 
-def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None) -> str:
-    """The trainer a run goes on with; ValueError, before anything is written, when it cannot.
+def sb3_only(config: RunConfig, vec_env: str = "native") -> str | None:
+    """Why the run ``config`` needs SB3's trainer (an option the lean trainer does not have), or None."""
+    h = config.hyperparams
+    if vec_env != "native":
+        return f"--vec-env {vec_env} is SB3's (the lean trainer steps its own envs)"
+    if h.get("policy", "MlpPolicy") != "MlpPolicy":
+        return f"policy {h['policy']!r} (the lean trainer runs MlpPolicy)"
+    if h.get("use_sde"):
+        return "use_sde (the lean trainer samples plain Gaussian actions)"
+    return None
 
-    ``trainer`` is the one asked for (None: the run's, or ``"sb3"`` for a new run); ``env_id`` the run's env and
-    ``recorded`` the trainer its config records (:attr:`vcnc_agents.run_config.RunConfig.trainer`).  A resumed run
-    goes on with the trainer it was started with; the lean trainer steps the native vector env, which an id must
-    have (``vcnc_gym.envs.registry.VECTOR_IDS``).
+
+def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None, *,
+                  needs_sb3: str | None = None) -> str:
+    """The trainer a run goes on with; ValueError, before the training starts, when it cannot.
+
+    ``trainer`` is the one asked for (None: the run's, or for a new run ``"lean"``, the default, unless
+    ``needs_sb3`` gives a reason for SB3's, :func:`sb3_only`); ``env_id`` the run's env and ``recorded`` the
+    trainer its config records (:attr:`vcnc_agents.run_config.RunConfig.trainer`).  A resumed run goes on with the
+    trainer it was started with.  Every id trains on both: the lean trainer steps the native vector env where the
+    id has one, else N wrapped Gymnasium envs (:class:`DecisionEnv`).
     """
-    from vcnc_gym.envs.registry import VECTOR_IDS
-
     if trainer is None:
-        trainer = recorded or "sb3"
+        trainer = recorded or ("sb3" if needs_sb3 else "lean")
+        if trainer == "sb3" and recorded is None:
+            note(f"training {env_id} with SB3's PPO: {needs_sb3}")
     if trainer not in TRAINERS:
         raise ValueError(f"trainer must be one of {list(TRAINERS)}, got {trainer!r}")
     if recorded is not None and trainer != recorded:
         raise ValueError(f"the run was trained with the {recorded!r} trainer and goes on with it; drop --trainer "
                          f"{trainer}")
-    if trainer == "lean" and env_id not in VECTOR_IDS:
-        raise ValueError(f"the lean trainer steps the native vector env, which {env_id} does not have "
-                         f"(ids with one: {', '.join(VECTOR_IDS)}); train it with --trainer sb3")
+    if trainer == "lean" and needs_sb3:
+        raise ValueError(f"the lean trainer cannot train this run: {needs_sb3}; use --trainer sb3")
     return trainer
 
 
@@ -94,13 +108,17 @@ class DecisionEnv:
     Residual mode with a compiled baseline runs a decision in one kernel call
     (``ContouringVectorEnv.step_controlled``); a baseline without a compiled
     form calls its batched ``predict`` every control period; direct mode is
-    one ``step`` with the env's own action repeat.  An ended env is reset at
-    once (its last observation returned apart) and a Monitor row written.
+    one ``step`` with the env's own action repeat.  An id without a native
+    vector env (the feed override, the random contours) runs N Gymnasium envs,
+    each wrapped by the action mode, in a ``SyncVectorEnv``
+    (:func:`vcnc_agents.vec_env.per_env_batch`): the same decisions, slower.
+    An ended env is reset at once (its last observation returned apart) and a
+    Monitor row written.
 
     Parameters
     ----------
     env_id : str
-        A registered VCNC id with a native vector env.
+        A registered VCNC id.
     n_envs : int
         Number of envs.
     mode : ActionMode
@@ -119,8 +137,11 @@ class DecisionEnv:
 
     def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict, seed: int, *,
                  monitor_dir=None, start_steps: int = 0, append: bool = False):
-        batch = native_batch(env_id, n_envs, mode, env_kwargs)
-        self.venv, self.baseline, self.controller, self.repeat = batch
+        from vcnc_gym.envs.registry import VECTOR_IDS
+
+        self.native = env_id in VECTOR_IDS
+        make = native_batch if self.native else per_env_batch
+        self.venv, self.baseline, self.controller, self.repeat = make(env_id, n_envs, mode, env_kwargs)
         self.mode = mode
         self.n = n_envs
         self.observation_space = self.venv.single_observation_space
@@ -135,7 +156,9 @@ class DecisionEnv:
 
     @property
     def decisions_per_episode(self) -> int:
-        """The episode's natural length in agent decisions."""
+        """The episode's natural length in agent decisions (the first env's, for per-env wrappers)."""
+        if not self.native:  # control periods of the first env's episode, a decision every action_repeat of them
+            return max(1, int(self.venv.envs[0].unwrapped.episode_steps) // self.mode.action_repeat)
         return max(1, int(self.venv.episode_steps) // self.repeat)
 
     def reset(self) -> np.ndarray:
@@ -162,7 +185,8 @@ class DecisionEnv:
             if self.baseline is not None:
                 base, _ = self.baseline.predict(obs, episode_start=self._start)
                 self._start[:] = False
-            obs, r, te, tr, _ = self.venv.step(self.mode.command(base, actions))
+            # per-env wrappers (no native vector env) take the agent's action: a step is a decision
+            obs, r, te, tr, _ = self.venv.step(self.mode.command(base, actions) if self.native else actions)
             total += r
             te_all |= te
             tr_all |= tr

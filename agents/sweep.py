@@ -341,9 +341,10 @@ def _format(key: str, v) -> str:
 
 
 def trial_argv(spec: SweepSpec, settings: dict, config_file, output) -> list[str]:
-    """The ``vcnc-train`` arguments of a trial: what the trial runs, and with another output, its retrain command."""
+    """The ``vcnc-train`` arguments of a trial: what the trial runs, and with another output, its retrain command
+    (SB3's trainer, which the trials run, named: ``vcnc-train``'s default is the lean one)."""
     settings = _direct(settings)
-    argv = ["--env", spec.env_id, "--config", str(config_file)]
+    argv = ["--env", spec.env_id, "--trainer", "sb3", "--config", str(config_file)]
     for key, flag in _FLAGS.items():
         if key in settings:
             argv += [flag, _format(key, settings[key])]

@@ -36,7 +36,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from .action_modes import ActionMode
 
-__all__ = ["VcncVecEnv", "NativeBatch", "native_batch", "monitor_writers"]
+__all__ = ["VcncVecEnv", "NativeBatch", "native_batch", "per_env_batch", "monitor_writers"]
 
 
 class NativeBatch(NamedTuple):
@@ -77,6 +77,18 @@ def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | 
     baseline = mode.make_baseline(venv)
     controller = baseline.compiled(n_envs) if baseline is not None and compiled else None
     return NativeBatch(venv, baseline, controller, mode.action_repeat if residual else 1)
+
+def per_env_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None) -> NativeBatch:
+    """For an id without a native vector env (the feed override, the random contours): ``n_envs`` Gymnasium envs,
+    each wrapped by the action mode (:meth:`ActionMode.wrap`: the residual's baseline and repeat per env), as one
+    ``SyncVectorEnv`` that resets only the envs it is told to (``options={"reset_mask": ...}``).  The caller steps
+    it with the agent's action itself (``baseline`` None, ``repeat`` 1): a step is a decision."""
+    kwargs = dict(env_kwargs or {})
+    kwargs.setdefault("action_repeat", 1 if mode.mode == "residual" else mode.action_repeat)
+    venv = gym.vector.SyncVectorEnv([lambda: mode.wrap(gym.make(env_id, **kwargs)) for _ in range(n_envs)],
+                                    autoreset_mode=AutoresetMode.DISABLED)
+    return NativeBatch(venv, None, None, 1)
+
 
 #: The attributes ``get_attr`` answers, read from the vector env (the same for every env).
 _SHARED_ATTRIBUTES = ("layout", "decision_period", "nominal_parameters", "plant", "dt", "episode_steps", "task")

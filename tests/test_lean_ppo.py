@@ -371,13 +371,61 @@ class _Pickled:
 
 
 @pytest.mark.parametrize("env_id", ["VCNC-OmegaOverride-v1", "VCNC-RandomContour-v1"])
-def test_the_lean_trainer_refuses_an_id_without_a_native_vector_env_before_writing(env_id, tmp_path, capsys):
+def test_an_id_without_a_native_vector_env_steps_as_its_wrapped_envs(env_id):
+    """The lean trainer's envs for an id without a native vector env are N Gymnasium envs, each wrapped by the
+    action mode: a decision of the batch is, to the bit, a step of each env made and wrapped on its own (the SB3
+    trainer's DummyVecEnv path), with the same seeds and actions; an ended env is reset at once."""
+    from vcnc_agents.config import action_mode_of
+
+    entry = load_hyperparameters(env_id, "agents/hyperparams/override.yml" if "Override" in env_id
+                                 else "agents/hyperparams/generalists.yml")
+    mode, kwargs = action_mode_of(entry), dict(entry.get("env_kwargs") or {})
+    batch = DecisionEnv(env_id, 2, mode, kwargs, seed=7)
+    own = []
+    for i in range(2):
+        env = mode.wrap(gym.make(env_id, **{**kwargs, "action_repeat": 1 if mode.mode == "residual" else
+                                            mode.action_repeat}))
+        own.append((env, env.reset(seed=7 + i)[0]))
+    obs = batch.stagger(batch.reset())
+    np.testing.assert_array_equal(obs, np.stack([o for _, o in own]))
+    rng = np.random.default_rng(1)
+    for _ in range(30):
+        a = rng.uniform(-1, 1, (2,) + batch.action_space.shape).astype(np.float32)
+        obs, rewards, te, tr, _ = batch.step(a)
+        for i, (env, _) in enumerate(own):
+            o, r, t1, t2, _ = env.step(a[i])
+            assert np.float32(r) == rewards[i] and (t1, t2) == (te[i], tr[i])
+            if not (t1 or t2):
+                np.testing.assert_array_equal(obs[i], o)
+    batch.close()
+
+
+def test_the_lean_trainer_is_the_default_and_trains_the_feed_override(tmp_path):
+    """No --trainer: the lean one, on an id without a native vector env too; its agent loads in the bench."""
+    entry = load_hyperparameters("VCNC-OmegaOverride-v1", "agents/hyperparams/override.yml")
+    entry.update(n_envs=2, n_steps=16, batch_size=32, n_epochs=1)
+    config = tmp_path / "override.yml"
+    config.write_text(yaml.safe_dump({"VCNC-OmegaOverride-v1": entry}, sort_keys=False))
     run = tmp_path / "run"
+    assert train_main(["--env", "VCNC-OmegaOverride-v1", "--config", str(config), "--timesteps", "32",
+                       "--eval-freq", "0", "--output", str(run), "--no-progress"]) == 0
+    assert yaml.safe_load((run / "final" / "config.yml").read_text())["trainer"] == "lean"
+
+
+def test_the_default_trainer_is_sb3_where_the_run_needs_it(small_entry, tmp_path):
+    entry = yaml.safe_load(small_entry.read_text())[HEART]
+    entry["use_sde"] = True
+    config = tmp_path / "sde.yml"
+    config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
     with pytest.raises(SystemExit) as exc:
-        train_main(["--env", env_id, "--trainer", "lean", "--output", str(run), "--no-progress"])
+        train_main(["--env", HEART, "--config", str(config), "--trainer", "lean", "--output", str(tmp_path / "r"),
+                    "--no-progress"])
     assert exc.value.code == 2
-    assert "native vector env" in capsys.readouterr().err
-    assert not run.exists()
+    from vcnc_agents.lean_ppo import check_trainer
+
+    with pytest.warns(UserWarning, match="SB3's PPO: use_sde"):
+        assert check_trainer(None, HEART, needs_sb3="use_sde (...)") == "sb3"
+    assert check_trainer(None, HEART) == "lean" and check_trainer(None, HEART, "sb3") == "sb3"
 
 
 @pytest.mark.slow  # the short run's fixture
