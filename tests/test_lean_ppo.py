@@ -195,6 +195,7 @@ def test_the_agent_loads_as_data_and_runs_in_vcnc_bench(lean_run, tmp_path):
     assert record["max_contour_error_um"] == pytest.approx(best["max_um"], rel=1e-9)
 
 
+@pytest.mark.slow  # a training run and a bench run (tests/test_observation.py checks the picking in make test)
 def test_an_agent_trained_without_the_preview_runs_on_the_full_observation(small_entry, tmp_path):
     """The ablation's agent (issue 33): trained with ``preview_steps: []`` and one contour-preview point, it loads
     on the id's own env, sees its own entries of the full observation, and scores there what its run's evaluation
