@@ -99,12 +99,28 @@ def test_the_command_line_refuses_what_is_not_a_bench_json(tmp_path, capsys):
     assert "not a vcnc-bench JSON" in capsys.readouterr().err
 
 
-def test_a_seed_of_a_run_says_its_verdict_is_its_runs():
-    """The agents of one vcnc-train --seeds run are judged as one controller (tests/test_verdicts.py): each seed's
-    row gives its own IQM and says whose verdict it carries."""
+def test_a_runs_seeds_are_one_row_with_their_median_and_their_verdicts_interval():
+    """The agents of one vcnc-train --seeds run are judged as one controller (tests/test_verdicts.py) and ranked as
+    one: a single row ``GROUP (K seeds)`` whose nominal figures are the seeds' medians (numpy's, here) and whose IQM
+    and interval are the verdict's (which resampled the seeds with the plants)."""
+    rng = np.random.default_rng(1)
+    verdict = {"outcome": "loses", "y": "ff-pid@machine", "x": "ppo:run", "difference": 1.0, "low": 0.5,
+               "high": 2.0, "iqm_x": 1.7, "ci_x": [1.5, 1.9], "training_seeds": 3}
+    records = []
+    for seed, nominal in enumerate((1.0, 3.0, 2.0)):
+        x = rng.uniform(1.0, 2.0, 20)
+        per = {"kind": ["nominal"] + ["sample"] * 20, "max_um": [nominal] + list(x), "rms_um": [nominal / 2]
+               + list(x / 3), "diverged": [False] * 21, "completed": [True] * 21}
+        records.append({"env": "A", "policy": f"ppo:run/seed{seed}/best", "kind": "ppo", "group": "ppo:run",
+                        "nominal_max_um": nominal, "nominal_rms_um": nominal / 2, "nominal_completed": True,
+                        "nominal_diverged": False, "n_samples": 20, "per_plant": per,
+                        "verdicts": {"max": verdict}})
+    (row,) = leaderboard.rows_of({"settings": {}, "robust": records})
+    assert row["policy"] == "ppo:run (3 seeds)" and row["seeds"] == 3
+    assert row["max_um"] == np.median([1.0, 3.0, 2.0]) and row["rms_um"] == np.median([0.5, 1.5, 1.0])
+    assert row["iqm_max"] == [1.7, 1.5, 1.9]
+    lo, hi = row["iqm_rms"][1], row["iqm_rms"][2]  # no rms verdict here: the bootstrap over every seed's plants
+    assert lo < row["iqm_rms"][0] < hi
     from vcnc_bench.leaderboard import _verdict
 
-    v = {"outcome": "loses", "opponent": "ff-pid@machine", "difference": [1.0, 0.5, 2.0], "controller": "ppo:run",
-         "training_seeds": 5}
-    cell = _verdict({"role": "learned or yours", "verdicts": {"max": v}})
-    assert cell == "max: loses (ff-pid@machine) (with its run's other seeds: 5 seeds judged as one, `ppo:run`)"
+    assert _verdict(row) == "max: loses (ff-pid@machine) (3 seeds judged as one)"

@@ -16,6 +16,10 @@ produced it (:mod:`vcnc_bench.provenance`).
 0 = ``pd-ref``, the reference PD; 1 = the non-causal floor; the figure of merit is the max), the RMS's score
 breaking ties.  A row whose id has no ``pd-ref`` or no floor on the board has no score and ranks last.
 
+**Training seeds.**  The records of one training run's seeds (``vcnc-bench --policy ppo:FOLDER`` of a
+``vcnc-train --seeds`` folder: one ``"group"``) are one row, ``FOLDER (K seeds)``, as they are one controller in
+the verdict: its nominal figures are the seeds' medians, its IQM over every seed's plants.
+
 **Intervals and verdicts.**  Where a row came from a ``--plants`` run: the IQM of the max and RMS contour error
 over the sampled plants (and sensor-noise seeds) with its 95 % stratified-bootstrap interval
 (:func:`vcnc_bench.verdicts.stratified_bootstrap_ci`), and, for a policy that is not a classical baseline (an
@@ -41,7 +45,7 @@ import numpy as np
 
 from .headroom import NON_CAUSAL
 from .score import REFERENCE, normalised_score
-from .verdicts import sampled_figures, stratified_bootstrap_ci
+from .verdicts import sampled_figures, seed_figures, stratified_bootstrap_ci
 
 __all__ = ["rows_of", "merge", "ranked", "profile", "format_page", "write", "main"]
 
@@ -65,6 +69,28 @@ def _interval(rec: dict, figure: str):
     if x.size == 0:
         return None
     return [_finite(v) for v in stratified_bootstrap_ci(x)]
+
+
+def _seeds_row(members: list[dict]) -> dict:
+    """One row for the records of one training run's seeds (their ``"group"``): judged as one controller, so ranked
+    as one.  Its nominal figures are the seeds' medians; its IQM and interval are its verdict's (the bootstrap over
+    seeds, plants and noise seeds), or without one over every seed's plants; its verdict is the group's (every
+    member carries it)."""
+    first = _robust_row(members[0])
+    ok = [r for r in members if r["nominal_completed"] and not r["nominal_diverged"]]
+    nominal = {k: float(np.median([r[f"nominal_{k}"] for r in ok])) if len(ok) == len(members) else None
+               for k in ("max_um", "rms_um")}
+    intervals = {}
+    for figure in ("max", "rms"):
+        v = (members[0].get("verdicts") or {}).get(figure)
+        if v is not None:  # the verdict's own: its bootstrap resamples the seeds with the plants
+            intervals[f"iqm_{figure}"] = [_finite(v["iqm_x"]), _finite(v["ci_x"][0]), _finite(v["ci_x"][1])]
+            continue
+        x = seed_figures(members, figure)  # (seeds, plants, noise): every seed's runs of a plant as its stratum
+        x = x.transpose(1, 0, 2).reshape(x.shape[1], -1)
+        intervals[f"iqm_{figure}"] = [_finite(v) for v in stratified_bootstrap_ci(x)] if x.size else None
+    return {**first, "policy": f"{members[0]['group']} ({len(members)} seeds)", **nominal, **intervals,
+            "seeds": len(members)}
 
 
 def _robust_row(r: dict) -> dict:
@@ -102,7 +128,12 @@ def rows_of(bench: dict) -> list[dict]:
         raise ValueError("expected the object vcnc-bench --json writes, with its 'records' or 'robust' list")
     records = [r for r in bench.get("records") or bench.get("robust") if "table" not in r and "policy" in r]
     robust = [r for r in records if "per_plant" in r]
-    rows = [_robust_row(r) for r in robust] + _nominal_rows([r for r in records if "per_plant" not in r])
+    groups: dict[str, list[dict]] = {}
+    for r in robust:
+        if r.get("group"):
+            groups.setdefault(r["group"], []).append(r)
+    rows = ([_robust_row(r) for r in robust if not r.get("group")] + [_seeds_row(m) for m in groups.values()]
+            + _nominal_rows([r for r in records if "per_plant" not in r]))
     settings = bench.get("settings", {})
     prov = settings.get("provenance") or {}
     source = {"command": settings.get("command"), "cpu": (prov.get("cpu") or {}).get("model"),
@@ -175,8 +206,7 @@ def _verdict(r: dict) -> str:
     if not r["verdicts"]:
         return "nominal only"
     seeds = max(v.get("training_seeds", 1) for v in r["verdicts"].values())
-    judged = (f" (with its run's other seeds: {seeds} seeds judged as one, "
-              f"`{next(iter(r['verdicts'].values()))['controller']}`)" if seeds > 1 else "")
+    judged = f" ({seeds} seeds judged as one)" if seeds > 1 else ""
     return "; ".join(f"{k}: {v['outcome']} ({v['opponent']})" for k, v in r["verdicts"].items()) + judged
 
 
@@ -189,7 +219,8 @@ def format_page(board: dict[str, list[dict]], figure: str | None) -> str:
              "`vcnc_bench.score`), of the max contour error, the RMS's breaking ties.  IQM columns: over the "
              "sampled plants of a `--plants` run, with the 95 % stratified-bootstrap interval.  Verdict: a policy "
              "that is not a classical baseline against the strongest causal controller of its run; wins or loses "
-             "only where the paired interval of the difference excludes zero.", "",
+             "only where the paired interval of the difference excludes zero.  A run's training seeds are one "
+             "row, `FOLDER (K seeds)`: the seeds' median on the nominal plant, the IQM over every seed's plants.", "",
              "Add your policy: `vcnc-bench --env ID --policy KIND:ARG [--plants 20] --leaderboard "
              "docs/leaderboard.md`.", ""]
     if figure:
