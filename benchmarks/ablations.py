@@ -21,7 +21,8 @@ agents/hyperparams/specialists.yml --seeds K``), else it is trained as a variant
 run evaluates every seed of every variant, with the id's default causal controllers, into ``OUTPUT/ID.json``, and the
 table is printed as Markdown: per variant the IQM of max and RMS contour error over plants and seeds with its 95 %
 interval, the verdict against the agent (``X`` = the variant; "wins": the variant is better, the change helps), and
-against the strongest causal controller.  ``--table JSON`` prints the table of an earlier run's JSON and trains
+against the strongest causal controller.  A variant with a seed that kept no agent (every evaluation in its training
+diverged) is not evaluated; its row says how many and counts as a loss.  ``--table JSON`` prints the table of an earlier run's JSON and trains
 nothing.
 """
 
@@ -84,6 +85,16 @@ def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs:
     return folders
 
 
+def without_agent(folder: Path) -> str | None:
+    """Why a variant's seeds folder is not evaluated as one controller (a seed kept no best agent: every
+    evaluation in its training diverged), or None."""
+    runs = json.loads((Path(folder) / "seeds.json").read_text())["runs"]
+    lost = [r for r in runs if r["code"] != 0 or not (Path(folder) / Path(r["folder"]).name / "best").is_dir()]
+    if not lost:
+        return None
+    return f"no agent: every evaluation in training diverged for {len(lost)} of {len(runs)} seeds"
+
+
 def evaluate(env_id: str, folders: dict, plants: int, out: Path) -> None:
     """One vcnc-bench --plants run of every variant's seeds and the id's default causal controllers."""
     import gymnasium as gym
@@ -107,7 +118,8 @@ def table(data: dict) -> list[str]:
     """The Markdown lines: every variant against the agent and against the strongest causal controller (the
     variants' groups are ``data["ablations"]``, written by :func:`main`)."""
     records = data["robust"]
-    by_name = {name: [r for r in records if r.get("group") == group] for name, group in data["ablations"].items()}
+    by_name = {name: [r for r in records if r.get("group") == group] for name, group in data["ablations"].items()
+               if group is not None}
     agent_name = AGENT
     agent = by_name[AGENT]
     verdicts = {(v["x"], v["figure"]): v for v in data["verdicts"]}
@@ -128,6 +140,8 @@ def table(data: dict) -> list[str]:
             causal = (f"`{row['y']}` {_f(row['iqm_y'])}", row["outcome"]) if row else ("—", "—")
             out.append(f"| {name} | {len(members)} | {figure} | {_f(own.iqm_x)} [{_f(own.ci_x[0])}, "
                        f"{_f(own.ci_x[1])}] | {cells[0]} | {cells[1]} | {causal[0]} | {causal[1]} |")
+    for name, why in data.get("without_agent", {}).items():
+        out.append(f"| {name} | - | both | {why} | - | loses | - | loses |")
     return out
 
 
@@ -148,9 +162,11 @@ def main(argv=None) -> int:
     folder = args.output / args.env
     folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent)
     out = args.output / f"{args.env}.json"
-    evaluate(args.env, folders, args.plants, out)
+    missing = {name: why for name, folder in folders.items() if (why := without_agent(folder)) is not None}
+    evaluate(args.env, {n: f for n, f in folders.items() if n not in missing}, args.plants, out)
     data = json.loads(out.read_text())
-    data["ablations"] = {name: f"ppo:{folder}" for name, folder in folders.items()}
+    data["ablations"] = {name: f"ppo:{folder}" for name, folder in folders.items() if name not in missing}
+    data["without_agent"] = missing
     out.write_text(json.dumps(data, indent=1))
     print("\n".join(table(data)))
     return 0
