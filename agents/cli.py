@@ -183,7 +183,7 @@ def _prepare(parser, args, tensorboard):
         else:
             run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps,
                                                       **options)
-        trainer = check_trainer(args.trainer, config.env_id, config.trainer,
+        trainer = check_trainer(args.trainer, config.env_id, config.trainer, resumed=args.resume is not None,
                                 needs_sb3=sb3_only(config, args.vec_env))
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
         parser.error(str(exc))

@@ -77,16 +77,19 @@ def sb3_only(config: RunConfig, vec_env: str = "native") -> str | None:
     return None
 
 
-def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None, *,
+def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None, *, resumed: bool = False,
                   needs_sb3: str | None = None) -> str:
     """The trainer a run goes on with; ValueError, before the training starts, when it cannot.
 
-    ``trainer`` is the one asked for (None: the run's, or for a new run ``"lean"``, the default, unless
+    ``trainer`` is the one asked for (None: a resumed run's own, or for a new run ``"lean"``, the default, unless
     ``needs_sb3`` gives a reason for SB3's, :func:`sb3_only`); ``env_id`` the run's env and ``recorded`` the
-    trainer its config records (:attr:`vcnc_agents.run_config.RunConfig.trainer`).  A resumed run goes on with the
-    trainer it was started with.  Every id trains on both: the lean trainer steps the native vector env where the
-    id has one, else N wrapped Gymnasium envs (:class:`DecisionEnv`).
+    trainer its config records (:attr:`vcnc_agents.run_config.RunConfig.trainer`: None is SB3's, as before the lean
+    trainer was).  A resumed run (``resumed``) goes on with the trainer it was started with.  Every id trains on
+    both: the lean trainer steps the native vector env where the id has one, else N wrapped Gymnasium envs
+    (:class:`DecisionEnv`).
     """
+    if resumed:
+        recorded = recorded or "sb3"
     if trainer is None:
         trainer = recorded or ("sb3" if needs_sb3 else "lean")
         if trainer == "sb3" and recorded is None:
@@ -185,8 +188,9 @@ class DecisionEnv:
             if self.baseline is not None:
                 base, _ = self.baseline.predict(obs, episode_start=self._start)
                 self._start[:] = False
-            # per-env wrappers (no native vector env) take the agent's action: a step is a decision
-            obs, r, te, tr, _ = self.venv.step(self.mode.command(base, actions) if self.native else actions)
+            # per-env residual wrappers (no native vector env) take the agent's action and clip it themselves
+            wrapped = not self.native and self.mode.mode == "residual"
+            obs, r, te, tr, _ = self.venv.step(actions if wrapped else self.mode.command(base, actions))
             total += r
             te_all |= te
             tr_all |= tr

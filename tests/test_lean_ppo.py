@@ -391,7 +391,7 @@ def test_an_id_without_a_native_vector_env_steps_as_its_wrapped_envs(env_id):
     np.testing.assert_array_equal(obs, np.stack([o for _, o in own]))
     rng = np.random.default_rng(1)
     for _ in range(30):
-        a = rng.uniform(-1, 1, (2,) + batch.action_space.shape).astype(np.float32)
+        a = rng.uniform(-1.5, 1.5, (2,) + batch.action_space.shape).astype(np.float32)  # beyond the bounds too
         obs, rewards, te, tr, _ = batch.step(a)
         for i, (env, _) in enumerate(own):
             o, r, t1, t2, _ = env.step(a[i])
@@ -427,6 +427,11 @@ def test_the_default_trainer_is_sb3_where_the_run_needs_it(small_entry, tmp_path
     with pytest.warns(UserWarning, match="SB3's PPO: use_sde"):
         assert check_trainer(None, HEART, needs_sb3="use_sde (...)") == "sb3"
     assert check_trainer(None, HEART) == "lean" and check_trainer(None, HEART, "sb3") == "sb3"
+    # a resumed run goes on with its own trainer: SB3's records none
+    assert check_trainer(None, HEART, None, resumed=True) == "sb3"
+    assert check_trainer(None, HEART, "lean", resumed=True) == "lean"
+    with pytest.raises(ValueError, match="goes on with it"):
+        check_trainer("lean", HEART, None, resumed=True)
 
 
 @pytest.mark.slow  # the short run's fixture
