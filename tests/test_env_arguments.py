@@ -24,7 +24,7 @@ OMEGA = "VCNC-Omega-v1"
     ({"randomize": 1}, "randomize must be True or False"),
     ({"preview_steps": (2.7,)}, "preview_steps"),
     ({"preview_steps": 10}, "preview_steps"),
-    ({"preview_steps": ()}, "preview_steps"),
+    ({"preview_steps": (True,)}, "preview_steps"),  # () is no preview field (the ablations)
     ({"preview_steps": (0, 5)}, "preview_steps"),
     ({"dt": 0.1}, r"dt=0.1 s is outside"),
     ({"dt": 1e-9}, r"outside"),
