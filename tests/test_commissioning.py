@@ -254,3 +254,104 @@ def test_a_machines_record_is_the_same_alone_and_in_a_batch(env_id):
         a, b = batch[i].to_dict(), record.commission(task, "machine", P[i:i + 1])[0].to_dict()
         a.pop("identification_s"), b.pop("identification_s")
         assert a == b, i
+
+
+def _friction_measurement(stribeck, coulomb, viscous, force, noise, seed=0):
+    """The reversal legs and a friction sweep of :func:`identify.leg_schedule` with mean commands from the static map
+    c v + f^sgn + F_s exp(-(v / v_s)^2) sgn v + F v_j / |v| per axis, plus Gaussian noise, every leg at speed."""
+    speeds = identify.leg_schedule(0.4, 2.0, 8.0 * 0.5 ** np.arange(7))
+    path = np.hypot(speeds[:, 0], speeds[:, 1])
+    command = np.zeros((1, len(speeds), 2))
+    rng = np.random.default_rng(seed)
+    for j in range(2):
+        v = speeds[:, j]
+        level = np.where(v > 0, coulomb[j][0], np.where(v < 0, coulomb[j][1], 0.0))
+        curve = stribeck[j][0] * np.exp(-(v / stribeck[j][1]) ** 2) * np.sign(v)
+        command[0, :, j] = viscous[j] * v + level + curve + force[j] * v / path + noise * rng.standard_normal(len(v))
+    zeros = np.zeros((1, 1, 2))
+    return identify.Measurement(r=zeros, u=zeros, e=zeros, leg_command=command, leg_speeds=speeds, dt=1e-3,
+                                seconds=0.0, velocity_noise=np.zeros((1, 2)), holding_bandwidth=np.ones(2),
+                                leg_velocity=speeds[None].copy(), leg_spread=np.zeros((1, len(speeds), 2)))
+
+
+def test_friction_fit_is_scipys_curve_fit_and_finds_the_stribeck_curve():
+    """The reversal legs' and the sweep's static friction map: the variable-projection fit of friction_levels gives
+    the parameters it was made with, and those scipy.optimize.curve_fit (a second solver, all parameters at once)
+    gives on the same noisy data; a map without a Stribeck curve gets none."""
+    from scipy.optimize import curve_fit
+
+    truth = dict(stribeck=((0.06, 0.7), (0.03, 1.5)), coulomb=((0.02, -0.015), (0.01, -0.01)),
+                 viscous=(0.02, 0.018), force=(0.005, 0.0))
+    meas = _friction_measurement(**truth, noise=2e-4)
+    c, coulomb, force, stribeck = identify.friction_levels(meas, 0)
+    speeds = meas.leg_speeds
+    path = np.hypot(speeds[:, 0], speeds[:, 1])
+    for j in range(2):
+        rows = np.flatnonzero(speeds[:, j] != 0)
+        v, share, y = speeds[rows, j], speeds[rows, j] / path[rows], meas.leg_command[0, rows, j]
+
+        def model(x, cv, fp, fm, fs, vs, F):
+            vv, sh = x
+            return cv * vv + np.where(vv > 0, fp, fm) + fs * np.exp(-(vv / vs) ** 2) * np.sign(vv) + F * sh
+
+        ref, _ = curve_fit(model, (v, share), y, p0=(0.01, 0.01, -0.01, 0.01, 1.0, 0.0))
+        ours = (c[j], coulomb[j, 0], coulomb[j, 1], stribeck[j, 0], stribeck[j, 1], force[j])
+        np.testing.assert_allclose(ours[3], ref[3], rtol=0.1)  # the Stribeck level
+        np.testing.assert_allclose(ours[4], abs(ref[4]), rtol=0.1)  # its velocity (ours on a grid of 48; v_s^2)
+        np.testing.assert_allclose(ours[0], ref[0], rtol=0.05)
+        assert stribeck[j, 0] == pytest.approx(truth["stribeck"][j][0], rel=0.15)
+        assert stribeck[j, 1] == pytest.approx(truth["stribeck"][j][1], rel=0.15)
+        assert coulomb[j, 0] == pytest.approx(truth["coulomb"][j][0], abs=3e-3)
+    flat = _friction_measurement(stribeck=((0.0, 1.0), (0.0, 1.0)), **{k: v for k, v in truth.items() if k != "stribeck"},
+                                 noise=2e-4)
+    assert np.all(identify.friction_levels(flat, 0)[3] == 0.0)
+
+
+def test_a_sweep_leg_counts_only_at_speed():
+    """A sweep leg where the axis stuck (its mean speed far from the leg's) or stuck and slipped (its velocity's
+    spread beyond LEG_SPREAD of its speed) does not enter the fit, nor does its partner (out and back)."""
+    truth = dict(stribeck=((0.06, 0.7), (0.03, 1.5)), coulomb=((0.02, -0.015), (0.01, -0.01)),
+                 viscous=(0.02, 0.018), force=(0.005, 0.0))
+    import dataclasses
+
+    meas = _friction_measurement(**truth, noise=0.0)
+    slow = np.flatnonzero(np.abs(meas.leg_speeds[:, 0]) == meas.leg_speeds[:, 0].max() / 64)
+    assert slow.size == 2 and slow.min() >= identify.REVERSAL_LEGS
+    keep = np.setdiff1d(np.arange(len(meas.leg_speeds)), slow)
+    clean = identify.friction_levels(dataclasses.replace(
+        meas, leg_command=meas.leg_command[:, keep], leg_speeds=meas.leg_speeds[keep],
+        leg_velocity=meas.leg_velocity[:, keep], leg_spread=meas.leg_spread[:, keep]), 0)
+    meas.leg_command[0, slow] = -meas.leg_command[0, slow]  # what a stuck axis' holding loop would show
+    meas.leg_velocity[0, slow] = 0.0
+    for a, b in zip(clean, identify.friction_levels(meas, 0)):
+        np.testing.assert_allclose(a, b)
+    meas.leg_velocity[0, slow] = meas.leg_speeds[slow]
+    meas.leg_spread[0, slow] = np.abs(meas.leg_speeds[slow]) * (identify.LEG_SPREAD * 1.1)
+    for a, b in zip(clean, identify.friction_levels(meas, 0)):
+        np.testing.assert_allclose(a, b)
+    meas.leg_spread[0, slow] = 0.0  # counted: the stuck legs' commands now pull the fit
+    assert not np.allclose(clean[1], identify.friction_levels(meas, 0)[1])
+
+
+@pytest.mark.slow
+def test_identified_stribeck_curve_on_plants_from_the_box():
+    """Through the env's step and observation only, on VCNC-CircleShop-v1 (the guides' Stribeck velocity near its
+    working feed): where the curve decays within the sweep (v_s at most 0.8 mm/s, a fifth of the sweep's top
+    speed) its level within 20 % and its velocity within 25 % of the true ones (the shop floor's force through the
+    plant's force gain); the nominal machine's too."""
+    env = gym.make("VCNC-CircleShop-v1")
+    task = env.unwrapped.task
+    rng = np.random.default_rng(7)
+    params = np.concatenate([task.nominal_parameters[None], np.stack([task.plant.sample(rng) for _ in range(6)])])
+    models, _ = identify.identify(task, params, task.plant.inverse(task.nominal_parameters))
+    names = task.plant.parameter_names
+    checked = 0
+    for p, axes in zip(params, models):
+        gain = task.plant.force_gain(p)
+        for j, a in enumerate(axes):
+            vs = p[j, names.index("stribeck_velocity")]
+            if vs <= 0.8:
+                checked += 1
+                assert a.stribeck[0] == pytest.approx(gain[j] * p[j, names.index("stribeck_force")], rel=0.2)
+                assert a.stribeck[1] == pytest.approx(vs, rel=0.25)
+    assert checked >= 6

@@ -63,6 +63,31 @@ def test_feedforward_makes_the_nominal_model_follow_the_reference(plant, heart):
         assert np.max(np.abs(error)) < 5e-5, f"axis {axis}: {np.max(np.abs(error)) * 1e3:.4f} um"
 
 
+def test_stribeck_curve_precompensation_is_the_static_map_at_the_reference_speed(heart):
+    """With a Stribeck curve in the inverse, the friction term away from the reversals is the Coulomb level of the
+    direction plus F_s exp(-(v / v_s)^2) sgn v, v the reference's velocity half a period ahead (the table's read
+    point), written out here from the reference's own velocity; without one, the Coulomb level alone."""
+    import dataclasses
+
+    inverse = heart.unwrapped.plant.inverse()
+    stribeck = np.array([[0.3, 2.0], [0.1, 5.0]])
+    curved = dataclasses.replace(inverse, delay=np.zeros(2), stribeck=stribeck)
+    samples = heart.unwrapped.task.reference_arrays.samples
+    dt = heart.unwrapped.dt
+    friction = (inverse_feedforward(curved, samples, dt, backlash=False)
+                - inverse_feedforward(curved, samples, dt, friction=False, backlash=False))
+    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    half = 0.5 * (v[:-1] + v[1:])  # the velocity at k + 1/2
+    for axis in (0, 1):
+        level, vs = stribeck[axis]
+        moving = np.abs(half[:, axis]) > 1.0  # mm/s: away from the reversals' 1 ms transitions
+        coulomb = np.where(half[:, axis] > 0, inverse.coulomb[axis, 0], inverse.coulomb[axis, 1])
+        expected = coulomb + level * np.exp(-(half[:, axis] / vs) ** 2) * np.sign(half[:, axis])
+        np.testing.assert_allclose(friction[:-1, axis][moving], expected[moving], rtol=2e-3, atol=1e-6)
+    with pytest.raises(ValueError, match="stribeck"):
+        dataclasses.replace(inverse, stribeck=np.array([[0.3, 0.0], [0.0, 0.0]]))
+
+
 def test_friction_and_backlash_precompensation_switch_at_reversals(heart):
     """The Coulomb level of the direction of motion, and the backlash lead, change sign where v_d does."""
     inverse = heart.unwrapped.plant.inverse()

@@ -274,9 +274,9 @@ def design_axis(model: AxisModel, dt: float, velocity_noise: float, ceiling: flo
 def inverse_dynamics(models, backlash, with_mode: bool = True) -> InverseDynamics:
     """The identified axes' inverse dynamics (per axis ``c_1 = c`` (the reversal legs' viscous coefficient), ``c_2 = m``, and with the mode
     ``c_3 = c / w_m^2``, ``c_4 = m / w_m^2``: ``(m s^2 + c s)(1 + s^2 / w_m^2)``, the mode's inverse
-    ``(s^2 + 2 zeta w s + w^2) / (2 zeta w s + w^2)`` to second order), the identified Coulomb levels, the
-    given backlash (mm) and the dead time of the command's whole delay periods."""
-    rows, coulomb, delay = [], [], []
+    ``(s^2 + 2 zeta w s + w^2) / (2 zeta w s + w^2)`` to second order), the identified Coulomb levels and Stribeck curve,
+    the given backlash (mm) and the dead time of the command's whole delay periods."""
+    rows, coulomb, delay, stribeck = [], [], [], []
     for a in models:
         row = np.zeros(INVERSE_ORDER)
         c = a.viscous if a.viscous > 0.0 else a.damping  # the steady state's, where the legs measured it
@@ -287,8 +287,9 @@ def inverse_dynamics(models, backlash, with_mode: bool = True) -> InverseDynamic
         rows.append(row)
         coulomb.append((max(a.coulomb[0], 0.0), min(a.coulomb[1], 0.0)))
         delay.append(a.command_delay)
+        stribeck.append(tuple(a.stribeck) if a.stribeck[0] > 0.0 else (0.0, 0.0))
     return InverseDynamics(np.array(rows), np.array(coulomb), np.asarray(backlash, dtype=np.float64),
-                           np.array(delay))
+                           np.array(delay), np.array(stribeck))
 
 
 def shaper(model: AxisModel, kind: str = "zv") -> tuple[np.ndarray, np.ndarray]:

@@ -16,8 +16,10 @@ The experiment, both axes at once (the axes of every plant of the suite are deco
    which the loop's feedback of the sensor noise does not bias (Pintelon & Schoukens, *System Identification:
    A Frequency Domain Approach*, 2nd ed. 2012, ch. 2 and 9).
 2. **Slow reversal moves**: the loop (with an integral) moves each axis alone at two speeds, out and back,
-   then both together (:func:`leg_schedule`); the mean commands at speed give the viscous coefficient, the
-   Coulomb level of each direction and a process force along the path (:func:`friction_levels`).
+   then both together (:func:`leg_schedule`), then both together down a sweep of speeds from four times the
+   working feed's to a 16th of it; the mean commands at speed give the viscous coefficient, the Coulomb level of each
+   direction, a process force along the path and the Stribeck curve below the working feed
+   (:func:`friction_levels`).
 
 The fit (:func:`fit_axis`): per axis the rigid body ``1 / (m s^2 + c s)`` in series with a first structural
 mode ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` and a dead time ``tau`` (the command and sensor delays
@@ -40,7 +42,7 @@ from vcnc_gym.envs.task import ContouringBatch
 from vcnc_gym.validation import positive
 
 __all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
-           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "identify", "model_response", "MODE_PEAK_DB"]
+           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "LEG_SPEED_TOLERANCE", "LEG_SPREAD", "REVERSAL_LEGS", "STRIBECK_GRID", "STRIBECK_GAIN", "identify", "model_response", "MODE_PEAK_DB"]
 
 #: The longest travel of a reversal leg, mm (within the observation's tracking-error bound).
 LEG_TRAVEL = 6.0
@@ -69,11 +71,16 @@ class Experiment:
         nominal model is 60 deg: :func:`holding_gains`).
     reversal_speed : float, optional
         The lower speed of the reversal moves, mm/s (the higher is ``speed_ratio`` times it); default a fifth of
-        the task's reference's peak speed (the machine's working feed: fast enough that the holding axis'
+        the followed task's reference's peak speed (the machine's working feed: fast enough that the holding axis'
         jitter takes no share of a process force along the path), at most :data:`LEG_TRAVEL` per leg at the
         higher speed.
     speed_ratio : float
         Ratio of the two speeds of the reversal moves (they separate the viscous from the Coulomb level).
+    sweep_steps : int
+        Speeds of the friction sweep (both axes together, out and back, at ``v_top 2^-k``, ``k = 0 ..
+        sweep_steps - 1``; ``v_top`` four times the working feed's peak axis speed, at most :data:`LEG_TRAVEL` per leg):
+        the friction's speed dependence below the working feed, a Stribeck curve's (:func:`friction_levels`).
+        0: no sweep.
     leg_time : float, optional
         Duration of each leg, s; default 12.5 time constants of the holding loop (``12.5 / w``), so that the
         loop has settled over the leg's last 40 % where the command is averaged.
@@ -87,6 +94,7 @@ class Experiment:
     holding_bandwidth: float = 0.005
     reversal_speed: float | None = None
     speed_ratio: float = 2.0
+    sweep_steps: int = 7
     leg_time: float | None = None
     seed: int = 12345
 
@@ -108,6 +116,8 @@ class Measurement:
     seconds: float
     velocity_noise: np.ndarray
     holding_bandwidth: np.ndarray
+    leg_velocity: np.ndarray | None = None
+    leg_spread: np.ndarray | None = None
 
 
 class Machines:
@@ -165,11 +175,15 @@ def holding_gains(mass, damping, delay, dt, fraction: float):
     return m * w**2, np.maximum(2 * m * w - c, 0.0), w
 
 
-def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment = Experiment()) -> Measurement:
+def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment = Experiment(),
+                   working_speed: float | None = None) -> Measurement:
     """Run :class:`Experiment` on ``machines``; ``nominal_inverse`` (the plant's nominal
     :class:`~vcnc_gym.plants.contract.InverseDynamics`) sets the holding loop and the feedforward with which
     the axes follow the task's reference during the run (so that the excitation acts on a moving axis, whose
-    friction keeps its sign, and the observation's tracking error stays within its bound)."""
+    friction keeps its sign, and the observation's tracking error stays within its bound).  ``working_speed``
+    (mm/s): the peak speed of the machine's working feed, which sets the friction sweep's speeds; default the
+    machines' task's (:func:`identify` passes the env's own task's, which a slowed experiment task does not show;
+    the reversal legs' speed is the followed task's, :attr:`Experiment.reversal_speed`)."""
     from ..feedforward.tables import inverse_feedforward
 
     t0 = time.perf_counter()
@@ -183,14 +197,17 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     rng = np.random.default_rng(experiment.seed)
     K = int(experiment.periods)
     leg_time = 12.5 / float(np.min(w)) if experiment.leg_time is None else experiment.leg_time
+    ref_v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    followed = float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1])))
+    working_speed = followed if working_speed is None else working_speed
     speed = experiment.reversal_speed
-    if speed is None:  # a fifth of the working feed, at most LEG_TRAVEL per leg at the higher speed
-        ref_v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-        speed = min(0.2 * float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1]))),
-                    LEG_TRAVEL / (leg_time * experiment.speed_ratio))
+    if speed is None:  # a fifth of the followed feed, at most LEG_TRAVEL per leg at the higher speed
+        speed = min(0.2 * followed, LEG_TRAVEL / (leg_time * experiment.speed_ratio))
     per_leg = max(int(round(leg_time / dt)), 25)
     settle = per_leg
-    schedule = leg_schedule(positive("reversal_speed", speed, "mm/s"), experiment.speed_ratio)
+    top = min(4.0 * working_speed, LEG_TRAVEL / leg_time)
+    schedule = leg_schedule(positive("reversal_speed", speed, "mm/s"), experiment.speed_ratio,
+                            top * 0.5 ** np.arange(experiment.sweep_steps))
     legs = len(schedule)
     start = max(K, samples.shape[0]) + settle  # the legs begin once the reference has stopped
     total = start + legs * per_leg
@@ -222,16 +239,32 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
         u[:, k] = np.clip(u[:, k], -machines.u_max, machines.u_max)
         obs = machines.step(u[:, k])
     leg_command = np.zeros((n, legs, 2))
+    leg_spread = np.zeros((n, legs, 2))
+    leg_velocity = np.zeros((n, legs, 2))
     for leg in range(legs):
         a = start + leg * per_leg
-        leg_command[:, leg] = u[:, a + (3 * per_leg) // 5:a + per_leg].mean(axis=1)  # its last 40 %: at speed
+        window = slice(a + (3 * per_leg) // 5, a + per_leg)  # its last 40 %: at speed
+        leg_command[:, leg] = u[:, window].mean(axis=1)
+        leg_spread[:, leg] = _velocity_spread(velocity[:, window], alpha)
+        leg_velocity[:, leg] = velocity[:, window].mean(axis=1)
     # the sensor's velocity noise: the measured velocity less its 21-period running mean on the legs at speed
     legs_v = velocity[:, start + (3 * per_leg) // 5:start + per_leg]
     kernel = np.ones(21) / 21.0
     smooth = np.apply_along_axis(lambda v: np.convolve(v, kernel, mode="same"), 1, legs_v)
     velocity_noise = np.std((legs_v - smooth)[:, 10:-10], axis=1)
     return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
-                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w)
+                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w,
+                       leg_velocity=leg_velocity, leg_spread=leg_spread)
+
+
+def _velocity_spread(v: np.ndarray, alpha) -> np.ndarray:
+    """Standard deviation (mm/s) of the measured velocity ``v`` (n, K, 2) low-passed as the holding loop sees it
+    (pole ``alpha`` (2,)), over its window: where the axis sticks and slips it swings about the leg's speed."""
+    out = np.empty((v.shape[0], 2))
+    for j in range(2):
+        filtered = signal.lfilter([1.0 - alpha[j]], [1.0, -alpha[j]], v[:, :, j], axis=1)
+        out[:, j] = filtered[:, filtered.shape[1] // 4:].std(axis=1)
+    return out
 
 
 def frf(measurement: Measurement, machine: int, axis: int, segment: int | None = None):
@@ -255,7 +288,8 @@ class AxisModel:
     Coulomb levels ``coulomb`` (f+, f-) in input units, the fit's rms log error and the band (Hz) it used, the
     measured velocity's noise (mm/s), the control period ``dt`` (s), the viscous coefficient the reversal legs
     measured (input unit per mm/s: the steady-state one, which the feedforward uses; ``damping`` is the
-    frequency response's) and the process force along the path they measured (input unit)."""
+    frequency response's), the process force along the path they measured (input unit) and the Stribeck curve
+    the friction sweep measured, ``(F_s, v_s)`` (input unit, mm/s; ``F_s = 0``: none)."""
 
     mass: float
     damping: float
@@ -269,6 +303,7 @@ class AxisModel:
     dt: float = 0.0
     viscous: float = 0.0
     process_force: float = 0.0
+    stribeck: tuple = (0.0, 0.0)
 
     @property
     def command_delay(self) -> float:
@@ -369,9 +404,10 @@ def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None,
                      fit_error=rms, band=(float(low), float(high)), dt=float(dt))
 
 
-def leg_schedule(speed: float, ratio: float) -> np.ndarray:
+def leg_schedule(speed: float, ratio: float, sweep=()) -> np.ndarray:
     """The reversal legs' axis speeds (L, 2), mm/s: each axis alone at ``speed`` and ``ratio`` times it, in both
-    directions (the other axis holding), then both together at ``speed`` (a diagonal), each out and back."""
+    directions (the other axis holding), then both together at ``speed`` (a diagonal), each out and back; then
+    both together at each speed of ``sweep`` (the friction sweep), out and back."""
     v1, v2 = speed, speed * ratio
     legs = []
     for j in range(2):
@@ -379,29 +415,90 @@ def leg_schedule(speed: float, ratio: float) -> np.ndarray:
             move = np.zeros(2)
             move[j] = v
             legs += [move, -move]
-    legs += [np.array([v1, v1]), np.array([-v1, -v1])]
+    for v in (v1, *sweep):
+        legs += [np.array([v, v]), np.array([-v, -v])]
     return np.array(legs)
 
 
+#: A leg counts for the friction fit where the axis' mean measured speed over its window is within this fraction of
+#: the leg's speed, and the spread of its low-passed measured velocity (:class:`Measurement`'s ``leg_spread``) is
+#: at most ``LEG_SPREAD`` of it: a stuck axis' mean command is a static friction, and the mean command of one that
+#: sticks and slips is not the friction at the leg's speed.
+LEG_SPEED_TOLERANCE = 0.2
+LEG_SPREAD = 0.5
+#: The reversal legs of :func:`leg_schedule` (each axis alone at two speeds, then the diagonal, out and back); the
+#: sweep's follow.
+REVERSAL_LEGS = 10
+
+#: The Stribeck velocities the fit tries: a geometric grid of this many from half the slowest counted leg's speed to
+#: half the fastest's (above, the curve has not decayed within the legs and is not told from the Coulomb level).
+STRIBECK_GRID = 48
+#: The Stribeck term is kept where it leaves at most this fraction of the residual sum of squares without it.
+STRIBECK_GAIN = 0.5
+
+
 def friction_levels(measurement: Measurement, machine: int):
-    """Per axis the viscous coefficient (input unit per mm/s), the Coulomb levels (f+ >= 0, f- <= 0) and a
-    process force along the path (input unit), from the reversal legs by least squares.
+    """Per axis the viscous coefficient (input unit per mm/s), the Coulomb levels (f+ >= 0, f- <= 0), a process
+    force along the path (input unit) and a Stribeck curve (level in input units, velocity in mm/s), from the
+    reversal legs and the friction sweep by least squares.
 
     On a leg where axis ``j`` moves at ``v_j`` (the path at ``|v|``) its mean command is
-    ``c v_j + f^{sgn v_j} + F v_j / |v|``: a process force against the path's motion (a cutting force) shares
-    itself among the axes as the motion does, a Coulomb level does not; the single-axis and diagonal legs
-    separate them.  Returns ``(c (2,), coulomb (2, 2), force (2,))``."""
+
+    .. math::
+
+        c v_j + f^{\\mathrm{sgn}\\, v_j} + F_s e^{-(v_j / v_s)^2} \\mathrm{sgn}\\, v_j + F v_j / |v|
+
+    (Armstrong-Helouvry, Dupont & Canudas de Wit 1994's static map: Coulomb, viscous and Stribeck friction): a
+    process force against the path's motion (a cutting force) shares itself among the axes as the motion does,
+    a Coulomb level does not; the single-axis and diagonal legs separate them.  The model is linear but in
+    ``v_s``: for each ``v_s`` of a geometric grid (:data:`STRIBECK_GRID`) the rest by linear least squares, the
+    best ``v_s`` kept (variable projection), on every pair of legs (out and back, reversal or sweep) where the axis
+    moved steadily at its speed both ways (:data:`LEG_SPEED_TOLERANCE`, :data:`LEG_SPREAD`).  Where that curve is not found (its best level
+    negative, fewer than four speeds counted, or it removes less than half the residual of the same legs' fit
+    without it: :data:`STRIBECK_GAIN`) the friction is flat below the working feed, and the map is the reversal
+    legs' alone, without ``F_s``, as the working feed's legs measure it.
+
+    Returns ``(c (2,), coulomb (2, 2), force (2,), stribeck (2, 2))``, ``stribeck[j] = (F_s, v_s)``."""
     speeds = measurement.leg_speeds
     path = np.hypot(speeds[:, 0], speeds[:, 1])
-    c, coulomb, force = np.zeros(2), np.zeros((2, 2)), np.zeros(2)
-    for j in range(2):
-        rows = np.flatnonzero(speeds[:, j] != 0)
+    c, coulomb, force, stribeck = np.zeros(2), np.zeros((2, 2)), np.zeros(2), np.zeros((2, 2))
+
+    def columns(rows, j):
         v = speeds[rows, j]
-        A = np.column_stack([v, (v > 0).astype(float), (v < 0).astype(float), v / path[rows]])
-        x, *_ = np.linalg.lstsq(A, measurement.leg_command[machine, rows, j], rcond=None)
+        return v, np.column_stack([v, (v > 0).astype(float), (v < 0).astype(float), v / path[rows]])
+
+    for j in range(2):
+        moving = np.flatnonzero(speeds[:, j] != 0)
+        reversal = moving[moving < REVERSAL_LEGS]
+        _, A = columns(reversal, j)
+        x, *_ = np.linalg.lstsq(A, measurement.leg_command[machine, reversal, j], rcond=None)
+        level, vs = 0.0, 0.0
+        rows = moving
+        if measurement.leg_velocity is not None:  # every pair of legs (out and back) where the axis moved steadily
+            target = np.abs(speeds[:, j])
+            ok = ((np.abs(measurement.leg_velocity[machine, :, j] - speeds[:, j]) <= LEG_SPEED_TOLERANCE * target)
+                  & (measurement.leg_spread[machine, :, j] <= LEG_SPREAD * target) & (target > 0))
+            pair = np.arange(len(speeds)) ^ 1  # leg_schedule's legs come out and back: (0, 1), (2, 3), ...
+            rows = np.flatnonzero(ok & ok[np.minimum(pair, len(speeds) - 1)])
+        v, A = columns(rows, j)
+        y = measurement.leg_command[machine, rows, j]
+        speed = np.abs(v)
+        if np.unique(speed).size >= 4 and np.any(rows >= REVERSAL_LEGS):
+            xp, *_ = np.linalg.lstsq(A, y, rcond=None)
+            plain = float(np.sum((A @ xp - y) ** 2))
+            best = (plain, None, 0.0, 0.0)
+            for grid_vs in np.geomspace(0.5 * speed.min(), 0.5 * speed.max(), STRIBECK_GRID):
+                As = np.column_stack([A, np.exp(-(v / grid_vs) ** 2) * np.sign(v)])
+                xs, *_ = np.linalg.lstsq(As, y, rcond=None)
+                sse = float(np.sum((As @ xs - y) ** 2))
+                if xs[4] > 0.0 and sse < best[0]:
+                    best = (sse, xs[:4], float(xs[4]), float(grid_vs))
+            if best[1] is not None and best[0] <= STRIBECK_GAIN * plain:
+                _, x, level, vs = best
         c[j], coulomb[j] = x[0], (max(x[1], 0.0), min(x[2], 0.0))
         force[j] = max(x[3], 0.0)
-    return c, coulomb, force
+        stribeck[j] = (level, vs)
+    return c, coulomb, force, stribeck
 
 
 def experiment_task(task, experiment: Experiment = Experiment()):
@@ -425,7 +522,9 @@ def identify(task, parameters, nominal_inverse, experiment: Experiment = Experim
     """
     positive("experiment.periods", experiment.periods)
     machines = Machines(experiment_task(task, experiment), parameters, seed=experiment.seed)
-    meas = run_experiment(machines, nominal_inverse, experiment)
+    ref_v = task.reference_arrays.samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    meas = run_experiment(machines, nominal_inverse, experiment,
+                          working_speed=float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1]))))
     models = []
     for i in range(machines.n):
         axes = []
@@ -433,9 +532,10 @@ def identify(task, parameters, nominal_inverse, experiment: Experiment = Experim
             f, G, coh = frf(meas, i, j, experiment.segment)
             axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt,
                                  holding_bandwidth=meas.holding_bandwidth[j]))
-        viscous, levels, force = friction_levels(meas, i)
+        viscous, levels, force, stribeck = friction_levels(meas, i)
         axes = [AxisModel(**{**a.__dict__, "viscous": float(viscous[j]),
                              "coulomb": (float(levels[j, 0]), float(levels[j, 1])), "process_force": float(force[j]),
+                             "stribeck": (float(stribeck[j, 0]), float(stribeck[j, 1])),
                              "velocity_noise": float(meas.velocity_noise[i, j])}) for j, a in enumerate(axes)]
         models.append(axes)
     return models, meas

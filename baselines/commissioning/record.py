@@ -112,7 +112,8 @@ class CommissioningRecord:
 
     @classmethod
     def from_dict(cls, d: dict) -> "CommissioningRecord":
-        axes = tuple(AxisModel(**{**a, "coulomb": tuple(a["coulomb"]), "band": tuple(a["band"])}) for a in d["axes"])
+        axes = tuple(AxisModel(**{**a, "coulomb": tuple(a["coulomb"]), "band": tuple(a["band"]),
+                                  "stribeck": tuple(a.get("stribeck", (0.0, 0.0)))}) for a in d["axes"])
         designs = tuple(AxisDesign(**{**a, "notch": tuple(a["notch"]), "margins": Margins(**a["margins"])})
                         for a in d["designs"])
         return cls(**{**d, "axes": axes, "designs": designs, "backlash": tuple(d["backlash"])})
@@ -129,7 +130,10 @@ class CommissioningRecord:
                     else "no mode found")
             lines.append(f"  {name}: m = {a.mass:.4g} /(mm/s^2), c = {a.viscous or a.damping:.3g} /(mm/s), {mode}, "
                          f"dead time {1e3 * a.delay:.3f} ms, Coulomb +{a.coulomb[0]:.3f}/{a.coulomb[1]:.3f}, "
-                         f"process force {a.process_force:.3f}, velocity noise {a.velocity_noise:.3g} mm/s")
+                         f"process force {a.process_force:.3f}, "
+                         + (f"Stribeck {a.stribeck[0]:.3g} below {a.stribeck[1]:.3g} mm/s, " if a.stribeck[0] > 0
+                            else "no Stribeck curve, ")
+                         + f"velocity noise {a.velocity_noise:.3g} mm/s")
             notch = f"notch {d.notch_frequency:.1f} Hz Q {d.notch_q:g}" if d.notch_frequency > 0 else "no notch"
             vel = f"velocity low-pass {d.velocity_cutoff:.0f} rad/s" if d.velocity_cutoff > 0 else "no velocity filter"
             frac = (f" ({d.margins.crossover / (2 * math.pi * a.mode_frequency):.2f} of the mode)"
@@ -167,7 +171,7 @@ def _ceiling(plant) -> float:
 
 def model_axes(plant, parameters, dt: float) -> list[AxisModel]:
     """The axes as ``parameters`` (2, P) declare them: the inverse dynamics' mass, damping, Coulomb levels and
-    dead time, and on the shop floor its mode, delays and sensor (no experiment)."""
+    dead time, and on the shop floor its mode, delays, sensor and Stribeck curve (no experiment)."""
     inv = plant.inverse(parameters)
     p = np.asarray(parameters, dtype=np.float64)
     names = plant.parameter_names
@@ -175,8 +179,10 @@ def model_axes(plant, parameters, dt: float) -> list[AxisModel]:
     def value(name, j, default=0.0):
         return float(p[j, names.index(name)]) if name in names else default
 
+    gain = plant.force_gain(p) if getattr(plant, "force_gain", None) is not None else np.zeros(2)
     axes = []
     for j in range(2):
+        stribeck = (float(gain[j]) * value("stribeck_force", j), value("stribeck_velocity", j))
         delays = round(value("command_delay", j)) + round(value("sensor_delay", j))
         q, sigma = value("encoder_resolution", j), value("noise_std", j)
         noise = math.sqrt(2.0 * (sigma**2 + q * q / 12.0)) / dt
@@ -184,7 +190,8 @@ def model_axes(plant, parameters, dt: float) -> list[AxisModel]:
                               mode_frequency=value("mode_frequency", j), mode_damping=value("mode_damping", j),
                               delay=float(inv.delay[j]) + (delays + 0.5) * dt,
                               coulomb=tuple(float(v) for v in inv.coulomb[j]), fit_error=0.0, band=(0.0, 0.0),
-                              velocity_noise=noise, dt=dt, viscous=float(inv.damping[j])))
+                              velocity_noise=noise, dt=dt, viscous=float(inv.damping[j]),
+                              stribeck=stribeck if stribeck[0] > 0 else (0.0, 0.0)))
     return axes
 
 

@@ -7,7 +7,8 @@ Both are computed once, when a controller is built, from the env's reference sam
 - :func:`inverse_feedforward`: the input that makes the nominal model follow the reference,
   ``u_ff[k] = sum_n c_n x_d^(n)`` evaluated at ``t_k + dt/2 + T_d`` (the middle of the zero-order-hold
   period the input is held over, plus the dead time), with the Coulomb friction of the direction of motion
-  switched at the reference's velocity reversals and the drive moved across the backlash gap there, both
+  and the Stribeck curve at the reference's speed (where the inverse has one) switched at the reference's
+  velocity reversals and the drive moved across the backlash gap there, both
   over a short zero-phase transition (``friction_time``, ``backlash_time``);
 - :func:`zpetc_reference`: Tomizuka (1987)'s zero-phase-error tracking controller of a discretised closed
   loop ``G_c(z^-1) = z^-d B_a B_u / A``: ``r(k) = A B_u* / (B_a B_u(1)^2) x_d(k + d + s)``, ``B_u`` the
@@ -94,6 +95,9 @@ def inverse_feedforward(inverse: InverseDynamics, samples: np.ndarray, dt: float
     u = np.einsum("kjn,jn->kj", derivatives, inverse.coefficients)
     if friction:
         u = u + np.maximum(s, 0.0) * inverse.coulomb[:, 0] + np.maximum(-s, 0.0) * inverse.coulomb[:, 1]
+        level, vs = inverse.stribeck[:, 0], inverse.stribeck[:, 1]
+        if np.any(level > 0):  # the Stribeck curve along the reference's speed, switched as the Coulomb level
+            u = u + level * np.exp(-(velocity / np.where(level > 0, vs, 1.0)) ** 2) * s
     return _at(u, 0.5 + inverse.delay / dt)
 
 

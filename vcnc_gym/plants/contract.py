@@ -531,10 +531,14 @@ class InverseDynamics:
     .. math::
 
         u(t) = \\sum_{n=1}^{4} c_n \\, x^{(n)}(t + T_d)
-               + f^{+} \\text{ if } \\dot x > 0, \\; f^{-} \\text{ if } \\dot x < 0,
+               + f^{+} \\text{ if } \\dot x > 0, \\; f^{-} \\text{ if } \\dot x < 0
+               + F_s e^{-(\\dot x / v_s)^2} \\, \\mathrm{sgn}\\, \\dot x,
 
     with ``x`` the table position (mm) the input must produce, ``T_d`` the
-    input dead time, ``f`` the Coulomb friction levels in input units, and
+    input dead time, ``f`` the Coulomb friction levels in input units,
+    ``F_s`` and ``v_s`` a Stribeck curve (Armstrong-Helouvry, Dupont &
+    Canudas de Wit 1994: the excess of static friction decaying with
+    speed; none where ``F_s = 0``, the declared models' case), and
     a backlash of width ``D_b`` (mm) between the drive and the table: the
     drive runs ``D_b / 2`` ahead of the table in the direction of motion and
     crosses the gap at a reversal (``backlash``).  The linear part is the
@@ -552,15 +556,20 @@ class InverseDynamics:
         ``D_b`` per axis, mm (0 for none).
     delay : ndarray, (2,)
         ``T_d`` per axis, s (0 for none).
+    stribeck : ndarray, (2, 2)
+        ``(F_s, v_s)`` per axis, input unit and mm/s (default none: zeros); ``F_s >= 0``, ``v_s > 0`` where
+        ``F_s > 0``.
     """
 
     coefficients: np.ndarray
     coulomb: np.ndarray
     backlash: np.ndarray
     delay: np.ndarray
+    stribeck: np.ndarray = ((0.0, 0.0), (0.0, 0.0))
 
     def __post_init__(self):
-        shapes = {"coefficients": (2, INVERSE_ORDER), "coulomb": (2, 2), "backlash": (2,), "delay": (2,)}
+        shapes = {"coefficients": (2, INVERSE_ORDER), "coulomb": (2, 2), "backlash": (2,), "delay": (2,),
+                  "stribeck": (2, 2)}
         for name, shape in shapes.items():
             value = np.array(getattr(self, name), dtype=np.float64)
             if value.shape != shape or not np.all(np.isfinite(value)):
@@ -571,6 +580,9 @@ class InverseDynamics:
             raise ValueError(f"InverseDynamics.coulomb must be (f+ >= 0, f- <= 0) per axis, got {self.coulomb}")
         if np.any(self.backlash < 0) or np.any(self.delay < 0):
             raise ValueError("InverseDynamics.backlash and delay must be >= 0")
+        if np.any(self.stribeck[:, 0] < 0) or np.any((self.stribeck[:, 0] > 0) & (self.stribeck[:, 1] <= 0)):
+            raise ValueError(f"InverseDynamics.stribeck must be (F_s >= 0, v_s > 0 where F_s > 0) per axis, "
+                             f"got {self.stribeck}")
 
     @classmethod
     def from_linear(cls, plant: "PlantModel", params, coulomb=((0.0, 0.0), (0.0, 0.0)), backlash=(0.0, 0.0)):
