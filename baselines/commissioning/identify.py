@@ -182,8 +182,9 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     the axes follow the task's reference during the run (so that the excitation acts on a moving axis, whose
     friction keeps its sign, and the observation's tracking error stays within its bound).  ``working_speed``
     (mm/s): the peak speed of the machine's working feed, which sets the friction sweep's speeds; default the
-    machines' task's (:func:`identify` passes the env's own task's, which a slowed experiment task does not show;
-    the reversal legs' speed is the followed task's, :attr:`Experiment.reversal_speed`)."""
+    machines' task's (:func:`identify` passes the env's own task's, which a slowed experiment task,
+    :func:`experiment_task`, does not show; the reversal legs' speed is the followed task's,
+    :attr:`Experiment.reversal_speed`)."""
     from ..feedforward.tables import inverse_feedforward
 
     t0 = time.perf_counter()
@@ -430,7 +431,7 @@ LEG_SPREAD = 0.5
 #: sweep's follow.
 REVERSAL_LEGS = 10
 
-#: The Stribeck velocities the fit tries: a geometric grid of this many from half the slowest counted leg's speed to
+#: The Stribeck velocities the fit tries: a geometric grid of this many from the slowest counted leg's speed to
 #: half the fastest's (above, the curve has not decayed within the legs and is not told from the Coulomb level).
 STRIBECK_GRID = 48
 #: The Stribeck term is kept where it leaves at most this fraction of the residual sum of squares without it.
@@ -452,11 +453,12 @@ def friction_levels(measurement: Measurement, machine: int):
     process force against the path's motion (a cutting force) shares itself among the axes as the motion does,
     a Coulomb level does not; the single-axis and diagonal legs separate them.  The model is linear but in
     ``v_s``: for each ``v_s`` of a geometric grid (:data:`STRIBECK_GRID`) the rest by linear least squares, the
-    best ``v_s`` kept (variable projection), on every pair of legs (out and back, reversal or sweep) where the axis
+    best ``v_s`` kept (variable projection; each term's sign bounded, :func:`scipy.optimize.lsq_linear`), on every
+    pair of legs (out and back, reversal or sweep) where the axis
     moved steadily at its speed both ways (:data:`LEG_SPEED_TOLERANCE`, :data:`LEG_SPREAD`).  Where that curve is not found (its best level
     negative, fewer than four speeds counted, or it removes less than half the residual of the same legs' fit
     without it: :data:`STRIBECK_GAIN`) the friction is flat below the working feed, and the map is the reversal
-    legs' alone, without ``F_s``, as the working feed's legs measure it.
+    legs' alone, without ``F_s``, as before the sweep (the map of the experiment's followed feed).
 
     Returns ``(c (2,), coulomb (2, 2), force (2,), stribeck (2, 2))``, ``stribeck[j] = (F_s, v_s)``."""
     speeds = measurement.leg_speeds
@@ -484,12 +486,14 @@ def friction_levels(measurement: Measurement, machine: int):
         y = measurement.leg_command[machine, rows, j]
         speed = np.abs(v)
         if np.unique(speed).size >= 4 and np.any(rows >= REVERSAL_LEGS):
-            xp, *_ = np.linalg.lstsq(A, y, rcond=None)
-            plain = float(np.sum((A @ xp - y) ** 2))
+            # every term of the map is a friction or a force against the motion: c, f+, F, F_s >= 0, f- <= 0 (without
+            # the signs a Stribeck column near sgn v and the Coulomb columns cancel each other at any size)
+            lower, upper = np.array([0.0, 0.0, -np.inf, 0.0]), np.array([np.inf, np.inf, 0.0, np.inf])
+            plain = float(np.sum((A @ optimize.lsq_linear(A, y, bounds=(lower, upper)).x - y) ** 2))
             best = (plain, None, 0.0, 0.0)
-            for grid_vs in np.geomspace(0.5 * speed.min(), 0.5 * speed.max(), STRIBECK_GRID):
+            for grid_vs in np.geomspace(speed.min(), 0.5 * speed.max(), STRIBECK_GRID):
                 As = np.column_stack([A, np.exp(-(v / grid_vs) ** 2) * np.sign(v)])
-                xs, *_ = np.linalg.lstsq(As, y, rcond=None)
+                xs = optimize.lsq_linear(As, y, bounds=(np.append(lower, 0.0), np.append(upper, np.inf))).x
                 sse = float(np.sum((As @ xs - y) ** 2))
                 if xs[4] > 0.0 and sse < best[0]:
                     best = (sse, xs[:4], float(xs[4]), float(grid_vs))
