@@ -43,15 +43,16 @@ def tables(data: dict, base: str) -> list[str]:
                    f"[{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | `{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, "
                    f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
                    f"{v['p_improvement']:.2f} | {v['outcome']} |")
-    members = [r for r in records if r.get("group")]
     against = next((r for r in records if r["policy"] == base), None)
-    if members and against is not None:
+    runs = dict.fromkeys(r["group"] for r in records if r.get("group"))  # each training run's seeds, in order
+    for run in runs if against is not None else ():
+        members = [r for r in records if r.get("group") == run]
         cells = []
         for figure in ("max", "rms"):
             v = verdict(seed_figures(members, figure), sampled_figures(against, figure), figure=figure,
-                        x_label=members[0]["group"], y_label=base)
+                        x_label=run, y_label=base)
             cells.append(f"{figure} {v.outcome}, X - Y {_f(v.difference)} [{_f(v.low)}, {_f(v.high)}] um")
-        out += ["", f"Against their base `{base}`, the {len(members)} seeds of `{members[0]['group']}` as one: "
+        out += ["", f"Against their base `{base}`, the {len(members)} seeds of `{run}` as one: "
                 + "; ".join(cells) + "."]
     return out
 
