@@ -102,10 +102,12 @@ class Experiment:
 @dataclass(frozen=True)
 class Measurement:
     """The experiment's record, per machine ``n`` and axis ``j``: excitation ``r``, command ``u`` (input unit)
-    and measured tracking error ``e = x_d - x`` (mm) of the frequency-response run, (N, K, 2); the mean commands ``coulomb``
-    (N, L, 2) of the reversal legs, whose axes' speeds (mm/s) are ``leg_speeds`` (L, 2); the control period ``dt`` (s);
+    and measured tracking error ``e = x_d - x`` (mm) of the frequency-response run, (N, K, 2); the mean commands ``leg_command``
+    (N, L, 2) of the reversal and sweep legs, whose axes' speeds (mm/s) are ``leg_speeds`` (L, 2); the control period ``dt`` (s);
     the wall time of the experiment (s); the measured velocity's noise (N, 2), mm/s (standard deviation about
-    its running mean on the legs at speed); the holding loop's bandwidth per axis (2,), rad/s."""
+    its running mean on the legs at speed); the holding loop's bandwidth per axis (2,), rad/s; per leg the measured
+    velocity's mean over its window ``leg_velocity`` and the spread of its low-passed value ``leg_spread`` (N, L, 2),
+    mm/s (None in a measurement made without them: every leg then counts)."""
 
     r: np.ndarray
     u: np.ndarray
@@ -454,11 +456,11 @@ def friction_levels(measurement: Measurement, machine: int):
     a Coulomb level does not; the single-axis and diagonal legs separate them.  The model is linear but in
     ``v_s``: for each ``v_s`` of a geometric grid (:data:`STRIBECK_GRID`) the rest by linear least squares, the
     best ``v_s`` kept (variable projection; each term's sign bounded, :func:`scipy.optimize.lsq_linear`), on every
-    pair of legs (out and back, reversal or sweep) where the axis
-    moved steadily at its speed both ways (:data:`LEG_SPEED_TOLERANCE`, :data:`LEG_SPREAD`).  Where that curve is not found (its best level
-    negative, fewer than four speeds counted, or it removes less than half the residual of the same legs' fit
-    without it: :data:`STRIBECK_GAIN`) the friction is flat below the working feed, and the map is the reversal
-    legs' alone, without ``F_s``, as before the sweep (the map of the experiment's followed feed).
+    pair of legs (out and back, reversal or sweep) where the axis moved steadily at its speed both ways
+    (:data:`LEG_SPEED_TOLERANCE`, :data:`LEG_SPREAD`).  Where that curve is not found (its best level negative,
+    fewer than four speeds counted, or it removes less than half the residual of the same legs' fit without it:
+    :data:`STRIBECK_GAIN`) the map is the reversal legs' alone, without ``F_s``, as before the sweep (the map of
+    the experiment's followed feed).
 
     Returns ``(c (2,), coulomb (2, 2), force (2,), stribeck (2, 2))``, ``stribeck[j] = (F_s, v_s)``."""
     speeds = measurement.leg_speeds
