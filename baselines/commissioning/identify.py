@@ -42,10 +42,13 @@ from vcnc_gym.envs.task import ContouringBatch
 from vcnc_gym.validation import positive
 
 __all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
-           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "LEG_SPEED_TOLERANCE", "LEG_SPREAD", "REVERSAL_LEGS", "STRIBECK_GRID", "STRIBECK_GAIN", "identify", "model_response", "MODE_PEAK_DB"]
+           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "LEG_SPEED_TOLERANCE", "LEG_SPREAD", "REVERSAL_LEGS", "STRIBECK_GRID", "STRIBECK_GAIN", "LEG_RAMP", "LEG_RAMP_MAX", "identify", "model_response", "MODE_PEAK_DB"]
 
 #: The longest travel of a reversal leg, mm (within the observation's tracking-error bound).
 LEG_TRAVEL = 6.0
+
+#: A leg's speed is reached over at least this fraction of it, at most ``LEG_RAMP_MAX`` (:func:`run_experiment`).
+LEG_RAMP, LEG_RAMP_MAX = 0.1, 0.3
 
 #: The fit's band ends where the excitation's coherence with the position falls below this.
 COHERENCE_FLOOR = 0.5
@@ -82,8 +85,10 @@ class Experiment:
         the friction's speed dependence below the working feed, a Stribeck curve's (:func:`friction_levels`).
         0: no sweep.
     leg_time : float, optional
-        Duration of each leg, s; default 12.5 time constants of the holding loop (``12.5 / w``), so that the
-        loop has settled over the leg's last 40 % where the command is averaged.
+        Duration of each leg, s; default 12.5 time constants of the holding loop (``12.5 / w``).  Each leg's speed
+        is reached by a smooth change (:data:`LEG_RAMP`) with the nominal model's feedforward of the move, and the
+        command is read over its last 40 %; the loop's remaining transient there (the slow integral's, after a
+        reversal's stick) is taken out by :func:`friction_levels` with the measured speed and acceleration.
     seed : int
         Seed of the PRBS and of the machines' sensor noise during the experiment.
     """
@@ -107,7 +112,8 @@ class Measurement:
     the wall time of the experiment (s); the measured velocity's noise (N, 2), mm/s (standard deviation about
     its running mean on the legs at speed); the holding loop's bandwidth per axis (2,), rad/s; per leg the measured
     velocity's mean over its window ``leg_velocity`` and the spread of its low-passed value ``leg_spread`` (N, L, 2),
-    mm/s (None in a measurement made without them: every leg then counts)."""
+    mm/s (None in a measurement made without them: every leg then counts), and its mean acceleration over the
+    window ``leg_acceleration`` (N, L, 2), mm/s^2 (the change of its halves' mean speeds; None: taken as 0)."""
 
     r: np.ndarray
     u: np.ndarray
@@ -120,6 +126,7 @@ class Measurement:
     holding_bandwidth: np.ndarray
     leg_velocity: np.ndarray | None = None
     leg_spread: np.ndarray | None = None
+    leg_acceleration: np.ndarray | None = None
 
 
 class Machines:
@@ -219,11 +226,29 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     # one PRBS for every machine (drawn as a batch of one draws it): a machine's record does not depend on its place
     # in a batch
     r[:, :K] = level * np.where(rng.random((K, 2)) < 0.5, -1.0, 1.0)[None]
-    offset_rate = np.zeros((total, 2))  # the reversal legs' moves on top of the reference, mm/s
+    # the legs' moves on top of the reference, mm/s: each leg's speed reached by a Hann-shaped change at its start
+    # (a step at ramp / 2 smoothed symmetrically: each leg's travel is the step's, no drift), over a tenth of the leg
+    # or longer, so that its nominal inertia force (m pi / 2 dv / ramp at most) takes at most half the input limit
+    # (a clipped command leaves the loop a lag), and at most LEG_RAMP_MAX of the leg
+    change = np.max(np.abs(np.diff(np.vstack([np.zeros(2), schedule]), axis=0)))
+    mass = float(np.max(np.abs(nominal_inverse.mass)))
+    ramp_time = 0.5 * np.pi * change * mass / (0.5 * float(np.min(machines.u_max)))
+    ramp = int(np.clip(np.ceil(ramp_time / dt), per_leg * LEG_RAMP, per_leg * LEG_RAMP_MAX))
+    steps = np.zeros((total + ramp, 2))
     for leg, speeds in enumerate(schedule):
-        a = start + leg * per_leg
-        offset_rate[a:a + per_leg] = speeds
+        a = start + leg * per_leg + ramp // 2
+        steps[a:a + per_leg] = speeds
+    window = np.hanning(ramp + 2)[1:-1]
+    offset_rate = np.stack([np.convolve(steps[:, j], window / window.sum(), mode="same") for j in range(2)],
+                           axis=1)[:total]
     offset = np.cumsum(offset_rate, axis=0) * dt
+    # and their own nominal feedforward (inertia, viscous and Coulomb levels): the loop then takes up only the
+    # machine's difference from the nominal model and the stick at a reversal; what it has not taken up by the
+    # leg's last 40 % (where the command is read) the fit's acceleration term accounts for (friction_levels)
+    legs_reference = np.zeros((total, sk.REF_COLUMNS))
+    legs_reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2] = offset_rate
+    legs_reference[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2] = np.gradient(offset_rate, dt, axis=0)
+    u_legs = inverse_feedforward(nominal_inverse, legs_reference, dt)
     u = np.zeros((n, total, 2))
     e = np.zeros((n, total, 2))
     velocity = np.zeros((n, total, 2))
@@ -237,19 +262,23 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
         ek = E + offset[k]
         e[:, k] = E
         integral += ek * dt
-        u[:, k] = (u_ff[min(k, u_ff.shape[0] - 1)] + kp * ek + kd * (lay.reference_velocity(obs) + offset_rate[k] - vf)
+        u[:, k] = (u_ff[min(k, u_ff.shape[0] - 1)] + u_legs[k] + kp * ek + kd * (lay.reference_velocity(obs) + offset_rate[k] - vf)
                    + ki * integral + r[:, k])
         u[:, k] = np.clip(u[:, k], -machines.u_max, machines.u_max)
         obs = machines.step(u[:, k])
     leg_command = np.zeros((n, legs, 2))
     leg_spread = np.zeros((n, legs, 2))
     leg_velocity = np.zeros((n, legs, 2))
+    leg_acceleration = np.zeros((n, legs, 2))
     for leg in range(legs):
         a = start + leg * per_leg
         window = slice(a + (3 * per_leg) // 5, a + per_leg)  # its last 40 %: at speed
         leg_command[:, leg] = u[:, window].mean(axis=1)
         leg_spread[:, leg] = _velocity_spread(velocity[:, window], alpha)
         leg_velocity[:, leg] = velocity[:, window].mean(axis=1)
+        half = (window.stop - window.start) // 2  # the mean acceleration: the change of the halves' mean speeds
+        leg_acceleration[:, leg] = (velocity[:, window.stop - half:window.stop].mean(axis=1)
+                                    - velocity[:, window.start:window.start + half].mean(axis=1)) / (half * dt)
     # the sensor's velocity noise: the measured velocity less its 21-period running mean on the legs at speed
     legs_v = velocity[:, start + (3 * per_leg) // 5:start + per_leg]
     kernel = np.ones(21) / 21.0
@@ -257,7 +286,7 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     velocity_noise = np.std((legs_v - smooth)[:, 10:-10], axis=1)
     return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
                        seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w,
-                       leg_velocity=leg_velocity, leg_spread=leg_spread)
+                       leg_velocity=leg_velocity, leg_spread=leg_spread, leg_acceleration=leg_acceleration)
 
 
 def _velocity_spread(v: np.ndarray, alpha) -> np.ndarray:
@@ -440,7 +469,7 @@ STRIBECK_GRID = 48
 STRIBECK_GAIN = 0.5
 
 
-def friction_levels(measurement: Measurement, machine: int):
+def friction_levels(measurement: Measurement, machine: int, mass=None):
     """Per axis the viscous coefficient (input unit per mm/s), the Coulomb levels (f+ >= 0, f- <= 0), a process
     force along the path (input unit) and a Stribeck curve (level in input units, velocity in mm/s), from the
     reversal legs and the friction sweep by least squares.
@@ -462,20 +491,31 @@ def friction_levels(measurement: Measurement, machine: int):
     :data:`STRIBECK_GAIN`) the map is the reversal legs' alone, without ``F_s``, as before the sweep (the map of
     the experiment's followed feed).
 
+    Where the measurement holds them, a leg's speed ``v_j`` is the measured one (its mean over the window; the
+    signs and the path's direction are the schedule's), and its command the mean command less ``mass[j]`` (input
+    unit per mm/s^2, the frequency response's) times the axis' mean acceleration over the window: a leg whose loop
+    has not quite settled (a reversal's stick leaves the holding loop a lag it takes up slowly) still gives its
+    static map.
+
     Returns ``(c (2,), coulomb (2, 2), force (2,), stribeck (2, 2))``, ``stribeck[j] = (F_s, v_s)``."""
     speeds = measurement.leg_speeds
     path = np.hypot(speeds[:, 0], speeds[:, 1])
     c, coulomb, force, stribeck = np.zeros(2), np.zeros((2, 2)), np.zeros(2), np.zeros((2, 2))
+    measured = speeds if measurement.leg_velocity is None else measurement.leg_velocity[machine]
+    command = measurement.leg_command[machine].copy()
+    if mass is not None and measurement.leg_acceleration is not None:
+        command -= np.asarray(mass, dtype=float)[None, :] * measurement.leg_acceleration[machine]
 
     def columns(rows, j):
         v = speeds[rows, j]
-        return v, np.column_stack([v, (v > 0).astype(float), (v < 0).astype(float), v / path[rows]])
+        return measured[rows, j], np.column_stack([measured[rows, j], (v > 0).astype(float), (v < 0).astype(float),
+                                                   v / path[rows]])
 
     for j in range(2):
         moving = np.flatnonzero(speeds[:, j] != 0)
         reversal = moving[moving < REVERSAL_LEGS]
         _, A = columns(reversal, j)
-        x, *_ = np.linalg.lstsq(A, measurement.leg_command[machine, reversal, j], rcond=None)
+        x, *_ = np.linalg.lstsq(A, command[reversal, j], rcond=None)
         level, vs = 0.0, 0.0
         rows = moving
         if measurement.leg_velocity is not None:  # every pair of legs (out and back) where the axis moved steadily
@@ -485,8 +525,8 @@ def friction_levels(measurement: Measurement, machine: int):
             pair = np.arange(len(speeds)) ^ 1  # leg_schedule's legs come out and back: (0, 1), (2, 3), ...
             rows = np.flatnonzero(ok & ok[np.minimum(pair, len(speeds) - 1)])
         v, A = columns(rows, j)
-        y = measurement.leg_command[machine, rows, j]
-        speed = np.abs(v)
+        y = command[rows, j]
+        speed = np.abs(speeds[rows, j])
         if np.unique(speed).size >= 4 and np.any(rows >= REVERSAL_LEGS):
             # every term of the map is a friction or a force against the motion: c, f+, F, F_s >= 0, f- <= 0 (without
             # the signs a Stribeck column near sgn v and the Coulomb columns cancel each other at any size)
@@ -499,7 +539,8 @@ def friction_levels(measurement: Measurement, machine: int):
                 sse = float(np.sum((As @ xs - y) ** 2))
                 if xs[4] > 0.0 and sse < best[0]:
                     best = (sse, xs[:4], float(xs[4]), float(grid_vs))
-            if best[1] is not None and best[0] <= STRIBECK_GAIN * plain:
+            # (a map the plain fit already meets to rounding keeps none)
+            if best[1] is not None and best[0] <= STRIBECK_GAIN * plain and plain > 1e-12 * float(y @ y):
                 _, x, level, vs = best
         c[j], coulomb[j] = x[0], (max(x[1], 0.0), min(x[2], 0.0))
         force[j] = max(x[3], 0.0)
@@ -538,7 +579,7 @@ def identify(task, parameters, nominal_inverse, experiment: Experiment = Experim
             f, G, coh = frf(meas, i, j, experiment.segment)
             axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt,
                                  holding_bandwidth=meas.holding_bandwidth[j]))
-        viscous, levels, force, stribeck = friction_levels(meas, i)
+        viscous, levels, force, stribeck = friction_levels(meas, i, mass=[a.mass for a in axes])
         axes = [AxisModel(**{**a.__dict__, "viscous": float(viscous[j]),
                              "coulomb": (float(levels[j, 0]), float(levels[j, 1])), "process_force": float(force[j]),
                              "stribeck": (float(stribeck[j, 0]), float(stribeck[j, 1])),
