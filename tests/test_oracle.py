@@ -156,11 +156,13 @@ def test_floor_is_at_or_below_every_causal_controller_on_plants_from_the_box(env
 
 def test_an_at_machine_start_is_the_controller_commissioned_on_that_machine():
     """The floor's warm start of an @machine design is the controller the bench runs (its identification run on
-    the machine solved on), not the nominal record's: its replay on the exact plant is the env episode's figure."""
+    the machine solved on), not the nominal record's: its replay on the exact plant is the env episode's figure.
+    On the look-ahead omega the two differ: its nominal record is the heart's machine (the same drive and period),
+    identified along the heart, and its machine run follows the omega."""
     from vcnc_baselines.optimal.rollout import Rollouts
     from vcnc_baselines.optimal.search import warm_starts
 
-    env = gym.make("VCNC-Circle-v1")
+    env = gym.make("VCNC-OmegaLookahead-v1")
     env.reset(seed=0)
     u = env.unwrapped
     starts = warm_starts(env, Rollouts(u.task, np.asarray(u.parameters), 1, None),
