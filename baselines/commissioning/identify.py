@@ -226,29 +226,7 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     # one PRBS for every machine (drawn as a batch of one draws it): a machine's record does not depend on its place
     # in a batch
     r[:, :K] = level * np.where(rng.random((K, 2)) < 0.5, -1.0, 1.0)[None]
-    # the legs' moves on top of the reference, mm/s: each leg's speed reached by a Hann-shaped change at its start
-    # (a step at ramp / 2 smoothed symmetrically: each leg's travel is the step's, no drift), over a tenth of the leg
-    # or longer, so that its nominal inertia force (m pi / 2 dv / ramp at most) takes at most half the input limit
-    # (a clipped command leaves the loop a lag), and at most LEG_RAMP_MAX of the leg
-    change = np.max(np.abs(np.diff(np.vstack([np.zeros(2), schedule]), axis=0)))
-    mass = float(np.max(np.abs(nominal_inverse.mass)))
-    ramp_time = 0.5 * np.pi * change * mass / (0.5 * float(np.min(machines.u_max)))
-    ramp = int(np.clip(np.ceil(ramp_time / dt), per_leg * LEG_RAMP, per_leg * LEG_RAMP_MAX))
-    steps = np.zeros((total + ramp, 2))
-    for leg, speeds in enumerate(schedule):
-        a = start + leg * per_leg + ramp // 2
-        steps[a:a + per_leg] = speeds
-    window = np.hanning(ramp + 2)[1:-1]
-    offset_rate = np.stack([np.convolve(steps[:, j], window / window.sum(), mode="same") for j in range(2)],
-                           axis=1)[:total]
-    offset = np.cumsum(offset_rate, axis=0) * dt
-    # and their own nominal feedforward (inertia, viscous and Coulomb levels): the loop then takes up only the
-    # machine's difference from the nominal model and the stick at a reversal; what it has not taken up by the
-    # leg's last 40 % (where the command is read) the fit's acceleration term accounts for (friction_levels)
-    legs_reference = np.zeros((total, sk.REF_COLUMNS))
-    legs_reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2] = offset_rate
-    legs_reference[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2] = np.gradient(offset_rate, dt, axis=0)
-    u_legs = inverse_feedforward(nominal_inverse, legs_reference, dt)
+    offset_rate, offset, u_legs = _leg_moves(schedule, start, per_leg, total, dt, nominal_inverse, machines.u_max)
     u = np.zeros((n, total, 2))
     e = np.zeros((n, total, 2))
     velocity = np.zeros((n, total, 2))
@@ -287,6 +265,37 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
                        seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w,
                        leg_velocity=leg_velocity, leg_spread=leg_spread, leg_acceleration=leg_acceleration)
+
+
+def _leg_moves(schedule, start: int, per_leg: int, total: int, dt: float, nominal_inverse, u_max):
+    """The legs' moves on top of the reference: their rate (total, 2) mm/s, the offset (total, 2) mm and their
+    nominal feedforward (total, 2) in input units, each leg ``per_leg`` periods from period ``start``."""
+    from ..feedforward.tables import inverse_feedforward
+
+    # the legs' moves on top of the reference, mm/s: each leg's speed reached by a Hann-shaped change at its start
+    # (a step at ramp / 2 smoothed symmetrically: each leg's travel is the step's, no drift), over a tenth of the leg
+    # or longer, so that its nominal inertia force (m pi / 2 dv / ramp at most) takes at most half the input limit
+    # (a clipped command leaves the loop a lag), and at most LEG_RAMP_MAX of the leg
+    change = np.max(np.abs(np.diff(np.vstack([np.zeros(2), schedule]), axis=0)))
+    mass = float(np.max(np.abs(nominal_inverse.mass)))
+    ramp_time = 0.5 * np.pi * change * mass / (0.5 * float(np.min(u_max)))
+    ramp = int(np.clip(np.ceil(ramp_time / dt), per_leg * LEG_RAMP, per_leg * LEG_RAMP_MAX))
+    steps = np.zeros((total + ramp, 2))
+    for leg, speeds in enumerate(schedule):
+        a = start + leg * per_leg + ramp // 2
+        steps[a:a + per_leg] = speeds
+    window = np.hanning(ramp + 2)[1:-1]
+    offset_rate = np.stack([np.convolve(steps[:, j], window / window.sum(), mode="same") for j in range(2)],
+                           axis=1)[:total]
+    offset = np.cumsum(offset_rate, axis=0) * dt
+    # and their own nominal feedforward (inertia, viscous and Coulomb levels): the loop then takes up only the
+    # machine's difference from the nominal model and the stick at a reversal; what it has not taken up by the
+    # leg's last 40 % (where the command is read) the fit's acceleration term accounts for (friction_levels)
+    legs_reference = np.zeros((total, sk.REF_COLUMNS))
+    legs_reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2] = offset_rate
+    legs_reference[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2] = np.gradient(offset_rate, dt, axis=0)
+    u_legs = inverse_feedforward(nominal_inverse, legs_reference, dt)
+    return offset_rate, offset, u_legs
 
 
 def _velocity_spread(v: np.ndarray, alpha) -> np.ndarray:
