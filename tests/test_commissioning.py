@@ -361,7 +361,7 @@ def test_friction_fit_takes_out_an_unsettled_legs_acceleration():
     np.testing.assert_allclose(force, 0.0, atol=1e-9)
     assert np.all(stribeck[:, 0] == 0.0)
     raw = dataclasses.replace(meas, leg_velocity=speeds[None].copy(), leg_acceleration=None)
-    c_raw, coulomb_raw, _, _ = identify.friction_levels(raw, 0)
+    c_raw = identify.friction_levels(raw, 0)[0]
     assert np.max(np.abs(c_raw / np.asarray(truth["viscous"]) - 1.0)) > 0.03
 
 
