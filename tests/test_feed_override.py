@@ -198,3 +198,38 @@ def test_the_front_keeps_exactly_the_points_nothing_beats():
         for q in points)]
     assert sorted(mine, key=lambda p: p.setting) == sorted(brute, key=lambda p: p.setting)
     assert [p.cycle_time_s for p in mine] == sorted(p.cycle_time_s for p in mine)
+
+
+@pytest.mark.parametrize("env_id", ["VCNC-ISO230Circle-v1", "VCNC-CircleShop-v1"])
+def test_an_ids_override_version_runs_its_own_reference(env_id):
+    """The report's override version of a contouring id (vcnc_bench.reports.feed_override.override_env) holds that
+    id's task: the same reference samples, plant and shop floor as gym.make(env_id) (a G-code id's program read
+    as GCodeEnv reads it), in FeedOverrideEnv; a non-contouring id is refused by name."""
+    from vcnc_bench.reports.feed_override import override_env
+
+    base, over = gym.make(env_id).unwrapped, override_env(env_id).unwrapped
+    assert type(over).__name__ == "FeedOverrideEnv" and over.action_space.shape == (3,)
+    np.testing.assert_array_equal(over.task.reference_arrays.samples, base.task.reference_arrays.samples)
+    assert over.task.plant.parameter_names == base.task.plant.parameter_names
+    np.testing.assert_array_equal(over.task.nominal_parameters, base.task.nominal_parameters)
+    with pytest.raises(ValueError, match="VCNC-OmegaOverride-v1"):
+        override_env("VCNC-OmegaOverride-v1")
+
+
+def test_an_ids_front_on_the_table():
+    """vcnc_bench.reports.feed_override.id_front on Purtojo et al.'s circle: the planned runs at the programmed
+    feed's fractions (1 mm/s and slower: a slower feed takes longer, by the feed's ratio to within the start and
+    the end), the operator's override left out (ff-pid-online is not designed for the table), and each planned
+    point the episode that gym.make(id, feedrate=f) gives."""
+    import vcnc_baselines
+    from vcnc_bench.reports.feed_override import FEED_FRACTIONS, id_front
+    from vcnc_gym.evaluation import run_episode
+
+    lines = []
+    points = id_front("VCNC-Circle-v1", policies=("ff-pid", "ff-pid-online"), mpcc=False, progress=lines.append)
+    assert [p.kind for p in points] == ["planned"] * len(FEED_FRACTIONS)
+    assert any("ff-pid-online is not designed for nct_xy_table" in line for line in lines)
+    times = np.array([p.cycle_time_s for p in points])
+    np.testing.assert_allclose(times * np.array(FEED_FRACTIONS), times[0], rtol=0.01)
+    env = gym.make("VCNC-Circle-v1", feedrate=FEED_FRACTIONS[2])
+    assert points[2].max_um == run_episode(vcnc_baselines.make("ff-pid", env), env).max_contour_error_um

@@ -24,6 +24,20 @@ the Pareto set of every planned run.
 
 Run ``python -m vcnc_bench.reports.feed_override --plot bench-out/omega_front.png`` (the shipped agent, or
 ``--agent FOLDER``; ``--no-mpcc`` leaves out the contouring MPC, whose episodes take a minute or more each).
+
+**Every other contouring id** (``--id ID``, or ``--id all`` for :data:`CONTOURING_IDS`; :func:`id_front`): the
+same kinds of run on that id's contour and machine (the shop floor's included), nominal plant, the agent left out
+(one is shipped for the omega only):
+
+- **planned**: each classical controller of :data:`CLASSICAL` on the id itself with its programmed feed scaled by
+  :data:`FEED_FRACTIONS` (its own feed planner: S-curve, look-ahead, JLAP or constant), or, on a G-code id, whose
+  F words set the feed, with the look-ahead's path acceleration and jerk scaled by :data:`LIMIT_FACTORS`;
+- **operator**: ``ff-pid-online`` on the id's override version (:func:`override_env`: the id's task in
+  :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`) with the override held at each of :data:`CAPS`;
+- **mpcc**: the contouring MPC on the override version, its progress speed capped at the programmed feed (the
+  fastest block's, on a G-code id) times each of :data:`MPCC_FRACTIONS`.
+
+``--json FILE`` writes the points.
 """
 
 from __future__ import annotations
@@ -35,7 +49,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["FrontPoint", "KINDS", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
-           "SCURVE", "MPCC_SPEEDS", "classical_front", "scurve_points", "operator_front", "agent_front", "mpcc_front",
+           "SCURVE", "MPCC_SPEEDS", "FEED_FRACTIONS", "MPCC_FRACTIONS", "LIMIT_FACTORS", "classical_front", "override_env",
+           "planned_settings", "id_front", "scurve_points", "operator_front", "agent_front", "mpcc_front",
            "pareto", "verdicts",
            "format_front", "plot_front", "main"]
 
@@ -64,6 +79,16 @@ MPCC_SPEEDS = (100.0, 80.0, 60.0, 45.0, 35.0)
 #: itself, a classical controller under an operator's fixed override, the agent with its own override, the
 #: contouring MPC with its own progress.
 KINDS = ("planned", "s-curve", "operator", "agent", "mpcc")
+
+#: The programmed feed's fractions of an id's planned runs and caps of its contouring MPC (:func:`id_front`): the
+#: omega's :data:`MPCC_SPEEDS` over its 100 mm/s, and 0.3 for the planned runs' slowest.
+FEED_FRACTIONS = (1.0, 0.8, 0.6, 0.45, 0.35)
+#: The contouring MPC's caps on another id, as fractions of its programmed feed: three of the omega's five (its
+#: episodes cost 3-4 ms a control period, 10 min for the three on the heart's 3.2 s).
+MPCC_FRACTIONS = (1.0, 0.6, 0.35)
+#: A G-code id's planned runs: its look-ahead's path acceleration and jerk (the plant's declared limits,
+#: :func:`vcnc_gym.gcode.path_limits`) times these.
+LIMIT_FACTORS = (2.0, 1.5, 1.0, 0.5, 0.25)
 
 
 @dataclass(frozen=True)
@@ -198,6 +223,80 @@ def mpcc_front(speeds=MPCC_SPEEDS, **params) -> list[FrontPoint]:
     return points
 
 
+def override_env(env_id: str):
+    """The override version of contouring id ``env_id``: its task (contour, plant, shop floor, feed; a G-code
+    id's program read as :class:`~vcnc_gym.envs.gcode_env.GCodeEnv` reads it) in
+    :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`, made through ``VCNC-OmegaOverride-v1``'s entry."""
+    import gymnasium as gym
+
+    from vcnc_gym.envs.gcode_env import gcode_task_kwargs
+    from vcnc_gym.envs.registry import CONTOURING_IDS
+
+    if env_id not in CONTOURING_IDS:
+        raise ValueError(f"env_id must be a contouring id ({', '.join(CONTOURING_IDS)}), got {env_id!r}")
+    spec = gym.spec(env_id)
+    kwargs = dict(spec.kwargs)
+    if spec.entry_point.endswith(":GCodeEnv"):
+        kwargs = gcode_task_kwargs(kwargs.pop("program", None), **kwargs)
+    kwargs.pop("completion_timeout", None)  # the override env's own: its time limit
+    return gym.make("VCNC-OmegaOverride-v1", **kwargs)
+
+
+def planned_settings(env_id: str) -> list[tuple[str, dict]]:
+    """The planned runs' settings of contouring id ``env_id`` (module docstring): (label, ``gym.make`` keywords)."""
+    import inspect
+
+    import gymnasium as gym
+
+    from vcnc_gym.envs.task import ContouringTask
+    from vcnc_gym.gcode import path_limits
+
+    spec = gym.spec(env_id)
+    if spec.entry_point.endswith(":GCodeEnv"):
+        a, j = path_limits(spec.kwargs.get("plant", "vcnc_feed_drive"), None, None)
+        return [(f"path limits x {k:g} ({k * a:g} mm/s^2)", {"acceleration": k * a, "jerk": k * j})
+                for k in LIMIT_FACTORS]
+    feed = spec.kwargs.get("feedrate", inspect.signature(ContouringTask).parameters["feedrate"].default)
+    return [(f"{f * feed:g} mm/s", {"feedrate": f * feed}) for f in FEED_FRACTIONS]
+
+
+def id_front(env_id: str, policies=CLASSICAL, mpcc: bool = True, progress=print) -> list[FrontPoint]:
+    """The front of contouring id ``env_id`` (module docstring), nominal plant: the planned runs of ``policies``,
+    the operator's fixed overrides and, with ``mpcc``, the contouring MPC; ``progress`` gets a line per run."""
+    import gymnasium as gym
+
+    import vcnc_baselines
+    from vcnc_gym.evaluation import run_episode
+
+    def designed(name, env) -> bool:  # not every controller is designed for every plant (ff-pid-online's two)
+        if vcnc_baselines.registry.policy_class(name).designed_for(env.unwrapped.task.plant):
+            return True
+        progress(f"{env_id}: {name} is not designed for {env.unwrapped.task.plant.name}: left out")
+        return False
+
+    points = []
+    for label, setting in planned_settings(env_id):
+        env = gym.make(env_id, **setting)
+        for name in (n for n in policies if designed(n, env)):
+            points.append(_point(name, label, run_episode(vcnc_baselines.make(name, env), env), "planned"))
+            progress(f"{env_id}: {name} at {label} done")
+        env.close()
+    env = override_env(env_id)
+    if designed(OPERATOR, env):
+        for c in CAPS:
+            points.append(_point(f"{OPERATOR} @ override", f"{100 * c:g} %",
+                                 run_episode(FixedOverride(vcnc_baselines.make(OPERATOR, env), c), env), "operator"))
+        progress(f"{env_id}: the operator's overrides done")
+    if mpcc:
+        peak = vcnc_baselines.make("mpcc", env).v_max
+        for f in MPCC_FRACTIONS:
+            points.append(_point("mpcc", f"v_max {f * peak:.4g} mm/s",
+                                 run_episode(vcnc_baselines.make("mpcc", env, v_max=f * peak), env), "mpcc"))
+            progress(f"{env_id}: mpcc at {f:g} of {peak:.4g} mm/s done")
+    env.close()
+    return points
+
+
 def format_front(points) -> str:
     """The points as a table, um and s."""
     lines = [f"{'policy':26s} {'setting':26s} {'cycle_s':>8s} {'max_um':>9s} {'rms_um':>9s}", "-" * 82]
@@ -233,7 +332,8 @@ def verdicts(points) -> list[str]:
     return lines
 
 
-def plot_front(points, path) -> None:
+def plot_front(points, path, title: str = "Omega, nominal plant: planned look-ahead (classical) vs online feed "
+               "override (agent, MPCC)") -> None:
     """Max contour error (um, log) against cycle time (s): every classical planned run (markers), their Pareto
     front (line), the operator's fixed overrides, the S-curve runs and the agent."""
     import matplotlib
@@ -260,8 +360,7 @@ def plot_front(points, path) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("cycle time (s)")
     ax.set_ylabel("max contour error (um)")
-    ax.set_title("Omega, nominal plant: planned look-ahead (classical) vs online feed override (agent, MPCC)",
-                 fontsize=9)
+    ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -273,10 +372,15 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.feed_override", description=__doc__.split(
         "\n\n")[0])
     parser.add_argument("--agent", help="the feed-override agent's folder (default: the shipped one)")
-    parser.add_argument("--plot", help="write the front as a PNG here")
+    parser.add_argument("--plot", help="write the front as a PNG here (with --id: a folder, one PNG per id)")
     parser.add_argument("--no-mpcc", action="store_true",
                         help="leave out the contouring MPC (a QP per control period: a minute or more per point)")
+    parser.add_argument("--id", nargs="+", metavar="ID", dest="ids",
+                        help="the front of these contouring ids instead of the omega's ('all': every one)")
+    parser.add_argument("--json", help="write the points here (JSON, a list per front)")
     args = parser.parse_args(argv)
+    if args.ids:
+        return _id_fronts(parser, args)
     agent = args.agent
     if agent is None:
         from vcnc_agents import TRAINED
@@ -286,14 +390,55 @@ def main(argv=None) -> int:
             parser.error("no agent is shipped for VCNC-OmegaOverride-v1: give --agent FOLDER")
     points = classical_front() + scurve_points() + operator_front() + agent_front(agent) + \
         ([] if args.no_mpcc else mpcc_front())
+    _report(points, args.plot)
+    if args.json:
+        _write_json({"VCNC-OmegaOverride-v1": points}, args.json)
+    return 0
+
+
+def _report(points, plot, title=None) -> None:
     print(format_front(points))
     print("\nclassical front (look-ahead runs no other beats in both cycle time and max error):")
     print(format_front(pareto([p for p in points if p.kind == "planned"])))
     print()
     print("\n".join(verdicts(points)))
-    if args.plot:
-        plot_front(points, args.plot)
-        print(f"wrote {args.plot}")
+    if plot:
+        plot_front(points, plot, **({} if title is None else {"title": title}))
+        print(f"wrote {plot}")
+
+
+def _write_json(fronts: dict, path) -> None:
+    import json
+    from dataclasses import asdict
+    from pathlib import Path
+
+    Path(path).write_text(json.dumps({k: [asdict(p) for p in v] for k, v in fronts.items()}, indent=1))
+    print(f"wrote {path}")
+
+
+def _id_fronts(parser, args) -> int:
+    from pathlib import Path
+
+    from vcnc_gym.envs.registry import CONTOURING_IDS
+
+    ids = list(CONTOURING_IDS) if args.ids == ["all"] else args.ids
+    unknown = [i for i in ids if i not in CONTOURING_IDS]
+    if unknown:
+        parser.error(f"--id: {', '.join(unknown)} is not a contouring id ({', '.join(CONTOURING_IDS)}, or all)")
+    if args.agent:
+        parser.error("--agent runs on the omega's front only (no override agent is shipped for another id)")
+    fronts = {}
+    for env_id in ids:
+        fronts[env_id] = points = id_front(env_id, mpcc=not args.no_mpcc,
+                                           progress=lambda line: print(line, flush=True))
+        print(f"\n== {env_id} ==")
+        plot = None
+        if args.plot:
+            Path(args.plot).mkdir(parents=True, exist_ok=True)
+            plot = str(Path(args.plot) / f"{env_id}.png")
+        _report(points, plot, f"{env_id}, nominal plant: planned feeds (classical), operator's override, MPCC")
+        if args.json:
+            _write_json(fronts, args.json)
     return 0
 
 
