@@ -156,3 +156,21 @@ def test_an_episode_on_the_override_omega_finishes_within_the_input_limit():
     assert result.completed and not result.diverged
     assert result.max_contour_error_um < 50.0
     assert result.cycle_time_s < 3.0 * env.unwrapped.task.reference.t[-1]
+
+
+@pytest.mark.slow
+def test_on_a_slow_path_it_runs_at_its_cap():
+    """Purtojo et al.'s circle at 1 mm/s (a hundredth of the omega's feed), in its override version: with the
+    progress rewards in proportion to the programmed feed (WEIGHTS_FEED) it runs at its 0.6 mm/s cap, finishing
+    the 2 pi mm within 1 % of 2 pi / 0.6 s (with the omega's weights unscaled it crawled at 0.32 mm/s and ran out of
+    the time limit), its max contour error within 3 um."""
+    from vcnc_bench.reports.feed_override import override_env
+    from vcnc_gym.evaluation import run_episode
+
+    env = override_env("VCNC-Circle-v1")
+    policy = vcnc_baselines.make("mpcc", env, v_max=0.6)
+    assert policy.weights[2] == pytest.approx(10.0 * M.WEIGHTS_FEED / 1.0, rel=1e-6)
+    result = run_episode(policy, env)
+    assert result.completed
+    assert result.cycle_time_s == pytest.approx(2 * np.pi / 0.6, rel=0.01)
+    assert result.max_contour_error_um < 3.0

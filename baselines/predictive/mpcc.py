@@ -38,8 +38,9 @@ omega, it stopped 2 mm before the second 0.19 mm corner (and, at the end, 1 mm b
 never finished.
 
 subject to ``|u_j(l) + c_j(l)| <= u_max`` (the plant's input limit on the whole command, ``c`` the Coulomb
-pre-compensation), ``0 <= v_theta(l) <= min(v_max, v_feed(theta_bar))`` (``v_feed`` the programmed S-curve's feed
-as it accelerates from rest, then its peak: an override runs the programmed feed slower, never faster; and
+pre-compensation), ``0 <= v_theta(l) <= min(v_max, v_feed(theta_bar))`` (``v_feed`` the programmed feed as it
+accelerates from rest, then its peak, with a look-ahead's slow-downs (:class:`PathTable`): an override runs the
+programmed feed slower, never faster; and
 ``sqrt(2 a_max (length - theta_bar))``, the speed from which the progress still stops at the path's end),
 ``theta(l) <= length`` (the path's) and ``|a_theta| <= a_max``.  The axes' model is each axis' nominal linear model discretised at the control period
 (:func:`.design.axis_model`, the one ``mpc`` and ``lq-preview`` use), over a block ``x <- A^L x + sum_i A^i B u``;
@@ -90,7 +91,7 @@ from vcnc_gym.validation import integer, positive
 from ..base import BaselinePolicy
 from .design import axis_model, estimator_gain
 
-__all__ = ["MPCCPolicy", "PathTable", "path_table", "linearised_errors", "BlockPrediction", "block_prediction",
+__all__ = ["MPCCPolicy", "WEIGHTS_FEED", "PathTable", "path_table", "linearised_errors", "BlockPrediction", "block_prediction",
            "ContouringQP", "contouring_qp", "solve_qp", "DEFAULT_BLOCKS", "FIRST_ITERATIONS"]
 
 #: Block lengths of the horizon, control periods: seven short blocks (22 periods), then eight of 1 ms and fifteen
@@ -103,6 +104,11 @@ _A_SCALE = 1000.0
 #: The clock's catch-up time constant, s, and how far ahead of the progress it is kept, mm: the override reaches
 #: its dial at a bounded rate, so the clock follows ``theta`` through a slow loop, and a clock ahead costs nothing
 #: (the episode ends when the tool arrives) where one behind costs the time it needs to catch up.
+#: The programmed feed (mm/s) at which the progress rewards' defaults were tuned (the omega's); on another feed ``F``
+#: they are scaled by ``WEIGHTS_FEED / F``, so that a speed in proportion to the feed earns the same against the
+#: errors (measured on Purtojo et al.'s circle at 1 mm/s: with the omega's weights unscaled the controller crawled
+#: at 0.32 mm/s under a 0.6 mm/s cap and ran out of time).
+WEIGHTS_FEED = 100.0
 _CLOCK_TIME = 20e-3
 _CLOCK_LEAD = 0.2
 #: Axis speed (mm/s) over which the Coulomb pre-compensation turns from one level to the other (tanh).
@@ -112,10 +118,11 @@ _COULOMB_SPEED = 0.05
 @dataclass(frozen=True)
 class PathTable:
     """The programmed path by arc length: ``arc`` (K,) mm, strictly increasing from 0; ``point`` (K, 2) mm;
-    ``tangent`` (K, 2) unit; ``feed`` (K,) mm/s, the largest programmed speed up to 1 ms after the reference passes
-    each arc: the S-curve's start, which an override cannot run faster than (1 ms ahead, so that the start, at
-    rest, is not a zero feed), then its peak, where the progress' own bounds do the braking (the S-curve's stop at
-    the end is the constraint ``theta <= length``); ``speed`` (K,) mm/s, the reference's own speed there."""
+    ``tangent`` (K, 2) unit; ``feed`` (K,) mm/s, the programmed speed 1 ms after the reference passes each arc, which
+    an override cannot run faster than (1 ms ahead, so that the start, at rest, is not a zero feed): an S-curve's
+    start, then its peak; a look-ahead's or a G-code program's slow-downs at corners too; its final stop held at
+    the speed it stops from, where the progress' own bounds do the braking (the constraint ``theta <= length``);
+    ``speed`` (K,) mm/s, the reference's own speed there."""
 
     arc: np.ndarray
     point: np.ndarray
@@ -149,7 +156,16 @@ def path_table(samples, dt: float) -> PathTable:
     arc = s[:, sk.REF_ARC]
     speed = np.hypot(s[:, sk.REF_VELOCITY], s[:, sk.REF_VELOCITY + 1])
     lead = int(round(1e-3 / positive("dt", dt, "s")))
-    feed = np.maximum.accumulate(speed[np.minimum(np.arange(speed.size) + lead, speed.size - 1)])
+    ahead = speed[np.minimum(np.arange(speed.size) + lead, speed.size - 1)]
+    # the programmed speed 1 ms ahead, its final stop held at the speed it stops from (theta <= length and the
+    # braking bound stop the progress); where it runs at its peak so far, that peak (an S-curve's: the same bits)
+    stop = speed.size - 1
+    while stop > 0 and ahead[stop - 1] >= ahead[stop]:
+        stop -= 1
+    held = ahead.copy()
+    held[stop:] = ahead[stop]
+    peak = np.maximum.accumulate(ahead)
+    feed = np.where(held >= peak * (1.0 - 1e-9), peak, held)
     keep = np.concatenate([[True], np.diff(arc) > 0])
     if keep.sum() < 2:
         raise ValueError("samples must move along a path (their arc length never increases)")
@@ -326,10 +342,12 @@ class MPCCPolicy(BaselinePolicy):
     contour_weight, lag_weight : float
         ``q_c``, ``q_l``, per um^2 and control period (default 4 and 1: on the omega at 100 mm/s, ``q_c`` 1 gave
         7.50 um max, 4 gave 3.97 um and 16 3.99 um, all in 0.687 s).
-    progress_weight : float
-        ``q_v``, per mm/s and control period (default 10: 100 mm/s is worth 1000 um^2 of squared error).
-    advance_weight : float
-        ``q_theta``, per mm of progress and control period (default 200; module docstring).
+    progress_weight : float, optional
+        ``q_v``, per mm/s and control period (default ``10 x 100 / F``, ``F`` the programmed feed's peak in mm/s:
+        on the omega at 100 mm/s, 10, and 100 mm/s is worth 1000 um^2 of squared error; the feed is worth as much
+        on any path, :data:`WEIGHTS_FEED`).
+    advance_weight : float, optional
+        ``q_theta``, per mm of progress and control period (default ``200 x 100 / F``; module docstring).
     input_weight, path_weight : float
         ``r_u`` per input unit^2 of change between blocks, ``r_a`` per (1000 mm/s^2)^2 (defaults 1e-3, 1e-2).
     a_max : float, optional
@@ -357,7 +375,7 @@ class MPCCPolicy(BaselinePolicy):
         return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, v_max=None,
-                 contour_weight=4.0, lag_weight=1.0, progress_weight=10.0, advance_weight=200.0, input_weight=1e-3,
+                 contour_weight=4.0, lag_weight=1.0, progress_weight=None, advance_weight=None, input_weight=1e-3,
                  path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.dt = positive("dt", dt, "s")
@@ -367,6 +385,11 @@ class MPCCPolicy(BaselinePolicy):
         self.path = path_table(reference, self.dt)
         peak = float(self.path.feed.max())
         self.v_max = peak if v_max is None else positive("v_max", v_max, "mm/s")
+        # the progress rewards' defaults, tuned on the omega at 100 mm/s, in proportion to the programmed feed: a path
+        # run at a hundredth of the speed earns as much for its feed as the omega does for its own
+        scale = WEIGHTS_FEED / peak
+        progress_weight = 10.0 * scale if progress_weight is None else progress_weight
+        advance_weight = 200.0 * scale if advance_weight is None else advance_weight
         self.weights = (positive("contour_weight", contour_weight, "per um^2") * 1e6,
                         positive("lag_weight", lag_weight, "per um^2") * 1e6,
                         positive("progress_weight", progress_weight, "per mm/s"),
