@@ -32,6 +32,7 @@ def main(argv=None) -> None:
     wall = time.perf_counter() - t0
     names = task.plant.parameter_names
     rows = []
+    bands = [a.band[1] for r in records for a in r.axes]  # the identification band's top per axis, Hz
     for p, r in zip(plants, records):
         for j, (a, d) in enumerate(zip(r.axes, r.designs)):
             f_true = p[j, names.index("mode_frequency")] if "mode_frequency" in names else 0.0
@@ -51,10 +52,12 @@ def main(argv=None) -> None:
                            ("gain margin", rows[:, 6], "dB"), ("phase margin", rows[:, 7], "deg"),
                            ("sensitivity peak", rows[:, 8], "dB")):
         if v.size:
-            print(f"  {label}: median {np.median(v):.3g}, worst {np.max(v) if 'error' in label or 'mode' in label else np.min(v):.3g}"
+            higher_is_worse = "error" in label or "mode" in label or "sensitivity" in label
+            print(f"  {label}: median {np.median(v):.3g}, worst {np.max(v) if higher_is_worse else np.min(v):.3g}"
                   f" (min {np.min(v):.3g}, max {np.max(v):.3g}) {unit}")
     print(f"  nominal plant: mode {rows[0, 1]:.2f} Hz (true {rows[0, 0]:.2f}), zeta {rows[0, 3]:.4f} "
-          f"(true {rows[0, 2]:.4f})")
+          f"(true {rows[0, 2]:.4f})" + ("" if rows[0, 1] > 0 else "; no mode found (0): the band's top is "
+                                       f"{bands[0]:.1f} Hz"))
 
 
 if __name__ == "__main__":
