@@ -233,3 +233,17 @@ def test_an_ids_front_on_the_table():
     np.testing.assert_allclose(times * np.array(FEED_FRACTIONS), times[0], rtol=0.01)
     env = gym.make("VCNC-Circle-v1", feedrate=FEED_FRACTIONS[2])
     assert points[2].max_um == run_episode(vcnc_baselines.make("ff-pid", env), env).max_contour_error_um
+
+
+def test_the_fronts_json_reads_back_and_replots(tmp_path):
+    """--json's file read back by read_fronts gives the same points (FrontPoint equality, infinite cycle times
+    included), and --replot draws them on one grid without running anything."""
+    from vcnc_bench.reports.feed_override import FrontPoint, _write_json, main, read_fronts
+
+    fronts = {"VCNC-Heart-v1": [FrontPoint("ff-pid", "100 mm/s", 3.22, 1.9, 0.05, "planned"),
+                                FrontPoint("mpcc", "v_max 35 mm/s", float("inf"), 4.0, 0.3, "mpcc")],
+              "VCNC-Circle-v1": [FrontPoint("zpetc", "1 mm/s", 6.284, 0.55, 0.1, "planned")]}
+    _write_json(fronts, tmp_path / "f.json")
+    assert read_fronts([tmp_path / "f.json"]) == fronts
+    assert main(["--replot", str(tmp_path / "f.json"), "--plot", str(tmp_path / "grid.png")]) == 0
+    assert (tmp_path / "grid.png").stat().st_size > 10_000

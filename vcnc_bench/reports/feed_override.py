@@ -51,7 +51,7 @@ import numpy as np
 __all__ = ["FrontPoint", "KINDS", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
            "SCURVE", "MPCC_SPEEDS", "FEED_FRACTIONS", "MPCC_FRACTIONS", "LIMIT_FACTORS", "classical_front", "override_env",
            "planned_settings", "id_front", "scurve_points", "operator_front", "agent_front", "mpcc_front",
-           "pareto", "verdicts",
+           "pareto", "verdicts", "plot_fronts", "read_fronts",
            "format_front", "plot_front", "main"]
 
 #: Look-ahead settings of the planned runs: (programmed feed mm/s, path acceleration limit mm/s^2).  The suite's
@@ -342,15 +342,43 @@ def plot_front(points, path, title: str = "Omega, nominal plant: planned look-ah
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7.5, 5.0))
+    _draw_front(ax, points, title, legend_size=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_fronts(fronts: dict, path) -> None:
+    """One panel per id of ``fronts`` (id -> points), as :func:`plot_front` draws one, on a grid of three columns."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = math.ceil(len(fronts) / 3)
+    fig, axes = plt.subplots(rows, 3, figsize=(15.0, 3.6 * rows), squeeze=False)
+    for ax, (env_id, points) in zip(axes.ravel(), fronts.items()):
+        _draw_front(ax, points, env_id, legend_size=5)
+    for ax in axes.ravel()[len(fronts):]:
+        ax.set_visible(False)
+    fig.suptitle("Max contour error against cycle time, nominal plant: planned feeds (classical), the operator's "
+                 "override, the contouring MPC (own progress)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _draw_front(ax, points, title: str, legend_size: int) -> None:
     finished = [p for p in points if math.isfinite(p.cycle_time_s)]
     planned = [p for p in finished if p.kind == "planned"]
     for name, marker in zip(CLASSICAL, "sD^v"):
         mine = [p for p in planned if p.policy == name]
-        ax.scatter([p.cycle_time_s for p in mine], [p.max_um for p in mine], marker=marker, s=22, alpha=0.6,
-                   label=f"{name}, look-ahead")
+        if mine:
+            ax.scatter([p.cycle_time_s for p in mine], [p.max_um for p in mine], marker=marker, s=22, alpha=0.6,
+                       label=f"{name}, planned")
     front = pareto(planned)
     ax.step([p.cycle_time_s for p in front], [p.max_um for p in front], "k-", where="post", lw=1.2,
-            label="classical front (look-ahead)")
+            label="classical front (planned)")
     for kind, name in dict.fromkeys((p.kind, p.policy) for p in finished if p.kind != "planned"):
         mine = sorted((p for p in finished if (p.kind, p.policy) == (kind, name)), key=lambda p: p.cycle_time_s)
         style = {"agent": "o-", "mpcc": "s--"}.get(kind, "x:")
@@ -362,10 +390,19 @@ def plot_front(points, path, title: str = "Omega, nominal plant: planned look-ah
     ax.set_ylabel("max contour error (um)")
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    ax.legend(fontsize=legend_size)
+
+
+def read_fronts(paths) -> dict:
+    """The fronts of ``--json`` files (id -> :class:`FrontPoint` list), later files' ids over earlier ones'."""
+    import json
+    from pathlib import Path
+
+    fronts = {}
+    for path in paths:
+        for env_id, points in json.loads(Path(path).read_text()).items():
+            fronts[env_id] = [FrontPoint(**p) for p in points]
+    return fronts
 
 
 def main(argv=None) -> int:
@@ -378,7 +415,19 @@ def main(argv=None) -> int:
     parser.add_argument("--id", nargs="+", metavar="ID", dest="ids",
                         help="the front of these contouring ids instead of the omega's ('all': every one)")
     parser.add_argument("--json", help="write the points here (JSON, a list per front)")
+    parser.add_argument("--replot", nargs="+", metavar="JSON",
+                        help="run nothing: print the fronts of these --json files and, with --plot, draw them on one "
+                             "grid")
     args = parser.parse_args(argv)
+    if args.replot:
+        fronts = read_fronts(args.replot)
+        for env_id, points in fronts.items():
+            print(f"\n== {env_id} ==")
+            _report(points, None)
+        if args.plot:
+            plot_fronts(fronts, args.plot)
+            print(f"wrote {args.plot}")
+        return 0
     if args.ids:
         return _id_fronts(parser, args)
     agent = args.agent
