@@ -382,21 +382,24 @@ def test_identified_friction_on_the_ideal_smoothed_corners():
 @pytest.mark.parametrize("env_id", ["VCNC-Circle-v1", "VCNC-CircleShop-v1"])
 def test_no_mode_beyond_the_band_on_purtojos_table(env_id):
     """Through the env's step and observation only, on Purtojo et al.'s table (eq. (3): a first-order velocity
-    lag, K and alpha per axis): the rigid body within 3 % of the declared m = 1 / (K alpha) and of c = 1 / K (the
-    reversal legs' viscous term), and no mode.  The ideal table has none.  On the shop floor its 150 Hz mode lies
+    lag, K and alpha per axis): the rigid body within 3 % of the declared m = 1 / (K alpha) (and, on the ideal table,
+    of c = 1 / K, the reversal legs' viscous term; the friction sweep, which the shop floor's Stribeck curve needs,
+    is left out to halve the run), and no mode.  The ideal table has none.  On the shop floor its 150 Hz mode lies
     beyond the band the 1 um sensor allows (full input moves the table K alpha / w^2 there: 0.08 and 0.19 um, under
     a fifth of a count); a mode fitted to the estimate's edge (69 Hz at zeta 0.47 on x before) is not one it
     shows."""
     env = gym.make(env_id)
     task = env.unwrapped.task
     names = task.plant.parameter_names
-    models, _ = identify.identify(task, task.nominal_parameters, task.plant.inverse(task.nominal_parameters))
+    models, _ = identify.identify(task, task.nominal_parameters, task.plant.inverse(task.nominal_parameters),
+                                  identify.Experiment(sweep_steps=0))
     for j, a in enumerate(models[0]):
         K, alpha = (task.nominal_parameters[j, names.index(n)] for n in ("K", "alpha"))
         assert a.mass == pytest.approx(1.0 / (K * alpha), rel=0.03)
-        assert a.viscous == pytest.approx(1.0 / K, rel=0.03)
         assert a.mode_frequency == 0.0
-        if "mode_frequency" in names:
+        if "mode_frequency" not in names:
+            assert a.viscous == pytest.approx(1.0 / K, rel=0.03)
+        else:
             assert a.band[1] < 150.0
             assert K * alpha / (2 * math.pi * 150.0) ** 2 < 0.2 * 1e-3  # mm at full input (u_r = 1), one count 1 um
 
