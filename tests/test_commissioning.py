@@ -379,7 +379,7 @@ def test_identified_friction_on_the_ideal_smoothed_corners():
         assert a.stribeck[0] == 0.0
 
 
-@pytest.mark.parametrize("env_id", ["VCNC-Circle-v1", "VCNC-CircleShop-v1"])
+@pytest.mark.parametrize("env_id", [pytest.param("VCNC-Circle-v1", marks=pytest.mark.slow), "VCNC-CircleShop-v1"])
 def test_no_mode_beyond_the_band_on_purtojos_table(env_id):
     """Through the env's step and observation only, on Purtojo et al.'s table (eq. (3): a first-order velocity
     lag, K and alpha per axis): the rigid body within 3 % of the declared m = 1 / (K alpha) (and, on the ideal table,
