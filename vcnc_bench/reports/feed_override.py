@@ -363,7 +363,7 @@ def plot_fronts(fronts: dict, path) -> None:
         ax.set_visible(False)
     fig.suptitle("Max contour error against cycle time, nominal plant: planned feeds (classical), the operator's "
                  "override, the contouring MPC (own progress)", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.985))
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
