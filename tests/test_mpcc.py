@@ -174,3 +174,26 @@ def test_on_a_slow_path_it_runs_at_its_cap():
     assert result.completed
     assert result.cycle_time_s == pytest.approx(2 * np.pi / 0.6, rel=0.01)
     assert result.max_contour_error_um < 3.0
+
+
+def test_the_progress_cap_is_the_programmed_speed_an_override_can_run():
+    """path_table's feed: on the S-curve omega, the running maximum of the programmed speed 1 ms ahead (the cap
+    before look-ahead references were handled, bit for bit); on the look-ahead omega, never above the programmed
+    speed 1 ms ahead before its final stop (an override cannot run a corner's slow-down faster), and down to the
+    corners' 10 mm/s."""
+    rows = {}
+    for env_id in ("VCNC-Omega-v1", "VCNC-OmegaLookahead-v1"):
+        u = gym.make(env_id).unwrapped
+        s, dt = u.task.reference_arrays.samples, u.task.dt
+        speed = np.hypot(s[:, sk.REF_VELOCITY], s[:, sk.REF_VELOCITY + 1])
+        lead = int(round(1e-3 / dt))
+        ahead = speed[np.minimum(np.arange(speed.size) + lead, speed.size - 1)]
+        keep = np.concatenate([[True], np.diff(s[:, sk.REF_ARC]) > 0])
+        rows[env_id] = (M.path_table(s, dt).feed, ahead[keep])
+    feed, ahead = rows["VCNC-Omega-v1"]
+    np.testing.assert_array_equal(feed, np.maximum.accumulate(ahead))
+    feed, ahead = rows["VCNC-OmegaLookahead-v1"]
+    before_stop = np.arange(feed.size) < np.flatnonzero(np.diff(ahead) > 0)[-1]
+    assert np.all(feed[before_stop] <= ahead[before_stop] * (1 + 1e-9))
+    cruise = np.flatnonzero(feed >= 99.0)[0]  # past the start's acceleration: the corners' slow-downs remain
+    assert feed[cruise:][before_stop[cruise:]].min() < 11.0 and feed.max() == pytest.approx(100.0)

@@ -101,14 +101,14 @@ DEFAULT_BLOCKS = (1, 1, 2, 2, 4, 4, 8) + (10,) * 8 + (20,) * 15
 FIRST_ITERATIONS = 4
 #: The virtual input's scale in the QP, mm/s^2 per unit (the axes' inputs are in V, order 1).
 _A_SCALE = 1000.0
-#: The clock's catch-up time constant, s, and how far ahead of the progress it is kept, mm: the override reaches
-#: its dial at a bounded rate, so the clock follows ``theta`` through a slow loop, and a clock ahead costs nothing
-#: (the episode ends when the tool arrives) where one behind costs the time it needs to catch up.
 #: The programmed feed (mm/s) at which the progress rewards' defaults were tuned (the omega's); on another feed ``F``
 #: they are scaled by ``WEIGHTS_FEED / F``, so that a speed in proportion to the feed earns the same against the
 #: errors (measured on Purtojo et al.'s circle at 1 mm/s: with the omega's weights unscaled the controller crawled
 #: at 0.32 mm/s under a 0.6 mm/s cap and ran out of time).
 WEIGHTS_FEED = 100.0
+#: The clock's catch-up time constant, s, and how far ahead of the progress it is kept, mm: the override reaches
+#: its dial at a bounded rate, so the clock follows ``theta`` through a slow loop, and a clock ahead costs nothing
+#: (the episode ends when the tool arrives) where one behind costs the time it needs to catch up.
 _CLOCK_TIME = 20e-3
 _CLOCK_LEAD = 0.2
 #: Axis speed (mm/s) over which the Coulomb pre-compensation turns from one level to the other (tanh).
@@ -159,9 +159,8 @@ def path_table(samples, dt: float) -> PathTable:
     ahead = speed[np.minimum(np.arange(speed.size) + lead, speed.size - 1)]
     # the programmed speed 1 ms ahead, its final stop held at the speed it stops from (theta <= length and the
     # braking bound stop the progress); where it runs at its peak so far, that peak (an S-curve's: the same bits)
-    stop = speed.size - 1
-    while stop > 0 and ahead[stop - 1] >= ahead[stop]:
-        stop -= 1
+    rises = np.flatnonzero(np.diff(ahead) > 0)
+    stop = rises[-1] + 1 if rises.size else 0  # where the speed last rose: the final stop begins after it
     held = ahead.copy()
     held[stop:] = ahead[stop]
     peak = np.maximum.accumulate(ahead)
