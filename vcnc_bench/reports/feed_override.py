@@ -80,8 +80,8 @@ MPCC_SPEEDS = (100.0, 80.0, 60.0, 45.0, 35.0)
 #: contouring MPC with its own progress.
 KINDS = ("planned", "s-curve", "operator", "agent", "mpcc")
 
-#: The programmed feed's fractions of an id's planned runs and caps of its contouring MPC (:func:`id_front`): the
-#: omega's :data:`MPCC_SPEEDS` over its 100 mm/s, and 0.3 for the planned runs' slowest.
+#: The programmed feed's fractions of an id's planned runs (:func:`id_front`): the omega's :data:`MPCC_SPEEDS` over
+#: its 100 mm/s.
 FEED_FRACTIONS = (1.0, 0.8, 0.6, 0.45, 0.35)
 #: The contouring MPC's caps on another id, as fractions of its programmed feed: three of the omega's five (its
 #: episodes cost 3-4 ms a control period, 10 min for the three on the heart's 3.2 s).
