@@ -175,14 +175,13 @@ class FixedOverride:
         return np.concatenate([action, dial], axis=-1), state
 
 
-def operator_front(policy: str = OPERATOR, caps=CAPS) -> list[FrontPoint]:
-    """``policy`` on ``VCNC-OmegaOverride-v1`` (the S-curve) with the override held at each cap, nominal plant."""
-    import gymnasium as gym
-
+def operator_front(policy: str = OPERATOR, caps=CAPS, env_id: str = "VCNC-Omega-v1") -> list[FrontPoint]:
+    """``policy`` on ``env_id``'s override version (:func:`override_env`; the omega's is ``VCNC-OmegaOverride-v1``,
+    the S-curve) with the override held at each cap, nominal plant."""
     import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
 
-    env = gym.make("VCNC-OmegaOverride-v1")
+    env = override_env(env_id)
     points = [_point(f"{policy} @ override", f"{100 * c:g} %",
                      run_episode(FixedOverride(vcnc_baselines.make(policy, env), c), env), "operator") for c in caps]
     env.close()
@@ -207,17 +206,16 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
     return points
 
 
-def mpcc_front(speeds=MPCC_SPEEDS, **params) -> list[FrontPoint]:
-    """The contouring MPC (``mpcc``) on ``VCNC-OmegaOverride-v1``, nominal plant, once per cap of its progress
-    speed (mm/s); ``params`` go to :func:`vcnc_baselines.make` (its weights)."""
-    import gymnasium as gym
-
+def mpcc_front(speeds=MPCC_SPEEDS, env_id: str = "VCNC-Omega-v1", **params) -> list[FrontPoint]:
+    """The contouring MPC (``mpcc``) on ``env_id``'s override version (:func:`override_env`; the omega's is
+    ``VCNC-OmegaOverride-v1``), nominal plant, once per cap of its progress speed (mm/s); ``params`` go to
+    :func:`vcnc_baselines.make` (its weights)."""
     import vcnc_baselines
     from vcnc_gym.evaluation import run_episode
 
-    env = gym.make("VCNC-OmegaOverride-v1")
-    points = [_point("mpcc", f"v_max {v:g} mm/s", run_episode(vcnc_baselines.make("mpcc", env, v_max=float(v), **params),
-                                                                env), "mpcc")
+    env = override_env(env_id)
+    points = [_point("mpcc", f"v_max {v:.4g} mm/s", run_episode(vcnc_baselines.make("mpcc", env, v_max=float(v),
+                                                                                     **params), env), "mpcc")
               for v in speeds]
     env.close()
     return points
@@ -283,16 +281,12 @@ def id_front(env_id: str, policies=CLASSICAL, mpcc: bool = True, progress=print)
         env.close()
     env = override_env(env_id)
     if designed(OPERATOR, env):
-        for c in CAPS:
-            points.append(_point(f"{OPERATOR} @ override", f"{100 * c:g} %",
-                                 run_episode(FixedOverride(vcnc_baselines.make(OPERATOR, env), c), env), "operator"))
+        points += operator_front(OPERATOR, CAPS, env_id)
         progress(f"{env_id}: the operator's overrides done")
     if mpcc:
         peak = vcnc_baselines.make("mpcc", env).v_max
-        for f in MPCC_FRACTIONS:
-            points.append(_point("mpcc", f"v_max {f * peak:.4g} mm/s",
-                                 run_episode(vcnc_baselines.make("mpcc", env, v_max=f * peak), env), "mpcc"))
-            progress(f"{env_id}: mpcc at {f:g} of {peak:.4g} mm/s done")
+        points += mpcc_front([f * peak for f in MPCC_FRACTIONS], env_id)
+        progress(f"{env_id}: mpcc at {', '.join(f'{f:g}' for f in MPCC_FRACTIONS)} of {peak:.4g} mm/s done")
     env.close()
     return points
 
