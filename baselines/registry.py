@@ -95,6 +95,11 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     "zpetc@machine": ("zpetc", {"commissioning": "machine"}),
     "ccc@machine": ("ccc", {"commissioning": "machine"}),
     "ff-ccc@machine": ("ff-ccc", {"commissioning": "machine"}),
+    # The predictive pair on the nominal machine's commissioned (identified) model, with the mode and the command
+    # delay where the record has them, at the input weight of the commissioning's margin rule on the LQ loop;
+    # the bare names use the plant's declared nominal model (vcnc_baselines.predictive.lq_preview, "The model").
+    "lq-preview@commissioned": ("lq-preview", {"model": "commissioned"}),
+    "mpc@commissioned": ("mpc", {"model": "commissioned"}),
 }
 
 _FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant", "reference", "dt", "task")

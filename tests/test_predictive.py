@@ -207,3 +207,60 @@ def test_the_estimator_reads_the_velocity_only_from_an_exact_sensor():
     quantised = vcnc_baselines.make("lq-preview", circle, input_weight=1.0)
     assert not quantised.velocity and quantised.axis_models[0].Cv is None
     assert quantised.estimator_gains[0].shape == (2, 1) and 0 < np.abs(quantised.estimator_gains[0]).max()
+
+
+@pytest.fixture(scope="module")
+def commissioned_lq():
+    """``lq-preview`` on the shop-floor heart's commissioned model (rigid body, the identified mode, one period of
+    command delay, a position-only sensor through the Kalman filter)."""
+    env = gym.make("VCNC-HeartShop-v1")
+    return vcnc_baselines.make("lq-preview", env, model="commissioned")
+
+
+def test_lq_loop_against_python_control(commissioned_lq):
+    """The LQ servo's loop and its closed loop's stability (design.loop_response, closed_loop_stable) against the
+    same controller and model interconnected by python-control, and the margin rule's weight (margin_weight)
+    meeting the rule on python-control's response."""
+    from vcnc_baselines.commissioning.design import GAIN_MARGIN, PHASE_MARGIN, margins
+    from vcnc_baselines.predictive.design import (closed_loop_stable, feedback_controller, loop_response,
+                                                  margin_weight)
+
+    policy = commissioned_lq
+    assert policy.model == "commissioned"
+    model, L, design = policy.axis_models[0], policy.estimator_gains[0], policy.designs[0]
+    assert model.n == 5 and model.mode_states == 2 and model.delay_periods == 1  # rigid body, mode, delay
+    Ac, Bc, Cc, Dc = feedback_controller(model, design, L)
+    C = control.ss(Ac, Bc, Cc[None], Dc[None], DT)
+    P = control.ss(model.A, model.B[:, None], model.measurement(), np.zeros((model.measurement().shape[0], 1)), DT)
+    omega = np.array([3.0, 30.0, 300.0, 3000.0])
+    loop = -(C * P)
+    theirs = np.array([complex(np.squeeze(loop(np.exp(1j * w * DT)))) for w in omega])
+    np.testing.assert_allclose(loop_response(model, design, L, omega), theirs, rtol=1e-8)
+    poles = control.poles(control.feedback(P, C, sign=1))  # u = C y_m: positive feedback
+    assert closed_loop_stable(model, design, L) == bool(np.all(np.abs(poles) < 1.0))
+    record = policy.records[0]
+    assert margin_weight(model, L, record.designs[0].margins.crossover, record.axes[0].mode_frequency) == \
+        pytest.approx(design.rho)
+    # the rule's margins, read back from python-control's response at the crossover the grid found (its own
+    # stability_margins roots the 13th-order polynomial at dt = 0.1 ms and finds crossings that are not there)
+    grid = np.logspace(-1, np.log10(0.999 * np.pi / DT), 4000)
+    m = margins(loop_response(model, design, L, grid), grid)
+    assert m.meets() and m.phase_deg >= PHASE_MARGIN and m.gain_db >= GAIN_MARGIN
+    at = complex(np.squeeze(loop(np.exp(1j * m.crossover * DT))))
+    assert abs(at) == pytest.approx(1.0, abs=1e-3)
+    assert 180.0 - abs(np.degrees(np.angle(at))) == pytest.approx(m.phase_deg, abs=0.05)
+
+
+def test_record_models_are_the_identified_responses(commissioned_lq):
+    from vcnc_baselines.commissioning.identify import model_response
+    from vcnc_baselines.predictive.lq_preview import record_models
+
+    record = commissioned_lq.records[0]
+    models, delays = record_models(record)
+    f = np.array([1.0, 50.0, 150.0, 400.0])
+    for tf, a in zip(models, record.axes):
+        theirs = model_response((a.mass, a.damping, a.mode_frequency, a.mode_damping, 0.0), f)
+        np.testing.assert_allclose(tf(2j * np.pi * f), theirs, rtol=1e-9)
+    np.testing.assert_allclose(delays, [a.command_delay for a in record.axes])
+    with pytest.raises(ValueError, match="model must be one of"):
+        vcnc_baselines.make("lq-preview", gym.make("VCNC-HeartShop-v1"), model="identified")

@@ -58,7 +58,8 @@ from scipy import linalg
 from vcnc_gym.validation import integer, positive
 
 __all__ = ["AxisModel", "axis_model", "Preview", "preview_design", "augmented", "preview_system", "estimator_gain",
-           "closed_loop_bandwidth", "input_weight_for_bandwidth", "MAX_DELAY_PERIODS", "MAX_PREVIEW"]
+           "closed_loop_bandwidth", "input_weight_for_bandwidth", "MAX_DELAY_PERIODS", "MAX_PREVIEW",
+           "feedback_controller", "loop_response", "closed_loop_stable", "margin_weight"]
 
 #: Longest input dead time modelled, control periods (one state each): Yadav et al.'s 0.1 s at 0.1 ms would be
 #: 1000 states, which no Riccati equation here should carry; such a plant needs a longer control period.
@@ -81,6 +82,9 @@ class AxisModel:
         Control period, s.
     order : int
         States of the plant itself; the last ``n - order`` hold the dead time's inputs (oldest first).
+    mode_states : int
+        Of the plant's states, those of its structural modes (2 a mode), which the loop's bandwidth leaves out
+        (:func:`closed_loop_bandwidth`).
     """
 
     A: np.ndarray
@@ -89,6 +93,7 @@ class AxisModel:
     Cv: np.ndarray | None
     dt: float
     order: int
+    mode_states: int = 0
 
     @property
     def n(self) -> int:
@@ -103,7 +108,7 @@ class AxisModel:
         return np.vstack([self.C] + ([self.Cv] if self.Cv is not None else []))
 
 
-def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True) -> AxisModel:
+def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True, mode_states: int = 0) -> AxisModel:
     """Discretise one axis' transfer function (mm per input unit) under zero-order hold at ``dt`` s.
 
     Parameters
@@ -116,6 +121,8 @@ def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True) -> Axis
         Input dead time, s, rounded to whole control periods (at most :data:`MAX_DELAY_PERIODS`).
     velocity : bool
         Whether the velocity is measured (``C_v``); False leaves the position alone.
+    mode_states : int
+        States of the model's structural modes (:attr:`AxisModel.mode_states`).
     """
     import control
 
@@ -151,8 +158,8 @@ def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True) -> Axis
         B_d[m - 1] = 1.0
         pad = np.zeros(periods)
         return AxisModel(A_d, B_d, np.concatenate([C, pad]), None if Cv is None else np.concatenate([Cv[0], pad]),
-                         dt, n)
-    return AxisModel(A, B, C, None if Cv is None else Cv[0], dt, n)
+                         dt, n, mode_states)
+    return AxisModel(A, B, C, None if Cv is None else Cv[0], dt, n, mode_states)
 
 
 def augmented(model: AxisModel):
@@ -240,7 +247,7 @@ def preview_design(model: AxisModel, rho: float, preview: int | None = None, q: 
     if preview is None:
         big = np.abs(Kr_all).max()
         above = np.flatnonzero(np.abs(Kr_all) >= tolerance * big)
-        limit = int(above[-1]) + 1 if above.size else 1
+        limit = min(int(above[-1]) + 1, limit) if above.size else 1  # at most the cap: gains still above it are cut
     Kr = Kr_all[:limit]
     Pxw = np.column_stack(columns[1:limit + 1])
     return Preview(K=K, Kr=Kr, P=P, Pxw=Pxw, S=float(S), Phi_c=Phi_c, q=q, rho=rho)
@@ -262,13 +269,14 @@ def preview_system(model: AxisModel, M: int, q: float = 1.0):
 
 
 def closed_loop_bandwidth(model: AxisModel, rho: float, q: float = 1.0) -> float:
-    """The geometric mean, rad/s, of the continuous equivalents ``|ln z| / T`` of the ``1 + order`` slowest poles
-    of the LQ loop ``Phi_c`` (the integral and the plant's own states; the dead time's are left out): for a
-    triple pole at ``-w`` (the PID design of :func:`vcnc_baselines.commissioning.design.pid_gains`) it is ``w``."""
+    """The geometric mean, rad/s, of the continuous equivalents ``|ln z| / T`` of the ``1 + order - mode_states``
+    slowest poles of the LQ loop ``Phi_c`` (the integral and the plant's own states; the dead time's and a
+    structural mode's, the fastest, are left out): for a triple pole at ``-w`` (the PID design of
+    :func:`vcnc_baselines.commissioning.design.pid_gains`) it is ``w``."""
     *_, K = _riccati(model, q, rho)
     Phi, Gamma, _ = augmented(model)
     z = np.linalg.eigvals(Phi - np.outer(Gamma, K)).astype(complex)
-    z = z[np.argsort(np.abs(z))[::-1][:1 + model.order]]
+    z = z[np.argsort(np.abs(z))[::-1][:1 + model.order - model.mode_states]]
     s = np.abs(np.log(np.where(np.abs(z) > 1e-300, z, 1e-300))) / model.dt  # |s| of s = ln(z) / T, complex
     return float(np.exp(np.mean(np.log(np.maximum(s, 1e-300)))))
 
@@ -278,7 +286,8 @@ def input_weight_for_bandwidth(model: AxisModel, bandwidth: float, q: float = 1.
     (bisection on ``log rho``: a smaller weight, a faster loop; remembered per model, bandwidth and ``q``, as
     every controller built for an id asks the same)."""
     bandwidth = positive("bandwidth", bandwidth, "rad/s")
-    key = (model.A.tobytes(), model.B.tobytes(), model.C.tobytes(), model.order, model.dt, bandwidth, float(q))
+    key = (model.A.tobytes(), model.B.tobytes(), model.C.tobytes(), model.order, model.mode_states, model.dt, bandwidth,
+           float(q))
     if key not in _WEIGHTS:
         _WEIGHTS[key] = _bisect_weight(model, bandwidth, q)
     return _WEIGHTS[key]
@@ -327,3 +336,94 @@ def estimator_gain(model: AxisModel, input_noise: float, position_noise: float, 
     Qw = np.outer(b, b) * w * w + 1e-30 * np.eye(n)
     Sigma = linalg.solve_discrete_are(model.A.T, Cm.T, Qw, R)  # prediction covariance
     return Sigma @ Cm.T @ np.linalg.inv(Cm @ Sigma @ Cm.T + R)
+
+
+def feedback_controller(model: AxisModel, design: Preview, L: np.ndarray):
+    """The LQ servo's feedback part (the reference and preview at zero) as a discrete state-space map from the
+    measured outputs ``y_m`` (position mm, and velocity mm/s where measured) to the command ``u``:
+    ``s(k+1) = A_c s(k) + B_c y_m(k)``, ``u(k) = C_c s(k) + D_c y_m(k)``, with ``s = (x(k-1|k-1), u(k-1))`` and
+    the law of :mod:`.lq_preview` (``e = -y``, ``Du = -K_e e - K_x (x(k|k) - x(k-1|k-1))``).  Returns
+    ``(A_c, B_c, C_c, D_c)``."""
+    n = model.n
+    Cm = model.measurement()
+    I_LC = np.eye(n) - L @ Cm
+    Abar, Bbar = I_LC @ model.A, I_LC @ model.B
+    Ke, Kx = design.K[0], design.K[1:]
+    c1 = np.zeros(Cm.shape[0])
+    c1[0] = 1.0
+    Cc = np.concatenate([-Kx @ (Abar - np.eye(n)), [1.0 - Kx @ Bbar]])
+    Dc = Ke * c1 - Kx @ L
+    Ac = np.zeros((n + 1, n + 1))
+    Ac[:n, :n], Ac[:n, n] = Abar, Bbar
+    Ac[n] = Cc
+    Bc = np.vstack([L, Dc[None]])
+    return Ac, Bc, Cc, Dc
+
+
+def loop_response(model: AxisModel, design: Preview, L: np.ndarray, omega, plant: AxisModel | None = None
+                  ) -> np.ndarray:
+    """The loop ``L(e^{j w T}) = -C(z) P_m(z)`` broken at the plant's input (the convention of
+    :func:`vcnc_baselines.commissioning.design.margins`: the closed loop is ``1 / (1 + L)``), at ``omega`` rad/s:
+    ``C`` :func:`feedback_controller` of ``model``, ``P_m`` from the command to the measured outputs of ``plant``
+    (default ``model``; another model with the same measured outputs: the controller on a plant it was not
+    designed for)."""
+    Ac, Bc, Cc, Dc = feedback_controller(model, design, L)
+    plant = model if plant is None else plant
+    Cm = plant.measurement()
+    z = np.exp(1j * np.asarray(omega, dtype=np.float64) * model.dt)
+    P = np.linalg.solve(z[:, None, None] * np.eye(plant.n) - plant.A, np.broadcast_to(plant.B, (z.size, plant.n))
+                        [..., None])[..., 0] @ Cm.T  # (W, m)
+    S = np.linalg.solve(z[:, None, None] * np.eye(Ac.shape[0]) - Ac, np.broadcast_to(Bc, (z.size,) + Bc.shape))
+    C = np.einsum("i,wim->wm", Cc, S) + Dc  # (W, m)
+    return -np.sum(C * P, axis=1)
+
+
+def closed_loop_stable(model: AxisModel, design: Preview, L: np.ndarray) -> bool:
+    """Whether the model under the LQ servo's feedback (with its estimator) is stable: every eigenvalue of the
+    interconnection inside the unit circle."""
+    Ac, Bc, Cc, Dc = feedback_controller(model, design, L)
+    Cm = model.measurement()
+    n, c = model.n, Ac.shape[0]
+    A = np.zeros((n + c, n + c))
+    A[:n, :n] = model.A + np.outer(model.B, Dc @ Cm)
+    A[:n, n:] = np.outer(model.B, Cc)
+    A[n:, :n] = Bc @ Cm
+    A[n:, n:] = Ac
+    return bool(np.all(np.abs(np.linalg.eigvals(A)) < 1.0))
+
+
+def margin_weight(model: AxisModel, L: np.ndarray, crossover_limit: float, mode_hz: float = 0.0,
+                  step: float = 0.25) -> float | None:
+    """The commissioning rule of :func:`vcnc_baselines.commissioning.design.design_axis`, applied to the LQ servo
+    with its estimator gain ``L`` (:func:`estimator_gain`): down a grid of ``log10 rho`` from ``1e8`` in ``step``
+    (slow to fast) until the loop (:func:`loop_response`) crosses over above ``crossover_limit`` rad/s (the
+    commissioned PID's crossover) or, on a model with a mode at ``mode_hz``, above
+    :data:`~vcnc_baselines.commissioning.design.MODE_FRACTION` of it, the smallest (fastest) input weight whose
+    loop is stable and meets the phase and gain margins and the sensitivity peak
+    (:data:`~vcnc_baselines.commissioning.design.PHASE_MARGIN` and its neighbours).  None where none does."""
+    from ..commissioning.design import MODE_FRACTION, margins
+
+    limit = min(crossover_limit, MODE_FRACTION * 2 * np.pi * mode_hz) if mode_hz > 0 else crossover_limit
+    key = (model.A.tobytes(), model.B.tobytes(), model.measurement().tobytes(), np.asarray(L).tobytes(), model.dt,
+           float(limit), float(step))
+    if key in _MARGIN_WEIGHTS:  # every controller built for an id asks the same
+        return _MARGIN_WEIGHTS[key]
+    omega = np.logspace(-1, np.log10(0.999 * np.pi / model.dt), 2000)
+    passed = None
+    for log_rho in np.arange(8.0, -14.0, -step):
+        try:
+            design = preview_design(model, 10.0 ** log_rho, preview=1)
+        except (ValueError, np.linalg.LinAlgError):  # a weight so large the Riccati solver loses the integral
+            continue
+        if not closed_loop_stable(model, design, L):  # (or a Riccati solution gone wrong at a huge weight)
+            continue
+        m = margins(loop_response(model, design, L, omega), omega)
+        if m.crossover > limit:
+            break
+        if m.meets():
+            passed = float(10.0 ** log_rho)
+    _MARGIN_WEIGHTS[key] = passed
+    return passed
+
+
+_MARGIN_WEIGHTS: dict = {}

@@ -22,11 +22,27 @@ PID is placed at; :func:`.design.input_weight_for_bandwidth`), unless ``input_we
 
 The model
 ---------
-Per axis a transfer function in mm per input unit and a dead time, by default the plant's nominal
-:meth:`~vcnc_gym.plants.PlantModel.linear_model` and :meth:`~vcnc_gym.plants.PlantModel.dead_time`.  Any other
-model of that form goes in through ``models=`` and ``delays=`` (a commissioned model with the shop floor's
-structural mode and its command delay, say): a model whose state the measured position and velocity do not
-determine is estimated by a steady-state Kalman filter (:func:`.design.estimator_gain`).
+Per axis a transfer function in mm per input unit and a dead time.  By default (``model="declared"``) the plant's
+declared nominal :meth:`~vcnc_gym.plants.PlantModel.linear_model` and :meth:`~vcnc_gym.plants.PlantModel.dead_time`,
+and ``u_c`` from its declared inverse dynamics, with the loop's poles at the commissioned PID's bandwidth.
+
+``model="commissioned"`` (the registry's ``lq-preview@commissioned``, ``mpc@commissioned``) takes the nominal
+machine's commissioning record instead, the one ``ff-pid`` is designed on
+(:func:`~vcnc_baselines.commissioning.record.nominal_record`, identified by the shipped run on the nominal machine):
+``1 / (m s^2 + c s)``, times the identified first mode ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` where one
+was found (the shop floor's drive-to-table mode), with the identified command delay's whole periods
+(:func:`record_models`); ``u_c`` takes the record's Coulomb levels, Stribeck curve and process force, as
+``ff-pid``'s feedforward does; and the input weight is the commissioning's margin rule applied to the LQ loop with
+its estimator (:func:`.design.margin_weight`: phase >= 45 deg, gain >= 6 dB, sensitivity peak <= 6 dB, crossover
+at most the commissioned PID's and half the mode).  A machine without a shipped record falls back to the declared
+model.  It is not the default because it is weaker where it was measured: an LQ regulator with a Kalman filter
+has no guaranteed margins (Doyle 1978), and on the shop floor's drives the rule stops its loop at a crossover of
+about 90 rad/s (``python benchmarks/lq_commissioning.py``; docs/reproduction.md, "Predictive control on the
+commissioned model").
+
+Any other model goes in through ``models=`` and ``delays=``.  A model whose state the measured position and velocity
+do not determine (a mode, a delay, a position-only sensor) is estimated by a steady-state Kalman filter
+(:func:`.design.estimator_gain`).
 """
 
 from __future__ import annotations
@@ -40,12 +56,16 @@ from numba.extending import overload
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import non_negative, positive
-from ..feedforward.tables import inverse_feedforward
+from ..feedforward.tables import inverse_feedforward, path_force_feedforward
 from ..commissioning.record import nominal_record
 from ..servo import ServoPolicy
-from .design import axis_model, estimator_gain, input_weight_for_bandwidth, preview_design
+from .design import (axis_model, closed_loop_bandwidth, estimator_gain, input_weight_for_bandwidth, margin_weight,
+                     preview_design)
 
-__all__ = ["LQPreviewPolicy", "LQPreviewArrays"]
+__all__ = ["LQPreviewPolicy", "LQPreviewArrays", "MODEL_SOURCES", "record_models"]
+
+#: Where the predictive controllers' model comes from (module docstring, "The model").
+MODEL_SOURCES = ("commissioned", "declared")
 
 #: Columns of the controller's table: the friction and backlash pre-compensation (2, input unit), the reference
 #: positions (2, mm).
@@ -61,15 +81,20 @@ class LQPreviewPolicy(ServoPolicy):
         As :class:`~vcnc_baselines.servo.ServoPolicy` (:meth:`from_env` fills them); the decision period must be the
         control period.
     bandwidth : float, optional
-        rad/s, the LQ loop's (:func:`.design.closed_loop_bandwidth`); default the machine's commissioning.
+        rad/s, the LQ loop's (:func:`.design.closed_loop_bandwidth`); default: with the commissioned model, the
+        input weight of the commissioning's margin rule on the LQ loop (:meth:`_margin_weights`), else the
+        machine's commissioned PID bandwidth.
     input_weight : float or (2,), optional
         ``rho`` per axis (per input unit^2, against 1 per mm^2); overrides ``bandwidth``.
     preview : int, optional
         Control periods of reference preview; default where the gains fall below 1e-6 of the largest.
+    model : str
+        One of :data:`MODEL_SOURCES`: the plant's declared nominal model (default) or the nominal machine's
+        commissioning record (where one is shipped; module docstring, "The model"); ignored with ``models``.
     models : sequence of 2 control.TransferFunction, optional
-        Per axis, mm per input unit; default the plant's nominal linear model.
+        Per axis, mm per input unit; default the ``model``'s.
     delays : (2,) float, optional
-        Per axis input dead time, s; default the plant's nominal dead time (with ``models``: 0).
+        Per axis input dead time, s; default the ``model``'s (with ``models``: 0).
     friction_time, backlash_time : float
         s, as ``ff-pid`` (:func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`); ``friction_time`` defaults to
         the machine's commissioning.
@@ -93,7 +118,8 @@ class LQPreviewPolicy(ServoPolicy):
     name = "lq-preview"
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
-                 input_weight=None, preview=None, models=None, delays=None, friction_time: float | None = None,
+                 input_weight=None, preview=None, model: str = "declared", models=None, delays=None,
+                 friction_time: float | None = None,
                  backlash_time: float = 16e-3, velocity: bool | None = None, input_noise: float | None = None,
                  position_noise: float | None = None, velocity_noise: float = 1.0):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
@@ -102,13 +128,25 @@ class LQPreviewPolicy(ServoPolicy):
                              f"({self.dt} s), got {self.decision_period} s")
         if bandwidth is None:  # the nominal machine's commissioning (its slower axis), else the plant's ceiling
             record = nominal_record(self.plant, self.nominal_parameters, self.dt)
-            bandwidth = min(d.bandwidth for d in record.designs) if record is not None else \
+            pid_bandwidth = min(d.bandwidth for d in record.designs) if record is not None else \
                 self.plant.servo_bandwidth
-        self.bandwidth = positive("bandwidth", bandwidth, "rad/s")
+        else:
+            pid_bandwidth = positive("bandwidth", bandwidth, "rad/s")
         self.friction_time = non_negative(
             "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s")
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
-        if models is None:
+        if model not in MODEL_SOURCES:
+            raise ValueError(f"model must be one of {list(MODEL_SOURCES)}, got {model!r}")
+        record = self.records[0]
+        self.model = "commissioned" if model == "commissioned" and record.source != "model" else "declared"
+        self.process_force = np.zeros(2)
+        from_record = models is None and self.model == "commissioned"
+        if from_record:
+            models, identified = record_models(record)
+            delays = identified if delays is None else delays
+            self.inverse = record.inverse()
+            self.process_force = record.process_force
+        elif models is None:
             models = [self.plant.linear_model(self.nominal_parameters, axis=j) for j in range(2)]
             delays = [self.plant.dead_time(self.nominal_parameters, axis=j) for j in range(2)] if delays is None \
                 else delays
@@ -123,16 +161,22 @@ class LQPreviewPolicy(ServoPolicy):
             np.broadcast_to(np.asarray(position_noise, dtype=np.float64), (2,))
         input_noise = 0.01 * self.u_max if input_noise is None else \
             np.broadcast_to(np.asarray(input_noise, dtype=np.float64), (2,))
-        self.axis_models = [axis_model(models[j], self.dt, delays[j], self.velocity) for j in range(2)]
-        if input_weight is None:
-            rho = [input_weight_for_bandwidth(m, self.bandwidth) for m in self.axis_models]
+        modes = [2 if from_record and a.mode_frequency > 0.0 else 0 for a in record.axes]
+        self.axis_models = [axis_model(models[j], self.dt, delays[j], self.velocity, modes[j]) for j in range(2)]
+        self.estimator_gains = [estimator_gain(m, input_noise[j], position_noise[j], velocity_noise)
+                                for j, m in enumerate(self.axis_models)]
+        self.bandwidth = pid_bandwidth
+        if input_weight is None and bandwidth is None and from_record:
+            rho = [w if w is not None else input_weight_for_bandwidth(m, pid_bandwidth)
+                   for m, w in zip(self.axis_models, self._margin_weights(record))]
+            self.bandwidth = min(closed_loop_bandwidth(m, r) for m, r in zip(self.axis_models, rho))
+        elif input_weight is None:
+            rho = [input_weight_for_bandwidth(m, pid_bandwidth) for m in self.axis_models]
         else:
             rho = np.broadcast_to(np.asarray(input_weight, dtype=np.float64), (2,))
             for r in rho:
                 positive("input_weight", r)
         self.designs = [preview_design(m, r, preview) for m, r in zip(self.axis_models, rho)]
-        self.estimator_gains = [estimator_gain(m, input_noise[j], position_noise[j], velocity_noise)
-                                for j, m in enumerate(self.axis_models)]
         n = max(m.n for m in self.axis_models)
         self.n_states = n
         self.state_shape = (1 + 2 * (1 + 2 * n),)
@@ -140,11 +184,22 @@ class LQPreviewPolicy(ServoPolicy):
         self.gains = _pack(self.axis_models, self.designs, self.estimator_gains, n, M)
         self._build()
 
+    def _margin_weights(self, record):
+        """With the commissioned model, per axis the input weight of the commissioning's rule applied to the LQ
+        loop itself and its estimator (:func:`.design.margin_weight`: the fastest with the margins and the
+        sensitivity peak, crossing over no higher than the commissioned PID and, on a machine with a mode, below
+        half of it); None where no weight meets it (then the PID's bandwidth places the poles)."""
+        return [margin_weight(m, L, d.margins.crossover, a.mode_frequency)
+                for m, L, d, a in zip(self.axis_models, self.estimator_gains, record.designs, record.axes)]
+
     def _build(self) -> None:
         table = np.zeros((self.reference.shape[0], 4))
         table[:, _COMP:_COMP + 2] = inverse_feedforward(self.inverse, self.reference, self.dt, motion=False,
                                                         friction_time=self.friction_time,
                                                         backlash_time=self.backlash_time)
+        if np.any(self.process_force != 0.0):
+            table[:, _COMP:_COMP + 2] += path_force_feedforward(self.process_force, self.reference, self.dt,
+                                                                self.inverse.delay)
         table[:, _REF:_REF + 2] = self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2]
         self.table = np.ascontiguousarray(table)
         self._compiled = None
@@ -206,6 +261,23 @@ class LQPreviewPolicy(ServoPolicy):
     def _compiled_arrays(self):
         g = self.gains
         return LQPreviewArrays(self._state, self.table, g.Ke, g.Kx, g.Kr, g.A, g.B, g.Cm, g.L, g.C_pinv, self.u_max)
+
+
+def record_models(record):
+    """Per axis the commissioning record's model as a continuous ``control.TransferFunction`` (mm per input unit):
+    ``1 / (m s^2 + c s)``, times ``(2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)`` where a mode was identified;
+    and its command delay, s (the identified dead time's whole periods beyond the hold's half period).  Returns
+    ``(models, delays)``."""
+    import control
+
+    models = []
+    for a in record.axes:
+        tf = control.tf([1.0], [a.mass, a.damping, 0.0])
+        if a.mode_frequency > 0.0:
+            w = 2.0 * np.pi * a.mode_frequency
+            tf = tf * control.tf([2.0 * a.mode_damping * w, w * w], [1.0, 2.0 * a.mode_damping * w, w * w])
+        models.append(tf)
+    return models, np.array([a.command_delay for a in record.axes])
 
 
 def _sensor_noise(plant, nominal) -> np.ndarray:

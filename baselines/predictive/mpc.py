@@ -145,7 +145,7 @@ class MPCPolicy(LQPreviewPolicy):
 
     Parameters
     ----------
-    layout, decision_period, nominal_parameters, plant, reference, dt, bandwidth, input_weight, preview, models, delays, friction_time, backlash_time, velocity, input_noise, position_noise, velocity_noise
+    layout, decision_period, nominal_parameters, plant, reference, dt, bandwidth, input_weight, preview, model, models, delays, friction_time, backlash_time, velocity, input_noise, position_noise, velocity_noise
         As :class:`~.lq_preview.LQPreviewPolicy` (``preview``: the terminal cost's preview ``M`` beyond the horizon).
     blocks : sequence of int
         The horizon's block lengths, control periods (default :data:`DEFAULT_BLOCKS`, 40 periods in 10 blocks).
@@ -164,11 +164,12 @@ class MPCPolicy(LQPreviewPolicy):
     in_default_table = False
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, blocks=DEFAULT_BLOCKS,
-                 bandwidth=None, input_weight=None, preview=None, models=None, delays=None,
+                 bandwidth=None, input_weight=None, preview=None, model: str = "declared", models=None, delays=None,
                  friction_time: float | None = None, backlash_time: float = 16e-3, velocity: bool | None = None,
                  input_noise: float | None = None, position_noise: float | None = None, velocity_noise: float = 1.0):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt,
-                         bandwidth=bandwidth, input_weight=input_weight, preview=preview, models=models, delays=delays,
+                         bandwidth=bandwidth, input_weight=input_weight, preview=preview, model=model, models=models,
+                         delays=delays,
                          friction_time=friction_time, backlash_time=backlash_time, velocity=velocity,
                          input_noise=input_noise, position_noise=position_noise, velocity_noise=velocity_noise)
         self.qps = [condensed_qp(m, d, blocks) for m, d in zip(self.axis_models, self.designs)]
