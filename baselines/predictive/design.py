@@ -59,7 +59,7 @@ from vcnc_gym.validation import integer, positive
 
 __all__ = ["AxisModel", "axis_model", "Preview", "preview_design", "augmented", "preview_system", "estimator_gain",
            "closed_loop_bandwidth", "input_weight_for_bandwidth", "MAX_DELAY_PERIODS", "MAX_PREVIEW",
-           "feedback_controller", "loop_response", "closed_loop_stable", "margin_weight"]
+           "feedback_controller", "loop_response", "closed_loop_stable", "margin_weight", "sensor_noise"]
 
 #: Longest input dead time modelled, control periods (one state each): Yadav et al.'s 0.1 s at 0.1 ms would be
 #: 1000 states, which no Riccati equation here should carry; such a plant needs a longer control period.
@@ -427,3 +427,15 @@ def margin_weight(model: AxisModel, L: np.ndarray, crossover_limit: float, mode_
 
 
 _MARGIN_WEIGHTS: dict = {}
+
+
+def sensor_noise(plant, nominal) -> np.ndarray:
+    """Per axis, the standard deviation (mm) of the position reading the plant declares: ``sqrt(resolution^2 / 12
+    + noise_std^2)`` from its nominal ``resolution`` / ``encoder_resolution`` and ``noise_std`` (0 for an exact
+    one)."""
+    names = list(plant.parameter_names)
+    variance = np.zeros(2)
+    for name, per in (("resolution", 12.0), ("encoder_resolution", 12.0), ("noise_std", 1.0)):
+        if name in names:
+            variance += nominal[:, names.index(name)] ** 2 / per
+    return np.sqrt(variance)

@@ -60,7 +60,7 @@ from ..feedforward.tables import inverse_feedforward, path_force_feedforward
 from ..commissioning.record import nominal_record
 from ..servo import ServoPolicy
 from .design import (axis_model, closed_loop_bandwidth, estimator_gain, input_weight_for_bandwidth, margin_weight,
-                     preview_design)
+                     preview_design, sensor_noise)
 
 __all__ = ["LQPreviewPolicy", "LQPreviewArrays", "MODEL_SOURCES", "record_models"]
 
@@ -155,7 +155,7 @@ class LQPreviewPolicy(ServoPolicy):
         delays = np.zeros(2) if delays is None else np.asarray(delays, dtype=np.float64)
         if delays.shape != (2,) or not np.all(np.isfinite(delays)) or np.any(delays < 0):
             raise ValueError(f"delays must be two finite dead times >= 0 s, got {delays!r}")
-        sensor = _sensor_noise(self.plant, self.nominal_parameters)
+        sensor = sensor_noise(self.plant, self.nominal_parameters)
         self.velocity = bool(np.all(sensor == 0.0)) if velocity is None else bool(velocity)
         position_noise = np.where(sensor > 0, sensor, 1e-5) if position_noise is None else \
             np.broadcast_to(np.asarray(position_noise, dtype=np.float64), (2,))
@@ -278,18 +278,6 @@ def record_models(record):
             tf = tf * control.tf([2.0 * a.mode_damping * w, w * w], [1.0, 2.0 * a.mode_damping * w, w * w])
         models.append(tf)
     return models, np.array([a.command_delay for a in record.axes])
-
-
-def _sensor_noise(plant, nominal) -> np.ndarray:
-    """Per axis, the standard deviation (mm) of the position reading the plant declares: ``sqrt(resolution^2 / 12
-    + noise_std^2)`` from its nominal ``resolution`` / ``encoder_resolution`` and ``noise_std`` (0 for an exact
-    one)."""
-    names = list(plant.parameter_names)
-    variance = np.zeros(2)
-    for name, per in (("resolution", 12.0), ("encoder_resolution", 12.0), ("noise_std", 1.0)):
-        if name in names:
-            variance += nominal[:, names.index(name)] ** 2 / per
-    return np.sqrt(variance)
 
 
 #: The gains of both axes, padded to ``n`` states and ``M`` preview steps: ``Ke`` (2,), ``Kx`` (2, n), ``Kr``

@@ -284,10 +284,23 @@ def id_front(env_id: str, policies=CLASSICAL, mpcc: bool = True, progress=print)
         points += operator_front(OPERATOR, CAPS, env_id)
         progress(f"{env_id}: the operator's overrides done")
     if mpcc:
-        peak = vcnc_baselines.make("mpcc", env).v_max
-        points += mpcc_front([f * peak for f in MPCC_FRACTIONS], env_id)
-        progress(f"{env_id}: mpcc at {', '.join(f'{f:g}' for f in MPCC_FRACTIONS)} of {peak:.4g} mm/s done")
+        points += id_mpcc_points(env_id, env, progress)
     env.close()
+    return points
+
+
+def id_mpcc_points(env_id: str, env=None, progress=print) -> list[FrontPoint]:
+    """The contouring MPC's points of ``env_id``'s front: its progress capped at :data:`MPCC_FRACTIONS` of the
+    programmed feed's peak, on the id's override version (``env``, or made here)."""
+    import vcnc_baselines
+
+    own = env is None
+    env = override_env(env_id) if own else env
+    peak = vcnc_baselines.make("mpcc", env).v_max
+    points = mpcc_front([f * peak for f in MPCC_FRACTIONS], env_id)
+    progress(f"{env_id}: mpcc at {', '.join(f'{f:g}' for f in MPCC_FRACTIONS)} of {peak:.4g} mm/s done")
+    if own:
+        env.close()
     return points
 
 
@@ -409,6 +422,9 @@ def main(argv=None) -> int:
     parser.add_argument("--id", nargs="+", metavar="ID", dest="ids",
                         help="the front of these contouring ids instead of the omega's ('all': every one)")
     parser.add_argument("--json", help="write the points here (JSON, a list per front)")
+    parser.add_argument("--mpcc-only", action="store_true",
+                        help="with --id and --json: run the contouring MPC's points again and replace them in the "
+                             "--json file's fronts, keeping the other runs (after a change of mpcc)")
     parser.add_argument("--replot", nargs="+", metavar="JSON",
                         help="run nothing: print the fronts of these --json files and, with --plot, draw them on one "
                              "grid")
@@ -470,6 +486,8 @@ def _id_fronts(parser, args) -> int:
         parser.error(f"--id: {', '.join(unknown)} is not a contouring id ({', '.join(CONTOURING_IDS)}, or all)")
     if args.agent:
         parser.error("--agent runs on the omega's front only (no override agent is shipped for another id)")
+    if args.mpcc_only:
+        return _replace_mpcc(parser, args, ids)
     fronts = {}
     for env_id in ids:
         fronts[env_id] = points = id_front(env_id, mpcc=not args.no_mpcc,
@@ -482,6 +500,24 @@ def _id_fronts(parser, args) -> int:
         _report(points, plot, f"{env_id}, nominal plant: planned feeds (classical), operator's override, MPCC")
         if args.json:
             _write_json(fronts, args.json)
+    return 0
+
+
+def _replace_mpcc(parser, args, ids) -> int:
+    """``--mpcc-only``: each id's MPCC points run again and replaced in ``--json``'s fronts, written after each id."""
+    from pathlib import Path
+
+    if not args.json or not Path(args.json).exists():
+        parser.error("--mpcc-only replaces the MPCC points of an existing --json file")
+    fronts = read_fronts([args.json])
+    for env_id in ids:
+        if env_id not in fronts:
+            parser.error(f"--mpcc-only: {args.json} has no front of {env_id}")
+        kept = [p for p in fronts[env_id] if p.kind != "mpcc"]
+        fronts[env_id] = kept + id_mpcc_points(env_id, progress=lambda line: print(line, flush=True))
+        print(f"\n== {env_id} ==")
+        _report(fronts[env_id], None)
+        _write_json(fronts, args.json)
     return 0
 
 
