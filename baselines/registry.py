@@ -31,7 +31,8 @@ from .predictive.lq_preview import LQPreviewPolicy
 from .predictive.mpc import MPCPolicy
 from .predictive.mpcc import MPCCPolicy
 
-__all__ = ["make", "names", "policy_class", "register_floor", "CONTROLLERS", "FLOORS", "REGISTRY", "VARIANTS"]
+__all__ = ["make", "names", "policy_class", "in_default_table", "register_floor", "CONTROLLERS", "FLOORS", "REGISTRY",
+           "VARIANTS", "EXTRA_VARIANTS"]
 
 #: The causal controllers, by family (each class names itself: its ``name`` attribute is its registry key).
 CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
@@ -102,6 +103,11 @@ VARIANTS: dict[str, tuple[str, dict]] = {
     "mpc@commissioned": ("mpc", {"model": "commissioned"}),
 }
 
+#: Variants vcnc-bench's default table leaves out (run when named, or with ``--all``): the predictive pair on the
+#: commissioned model, weaker than the bare names where measured (docs/reproduction.md, "Predictive control on
+#: the commissioned model").
+EXTRA_VARIANTS = frozenset({"lq-preview@commissioned", "mpc@commissioned"})
+
 _FROM_ENV = ("layout", "decision_period", "nominal_parameters", "plant", "reference", "dt", "task")
 
 
@@ -115,6 +121,12 @@ def policy_class(name: str) -> type[BaselinePolicy]:
     if not isinstance(name, str) or name not in REGISTRY and name not in VARIANTS:
         raise ValueError(f"unknown baseline {name!r}; known baselines are {names()}")
     return REGISTRY[VARIANTS[name][0]] if name in VARIANTS else REGISTRY[name]
+
+
+def in_default_table(name: str) -> bool:
+    """Whether vcnc-bench's default table runs baseline ``name``: its class says so
+    (``BaselinePolicy.in_default_table``) and it is not one of :data:`EXTRA_VARIANTS`."""
+    return policy_class(name).in_default_table and name not in EXTRA_VARIANTS
 
 
 def make(name: str, env, **params) -> BaselinePolicy:

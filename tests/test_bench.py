@@ -263,3 +263,13 @@ def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, c
         bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "nope", "--no-progress"])
     assert exc.value.code == 2 and "nope" in capsys.readouterr().err
 
+
+
+def test_commissioned_predictive_variants_are_extras_of_the_default_table():
+    from vcnc_bench.kinds.baseline import KIND
+
+    env = gym.make("VCNC-HeartShop-v1")
+    defaults, extras = KIND.defaults(env), KIND.extras(env)
+    assert "lq-preview" in defaults and "mpc" in extras
+    assert {"lq-preview@commissioned", "mpc@commissioned"} <= set(extras)
+    assert not {"lq-preview@commissioned", "mpc@commissioned"} & set(defaults)

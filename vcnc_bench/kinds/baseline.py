@@ -10,7 +10,7 @@ every baseline whose ``plants`` include the env's plant.
 from __future__ import annotations
 
 from vcnc_baselines.feedback import qft
-from vcnc_baselines.registry import FLOORS, make, names, policy_class
+from vcnc_baselines.registry import FLOORS, in_default_table, make, names, policy_class
 
 from ..policies import PolicyKind
 
@@ -156,8 +156,8 @@ KIND = PolicyKind(
     name="baseline",
     make=_make,
     names=names,
-    defaults=lambda env: [n for n in names() if applies(n, env) and policy_class(n).in_default_table],
-    extras=lambda env: [n for n in names() if applies(n, env) and not policy_class(n).in_default_table],
+    defaults=lambda env: [n for n in names() if applies(n, env) and in_default_table(n)],
+    extras=lambda env: [n for n in names() if applies(n, env) and not in_default_table(n)],
     report=lambda ctx: _qft_stability(ctx) + _yadav2020(ctx) + _simba(ctx) + _purtojo(ctx) + _oracle(ctx),
     prepare=_yadav2020_tables,
     description="the papers' classical controllers (vcnc_baselines.names())",
