@@ -217,6 +217,7 @@ def commissioned_lq():
     return vcnc_baselines.make("lq-preview", env, model="commissioned")
 
 
+@pytest.mark.slow
 def test_lq_loop_against_python_control(commissioned_lq):
     """The LQ servo's loop and its closed loop's stability (design.loop_response, closed_loop_stable) against the
     same controller and model interconnected by python-control, and the margin rule's weight (margin_weight)
@@ -251,6 +252,7 @@ def test_lq_loop_against_python_control(commissioned_lq):
     assert 180.0 - abs(np.degrees(np.angle(at))) == pytest.approx(m.phase_deg, abs=0.05)
 
 
+@pytest.mark.slow
 def test_record_models_are_the_identified_responses(commissioned_lq):
     from vcnc_baselines.commissioning.identify import model_response
     from vcnc_baselines.predictive.lq_preview import record_models
