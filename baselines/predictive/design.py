@@ -103,6 +103,11 @@ class AxisModel:
     def delay_periods(self) -> int:
         return self.n - self.order
 
+    @property
+    def input_column(self) -> np.ndarray:
+        """(order,) the column through which the input enters the plant's own states (after the dead time's)."""
+        return self.A[:self.order, self.order] if self.delay_periods else self.B[:self.order]
+
     def measurement(self) -> np.ndarray:
         """The rows of the measured outputs, (1 or 2, n): position, and velocity when the model has it."""
         return np.vstack([self.C] + ([self.Cv] if self.Cv is not None else []))
@@ -332,7 +337,7 @@ def estimator_gain(model: AxisModel, input_noise: float, position_noise: float, 
     R = np.diag([positive("position_noise", position_noise, "mm") ** 2,
                  positive("velocity_noise", velocity_noise, "mm/s") ** 2][:m])
     b = np.zeros(n)
-    b[:o] = model.A[:o, o] if model.delay_periods else model.B[:o]  # the plant's own input column
+    b[:o] = model.input_column
     Qw = np.outer(b, b) * w * w + 1e-30 * np.eye(n)
     Sigma = linalg.solve_discrete_are(model.A.T, Cm.T, Qw, R)  # prediction covariance
     return Sigma @ Cm.T @ np.linalg.inv(Cm @ Sigma @ Cm.T + R)

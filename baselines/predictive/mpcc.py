@@ -427,7 +427,6 @@ class MPCCPolicy(BaselinePolicy):
             exact = not np.any(sensor_noise(self.plant, self.nominal_parameters) > 0)
             disturbance_time = DISTURBANCE_TIME if exact else 0.0
         self.disturbance_time = non_negative("disturbance_time", disturbance_time, "s")
-        self._input_columns = [_input_column(m) for m in models]
         n, b = models[0].n, len(blocks)
         self.n_states, self.n_blocks = n, b
         # memory: theta, v, a_prev, u_prev (2), clock index, calls, the input disturbance (2), x_hat (2 n), the last
@@ -499,7 +498,7 @@ class MPCCPolicy(BaselinePolicy):
                 xm = m.A @ x[j] + m.B * mem[s["u"] + j]
             out[j] = xm + self.gains[j] @ (ym - m.measurement() @ xm)
             if mem[s["k"]] > 0 and gain > 0:  # the input the last step's surprise asks, integrated
-                b = self._input_columns[j]
+                b = m.input_column
                 mem[s["d"] + j] += gain * (b @ (out[j] - xm)[:b.size]) / (b @ b)
         mem[s["x"]:s["x"] + 2 * n] = out.ravel()
         return out
@@ -582,12 +581,6 @@ class MPCCPolicy(BaselinePolicy):
                 u[i], self._dial[i] = self._step(self._state[i], obs[i])
         self.calls += n
         return u
-
-
-def _input_column(model) -> np.ndarray:
-    """The column through which the input enters the plant's own states (after the dead time's, if any)."""
-    o = model.order
-    return model.A[:o, o] if model.delay_periods else model.B[:o]
 
 
 class _one_blas_thread:
