@@ -1,12 +1,20 @@
 """An agent's training seeds on the box, from a ``vcnc-bench --plants N --policy ppo:FOLDER --json`` file.
 
     python benchmarks/seed_verdicts.py docs/data/shop_seeds/VCNC-HeartShop-v1.json [--base ff-ccc]
+    python benchmarks/seed_verdicts.py docs/data/ideal_seeds/VCNC-Corners-v1.json --with docs/data/mpc_box/VCNC-Corners-v1.json
 
 ``ppo:FOLDER`` of a ``vcnc-train --seeds K`` folder stands for the K seeds' agents, judged as one controller
 (``vcnc_bench.verdicts``).  Prints Markdown: every record's nominal / median / worst max and RMS contour error and
 its own IQM of the max with its interval (a seed's row is that seed's spread), then the verdict rows the bench
 wrote, then the seeds against their own base (the classical controller their residual corrects) by the same rule.
 Every figure comes from the JSON; nothing is typed.
+
+``--with OTHER.json`` joins the causal classical records of another ``--plants`` run of the same id, plants and
+settings (a controller added to the house after the seeds were evaluated, such as ``mpc``, whose run is costly) and
+judges the agents again, by the bench's own rule (:func:`vcnc_bench.verdicts.robust_verdicts`), against the
+strongest causal controller of the two runs together; ``--json OUT`` writes the joined run.  Runs whose settings
+differ (plants, plant seed, reset seed, trials, vertices, feed, plant, noise seeds) are refused, since their
+plants cannot be paired.
 """
 
 from __future__ import annotations
@@ -14,7 +22,11 @@ from __future__ import annotations
 import argparse
 import json
 
-from vcnc_bench.verdicts import sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
+from vcnc_bench.headroom import NON_CAUSAL
+from vcnc_bench.verdicts import robust_verdicts, sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
+
+#: The settings two ``--plants`` runs must share for their records to be paired plant by plant.
+PAIRED_SETTINGS = ("plants", "plant_seed", "seed", "trials", "max_vertices", "feedrate", "plant", "noise_seeds")
 
 
 def _f(v) -> str:
@@ -57,14 +69,55 @@ def tables(data: dict, base: str) -> list[str]:
     return out
 
 
+def _causal(rec: dict) -> bool:
+    return rec.get("kind") == "baseline" and not rec["policy"].endswith(NON_CAUSAL)
+
+
+def join(data: dict, other: dict, other_name: str = "the other run") -> dict:
+    """``data`` with the causal classical records of ``other`` it lacks, and its verdicts judged again by
+    :func:`vcnc_bench.verdicts.robust_verdicts` (the reset seed of ``data``'s settings); ValueError where the two
+    runs' settings or plants differ."""
+    a, b = data["settings"], other["settings"]
+    differ = [k for k in PAIRED_SETTINGS if a.get(k) != b.get(k)]
+    if differ:
+        raise ValueError(f"{other_name} was not run on the same plants: its settings differ in "
+                         + ", ".join(f"{k} ({a.get(k)!r} against {b.get(k)!r})" for k in differ))
+    envs = {r["env"] for r in data["robust"]}
+    have = {(r["env"], r["policy"]) for r in data["robust"]}
+    added = [r for r in other["robust"] if r["env"] in envs and _causal(r) and (r["env"], r["policy"]) not in have]
+    for r in added:
+        mine = next(m for m in data["robust"] if m["env"] == r["env"])
+        if r["per_plant"]["kind"] != mine["per_plant"]["kind"]:
+            raise ValueError(f"{other_name}'s {r['policy']} on {r['env']} ran other plants "
+                             f"({len(r['per_plant']['kind'])} against {len(mine['per_plant']['kind'])})")
+    records = [dict(r) for r in data["robust"]] + [dict(r) for r in added]
+    learned = {r["policy"] for r in records if r.get("kind") not in (None, "baseline")}
+    causal = {r["policy"] for r in records if _causal(r)}
+    rows = robust_verdicts(records, learned, causal, seed=a.get("seed", 0))
+    command = a["command"] + f"  # joined with: {b['command']}"
+    return {"settings": dict(a, command=command), "robust": records, "verdicts": rows}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("json", nargs="+", help="vcnc-bench --plants N --json files")
+    p.add_argument("json_files", nargs="+", metavar="JSON", help="vcnc-bench --plants N --json files")
     p.add_argument("--base", default="ff-ccc", help="the controller the agents' residual corrects (default ff-ccc)")
+    p.add_argument("--with", dest="other", metavar="OTHER", help="another --plants run of the same id and plants: "
+                   "its causal classical records join the verdict")
+    p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
     args = p.parse_args(argv)
-    for path in args.json:
+    if args.json and not (args.other and len(args.json_files) == 1):
+        p.error("--json needs --with and one JSON")
+    for path in args.json_files:
         with open(path) as f:
-            print("\n".join(tables(json.load(f), args.base)) + "\n")
+            data = json.load(f)
+        if args.other:
+            with open(args.other) as f:
+                data = join(data, json.load(f), args.other)
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(data, f, indent=1)
+        print("\n".join(tables(data, args.base)) + "\n")
     return 0
 
 

@@ -136,3 +136,44 @@ def test_plants_json_carries_scores_verdicts_noise_and_provenance(tmp_path, caps
     assert data["settings"]["noise_seeds"] == 2 and "provenance" in data["settings"]
     printed = capsys.readouterr().out
     assert "Verdicts" in printed and "Normalised contour score" in printed
+
+
+def _seed_verdicts():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "seed_verdicts.py"
+    spec = importlib.util.spec_from_file_location("seed_verdicts", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_joined_run_judges_the_seeds_against_a_later_controller():
+    """``benchmarks/seed_verdicts.py --with``: the sharp corners' five seeds, evaluated before ``mpc`` was in the
+    house, meet ``mpc`` from its own run on the same 20 plants; its IQM is checked against scipy's trimmed mean,
+    and a run on other plants is refused by name."""
+    from pathlib import Path
+
+    from scipy.stats import trim_mean
+
+    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
+    box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
+    sv = _seed_verdicts()
+    joined = sv.join(seeds, box)
+    # the classical controller both runs hold is the same on the same plants: the pairing is plant by plant
+    fb = [next(r for r in run["robust"] if r["policy"] == "contouring-fb") for run in (seeds, box)]
+    np.testing.assert_allclose(fb[0]["per_plant"]["max_um"], fb[1]["per_plant"]["max_um"], rtol=1e-9)
+    rows = {(v["x"], v["figure"]): v for v in joined["verdicts"]}
+    seeds_max = rows[("ppo:runs/seeds/VCNC-Corners-v1", "max")]
+    assert seeds_max["y"] == "mpc" and seeds_max["training_seeds"] == 5
+    mpc = next(r for r in joined["robust"] if r["policy"] == "mpc")
+    sampled = [m for m, k in zip(mpc["per_plant"]["max_um"], mpc["per_plant"]["kind"]) if k == "sample"]
+    assert seeds_max["iqm_y"] == pytest.approx(trim_mean(sampled, 0.25), rel=1e-12)
+    assert seeds_max["outcome"] == "loses" and seeds_max["low"] > 0
+    before = {(v["x"], v["figure"]): v["outcome"] for v in seeds["verdicts"]}
+    assert before[("ppo:runs/seeds/VCNC-Corners-v1", "max")] == "ties"  # against lq-preview, the strongest then
+    other = dict(box, settings=dict(box["settings"], plant_seed=1))
+    with pytest.raises(ValueError, match="plant_seed"):
+        sv.join(seeds, other)
