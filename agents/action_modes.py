@@ -64,6 +64,9 @@ class ActionMode:
         Residual mode: the largest correction, as a fraction of u_max (0 < correction <= 2).
     baseline_params : dict
         Residual mode: constructor parameters of the baseline (its paper's values if empty).
+    history : int
+        Residual mode: the past decisions the agent remembers (:mod:`vcnc_agents.history`: their commands, errors,
+        velocities and reference accelerations follow the env's observation); 0, the default: none.
     """
 
     mode: str = "direct"
@@ -71,11 +74,16 @@ class ActionMode:
     baseline: str | None = None
     correction: float | None = None
     baseline_params: dict = field(default_factory=dict)
+    history: int = 0
 
     def __post_init__(self):
         if self.mode not in ACTION_MODES:
             raise ValueError(f"action mode must be one of {sorted(ACTION_MODES)}, got {self.mode!r}")
         object.__setattr__(self, "action_repeat", _check_repeat(self.action_repeat))
+        h = self.history
+        if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 0:
+            raise ValueError(f"history must be an integer >= 0 (past decisions remembered), got {h!r}")
+        object.__setattr__(self, "history", int(h))
         if self.mode == "residual":
             import vcnc_baselines
 
@@ -85,15 +93,15 @@ class ActionMode:
             if not 0 < real("correction", c, "fraction of u_max") <= 2:
                 raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
             object.__setattr__(self, "correction", float(c))
-        elif self.baseline is not None or self.correction is not None or self.baseline_params:
-            raise ValueError("baseline, correction and baseline_params apply to the residual mode only")
+        elif self.baseline is not None or self.correction is not None or self.baseline_params or self.history:
+            raise ValueError("baseline, correction, baseline_params and history apply to the residual mode only")
 
     # -- the two forms -----------------------------------------------------------------
     def wrap(self, env: gym.Env) -> gym.Env:
         """The env as the agent trains on it: residual wrapped, or direct with the env's repeat checked."""
         if self.mode == "residual":
             return ResidualAction(env, baseline=self.baseline, correction=self.correction,
-                                  action_repeat=self.action_repeat, **self.baseline_params)
+                                  action_repeat=self.action_repeat, history=self.history, **self.baseline_params)
         repeat = env.unwrapped.action_repeat
         if repeat != self.action_repeat:
             raise ValueError(f"direct mode with action_repeat={self.action_repeat} needs an env made with "
@@ -126,6 +134,8 @@ class ActionMode:
         d = {"mode": self.mode, "action_repeat": self.action_repeat}
         if self.mode == "residual":
             d.update(baseline=self.baseline, correction=self.correction, baseline_params=dict(self.baseline_params))
+        if self.history:  # absent, as in every config.yml before it was: none
+            d["history"] = self.history
         return d
 
 
@@ -148,6 +158,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Largest correction as a fraction of u_max, in (0, 2].
     action_repeat : int
         Control periods per agent decision.
+    history : int
+        Past decisions the agent remembers (:mod:`vcnc_agents.history`), appended to the observation; 0: none.
     **baseline_params
         Constructor parameters of the baseline.
 
@@ -165,12 +177,12 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """
 
     def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
-                 **baseline_params):
+                 history: int = 0, **baseline_params):
         gym.utils.RecordConstructorArgs.__init__(self, baseline=baseline, correction=correction,
-                                                 action_repeat=action_repeat, **baseline_params)
+                                                 action_repeat=action_repeat, history=history, **baseline_params)
         super().__init__(env)
         self.mode = ActionMode("residual", action_repeat=action_repeat, baseline=baseline,
-                               correction=correction, baseline_params=baseline_params)
+                               correction=correction, baseline_params=baseline_params, history=history)
         if env.unwrapped.action_repeat != 1:
             raise ValueError("ResidualAction runs the baseline every control period: make the env with "
                              f"action_repeat=1 (got {env.unwrapped.action_repeat}) and give the wrapper the repeat")
@@ -178,6 +190,16 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.action_repeat = self.mode.action_repeat
         self._obs = None
         self._start = np.array([True])
+        self.history = None
+        if self.mode.history:
+            from .history import DecisionHistory
+
+            self.history = DecisionHistory(self.mode.history, env.unwrapped.layout, 1)
+            self.observation_space = self.history.space(env.observation_space)
+
+    def _seen(self, obs):
+        """The observation the agent sees: the env's, then the remembered decisions (with ``history``)."""
+        return obs if self.history is None else self.history.seen(obs[None])[0]
 
     @property
     def decision_period(self) -> float:
@@ -195,7 +217,9 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self.baseline.plan(self.env)
         self._obs = obs
         self._start = np.array([True])
-        return obs, info
+        if self.history is not None:
+            self.history.start(obs[None])
+        return self._seen(obs), info
 
     def step(self, action):
         if self._obs is None:
@@ -207,6 +231,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise ValueError(f"action must be finite, got {action!r}")
         total = 0.0
         peak = 0.0
+        if self.history is not None:  # the observation this decision is made on joins the past
+            self.history.push(self._obs[None])
         for _ in range(self.action_repeat):
             base, _ = self.baseline.predict(self._obs, episode_start=self._start)
             self._start = np.array([False])
@@ -217,4 +243,4 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
             if terminated or truncated:
                 break
         info = dict(info, contour_error_max=peak)
-        return obs, total / self.action_repeat, terminated, truncated, info
+        return self._seen(obs), total / self.action_repeat, terminated, truncated, info

@@ -77,6 +77,9 @@ def make_training_venv(config, run_dir: Path, *, vec_env: str = "native", start_
     if vec_env == "native" and suite_env(env_id).vector_entry_point is None:
         note(f"{env_id} has no native vector env: training on SB3's DummyVecEnv")
         vec_env = "dummy"
+    if vec_env == "native" and config.mode.history:  # the lean trainer's DecisionEnv remembers on the native env
+        note("an agent with history trains with SB3's PPO on DummyVecEnv (the residual wrapper remembers)")
+        vec_env = "dummy"
     if vec_env == "native":
         from .vec_env import VcncVecEnv
 

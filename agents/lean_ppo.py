@@ -149,6 +149,12 @@ class DecisionEnv:
         self.n = n_envs
         self.observation_space = self.venv.single_observation_space
         self.action_space = self.venv.single_action_space
+        self.history = None  # the per-env wrappers remember their own past (ResidualAction)
+        if mode.history and self.native:
+            from .history import DecisionHistory
+
+            self.history = DecisionHistory(mode.history, self.venv.layout, n_envs)
+            self.observation_space = self.history.space(self.observation_space)
         self._seed = seed
         self._start = np.ones(n_envs, dtype=bool)
         self.steps = int(start_steps)
@@ -164,13 +170,22 @@ class DecisionEnv:
             return max(1, int(self.venv.envs[0].unwrapped.episode_steps) // self.mode.action_repeat)
         return max(1, int(self.venv.episode_steps) // self.repeat)
 
+    def _seen(self, obs: np.ndarray) -> np.ndarray:
+        """What the agents see of every env's observation: itself, then its remembered decisions (``history``)."""
+        return obs if self.history is None else self.history.seen(obs)
+
     def reset(self) -> np.ndarray:
         obs, _ = self.venv.reset(seed=self._seed)
         self._start[:] = True
-        return obs
+        self._obs = obs
+        if self.history is not None:
+            self.history.start(obs)
+        return self._seen(obs)
 
     def _decide(self, actions: np.ndarray, active=None):
         """(obs, summed rewards, terminated, truncated) of one decision of the envs (all, or ``active``)."""
+        if self.history is not None:  # the observation each deciding env decides on joins its past
+            self.history.push(self._obs, active)
         if self.controller is not None:
             if self._start.any():
                 self.baseline.reset(mask=self._start)
@@ -199,10 +214,11 @@ class DecisionEnv:
         return obs, total, te_all, tr_all
 
     def stagger(self, obs: np.ndarray) -> np.ndarray:
-        """Spread the envs along the episode: env i runs ``floor(i L / N)`` decisions of the baseline alone."""
-        self._obs = obs
+        """Spread the envs along the episode: env i runs ``floor(i L / N)`` decisions of the baseline alone (which
+        the history remembers as decisions with no correction).  ``obs`` is what :meth:`reset` returned."""
         if self.controller is None or self.n == 1:
             return obs
+        obs = self._obs
         ahead = (np.arange(self.n) * self.decisions_per_episode) // self.n
         zero = np.zeros((self.n, 2), dtype=np.float32)
         for k in range(int(ahead.max())):
@@ -211,8 +227,10 @@ class DecisionEnv:
             if done.any():  # an episode shorter than its natural length: start it again
                 obs, _ = self.venv.reset(options={"reset_mask": done})
                 self._start[done] = True
-        self._obs = obs
-        return obs
+                if self.history is not None:
+                    self.history.start(obs, done)
+            self._obs = obs
+        return self._seen(obs)
 
     def step(self, actions: np.ndarray):
         """One decision: (obs, rewards (mean over the decision's control periods, float32), terminated,
@@ -225,7 +243,7 @@ class DecisionEnv:
         done = te | tr
         terminal = None
         if done.any():
-            terminal = obs[done].copy()
+            terminal = self._seen(obs)[done]
             for i in np.flatnonzero(done):
                 if self._writers is not None:
                     self._writers[i].write_row({"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
@@ -234,8 +252,10 @@ class DecisionEnv:
             self._lengths[done] = 0
             obs, _ = self.venv.reset(options={"reset_mask": done})
             self._start[done] = True
+            if self.history is not None:
+                self.history.start(obs, done)
         self._obs = obs
-        return obs, rewards, te, tr, terminal
+        return self._seen(obs), rewards, te, tr, terminal
 
     def close(self) -> None:
         if self._writers is not None:
@@ -608,8 +628,11 @@ class _LeanRun:
             from .model_file import load_ppo
 
             self.done, model_zip, norm_file = self.checkpoint
-            self.model = load_ppo(model_zip, observation_space=self.eval_env.observation_space,
-                                  action_space=self.eval_env.action_space, ppo_kwargs=self.kwargs, device=self.device)
+            from .history import agent_space
+
+            space = agent_space(self.eval_env.observation_space, self.mode.history, self.eval_env.unwrapped.layout)
+            self.model = load_ppo(model_zip, observation_space=space, action_space=self.eval_env.action_space,
+                                  ppo_kwargs=self.kwargs, device=self.device)
             self.norm = RunningNormalizer(NormalizationStats.load(norm_file), self.n_envs)
             rolled_back = roll_back_to(self.run_dir, self.config, self.done)
         self.session = Session(self.run_dir, self.config, self.done, vec_env="native", rolled_back=rolled_back,

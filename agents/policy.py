@@ -31,6 +31,7 @@ import numpy as np
 import yaml
 
 from .action_modes import ActionMode
+from .history import DecisionHistory, agent_space
 from .normalization import NormalizationStats
 from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, evaluation_row
 from .signature import (ANY_CONTOUR_IDS, MACHINE_FIELDS, as_seen_through, check_env_signature, check_signature,
@@ -92,7 +93,10 @@ class AgentPolicy:
         if model.action_space.shape != u.action_space.shape:
             raise ValueError(f"the agent acts with shape {model.action_space.shape}, "
                              f"the env takes {u.action_space.shape}")
-        seen = u.observation_space.shape if pick is None else (len(pick),)
+        space = u.observation_space
+        if pick is not None:
+            space = type(space)(space.low[pick], space.high[pick], dtype=space.dtype)
+        seen = agent_space(space, action_mode.history, u.layout).shape
         if model.observation_space.shape != seen:
             raise ValueError(f"the agent observes shape {model.observation_space.shape}, "
                              f"the env gives {seen}: it was trained with another layout")
@@ -103,6 +107,8 @@ class AgentPolicy:
         self.baseline = action_mode.make_baseline(env)
         self._count = None  # control periods since the last decision, per env
         self._held = None   # the agent's held action, per env
+        self._layout = u.layout
+        self.history = None  # the remembered decisions, per env (action_mode.history)
         self._actor = _deterministic_actor(model)
 
     def plan(self, env) -> None:
@@ -124,12 +130,20 @@ class AgentPolicy:
         if self._count is None or self._count.shape[0] != n:
             self._count = np.zeros(n, dtype=np.int64)
             self._held = np.zeros((n,) + tuple(self.model.action_space.shape), dtype=np.float32)
+            if self.action_mode.history:
+                self.history = DecisionHistory(self.action_mode.history, self._layout, n)
+                self.history.start(obs2)
         if episode_start is not None:
             start = np.broadcast_to(np.asarray(episode_start, dtype=bool).reshape(-1), (n,))
             self._count[start] = 0
+            if self.history is not None and start.any():
+                self.history.start(obs2, start)
         decide = self._count % self.action_mode.action_repeat == 0
         if decide.any():
             x = obs2[decide] if self.pick is None else obs2[decide][:, self.pick]
+            if self.history is not None:  # the remembered decisions follow, then this one joins them
+                x = self.history.seen(obs2, decide, base=x)
+                self.history.push(obs2, decide)
             if self.normalization is not None:
                 x = self.normalization.normalize_obs(x)
             if deterministic and self._actor is not None:
@@ -268,14 +282,15 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     space = env.unwrapped.observation_space
     if pick is not None:
         space = type(space)(space.low[pick], space.high[pick], dtype=space.dtype)
-    obs_shape = tuple(space.shape)
-    if (stats.observation_size,) != obs_shape:
-        raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
-                         f"shape {obs_shape}: it belongs to another agent or env configuration")
     try:
         mode = ActionMode(**data.get("action_mode", {}))
     except TypeError as exc:
         raise ValueError(f"{config_file}: action_mode is not an action mode ({exc})") from None
+    space = agent_space(space, mode.history, env.unwrapped.layout)
+    obs_shape = tuple(space.shape)
+    if (stats.observation_size,) != obs_shape:
+        raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
+                         f"shape {obs_shape}: it belongs to another agent or env configuration")
     _, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
     model = load_ppo(model_file, observation_space=space, action_space=env.unwrapped.action_space,
                      ppo_kwargs=ppo_kwargs, device=device)

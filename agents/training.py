@@ -25,6 +25,7 @@ from .action_modes import ActionMode
 from .callbacks import make_run_callback
 from .config import DEFAULT_CONFIG, normalize_kwargs
 from .env_factory import make_eval_env, make_training_venv
+from .history import agent_space
 from .model_file import load_ppo
 from .normalization import NormalizationStats
 from .run_config import (DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ, VEC_ENVS, RunConfig, check_env_id, check_seed,
@@ -141,7 +142,8 @@ def _model_and_envs(run_dir, config: RunConfig, checkpoint, *, tensorboard, vec_
     done, model_zip, norm_file = checkpoint
     stats = NormalizationStats.load(norm_file)
     probe = make_eval_env(config)
-    model = load_ppo(model_zip, observation_space=probe.observation_space, action_space=probe.action_space,
+    space = agent_space(probe.observation_space, config.mode.history, probe.unwrapped.layout)
+    model = load_ppo(model_zip, observation_space=space, action_space=probe.action_space,
                      ppo_kwargs=kwargs, device=device, tensorboard_log=tb_dir, verbose=verbose)
     probe.close()
     # the checkpoint loads: from here on the run folder changes
