@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import gymnasium as gym
 import numpy as np
 
+from vcnc_gym.envs.history import DecisionHistory
 from vcnc_gym.validation import real
 
 __all__ = ["ActionMode", "ResidualAction", "ACTION_MODES"]
@@ -65,7 +66,7 @@ class ActionMode:
     baseline_params : dict
         Residual mode: constructor parameters of the baseline (its paper's values if empty).
     history : int
-        Residual mode: the past decisions the agent remembers (:mod:`vcnc_agents.history`: their commands, errors,
+        Residual mode: the past decisions the agent remembers (:mod:`vcnc_gym.envs.history`: their commands, errors,
         velocities and reference accelerations follow the env's observation); 0, the default: none.
     """
 
@@ -159,7 +160,7 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     action_repeat : int
         Control periods per agent decision.
     history : int
-        Past decisions the agent remembers (:mod:`vcnc_agents.history`), appended to the observation; 0: none.
+        Past decisions the agent remembers (:mod:`vcnc_gym.envs.history`), appended to the observation; 0: none.
     **baseline_params
         Constructor parameters of the baseline.
 
@@ -192,8 +193,6 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._start = np.array([True])
         self.history = None
         if self.mode.history:
-            from .history import DecisionHistory
-
             self.history = DecisionHistory(self.mode.history, env.unwrapped.layout, 1)
             self.observation_space = self.history.space(env.observation_space)
 

@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vcnc_gym.envs.history import DecisionHistory, agent_space
+
 from .action_modes import ActionMode
 from .config import normalize_kwargs
 from .env_factory import make_eval_env
@@ -151,8 +153,6 @@ class DecisionEnv:
         self.action_space = self.venv.single_action_space
         self.history = None  # the per-env wrappers remember their own past (ResidualAction)
         if mode.history and self.native:
-            from .history import DecisionHistory
-
             self.history = DecisionHistory(mode.history, self.venv.layout, n_envs)
             self.observation_space = self.history.space(self.observation_space)
         self._seed = seed
@@ -628,8 +628,6 @@ class _LeanRun:
             from .model_file import load_ppo
 
             self.done, model_zip, norm_file = self.checkpoint
-            from .history import agent_space
-
             space = agent_space(self.eval_env.observation_space, self.mode.history, self.eval_env.unwrapped.layout)
             self.model = load_ppo(model_zip, observation_space=space, action_space=self.eval_env.action_space,
                                   ppo_kwargs=self.kwargs, device=self.device)

@@ -1,4 +1,4 @@
-"""vcnc_agents.history: the agent's memory of its last decisions (issue 37), the same in training and in the bench.
+"""vcnc_gym.envs.history: the agent's memory of its last decisions (issue 37), the same in training and in the bench.
 
 The remembered fields are checked against the env's own observations, picked by hand with the layout's slices;
 the lean trainer's envs (the native vector env), the residual's Gymnasium wrapper (the per-env path, RL Zoo's) and
@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env
 import vcnc_gym  # noqa: F401
 from vcnc_agents.action_modes import ActionMode, ResidualAction
 from vcnc_agents.config import action_mode_of, with_action_mode
-from vcnc_agents.history import HISTORY_FIELDS, DecisionHistory, agent_space
+from vcnc_gym.envs.history import HISTORY_FIELDS, DecisionHistory, agent_space
 from vcnc_agents.lean_ppo import DecisionEnv
 
 HEART = "VCNC-Heart-v1"

@@ -1,4 +1,7 @@
-"""The agent's memory of its last decisions: what lets a residual identify the machine it runs on (issue 37).
+"""An agent's memory of its last decisions: what lets a residual identify the machine it runs on (issue 37).
+
+Here, beside the observation's layout, because the trainers, the residual's wrapper and the bench's agents all
+use it (``vcnc_agents`` imports it; it imports nothing but numpy and Gymnasium's spaces).
 
 A residual that sees only the present instant cannot tell two plants of the uncertainty box apart when their
 present observations agree.  With ``history=K`` (:class:`vcnc_agents.action_modes.ActionMode`), the agent's
