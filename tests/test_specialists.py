@@ -29,16 +29,25 @@ def test_shipped_agents_are_on_current_ids_only():
         assert config["env_id"] in ANY_CONTOUR_IDS and config["env"]["signature"]["plant"] == plant
 
 
-def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline(tmp_path):
-    """Each entry of specialists.yml passes vcnc-train's checks for its id; the baseline it corrects has a
-    compiled form (the lean trainer steps a whole decision in one call)."""
-    entries = yaml.safe_load(SPECIALISTS.read_text())
+@pytest.mark.parametrize("name", ["specialists.yml", "adaptive.yml"])
+def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline(tmp_path, name):
+    """Each entry of specialists.yml (and of adaptive.yml, the shop-floor specialists with a history) passes
+    vcnc-train's checks for its id; the baseline it corrects has a compiled form (the lean trainer steps a whole
+    decision in one call).  The adaptive agents differ from their specialists in their history alone."""
+    path = SPECIALISTS.with_name(name)
+    entries = yaml.safe_load(path.read_text())
     assert set(entries) <= set(CONTOURING_IDS)
+    if name == "adaptive.yml":
+        specialists = yaml.safe_load(SPECIALISTS.read_text())
+        for env_id, entry in entries.items():
+            wrapper = dict(entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"])
+            assert wrapper.pop("history") >= 1
+            assert dict(entry, env_wrapper=[{"vcnc_agents.action_modes.ResidualAction": wrapper}]) == specialists[env_id]
     for env_id in entries:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", vcnc_agents.RunWarning)  # n_timesteps rounded up to whole rollouts
             run_dir, config, checkpoint = vcnc_agents.training.prepare_run(env_id, tmp_path / env_id,
-                                                                       config_file=SPECIALISTS)
+                                                                       config_file=path)
         assert checkpoint is None and not run_dir.exists()
         mode = config.mode
         assert mode.mode == "residual"
