@@ -40,10 +40,12 @@ import yaml
 from vcnc_gym.validation import flag, integer
 
 from .action_modes import ActionMode
+from .model_file import POLICIES
 
 __all__ = [
     "DEFAULT_CONFIG",
     "RESIDUAL_WRAPPER",
+
     "TORCH_NAMES",
     "load_hyperparameters",
     "action_mode_of",
@@ -208,14 +210,15 @@ def _literal(node: ast.AST, text: str):
                      f"{ast.unparse(node)!r} in {text!r} is none of them")
 
 
-def parse_policy_kwargs(value) -> dict:
+def parse_policy_kwargs(value, policy: str = "MlpPolicy") -> dict:
     """``policy_kwargs`` of an entry as a dict, without ``eval``.
 
     A string is parsed (:mod:`ast`) as a literal expression in which
     ``dict(key=value, ...)`` and the names of :data:`TORCH_NAMES` (e.g.
     ``nn.ReLU``, ``th.optim.AdamW``) are the only non-literals; a mapping
     (from YAML) may name those classes as strings.  The keys are checked
-    against SB3's ``ActorCriticPolicy`` arguments.
+    against the arguments of ``policy``'s class (:data:`POLICIES`: SB3's ``ActorCriticPolicy``, or sb3-contrib's
+    ``RecurrentActorCriticPolicy`` with its LSTM's ``lstm_hidden_size``, ``n_lstm_layers``, ...).
 
     Raises ValueError for anything else (a call, an unknown name, an
     attribute of something not in the list, a misspelt key).
@@ -237,10 +240,11 @@ def parse_policy_kwargs(value) -> dict:
         raise ValueError(f"policy_kwargs must be a mapping or a dict expression string, got {value!r}")
     if not isinstance(kwargs, dict) or not all(isinstance(k, str) for k in kwargs):
         raise ValueError(f"policy_kwargs must give a dict with string keys, got {value!r}")
-    from stable_baselines3.common.policies import ActorCriticPolicy
     import inspect
 
-    known = set(inspect.signature(ActorCriticPolicy.__init__).parameters) - {
+    from .model_file import algorithm
+
+    known = set(inspect.signature(algorithm(policy).policy_aliases[policy].__init__).parameters) - {
         "self", "observation_space", "action_space", "lr_schedule", "features_extractor_class"}
     refuse_unknown("policy_kwargs", kwargs, known)
     return kwargs
@@ -396,8 +400,10 @@ def ppo_arguments(hyperparams: dict) -> tuple[str, dict[str, Any]]:
                          "(it sets the seed, device, logging and buffers itself)")
     refuse_unknown("the hyperparameters", hyperparams, set(_PPO_RULES) | set(_ZOO_KEYS))
     policy = hyperparams.get("policy", "MlpPolicy")
-    if policy != "MlpPolicy":
-        raise ValueError(f"policy must be 'MlpPolicy' (the observation is a flat vector), got {policy!r}")
-    kwargs = {k: _PPO_RULES[k](v) for k, v in hyperparams.items() if k not in _ZOO_KEYS}
+    if policy not in POLICIES:
+        raise ValueError(f"policy must be one of {list(POLICIES)} (the observation is a flat vector), got {policy!r}")
+    kwargs = {k: _PPO_RULES[k](v) for k, v in hyperparams.items() if k not in _ZOO_KEYS and k != "policy_kwargs"}
+    if "policy_kwargs" in hyperparams:  # its keys are the policy class's arguments
+        kwargs["policy_kwargs"] = parse_policy_kwargs(hyperparams["policy_kwargs"], policy)
     normalize_kwargs(hyperparams)
     return policy, kwargs

@@ -118,11 +118,15 @@ def check_envs(config) -> dict:
     except (TypeError, ValueError) as exc:
         raise ValueError(f"env_kwargs {env_kwargs} do not make a {env_id} env for the {mode.mode} action mode: "
                          f"{exc}") from None
-    policy_kwargs = config.ppo_arguments()[1].get("policy_kwargs")
+    policy, ppo_kwargs = config.ppo_arguments()
+    policy_kwargs = ppo_kwargs.get("policy_kwargs")
     try:
-        from stable_baselines3.common.policies import ActorCriticPolicy
+        from vcnc_gym.envs.history import agent_space
 
-        ActorCriticPolicy(eval_env.observation_space, eval_env.action_space, lambda _: 3e-4, **(policy_kwargs or {}))
+        from .model_file import algorithm
+
+        space = agent_space(eval_env.observation_space, mode.history, eval_env.unwrapped.layout)
+        algorithm(policy).policy_aliases[policy](space, eval_env.action_space, lambda _: 3e-4, **(policy_kwargs or {}))
     except (TypeError, ValueError, AssertionError, AttributeError, KeyError) as exc:
         raise ValueError(f"policy_kwargs {policy_kwargs} do not make a policy: {exc}") from None
     signature = env_signature(eval_env)

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["load_ppo", "read_model_data", "check_model_data", "recorded_shape", "model_timesteps",
+__all__ = ["POLICIES", "algorithm", "load_ppo", "read_model_data", "check_model_data", "recorded_shape", "model_timesteps",
            "PPO_DATA_KEYS", "check_torch", "check_tensor_files"]
 
 #: The attributes a PPO model.zip may hold in ``data``; anything else is refused.
@@ -56,6 +56,24 @@ _RUNTIME_ONLY = ("_last_obs", "_last_episode_starts", "_last_original_obs", "ep_
                  "action_noise")
 
 _MIN_TORCH = (2, 6)
+
+#: The policies an entry may name: SB3's feed-forward PPO policy, and sb3-contrib's recurrent one (an LSTM before
+#: the actor and the critic; ``RecurrentPPO``, SB3's trainer only), each with the class that trains and loads it
+#: (:func:`algorithm`).
+POLICIES = {"MlpPolicy": "stable_baselines3.PPO", "MlpLstmPolicy": "sb3_contrib.RecurrentPPO"}
+
+
+def algorithm(policy: str):
+    """The SB3 algorithm class that trains ``policy`` (a name of :data:`POLICIES`): ``PPO`` or sb3-contrib's
+    ``RecurrentPPO``."""
+    import importlib
+
+    if policy not in POLICIES:
+        raise ValueError(f"policy must be one of {list(POLICIES)}, got {policy!r}")
+    module, name = POLICIES[policy].rsplit(".", 1)
+    return getattr(importlib.import_module(module), name)
+
+
 
 
 def check_torch() -> None:
@@ -149,8 +167,10 @@ def recorded_shape(data: dict, key: str, path) -> tuple[int, ...]:
     return tuple(shape)
 
 
-def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=None, device: str = "cpu", **kwargs):
-    """An SB3 PPO from ``path`` with nothing of the file unpickled.
+def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=None, device: str = "cpu",
+             policy: str = "MlpPolicy", **kwargs):
+    """An SB3 PPO (or sb3-contrib's ``RecurrentPPO``, ``policy="MlpLstmPolicy"``) from ``path`` with nothing of
+    the file unpickled.
 
     Parameters
     ----------
@@ -167,6 +187,8 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
         The training env when training goes on.
     device : str
         Torch device.
+    policy : str
+        The run's policy name (:data:`POLICIES`), which says the algorithm and its policy class.
     **kwargs
         Passed to ``PPO.load`` (e.g. ``tensorboard_log``, ``verbose``).
 
@@ -176,9 +198,11 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
         For a damaged file, a key a PPO does not save, a serialized entry
         this loader cannot rebuild, or spaces of other shapes (naming them).
     """
-    from stable_baselines3 import PPO
     from stable_baselines3.common.buffers import RolloutBuffer
 
+    algo = algorithm(policy)
+    if policy == "MlpLstmPolicy":
+        from sb3_contrib.common.recurrent.buffers import RecurrentRolloutBuffer as RolloutBuffer
     check_torch()
     data = read_model_data(path)
     check_model_data(data, path)
@@ -189,7 +213,7 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
                              "it was trained on another env configuration")
     lr = ppo_kwargs.get("learning_rate", 3e-4)
     replacements = {
-        "policy_class": PPO.policy_aliases["MlpPolicy"],
+        "policy_class": algo.policy_aliases[policy],
         "observation_space": observation_space,
         "action_space": action_space,
         "rollout_buffer_class": RolloutBuffer,
@@ -202,7 +226,7 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
     }
     custom = {k: v for k, v in replacements.items() if k in data}
     try:
-        return PPO.load(path, env=env, device=device, custom_objects=custom, **kwargs)
+        return algo.load(path, env=env, device=device, custom_objects=custom, **kwargs)
     except pickle.UnpicklingError as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"{path}: its tensor files (policy.pth, ...) hold more than tensors and are refused by "

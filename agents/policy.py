@@ -109,6 +109,10 @@ class AgentPolicy:
         self._held = None   # the agent's held action, per env
         self._layout = u.layout
         self.history = None  # the remembered decisions, per env (action_mode.history)
+        # a recurrent policy (sb3-contrib's RecurrentPPO): its LSTM states per env, and which envs start an episode
+        self.recurrent = getattr(getattr(model, "policy", None), "lstm_actor", None) is not None
+        self._lstm = None
+        self._fresh = None
         self._actor = _deterministic_actor(model)
 
     def plan(self, env) -> None:
@@ -133,11 +137,17 @@ class AgentPolicy:
             if self.action_mode.history:
                 self.history = DecisionHistory(self.action_mode.history, self._layout, n)
                 self.history.start(obs2)
+            if self.recurrent:
+                layers, _, size = self.model.policy.lstm_hidden_state_shape
+                self._lstm = tuple(np.zeros((layers, n, size), dtype=np.float32) for _ in range(2))
+                self._fresh = np.ones(n, dtype=bool)
         if episode_start is not None:
             start = np.broadcast_to(np.asarray(episode_start, dtype=bool).reshape(-1), (n,))
             self._count[start] = 0
             if self.history is not None and start.any():
                 self.history.start(obs2, start)
+            if self.recurrent:
+                self._fresh |= start
         decide = self._count % self.action_mode.action_repeat == 0
         if decide.any():
             x = obs2[decide] if self.pick is None else obs2[decide][:, self.pick]
@@ -146,7 +156,14 @@ class AgentPolicy:
                 self.history.push(obs2, decide)
             if self.normalization is not None:
                 x = self.normalization.normalize_obs(x)
-            if deterministic and self._actor is not None:
+            if self.recurrent:  # its LSTM steps once per decision, from zeros where an episode starts
+                state = tuple(h[:, decide] for h in self._lstm)
+                self._held[decide], state = self.model.predict(x, state=state, episode_start=self._fresh[decide],
+                                                               deterministic=deterministic)
+                for h, new in zip(self._lstm, state):
+                    h[:, decide] = new
+                self._fresh[decide] = False
+            elif deterministic and self._actor is not None:
                 self._held[decide] = self._actor(x)
             else:
                 self._held[decide], _ = self.model.predict(x, deterministic=deterministic)
@@ -173,6 +190,8 @@ def _deterministic_actor(model):
     from stable_baselines3.common.policies import ActorCriticPolicy, BaseModel
 
     policy = getattr(model, "policy", None)
+    if getattr(policy, "lstm_actor", None) is not None:  # recurrent: its actor reads the LSTM's state
+        return None
     if (not isinstance(policy, ActorCriticPolicy) or type(policy.action_dist) is not DiagGaussianDistribution
             or policy.squash_output or not isinstance(policy.action_space, spaces.Box)):
         return None
@@ -291,7 +310,7 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     if (stats.observation_size,) != obs_shape:
         raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
                          f"shape {obs_shape}: it belongs to another agent or env configuration")
-    _, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
+    policy_name, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
     model = load_ppo(model_file, observation_space=space, action_space=env.unwrapped.action_space,
-                     ppo_kwargs=ppo_kwargs, device=device)
+                     ppo_kwargs=ppo_kwargs, device=device, policy=policy_name)
     return AgentPolicy(model, stats, mode, env, pick=pick)

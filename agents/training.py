@@ -26,7 +26,7 @@ from .callbacks import make_run_callback
 from .config import DEFAULT_CONFIG, normalize_kwargs
 from .env_factory import make_eval_env, make_training_venv
 from vcnc_gym.envs.history import agent_space
-from .model_file import load_ppo
+from .model_file import algorithm, load_ppo
 from .normalization import NormalizationStats
 from .run_config import (DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ, VEC_ENVS, RunConfig, check_env_id, check_seed,
                          check_training_options)
@@ -124,7 +124,6 @@ def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = 
 def _model_and_envs(run_dir, config: RunConfig, checkpoint, *, tensorboard, vec_env, device, verbose):
     """(PPO model, its normalised training VecEnv, the :class:`vcnc_agents.run_session.Session`): a new one, or the
     checkpoint's with the run folder rolled back to it."""
-    from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
     policy, kwargs = config.ppo_arguments()
@@ -136,15 +135,15 @@ def _model_and_envs(run_dir, config: RunConfig, checkpoint, *, tensorboard, vec_
         if norm is None:
             norm = {"norm_obs": False, "norm_reward": False}  # kept, so every agent folder has the same files
         venv = VecNormalize(make_training_venv(config, run_dir, vec_env=vec_env), **norm)
-        model = PPO(policy, venv, seed=config.seed, tensorboard_log=tb_dir, device=device, verbose=verbose,
-                    **kwargs)
+        model = algorithm(policy)(policy, venv, seed=config.seed, tensorboard_log=tb_dir, device=device,
+                                  verbose=verbose, **kwargs)
         return model, venv, Session(run_dir, config, done, vec_env=vec_env)
     done, model_zip, norm_file = checkpoint
     stats = NormalizationStats.load(norm_file)
     probe = make_eval_env(config)
     space = agent_space(probe.observation_space, config.mode.history, probe.unwrapped.layout)
     model = load_ppo(model_zip, observation_space=space, action_space=probe.action_space,
-                     ppo_kwargs=kwargs, device=device, tensorboard_log=tb_dir, verbose=verbose)
+                     ppo_kwargs=kwargs, device=device, policy=policy, tensorboard_log=tb_dir, verbose=verbose)
     probe.close()
     # the checkpoint loads: from here on the run folder changes
     rolled_back = roll_back_to(run_dir, config, done)
