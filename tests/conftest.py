@@ -109,3 +109,33 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(n)
+
+
+def _short_run_in_the_bench(tmp_path, env_id: str, change, timesteps: int):
+    import json
+
+    import yaml
+
+    import vcnc_bench as bench
+    from vcnc_agents.cli import main as train_main
+    from vcnc_agents.config import load_hyperparameters
+
+    entry = load_hyperparameters(env_id)
+    change(entry)
+    config = tmp_path / "ppo.yml"
+    config.write_text(yaml.safe_dump({env_id: entry}, sort_keys=False))
+    run = tmp_path / "run"
+    assert train_main(["--env", env_id, "--config", str(config), "--timesteps", str(timesteps), "--eval-freq", "0",
+                       "--output", str(run), "--no-progress"]) == 0
+    recorded = yaml.safe_load((run / "best" / "config.yml").read_text())
+    out = tmp_path / "bench.json"
+    assert bench.main(["--env", env_id, "--policy", f"ppo:{run / 'best'}", "--no-progress", "--json", str(out)]) == 0
+    return run, recorded, json.loads(out.read_text())["records"][0]
+
+
+@pytest.fixture
+def short_run_in_the_bench():
+    """``short_run_in_the_bench(tmp_path, env_id, change, timesteps)``: the id's shipped entry changed in place by
+    ``change(entry)``, trained by ``vcnc-train`` for ``timesteps`` (evaluated at the end), its best agent scored by
+    ``vcnc-bench``: (run folder, the agent's config.yml as a dict, the bench's record)."""
+    return _short_run_in_the_bench

@@ -156,35 +156,22 @@ def test_the_bench_s_agent_sees_the_same_past(layout):
 
 
 @pytest.mark.slow  # a training run and a bench run (the pieces above run in make test)
-def test_an_agent_with_history_trains_loads_and_scores_its_evaluation_in_the_bench(tmp_path):
+def test_an_agent_with_history_trains_loads_and_scores_its_evaluation_in_the_bench(tmp_path, short_run_in_the_bench):
     """``history`` in the residual wrapper's entry: the lean trainer trains on the longer observation, the agent
     folder records it, and ``vcnc-bench`` (:func:`vcnc_agents.load_agent`) scores what the run's evaluation scored."""
-    import json
     import math
 
-    import yaml
-
-    import vcnc_bench as bench
     from vcnc_agents import load_agent
-    from vcnc_agents.cli import main as train_main
-    from vcnc_agents.config import load_hyperparameters
 
-    entry = load_hyperparameters(HEART)
-    entry.update(n_envs=4, n_steps=32, batch_size=64, n_epochs=1)
-    entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]["history"] = K
-    config = tmp_path / "ppo.yml"
-    config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
-    run = tmp_path / "run"
-    assert train_main(["--env", HEART, "--config", str(config), "--timesteps", "128", "--eval-freq", "0",
-                       "--output", str(run), "--no-progress"]) == 0
-    recorded = yaml.safe_load((run / "best" / "config.yml").read_text())
+    def change(entry):
+        entry.update(n_envs=4, n_steps=32, batch_size=64, n_epochs=1)
+        entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]["history"] = K
+
+    run, recorded, record = short_run_in_the_bench(tmp_path, HEART, change, 128)
     assert recorded["action_mode"]["history"] == K and recorded["trainer"] == "lean"
     env = gym.make(HEART)
     policy = load_agent(run / "best", env)
     assert policy.action_mode.history == K
     assert policy.model.observation_space.shape == agent_space(env.observation_space, K, env.unwrapped.layout).shape
-    out = tmp_path / "bench.json"
-    assert bench.main(["--env", HEART, "--policy", f"ppo:{run / 'best'}", "--no-progress", "--json", str(out)]) == 0
-    record = json.loads(out.read_text())["records"][0]
     assert math.isfinite(record["max_contour_error_um"])
     assert record["max_contour_error_um"] == pytest.approx(recorded["agent"]["evaluation"]["max_um"], rel=1e-9)

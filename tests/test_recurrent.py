@@ -70,33 +70,20 @@ def test_an_unknown_policy_name_is_refused_by_name():
 
 
 @pytest.mark.slow  # a training run and a bench run
-def test_a_recurrent_agent_trains_loads_and_scores_its_evaluation_in_the_bench(tmp_path):
+def test_a_recurrent_agent_trains_loads_and_scores_its_evaluation_in_the_bench(tmp_path, short_run_in_the_bench):
     """``policy: MlpLstmPolicy``: vcnc-train picks SB3's trainer (the lean one runs MlpPolicy) and RecurrentPPO; the
     agent loads with nothing unpickled, and vcnc-bench scores what the run's evaluation scored."""
-    import json
     import math
 
-    import yaml
-
-    import vcnc_bench as bench
     from vcnc_agents import load_agent
-    from vcnc_agents.cli import main as train_main
-    from vcnc_agents.config import load_hyperparameters
 
-    entry = load_hyperparameters(HEART)
-    entry.update(n_envs=2, n_steps=16, batch_size=32, n_epochs=1, policy="MlpLstmPolicy",
-                 policy_kwargs="dict(lstm_hidden_size=16, net_arch=dict(pi=[32], vf=[32]))")
-    config = tmp_path / "ppo.yml"
-    config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
-    run = tmp_path / "run"
-    assert train_main(["--env", HEART, "--config", str(config), "--timesteps", "64", "--eval-freq", "0",
-                       "--output", str(run), "--no-progress"]) == 0
-    recorded = yaml.safe_load((run / "best" / "config.yml").read_text())
+    def change(entry):
+        entry.update(n_envs=2, n_steps=16, batch_size=32, n_epochs=1, policy="MlpLstmPolicy",
+                     policy_kwargs="dict(lstm_hidden_size=16, net_arch=dict(pi=[32], vf=[32]))")
+
+    run, recorded, record = short_run_in_the_bench(tmp_path, HEART, change, 64)
     assert recorded.get("trainer") is None  # SB3's
     policy = load_agent(run / "best", gym.make(HEART))
     assert isinstance(policy.model, RecurrentPPO) and policy.recurrent
-    out = tmp_path / "bench.json"
-    assert bench.main(["--env", HEART, "--policy", f"ppo:{run / 'best'}", "--no-progress", "--json", str(out)]) == 0
-    record = json.loads(out.read_text())["records"][0]
     assert math.isfinite(record["max_contour_error_um"])
     assert record["max_contour_error_um"] == pytest.approx(recorded["agent"]["evaluation"]["max_um"], rel=1e-9)
