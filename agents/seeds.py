@@ -9,6 +9,8 @@ each trains on one torch thread unless ``--threads`` says otherwise), or, with `
 the run folders must be on a file system the nodes share).  A seed's output goes to ``<run folder>.log``; its
 last line is printed when it ends, and a summary table of every seed's best evaluation at the end
 (``seeds.json`` beside the folders).  The bench evaluates the K agents (``vcnc-bench --policy ppo:FOLDER``).
+A later command with the same options and ``--output`` and other seeds (``--seed 3 --seeds 2``: seeds 3 and 4)
+adds its runs to that ``seeds.json``: a long family trains over several sessions.
 """
 
 from __future__ import annotations
@@ -46,8 +48,8 @@ def seed_folders(env_id: str, seeds: list[int], output: Path | None) -> list[Pat
     return [output / f"seed{s}" if output is not None else Path("runs") / f"{env_id}_seed{s}" for s in seeds]
 
 
-def seed_argv(argv: list[str], seed: int, folder: Path) -> list[str]:
-    """``argv`` (the parent's options) without :data:`_OWN`, plus ``--seed``, ``--output`` and ``--no-progress``."""
+def _options(argv: list[str]) -> list[str]:
+    """``argv`` without :data:`_OWN` (and their values) and ``--no-progress``: the options every seed shares."""
     out, skip = [], False
     for a in argv:
         if skip:
@@ -57,9 +59,30 @@ def seed_argv(argv: list[str], seed: int, folder: Path) -> list[str]:
         if name in _OWN:
             skip = "=" not in a
             continue
-        out.append(a)
-    extra = [] if "--no-progress" in out else ["--no-progress"]
-    return out + ["--seed", str(seed), "--output", str(folder), *extra]
+        if a != "--no-progress":
+            out.append(a)
+    return out
+
+
+def seed_argv(argv: list[str], seed: int, folder: Path) -> list[str]:
+    """``argv`` (the parent's options) without :data:`_OWN`, plus ``--seed``, ``--output`` and ``--no-progress``."""
+    return _options(argv) + ["--seed", str(seed), "--output", str(folder), "--no-progress"]
+
+
+def _earlier(summary: Path, env_id: str, argv: list[str], seeds: list[int]) -> list[dict]:
+    """The runs an earlier ``--seeds`` command of the same env and options recorded in ``summary`` (other seeds
+    than ``seeds``), which the new summary keeps; ValueError, before anything trains, where that command differed."""
+    if not summary.is_file():
+        return []
+    try:
+        data = json.loads(summary.read_text())
+        runs = [dict(r) for r in data["runs"]]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{summary} is not a seeds.json ({type(exc).__name__}); choose another --output") from None
+    if data.get("env") != env_id or _options(data.get("argv") or []) != _options(argv):
+        raise ValueError(f"{summary} holds the seeds of another run (env {data.get('env')!r}, options "
+                         f"{' '.join(_options(data.get('argv') or []))!r}); choose another --output")
+    return [r for r in runs if r.get("seed") not in seeds]
 
 
 def _idle_cores() -> int:
@@ -133,6 +156,8 @@ def run_seeds(argv: list[str], env_id: str, first: int, count: int, output: Path
     taken = [str(f) for f in folders if f.exists()]
     if taken:
         raise ValueError(f"run folder(s) already exist: {', '.join(taken)}; choose another --output or --seed")
+    summary = folders[0].parent / "seeds.json"
+    earlier = _earlier(summary, env_id, argv, seeds) if output is not None else []
     tasks = [(seed_argv(argv, s, f), str(f)) for s, f in zip(seeds, folders)]
     jobs = jobs or _idle_cores()
     where = f"the Ray cluster at {ray_address}" if ray_address else f"{min(jobs, count)} local process(es)"
@@ -145,9 +170,9 @@ def run_seeds(argv: list[str], env_id: str, first: int, count: int, output: Path
 
     results = _ray(tasks, ray_address, report) if ray_address else _local(tasks, jobs, report)
     runs = [SeedRun(s, str(f), code, wall, *_best(f)) for s, f, (code, wall, _) in zip(seeds, folders, results)]
-    summary = folders[0].parent / "seeds.json"
-    summary.write_text(json.dumps({"env": env_id, "argv": argv, "runs": [asdict(r) for r in runs]}, indent=1) + "\n")
-    _print_table(runs, summary)
+    rows = sorted(earlier + [asdict(r) for r in runs], key=lambda r: r["seed"])
+    summary.write_text(json.dumps({"env": env_id, "argv": argv, "runs": rows}, indent=1) + "\n")
+    _print_table([SeedRun(**r) for r in rows], summary)
     return runs
 
 

@@ -65,3 +65,30 @@ def test_the_bench_reads_a_seeds_folder_as_every_seeds_agent(tmp_path):
     (tmp_path / "seeds.json").write_text(json.dumps({"env": "VCNC-Heart-v1", "argv": [], "runs": runs}))
     with pytest.raises(ValueError, match="no best agent for seed 4"):
         expand_spec(f"ppo:{tmp_path}")
+
+
+def test_a_later_command_adds_its_seeds_to_the_folder_s_summary(tmp_path, monkeypatch):
+    """A family trained over several sessions: ``--seed 1 --seeds 2`` with the first command's options and
+    ``--output`` adds seeds 1 and 2 to its ``seeds.json`` (in seed order); other options are refused by name before
+    anything trains."""
+    from vcnc_agents import seeds as seeds_module
+
+    trained = []
+
+    def fake_run(argv, folder):  # no training: the folder appears, as a run's would
+        Path(folder).mkdir(parents=True)
+        trained.append(folder)
+        return 0, 1.0, "done"
+
+    monkeypatch.setattr(seeds_module, "_run_one", fake_run)
+    out = tmp_path / "family"
+    opts = ["--env", "VCNC-Heart-v1", "--timesteps", "4096"]
+    seeds_module.run_seeds(opts + ["--seeds", "1", "--output", str(out)], "VCNC-Heart-v1", 0, 1, out, jobs=1)
+    seeds_module.run_seeds(opts + ["--seed", "1", "--seeds", "2", "--output", str(out), "--no-progress"],
+                           "VCNC-Heart-v1", 1, 2, out, jobs=1)
+    runs = json.loads((out / "seeds.json").read_text())["runs"]
+    assert [r["seed"] for r in runs] == [0, 1, 2] and [r["folder"] for r in runs] == [str(out / f"seed{s}")
+                                                                                      for s in (0, 1, 2)]
+    with pytest.raises(ValueError, match="seeds.json holds the seeds of another run"):
+        seeds_module.run_seeds(["--env", "VCNC-Heart-v1", "--timesteps", "8192"], "VCNC-Heart-v1", 3, 1, out, jobs=1)
+    assert len(trained) == 3
