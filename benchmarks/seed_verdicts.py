@@ -2,6 +2,7 @@
 
     python benchmarks/seed_verdicts.py docs/data/shop_seeds/VCNC-HeartShop-v1.json [--base ff-ccc]
     python benchmarks/seed_verdicts.py docs/data/ideal_seeds/VCNC-Corners-v1.json --with docs/data/mpc_box/VCNC-Corners-v1.json
+    python benchmarks/seed_verdicts.py --summary docs/data/generalist_seeds/current_feed_drive/*.json
 
 ``ppo:FOLDER`` of a ``vcnc-train --seeds K`` folder stands for the K seeds' agents, judged as one controller
 (``vcnc_bench.verdicts``).  Prints Markdown: every record's nominal / median / worst max and RMS contour error and
@@ -55,17 +56,42 @@ def tables(data: dict, base: str) -> list[str]:
                    f"[{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | `{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, "
                    f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
                    f"{v['p_improvement']:.2f} | {v['outcome']} |")
+    out += [""] + [line[0].upper() + line[1:] for line in _against_base(records, base)]
+    return out
+
+
+def summary(runs: list[dict], base: str) -> list[str]:
+    """One Markdown table over several runs (one id each): every training run's seeds against the strongest causal
+    controller, figure by figure, then a line per id against their ``base``; what ``docs/reproduction.md``'s seed
+    tables hold."""
+    rows = ["| id | fig | seeds' IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | "
+            "verdict |", "|---|---|---|---|---|---|---|---|"]
+    lines = []
+    for data in runs:
+        records = data["robust"]
+        plant = data["settings"].get("plant")
+        name = records[0]["env"] + (f" (`{plant}`)" if plant else "")
+        for v in (v for v in data["verdicts"] if v.get("training_seeds", 1) > 1):
+            rows.append(f"| {name} | {v['figure']} | {_f(v['iqm_x'])} [{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | "
+                        f"`{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, {_f(v['ci_y'][1])}] | "
+                        f"{_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | {v['p_improvement']:.2f} | "
+                        f"{v['outcome']} |")
+        lines += [f"- {name}: {line}" for line in _against_base(records, base)]
+    return rows + [""] + lines
+
+
+def _against_base(records: list[dict], base: str) -> list[str]:
+    """Per training run of ``records``: its seeds as one against ``base`` (the controller the residual corrects)."""
     against = next((r for r in records if r["policy"] == base), None)
-    runs = dict.fromkeys(r["group"] for r in records if r.get("group"))  # each training run's seeds, in order
-    for run in runs if against is not None else ():
+    out = []
+    for run in dict.fromkeys(r["group"] for r in records if r.get("group")) if against is not None else ():
         members = [r for r in records if r.get("group") == run]
         cells = []
         for figure in ("max", "rms"):
             v = verdict(seed_figures(members, figure), sampled_figures(against, figure), figure=figure,
                         x_label=run, y_label=base)
             cells.append(f"{figure} {v.outcome}, X - Y {_f(v.difference)} [{_f(v.low)}, {_f(v.high)}] um")
-        out += ["", f"Against their base `{base}`, the {len(members)} seeds of `{run}` as one: "
-                + "; ".join(cells) + "."]
+        out.append(f"the {len(members)} seeds of `{run}` against `{base}`: " + "; ".join(cells) + ".")
     return out
 
 
@@ -105,7 +131,12 @@ def main(argv=None) -> int:
     p.add_argument("--with", dest="other", metavar="OTHER", help="another --plants run of the same id and plants: "
                    "its causal classical records join the verdict")
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
+    p.add_argument("--summary", action="store_true", help="one table of every JSON's seeds' verdicts")
     args = p.parse_args(argv)
+    if args.summary:
+        runs = [json.loads(open(path).read()) for path in args.json_files]
+        print("\n".join(summary(runs, args.base)))
+        return 0
     if args.json and not (args.other and len(args.json_files) == 1):
         p.error("--json needs --with and one JSON")
     for path in args.json_files:
