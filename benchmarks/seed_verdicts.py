@@ -10,10 +10,12 @@ its own IQM of the max with its interval (a seed's row is that seed's spread), t
 wrote, then the seeds against their own base (the classical controller their residual corrects) by the same rule.
 Every figure comes from the JSON; nothing is typed.
 
-``--with OTHER.json`` joins the causal classical records of another ``--plants`` run of the same id, plants and
-settings (a controller added to the house after the seeds were evaluated, such as ``mpc``, whose run is costly) and
-judges the agents again, by the bench's own rule (:func:`vcnc_bench.verdicts.robust_verdicts`), against the
-strongest causal controller of the two runs together; ``--json OUT`` writes the joined run.  Runs whose settings
+``--with OTHER.json`` joins the records of another ``--plants`` run of the same id, plants and settings (a
+controller added to the house after the seeds were evaluated, such as ``mpc``, whose run is costly; or another
+training run's seeds) and judges the agents again, by the bench's own rule
+(:func:`vcnc_bench.verdicts.robust_verdicts`), against the strongest causal controller of the two runs together;
+``--json OUT`` writes the joined run.  ``--against GROUP`` judges every training run against the seeds of
+``GROUP`` (an ablation: the same recipe with one thing changed, "wins" where the run is better).  Runs whose settings
 differ (plants, plant seed, reset seed, trials, vertices, feed, plant, noise seeds) are refused, since their
 plants cannot be paired.
 """
@@ -95,12 +97,35 @@ def _against_base(records: list[dict], base: str) -> list[str]:
     return out
 
 
+def ablation(records: list[dict], against: str) -> list[str]:
+    """Every training run of ``records`` against the seeds of the run ``against`` (both resampled with the plants:
+    :func:`vcnc_bench.verdicts.verdict` with seeds on both sides), by figure."""
+    groups = {}
+    for r in records:
+        if r.get("group"):
+            groups.setdefault(r["group"], []).append(r)
+    if against not in groups:
+        raise ValueError(f"no training run {against!r} among {sorted(groups)}")
+    out = [f"| run X | seeds | fig | X IQM [95 % CI] | `{against}` IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | "
+           "verdict |", "|---|---|---|---|---|---|---|---|"]
+    for run, members in groups.items():
+        if run == against:
+            continue
+        for figure in ("max", "rms"):
+            v = verdict(seed_figures(members, figure), seed_figures(groups[against], figure), figure=figure,
+                        x_label=run, y_label=against)
+            out.append(f"| `{run}` | {len(members)} | {figure} | {_f(v.iqm_x)} [{_f(v.ci_x[0])}, {_f(v.ci_x[1])}] | "
+                       f"{_f(v.iqm_y)} [{_f(v.ci_y[0])}, {_f(v.ci_y[1])}] | {_f(v.difference)} [{_f(v.low)}, "
+                       f"{_f(v.high)}] | {v.p_improvement:.2f} | {v.outcome} |")
+    return out
+
+
 def _causal(rec: dict) -> bool:
     return rec.get("kind") == "baseline" and not rec["policy"].endswith(NON_CAUSAL)
 
 
 def join(data: dict, other: dict, other_name: str = "the other run") -> dict:
-    """``data`` with the causal classical records of ``other`` it lacks, and its verdicts judged again by
+    """``data`` with the records of ``other`` it lacks (controllers and agents), and its verdicts judged again by
     :func:`vcnc_bench.verdicts.robust_verdicts` (the reset seed of ``data``'s settings); ValueError where the two
     runs' settings or plants differ."""
     a, b = data["settings"], other["settings"]
@@ -110,7 +135,7 @@ def join(data: dict, other: dict, other_name: str = "the other run") -> dict:
                          + ", ".join(f"{k} ({a.get(k)!r} against {b.get(k)!r})" for k in differ))
     envs = {r["env"] for r in data["robust"]}
     have = {(r["env"], r["policy"]) for r in data["robust"]}
-    added = [r for r in other["robust"] if r["env"] in envs and _causal(r) and (r["env"], r["policy"]) not in have]
+    added = [r for r in other["robust"] if r["env"] in envs and (r["env"], r["policy"]) not in have]
     for r in added:
         mine = next(m for m in data["robust"] if m["env"] == r["env"])
         if r["per_plant"]["kind"] != mine["per_plant"]["kind"]:
@@ -132,6 +157,7 @@ def main(argv=None) -> int:
                    "its causal classical records join the verdict")
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
     p.add_argument("--summary", action="store_true", help="one table of every JSON's seeds' verdicts")
+    p.add_argument("--against", metavar="GROUP", help="judge every training run against the seeds of GROUP")
     args = p.parse_args(argv)
     if args.summary:
         runs = [json.loads(open(path).read()) for path in args.json_files]
@@ -149,6 +175,8 @@ def main(argv=None) -> int:
             with open(args.json, "w") as f:
                 json.dump(data, f, indent=1)
         print("\n".join(tables(data, args.base)) + "\n")
+        if args.against:
+            print("\n".join(ablation(data["robust"], args.against)) + "\n")
     return 0
 
 
