@@ -124,3 +124,12 @@ def test_a_runs_seeds_are_one_row_with_their_median_and_their_verdicts_interval(
     from vcnc_bench.leaderboard import _verdict
 
     assert _verdict(row) == "max: loses (ff-pid@machine) (3 seeds judged as one)"
+
+
+def test_an_id_run_on_another_plant_is_a_section_of_its_own():
+    """``vcnc-bench --plant NAME``'s rows do not replace the id's own (same id, same policy, another machine)."""
+    own = leaderboard.rows_of(_bench([_nominal("A", "ff-ccc", 2.0, 1.0)]))
+    other = _bench([_nominal("A", "ff-ccc", 0.02, 0.001)])
+    other["settings"]["plant"] = "current_feed_drive"
+    rows = leaderboard.merge(own, leaderboard.rows_of(other))
+    assert sorted(r["env"] for r in rows) == ["A", "A on current_feed_drive"]
