@@ -11,7 +11,7 @@ from pathlib import Path
 
 __all__ = ["parser", "action_mode", "MODE_OPTIONS"]
 
-MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat")
+MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat", "history")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -47,6 +47,8 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--baseline", help="residual mode: the baseline corrected (e.g. smc, qft)")
     g.add_argument("--correction", type=float, help="residual mode: largest correction, fraction of u_max")
     g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
+    g.add_argument("--history", type=int, metavar="K",
+                   help="residual mode: past decisions the agent remembers (vcnc_gym.envs.history; 0: none)")
     for name, f in OPTION_FIELDS.items():  # the training options: one field of RunConfig each
         p.add_argument(f"--{name.replace('_', '-')}", type=int, metavar="N",
                        help=f"{f.metadata['help']} (default {f.metadata['default']}; resume: the run's)")
@@ -84,6 +86,7 @@ def action_mode(args, config_file):
     if mode == "residual":
         d["baseline"] = given["baseline"] or base.baseline or "smc"
         d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
-    elif given["baseline"] is not None or given["correction"] is not None:
-        raise ValueError("--baseline and --correction apply to --action-mode residual")
+        d["history"] = given["history"] if given["history"] is not None else base.history
+    elif any(given[k] is not None for k in ("baseline", "correction", "history")):
+        raise ValueError("--baseline, --correction and --history apply to --action-mode residual")
     return ActionMode(**d)

@@ -175,3 +175,20 @@ def test_an_agent_with_history_trains_loads_and_scores_its_evaluation_in_the_ben
     assert policy.model.observation_space.shape == agent_space(env.observation_space, K, env.unwrapped.layout).shape
     assert math.isfinite(record["max_contour_error_um"])
     assert record["max_contour_error_um"] == pytest.approx(recorded["agent"]["evaluation"]["max_um"], rel=1e-9)
+
+
+def test_vcnc_train_history_changes_the_entry_s_memory_only():
+    """``vcnc-train --history K`` over an entry keeps its baseline, correction and decision period; on a direct mode
+    it is refused by name."""
+    from pathlib import Path
+
+    from vcnc_agents.arguments import action_mode, parser
+
+    adaptive = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "adaptive.yml"
+    args = parser().parse_args(["--env", "VCNC-HeartShop-v1", "--config", str(adaptive), "--history", "64"])
+    assert action_mode(args, adaptive) == ActionMode("residual", 5, "ff-ccc", 0.3, history=64)
+    args = parser().parse_args(["--env", "VCNC-HeartShop-v1", "--config", str(adaptive), "--action-repeat", "10"])
+    assert action_mode(args, adaptive).history == 16  # the entry's memory, unchanged by another option
+    args = parser().parse_args(["--env", HEART, "--action-mode", "direct", "--history", "4"])
+    with pytest.raises(ValueError, match="--history apply to --action-mode residual"):
+        action_mode(args, adaptive.with_name("ppo.yml"))
