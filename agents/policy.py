@@ -30,8 +30,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .action_modes import ActionMode
 from vcnc_gym.envs.history import DecisionHistory, agent_space
+
+from .action_modes import ActionMode
 from .normalization import NormalizationStats
 from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, evaluation_row
 from .signature import (ANY_CONTOUR_IDS, MACHINE_FIELDS, as_seen_through, check_env_signature, check_signature,
