@@ -75,7 +75,6 @@ def algorithm(policy: str):
 
 
 
-
 def check_torch() -> None:
     """RuntimeError unless torch >= 2.6 (its ``torch.load`` defaults to the weights-only unpickler)."""
     import torch

@@ -21,11 +21,12 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+from vcnc_gym.envs.history import agent_space
+
 from .action_modes import ActionMode
 from .callbacks import make_run_callback
 from .config import DEFAULT_CONFIG, normalize_kwargs
 from .env_factory import make_eval_env, make_training_venv
-from vcnc_gym.envs.history import agent_space
 from .model_file import algorithm, load_ppo
 from .normalization import NormalizationStats
 from .run_config import (DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ, VEC_ENVS, RunConfig, check_env_id, check_seed,
