@@ -6,6 +6,11 @@
 # controllers' laws the main job runs).
 PYTHON ?= python3
 VENV ?= .venv
+# numpy's AVX-512 kernels (X86_V4) round sin, cos and exp differently in the last bit from its AVX2 ones: the
+# references, and with them the keys of the shipped commissioning runs and floors, would then differ by host.  Both
+# commands run numpy on its AVX2 kernels on every x86 host, as the shipped files were made (a host without
+# AVX-512 is unchanged); set NPY_DISABLE_CPU_FEATURES= (empty) to run numpy's fastest kernels instead.
+export NPY_DISABLE_CPU_FEATURES ?= X86_V4 AVX512_ICL AVX512_SPR
 BIN := $(VENV)/bin
 
 .PHONY: install test test-all bench lint docs

@@ -19,8 +19,8 @@ __all__ = ["EXTRAS", "missing_modules", "require_extra"]
 #: Extra -> (import name, distribution name) of each package it installs, as ``pyproject.toml`` lists them.
 EXTRAS: dict[str, tuple[tuple[str, str], ...]] = {
     "baselines": (("scipy", "scipy"), ("control", "control"), ("daqp", "daqp"), ("threadpoolctl", "threadpoolctl")),
-    "agents": (("stable_baselines3", "stable-baselines3"), ("torch", "torch"), ("yaml", "pyyaml"),
-               ("tqdm", "tqdm"), ("rich", "rich")),
+    "agents": (("stable_baselines3", "stable-baselines3"), ("sb3_contrib", "sb3-contrib"), ("torch", "torch"),
+               ("yaml", "pyyaml"), ("tqdm", "tqdm"), ("rich", "rich")),
     "gcode": (("pygcode", "pygcode"),),
     "datasets": (("minari", "minari"), ("h5py", "h5py")),
 }
