@@ -61,6 +61,11 @@ def test_the_bench_reads_a_seeds_folder_as_every_seeds_agent(tmp_path):
     (tmp_path / "seeds.json").write_text(json.dumps({"env": "VCNC-Heart-v1", "argv": [], "runs": runs}))
     assert expand_spec(f"ppo:{tmp_path}") == [f"ppo:{tmp_path / 'seed3' / 'best'}", f"ppo:{tmp_path / 'seed4' / 'best'}"]
     assert expand_spec("ppo:runs/x/best") == ["ppo:runs/x/best"] and expand_spec("ff-pid") == ["ff-pid"]
+    with pytest.raises(ValueError, match="no final agent for seed 3"):  # FOLDER/final: every seed's final agent
+        expand_spec(f"ppo:{tmp_path / 'final'}")
+    for seed in (3, 4):
+        (tmp_path / f"seed{seed}" / "final").mkdir()
+    assert expand_spec(f"ppo:{tmp_path / 'final'}") == [f"ppo:{tmp_path / f'seed{s}' / 'final'}" for s in (3, 4)]
     runs[1]["code"] = 1
     (tmp_path / "seeds.json").write_text(json.dumps({"env": "VCNC-Heart-v1", "argv": [], "runs": runs}))
     with pytest.raises(ValueError, match="no best agent for seed 4"):

@@ -41,18 +41,22 @@ def _make(path: str, env):
 
 
 def _expand(path: str) -> list[str]:
-    """The ``best`` agent of every seed of a ``vcnc-train --seeds`` folder (``seeds.json``), in seed order; a
-    seed whose run failed or kept no best agent is named in the ValueError; any other path: itself."""
-    summary = Path(path) / "seeds.json"
+    """The ``best`` agent of every seed of a ``vcnc-train --seeds`` folder (``seeds.json``), in seed order, or with
+    ``FOLDER/final`` (``FOLDER/best``) every seed's ``final`` (``best``) agent; a seed whose run failed or kept no
+    such agent is named in the ValueError; any other path: itself."""
+    folder, which = Path(path), "best"
+    if not (folder / "seeds.json").is_file() and folder.name in ("best", "final"):
+        folder, which = folder.parent, folder.name
+    summary = folder / "seeds.json"
     if not summary.is_file():
         return [path]
     runs = json.loads(summary.read_text())["runs"]
-    folders = [Path(path) / Path(r["folder"]).name for r in runs]
-    missing = [f"seed {r['seed']} ({f})" for r, f in zip(runs, folders) if r["code"] != 0 or not (f / "best").is_dir()]
+    folders = [folder / Path(r["folder"]).name for r in runs]
+    missing = [f"seed {r['seed']} ({f})" for r, f in zip(runs, folders) if r["code"] != 0 or not (f / which).is_dir()]
     if missing:
-        raise ValueError(f"{summary}: no best agent for {', '.join(missing)}; train it again or name the other "
+        raise ValueError(f"{summary}: no {which} agent for {', '.join(missing)}; train it again or name the other "
                          "seeds' folders one by one")
-    return [str(f / "best") for f in folders]
+    return [str(f / which) for f in folders]
 
 
 def _defaults(env) -> list[str]:
