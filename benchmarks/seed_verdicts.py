@@ -154,7 +154,7 @@ def main(argv=None) -> int:
     p.add_argument("json_files", nargs="+", metavar="JSON", help="vcnc-bench --plants N --json files")
     p.add_argument("--base", default="ff-ccc", help="the controller the agents' residual corrects (default ff-ccc)")
     p.add_argument("--with", dest="other", metavar="OTHER", help="another --plants run of the same id and plants: "
-                   "its causal classical records join the verdict")
+                   "the records this one lacks (controllers and agents) join it, and the verdicts are judged again")
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
     p.add_argument("--summary", action="store_true", help="one table of every JSON's seeds' verdicts")
     p.add_argument("--against", metavar="GROUP", help="judge every training run against the seeds of GROUP")
