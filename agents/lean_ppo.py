@@ -243,7 +243,7 @@ class DecisionEnv:
         done = te | tr
         terminal = None
         if done.any():
-            terminal = self._seen(obs)[done]
+            terminal = obs[done].copy() if self.history is None else self.history.seen(obs, done)  # ended rows only
             for i in np.flatnonzero(done):
                 if self._writers is not None:
                     self._writers[i].write_row({"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),

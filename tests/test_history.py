@@ -192,3 +192,23 @@ def test_vcnc_train_history_changes_the_entry_s_memory_only():
     args = parser().parse_args(["--env", HEART, "--action-mode", "direct", "--history", "4"])
     with pytest.raises(ValueError, match="--history apply to --action-mode residual"):
         action_mode(args, adaptive.with_name("ppo.yml"))
+
+
+def test_an_ended_episode_s_last_observation_keeps_its_past_and_the_next_starts_afresh():
+    """The lean trainer's terminal observation (its value bootstraps a cut-off episode) is the ended episode's last
+    observation with that episode's past; the env reset in its place starts from its own first observation."""
+    mode = ActionMode("residual", 50, "ff-pid", 0.2, history=K)
+    batch = DecisionEnv("VCNC-GCode-v1", 1, mode, {"program": "G01 X5 F6000\n"}, seed=0)
+    size = batch.venv.layout.size
+    obs = batch.reset()
+    plain = [obs[0, :size]]
+    zero = np.zeros((1, 2), dtype=np.float32)
+    for t in range(1, 500):
+        obs, _, te, tr, terminal = batch.step(zero)
+        if te[0] or tr[0]:
+            break
+        plain.append(obs[0, :size])
+    assert terminal is not None and terminal.shape == (1, batch.observation_space.shape[0])
+    np.testing.assert_array_equal(terminal[0, size:], _by_hand(batch.venv.layout, plain + [terminal[0, :size]], t))
+    np.testing.assert_array_equal(obs[0, size:], _by_hand(batch.venv.layout, [obs[0, :size]], 0))
+    batch.close()
