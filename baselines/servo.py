@@ -202,6 +202,7 @@ class ServoPolicy(BaselinePolicy):
         self.commissioning = commissioning
         self.records = [self._nominal_record()]
         self.identification_s = 0.0
+        self.identification_task = None
         self._commissioned_for = None
         self.table = None
         self.gains = None
@@ -235,11 +236,23 @@ class ServoPolicy(BaselinePolicy):
         params = params[None] if params.ndim == 2 else params
         if self._commissioned_for is not None and self._commissioned_for == params.tobytes():
             return False
-        task = getattr(u, "task", None) or self.task
+        task = self.identification_task or getattr(u, "task", None) or self.task
         self.records = commission(task, "machine", params)
         self.identification_s = float(sum(r.identification_s for r in self.records))
         self._commissioned_for = params.tobytes()
         return True
+
+    def identify_on(self, task) -> None:
+        """With ``commissioning="machine"``: identify the machines while their axes follow ``task``'s reference
+        (a :class:`~vcnc_gym.envs.task.ContouringTask` on the same plant and control period) instead of the env's.
+        A CNC commissions a machine once, on one program, and runs every later program with that commissioning:
+        the tolerance search (``vcnc_bench.reports.tolerance``) runs each look-ahead setting with the machines
+        commissioned on the id's own reference, one identification run for every setting and controller."""
+        if task.plant.name != self.plant.name or task.dt != self.dt:
+            raise ValueError(f"identify_on: the task's plant and control period ({task.plant.name}, {task.dt} s) "
+                             f"must be the controller's ({self.plant.name}, {self.dt} s)")
+        self.identification_task = task
+        self._commissioned_for = None
 
     def commissioned(self):
         """Per design row (1, or one per env after a per-machine commissioning): ``(record, inverse, gains)``,

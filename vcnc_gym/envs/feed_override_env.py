@@ -13,7 +13,8 @@ from .signatures import forwarded_signature
 from .task import ContouringBatch
 from ..validation import non_negative, positive, real, size
 
-__all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT"]
+__all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT",
+           "DEFAULT_VIOLATION_COST", "TOLERANCES"]
 
 #: How fast the override follows its dial, 1/s: the whole range in 0.1 s.  The re-timed reference's extra
 #: acceleration, rate x feed, is then 1e3 mm/s^2 at 100 mm/s, within the ~2.6e3 mm/s^2 of Jahanpour et al.
@@ -33,6 +34,14 @@ MAX_TIME_LIMIT = 100.0
 #: The time limit, as a multiple of the reference's duration at full feed: an override held below 1/3 runs out
 #: of time (and pays for the contour left).
 DEFAULT_TIME_LIMIT = 3.0
+
+#: The tolerance task's cost of exceeding the contour tolerance T, per decision step, per T of excess: a step whose
+#: max contour error is 2 T costs as much as the whole cycle at full feed (the time term's unit).
+DEFAULT_VIOLATION_COST = 1.0
+
+#: The contour tolerances of the tolerance task (issue 37), mm: Heidenhain's bands, 5-10 um for high accuracy and
+#: 10-20 um for finishing.
+TOLERANCES = (0.005, 0.01, 0.02)
 
 
 class FeedOverrideEnv(ContouringEnv):
@@ -76,6 +85,23 @@ class FeedOverrideEnv(ContouringEnv):
     tool arrives (``info["reward_time"]``): with the default 1 um and 10 um,
     0.1 per step, against 0.1 per step for each um of mean contour error.
 
+    **The tolerance task** (``tolerance=T``, mm; issue 37): the shortest
+    cycle time within a contour tolerance, a shop's objective.  The contour
+    error's reward is replaced by
+
+    - ``-(decision period) / (reference's duration at full feed)`` per step
+      until the tool arrives (``info["reward_time"]``): the episode's sum is
+      minus its cycle time in units of the full-feed duration;
+    - ``-violation_cost * max(0, e_max - T) / T`` per step whose max contour
+      error ``e_max`` exceeds T (``info["reward_tolerance"]``): with the
+      default 1, a step at 2 T costs as much as the whole cycle at full feed.
+
+    ``info["tolerance_exceeded"]`` says whether the step exceeded T and
+    ``info["violations"]`` counts the episode's steps that did: exceeding T
+    is a failure, counted and reported, not an end (the part is finished,
+    and scrapped).  The effort, divergence and time-limit terms are
+    ContouringEnv's.
+
     ## Episode End
 
     ContouringEnv's, with the reference's end where the re-timed clock
@@ -87,25 +113,39 @@ class FeedOverrideEnv(ContouringEnv):
 
     Every argument of ContouringEnv but ``completion_timeout`` (set by
     ``time_limit``), plus ``override_rate`` (1/s, 10: the whole range in 0.1
-    s), ``time_cost`` (mm, 0.001) and ``time_limit`` (1, 3.0).
+    s), ``time_cost`` (mm, None: 0.001 without a tolerance; refused with
+    one), ``time_limit`` (1, 3.0), ``tolerance`` (mm, None: the contouring
+    reward; T: the tolerance task) and ``violation_cost`` (1, 1.0: with a
+    tolerance only).
 
     ## Version History
 
     - v1 (``VCNC-OmegaOverride-v1``): initial release (issue 24); the omega
-      of ``VCNC-Omega-v1`` with the override.
+      of ``VCNC-Omega-v1`` with the override.  The ``tolerance`` argument
+      (issue 37) came later; its default, None, leaves the env as it was.
     """
 
     #: Classical controllers that read the reference ahead from a table computed once (feedforward, ZPETC, the
     #: oracle) refuse this env: its reference is re-timed while it runs.
     retimes_reference = True
 
-    def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, time_cost: float = DEFAULT_TIME_COST,
-                 time_limit: float = DEFAULT_TIME_LIMIT, render_mode: str | None = None, **kwargs):
+    def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, time_cost: float | None = None,
+                 time_limit: float = DEFAULT_TIME_LIMIT, tolerance: float | None = None,
+                 violation_cost: float = DEFAULT_VIOLATION_COST, render_mode: str | None = None, **kwargs):
         if "completion_timeout" in kwargs:
             raise ValueError("completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
                              "at full feed) in FeedOverrideEnv")
         self.override_rate = positive("override_rate", override_rate, "1/s")  # bool and str refused
-        self.time_cost = non_negative("time_cost", time_cost, "mm of contour error per second")
+        self.tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm of contour error")
+        self.violation_cost = non_negative("violation_cost", violation_cost, "full-feed cycles per T of excess")
+        if self.tolerance is not None and time_cost is not None:
+            raise ValueError("time_cost (mm of contour error per second) prices the contouring reward; with a "
+                             "tolerance the time term is the cycle time itself: leave time_cost out")
+        if self.tolerance is None:
+            time_cost = DEFAULT_TIME_COST if time_cost is None else time_cost
+            self.time_cost = non_negative("time_cost", time_cost, "mm of contour error per second")
+        else:
+            self.time_cost = None
         self.time_limit = real("time_limit", time_limit, "times the reference's duration at full feed")
         if not 1.0 <= self.time_limit <= MAX_TIME_LIMIT:
             raise ValueError(f"time_limit must be in [1, {MAX_TIME_LIMIT:g}] (times the reference's duration at "
@@ -124,6 +164,9 @@ class FeedOverrideEnv(ContouringEnv):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self._tau = 0.0
         self._speed = 1.0
+        self._violations = 0
+        #: the time term of the tolerance task per decision step: the decision period over the full-feed duration
+        self._step_time = self.task.action_repeat * dt / duration
 
     def _make_batch(self) -> ContouringBatch:
         task = self.task
@@ -145,6 +188,7 @@ class FeedOverrideEnv(ContouringEnv):
         self._buffer[:] = self._padded
         self._tau = 0.0
         self._speed = 1.0
+        self._violations = 0
         obs, info = super().reset(seed=seed, options=options)
         self._batch.buffers.reference_end[0] = np.iinfo(np.int64).max  # until the re-timed clock gets there
         return obs, info
@@ -153,11 +197,11 @@ class FeedOverrideEnv(ContouringEnv):
         return {**super()._episode_arrays(), "reference.samples": self._buffer}  # the re-timed reference
 
     def _episode_state(self) -> dict:
-        return {**super()._episode_state(), "tau": self._tau, "speed": self._speed}
+        return {**super()._episode_state(), "tau": self._tau, "speed": self._speed, "violations": self._violations}
 
     def _restore_episode(self, state: dict) -> None:
         super()._restore_episode(state)
-        self._tau, self._speed = state["tau"], state["speed"]
+        self._tau, self._speed, self._violations = state["tau"], state["speed"], state["violations"]
 
     def step(self, action):
         if self._done:
@@ -172,11 +216,26 @@ class FeedOverrideEnv(ContouringEnv):
         if end >= 0:
             self._batch.buffers.reference_end[0] = end
         obs, reward, terminated, truncated, info = super().step(a[:2])
-        r_time = -self.time_cost / task.reward_scale  # a step is taken only before the tool has arrived
-        info["reward_time"] = r_time
         info["override"] = self._speed
         info["reference_time"] = self._tau * task.dt
+        if self.tolerance is not None:
+            return obs, self._tolerance_reward(reward, info), terminated, truncated, info
+        r_time = -self.time_cost / task.reward_scale  # a step is taken only before the tool has arrived
+        info["reward_time"] = r_time
         return obs, reward + r_time, terminated, truncated, info
+
+    def _tolerance_reward(self, reward: float, info: dict) -> float:
+        """The tolerance task's reward (Rewards): the contouring term swapped for the time and the excess over T."""
+        excess = max(0.0, info["contour_error_max"] - self.tolerance)
+        exceeded = excess > 0.0
+        self._violations += exceeded
+        r_time = -self._step_time  # a step is taken only before the tool has arrived
+        r_tolerance = -self.violation_cost * excess / self.tolerance
+        info["reward_time"] = r_time
+        info["reward_tolerance"] = r_tolerance
+        info["tolerance_exceeded"] = exceeded
+        info["violations"] = self._violations
+        return reward - info["reward_contour"] + r_time + r_tolerance
 
 
 FeedOverrideEnv.__init__.__signature__ = forwarded_signature(FeedOverrideEnv.__init__, ContouringEnv.__init__,

@@ -1,0 +1,183 @@
+"""The tolerance task (issue 37, item 2): FeedOverrideEnv's ``tolerance`` reward and the classical search for the
+fastest look-ahead within T (``vcnc_bench.reports.tolerance``)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import vcnc_baselines
+import vcnc_gym  # noqa: F401  (registers the ids)
+from vcnc_bench.reports import tolerance as tl
+from vcnc_bench.reports.feed_override import classical_front
+
+ID = "VCNC-OmegaOverride-v1"
+
+
+def _dialled_episode(env, dial_of_step, seed=0, steps=None):
+    """``ff-pid-online`` with the override dial ``dial_of_step(k)``: the (reward, info) of every step."""
+    policy = vcnc_baselines.make("ff-pid-online", env)
+    obs, _ = env.reset(seed=seed)
+    out, start, k = [], True, 0
+    while steps is None or k < steps:
+        a, _ = policy.predict(obs, episode_start=start)
+        start = False
+        obs, reward, terminated, truncated, info = env.step(np.r_[a, dial_of_step(k)])
+        out.append((reward, info))
+        k += 1
+        if terminated or truncated:
+            break
+    return out
+
+
+def test_the_tolerance_reward_is_time_plus_the_priced_excess():
+    """Under the same commands the env with a tolerance moves exactly as without one, and its reward is the plain
+    env's less its contour and time terms, plus minus the decision period over the full-feed duration and the
+    excess over T priced per T, as computed here from the plain env's infos; the violations are counted."""
+    tol, cost = 0.004, 2.5
+    dial = lambda k: 1.0 if k < 2500 else -0.2  # noqa: E731  (full feed through the first corners, then slower)
+    plain = gym.make(ID)
+    tolerant = gym.make(ID, tolerance=tol, violation_cost=cost)
+    a, b = _dialled_episode(plain, dial), _dialled_episode(tolerant, dial)
+    assert len(a) == len(b)
+    u = tolerant.unwrapped
+    step_time = u.task.action_repeat * u.task.dt / float(u.task.reference.t[-1])
+    violations = 0
+    for (r1, i1), (r2, i2) in zip(a, b):
+        assert np.array_equal(i1["position"], i2["position"])
+        excess = max(0.0, i1["contour_error_max"] - tol)
+        violations += excess > 0
+        expected = r1 - i1["reward_time"] - i1["reward_contour"] - step_time - cost * excess / tol
+        assert r2 == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert i2["tolerance_exceeded"] == (excess > 0)
+        assert i2["violations"] == violations
+    assert 0 < violations < len(b)  # the test sees both: the S-curve's corners at full feed exceed 4 um
+    assert b[-1][1]["completed"]
+    total_time = -sum(i["reward_time"] for _, i in b)
+    assert total_time == pytest.approx(len(b) * step_time)
+
+
+def test_the_violations_restart_with_the_episode():
+    env = gym.make(ID, tolerance=0.004)
+    first = _dialled_episode(env, lambda k: 1.0, steps=3000)
+    assert first[-1][1]["violations"] > 0
+    again = _dialled_episode(env, lambda k: 1.0, steps=5)
+    assert again[-1][1]["violations"] == 0
+
+
+def test_the_tolerance_env_passes_gymnasium_s_checker():
+    check_env(gym.make(ID, tolerance=0.01).unwrapped, skip_render_check=True)
+
+
+@pytest.mark.parametrize("kwargs, word", [
+    ({"tolerance": -0.01}, "tolerance"), ({"tolerance": 0.0}, "tolerance"), ({"tolerance": "0.01"}, "tolerance"),
+    ({"tolerance": True}, "tolerance"), ({"tolerance": math.nan}, "tolerance"),
+    ({"tolerance": 0.01, "time_cost": 1e-3}, "time_cost"), ({"tolerance": 0.01, "violation_cost": -1.0},
+                                                            "violation_cost")])
+def test_a_bad_tolerance_argument_is_refused_by_name(kwargs, word):
+    with pytest.raises((ValueError, TypeError), match=word):
+        gym.make(ID, **kwargs)
+
+
+def test_without_a_tolerance_the_env_is_as_it_was():
+    env = gym.make(ID).unwrapped
+    assert env.tolerance is None and env.time_cost == pytest.approx(1e-3)
+    _, info = _dialled_episode(env, lambda k: 1.0, steps=3)[-1]
+    assert "violations" not in info and "reward_tolerance" not in info
+
+
+def test_the_grid_is_the_feed_and_acceleration_where_the_path_is_one_curve():
+    heart = tl.search_settings("VCNC-Heart-v1")
+    assert len(heart) == len(tl.FEED_FACTORS) * len(tl.ACCELERATIONS)
+    assert heart[0] == tl.Setting(150.0, tl.ACCELERATIONS[0])
+    circle = tl.search_settings("VCNC-Circle-v1")  # a constant feed: the feed alone
+    assert [s.feed for s in circle] == pytest.approx([f * 1.0 for f in tl.FEED_FACTORS])
+    assert all(s.acceleration is None for s in circle)
+    with pytest.raises(ValueError, match="G-code"):
+        tl.search_settings("VCNC-ISO230Circle-v1")
+    with pytest.raises(ValueError, match="contouring id"):
+        tl.search_settings("VCNC-OmegaOverride-v1")
+
+
+def _synthetic_runs(rng, plants=6):
+    runs = []
+    for c, s in itertools.product(("a", "b"), (tl.Setting(100.0, 500.0), tl.Setting(80.0, 500.0),
+                                                tl.Setting(100.0, 1000.0))):
+        cycle = rng.uniform(1.0, 2.0, plants)
+        cycle[rng.random(plants) < 0.2] = np.inf
+        err = rng.uniform(0.0, 30.0, plants)
+        err[rng.random(plants) < 0.1] = np.inf
+        runs.append(tl.GridRun(c, s, err, cycle))
+    return runs
+
+
+def test_the_choices_are_the_fastest_run_within_t_found_by_brute_force():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        runs = _synthetic_runs(rng)
+        kinds = ["nominal"] + ["sample"] * 5
+        for tol in (0.005, 0.01, 0.02):
+            per_plant = tl.machine_choice(runs, tol, 6)
+            for i, choice in enumerate(per_plant):
+                ok = [(r.cycle_time_s[i], r.controller, r.setting) for r in runs
+                      if r.max_um[i] <= 1e3 * tol and np.isfinite(r.cycle_time_s[i])]
+                if not ok:
+                    assert choice.controller is None
+                else:
+                    assert choice.cycle_time_s == min(ok, key=lambda x: x[0])[0]
+            builder, run = tl.builder_choice(runs, tol)
+            assert builder == per_plant[0]
+            row = next(r for r in tl.tolerance_table(runs, kinds, (tol,)))
+            if run is not None:
+                exceed = sum(1 for i in range(1, 6) if run.max_um[i] > 1e3 * tol or not np.isfinite(run.cycle_time_s[i]))
+                assert row["builder_exceeded"] == exceed
+            assert row["machine_unreached"] == sum(c.controller is None for c in per_plant[1:])
+
+
+@pytest.mark.slow
+def test_a_grid_run_is_the_omega_front_s_planned_run_on_the_nominal_plant():
+    """A grid run of ``ff-pid`` on the look-ahead omega, batched over the nominal plant and a drawn one, gives on
+    the nominal plant the figures of the omega front's planned run at that setting (``classical_front``: one
+    env, ``run_episode``); the drawn plant's differ."""
+    env = gym.make("VCNC-OmegaLookahead-v1").unwrapped
+    from vcnc_bench.robust import plant_set
+
+    parameters = plant_set(env.plant, 1, 0, nominal=env.nominal_parameters, max_vertices=0).parameters
+    runs = tl.run_grid("VCNC-OmegaLookahead-v1", parameters, controllers=("ff-pid",),
+                       settings=[tl.Setting(100.0, 2000.0)])
+    front = classical_front(policies=("ff-pid",), settings=((100.0, 2000.0),))[0]
+    assert runs[0].max_um[0] == pytest.approx(front.max_um, rel=1e-9)
+    assert runs[0].cycle_time_s[0] == pytest.approx(front.cycle_time_s, rel=1e-12)
+    assert runs[0].max_um[1] != pytest.approx(front.max_um, rel=1e-6)
+
+
+@pytest.mark.slow
+def test_a_machine_commissioned_on_the_id_s_own_reference_runs_another_setting_with_those_records():
+    """``identify_on``: a ``@machine`` controller built on a slower look-ahead of the shop-floor omega holds, after
+    its plan, the records that commissioning the same plants on the id's own reference gives (computed here through
+    ``commission``), not those of its own reference."""
+    from vcnc_baselines.commissioning.record import commission
+    from vcnc_bench.robust import make_batch, plant_set
+
+    env_id = "VCNC-OmegaLookaheadShop-v1"
+    own = gym.make(env_id).unwrapped
+    parameters = plant_set(own.plant, 2, 0, nominal=own.nominal_parameters, max_vertices=0).parameters
+    kwargs = tl.planned_kwargs(env_id, tl.Setting(60.0, 1000.0))
+    env = gym.make(env_id, **kwargs)
+    batch = make_batch(env_id, parameters.shape[0], **kwargs)
+    policy = vcnc_baselines.make("ff-pid@machine", env)
+    policy.identify_on(own.task)
+    batch.reset(seed=0, options={"parameters": parameters})
+    policy.plan(batch)
+    expected = commission(own.task, "machine", parameters)
+    assert policy.records == expected
+    assert len(policy.records) == 3
+    assert commission(env.unwrapped.task, "machine", parameters) != expected  # its own reference's differ
+    batch.close()
+    with pytest.raises(ValueError, match="identify_on"):
+        policy.identify_on(gym.make("VCNC-Circle-v1").unwrapped.task)

@@ -1,0 +1,381 @@
+"""The tolerance task's classical opponents: the fastest look-ahead feed within a contour tolerance (issue 37, item 2).
+
+A shop does not ask for the smallest contour error; it asks for the shortest cycle time within a contour tolerance
+T (Heidenhain's bands: 5-10 um for high accuracy, 10-20 um for finishing; :data:`~vcnc_gym.envs.feed_override_env.
+TOLERANCES`).  The classical answer is a look-ahead feed commissioned for T: the programmed feed F and the path
+acceleration A (normal and tangential, the jerk ``JERK_PER_ACCELERATION`` x A) that are the fastest to keep the max
+contour error within T.  This module finds them by search, for every classical controller of the id:
+
+- **the grid** (:func:`search_settings`): F at :data:`FEED_FACTORS` times the id's programmed feed and, where the
+  id's path is one curve without corners (:class:`~vcnc_gym.motion.LookaheadFeedrate`), A at
+  :data:`ACCELERATIONS`; on a path with corners (Simba et al.'s, its jerk-limited feed) or a constant feed (Purtojo
+  et al.'s circle) the feed alone, on the id's own planner;
+- **every plant at once** (:func:`run_grid`): each (controller, setting) runs once on a batch of the nominal plant
+  and the plants of the box (:func:`vcnc_bench.robust.plant_set`, the bench's ``--plants``), fastest feed first;
+  a slower feed is run only while some plant has no run within the smallest T yet (a slower feed never shortens a
+  cycle);
+- **refinement** (:func:`refine`): per T, the grid's choice on the nominal plant is refined by bisection, ``steps``
+  runs toward the next faster feed of its column and as many toward the next larger acceleration at its feed (every
+  run again on every plant); the boundary is sharp where the drives saturate (the look-ahead omega at 2600 mm/s^2:
+  1.85 um at 100 mm/s, 31.6 um at 125 mm/s);
+- **the builder's setting** (:func:`builder_choice`): the fastest (controller, setting) within T on the nominal
+  plant, as a machine builder ships it; then run on every plant of the box, its cycle times and how many plants
+  exceed T;
+- **the commissioned machine** (:func:`machine_choice`): per plant, the fastest (controller, setting) within T on
+  that plant, as commissioning on the machine finds it.  A plant with no setting of the grid within T is counted,
+  not dropped.
+
+The controllers (:data:`CONTROLLERS`) are the omega front's (``ff-pid``, ``zpetc``, ``ff-ccc``, ``ff-pid-online``,
+:data:`~vcnc_bench.reports.feed_override.CLASSICAL`, on the nominal machine's commissioning) and the per-machine
+commissioning of the first three (``@machine``).  A ``@machine`` controller identifies each plant once, its axes
+following the id's own reference (``ServoPolicy.identify_on``), and runs every setting with that commissioning, as a
+CNC commissioned once runs every later program.
+
+``python -m vcnc_bench.reports.tolerance --id VCNC-HeartShop-v1 --plants 20 --json OUT`` prints the table and writes the
+runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from vcnc_gym.envs.feed_override_env import TOLERANCES
+from vcnc_gym.validation import integer, positive
+
+__all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
+           "search_settings", "planned_kwargs", "run_grid", "refine", "builder_choice", "machine_choice", "tolerance_table",
+           "format_table", "main"]
+
+#: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
+FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
+#: The path acceleration of the grid, mm/s^2: the suite's 1000 (38 % of Jahanpour et al. (2014)'s drives' ~2.6e3 at
+#: 5 V) to their reach and beyond it.
+ACCELERATIONS = (500.0, 1000.0, 1500.0, 2000.0, 2600.0)
+#: The jerk limit of a planned run, as a multiple of its acceleration limit, 1/s (the suite's 3e4 / 1000).
+JERK_PER_ACCELERATION = 30.0
+#: The classical controllers searched: the nominal commissioning's strongest causal ones.
+CONTROLLERS = ("ff-pid", "zpetc", "ff-ccc", "ff-pid-online", "ff-pid@machine", "zpetc@machine", "ff-ccc@machine")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A look-ahead setting: programmed feed (mm/s) and path acceleration (mm/s^2; None: the id's own planner)."""
+
+    feed: float
+    acceleration: float | None = None
+
+    @property
+    def label(self) -> str:
+        if self.acceleration is None:
+            return f"{self.feed:.4g} mm/s"
+        return f"{self.feed:.4g} mm/s, {self.acceleration:.4g} mm/s^2"
+
+
+@dataclass
+class GridRun:
+    """One (controller, setting) on every plant: per plant max contour error (um; inf where diverged), cycle time
+    (s; inf where the tool did not arrive)."""
+
+    controller: str
+    setting: Setting
+    max_um: np.ndarray
+    cycle_time_s: np.ndarray
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What a search chose on one plant for one tolerance: the controller and setting, its cycle time (s) and max
+    contour error (um); ``controller`` None where no run of the grid kept within T."""
+
+    controller: str | None
+    setting: Setting | None
+    cycle_time_s: float
+    max_um: float
+
+
+def _suite(env_id: str):
+    from vcnc_gym.envs.registry import CONTOURING_IDS, suite_env
+
+    if env_id not in CONTOURING_IDS:
+        raise ValueError(f"env_id must be a contouring id ({', '.join(CONTOURING_IDS)}), got {env_id!r}")
+    e = suite_env(env_id)
+    if e.entry_point.endswith(":GCodeEnv"):
+        raise ValueError(f"{env_id} is a G-code id: its feeds are the program's F words; the tolerance search "
+                         "plans a contour id's feed (not done for G-code ids)")
+    return e
+
+
+def search_settings(env_id: str) -> list[Setting]:
+    """The grid of ``env_id`` (module docstring), fastest feed first."""
+    import inspect
+
+    from vcnc_gym.envs.task import ContouringTask
+
+    kwargs = _suite(env_id).kwargs
+    feed = kwargs.get("feedrate", inspect.signature(ContouringTask).parameters["feedrate"].default)
+    feeds = [round(f * feed, 6) for f in FEED_FACTORS]
+    if kwargs.get("profile", "scurve") in ("scurve", "lookahead"):
+        return [Setting(f, a) for f in feeds for a in ACCELERATIONS]
+    return [Setting(f) for f in feeds]
+
+
+def planned_kwargs(env_id: str, setting: Setting, curve=None) -> dict:
+    """``gym.make`` keywords that run ``env_id`` at ``setting``: its feed, and its look-ahead profile on ``curve``
+    (the id's path; made when not given) where the setting has a path acceleration."""
+    from vcnc_gym.motion import LookaheadFeedrate
+
+    if setting.acceleration is None:
+        return {"feedrate": setting.feed}
+    if curve is None:
+        import gymnasium as gym
+
+        env = gym.make(env_id)
+        curve = env.unwrapped.curve
+        env.close()
+    a, j = setting.acceleration, JERK_PER_ACCELERATION * setting.acceleration
+    return {"feedrate": setting.feed, "profile": LookaheadFeedrate(curve, setting.feed, a, j, a, j)}
+
+
+_TASKS: dict = {}
+
+
+def _own_task(env_id: str):
+    """The task of ``env_id`` as registered (its own feed): the reference the ``@machine`` identification follows."""
+    if env_id not in _TASKS:
+        import gymnasium as gym
+
+        env = gym.make(env_id)
+        _TASKS[env_id] = env.unwrapped.task
+        env.close()
+    return _TASKS[env_id]
+
+
+def _run(env_id: str, controller: str, setting: Setting, parameters: np.ndarray, curve) -> GridRun:
+    import gymnasium as gym
+
+    import vcnc_baselines
+    from vcnc_bench.robust import make_batch, run_plants
+
+    kwargs = planned_kwargs(env_id, setting, curve)
+    env = gym.make(env_id, **kwargs)
+    batch = make_batch(env_id, parameters.shape[0], **kwargs)
+    try:
+        policy = vcnc_baselines.make(controller, env)
+        if controller.endswith("@machine"):
+            policy.identify_on(_own_task(env_id))
+        runs = run_plants(policy, batch, parameters, decision_period=env.unwrapped.decision_period)
+    finally:
+        batch.close()
+        env.close()
+    bad = runs.diverged
+    return GridRun(controller, setting, np.where(bad, np.inf, runs.max_um),
+                   np.where(np.isnan(runs.cycle_time_s) | bad, np.inf, runs.cycle_time_s))
+
+
+def run_grid(env_id: str, parameters: np.ndarray, *, controllers=CONTROLLERS, tolerances=TOLERANCES,
+             settings=None, progress=None) -> list[GridRun]:
+    """Every controller at every setting of the grid (``settings``, default :func:`search_settings`) on every
+    plant of ``parameters`` (M, 2, P), each acceleration's feeds fastest first, a slower feed run only while some
+    plant has no run within the smallest of ``tolerances`` (mm) yet.  ``progress(message)`` is told of each run."""
+    import gymnasium as gym
+
+    from ..kinds.baseline import applies
+
+    settings = search_settings(env_id) if settings is None else list(settings)
+    env = gym.make(env_id)
+    curve = env.unwrapped.curve
+    designed = [c for c in controllers if applies(c, env)]
+    env.close()
+    smallest_um = 1e3 * min(tolerances)
+    runs = []
+    for controller in designed:
+        for acceleration in dict.fromkeys(s.acceleration for s in settings):
+            within = np.zeros(parameters.shape[0], dtype=bool)
+            for setting in (s for s in settings if s.acceleration == acceleration):
+                if within.all():
+                    break
+                t0 = time.perf_counter()
+                run = _run(env_id, controller, setting, parameters, curve)
+                runs.append(run)
+                within |= (run.max_um <= smallest_um) & np.isfinite(run.cycle_time_s)
+                if progress is not None:
+                    progress(f"{env_id} {controller} at {setting.label}: nominal {run.max_um[0]:.4g} um in "
+                             f"{run.cycle_time_s[0]:.4g} s; {int(within.sum())}/{within.size} plants within "
+                             f"{smallest_um:g} um ({time.perf_counter() - t0:.1f} s)")
+    return runs
+
+
+def _bisect(env_id, controller, parameters, curve, passing: Setting, failing: Setting, tol_um: float, steps: int,
+            runs: list) -> None:
+    """``steps`` runs between ``passing`` (nominal within T) and ``failing`` (not), midpoints of feed and
+    acceleration, each appended to ``runs`` and moving the bracket."""
+    for _ in range(steps):
+        a = None if passing.acceleration is None else 0.5 * (passing.acceleration + failing.acceleration)
+        mid = Setting(round(0.5 * (passing.feed + failing.feed), 6), None if a is None else round(a, 3))
+        run = _run(env_id, controller, mid, parameters, curve)
+        runs.append(run)
+        ok = run.max_um[0] <= tol_um and np.isfinite(run.cycle_time_s[0])
+        passing, failing = (mid, failing) if ok else (passing, mid)
+
+
+def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES, steps: int = 3,
+           progress=None) -> list[GridRun]:
+    """``runs`` and the refinement runs (module docstring): per tolerance (mm), bisection from the nominal plant's
+    choice toward the next faster feed and the next larger acceleration of the grid."""
+    import gymnasium as gym
+
+    env = gym.make(env_id)
+    curve = env.unwrapped.curve
+    env.close()
+    runs = list(runs)
+    tried = {(r.controller, r.setting) for r in runs}
+    for tol in tolerances:
+        choice = _fastest(runs, 0, 1e3 * tol)
+        if choice.controller is None:
+            continue
+        c, s = choice.controller, choice.setting
+        faster = [r.setting for r in runs if r.controller == c and r.setting.acceleration == s.acceleration
+                  and r.setting.feed > s.feed]
+        larger = [r.setting for r in runs if r.controller == c and r.setting.feed == s.feed
+                  and s.acceleration is not None and r.setting.acceleration > s.acceleration]
+        for failing in (min(faster, key=lambda x: x.feed, default=None),
+                        min(larger, key=lambda x: x.acceleration, default=None)):
+            if failing is not None:
+                n = len(runs)
+                _bisect(env_id, c, parameters, curve, s, failing, 1e3 * tol, steps, runs)
+                tried |= {(r.controller, r.setting) for r in runs[n:]}
+                if progress is not None:
+                    progress(f"{env_id} {c}: refined {s.label} toward {failing.label} for {1e3 * tol:g} um: "
+                             + ", ".join(f"{r.setting.label} {r.max_um[0]:.3g} um" for r in runs[n:]))
+    return runs
+
+
+def _fastest(runs: list[GridRun], plant: int, tolerance_um: float) -> Choice:
+    best = Choice(None, None, math.inf, math.inf)
+    for run in runs:
+        cycle, err = float(run.cycle_time_s[plant]), float(run.max_um[plant])
+        if err <= tolerance_um and cycle < best.cycle_time_s:
+            best = Choice(run.controller, run.setting, cycle, err)
+    return best
+
+
+def builder_choice(runs: list[GridRun], tolerance: float) -> tuple[Choice, GridRun | None]:
+    """The fastest run within ``tolerance`` (mm) on the nominal plant (plant 0), and that run on every plant (None
+    where no run kept within T on the nominal plant)."""
+    choice = _fastest(runs, 0, 1e3 * positive("tolerance", tolerance, "mm"))
+    run = next((r for r in runs if (r.controller, r.setting) == (choice.controller, choice.setting)), None)
+    return choice, run
+
+
+def machine_choice(runs: list[GridRun], tolerance: float, n_plants: int) -> list[Choice]:
+    """Per plant (of ``n_plants``), the fastest run within ``tolerance`` (mm) on that plant."""
+    t_um = 1e3 * positive("tolerance", tolerance, "mm")
+    return [_fastest(runs, i, t_um) for i in range(n_plants)]
+
+
+def _median(x) -> float:
+    x = np.asarray(x, dtype=float)
+    return float(np.median(x)) if x.size else math.nan
+
+
+def tolerance_table(runs: list[GridRun], kinds: list[str], tolerances=TOLERANCES) -> list[dict]:
+    """One row per tolerance (mm): the builder's setting (nominal plant's choice, its nominal and median cycle
+    time over the sampled plants and the plants of the box that exceed T with it) and the commissioned machine
+    (the per-plant choice: nominal and median cycle time, plants with no run within T)."""
+    kinds = np.asarray(kinds)
+    sampled, boxed = kinds == "sample", kinds != "nominal"
+    rows = []
+    for tol in tolerances:
+        choice, run = builder_choice(runs, tol)
+        per_plant = machine_choice(runs, tol, kinds.size)
+        cycles = np.array([c.cycle_time_s for c in per_plant])
+        row = {"tolerance_um": 1e3 * tol, "builder": asdict(choice), "machine_nominal": asdict(per_plant[0]),
+               "machine_median_cycle_time_s": _median(cycles[sampled]),
+               "machine_unreached": int(np.isinf(cycles[boxed]).sum()),
+               "machine_per_plant": [asdict(c) for c in per_plant], "n_plants": int(boxed.sum())}
+        if run is not None:
+            exceed = (run.max_um > 1e3 * tol) | np.isinf(run.cycle_time_s)
+            row["builder_median_cycle_time_s"] = _median(run.cycle_time_s[sampled])
+            row["builder_exceeded"] = int(exceed[boxed].sum())
+            row["builder_median_max_um"] = _median(run.max_um[sampled])
+        rows.append(row)
+    return rows
+
+
+def _fmt_choice(c: dict) -> str:
+    if c["controller"] is None:
+        return "none within T"
+    return f"`{c['controller']}` {Setting(**c['setting']).label}: {c['cycle_time_s']:.4g} s, {c['max_um']:.3g} um"
+
+
+def format_table(env_id: str, rows: list[dict]) -> str:
+    """The Markdown table of :func:`tolerance_table`'s rows."""
+    out = [f"{env_id}:", "",
+           "| T, um | builder's setting (nominal plant) | its median cycle, s | plants > T | per-plant search: "
+           "median cycle, s | plants with none within T |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        med = r.get("builder_median_cycle_time_s")
+        out.append(f"| {r['tolerance_um']:g} | {_fmt_choice(r['builder'])} | "
+                   f"{'-' if med is None else f'{med:.4g}'} | {r.get('builder_exceeded', '-')} of {r['n_plants']} | "
+                   f"{r['machine_median_cycle_time_s']:.4g} | {r['machine_unreached']} of {r['n_plants']} |")
+    return "\n".join(out)
+
+
+def _jsonable(runs: list[GridRun]) -> list[dict]:
+    def finite(x):
+        return [None if not np.isfinite(v) else float(v) for v in x]
+    return [{"controller": r.controller, "setting": asdict(r.setting), "max_um": finite(r.max_um),
+             "cycle_time_s": finite(r.cycle_time_s)} for r in runs]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.tolerance", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--id", dest="ids", nargs="+", required=True, metavar="ID", help="contouring ids")
+    parser.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20; 0: the "
+                        "nominal plant alone)")
+    parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
+    parser.add_argument("--json", help="write the grid's runs and the tables here")
+    args = parser.parse_args(argv)
+    import gymnasium as gym
+
+    from vcnc_bench.robust import plant_set
+
+    n = integer("--plants", args.plants, 0)
+    out = {}
+    for env_id in args.ids:
+        try:
+            _suite(env_id)
+        except ValueError as e:
+            parser.error(f"--id: {e}")
+        env = gym.make(env_id)
+        u = env.unwrapped
+        if n:
+            plants = plant_set(u.plant, n, integer("--plant-seed", args.plant_seed, 0),
+                               nominal=u.nominal_parameters, max_vertices=0)
+            parameters, kinds = plants.parameters, plants.kinds
+        else:
+            parameters, kinds = u.nominal_parameters[None], ["nominal"]
+        env.close()
+        t0 = time.perf_counter()
+        say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+        runs = refine(env_id, run_grid(env_id, parameters, progress=say), parameters, progress=say)
+        rows = tolerance_table(runs, kinds)
+        print(format_table(env_id, rows), flush=True)
+        print(f"({len(runs)} runs of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)
+        out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": kinds, "rows": rows,
+                       "runs": _jsonable(runs)}
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
