@@ -49,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
     g.add_argument("--history", type=int, metavar="K",
                    help="residual mode: past decisions the agent remembers (vcnc_gym.envs.history; 0: none)")
+    p.add_argument("--tolerance", type=float, metavar="MM",
+                   help="the tolerance task: the contour tolerance T in mm (FeedOverrideEnv's tolerance: the reward is "
+                        "the cycle time and the excess over T; set in the entry's env_kwargs; a feed-override id)")
     for name, f in OPTION_FIELDS.items():  # the training options: one field of RunConfig each
         p.add_argument(f"--{name.replace('_', '-')}", type=int, metavar="N",
                        help=f"{f.metadata['help']} (default {f.metadata['default']}; resume: the run's)")

@@ -73,7 +73,7 @@ def _sweep_conflict(args) -> str | None:
     if args.seeds is not None:
         return "the sweep file sets every trial's seed; drop --seeds"
     given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
-                                                  *MODE_OPTIONS, *_training_options(args), "threads")
+                                                  *MODE_OPTIONS, *_training_options(args), "threads", "tolerance")
              if getattr(args, k) is not None]
     given += ["--vec-env"] * (args.vec_env != "native") + ["--trainer"] * (args.trainer is not None)
     return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
@@ -154,7 +154,7 @@ def _check_run_options(parser, args) -> None:
     if args.resume is not None:
         if args.output is not None and args.output != args.resume:
             parser.error("--resume DIR is the run folder; --output does not apply")
-        fixed = [f"--{k.replace('_', '-')}" for k in (*MODE_OPTIONS, "n_envs", "seed", "config")
+        fixed = [f"--{k.replace('_', '-')}" for k in (*MODE_OPTIONS, "n_envs", "seed", "config", "tolerance")
                  if getattr(args, k) is not None]
         if fixed:
             parser.error(f"a resumed run keeps its action mode, n_envs, seed and hyperparameters (see its config.yml); "
@@ -179,7 +179,8 @@ def _prepare(parser, args, tensorboard):
             config_file = args.config if args.config is not None else DEFAULT_CONFIG
             run_dir, config, checkpoint = prepare_run(
                 args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
-                n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file), **options)
+                n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
+                tolerance=args.tolerance, **options)
         else:
             run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps,
                                                       **options)

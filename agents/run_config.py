@@ -286,11 +286,15 @@ def check_n_envs(n_envs: int, n_steps: int | None = None, observation_size: int 
     return n_envs
 
 
-def new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, **options) -> RunConfig:
+def new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, tolerance=None,
+               **options) -> RunConfig:
     """A new run's config from the hyperparameter entry and the options, all checked but the envs
-    (:func:`vcnc_agents.env_factory.check_envs` builds them and gives the env block, :meth:`RunConfig.with_env`)."""
+    (:func:`vcnc_agents.env_factory.check_envs` builds them and gives the env block, :meth:`RunConfig.with_env`);
+    ``tolerance`` (mm, ``--tolerance``) goes into the entry's env_kwargs (a feed-override env's tolerance task)."""
     h = load_hyperparameters(env_id, config_file)
     ppo_arguments(h)  # refuse a bad entry before anything else
+    if tolerance is not None:
+        h["env_kwargs"] = {**(h.get("env_kwargs") or {}), "tolerance": tolerance}
     mode = action_mode if action_mode is not None else action_mode_of(h)
     h = with_action_mode(h, mode)
     n_timesteps = count("n_timesteps", n_timesteps if n_timesteps is not None else h.get("n_timesteps", 0))

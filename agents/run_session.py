@@ -82,11 +82,13 @@ class TrainingResult:
 # -- 1. the run's configuration ------------------------------------------------------------------------------------
 def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = None, seed: int = 0,
                 n_envs: int | None = None, config_file=DEFAULT_CONFIG, action_mode: ActionMode | None = None,
-                resume: bool = False, **options) -> tuple[Path, RunConfig, tuple | None]:
+                resume: bool = False, tolerance: float | None = None,
+                **options) -> tuple[Path, RunConfig, tuple | None]:
     """Check every option and build the run's config; nothing is written.
 
     ``options`` are the training options (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`: ``checkpoint_freq``,
-    ``eval_freq``; None or left out: the default, or on resume the run's).
+    ``eval_freq``; None or left out: the default, or on resume the run's).  ``tolerance`` (mm) sets the entry's
+    env_kwargs ``tolerance`` (``--tolerance``: a feed-override env's tolerance task).
 
     Returns (run folder, :class:`vcnc_agents.run_config.RunConfig`, checkpoint to resume from or None).  Raises
     ValueError / FileNotFoundError / FileExistsError with a clear message for
@@ -100,7 +102,7 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
         return _prepare_resume(env_id, run_dir, n_timesteps, options)
     check_env_id(env_id)
     config = new_config(env_id, config_file=config_file, n_timesteps=n_timesteps, seed=seed, n_envs=n_envs,
-                        action_mode=action_mode, **options)
+                        action_mode=action_mode, tolerance=tolerance, **options)
     config = config.with_env(check_envs(config))
     check_memory(config)
     run_dir = Path(run_dir) if run_dir is not None else Path("runs") / f"{env_id}_seed{config.seed}"

@@ -181,3 +181,69 @@ def test_a_machine_commissioned_on_the_id_s_own_reference_runs_another_setting_w
     batch.close()
     with pytest.raises(ValueError, match="identify_on"):
         policy.identify_on(gym.make("VCNC-Circle-v1").unwrapped.task)
+
+
+@pytest.mark.parametrize("override_kwargs, searched", [({}, "VCNC-OmegaLookahead-v1"),
+                                                       ({"shop_floor": True}, "VCNC-OmegaLookaheadShop-v1")])
+def test_the_agent_s_bench_plants_are_the_search_s(override_kwargs, searched):
+    """The tolerance agent runs on the override id (``vcnc-bench --plants 20``), its opponents on the look-ahead id:
+    the same plant model, so ``plant_set`` with the same seed draws the same plants for both."""
+    from vcnc_bench.robust import plant_set
+
+    a = gym.make(ID, **override_kwargs).unwrapped
+    b = gym.make(searched).unwrapped
+    pa = plant_set(a.plant, 20, 0, nominal=a.nominal_parameters)  # the bench's: the vertices after the draws
+    pb = plant_set(b.plant, 20, 0, nominal=b.nominal_parameters, max_vertices=0)
+    assert np.array_equal(pa.parameters[:21], pb.parameters)
+
+
+def test_the_comparison_scraps_runs_over_t_and_judges_the_cycle_time_by_the_bench_s_rule():
+    from scipy.stats import trim_mean
+
+    rng = np.random.default_rng(5)
+    kinds = ["nominal"] + ["sample"] * 12
+    seeds = []
+    for _ in range(3):
+        cycle = rng.uniform(0.70, 0.74, 13)
+        err = rng.uniform(2.0, 6.0, 13)
+        seeds.append({"policy": "a", "group": "g", "per_plant": {"kind": kinds, "cycle_time_s": cycle.tolist(),
+                                                                 "max_um": err.tolist()}})
+    opponent_cycle = rng.uniform(0.72, 0.75, 13)
+    search = {"plants": 12, "plant_seed": 0, "kinds": kinds, "runs": [],
+              "rows": [{"tolerance_um": 5.0, "builder": {"controller": None, "setting": None},
+                        "machine_per_plant": [{"cycle_time_s": c} for c in opponent_cycle]}]}
+    (row,) = tl.compare(seeds, search, 0.005)
+    x = np.array([[np.inf if e > 5.0 else c for c, e in zip(s["per_plant"]["cycle_time_s"], s["per_plant"]["max_um"])]
+                  for s in seeds])
+    assert row["agent_over_t"] == [int(np.sum(np.array(s["per_plant"]["max_um"][1:]) > 5.0)) for s in seeds]
+    assert row["agent_nominal_s"] == pytest.approx(list(x[:, 0]))
+    v = row["verdict"]
+    assert v["iqm_y"] == pytest.approx(trim_mean(opponent_cycle[1:], 0.25))
+    finite = np.sort(x[:, 1:].ravel())  # the IQM with infinities: the middle half of the sorted runs
+    k = int(0.25 * finite.size)
+    middle = finite[k:finite.size - k]
+    assert (v["iqm_x"] is None and not np.isfinite(middle).all()) or v["iqm_x"] == pytest.approx(middle.mean())
+    assert v["outcome"] in ("wins", "ties", "loses")
+    with pytest.raises(ValueError, match="T = 10"):
+        tl.compare(seeds, search, 0.01)
+    with pytest.raises(ValueError, match="other plants"):
+        tl.compare(seeds, {**search, "kinds": ["nominal", "vertex"] + kinds[2:]}, 0.005)
+    with_vertices = [{**s, "per_plant": {k: v + ([1.0] if k != "kind" else ["vertex"]) for k, v in s["per_plant"].items()}}
+                     for s in seeds]
+    assert tl.compare(with_vertices, search, 0.005) == [row]  # the bench's vertices are left out
+
+
+def test_vcnc_train_s_tolerance_goes_into_the_entry_s_env_kwargs(tmp_path):
+    from vcnc_agents.cli import main
+    from vcnc_agents.run_session import prepare_run
+
+    _, config, _ = prepare_run(ID, tmp_path / "run", config_file="agents/hyperparams/tolerance.yml", tolerance=0.005)
+    assert config.env_kwargs == {"randomize": True, "tolerance": 0.005}
+    _, shop, _ = prepare_run(ID, tmp_path / "shop", config_file="agents/hyperparams/tolerance_shop.yml")
+    assert shop.env_kwargs == {"randomize": True, "shop_floor": True}
+    with pytest.raises(ValueError, match="tolerance"):  # a contouring id has no tolerance task
+        prepare_run("VCNC-Heart-v1", tmp_path / "heart", tolerance=0.005)
+    with pytest.raises(ValueError, match="tolerance"):
+        prepare_run(ID, tmp_path / "bad", config_file="agents/hyperparams/tolerance.yml", tolerance=-1.0)
+    with pytest.raises(SystemExit):
+        main(["--resume", str(tmp_path / "run"), "--tolerance", "0.01"])

@@ -33,6 +33,13 @@ CNC commissioned once runs every later program.
 
 ``python -m vcnc_bench.reports.tolerance --id VCNC-HeartShop-v1 --plants 20 --json OUT`` prints the table and writes the
 runs.
+
+**The agent against them** (:func:`compare`; ``--agents BENCH.json --search OUT``): a tolerance agent's training seeds
+run by ``vcnc-bench --plants 20`` on the same plants (``plant_set`` with the same seed; the box's vertices, which
+the bench adds after the draws where there are at most 64, are left out) meet, per T, the builder's setting and the per-plant search.  A run that exceeds T is scrap: its cycle time
+counts as infinite in the comparison, and it is counted.  The cycle time's verdict is the bench's rule
+(:func:`vcnc_bench.verdicts.verdict`: IQM over the sampled plants and the seeds, the paired bootstrap of the
+difference; "wins" when the interval lies below zero).
 """
 
 from __future__ import annotations
@@ -51,7 +58,7 @@ from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
            "search_settings", "planned_kwargs", "run_grid", "refine", "builder_choice", "machine_choice", "tolerance_table",
-           "format_table", "main"]
+           "format_table", "compare", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -328,6 +335,74 @@ def format_table(env_id: str, rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def _scrap(cycle, max_um, tolerance_um):
+    """Cycle times (s) with a run over the tolerance, or unfinished, as infinite."""
+    cycle = np.array([np.inf if v is None else v for v in cycle], dtype=float)
+    err = np.array([np.inf if v is None else v for v in max_um], dtype=float)
+    return np.where(err > tolerance_um, np.inf, cycle)
+
+
+def _opponents(search: dict, tolerance: float) -> dict:
+    """Per-plant cycle times (s, scrap infinite) of the builder's setting and the per-plant search at ``tolerance``
+    (mm), from a ``--json`` entry of the search."""
+    t_um = 1e3 * tolerance
+    row = next((r for r in search["rows"] if math.isclose(r["tolerance_um"], t_um)), None)
+    if row is None:
+        raise ValueError(f"the search has no row for T = {t_um:g} um (it has "
+                         f"{[r['tolerance_um'] for r in search['rows']]})")
+    out = {"per-plant search": np.array([c["cycle_time_s"] for c in row["machine_per_plant"]], dtype=float)}
+    b = row["builder"]
+    run = next((r for r in search["runs"] if r["controller"] == b["controller"] and r["setting"] == b["setting"]),
+               None)
+    if run is not None:
+        out[f"builder's setting (`{b['controller']}` {Setting(**b['setting']).label})"] = \
+            _scrap(run["cycle_time_s"], run["max_um"], t_um)
+    return out
+
+
+def compare(records: list[dict], search: dict, tolerance: float, *, label: str = "agent") -> list[dict]:
+    """The agent (``records``: its seeds' bench records over the plants, one per seed) against the search's
+    opponents at ``tolerance`` (mm): per opponent, the nominal and median cycle times (s), the runs over T, and the
+    verdict on the cycle time (scrap infinite) over the sampled plants."""
+    from ..verdicts import verdict
+
+    kinds = np.array(search["kinds"])
+    n = kinds.size  # the bench's plants begin with the search's (the box's vertices, if any, follow the draws)
+    if any(list(r["per_plant"]["kind"][:n]) != list(kinds) for r in records):
+        raise ValueError("the agent's bench run and the search ran other plants: give vcnc-bench --plants "
+                         f"{search['plants']} --plant-seed {search['plant_seed']}")
+    t_um = 1e3 * tolerance
+    sampled = kinds == "sample"
+    x = np.stack([_scrap(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], t_um) for r in records])
+    over = [int(np.sum(np.array([np.inf if v is None else v for v in r["per_plant"]["max_um"][:n]])[kinds != "nominal"]
+                       > t_um)) for r in records]
+    rows = []
+    for name, y in _opponents(search, tolerance).items():
+        v = verdict(x[:, sampled, None], y[sampled], figure="cycle", x_label=label, y_label=name)
+        rows.append({"tolerance_um": t_um, "opponent": name, "agent_nominal_s": [float(c) for c in x[:, 0]],
+                     "agent_median_s": float(np.median(x[:, sampled])), "agent_over_t": over,
+                     "opponent_nominal_s": float(y[0]), "opponent_median_s": float(np.median(y[sampled])),
+                     "opponent_over_t": int(np.isinf(y[kinds != "nominal"]).sum()), "n_plants": int((kinds != "nominal").sum()),
+                     "verdict": v.to_dict()})
+    return rows
+
+
+def format_comparison(rows: list[dict]) -> str:
+    """The Markdown table of :func:`compare`'s rows."""
+    out = ["| T, um | opponent | agent nominal, s (per seed) | agent median, s | agent runs > T | opponent nominal, s "
+           "| opponent median, s | opponent runs > T | agent - opponent, IQM s [95 % CI] | verdict |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        v = r["verdict"]
+        f = lambda z: "inf" if z is None else f"{z:.4g}"  # noqa: E731
+        out.append(f"| {r['tolerance_um']:g} | {r['opponent']} | {', '.join(f(c) for c in r['agent_nominal_s'])} | "
+                   f"{f(r['agent_median_s'])} | {'+'.join(map(str, r['agent_over_t']))} of "
+                   f"{len(r['agent_over_t'])} x {r['n_plants']} | {f(r['opponent_nominal_s'])} | "
+                   f"{f(r['opponent_median_s'])} | {r['opponent_over_t']} of {r['n_plants']} | "
+                   f"{f(v['difference'])} [{f(v['low'])}, {f(v['high'])}] | {v['outcome']} |")
+    return "\n".join(out)
+
+
 def _jsonable(runs: list[GridRun]) -> list[dict]:
     def finite(x):
         return [None if not np.isfinite(v) else float(v) for v in x]
@@ -337,12 +412,48 @@ def _jsonable(runs: list[GridRun]) -> list[dict]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.tolerance", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--id", dest="ids", nargs="+", required=True, metavar="ID", help="contouring ids")
-    parser.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20; 0: the "
-                        "nominal plant alone)")
+    parser.add_argument("--id", dest="ids", nargs="+", metavar="ID", help="search these contouring ids")
+    parser.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20, the box's "
+                        "vertices left out; 0: the nominal plant alone)")
     parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
     parser.add_argument("--json", help="write the grid's runs and the tables here")
+    parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
+                        "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents")
+    parser.add_argument("--search", metavar="JSON", help="with --agents: a --json file of this search")
+    parser.add_argument("--search-id", metavar="ID", help="with --agents: the searched id (default the file's only)")
+    parser.add_argument("--tolerance", type=float, nargs="+", default=list(TOLERANCES), metavar="MM",
+                        help="with --agents: the tolerances (mm; default 0.005 0.01 0.02)")
     args = parser.parse_args(argv)
+    if args.agents is not None:
+        return _compare_main(parser, args)
+    if not args.ids:
+        parser.error("give --id ID ... (a search) or --agents BENCH_JSON --search JSON (a comparison)")
+    return _search_main(parser, args)
+
+
+def _compare_main(parser, args) -> int:
+    if args.search is None:
+        parser.error("--agents needs --search JSON (this module's --json output)")
+    with open(args.agents) as f:
+        records = [r for r in json.load(f)["records"] if r.get("group")]
+    with open(args.search) as f:
+        searches = json.load(f)
+    sid = args.search_id or (next(iter(searches)) if len(searches) == 1 else None)
+    if sid not in searches:
+        parser.error(f"--search-id: name one of {sorted(searches)}")
+    groups = dict.fromkeys(r["group"] for r in records)
+    if not groups:
+        parser.error("--agents: the JSON holds no training seeds' group (vcnc-bench --policy ppo:FOLDER of a "
+                     "vcnc-train --seeds folder)")
+    for group in groups:
+        members = [r for r in records if r["group"] == group]
+        print(f"{group} ({len(members)} seeds) against the search of {sid}:")
+        rows = [row for t in args.tolerance for row in compare(members, searches[sid], t, label=group)]
+        print(format_comparison(rows) + "\n")
+    return 0
+
+
+def _search_main(parser, args) -> int:
     import gymnasium as gym
 
     from vcnc_bench.robust import plant_set
