@@ -247,3 +247,19 @@ def test_vcnc_train_s_tolerance_goes_into_the_entry_s_env_kwargs(tmp_path):
         prepare_run(ID, tmp_path / "bad", config_file="agents/hyperparams/tolerance.yml", tolerance=-1.0)
     with pytest.raises(SystemExit):
         main(["--resume", str(tmp_path / "run"), "--tolerance", "0.01"])
+
+
+def test_a_controller_of_the_agent_s_bench_run_is_an_opponent_too():
+    kinds = ["nominal"] + ["sample"] * 4
+    agent = {"policy": "a", "group": "g", "per_plant": {"kind": kinds, "cycle_time_s": [0.7] * 5,
+                                                        "max_um": [4.0] * 5}}
+    mpcc = {"policy": "mpcc", "per_plant": {"kind": kinds, "cycle_time_s": [0.68, 0.69, None, 0.7, 0.71],
+                                            "max_um": [4.5, 6.0, 3.0, 4.0, 4.9]}}
+    search = {"plants": 4, "plant_seed": 0, "kinds": kinds, "runs": [],
+              "rows": [{"tolerance_um": 5.0, "builder": {"controller": None, "setting": None},
+                        "machine_per_plant": [{"cycle_time_s": 0.75}] * 5}]}
+    rows = tl.compare([agent], search, 0.005, others=[mpcc])
+    row = next(r for r in rows if r["opponent"] == "`mpcc`")
+    assert row["opponent_nominal_s"] == 0.68
+    assert row["opponent_over_t"] == 2  # 6.0 um over T, and the unfinished run
+    assert row["agent_over_t"] == [0]

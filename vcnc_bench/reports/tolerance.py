@@ -360,10 +360,13 @@ def _opponents(search: dict, tolerance: float) -> dict:
     return out
 
 
-def compare(records: list[dict], search: dict, tolerance: float, *, label: str = "agent") -> list[dict]:
+def compare(records: list[dict], search: dict, tolerance: float, *, label: str = "agent",
+            others: list[dict] = ()) -> list[dict]:
     """The agent (``records``: its seeds' bench records over the plants, one per seed) against the search's
-    opponents at ``tolerance`` (mm): per opponent, the nominal and median cycle times (s), the runs over T, and the
-    verdict on the cycle time (scrap infinite) over the sampled plants."""
+    opponents at ``tolerance`` (mm) and ``others`` (bench records of causal controllers on the agent's env and
+    plants, such as the contouring MPC ``mpcc``, which sets its own feed): per opponent, the nominal and median
+    cycle times (s), the runs over T, and the verdict on the cycle time (scrap infinite) over the sampled
+    plants."""
     from ..verdicts import verdict
 
     kinds = np.array(search["kinds"])
@@ -374,10 +377,15 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
     t_um = 1e3 * tolerance
     sampled = kinds == "sample"
     x = np.stack([_scrap(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], t_um) for r in records])
-    over = [int(np.sum(np.array([np.inf if v is None else v for v in r["per_plant"]["max_um"][:n]])[kinds != "nominal"]
-                       > t_um)) for r in records]
+    over = [int(np.isinf(row[kinds != "nominal"]).sum()) for row in x]  # over T or unfinished
+    opponents = _opponents(search, tolerance)
+    for rec in others:
+        if list(rec["per_plant"]["kind"][:n]) != list(kinds):
+            raise ValueError(f"{rec['policy']} ran other plants than the search")
+        opponents[f"`{rec['policy']}`"] = _scrap(rec["per_plant"]["cycle_time_s"][:n], rec["per_plant"]["max_um"][:n],
+                                                 t_um)
     rows = []
-    for name, y in _opponents(search, tolerance).items():
+    for name, y in opponents.items():
         v = verdict(x[:, sampled, None], y[sampled], figure="cycle", x_label=label, y_label=name)
         rows.append({"tolerance_um": t_um, "opponent": name, "agent_nominal_s": [float(c) for c in x[:, 0]],
                      "agent_median_s": float(np.median(x[:, sampled])), "agent_over_t": over,
@@ -389,8 +397,8 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
 
 def format_comparison(rows: list[dict]) -> str:
     """The Markdown table of :func:`compare`'s rows."""
-    out = ["| T, um | opponent | agent nominal, s (per seed) | agent median, s | agent runs > T | opponent nominal, s "
-           "| opponent median, s | opponent runs > T | agent - opponent, IQM s [95 % CI] | verdict |",
+    out = ["| T, um | opponent | agent nominal, s (per seed) | agent median, s | agent runs > T or unfinished | "
+           "opponent nominal, s | opponent median, s | opponent runs > T or unfinished | agent - opponent, IQM s [95 % CI] | verdict |",
            "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         v = r["verdict"]
@@ -418,7 +426,8 @@ def main(argv=None) -> int:
     parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
     parser.add_argument("--json", help="write the grid's runs and the tables here")
     parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
-                        "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents")
+                        "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
+                        "the JSON's causal controllers (e.g. --policy mpcc)")
     parser.add_argument("--search", metavar="JSON", help="with --agents: a --json file of this search")
     parser.add_argument("--search-id", metavar="ID", help="with --agents: the searched id (default the file's only)")
     parser.add_argument("--tolerance", type=float, nargs="+", default=list(TOLERANCES), metavar="MM",
@@ -435,7 +444,9 @@ def _compare_main(parser, args) -> int:
     if args.search is None:
         parser.error("--agents needs --search JSON (this module's --json output)")
     with open(args.agents) as f:
-        records = [r for r in json.load(f)["records"] if r.get("group")]
+        everything = [r for r in json.load(f)["records"] if "per_plant" in r]
+    records = [r for r in everything if r.get("group")]
+    others = [r for r in everything if not r.get("group") and not r["policy"].startswith(("ppo", "oracle"))]
     with open(args.search) as f:
         searches = json.load(f)
     sid = args.search_id or (next(iter(searches)) if len(searches) == 1 else None)
@@ -448,7 +459,7 @@ def _compare_main(parser, args) -> int:
     for group in groups:
         members = [r for r in records if r["group"] == group]
         print(f"{group} ({len(members)} seeds) against the search of {sid}:")
-        rows = [row for t in args.tolerance for row in compare(members, searches[sid], t, label=group)]
+        rows = [row for t in args.tolerance for row in compare(members, searches[sid], t, label=group, others=others)]
         print(format_comparison(rows) + "\n")
     return 0
 
