@@ -183,14 +183,14 @@ def test_a_machine_commissioned_on_the_id_s_own_reference_runs_another_setting_w
         policy.identify_on(gym.make("VCNC-Circle-v1").unwrapped.task)
 
 
-@pytest.mark.parametrize("override_kwargs, searched", [({}, "VCNC-OmegaLookahead-v1"),
-                                                       ({"shop_floor": True}, "VCNC-OmegaLookaheadShop-v1")])
-def test_the_agent_s_bench_plants_are_the_search_s(override_kwargs, searched):
+@pytest.mark.parametrize("agent_id, searched", [(ID, "VCNC-OmegaLookahead-v1"),
+                                                 ("VCNC-OmegaOverrideShop-v1", "VCNC-OmegaLookaheadShop-v1")])
+def test_the_agent_s_bench_plants_are_the_search_s(agent_id, searched):
     """The tolerance agent runs on the override id (``vcnc-bench --plants 20``), its opponents on the look-ahead id:
     the same plant model, so ``plant_set`` with the same seed draws the same plants for both."""
     from vcnc_bench.robust import plant_set
 
-    a = gym.make(ID, **override_kwargs).unwrapped
+    a = gym.make(agent_id).unwrapped
     b = gym.make(searched).unwrapped
     pa = plant_set(a.plant, 20, 0, nominal=a.nominal_parameters)  # the bench's: the vertices after the draws
     pb = plant_set(b.plant, 20, 0, nominal=b.nominal_parameters, max_vertices=0)
@@ -239,8 +239,9 @@ def test_vcnc_train_s_tolerance_goes_into_the_entry_s_env_kwargs(tmp_path):
 
     _, config, _ = prepare_run(ID, tmp_path / "run", config_file="agents/hyperparams/tolerance.yml", tolerance=0.005)
     assert config.env_kwargs == {"randomize": True, "tolerance": 0.005}
-    _, shop, _ = prepare_run(ID, tmp_path / "shop", config_file="agents/hyperparams/tolerance_shop.yml")
-    assert shop.env_kwargs == {"randomize": True, "shop_floor": True}
+    _, shop, _ = prepare_run("VCNC-OmegaOverrideShop-v1", tmp_path / "shop", config_file="agents/hyperparams/tolerance.yml")
+    assert shop.env_kwargs == {"randomize": True}
+    assert shop.env["signature"]["id"] == "VCNC-OmegaOverrideShop-v1"  # what keeps its agents off the ideal omega
     with pytest.raises(ValueError, match="tolerance"):  # a contouring id has no tolerance task
         prepare_run("VCNC-Heart-v1", tmp_path / "heart", tolerance=0.005)
     with pytest.raises(ValueError, match="tolerance"):

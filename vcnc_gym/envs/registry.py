@@ -107,6 +107,9 @@ SUITE: tuple[SuiteEnv, ...] = (
     SuiteEnv("VCNC-OmegaOverride-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
              "VCNC-Omega-v1 with a feed override (0-100 %) as a third action: the reference re-timed online, "
              "cycle time in the reward", entry_point=_OVERRIDE, vector_entry_point=None),
+    SuiteEnv("VCNC-OmegaOverrideShop-v1", {"contour": "omega", "plant": "vcnc_feed_drive", "shop_floor": True},
+             "VCNC-OmegaOverride-v1 on the shop floor (vcnc_gym.plants.shop_floor's defaults): the tolerance task's "
+             "shop-floor twin (tolerance=T)", entry_point=_OVERRIDE, vector_entry_point=None),
     SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
              "Yadav et al.'s step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
              entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
