@@ -264,3 +264,22 @@ def test_a_controller_of_the_agent_s_bench_run_is_an_opponent_too():
     assert row["opponent_nominal_s"] == 0.68
     assert row["opponent_over_t"] == 2  # 6.0 um over T, and the unfinished run
     assert row["agent_over_t"] == [0]
+
+
+def test_the_contouring_mpc_runs_on_a_feed_override_id_only():
+    with pytest.raises(ValueError, match="feed-override id"):
+        tl.run_mpcc("VCNC-OmegaLookahead-v1", np.zeros((1, 2, 6)))
+
+
+@pytest.mark.slow
+def test_the_search_s_contouring_mpc_is_the_omega_front_s():
+    """``run_mpcc`` on the nominal plant (a batch of one) gives the omega front's MPCC point at 100 mm/s
+    (``mpcc_front``: one env, ``run_episode``)."""
+    from vcnc_bench.reports.feed_override import mpcc_front
+
+    env = gym.make(ID).unwrapped
+    (run,) = tl.run_mpcc(ID, env.nominal_parameters[None], caps=(1.0,))
+    (front,) = mpcc_front(speeds=(100.0,))
+    assert run.max_um[0] == pytest.approx(front.max_um, rel=1e-9)
+    assert run.cycle_time_s[0] == pytest.approx(front.cycle_time_s, rel=1e-12)
+    assert run.setting == tl.Setting(100.0)

@@ -21,6 +21,9 @@ contour error within T.  This module finds them by search, for every classical c
 - **the builder's setting** (:func:`builder_choice`): the fastest (controller, setting) within T on the nominal
   plant, as a machine builder ships it; then run on every plant of the box, its cycle times and how many plants
   exceed T;
+- **the contouring MPC** (:func:`run_mpcc`, ``--mpcc OVERRIDE_ID``): it sets its own feed through the override, so it
+  runs on the override version of the id's contour and plant, its progress capped at the programmed feed and 0.8
+  of it; its runs join the grid's, and the choices below may pick it;
 - **the commissioned machine** (:func:`machine_choice`): per plant, the fastest (controller, setting) within T on
   that plant, as commissioning on the machine finds it.  A plant with no setting of the grid within T is counted,
   not dropped.
@@ -57,7 +60,7 @@ from vcnc_gym.envs.feed_override_env import TOLERANCES
 from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
-           "search_settings", "planned_kwargs", "run_grid", "refine", "builder_choice", "machine_choice", "tolerance_table",
+           "search_settings", "planned_kwargs", "run_grid", "refine", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
            "format_table", "compare", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
@@ -264,6 +267,47 @@ def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, toleranc
     return runs
 
 
+#: The contouring MPC's progress caps, as multiples of the programmed feed (``--mpcc``).
+MPCC_CAPS = (1.0, 0.8)
+
+
+def run_mpcc(override_id: str, parameters: np.ndarray, *, caps=MPCC_CAPS, progress=None) -> list[GridRun]:
+    """The contouring MPC (``mpcc``, which sets its own feed through the override) on the feed-override id
+    ``override_id`` (the same contour and plant as the searched id; its programmed path and feed), on every plant
+    of ``parameters``, once per cap of its progress speed (``caps`` x the programmed feed): one run each, with the
+    cap as the setting's feed."""
+    import gymnasium as gym
+
+    import vcnc_baselines
+    from vcnc_bench.robust import make_batch, run_plants
+
+    env = gym.make(override_id)
+    u = env.unwrapped
+    if not getattr(u, "retimes_reference", False):
+        env.close()
+        raise ValueError(f"--mpcc: {override_id} is not a feed-override id (the contouring MPC sets its own feed)")
+    feed = float(u.task.feedrate_profile.feedrate)
+    runs = []
+    try:
+        for cap in caps:
+            t0 = time.perf_counter()
+            batch = make_batch(override_id, parameters.shape[0])
+            try:
+                policy = vcnc_baselines.make("mpcc", env, v_max=cap * feed)
+                r = run_plants(policy, batch, parameters, decision_period=u.decision_period)
+            finally:
+                batch.close()
+            bad = r.diverged
+            runs.append(GridRun("mpcc", Setting(round(cap * feed, 6)), np.where(bad, np.inf, r.max_um),
+                                np.where(np.isnan(r.cycle_time_s) | bad, np.inf, r.cycle_time_s)))
+            if progress is not None:
+                progress(f"{override_id} mpcc, progress capped at {cap * feed:g} mm/s: nominal {r.max_um[0]:.4g} um "
+                         f"in {r.cycle_time_s[0]:.4g} s ({time.perf_counter() - t0:.0f} s)")
+    finally:
+        env.close()
+    return runs
+
+
 def _fastest(runs: list[GridRun], plant: int, tolerance_um: float) -> Choice:
     best = Choice(None, None, math.inf, math.inf)
     for run in runs:
@@ -425,6 +469,10 @@ def main(argv=None) -> int:
                         "vertices left out; 0: the nominal plant alone)")
     parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
     parser.add_argument("--json", help="write the grid's runs and the tables here")
+    parser.add_argument("--mpcc", metavar="OVERRIDE_ID", help="with one --id: the contouring MPC too, on this "
+                        "feed-override id of the same contour and plant (e.g. VCNC-OmegaOverride-v1 for the omega), "
+                        "its progress capped at 1 and 0.8 x the programmed feed (a QP per control period: minutes "
+                        "per plant)")
     parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
                         "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
                         "the JSON's causal controllers (e.g. --policy mpcc)")
@@ -470,6 +518,8 @@ def _search_main(parser, args) -> int:
     from vcnc_bench.robust import plant_set
 
     n = integer("--plants", args.plants, 0)
+    if args.mpcc is not None and len(args.ids) != 1:
+        parser.error("--mpcc goes with one --id (the override id of that id's contour and plant)")
     out = {}
     for env_id in args.ids:
         try:
@@ -488,6 +538,10 @@ def _search_main(parser, args) -> int:
         t0 = time.perf_counter()
         say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
         runs = refine(env_id, run_grid(env_id, parameters, progress=say), parameters, progress=say)
+        if args.mpcc is not None:
+            if gym.spec(args.mpcc).kwargs.get("plant") != gym.spec(env_id).kwargs.get("plant"):
+                parser.error(f"--mpcc: {args.mpcc} runs another plant than {env_id}")
+            runs += run_mpcc(args.mpcc, parameters, progress=say)
         rows = tolerance_table(runs, kinds)
         print(format_table(env_id, rows), flush=True)
         print(f"({len(runs)} runs of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)
