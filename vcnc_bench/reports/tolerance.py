@@ -196,12 +196,12 @@ def run_grid(env_id: str, parameters: np.ndarray, *, controllers=CONTROLLERS, to
     plant has no run within the smallest of ``tolerances`` (mm) yet.  ``progress(message)`` is told of each run."""
     import gymnasium as gym
 
-    from ..kinds.baseline import applies
+    from vcnc_baselines.registry import policy_class
 
     settings = search_settings(env_id) if settings is None else list(settings)
     env = gym.make(env_id)
     curve = env.unwrapped.curve
-    designed = [c for c in controllers if applies(c, env)]
+    designed = [c for c in controllers if policy_class(c).designed_for(env.unwrapped.plant)]
     env.close()
     smallest_um = 1e3 * min(tolerances)
     runs = []
