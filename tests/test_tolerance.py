@@ -283,3 +283,26 @@ def test_the_search_s_contouring_mpc_is_the_omega_front_s():
     assert run.max_um[0] == pytest.approx(front.max_um, rel=1e-9)
     assert run.cycle_time_s[0] == pytest.approx(front.cycle_time_s, rel=1e-12)
     assert run.setting == tl.Setting(100.0)
+
+
+def test_the_per_plant_refinement_runs_between_each_plant_s_choice_and_its_faster_neighbour(monkeypatch):
+    """``refine_machines`` runs, per T, settings evenly between each plant's choice and the next faster feed of its
+    column (and the next larger acceleration), each once (the runs stubbed: their settings are the point)."""
+    ran = []
+
+    def fake_run(env_id, controller, setting, parameters, curve):
+        ran.append((controller, setting))
+        return tl.GridRun(controller, setting, np.full(2, 100.0), np.full(2, 1.0))
+
+    monkeypatch.setattr(tl, "_run", fake_run)
+    inf = np.inf
+    runs = [tl.GridRun("a", tl.Setting(100.0, 1000.0), np.array([30.0, 30.0]), np.array([1.0, 1.0])),
+            tl.GridRun("a", tl.Setting(80.0, 1000.0), np.array([3.0, 30.0]), np.array([1.2, 1.2])),
+            tl.GridRun("a", tl.Setting(60.0, 1000.0), np.array([2.0, 4.0]), np.array([1.5, 1.5])),
+            tl.GridRun("a", tl.Setting(80.0, 2000.0), np.array([50.0, 50.0]), np.array([1.1, inf]))]
+    out = tl.refine_machines("VCNC-OmegaLookahead-v1", runs, np.zeros((2, 2, 6)), tolerances=(0.005,), points=3)
+    assert out[:4] == runs
+    expected = [("a", tl.Setting(60.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]          # plant 1: 60 -> 80
+    expected += [("a", tl.Setting(80.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]         # plant 0: 80 -> 100
+    expected += [("a", tl.Setting(80.0, 1000.0 + 250.0 * k)) for k in (1, 2, 3)]       # and 1000 -> 2000 mm/s^2
+    assert sorted(ran, key=str) == sorted(expected, key=str)

@@ -17,7 +17,8 @@ contour error within T.  This module finds them by search, for every classical c
 - **refinement** (:func:`refine`): per T, the grid's choice on the nominal plant is refined by bisection, ``steps``
   runs toward the next faster feed of its column and as many toward the next larger acceleration at its feed (every
   run again on every plant); the boundary is sharp where the drives saturate (the look-ahead omega at 2600 mm/s^2:
-  1.85 um at 100 mm/s, 31.6 um at 125 mm/s);
+  1.85 um at 100 mm/s, 31.6 um at 125 mm/s); then, for the per-plant search (:func:`refine_machines`), three
+  settings evenly between each plant's choice and its neighbours (run once on every plant, like every other);
 - **the builder's setting** (:func:`builder_choice`): the fastest (controller, setting) within T on the nominal
   plant, as a machine builder ships it; then run on every plant of the box, its cycle times and how many plants
   exceed T;
@@ -60,7 +61,7 @@ from vcnc_gym.envs.feed_override_env import TOLERANCES
 from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
-           "search_settings", "planned_kwargs", "run_grid", "refine", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
+           "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
            "format_table", "compare", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
@@ -235,35 +236,72 @@ def _bisect(env_id, controller, parameters, curve, passing: Setting, failing: Se
         passing, failing = (mid, failing) if ok else (passing, mid)
 
 
+def _neighbours(runs: list[GridRun], controller: str, setting: Setting) -> list[Setting]:
+    """The nearest faster feed of ``setting``'s column and the nearest larger acceleration at its feed, among the
+    settings ``controller`` has run (none where there is none)."""
+    c, s = controller, setting
+    faster = [r.setting for r in runs if r.controller == c and r.setting.acceleration == s.acceleration
+              and r.setting.feed > s.feed]
+    larger = [r.setting for r in runs if r.controller == c and r.setting.feed == s.feed
+              and s.acceleration is not None and r.setting.acceleration > s.acceleration]
+    return [x for x in (min(faster, key=lambda x: x.feed, default=None),
+                        min(larger, key=lambda x: x.acceleration, default=None)) if x is not None]
+
+
 def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES, steps: int = 3,
            progress=None) -> list[GridRun]:
-    """``runs`` and the refinement runs (module docstring): per tolerance (mm), bisection from the nominal plant's
-    choice toward the next faster feed and the next larger acceleration of the grid."""
+    """``runs`` and the refinement runs of the builder's setting (module docstring): per tolerance (mm), bisection
+    from the nominal plant's choice toward the next faster feed and the next larger acceleration."""
     import gymnasium as gym
 
     env = gym.make(env_id)
     curve = env.unwrapped.curve
     env.close()
     runs = list(runs)
-    tried = {(r.controller, r.setting) for r in runs}
     for tol in tolerances:
         choice = _fastest(runs, 0, 1e3 * tol)
         if choice.controller is None:
             continue
         c, s = choice.controller, choice.setting
-        faster = [r.setting for r in runs if r.controller == c and r.setting.acceleration == s.acceleration
-                  and r.setting.feed > s.feed]
-        larger = [r.setting for r in runs if r.controller == c and r.setting.feed == s.feed
-                  and s.acceleration is not None and r.setting.acceleration > s.acceleration]
-        for failing in (min(faster, key=lambda x: x.feed, default=None),
-                        min(larger, key=lambda x: x.acceleration, default=None)):
-            if failing is not None:
-                n = len(runs)
-                _bisect(env_id, c, parameters, curve, s, failing, 1e3 * tol, steps, runs)
-                tried |= {(r.controller, r.setting) for r in runs[n:]}
-                if progress is not None:
-                    progress(f"{env_id} {c}: refined {s.label} toward {failing.label} for {1e3 * tol:g} um: "
-                             + ", ".join(f"{r.setting.label} {r.max_um[0]:.3g} um" for r in runs[n:]))
+        for failing in _neighbours(runs, c, s):
+            n = len(runs)
+            _bisect(env_id, c, parameters, curve, s, failing, 1e3 * tol, steps, runs)
+            if progress is not None:
+                progress(f"{env_id} {c}: refined {s.label} toward {failing.label} for {1e3 * tol:g} um: "
+                         + ", ".join(f"{r.setting.label} {r.max_um[0]:.3g} um" for r in runs[n:]))
+    return runs
+
+
+def refine_machines(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES,
+                    points: int = 3, progress=None) -> list[GridRun]:
+    """``runs`` and the per-plant search's refinement: per tolerance (mm), ``points`` settings evenly between
+    each plant's choice and each of its :func:`_neighbours`, each run once on every plant (every plant's boundary
+    lies elsewhere, and a run serves them all)."""
+    import gymnasium as gym
+
+    env = gym.make(env_id)
+    curve = env.unwrapped.curve
+    env.close()
+    runs = list(runs)
+    done = {(r.controller, r.setting) for r in runs}
+    for tol in tolerances:
+        targets = {(ch.controller, ch.setting) for ch in (_fastest(runs, i, 1e3 * tol)
+                                                         for i in range(parameters.shape[0]))
+                   if ch.controller not in (None, "mpcc")}
+        n = len(runs)
+        for c, s in sorted(targets, key=lambda t: (t[0], t[1].feed, t[1].acceleration or 0.0)):
+            for failing in _neighbours(runs[:n], c, s):
+                for k in range(1, points + 1):
+                    w = k / (points + 1)
+                    a = None if s.acceleration is None else round(s.acceleration + w * (failing.acceleration
+                                                                                        - s.acceleration), 3)
+                    mid = Setting(round(s.feed + w * (failing.feed - s.feed), 6), a)
+                    if (c, mid) not in done:
+                        runs.append(_run(env_id, c, mid, parameters, curve))
+                        done.add((c, mid))
+        if progress is not None:
+            progress(f"{env_id}: {len(runs) - n} runs refined the per-plant choices for {1e3 * tol:g} um "
+                     f"({len(targets)} settings chosen)")
     return runs
 
 
@@ -538,6 +576,7 @@ def _search_main(parser, args) -> int:
         t0 = time.perf_counter()
         say = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
         runs = refine(env_id, run_grid(env_id, parameters, progress=say), parameters, progress=say)
+        runs = refine_machines(env_id, runs, parameters, progress=say)
         if args.mpcc is not None:
             if gym.spec(args.mpcc).kwargs.get("plant") != gym.spec(env_id).kwargs.get("plant"):
                 parser.error(f"--mpcc: {args.mpcc} runs another plant than {env_id}")
