@@ -306,3 +306,27 @@ def test_the_per_plant_refinement_runs_between_each_plant_s_choice_and_its_faste
     expected += [("a", tl.Setting(80.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]         # plant 0: 80 -> 100
     expected += [("a", tl.Setting(80.0, 1000.0 + 250.0 * k)) for k in (1, 2, 3)]       # and 1000 -> 2000 mm/s^2
     assert sorted(ran, key=str) == sorted(expected, key=str)
+
+
+def test_the_command_writes_the_search_and_compares_an_agent_with_it(monkeypatch, tmp_path, capsys):
+    """``main``: a search (its grid stubbed) written with its settings, then ``--agents`` read against it."""
+    import json
+
+    rng = np.random.default_rng(2)
+    fake = _synthetic_runs(rng, plants=3)
+    monkeypatch.setattr(tl, "run_grid", lambda env_id, parameters, progress=None: fake)
+    monkeypatch.setattr(tl, "refine", lambda env_id, runs, parameters, progress=None: runs)
+    monkeypatch.setattr(tl, "refine_machines", lambda env_id, runs, parameters, progress=None: runs)
+    out = tmp_path / "search.json"
+    assert tl.main(["--id", "VCNC-OmegaLookahead-v1", "--plants", "2", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["settings"]["command"].endswith(f"--json {out}") and "cpu" in data["settings"]["provenance"]
+    assert [r["tolerance_um"] for r in data["VCNC-OmegaLookahead-v1"]["rows"]] == [5.0, 10.0, 20.0]
+    kinds = data["VCNC-OmegaLookahead-v1"]["kinds"]
+    bench = {"records": [{"env": ID, "policy": f"ppo:x/seed{k}/final", "group": "ppo:x/final",
+                          "per_plant": {"kind": kinds, "cycle_time_s": [0.7] * 3, "max_um": [1.0] * 3}}
+                         for k in range(2)]}
+    (tmp_path / "bench.json").write_text(json.dumps(bench))
+    assert tl.main(["--agents", str(tmp_path / "bench.json"), "--search", str(out), "--tolerance", "0.01"]) == 0
+    printed = capsys.readouterr().out
+    assert "ppo:x/final (2 seeds)" in printed and "| 10 | per-plant search |" in printed

@@ -523,7 +523,7 @@ def main(argv=None) -> int:
         return _compare_main(parser, args)
     if not args.ids:
         parser.error("give --id ID ... (a search) or --agents BENCH_JSON --search JSON (a comparison)")
-    return _search_main(parser, args)
+    return _search_main(parser, args, argv)
 
 
 def _compare_main(parser, args) -> int:
@@ -535,6 +535,7 @@ def _compare_main(parser, args) -> int:
     others = [r for r in everything if not r.get("group") and not r["policy"].startswith(("ppo", "oracle"))]
     with open(args.search) as f:
         searches = json.load(f)
+    searches.pop("settings", None)
     sid = args.search_id or (next(iter(searches)) if len(searches) == 1 else None)
     if sid not in searches:
         parser.error(f"--search-id: name one of {sorted(searches)}")
@@ -550,7 +551,7 @@ def _compare_main(parser, args) -> int:
     return 0
 
 
-def _search_main(parser, args) -> int:
+def _search_main(parser, args, argv=None) -> int:
     import gymnasium as gym
 
     from vcnc_bench.robust import plant_set
@@ -587,6 +588,11 @@ def _search_main(parser, args) -> int:
         out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": kinds, "rows": rows,
                        "runs": _jsonable(runs)}
     if args.json:
+        from ..provenance import provenance
+
+        out["settings"] = {"command": "python -m vcnc_bench.reports.tolerance " + " ".join(sys.argv[1:] if argv is None
+                                                                                          else argv),
+                           "provenance": provenance()}
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
     return 0
