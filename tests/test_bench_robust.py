@@ -137,3 +137,19 @@ def test_bad_plants_exit_2(argv, message, capsys):
         bench.main(["--env", OMEGA, "--policy", "smc"] + argv)
     assert exc.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_the_robust_bench_on_the_override_id_has_no_floor_to_score_against():
+    """``vcnc-bench --env VCNC-OmegaOverride-v1 --plants N`` ended in a traceback after every run: the oracle (the
+    score's floor) was built for the override env and refused its batch.  It refuses the env itself now (a re-timed
+    reference has no floor), and the bench leaves the score out there."""
+    import argparse
+
+    from vcnc_bench import cli
+
+    env = gym.make("VCNC-OmegaOverride-v1")
+    with pytest.raises(ValueError, match="re-times its reference"):
+        make_baseline("oracle", env)
+    args = argparse.Namespace(feedrate=None, plant=None, seed=0)
+    runs = [("VCNC-OmegaOverride-v1", "ff-pid-online", make_baseline("ff-pid-online", env))]
+    assert cli._nominal_floors(args, {"VCNC-OmegaOverride-v1": env}, runs) == {}

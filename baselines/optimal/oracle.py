@@ -119,6 +119,16 @@ class OraclePolicy(BaselinePolicy):
         self._steps: list[int] = []  # per env, decision steps since its episode's start
         self._planned_for = None
 
+    @classmethod
+    def from_env(cls, env, **params):
+        """As :meth:`BaselinePolicy.from_env`; refuses an env whose reference is re-timed while it runs (a feed
+        override): the floor is searched about a reference fixed before the episode."""
+        if getattr(getattr(env, "unwrapped", env), "retimes_reference", False):
+            raise ValueError(f"baseline {cls.name!r} searches a correction about a reference fixed before the "
+                             f"episode; {type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
+                             "override): there is no floor there")
+        return super().from_env(env, **params)
+
     def _initial_state(self):
         return np.zeros(0)
 
