@@ -473,8 +473,18 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
                      "agent_median_s": float(np.median(x[:, sampled])), "agent_over_t": over,
                      "opponent_nominal_s": float(y[0]), "opponent_median_s": float(np.median(y[sampled])),
                      "opponent_over_t": int(np.isinf(y[kinds != "nominal"]).sum()), "n_plants": int((kinds != "nominal").sum()),
-                     "verdict": v.to_dict()})
+                     "verdict": _signed(v)})
     return rows
+
+
+def _signed(v) -> dict:
+    """A :class:`~vcnc_bench.verdicts.Verdict` as JSON, an infinity kept with its sign (``"inf"``, ``"-inf"``: a
+    scrapped run's cycle time is infinite, and ``to_dict``'s None would lose which side it is on)."""
+    def safe(x):
+        if isinstance(x, float) and not math.isfinite(x):
+            return repr(x)
+        return [safe(e) for e in x] if isinstance(x, tuple) else x
+    return {k: safe(getattr(v, k)) for k in v.to_dict()}
 
 
 def format_comparison(rows: list[dict]) -> str:
@@ -484,7 +494,7 @@ def format_comparison(rows: list[dict]) -> str:
            "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         v = r["verdict"]
-        f = lambda z: "inf" if z is None else f"{z:.4g}"  # noqa: E731
+        f = lambda z: z if isinstance(z, str) else f"{z:.4g}"  # noqa: E731  (an infinity kept as "inf", "-inf")
         out.append(f"| {r['tolerance_um']:g} | {r['opponent']} | {', '.join(f(c) for c in r['agent_nominal_s'])} | "
                    f"{f(r['agent_median_s'])} | {'+'.join(map(str, r['agent_over_t']))} of "
                    f"{len(r['agent_over_t'])} x {r['n_plants']} | {f(r['opponent_nominal_s'])} | "
@@ -530,7 +540,10 @@ def _compare_main(parser, args) -> int:
     if args.search is None:
         parser.error("--agents needs --search JSON (this module's --json output)")
     with open(args.agents) as f:
-        everything = [r for r in json.load(f)["records"] if "per_plant" in r]
+        data = json.load(f)
+    if "robust" not in data:
+        parser.error(f"--agents: {args.agents} is not a vcnc-bench --plants JSON (it has no 'robust' records)")
+    everything = [r for r in data["robust"] if "per_plant" in r]
     records = [r for r in everything if r.get("group")]
     others = [r for r in everything if not r.get("group") and not r["policy"].startswith(("ppo", "oracle"))]
     with open(args.search) as f:
