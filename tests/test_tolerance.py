@@ -36,30 +36,46 @@ def _dialled_episode(env, dial_of_step, seed=0, steps=None):
 
 
 def test_the_tolerance_reward_is_time_plus_the_priced_excess():
-    """Under the same commands the env with a tolerance moves exactly as without one, and its reward is the plain
-    env's less its contour and time terms, plus minus the decision period over the full-feed duration and the
-    excess over T priced per T, as computed here from the plain env's infos; the violations are counted."""
-    tol, cost = 0.004, 2.5
+    """Under the same commands the env with a tolerance moves exactly as without one, and its reward is, per step,
+    minus the decision period over the full-feed duration d and ``violation_cost * d * min(1, excess / T)``, as
+    computed here from the plain env's infos; the violations are counted."""
+    tol, cost = 0.004, 25.0
     dial = lambda k: 1.0 if k < 2500 else -0.2  # noqa: E731  (full feed through the first corners, then slower)
     plain = gym.make(ID)
     tolerant = gym.make(ID, tolerance=tol, violation_cost=cost)
     a, b = _dialled_episode(plain, dial), _dialled_episode(tolerant, dial)
     assert len(a) == len(b)
     u = tolerant.unwrapped
-    step_time = u.task.action_repeat * u.task.dt / float(u.task.reference.t[-1])
+    d = u.task.action_repeat * u.task.dt / float(u.task.reference.t[-1])
     violations = 0
     for (r1, i1), (r2, i2) in zip(a, b):
         assert np.array_equal(i1["position"], i2["position"])
         excess = max(0.0, i1["contour_error_max"] - tol)
         violations += excess > 0
-        expected = r1 - i1["reward_time"] - i1["reward_contour"] - step_time - cost * excess / tol
-        assert r2 == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert r2 == pytest.approx(-d - cost * d * min(1.0, excess / tol), rel=1e-12, abs=1e-15)
         assert i2["tolerance_exceeded"] == (excess > 0)
         assert i2["violations"] == violations
     assert 0 < violations < len(b)  # the test sees both: the S-curve's corners at full feed exceed 4 um
     assert b[-1][1]["completed"]
-    total_time = -sum(i["reward_time"] for _, i in b)
-    assert total_time == pytest.approx(len(b) * step_time)
+    assert -sum(i["reward_time"] for _, i in b) == pytest.approx(len(b) * d)
+
+
+def test_running_out_of_time_costs_the_contour_left_as_if_over_t():
+    """At the time limit the tolerance task charges ``violation_cost`` times the fraction of the contour left: the
+    plain env's charge (um of contour error: the arc left over the reward scale) over the contour's length (the
+    reference's last arc length).  The dial held near 0 leaves most of the omega."""
+    from vcnc_gym.envs import step_kernel as sk
+
+    plain, tolerant = gym.make(ID), gym.make(ID, tolerance=0.01)
+    (_, i1), = _dialled_episode(plain, lambda k: -0.9)[-1:]
+    (r2, i2), = _dialled_episode(tolerant, lambda k: -0.9)[-1:]
+    assert not i1["completed"] and not i2["completed"]
+    u = tolerant.unwrapped
+    length = float(u.task.reference_arrays.samples[-1, sk.REF_ARC])
+    left = -i1["reward_incomplete"] * u.task.reward_scale / length
+    assert 0.5 < left < 1.0
+    assert i2["reward_incomplete"] == pytest.approx(-100.0 * left, rel=1e-12)
+    assert r2 == pytest.approx(i2["reward_time"] + i2["reward_tolerance"] + i2["reward_incomplete"], rel=1e-12)
 
 
 def test_the_violations_restart_with_the_episode():

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
+from . import step_kernel as sk
 from .contouring_env import ContouringEnv, check_actions
 from .retiming import padded_reference, retime
 from .signatures import forwarded_signature
@@ -35,9 +36,11 @@ MAX_TIME_LIMIT = 100.0
 #: of time (and pays for the contour left).
 DEFAULT_TIME_LIMIT = 3.0
 
-#: The tolerance task's cost of exceeding the contour tolerance T, per decision step, per T of excess: a step whose
-#: max contour error is 2 T costs as much as the whole cycle at full feed (the time term's unit).
-DEFAULT_VIOLATION_COST = 1.0
+#: The tolerance task's price of a decision step over the contour tolerance T, in decision steps of time: a step
+#: T or more over T costs as much as 100 steps of cycle time (less in proportion below T of excess).  A first try
+#: that priced the excess without a bound (1 full-feed cycle per T of excess per step) gave steps of -200 beside a
+#: time term of -0.0016: the agents learned to crawl and ran out of time (reproduction.md, "The tolerance task").
+DEFAULT_VIOLATION_COST = 100.0
 
 #: The contour tolerances of the tolerance task (issue 37), mm: Heidenhain's bands, 5-10 um for high accuracy and
 #: 10-20 um for finishing.
@@ -86,21 +89,28 @@ class FeedOverrideEnv(ContouringEnv):
     0.1 per step, against 0.1 per step for each um of mean contour error.
 
     **The tolerance task** (``tolerance=T``, mm; issue 37): the shortest
-    cycle time within a contour tolerance, a shop's objective.  The contour
-    error's reward is replaced by
+    cycle time within a contour tolerance, a shop's objective.  Every term
+    is in decision steps of time, normalised by the reference's duration at
+    full feed (``d``: the decision period over that duration, so a cycle at
+    full feed sums to 1):
 
-    - ``-(decision period) / (reference's duration at full feed)`` per step
-      until the tool arrives (``info["reward_time"]``): the episode's sum is
-      minus its cycle time in units of the full-feed duration;
-    - ``-violation_cost * max(0, e_max - T) / T`` per step whose max contour
-      error ``e_max`` exceeds T (``info["reward_tolerance"]``): with the
-      default 1, a step at 2 T costs as much as the whole cycle at full feed.
+    - ``-d`` per step until the tool arrives (``info["reward_time"]``): the
+      episode's sum is minus its cycle time in full-feed cycles;
+    - ``-violation_cost * d * min(1, (e_max - T) / T)`` per step whose max
+      contour error ``e_max`` exceeds T (``info["reward_tolerance"]``): with
+      the default 100, a step T over T costs 100 steps of time;
+    - the ends priced as if what was left were over T: on divergence
+      ``-violation_cost * d`` per decision step the contour had left, at the
+      time limit ``-violation_cost`` times the fraction of the contour left
+      (they replace ContouringEnv's divergence and time-limit terms, which
+      are in um of contour error; ``info["reward_divergence"]``,
+      ``info["reward_incomplete"]``).
 
+    ContouringEnv's contour-error term is left out; its effort term stays.
     ``info["tolerance_exceeded"]`` says whether the step exceeded T and
     ``info["violations"]`` counts the episode's steps that did: exceeding T
     is a failure, counted and reported, not an end (the part is finished,
-    and scrapped).  The effort, divergence and time-limit terms are
-    ContouringEnv's.
+    and scrapped).
 
     ## Episode End
 
@@ -115,8 +125,8 @@ class FeedOverrideEnv(ContouringEnv):
     ``time_limit``), plus ``override_rate`` (1/s, 10: the whole range in 0.1
     s), ``time_cost`` (mm, None: 0.001 without a tolerance; refused with
     one), ``time_limit`` (1, 3.0), ``tolerance`` (mm, None: the contouring
-    reward; T: the tolerance task) and ``violation_cost`` (1, 1.0: with a
-    tolerance only).
+    reward; T: the tolerance task) and ``violation_cost`` (decision steps of
+    time per step over T, 100.0: with a tolerance only).
 
     ## Version History
 
@@ -137,7 +147,7 @@ class FeedOverrideEnv(ContouringEnv):
                              "at full feed) in FeedOverrideEnv")
         self.override_rate = positive("override_rate", override_rate, "1/s")  # bool and str refused
         self.tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm of contour error")
-        self.violation_cost = non_negative("violation_cost", violation_cost, "full-feed cycles per T of excess")
+        self.violation_cost = non_negative("violation_cost", violation_cost, "decision steps of time per step over T")
         if self.tolerance is not None and time_cost is not None:
             raise ValueError("time_cost (mm of contour error per second) prices the contouring reward; with a "
                              "tolerance the time term is the cycle time itself: leave time_cost out")
@@ -167,6 +177,7 @@ class FeedOverrideEnv(ContouringEnv):
         self._violations = 0
         #: the time term of the tolerance task per decision step: the decision period over the full-feed duration
         self._step_time = self.task.action_repeat * dt / duration
+        self._length = float(self.task.reference_arrays.samples[-1, sk.REF_ARC])  # mm of contour
 
     def _make_batch(self) -> ContouringBatch:
         task = self.task
@@ -219,23 +230,27 @@ class FeedOverrideEnv(ContouringEnv):
         info["override"] = self._speed
         info["reference_time"] = self._tau * task.dt
         if self.tolerance is not None:
-            return obs, self._tolerance_reward(reward, info), terminated, truncated, info
+            return obs, self._tolerance_reward(info), terminated, truncated, info
         r_time = -self.time_cost / task.reward_scale  # a step is taken only before the tool has arrived
         info["reward_time"] = r_time
         return obs, reward + r_time, terminated, truncated, info
 
-    def _tolerance_reward(self, reward: float, info: dict) -> float:
-        """The tolerance task's reward (Rewards): the contouring term swapped for the time and the excess over T."""
+    def _tolerance_reward(self, info: dict) -> float:
+        """The tolerance task's reward (Rewards): time, the excess over T and the ends, in decision steps of time."""
+        task, d, cost = self.task, self._step_time, self.violation_cost
         excess = max(0.0, info["contour_error_max"] - self.tolerance)
         exceeded = excess > 0.0
         self._violations += exceeded
-        r_time = -self._step_time  # a step is taken only before the tool has arrived
-        r_tolerance = -self.violation_cost * excess / self.tolerance
-        info["reward_time"] = r_time
-        info["reward_tolerance"] = r_tolerance
-        info["tolerance_exceeded"] = exceeded
-        info["violations"] = self._violations
-        return reward - info["reward_contour"] + r_time + r_tolerance
+        r_time = -d  # a step is taken only before the tool has arrived
+        r_tolerance = -cost * d * min(1.0, excess / self.tolerance)
+        # the kernel's ends, in um of contour error, turned into steps over T: the steps the contour had left, the
+        # fraction of the contour left
+        steps_left = -info["reward_divergence"] * task.reward_scale / task.divergence_bound
+        r_divergence = -cost * d * steps_left
+        r_incomplete = -cost * (-info["reward_incomplete"] * task.reward_scale) / self._length
+        info.update(reward_time=r_time, reward_tolerance=r_tolerance, reward_divergence=r_divergence,
+                    reward_incomplete=r_incomplete, tolerance_exceeded=exceeded, violations=self._violations)
+        return r_time + r_tolerance + r_divergence + r_incomplete + info["reward_effort"]
 
 
 FeedOverrideEnv.__init__.__signature__ = forwarded_signature(FeedOverrideEnv.__init__, ContouringEnv.__init__,
