@@ -13,6 +13,7 @@ from gymnasium.utils.env_checker import check_env
 
 import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
+from vcnc_gym.envs import step_kernel as sk
 from vcnc_bench.reports import tolerance as tl
 from vcnc_bench.reports.feed_override import classical_front
 
@@ -42,30 +43,33 @@ def test_the_tolerance_reward_is_time_plus_the_priced_excess():
     tol, cost = 0.004, 25.0
     dial = lambda k: 1.0 if k < 2500 else -0.2  # noqa: E731  (full feed through the first corners, then slower)
     plain = gym.make(ID)
-    tolerant = gym.make(ID, tolerance=tol, violation_cost=cost)
+    tolerant = gym.make(ID, tolerance=tol, violation_cost=cost, progress_reward=2.5)
     a, b = _dialled_episode(plain, dial), _dialled_episode(tolerant, dial)
+    length = float(tolerant.unwrapped.task.reference_arrays.samples[-1, sk.REF_ARC])
     assert len(a) == len(b)
     u = tolerant.unwrapped
     d = u.task.action_repeat * u.task.dt / float(u.task.reference.t[-1])
-    violations = 0
+    violations, passed = 0, 0.0
     for (r1, i1), (r2, i2) in zip(a, b):
         assert np.array_equal(i1["position"], i2["position"])
         excess = max(0.0, i1["contour_error_max"] - tol)
         violations += excess > 0
-        assert r2 == pytest.approx(-d - cost * d * min(1.0, excess / tol), rel=1e-12, abs=1e-15)
+        progress = 2.5 * (i1["progress"] - passed) / length
+        passed = i1["progress"]
+        assert r2 == pytest.approx(-d - cost * d * min(1.0, excess / tol) + progress, rel=1e-12, abs=1e-15)
         assert i2["tolerance_exceeded"] == (excess > 0)
         assert i2["violations"] == violations
     assert 0 < violations < len(b)  # the test sees both: the S-curve's corners at full feed exceed 4 um
     assert b[-1][1]["completed"]
     assert -sum(i["reward_time"] for _, i in b) == pytest.approx(len(b) * d)
+    # the shaping's sum is the contour passed: all of it, but the completion's 20 um
+    assert sum(i["reward_progress"] for _, i in b) == pytest.approx(2.5, abs=2.5 * 0.021 / length)
 
 
 def test_running_out_of_time_costs_the_contour_left_as_if_over_t():
     """At the time limit the tolerance task charges ``violation_cost`` times the fraction of the contour left: the
     plain env's charge (um of contour error: the arc left over the reward scale) over the contour's length (the
     reference's last arc length).  The dial held near 0 leaves most of the omega."""
-    from vcnc_gym.envs import step_kernel as sk
-
     plain, tolerant = gym.make(ID), gym.make(ID, tolerance=0.01)
     (_, i1), = _dialled_episode(plain, lambda k: -0.9)[-1:]
     (r2, i2), = _dialled_episode(tolerant, lambda k: -0.9)[-1:]
@@ -75,7 +79,8 @@ def test_running_out_of_time_costs_the_contour_left_as_if_over_t():
     left = -i1["reward_incomplete"] * u.task.reward_scale / length
     assert 0.5 < left < 1.0
     assert i2["reward_incomplete"] == pytest.approx(-100.0 * left, rel=1e-12)
-    assert r2 == pytest.approx(i2["reward_time"] + i2["reward_tolerance"] + i2["reward_incomplete"], rel=1e-12)
+    assert r2 == pytest.approx(i2["reward_time"] + i2["reward_tolerance"] + i2["reward_progress"]
+                               + i2["reward_incomplete"], rel=1e-12)
 
 
 def test_the_violations_restart_with_the_episode():
@@ -94,7 +99,8 @@ def test_the_tolerance_env_passes_gymnasium_s_checker():
     ({"tolerance": -0.01}, "tolerance"), ({"tolerance": 0.0}, "tolerance"), ({"tolerance": "0.01"}, "tolerance"),
     ({"tolerance": True}, "tolerance"), ({"tolerance": math.nan}, "tolerance"),
     ({"tolerance": 0.01, "time_cost": 1e-3}, "time_cost"), ({"tolerance": 0.01, "violation_cost": -1.0},
-                                                            "violation_cost")])
+                                                            "violation_cost"),
+    ({"tolerance": 0.01, "progress_reward": -1.0}, "progress_reward")])
 def test_a_bad_tolerance_argument_is_refused_by_name(kwargs, word):
     with pytest.raises((ValueError, TypeError), match=word):
         gym.make(ID, **kwargs)

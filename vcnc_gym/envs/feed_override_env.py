@@ -15,7 +15,7 @@ from .task import ContouringBatch
 from ..validation import non_negative, positive, real, size
 
 __all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT",
-           "DEFAULT_VIOLATION_COST", "TOLERANCES"]
+           "DEFAULT_VIOLATION_COST", "DEFAULT_PROGRESS_REWARD", "TOLERANCES"]
 
 #: How fast the override follows its dial, 1/s: the whole range in 0.1 s.  The re-timed reference's extra
 #: acceleration, rate x feed, is then 1e3 mm/s^2 at 100 mm/s, within the ~2.6e3 mm/s^2 of Jahanpour et al.
@@ -45,6 +45,12 @@ DEFAULT_VIOLATION_COST = 100.0
 #: The contour tolerances of the tolerance task (issue 37), mm: Heidenhain's bands, 5-10 um for high accuracy and
 #: 10-20 um for finishing.
 TOLERANCES = (0.005, 0.01, 0.02)
+
+#: The tolerance task's reward for progress along the contour, in full-feed cycles per contour: a potential-based
+#: shaping (Ng, Harada and Russell 1999; its sum is the same on every finished episode), so that moving on is
+#: paid when it happens and not only through the cycle time's end.  Without it the agents of a second try held the
+#: dial near 0 and ran out of time (reproduction.md, "The tolerance task").
+DEFAULT_PROGRESS_REWARD = 10.0
 
 
 class FeedOverrideEnv(ContouringEnv):
@@ -99,6 +105,11 @@ class FeedOverrideEnv(ContouringEnv):
     - ``-violation_cost * d * min(1, (e_max - T) / T)`` per step whose max
       contour error ``e_max`` exceeds T (``info["reward_tolerance"]``): with
       the default 100, a step T over T costs 100 steps of time;
+    - ``progress_reward * (arc passed in the step) / (contour length)``
+      (``info["reward_progress"]``, default 10): a potential-based shaping
+      (Ng, Harada and Russell 1999) whose sum is ``progress_reward`` on every
+      finished episode, so the ranking of finished episodes is the cycle
+      time's and the excess's; it pays for moving on when it happens;
     - the ends priced as if what was left were over T: on divergence
       ``-violation_cost * d`` per decision step the contour had left, at the
       time limit ``-violation_cost`` times the fraction of the contour left
@@ -125,8 +136,9 @@ class FeedOverrideEnv(ContouringEnv):
     ``time_limit``), plus ``override_rate`` (1/s, 10: the whole range in 0.1
     s), ``time_cost`` (mm, None: 0.001 without a tolerance; refused with
     one), ``time_limit`` (1, 3.0), ``tolerance`` (mm, None: the contouring
-    reward; T: the tolerance task) and ``violation_cost`` (decision steps of
-    time per step over T, 100.0: with a tolerance only).
+    reward; T: the tolerance task), ``violation_cost`` (decision steps of
+    time per step over T, 100.0) and ``progress_reward`` (full-feed cycles
+    per contour, 10.0), both with a tolerance only.
 
     ## Version History
 
@@ -141,13 +153,15 @@ class FeedOverrideEnv(ContouringEnv):
 
     def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, time_cost: float | None = None,
                  time_limit: float = DEFAULT_TIME_LIMIT, tolerance: float | None = None,
-                 violation_cost: float = DEFAULT_VIOLATION_COST, render_mode: str | None = None, **kwargs):
+                 violation_cost: float = DEFAULT_VIOLATION_COST, progress_reward: float = DEFAULT_PROGRESS_REWARD,
+                 render_mode: str | None = None, **kwargs):
         if "completion_timeout" in kwargs:
             raise ValueError("completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
                              "at full feed) in FeedOverrideEnv")
         self.override_rate = positive("override_rate", override_rate, "1/s")  # bool and str refused
         self.tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm of contour error")
         self.violation_cost = non_negative("violation_cost", violation_cost, "decision steps of time per step over T")
+        self.progress_reward = non_negative("progress_reward", progress_reward, "full-feed cycles per contour")
         if self.tolerance is not None and time_cost is not None:
             raise ValueError("time_cost (mm of contour error per second) prices the contouring reward; with a "
                              "tolerance the time term is the cycle time itself: leave time_cost out")
@@ -175,6 +189,7 @@ class FeedOverrideEnv(ContouringEnv):
         self._tau = 0.0
         self._speed = 1.0
         self._violations = 0
+        self._progress = 0.0
         #: the time term of the tolerance task per decision step: the decision period over the full-feed duration
         self._step_time = self.task.action_repeat * dt / duration
         self._length = float(self.task.reference_arrays.samples[-1, sk.REF_ARC])  # mm of contour
@@ -200,6 +215,7 @@ class FeedOverrideEnv(ContouringEnv):
         self._tau = 0.0
         self._speed = 1.0
         self._violations = 0
+        self._progress = 0.0
         obs, info = super().reset(seed=seed, options=options)
         self._batch.buffers.reference_end[0] = np.iinfo(np.int64).max  # until the re-timed clock gets there
         return obs, info
@@ -208,11 +224,13 @@ class FeedOverrideEnv(ContouringEnv):
         return {**super()._episode_arrays(), "reference.samples": self._buffer}  # the re-timed reference
 
     def _episode_state(self) -> dict:
-        return {**super()._episode_state(), "tau": self._tau, "speed": self._speed, "violations": self._violations}
+        return {**super()._episode_state(), "tau": self._tau, "speed": self._speed, "violations": self._violations,
+                "progress": self._progress}
 
     def _restore_episode(self, state: dict) -> None:
         super()._restore_episode(state)
         self._tau, self._speed, self._violations = state["tau"], state["speed"], state["violations"]
+        self._progress = state["progress"]
 
     def step(self, action):
         if self._done:
@@ -248,9 +266,12 @@ class FeedOverrideEnv(ContouringEnv):
         steps_left = -info["reward_divergence"] * task.reward_scale / task.divergence_bound
         r_divergence = -cost * d * steps_left
         r_incomplete = -cost * (-info["reward_incomplete"] * task.reward_scale) / self._length
+        r_progress = self.progress_reward * (info["progress"] - self._progress) / self._length
+        self._progress = info["progress"]
         info.update(reward_time=r_time, reward_tolerance=r_tolerance, reward_divergence=r_divergence,
-                    reward_incomplete=r_incomplete, tolerance_exceeded=exceeded, violations=self._violations)
-        return r_time + r_tolerance + r_divergence + r_incomplete + info["reward_effort"]
+                    reward_incomplete=r_incomplete, reward_progress=r_progress, tolerance_exceeded=exceeded,
+                    violations=self._violations)
+        return r_time + r_tolerance + r_progress + r_divergence + r_incomplete + info["reward_effort"]
 
 
 FeedOverrideEnv.__init__.__signature__ = forwarded_signature(FeedOverrideEnv.__init__, ContouringEnv.__init__,
