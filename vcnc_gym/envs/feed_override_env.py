@@ -145,6 +145,9 @@ class FeedOverrideEnv(ContouringEnv):
     - v1 (``VCNC-OmegaOverride-v1``): initial release (issue 24); the omega
       of ``VCNC-Omega-v1`` with the override.  The ``tolerance`` argument
       (issue 37) came later; its default, None, leaves the env as it was.
+    - v1 (``VCNC-OmegaOverrideShop-v1``): initial release (issue 37); the
+      same omega on the shop floor (``shop_floor=True``), the tolerance
+      task's shop-floor twin.
     """
 
     #: Classical controllers that read the reference ahead from a table computed once (feedforward, ZPETC, the
