@@ -245,7 +245,6 @@ def test_the_comparison_scraps_runs_over_t_and_judges_the_cycle_time_by_the_benc
     k = int(0.25 * finite.size)
     middle = finite[k:finite.size - k]
     assert float(v["iqm_x"]) == pytest.approx(middle.mean())  # "inf" where the middle half holds a scrapped run
-    assert v["outcome"] in ("wins", "ties", "loses")
     with pytest.raises(ValueError, match="T = 10"):
         tl.compare(seeds, search, 0.01)
     with pytest.raises(ValueError, match="other plants"):

@@ -185,6 +185,12 @@ def _run(env_id: str, controller: str, setting: Setting, parameters: np.ndarray,
     finally:
         batch.close()
         env.close()
+    return _grid_run(controller, setting, runs)
+
+
+def _grid_run(controller: str, setting: Setting, runs) -> GridRun:
+    """A :class:`GridRun` from the bench's :class:`~vcnc_bench.robust.PlantRuns`: a diverged plant's error and an
+    unreached or diverged cycle infinite."""
     bad = runs.diverged
     return GridRun(controller, setting, np.where(bad, np.inf, runs.max_um),
                    np.where(np.isnan(runs.cycle_time_s) | bad, np.inf, runs.cycle_time_s))
@@ -335,9 +341,7 @@ def run_mpcc(override_id: str, parameters: np.ndarray, *, caps=MPCC_CAPS, progre
                 r = run_plants(policy, batch, parameters, decision_period=u.decision_period)
             finally:
                 batch.close()
-            bad = r.diverged
-            runs.append(GridRun("mpcc", Setting(round(cap * feed, 6)), np.where(bad, np.inf, r.max_um),
-                                np.where(np.isnan(r.cycle_time_s) | bad, np.inf, r.cycle_time_s)))
+            runs.append(_grid_run("mpcc", Setting(round(cap * feed, 6)), r))
             if progress is not None:
                 progress(f"{override_id} mpcc, progress capped at {cap * feed:g} mm/s: nominal {r.max_um[0]:.4g} um "
                          f"in {r.cycle_time_s[0]:.4g} s ({time.perf_counter() - t0:.0f} s)")
