@@ -116,7 +116,8 @@ class DecisionEnv:
     one ``step`` with the env's own action repeat.  An id without a native
     vector env (the feed override, the random contours) runs N Gymnasium envs,
     each wrapped by the action mode, in a ``SyncVectorEnv``
-    (:func:`vcnc_agents.vec_env.per_env_batch`): the same decisions, slower.
+    (:func:`vcnc_agents.vec_env.per_env_batch`): the same decisions, slower; so does a residual over a
+    baseline commissioned per machine on plants drawn at reset (each wrapper commissions its new plant).
     An ended env is reset at once (its last observation returned apart) and a
     Monitor row written.
 
@@ -144,7 +145,9 @@ class DecisionEnv:
                  monitor_dir=None, start_steps: int = 0, append: bool = False):
         from vcnc_gym.envs.registry import VECTOR_IDS
 
-        self.native = env_id in VECTOR_IDS
+        # A baseline commissioned per machine is commissioned again at each reset that draws a plant by its
+        # per-env wrapper (ResidualAction.reset); the native batch has no such step.
+        self.native = env_id in VECTOR_IDS and not (mode.commissions_per_machine and env_kwargs.get("randomize"))
         make = native_batch if self.native else per_env_batch
         self.venv, self.baseline, self.controller, self.repeat = make(env_id, n_envs, mode, env_kwargs)
         self.mode = mode

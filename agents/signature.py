@@ -21,7 +21,8 @@ __all__ = ["env_signature", "check_signature", "check_env_signature", "observati
 
 
 #: Fields of :func:`env_signature` with their unit, in the order they are reported.
-_SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "dt": " s",
+_SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "shop_floor": "",
+                    "dt": " s",
                     "feedrate": " mm/s", "ramp_time": " s", "preview_steps": " control periods",
                     "contour_ahead": " mm", "observation_shape": "", "action_shape": ""}
 
@@ -41,6 +42,16 @@ def _curve_digest(curve) -> str | None:
     for a in (curve.control_points, curve.weights, curve.knots):
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     return h.hexdigest()[:16]
+
+
+def _shop_floor(plant) -> dict | None:
+    """The shop-floor settings of ``plant``: {effect parameter: [x, y] nominal value} of the effects
+    :func:`vcnc_gym.plants.shop_floor.shop_floor` composed on it (units those of its Parameters), None for the
+    ideal machine."""
+    inner = getattr(plant, "inner", None)
+    if inner is None:
+        return None
+    return {p.name: [float(v) for v in p.nominal] for p in plant.parameters[inner.n_parameters:]}
 
 
 def env_signature(env) -> dict:
@@ -65,6 +76,7 @@ def env_signature(env) -> dict:
         "curve_sha256": _curve_digest(_attr(u, "curve")),
         "plant": _attr(u, "plant.name"),
         "plant_options": yaml.safe_load(yaml.safe_dump(dict(options))),
+        "shop_floor": _shop_floor(_attr(u, "task.plant")),
         **{k: None if v is None else float(v) for k, v in floats.items()},
         "preview_steps": None if preview is None else [int(s) for s in preview],
         "contour_ahead": None if ahead is None else [float(a) for a in ahead],
@@ -84,7 +96,7 @@ def _same(a, b) -> bool:
 ANY_CONTOUR_IDS = ("VCNC-RandomContour-v1",)
 
 #: The signature fields that describe the machine and the observation, not the part.
-MACHINE_FIELDS = ("plant", "plant_options", "dt", "preview_steps", "contour_ahead", "observation_shape",
+MACHINE_FIELDS = ("plant", "plant_options", "shop_floor", "dt", "preview_steps", "contour_ahead", "observation_shape",
                   "action_shape")
 
 
@@ -94,12 +106,15 @@ def check_signature(recorded: dict, given: dict, *, what: str = "the agent", all
     An unknown id on either side (an env made without ``gym.make``) is not
     compared; fields the recorded signature lacks are not compared; an agent
     trained on an id of :data:`ANY_CONTOUR_IDS` is compared on the
-    :data:`MACHINE_FIELDS` only.  With ``allow_mismatch`` the differences are
+    :data:`MACHINE_FIELDS` only (one recorded before its signature had ``shop_floor`` was trained on the ideal
+    machine: every such generalist was).  With ``allow_mismatch`` the differences are
     a warning instead, except a different observation or action shape, which
     no agent can run on.
     """
     diffs, fatal = [], False
     generalist = recorded.get("id") in ANY_CONTOUR_IDS
+    if generalist and "shop_floor" not in recorded:
+        recorded = {**recorded, "shop_floor": None}
     for key, unit in _SIGNATURE_UNITS.items():
         if key not in recorded or key not in given or (key == "id" and (recorded[key] is None or given[key] is None)):
             continue

@@ -72,6 +72,10 @@ def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | 
         raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
                          f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
     kwargs["action_repeat"] = env_repeat
+    if mode.commissions_per_machine and kwargs.get("randomize"):
+        raise ValueError(f"baseline {mode.baseline!r} is commissioned per machine, and the native vector env does "
+                         "not commission it again when an env draws a new plant at reset (randomize=True): "
+                         "train it on per-env wrappers (the lean trainer does: vcnc_agents.vec_env.per_env_batch)")
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
     baseline = mode.make_baseline(venv)

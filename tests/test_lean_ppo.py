@@ -401,6 +401,30 @@ def test_an_id_without_a_native_vector_env_steps_as_its_wrapped_envs(env_id):
     batch.close()
 
 
+def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_plant_drawn():
+    """``ff-pid@machine`` identifies the machine it runs on.  On plants drawn at every reset, the native vector env
+    would keep the first plants' commissioning (it has no step that commissions again): it is refused, naming the
+    baseline, and the lean trainer steps per-env wrappers instead, whose baselines are commissioned, after each
+    reset, for the very plant their env drew (checked against ``commission`` run here on that plant)."""
+    from vcnc_agents.vec_env import native_batch
+    from vcnc_baselines.commissioning.record import commission
+
+    mode = ActionMode("residual", action_repeat=5, baseline="ff-pid@machine", correction=0.3)
+    assert mode.commissions_per_machine and not ActionMode("residual", baseline="ff-pid", correction=0.3,
+                                                           action_repeat=5).commissions_per_machine
+    with pytest.raises(ValueError, match="'ff-pid@machine' is commissioned per machine"):
+        native_batch("VCNC-HeartShop-v1", 2, mode, {"randomize": True})
+    batch = DecisionEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=3)
+    assert not batch.native
+    batch.reset()
+    for env in batch.venv.envs:
+        u = env.unwrapped
+        assert not np.array_equal(u.parameters, u.nominal_parameters)  # a plant of the box, not the nominal one
+        own = commission(u.task, "machine", np.asarray(u.parameters)[None])
+        np.testing.assert_array_equal(env.baseline.records[0].gains()["kp"], own[0].gains()["kp"])
+    batch.close()
+
+
 def test_the_lean_trainer_is_the_default_and_trains_the_feed_override(tmp_path):
     """No --trainer: the lean one, on an id without a native vector env too; its agent loads in the bench."""
     entry = load_hyperparameters("VCNC-OmegaOverride-v1", "agents/hyperparams/override.yml")

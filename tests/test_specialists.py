@@ -72,6 +72,25 @@ def test_a_generalist_signature_fits_any_contour_of_its_machine_and_no_other():
         check_signature(specialist, env_signature(gym.make("VCNC-Butterfly-v1")))
 
 
+def test_a_generalist_signature_tells_the_shop_floor_from_the_ideal_machine():
+    """The signature records the shop-floor settings (issue 37, item 3): a generalist trained on the shop floor's
+    random contours fits the shop-floor heart and omega, not the ideal heart; an ideal generalist, and one recorded
+    before the field (every such one was ideal), is refused on the shop floor, naming the field."""
+    shop = env_signature(gym.make("VCNC-RandomContour-v1", shop_floor=True))
+    assert shop["shop_floor"]["mode_frequency"] == [150.0, 150.0]
+    for env_id in ("VCNC-HeartShop-v1", "VCNC-OmegaLookaheadShop-v1"):
+        check_signature(shop, env_signature(gym.make(env_id)))
+    with pytest.raises(ValueError, match="shop_floor: trained on"):
+        check_signature(shop, env_signature(gym.make("VCNC-Heart-v1")))
+    ideal = env_signature(gym.make("VCNC-RandomContour-v1"))
+    assert ideal["shop_floor"] is None
+    before = {k: v for k, v in ideal.items() if k != "shop_floor"}
+    for recorded in (ideal, before):
+        with pytest.raises(ValueError, match="shop_floor: trained on None"):
+            check_signature(recorded, env_signature(gym.make("VCNC-HeartShop-v1")))
+        check_signature(recorded, env_signature(gym.make("VCNC-Heart-v1")))
+
+
 def test_the_residual_wrapper_replans_its_baseline_for_each_random_contour():
     """ResidualAction over a model-based baseline hands every new contour to it: after each reset the baseline's
     table is built from the env's current reference (not the first contour's)."""
