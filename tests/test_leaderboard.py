@@ -67,6 +67,25 @@ def test_a_users_policy_joins_the_board_and_replaces_its_own_row(tmp_path):
     assert (tmp_path / "leaderboard_profile.png").stat().st_size > 1000
 
 
+def test_a_retired_policy_is_dropped_from_the_board_on_every_id_and_an_unknown_one_named(tmp_path, capsys):
+    page = tmp_path / "leaderboard.md"
+    leaderboard.write(page, leaderboard.rows_of(_default_json()))
+    mine = _bench([_nominal("A", "mine:v2", 1.2, 0.6, kind="mine")], command="vcnc-bench --policy mine:v2")
+    leaderboard.main([str(_write(tmp_path / "v2.json", mine)), "--out", str(page), "--drop", "ppo"])
+    rows = json.loads(page.with_suffix(".json").read_text())["rows"]
+    assert not any(r["policy"] == "ppo" for r in rows) and len(rows) == 15 - 3 + 1
+    assert "`ppo`" not in page.read_text() and "`mine:v2`" in page.read_text()
+    with pytest.raises(SystemExit):
+        leaderboard.main([str(tmp_path / "v2.json"), "--out", str(page), "--drop", "ppo"])
+    err = capsys.readouterr().err
+    assert "no row of" in err and "the policy 'ppo'" in err
+
+
+def _write(path, data):
+    path.write_text(json.dumps(data))
+    return path
+
+
 def test_profile_is_the_fraction_of_ids_at_or_above_tau():
     board = leaderboard.ranked(leaderboard.rows_of(_default_json()))
     curves = leaderboard.profile(board, taus=[0.0, 0.5, 0.9, 1.0])

@@ -283,13 +283,18 @@ def _plot(curves: dict[str, np.ndarray], board: dict[str, list[dict]], path: Pat
     plt.close(fig)
 
 
-def write(page: Path, new_rows: list[dict], add: bool = True) -> Path:
-    """Merge ``new_rows`` into the board beside ``page`` (its ``leaderboard.json``; replaced unless ``add``), and
-    write the page and its profile figure; returns the page."""
+def write(page: Path, new_rows: list[dict], add: bool = True, drop: tuple[str, ...] = ()) -> Path:
+    """Merge ``new_rows`` into the board beside ``page`` (its ``leaderboard.json``; replaced unless ``add``), less
+    the board's rows of the policies in ``drop`` (a row's policy as the page names it, such as
+    ``"ppo:runs/seeds/VCNC-Heart-v1 (5 seeds)"``: a run retired by a newer one), and write the page and its profile
+    figure; returns the page.  ValueError naming a policy of ``drop`` that no row of the board has."""
     page = Path(page)
     data = page.with_name(page.stem + ".json")
     old = json.loads(data.read_text())["rows"] if add and data.is_file() else []
-    rows = merge(old, new_rows)
+    missing = [p for p in drop if not any(r["policy"] == p for r in old)]
+    if missing:
+        raise ValueError(f"--drop: no row of {data} has the policy {missing[0]!r}")
+    rows = merge([r for r in old if r["policy"] not in drop], new_rows)
     board = ranked(rows)
     curves = profile(board)
     figure = page.with_name(page.stem + "_profile.png")
@@ -305,6 +310,9 @@ def main(argv=None) -> int:
     p.add_argument("json", nargs="+", type=Path, help="vcnc-bench --json outputs (default or --plants)")
     p.add_argument("--out", type=Path, default=Path("docs/leaderboard.md"), help="the page (default %(default)s)")
     p.add_argument("--replace", action="store_true", help="start the board afresh instead of adding to it")
+    p.add_argument("--drop", action="append", default=[], metavar="POLICY",
+                   help="remove the board's rows of this policy, as the page names it (e.g. 'ppo:runs/seeds/ID "
+                        "(5 seeds)', a run a newer one retires); repeatable")
     args = p.parse_args(argv)
     rows: list[dict] = []
     for path in args.json:
@@ -312,7 +320,10 @@ def main(argv=None) -> int:
             rows = merge(rows, rows_of(json.loads(path.read_text())))
         except (OSError, ValueError, KeyError) as exc:
             p.error(f"{path}: not a vcnc-bench JSON ({exc})")
-    page = write(args.out, rows, add=not args.replace)
+    try:
+        page = write(args.out, rows, add=not args.replace, drop=tuple(args.drop))
+    except ValueError as exc:
+        p.error(str(exc))
     print(f"wrote {page} ({len(rows)} rows from {len(args.json)} JSON file(s))")
     return 0
 
