@@ -59,7 +59,7 @@ from .run_config import RunConfig
 from .run_folder import best_of, checkpoint_files, read_evaluations, save_agent, save_model, write_evaluations
 from .run_session import Session, TrainingResult, open_run, prepare_run, roll_back_to, start_folder
 from .run_warning import note
-from .vec_env import monitor_writers, native_batch, per_env_batch
+from .vec_env import commission_drawn_plants, monitor_writers, native_batch, per_env_batch
 
 __all__ = ["TRAINERS", "sb3_only", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
 
@@ -116,10 +116,10 @@ class DecisionEnv:
     one ``step`` with the env's own action repeat.  An id without a native
     vector env (the feed override, the random contours) runs N Gymnasium envs,
     each wrapped by the action mode, in a ``SyncVectorEnv``
-    (:func:`vcnc_agents.vec_env.per_env_batch`): the same decisions, slower; so does a residual over a
-    baseline commissioned per machine on plants drawn at reset (each wrapper commissions its new plant).
-    An ended env is reset at once (its last observation returned apart) and a
-    Monitor row written.
+    (:func:`vcnc_agents.vec_env.per_env_batch`): the same decisions, slower.  A residual over a baseline
+    commissioned per machine (``ff-pid@machine``) has the plants the envs drew at their reset commissioned before
+    their next decision (:func:`vcnc_agents.vec_env.commission_drawn_plants`).  An ended env is reset at once
+    (its last observation returned apart) and a Monitor row written.
 
     Parameters
     ----------
@@ -145,9 +145,7 @@ class DecisionEnv:
                  monitor_dir=None, start_steps: int = 0, append: bool = False):
         from vcnc_gym.envs.registry import VECTOR_IDS
 
-        # A baseline commissioned per machine is commissioned again at each reset that draws a plant by its
-        # per-env wrapper (ResidualAction.reset); the native batch has no such step.
-        self.native = env_id in VECTOR_IDS and not (mode.commissions_per_machine and env_kwargs.get("randomize"))
+        self.native = env_id in VECTOR_IDS
         make = native_batch if self.native else per_env_batch
         self.venv, self.baseline, self.controller, self.repeat = make(env_id, n_envs, mode, env_kwargs)
         self.mode = mode
@@ -191,6 +189,7 @@ class DecisionEnv:
             self.history.push(self._obs, active)
         if self.controller is not None:
             if self._start.any():
+                self.controller = commission_drawn_plants(self.baseline, self.venv, self.controller)
                 self.baseline.reset(mask=self._start)
                 self._start[:] = False
             obs, total, te, tr, _ = self.venv.step_controlled(self.controller, actions, self.mode.correction,
@@ -201,6 +200,8 @@ class DecisionEnv:
         n = self.n
         total, te_all, tr_all = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         obs = self._obs
+        if self.native and self.baseline is not None and self._start.any():
+            commission_drawn_plants(self.baseline, self.venv, None)
         for _ in range(self.repeat):
             base = None
             if self.baseline is not None:

@@ -36,7 +36,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from .action_modes import ActionMode
 
-__all__ = ["VcncVecEnv", "NativeBatch", "native_batch", "per_env_batch", "monitor_writers"]
+__all__ = ["VcncVecEnv", "NativeBatch", "native_batch", "per_env_batch", "commission_drawn_plants", "monitor_writers"]
 
 
 class NativeBatch(NamedTuple):
@@ -72,15 +72,21 @@ def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | 
         raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
                          f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
     kwargs["action_repeat"] = env_repeat
-    if mode.commissions_per_machine and kwargs.get("randomize"):
-        raise ValueError(f"baseline {mode.baseline!r} is commissioned per machine, and the native vector env does "
-                         "not commission it again when an env draws a new plant at reset (randomize=True): "
-                         "train it on per-env wrappers (the lean trainer does: vcnc_agents.vec_env.per_env_batch)")
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
     baseline = mode.make_baseline(venv)
     controller = baseline.compiled(n_envs) if baseline is not None and compiled else None
     return NativeBatch(venv, baseline, controller, mode.action_repeat if residual else 1)
+
+def commission_drawn_plants(baseline, venv, controller):
+    """The controller to step after some envs of ``venv`` reset: a residual's baseline commissioned per machine
+    (``ff-pid@machine``; :meth:`vcnc_baselines.servo.ServoPolicy.commission_again`) first identifies the plants
+    those envs drew, so that its law fits each env's own machine; ``controller`` again for any other baseline, or
+    when no plant changed."""
+    again = getattr(baseline, "commission_again", None)
+    fresh = again(venv) if again is not None else None
+    return controller if fresh is None or controller is None else fresh
+
 
 def per_env_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None) -> NativeBatch:
     """For an id without a native vector env (the feed override, the random contours): ``n_envs`` Gymnasium envs,
@@ -166,6 +172,7 @@ class VcncVecEnv(VecEnv):
             raise RuntimeError("step() called before reset()")
         if self.controller is not None:
             if self._start.any():
+                self.controller = commission_drawn_plants(self.baseline, self.venv, self.controller)
                 self.baseline.reset(mask=self._start)
                 self._start[:] = False
             obs, total, terminated, truncated, last_info = self.venv.step_controlled(
@@ -180,6 +187,8 @@ class VcncVecEnv(VecEnv):
         truncated = np.zeros(n, dtype=bool)
         last_info = None
         obs = self._obs
+        if self.baseline is not None and self._start.any():
+            commission_drawn_plants(self.baseline, self.venv, None)
         for _ in range(self.repeat):
             base = None
             if self.baseline is not None:

@@ -225,8 +225,9 @@ class ServoPolicy(BaselinePolicy):
         return model_record(self.plant, self.nominal_parameters, self.dt)
 
     def _commission_machines(self, env) -> bool:
-        """With ``commissioning="machine"``: identify each plant ``env`` holds now (once per set of plants);
-        True if the records changed."""
+        """With ``commissioning="machine"``: identify the plants ``env`` holds now that were not identified
+        before (every plant of a new set; of the same N envs, those whose plant changed, such as the envs of a
+        vector env that drew a new plant at their reset); True if the records changed."""
         if self.commissioning != "machine":
             return False
         from .commissioning.record import commission
@@ -234,13 +235,31 @@ class ServoPolicy(BaselinePolicy):
         u = getattr(env, "unwrapped", env)
         params = np.asarray(u.parameters, dtype=np.float64)
         params = params[None] if params.ndim == 2 else params
-        if self._commissioned_for is not None and self._commissioned_for == params.tobytes():
+        done = self._commissioned_for
+        if done is not None and done.shape == params.shape:
+            changed = np.flatnonzero(np.any(done != params, axis=tuple(range(1, params.ndim))))
+        else:
+            changed = np.arange(params.shape[0])
+        if changed.size == 0:
             return False
         task = self.identification_task or getattr(u, "task", None) or self.task
-        self.records = commission(task, "machine", params)
-        self.identification_s = float(sum(r.identification_s for r in self.records))
-        self._commissioned_for = params.tobytes()
+        records = list(self.records) if changed.size < params.shape[0] else [None] * params.shape[0]
+        for i, record in zip(changed, commission(task, "machine", params[changed])):
+            records[i] = record
+        self.records = records
+        self.identification_s = float(sum(r.identification_s for r in records))
+        self._commissioned_for = params.copy()
         return True
+
+    def commission_again(self, env):
+        """With ``commissioning="machine"``: commission the plants ``env``'s envs drew since the last call
+        (:meth:`_commission_machines`) and rebuild the law; the compiled form around the current memory if the law
+        changed (what a native vector env steps), else None.  What a trainer calls after a reset that draws plants
+        (``randomize=True``): the law then fits every env's own machine."""
+        if not self._commission_machines(env):
+            return None
+        self._build()
+        return self._compiled_arrays()
 
     def identify_on(self, task) -> None:
         """With ``commissioning="machine"``: identify the machines while their axes follow ``task``'s reference

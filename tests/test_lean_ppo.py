@@ -402,26 +402,34 @@ def test_an_id_without_a_native_vector_env_steps_as_its_wrapped_envs(env_id):
 
 
 def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_plant_drawn():
-    """``ff-pid@machine`` identifies the machine it runs on.  On plants drawn at every reset, the native vector env
-    would keep the first plants' commissioning (it has no step that commissions again): it is refused, naming the
-    baseline, and the lean trainer steps per-env wrappers instead, whose baselines are commissioned, after each
-    reset, for the very plant their env drew (checked against ``commission`` run here on that plant)."""
-    from vcnc_agents.vec_env import native_batch
+    """``ff-pid@machine`` identifies the machine it runs on.  On plants drawn at every reset the lean trainer's
+    native envs commission, before the next decision, the plants the reset envs drew, and only those: after the
+    first reset every env's record is the one ``commission`` gives for its plant (run here on that plant alone);
+    after one env's reset its record is new, the others' are the same objects, and the kernel steps the law built
+    from them."""
     from vcnc_baselines.commissioning.record import commission
 
     mode = ActionMode("residual", action_repeat=5, baseline="ff-pid@machine", correction=0.3)
     assert mode.commissions_per_machine and not ActionMode("residual", baseline="ff-pid", correction=0.3,
                                                            action_repeat=5).commissions_per_machine
-    with pytest.raises(ValueError, match="'ff-pid@machine' is commissioned per machine"):
-        native_batch("VCNC-HeartShop-v1", 2, mode, {"randomize": True})
     batch = DecisionEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=3)
-    assert not batch.native
+    assert batch.native
     batch.reset()
-    for env in batch.venv.envs:
-        u = env.unwrapped
-        assert not np.array_equal(u.parameters, u.nominal_parameters)  # a plant of the box, not the nominal one
-        own = commission(u.task, "machine", np.asarray(u.parameters)[None])
-        np.testing.assert_array_equal(env.baseline.records[0].gains()["kp"], own[0].gains()["kp"])
+    batch.step(np.zeros((2, 2), dtype=np.float32))
+    u, base = batch.venv, batch.baseline
+    params = np.array(u.parameters)
+    for i in range(2):
+        assert not np.array_equal(params[i], u.nominal_parameters)  # a plant of the box, not the nominal one
+        own = commission(u.task, "machine", params[i:i + 1])[0]
+        np.testing.assert_array_equal(base.records[i].gains()["kp"], own.gains()["kp"])
+    kept = base.records[1]
+    u.reset(options={"reset_mask": np.array([True, False])})
+    batch._start[0] = True
+    batch.step(np.zeros((2, 2), dtype=np.float32))
+    assert not np.array_equal(u.parameters[0], params[0]) and base.records[1] is kept
+    own = commission(u.task, "machine", np.array(u.parameters)[:1])[0]
+    np.testing.assert_array_equal(base.records[0].gains()["kp"], own.gains()["kp"])
+    np.testing.assert_array_equal(batch.controller.kp, base.gains.kp)
     batch.close()
 
 
