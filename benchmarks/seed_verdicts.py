@@ -14,7 +14,8 @@ Every figure comes from the JSON; nothing is typed.
 controller added to the house after the seeds were evaluated, such as ``mpc``, whose run is costly; or another
 training run's seeds) and judges the agents again, by the bench's own rule
 (:func:`vcnc_bench.verdicts.robust_verdicts`), against the strongest causal controller of the two runs together;
-``--json OUT`` writes the joined run.  ``--against GROUP`` judges every training run against the seeds of
+``--only POLICY`` joins that policy's records only (an old run's costly controllers, not its agents).  ``--json
+OUT`` writes the joined run.  ``--against GROUP`` judges every training run against the seeds of
 ``GROUP`` (an ablation: the same recipe with one thing changed, "wins" where the run is better).  Runs whose settings
 differ (plants, plant seed, reset seed, trials, vertices, feed, plant, noise seeds) are refused, since their
 plants cannot be paired.
@@ -124,10 +125,11 @@ def _causal(rec: dict) -> bool:
     return rec.get("kind") == "baseline" and not rec["policy"].endswith(NON_CAUSAL)
 
 
-def join(data: dict, other: dict, other_name: str = "the other run") -> dict:
-    """``data`` with the records of ``other`` it lacks (controllers and agents), and its verdicts judged again by
-    :func:`vcnc_bench.verdicts.robust_verdicts` (the reset seed of ``data``'s settings); ValueError where the two
-    runs' settings or plants differ."""
+def join(data: dict, other: dict, other_name: str = "the other run", only: tuple[str, ...] = ()) -> dict:
+    """``data`` with the records of ``other`` it lacks (controllers and agents; with ``only``, those policies'
+    only), and its verdicts judged again by :func:`vcnc_bench.verdicts.robust_verdicts` (the reset seed of
+    ``data``'s settings); ValueError where the two runs' settings or plants differ, or a policy of ``only`` is not
+    in ``other``."""
     a, b = data["settings"], other["settings"]
     differ = [k for k in PAIRED_SETTINGS if a.get(k) != b.get(k)]
     if differ:
@@ -135,7 +137,11 @@ def join(data: dict, other: dict, other_name: str = "the other run") -> dict:
                          + ", ".join(f"{k} ({a.get(k)!r} against {b.get(k)!r})" for k in differ))
     envs = {r["env"] for r in data["robust"]}
     have = {(r["env"], r["policy"]) for r in data["robust"]}
-    added = [r for r in other["robust"] if r["env"] in envs and (r["env"], r["policy"]) not in have]
+    absent = [p for p in only if not any(r["policy"] == p for r in other["robust"])]
+    if absent:
+        raise ValueError(f"{other_name} has no records of {absent[0]!r}")
+    added = [r for r in other["robust"] if r["env"] in envs and (r["env"], r["policy"]) not in have
+             and (not only or r["policy"] in only)]
     for r in added:
         mine = next(m for m in data["robust"] if m["env"] == r["env"])
         if r["per_plant"]["kind"] != mine["per_plant"]["kind"]:
@@ -145,7 +151,7 @@ def join(data: dict, other: dict, other_name: str = "the other run") -> dict:
     learned = {r["policy"] for r in records if r.get("kind") not in (None, "baseline")}
     causal = {r["policy"] for r in records if _causal(r)}
     rows = robust_verdicts(records, learned, causal, seed=a.get("seed", 0))
-    command = a["command"] + f"  # joined with: {b['command']}"
+    command = a["command"] + f"  # joined with{' the ' + ', '.join(only) + ' of' if only else ''}: {b['command']}"
     return {"settings": dict(a, command=command), "robust": records, "verdicts": rows}
 
 
@@ -155,6 +161,8 @@ def main(argv=None) -> int:
     p.add_argument("--base", default="ff-ccc", help="the controller the agents' residual corrects (default ff-ccc)")
     p.add_argument("--with", dest="other", metavar="OTHER", help="another --plants run of the same id and plants: "
                    "the records this one lacks (controllers and agents) join it, and the verdicts are judged again")
+    p.add_argument("--only", action="append", default=[], metavar="POLICY",
+                   help="with --with: join this policy's records only (repeatable; default every one this run lacks)")
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
     p.add_argument("--summary", action="store_true", help="one table of every JSON's seeds' verdicts")
     p.add_argument("--against", metavar="GROUP", help="judge every training run against the seeds of GROUP")
@@ -165,12 +173,14 @@ def main(argv=None) -> int:
         return 0
     if args.json and not (args.other and len(args.json_files) == 1):
         p.error("--json needs --with and one JSON")
+    if args.only and not args.other:
+        p.error("--only needs --with")
     for path in args.json_files:
         with open(path) as f:
             data = json.load(f)
         if args.other:
             with open(args.other) as f:
-                data = join(data, json.load(f), args.other)
+                data = join(data, json.load(f), args.other, tuple(args.only))
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(data, f, indent=1)

@@ -177,3 +177,22 @@ def test_joined_run_judges_the_seeds_against_a_later_controller():
     other = dict(box, settings=dict(box["settings"], plant_seed=1))
     with pytest.raises(ValueError, match="plant_seed"):
         sv.join(seeds, other)
+
+
+def test_a_join_restricted_to_some_policies_adds_only_their_records():
+    """``--only``: the earlier five-seed run of the sharp corners lends its costly controller (``mpc`` here) and not
+    its agents; a policy the other run lacks is named."""
+    from pathlib import Path
+
+    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
+    box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
+    sv = _seed_verdicts()
+    lacking = {r["policy"] for r in box["robust"]} - {r["policy"] for r in seeds["robust"]}
+    assert lacking == {"mpc"}  # what a plain join adds
+    base = dict(seeds, robust=[r for r in seeds["robust"] if r["policy"] != "lq-preview"])
+    joined = sv.join(base, box, only=("mpc",))
+    added = [r["policy"] for r in joined["robust"][len(base["robust"]):]]
+    assert added == ["mpc"] and "joined with the mpc of" in joined["settings"]["command"]
+    with pytest.raises(ValueError, match="no records of 'ilc'"):
+        sv.join(base, box, only=("ilc",))
