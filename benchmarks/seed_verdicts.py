@@ -80,7 +80,26 @@ def summary(runs: list[dict], base: str) -> list[str]:
                         f"{_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | {v['p_improvement']:.2f} | "
                         f"{v['outcome']} |")
         lines += [f"- {name}: {line}" for line in _against_base(records, base)]
-    return rows + [""] + lines
+    return rows + [""] + spread(runs) + [""] + lines
+
+
+def spread(runs: list[dict]) -> list[str]:
+    """The training seeds' spread: per id and training run, the lowest and highest of the seeds' own IQMs (over
+    the run's plants) of the max and of the RMS contour error."""
+    out = ["| id | training run | seeds | seeds' IQM of the max, lowest - highest, um | of the RMS, um |",
+           "|---|---|---|---|---|"]
+    for data in runs:
+        records = data["robust"]
+        plant = data["settings"].get("plant")
+        name = records[0]["env"] + (f" (`{plant}`)" if plant else "")
+        for run in dict.fromkeys(r["group"] for r in records if r.get("group")):
+            members = [r for r in records if r.get("group") == run]
+            cells = []
+            for figure in ("max", "rms"):
+                iqms = [stratified_bootstrap_ci(sampled_figures(r, figure), seed=0)[0] for r in members]
+                cells.append(f"{_f(min(iqms))} - {_f(max(iqms))}")
+            out.append(f"| {name} | `{run}` | {len(members)} | {cells[0]} | {cells[1]} |")
+    return out
 
 
 def _against_base(records: list[dict], base: str) -> list[str]:

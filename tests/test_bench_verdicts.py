@@ -196,3 +196,23 @@ def test_a_join_restricted_to_some_policies_adds_only_their_records():
     assert added == ["mpc"] and "joined with the mpc of" in joined["settings"]["command"]
     with pytest.raises(ValueError, match="no records of 'ilc'"):
         sv.join(base, box, only=("ilc",))
+
+
+def test_the_seeds_spread_is_the_range_of_their_own_interquartile_means():
+    """``--summary``'s spread table: the lowest and highest of the seeds' IQMs over the sampled plants, each checked
+    here against scipy's 25 %-trimmed mean of that seed's per-plant figures."""
+    from pathlib import Path
+
+    from scipy.stats import trim_mean
+
+    data = json.loads((Path(__file__).resolve().parents[1] / "docs" / "data" / "ideal_seeds_5" / "VCNC-Heart-v1.json")
+                      .read_text())
+    row = next(line for line in _seed_verdicts().spread([data]) if "runs/seeds/VCNC-Heart-v1" in line)
+    seeds = [r for r in data["robust"] if r.get("group") == "ppo:runs/seeds/VCNC-Heart-v1"]
+    iqms = {f: [trim_mean([m for m, k in zip(r["per_plant"][f"{f}_um"], r["per_plant"]["kind"]) if k == "sample"],
+                          0.25) for r in seeds] for f in ("max", "rms")}
+    cells = [c.strip() for c in row.split("|")[1:-1]]
+    assert cells[2] == "5"
+    for cell, f in zip(cells[3:], ("max", "rms")):
+        lo, hi = (float(x) for x in cell.split(" - "))
+        assert lo == pytest.approx(min(iqms[f]), rel=1e-3) and hi == pytest.approx(max(iqms[f]), rel=1e-3)
