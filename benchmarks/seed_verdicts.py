@@ -3,6 +3,7 @@
     python benchmarks/seed_verdicts.py docs/data/shop_seeds/VCNC-HeartShop-v1.json [--base ff-ccc]
     python benchmarks/seed_verdicts.py docs/data/ideal_seeds/VCNC-Corners-v1.json --with docs/data/mpc_box/VCNC-Corners-v1.json
     python benchmarks/seed_verdicts.py --summary docs/data/generalist_seeds/current_feed_drive/*.json
+    python benchmarks/seed_verdicts.py --summary docs/data/*_seeds/VCNC-*.json --before docs/data/ideal_seeds_5 --before docs/data/shop_seeds_5
 
 ``ppo:FOLDER`` of a ``vcnc-train --seeds K`` folder stands for the K seeds' agents, judged as one controller
 (``vcnc_bench.verdicts``).  Prints Markdown: every record's nominal / median / worst max and RMS contour error and
@@ -81,6 +82,27 @@ def summary(runs: list[dict], base: str) -> list[str]:
                         f"{v['outcome']} |")
         lines += [f"- {name}: {line}" for line in _against_base(records, base)]
     return rows + [""] + spread(runs) + [""] + lines
+
+
+def changes(pairs: list[tuple[dict, dict]]) -> list[str]:
+    """Per id and figure, the verdict of an earlier run's training seeds (``before``) beside this run's (``now``),
+    each against the strongest causal controller of its own run; pairs of (before, now) runs of one id each."""
+    out = ["| id | fig | before: seeds, verdict (against) | now: seeds, verdict (against) | changed |",
+           "|---|---|---|---|---|"]
+    n = 0
+    for before, now in pairs:
+        name = now["robust"][0]["env"]
+        for figure in ("max", "rms"):
+            cells = []
+            for data in (before, now):
+                v = next((v for v in data["verdicts"] if v.get("training_seeds", 1) > 1 and v["figure"] == figure),
+                         None)
+                cells.append(None if v is None else (v["training_seeds"], v["outcome"], v["y"]))
+            moved = None not in cells and cells[0][1] != cells[1][1]
+            n += moved
+            text = ["-" if c is None else f"{c[0]}, {c[1]} (`{c[2]}`)" for c in cells]
+            out.append(f"| {name} | {figure} | {text[0]} | {text[1]} | {'**yes**' if moved else 'no'} |")
+    return out + ["", f"{n} of {2 * len(pairs)} verdicts changed."]
 
 
 def spread(runs: list[dict]) -> list[str]:
@@ -184,11 +206,24 @@ def main(argv=None) -> int:
                    help="with --with: join this policy's records only (repeatable; default every one this run lacks)")
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
     p.add_argument("--summary", action="store_true", help="one table of every JSON's seeds' verdicts")
+    p.add_argument("--before", metavar="DIR", action="append", default=[],
+                   help="with --summary: the verdicts of the JSON of the same name in DIR (an earlier run's seeds; "
+                        "repeatable, the first DIR that has it) beside this run's, and how many changed")
     p.add_argument("--against", metavar="GROUP", help="judge every training run against the seeds of GROUP")
     args = p.parse_args(argv)
     if args.summary:
         runs = [json.loads(open(path).read()) for path in args.json_files]
         print("\n".join(summary(runs, args.base)))
+        if args.before:
+            from pathlib import Path
+
+            old = []
+            for path in args.json_files:
+                found = [Path(d) / Path(path).name for d in args.before if (Path(d) / Path(path).name).is_file()]
+                if not found:
+                    p.error(f"--before: no {Path(path).name} in {', '.join(args.before)}")
+                old.append(json.loads(found[0].read_text()))
+            print("\n" + "\n".join(changes(list(zip(old, runs)))))
         return 0
     if args.json and not (args.other and len(args.json_files) == 1):
         p.error("--json needs --with and one JSON")

@@ -216,3 +216,19 @@ def test_the_seeds_spread_is_the_range_of_their_own_interquartile_means():
     for cell, f in zip(cells[3:], ("max", "rms")):
         lo, hi = (float(x) for x in cell.split(" - "))
         assert lo == pytest.approx(min(iqms[f]), rel=1e-3) and hi == pytest.approx(max(iqms[f]), rel=1e-3)
+
+
+def test_the_changes_table_counts_the_verdicts_an_earlier_run_gave_otherwise():
+    """``--summary --before``: the sharp corners' five seeds before ``mpc`` joined (a tie on the max against
+    ``lq-preview``) and after (a loss against ``mpc``) is one changed verdict, read from the two JSONs."""
+    from pathlib import Path
+
+    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    before, now = (json.loads((data_dir / d / "VCNC-Corners-v1.json").read_text())
+                   for d in ("ideal_seeds_before_mpc", "ideal_seeds_5"))
+    lines = _seed_verdicts().changes([(before, now)])
+    row = next(line for line in lines if line.startswith("| VCNC-Corners-v1 | max |"))
+    assert "5, ties (`lq-preview`)" in row and "5, loses (`mpc`)" in row and row.endswith("**yes** |")
+    rms = [next(v["outcome"] for v in d["verdicts"] if v["training_seeds"] > 1 and v["figure"] == "rms")
+           for d in (before, now)]
+    assert lines[-1] == f"{1 + (rms[0] != rms[1])} of 2 verdicts changed."
