@@ -64,7 +64,15 @@ def tables(data: dict, base: str) -> list[str]:
     return out
 
 
-def summary(runs: list[dict], base: str) -> list[str]:
+def base_of(bases: list[str], env: str) -> str:
+    """The base of ``env`` among ``--base`` entries: ``ID=NAME`` for that id, else a plain ``NAME``, else
+    ``ff-ccc``."""
+    own = [b.split("=", 1)[1] for b in bases if b.startswith(f"{env}=")]
+    plain = [b for b in bases if "=" not in b]
+    return (own or plain or ["ff-ccc"])[-1]
+
+
+def summary(runs: list[dict], base: str | list[str]) -> list[str]:
     """One Markdown table over several runs (one id each): every training run's seeds against the strongest causal
     controller, figure by figure, then a line per id against their ``base``; what ``docs/reproduction.md``'s seed
     tables hold."""
@@ -80,7 +88,8 @@ def summary(runs: list[dict], base: str) -> list[str]:
                         f"`{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, {_f(v['ci_y'][1])}] | "
                         f"{_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | {v['p_improvement']:.2f} | "
                         f"{v['outcome']} |")
-        lines += [f"- {name}: {line}" for line in _against_base(records, base)]
+        own = base_of([base] if isinstance(base, str) else base, records[0]["env"])
+        lines += [f"- {name}: {line}" for line in _against_base(records, own)]
     return rows + [""] + spread(runs) + [""] + lines
 
 
@@ -199,7 +208,9 @@ def join(data: dict, other: dict, other_name: str = "the other run", only: tuple
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("json_files", nargs="+", metavar="JSON", help="vcnc-bench --plants N --json files")
-    p.add_argument("--base", default="ff-ccc", help="the controller the agents' residual corrects (default ff-ccc)")
+    p.add_argument("--base", action="append", default=[], metavar="[ID=]NAME",
+                   help="the controller the agents' residual corrects (default ff-ccc); ID=NAME for one id's run "
+                        "(repeatable: with --summary, one per id)")
     p.add_argument("--with", dest="other", metavar="OTHER", help="another --plants run of the same id and plants: "
                    "the records this one lacks (controllers and agents) join it, and the verdicts are judged again")
     p.add_argument("--only", action="append", default=[], metavar="POLICY",
@@ -238,7 +249,7 @@ def main(argv=None) -> int:
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(data, f, indent=1)
-        print("\n".join(tables(data, args.base)) + "\n")
+        print("\n".join(tables(data, base_of(args.base, data["robust"][0]["env"]))) + "\n")
         if args.against:
             print("\n".join(ablation(data["robust"], args.against)) + "\n")
     return 0
