@@ -109,17 +109,6 @@ class ActionMode:
                              f"action_repeat={self.action_repeat}, got {repeat}")
         return env
 
-    @property
-    def commissions_per_machine(self) -> bool:
-        """True when the residual's baseline identifies each machine it runs on (``ff-pid@machine``, or
-        ``commissioning="machine"``): it must be commissioned again whenever an env draws a new plant."""
-        if self.mode != "residual":
-            return False
-        from vcnc_baselines.registry import VARIANTS
-
-        fixed = VARIANTS[self.baseline][1] if self.baseline in VARIANTS else {}
-        return {**fixed, **self.baseline_params}.get("commissioning") == "machine"
-
     def make_baseline(self, env):
         """The residual's baseline for ``env`` (a control-period env), or None in direct mode."""
         if self.mode != "residual":

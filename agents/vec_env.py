@@ -78,6 +78,7 @@ def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | 
     controller = baseline.compiled(n_envs) if baseline is not None and compiled else None
     return NativeBatch(venv, baseline, controller, mode.action_repeat if residual else 1)
 
+
 def commission_drawn_plants(baseline, venv, controller):
     """The controller to step after some envs of ``venv`` reset: a residual's baseline commissioned per machine
     (``ff-pid@machine``; :meth:`vcnc_baselines.servo.ServoPolicy.commission_again`) first identifies the plants

@@ -410,8 +410,6 @@ def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_pl
     from vcnc_baselines.commissioning.record import commission
 
     mode = ActionMode("residual", action_repeat=5, baseline="ff-pid@machine", correction=0.3)
-    assert mode.commissions_per_machine and not ActionMode("residual", baseline="ff-pid", correction=0.3,
-                                                           action_repeat=5).commissions_per_machine
     batch = DecisionEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=3)
     assert batch.native
     batch.reset()
