@@ -28,7 +28,7 @@ import argparse
 import json
 
 from vcnc_bench.headroom import NON_CAUSAL
-from vcnc_bench.verdicts import robust_verdicts, sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
+from vcnc_bench.verdicts import iqm, robust_verdicts, sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
 
 #: The settings two ``--plants`` runs must share for their records to be paired plant by plant.
 PAIRED_SETTINGS = ("plants", "plant_seed", "seed", "trials", "max_vertices", "feedrate", "plant", "noise_seeds")
@@ -127,7 +127,7 @@ def spread(runs: list[dict]) -> list[str]:
             members = [r for r in records if r.get("group") == run]
             cells = []
             for figure in ("max", "rms"):
-                iqms = [stratified_bootstrap_ci(sampled_figures(r, figure), seed=0)[0] for r in members]
+                iqms = [iqm(sampled_figures(r, figure)) for r in members]
                 cells.append(f"{_f(min(iqms))} - {_f(max(iqms))}")
             out.append(f"| {name} | `{run}` | {len(members)} | {cells[0]} | {cells[1]} |")
     return out
