@@ -1,10 +1,12 @@
-"""Ablations of a specialist (issue 33, item 5): the agent against itself with one thing changed, by the verdict rule.
+"""Ablations of an agent family (issue 33, item 5): the agent against itself with one thing changed, by the verdict
+rule.
 
-    python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--seeds 5] [--jobs 2] [--plants 20]
-        [--output runs/ablations] [--agent runs/seeds/ID] [--table JSON]
+    python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--config YAML] [--on ID ...] [--seeds 5] [--jobs 2]
+        [--plants 20] [--timesteps N] [--eval-freq N] [--output runs/ablations] [--agent runs/seeds/ID] [--table JSON]
 
-The agent is the id's entry of ``agents/hyperparams/specialists.yml`` (the recipe of the shipped specialists).
-Each variant changes one thing of that entry:
+The agent is the id's entry of ``--config`` (default ``agents/hyperparams/specialists.yml``, the recipe of the shipped
+specialists; ``agents/hyperparams/generalists.yml`` with ``--env VCNC-RandomContour-v1`` is the generalists' family,
+evaluated ``--on`` the named contours it never saw).  Each variant changes one thing of that entry:
 
 - ``direct``: no residual; the agent's action is the normalised amplifier command itself, at the same decision
   period;
@@ -14,12 +16,13 @@ Each variant changes one thing of that entry:
 - ``correction-C``: the correction bound (a fraction of the input limit), a quarter and five times the agent's
   (at most 1).
 
-Every variant trains ``--seeds`` seeds with the agent's budget of agent steps (``vcnc-train --trainer lean
---seeds K``, one folder per variant under ``OUTPUT/ID``; a variant whose ``seeds.json`` exists is not trained
-again); ``--agent`` names the agent's own seeds folder if it was trained already (``vcnc-train --config
-agents/hyperparams/specialists.yml --seeds K``), else it is trained as a variant.  Then one ``vcnc-bench --plants N``
-run evaluates every seed of every variant, with the id's default causal controllers, into ``OUTPUT/ID.json``, and the
-table is printed as Markdown: per variant the IQM of max and RMS contour error over plants and seeds with its 95 %
+Every variant trains ``--seeds`` seeds with the agent's budget of agent steps (``--timesteps`` sets another for
+all of them, the agent's too; ``vcnc-train --trainer lean --seeds K``, one folder per variant under ``OUTPUT/ID``; a
+variant whose ``seeds.json`` exists is not trained again); ``--agent`` names the agent's own seeds folder if it was
+trained already with the same budget (``vcnc-train --config YAML --seeds K``), else it is trained as a variant.  Then
+one ``vcnc-bench --plants N`` run per evaluation id (``--on``, default the id itself) evaluates every seed of every
+variant, with that id's default causal controllers, into ``OUTPUT/ID.json`` (``OUTPUT/ID-on-EVAL.json`` for another
+id), and the table is printed as Markdown: per variant the IQM of max and RMS contour error over plants and seeds with its 95 %
 interval, the verdict against the agent (``X`` = the variant; "wins": the variant is better, the change helps), and
 against the strongest causal controller.  A variant with a seed that kept no agent (every evaluation in its training
 diverged) is not evaluated; its row says how many and counts as a loss.  ``--table JSON`` prints the table of an earlier run's JSON and trains
@@ -63,7 +66,8 @@ def variants(entry: dict) -> dict[str, dict]:
     return out
 
 
-def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs: int, agent: Path | None) -> dict:
+def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs: int, agent: Path | None,
+          timesteps: int | None = None, eval_freq: int = 262144) -> dict:
     """Train every variant's seeds (skipping finished ones); their seeds folders by name."""
     folders = {}
     for name, entry in configs.items():
@@ -80,8 +84,9 @@ def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs:
         config.write_text(yaml.safe_dump({env_id: entry}, sort_keys=False))
         print(f"{name}: training {seeds} seeds into {out}", flush=True)
         subprocess.run([sys.executable, "-m", "vcnc_agents.cli", "--trainer", "lean", "--config", str(config),
-                        "--env", env_id, "--seeds", str(seeds), "--jobs", str(jobs), "--eval-freq", "262144",
-                        "--output", str(out), "--no-progress", "--no-tensorboard"], check=True)
+                        "--env", env_id, "--seeds", str(seeds), "--jobs", str(jobs), "--eval-freq", str(eval_freq),
+                        "--output", str(out), "--no-progress", "--no-tensorboard"]
+                       + ([] if timesteps is None else ["--timesteps", str(timesteps)]), check=True)
     return folders
 
 
@@ -147,7 +152,15 @@ def table(data: dict) -> list[str]:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--env", default="VCNC-OmegaLookahead-v1", help="a specialist's id (default %(default)s)")
+    p.add_argument("--env", default="VCNC-OmegaLookahead-v1",
+                   help="the id of the agent's entry, the one it trains on (default %(default)s)")
+    p.add_argument("--config", type=Path, default=SPECIALISTS,
+                   help="the family's recipe (default agents/hyperparams/specialists.yml)")
+    p.add_argument("--on", action="append", metavar="ID",
+                   help="an id to evaluate on (repeatable; default --env); the agents must run there")
+    p.add_argument("--timesteps", type=int, metavar="N", help="agent steps of every variant (default the entry's)")
+    p.add_argument("--eval-freq", type=int, default=262144, metavar="N",
+                   help="agent steps between training evaluations, as the agent's own run (default %(default)s)")
     p.add_argument("--seeds", type=int, default=5, help="training seeds per variant (default 5)")
     p.add_argument("--jobs", type=int, default=2, help="seeds trained at a time (default 2)")
     p.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20)")
@@ -158,17 +171,19 @@ def main(argv=None) -> int:
     if args.table is not None:
         print("\n".join(table(json.loads(args.table.read_text()))))
         return 0
-    configs = variants(load_hyperparameters(args.env, SPECIALISTS))
+    configs = variants(load_hyperparameters(args.env, args.config))
     folder = args.output / args.env
-    folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent)
-    out = args.output / f"{args.env}.json"
+    folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent, args.timesteps,
+                    args.eval_freq)
     missing = {name: why for name, folder in folders.items() if (why := without_agent(folder)) is not None}
-    evaluate(args.env, {n: f for n, f in folders.items() if n not in missing}, args.plants, out)
-    data = json.loads(out.read_text())
-    data["ablations"] = {name: f"ppo:{folder}" for name, folder in folders.items() if name not in missing}
-    data["without_agent"] = missing
-    out.write_text(json.dumps(data, indent=1))
-    print("\n".join(table(data)))
+    for on in args.on or [args.env]:
+        out = args.output / (f"{args.env}.json" if on == args.env else f"{args.env}-on-{on}.json")
+        evaluate(on, {n: f for n, f in folders.items() if n not in missing}, args.plants, out)
+        data = json.loads(out.read_text())
+        data["ablations"] = {name: f"ppo:{folder}" for name, folder in folders.items() if name not in missing}
+        data["without_agent"] = missing
+        out.write_text(json.dumps(data, indent=1))
+        print("\n".join(table(data)), flush=True)
     return 0
 
 
