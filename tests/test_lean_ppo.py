@@ -431,6 +431,34 @@ def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_pl
     batch.close()
 
 
+def test_sb3s_trainer_commissions_each_plant_drawn_as_the_lean_one_does():
+    """The same over SB3's ``VecEnv`` of the native envs (``VcncVecEnv``: SB3's trainer, e.g. a recurrent
+    policy): after the first reset every env's ``ff-pid@machine`` record is the one ``commission`` gives for its
+    plant, and an env that ends its episode is commissioned again for the plant it draws, the others kept."""
+    from vcnc_agents.vec_env import VcncVecEnv
+    from vcnc_baselines.commissioning.record import commission
+
+    mode = ActionMode("residual", action_repeat=5, baseline="ff-pid@machine", correction=0.3)
+    venv = VcncVecEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=4)
+    venv.reset()
+    venv.step(np.zeros((2, 2), dtype=np.float32))
+    u, base = venv.venv, venv.baseline
+    params = np.array(u.parameters)
+    for i in range(2):
+        assert not np.array_equal(params[i], u.nominal_parameters)
+        own = commission(u.task, "machine", params[i:i + 1])[0]
+        np.testing.assert_array_equal(base.records[i].gains()["kp"], own.gains()["kp"])
+    kept = base.records[0]
+    u.reset(options={"reset_mask": np.array([False, True])})
+    venv._start[1] = True
+    venv.step(np.zeros((2, 2), dtype=np.float32))
+    assert not np.array_equal(u.parameters[1], params[1]) and base.records[0] is kept
+    own = commission(u.task, "machine", np.array(u.parameters)[1:])[0]
+    np.testing.assert_array_equal(base.records[1].gains()["kp"], own.gains()["kp"])
+    np.testing.assert_array_equal(venv.controller.kp, base.gains.kp)
+    venv.close()
+
+
 def test_the_lean_trainer_is_the_default_and_trains_the_feed_override(tmp_path):
     """No --trainer: the lean one, on an id without a native vector env too; its agent loads in the bench."""
     entry = load_hyperparameters("VCNC-OmegaOverride-v1", "agents/hyperparams/override.yml")
