@@ -134,7 +134,8 @@ class Machines:
     """``n`` machines of an env's task, stepped one control period at a time: the experiment's only access.
 
     ``parameters`` (n, 2, P) are handed to the simulator to *build* the machines (on a real shop floor the
-    machines exist); the experiment itself calls only :meth:`step` and reads the observation.  Every machine's
+    machines exist); the experiment itself only commands them and reads the observation (:meth:`step`, one period;
+    :meth:`hold`, a whole run under a holding loop in one kernel call).  Every machine's
     sensor is seeded with ``seed``, whatever its place in the batch: a machine identified among others gets the
     record it gets alone (the floor's search commissions each machine alone, the robust bench in one batch).
     """
@@ -156,6 +157,16 @@ class Machines:
     def observe(self) -> np.ndarray:
         """The current observations, (n, obs_dim) float32."""
         return self._batch.buffers.obs.copy()
+
+    def hold(self, loop) -> None:
+        """Run every machine under ``loop`` (:data:`vcnc_gym.envs.step_kernel.HoldingLoop`: a PID holding loop
+        with feedforward and excitation) for its periods in one kernel call; fills its ``u``, ``e`` and
+        ``velocity``.  The same arithmetic as computing each period's command from :meth:`observe` and calling
+        :meth:`step` (``tests/test_commissioning_kernel.py`` runs both)."""
+        b = self._batch.buffers
+        if b.obs.shape[0] != self.n or loop.u.shape[0] != self.n:
+            raise ValueError(f"hold: the loop's arrays must have {self.n} machines, got {loop.u.shape[0]}")
+        sk.run_holding_loop(self._batch.data, loop)
 
     def step(self, command: np.ndarray) -> np.ndarray:
         """Apply ``command`` (n, 2) in the input unit for one control period; returns the observations."""
@@ -198,7 +209,7 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     from ..feedforward.tables import inverse_feedforward
 
     t0 = time.perf_counter()
-    dt, n, lay = machines.dt, machines.n, machines.layout
+    dt, n = machines.dt, machines.n
     kp, kd, w = holding_gains(nominal_inverse.mass, nominal_inverse.damping, nominal_inverse.delay, dt,
                               experiment.holding_bandwidth)
     ki = kp * w / 4.0
@@ -231,20 +242,11 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     u = np.zeros((n, total, 2))
     e = np.zeros((n, total, 2))
     velocity = np.zeros((n, total, 2))
-    obs = machines.observe()
-    vf = np.zeros((n, 2))
-    integral = np.zeros((n, 2))
-    for k in range(total):
-        E = lay.tracking_error(obs)
-        velocity[:, k] = lay.velocity(obs)
-        vf = alpha * vf + (1 - alpha) * velocity[:, k]
-        ek = E + offset[k]
-        e[:, k] = E
-        integral += ek * dt
-        u[:, k] = (u_ff[min(k, u_ff.shape[0] - 1)] + u_legs[k] + kp * ek + kd * (lay.reference_velocity(obs) + offset_rate[k] - vf)
-                   + ki * integral + r[:, k])
-        u[:, k] = np.clip(u[:, k], -machines.u_max, machines.u_max)
-        obs = machines.step(u[:, k])
+    c = np.ascontiguousarray
+    machines.hold(sk.HoldingLoop(c(u_ff, dtype=np.float64), c(u_legs, dtype=np.float64), c(offset), c(offset_rate), r,
+                                 c(kp, dtype=np.float64), c(kd, dtype=np.float64), c(ki, dtype=np.float64),
+                                 c(alpha, dtype=np.float64), float(dt), c(machines.u_max, dtype=np.float64), u, e,
+                                 velocity))
     leg_command = np.zeros((n, legs, 2))
     leg_spread = np.zeros((n, legs, 2))
     leg_velocity = np.zeros((n, legs, 2))

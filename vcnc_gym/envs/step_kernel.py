@@ -500,3 +500,47 @@ def step_controlled_parallel(d, controller, loop):
     chunks = min(n, _CHUNKS)
     for c in prange(chunks):
         _control_range(d, controller, loop, c * n // chunks, (c + 1) * n // chunks)
+
+
+#: A run of every env under a holding loop (:func:`run_holding_loop`), per control period ``k``, env ``i`` and axis
+#: ``j``: the feedforward (K_f, 2) (period ``min(k, K_f - 1)``) and the moves' own feedforward ``legs`` (K, 2), in
+#: the input unit; the loop reference's ``offset`` (K, 2), mm, and its rate ``offset_rate`` (K, 2), mm/s, on top of
+#: the task's reference; the ``excitation`` (N, K, 2), input unit; the PID's ``kp``, ``kd``, ``ki`` (2,) and the
+#: velocity low-pass pole ``alpha`` (2,); the control period ``dt`` (s) and the input limit ``u_max`` (2,); and what
+#: the run writes: the command ``u``, the measured tracking error ``e`` (mm) and velocity ``velocity`` (mm/s), each
+#: (N, K, 2).  The run lasts K periods.
+HoldingLoop = namedtuple("HoldingLoop", ["feedforward", "legs", "offset", "offset_rate", "excitation", "kp", "kd",
+                                         "ki", "alpha", "dt", "u_max", "u", "e", "velocity"])
+
+
+@njit(cache=True)
+def run_holding_loop(d, h):
+    """Every env of ``d``, K control periods (:data:`HoldingLoop`), each commanding the clipped sum of the
+    feedforward, the moves' feedforward, a PID on the tracking error plus the offset (the derivative on the
+    reference velocity plus the offset's rate less the low-passed measured velocity) and the excitation, and
+    stepping one period: an identification experiment's loop (``vcnc_baselines.commissioning.identify``), in one
+    call instead of one per period."""
+    plant, reference, contour, config, o, b = d.plant, d.reference, d.contour, d.config, d.offsets, d.buffers
+    n = b.obs.shape[0]
+    last = h.feedforward.shape[0] - 1
+    vf = np.zeros((n, 2))
+    integral = np.zeros((n, 2))
+    for k in range(h.u.shape[1]):
+        f = min(k, last)
+        for i in range(n):
+            for j in range(2):
+                e = np.float64(b.obs[i, o.tracking_error + j])
+                v = np.float64(b.obs[i, o.velocity + j])
+                h.velocity[i, k, j] = v
+                vf[i, j] = h.alpha[j] * vf[i, j] + (1.0 - h.alpha[j]) * v
+                ek = e + h.offset[k, j]
+                h.e[i, k, j] = e
+                integral[i, j] += ek * h.dt
+                rate = np.float64(b.obs[i, o.reference_velocity + j]) + h.offset_rate[k, j] - vf[i, j]
+                c = (h.feedforward[f, j] + h.legs[k, j] + h.kp[j] * ek + h.kd[j] * rate + h.ki[j] * integral[i, j]
+                     + h.excitation[i, k, j])
+                c = min(max(c, -h.u_max[j]), h.u_max[j])
+                h.u[i, k, j] = c
+                b.action[i, j] = min(max(c / h.u_max[j], -1.0), 1.0)
+            b.mode[i] = MODE_STEP
+            _step_env(plant, reference, contour, config, o, b, i)
