@@ -3,12 +3,12 @@ the stored table's figures are the IQM an independent computation (scipy's trimm
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from benchmark_script import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[1]
 FAMILIES = [("specialists.yml", "VCNC-OmegaLookahead-v1"), ("generalists.yml", "VCNC-RandomContour-v1"),
@@ -16,10 +16,7 @@ FAMILIES = [("specialists.yml", "VCNC-OmegaLookahead-v1"), ("generalists.yml", "
 
 
 def _ablations():
-    spec = importlib.util.spec_from_file_location("ablations", ROOT / "benchmarks" / "ablations.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_script("ablations")
 
 
 def _differences(a, b, path=()):

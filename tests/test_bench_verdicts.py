@@ -139,14 +139,9 @@ def test_plants_json_carries_scores_verdicts_noise_and_provenance(tmp_path, caps
 
 
 def _seed_verdicts():
-    import importlib.util
-    from pathlib import Path
+    from benchmark_script import benchmark_script
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "seed_verdicts.py"
-    spec = importlib.util.spec_from_file_location("seed_verdicts", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_script("seed_verdicts")
 
 
 def test_joined_run_judges_the_seeds_against_a_later_controller():

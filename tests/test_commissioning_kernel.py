@@ -9,6 +9,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from benchmark_script import benchmark_script
 
 import vcnc_gym  # noqa: F401
 from vcnc_baselines.commissioning.identify import Machines
@@ -16,14 +17,7 @@ from vcnc_baselines.commissioning.identify import Machines
 
 def _bench():
     """``benchmarks/identification_loop.py``: the numpy loop and the random loop arrays."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "identification_loop.py"
-    spec = importlib.util.spec_from_file_location("identification_loop", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_script("identification_loop")
 
 
 @pytest.mark.parametrize("env_id", ["VCNC-HeartShop-v1", "VCNC-Heart-v1", "VCNC-Circle-v1", "VCNC-CircleShop-v1",

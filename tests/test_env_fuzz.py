@@ -6,18 +6,13 @@ episodes, and a check that the fuzz does see a NaN when one is there.
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
+from benchmark_script import benchmark_script
 
 import vcnc_gym
 
-_PATH = pathlib.Path(__file__).parents[1] / "benchmarks" / "fuzz_envs.py"
-_spec = importlib.util.spec_from_file_location("fuzz_envs", _PATH)
-fuzz_envs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(fuzz_envs)
+fuzz_envs = benchmark_script("fuzz_envs")
 
 
 @pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)

@@ -401,17 +401,27 @@ def test_an_id_without_a_native_vector_env_steps_as_its_wrapped_envs(env_id):
     batch.close()
 
 
-def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_plant_drawn():
-    """``ff-pid@machine`` identifies the machine it runs on.  On plants drawn at every reset the lean trainer's
-    native envs commission, before the next decision, the plants the reset envs drew, and only those: after the
-    first reset every env's record is the one ``commission`` gives for its plant (run here on that plant alone);
-    after one env's reset its record is new, the others' are the same objects, and the kernel steps the law built
-    from them."""
+def _lean_envs(mode):
+    return DecisionEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=3)
+
+
+def _sb3_envs(mode):
+    from vcnc_agents.vec_env import VcncVecEnv
+
+    return VcncVecEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=3)
+
+
+@pytest.mark.parametrize("make_envs", [_lean_envs, _sb3_envs], ids=["lean", "sb3-vecenv"])
+def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_plant_drawn(make_envs):
+    """``ff-pid@machine`` identifies the machine it runs on.  On plants drawn at every reset the trainers' native
+    envs (the lean trainer's, and SB3's ``VecEnv`` of them, where a recurrent policy trains) commission, before
+    the next decision, the plants the reset envs drew, and only those: after the first reset every env's record is
+    the one ``commission`` gives for its plant (run here on that plant alone); after one env's reset its record is
+    new, the others' are the same objects, and the kernel steps the law built from them."""
     from vcnc_baselines.commissioning.record import commission
 
     mode = ActionMode("residual", action_repeat=5, baseline="ff-pid@machine", correction=0.3)
-    batch = DecisionEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=3)
-    assert batch.native
+    batch = make_envs(mode)
     batch.reset()
     batch.step(np.zeros((2, 2), dtype=np.float32))
     u, base = batch.venv, batch.baseline
@@ -429,34 +439,6 @@ def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_pl
     np.testing.assert_array_equal(base.records[0].gains()["kp"], own.gains()["kp"])
     np.testing.assert_array_equal(batch.controller.kp, base.gains.kp)
     batch.close()
-
-
-def test_sb3s_trainer_commissions_each_plant_drawn_as_the_lean_one_does():
-    """The same over SB3's ``VecEnv`` of the native envs (``VcncVecEnv``: SB3's trainer, e.g. a recurrent
-    policy): after the first reset every env's ``ff-pid@machine`` record is the one ``commission`` gives for its
-    plant, and an env that ends its episode is commissioned again for the plant it draws, the others kept."""
-    from vcnc_agents.vec_env import VcncVecEnv
-    from vcnc_baselines.commissioning.record import commission
-
-    mode = ActionMode("residual", action_repeat=5, baseline="ff-pid@machine", correction=0.3)
-    venv = VcncVecEnv("VCNC-HeartShop-v1", 2, mode, {"randomize": True}, seed=4)
-    venv.reset()
-    venv.step(np.zeros((2, 2), dtype=np.float32))
-    u, base = venv.venv, venv.baseline
-    params = np.array(u.parameters)
-    for i in range(2):
-        assert not np.array_equal(params[i], u.nominal_parameters)
-        own = commission(u.task, "machine", params[i:i + 1])[0]
-        np.testing.assert_array_equal(base.records[i].gains()["kp"], own.gains()["kp"])
-    kept = base.records[0]
-    u.reset(options={"reset_mask": np.array([False, True])})
-    venv._start[1] = True
-    venv.step(np.zeros((2, 2), dtype=np.float32))
-    assert not np.array_equal(u.parameters[1], params[1]) and base.records[0] is kept
-    own = commission(u.task, "machine", np.array(u.parameters)[1:])[0]
-    np.testing.assert_array_equal(base.records[1].gains()["kp"], own.gains()["kp"])
-    np.testing.assert_array_equal(venv.controller.kp, base.gains.kp)
-    venv.close()
 
 
 def test_the_lean_trainer_is_the_default_and_trains_the_feed_override(tmp_path):

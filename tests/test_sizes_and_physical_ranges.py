@@ -395,13 +395,9 @@ def test_timesteps_have_a_ceiling(tiny_config, tmp_path):
 
 # -- item 5: the fuzz's NaN check can fail ---------------------------------------------------------------------------
 def _fuzz_module():
-    import importlib.util
+    from benchmark_script import benchmark_script
 
-    path = Path(__file__).parents[1] / "benchmarks" / "fuzz_envs.py"
-    spec = importlib.util.spec_from_file_location("fuzz_envs_round2", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_script("fuzz_envs", "fuzz_envs_round2")
 
 
 def test_the_id_fuzz_is_clean_and_its_nan_check_can_fail(monkeypatch):

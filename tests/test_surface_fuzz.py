@@ -4,22 +4,12 @@ trainer audited by benchmarks/kill_and_resume.py (the full runs: ``python benchm
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
 import sys
 
 import numpy as np
 import pytest
-
-_DIR = pathlib.Path(__file__).parents[1] / "benchmarks"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(name, _DIR / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
+from benchmark_script import BENCHMARKS as _DIR
+from benchmark_script import benchmark_script as _load
 
 fuzz = _load("fuzz_new_surfaces")
 
