@@ -2,7 +2,7 @@
 rule.
 
     python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--config YAML] [--on ID ...] [--seeds 5] [--jobs 2]
-        [--plants 20] [--timesteps N] [--eval-freq N] [--output runs/ablations] [--agent runs/seeds/ID] [--table JSON]
+        [--plants 20] [--timesteps N] [--eval-freq N] [--variants NAME ...] [--output runs/ablations] [--agent runs/seeds/ID] [--table JSON]
 
 The agent is the id's entry of ``--config`` (default ``agents/hyperparams/specialists.yml``, the recipe of the shipped
 specialists; ``agents/hyperparams/generalists.yml`` with ``--env VCNC-RandomContour-v1`` is the generalists' family,
@@ -159,6 +159,8 @@ def main(argv=None) -> int:
     p.add_argument("--on", action="append", metavar="ID",
                    help="an id to evaluate on (repeatable; default --env); the agents must run there")
     p.add_argument("--timesteps", type=int, metavar="N", help="agent steps of every variant (default the entry's)")
+    p.add_argument("--variants", nargs="+", metavar="NAME",
+                   help="only these variants (and the agent), e.g. the ones trained so far (default all)")
     p.add_argument("--eval-freq", type=int, default=262144, metavar="N",
                    help="agent steps between training evaluations, as the agent's own run (default %(default)s)")
     p.add_argument("--seeds", type=int, default=5, help="training seeds per variant (default 5)")
@@ -172,6 +174,11 @@ def main(argv=None) -> int:
         print("\n".join(table(json.loads(args.table.read_text()))))
         return 0
     configs = variants(load_hyperparameters(args.env, args.config))
+    unknown = sorted(set(args.variants or ()) - set(configs))
+    if unknown:
+        p.error(f"--variants: no variant {unknown[0]!r} (the variants: {', '.join(n for n in configs if n != AGENT)})")
+    if args.variants:
+        configs = {n: c for n, c in configs.items() if n == AGENT or n in args.variants}
     folder = args.output / args.env
     folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent, args.timesteps,
                     args.eval_freq)
