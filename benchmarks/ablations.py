@@ -2,7 +2,8 @@
 rule.
 
     python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--config YAML] [--on ID ...] [--seeds 5] [--jobs 2]
-        [--plants 20] [--timesteps N] [--eval-freq N] [--variants NAME ...] [--output runs/ablations] [--agent runs/seeds/ID] [--table JSON]
+        [--plants 20] [--timesteps N] [--eval-freq N] [--variants NAME ...] [--output runs/ablations]
+        [--agent runs/seeds/ID] [--table JSON]
 
 The agent is the id's entry of ``--config`` (default ``agents/hyperparams/specialists.yml``, the recipe of the shipped
 specialists; ``agents/hyperparams/generalists.yml`` with ``--env VCNC-RandomContour-v1`` is the generalists' family,

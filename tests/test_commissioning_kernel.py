@@ -41,5 +41,9 @@ def test_the_kernel_loop_is_the_numpy_loop_to_the_bit(env_id):
 def test_a_loop_for_other_machines_is_refused():
     task = gym.make("VCNC-Heart-v1").unwrapped.task
     machines = Machines(task, np.asarray(task.nominal_parameters)[None].repeat(2, axis=0))
-    with pytest.raises(ValueError, match="2 machines"):
-        machines.hold(_bench().random_loop(np.random.default_rng(0), 3, 10, machines.u_max))
+    bench = _bench()
+    with pytest.raises(ValueError, match="loop.u must be .2 machines"):
+        machines.hold(bench.random_loop(np.random.default_rng(0), 3, 10, machines.u_max))
+    loop = bench.random_loop(np.random.default_rng(0), 2, 10, machines.u_max)
+    with pytest.raises(ValueError, match="loop.offset must be .10 periods"):
+        machines.hold(loop._replace(offset=loop.offset[:5]))

@@ -131,7 +131,8 @@ class Measurement:
 
 
 class Machines:
-    """``n`` machines of an env's task, stepped one control period at a time: the experiment's only access.
+    """``n`` machines of an env's task, commanded period by period or under a holding loop: the experiment's only
+    access.
 
     ``parameters`` (n, 2, P) are handed to the simulator to *build* the machines (on a real shop floor the
     machines exist); the experiment itself only commands them and reads the observation (:meth:`step`, one period;
@@ -163,9 +164,14 @@ class Machines:
         with feedforward and excitation) for its periods in one kernel call; fills its ``u``, ``e`` and
         ``velocity``.  The same arithmetic as computing each period's command from :meth:`observe` and calling
         :meth:`step` (``tests/test_commissioning_kernel.py`` runs both)."""
-        b = self._batch.buffers
-        if b.obs.shape[0] != self.n or loop.u.shape[0] != self.n:
-            raise ValueError(f"hold: the loop's arrays must have {self.n} machines, got {loop.u.shape[0]}")
+        periods = loop.u.shape[1] if np.ndim(loop.u) == 3 else -1
+        for name in ("u", "e", "velocity", "excitation"):
+            if np.shape(getattr(loop, name)) != (self.n, periods, 2):
+                raise ValueError(f"hold: loop.{name} must be ({self.n} machines, periods, 2) like loop.u, "
+                                 f"got {np.shape(getattr(loop, name))}")
+        for name in ("legs", "offset", "offset_rate"):
+            if np.shape(getattr(loop, name)) != (periods, 2):
+                raise ValueError(f"hold: loop.{name} must be ({periods} periods, 2), got {np.shape(getattr(loop, name))}")
         sk.run_holding_loop(self._batch.data, loop)
 
     def step(self, command: np.ndarray) -> np.ndarray:
