@@ -3,7 +3,7 @@ rule.
 
     python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--config YAML] [--on ID ...] [--seeds 5] [--jobs 2]
         [--plants 20] [--timesteps N] [--eval-freq N] [--variants NAME ...] [--output runs/ablations]
-        [--agent runs/seeds/ID] [--table JSON]
+        [--agent runs/seeds/ID] [--which best|final] [--table JSON]
 
 The agent is the id's entry of ``--config`` (default ``agents/hyperparams/specialists.yml``, the recipe of the shipped
 specialists; ``agents/hyperparams/generalists.yml`` with ``--env VCNC-RandomContour-v1`` is the generalists' family,
@@ -26,8 +26,14 @@ variant, with that id's default causal controllers, into ``OUTPUT/ID.json`` (``O
 id), and the table is printed as Markdown: per variant the IQM of max and RMS contour error over plants and seeds with its 95 %
 interval, the verdict against the agent (``X`` = the variant; "wins": the variant is better, the change helps), and
 against the strongest causal controller.  A variant with a seed that kept no agent (every evaluation in its training
-diverged) is not evaluated; its row says how many and counts as a loss.  ``--table JSON`` prints the table of an earlier run's JSON and trains
-nothing.
+diverged) is not evaluated; its row says how many and counts as a loss.  ``--table JSON`` prints the table of an
+earlier run's JSON and trains nothing.
+
+``--which`` names the agent of each seed that is judged: ``best`` (default; the training evaluation with the least
+contour error) or ``final`` (the last), the feed-override family's (``agents/hyperparams/override.yml``), whose
+reward also pays for cycle time, so that its least contour error is its slowest checkpoint.  Where the records
+have cycle times (the override ids) the table has a third figure, the cycle time (s; an unfinished run's is
+infinite), judged by the same rule.
 """
 
 from __future__ import annotations
@@ -91,29 +97,54 @@ def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs:
     return folders
 
 
-def without_agent(folder: Path) -> str | None:
-    """Why a variant's seeds folder is not evaluated as one controller (a seed kept no best agent: every
-    evaluation in its training diverged), or None."""
+def without_agent(folder: Path, which: str = "best") -> str | None:
+    """Why a variant's seeds folder is not evaluated as one controller (a seed kept no ``which`` agent: for
+    ``best``, every evaluation in its training diverged), or None."""
     runs = json.loads((Path(folder) / "seeds.json").read_text())["runs"]
-    lost = [r for r in runs if r["code"] != 0 or not (Path(folder) / Path(r["folder"]).name / "best").is_dir()]
+    lost = [r for r in runs if r["code"] != 0 or not (Path(folder) / Path(r["folder"]).name / which).is_dir()]
     if not lost:
         return None
     return f"no agent: every evaluation in training diverged for {len(lost)} of {len(runs)} seeds"
 
 
-def evaluate(env_id: str, folders: dict, plants: int, out: Path) -> None:
-    """One vcnc-bench --plants run of every variant's seeds and the id's default causal controllers."""
+def agents_spec(folder: Path, which: str = "best") -> str:
+    """The bench's policy of a variant's seeds folder: every seed's ``best`` (``ppo:FOLDER``) or ``final`` agent
+    (``ppo:FOLDER/final``), judged as one controller."""
+    return f"ppo:{folder}" if which == "best" else f"ppo:{folder}/{which}"
+
+
+def evaluate(env_id: str, folders: dict, plants: int, out: Path, which: str = "best") -> None:
+    """One vcnc-bench --plants run of every variant's seeds (their ``which`` agents) and the id's default causal
+    controllers."""
     import gymnasium as gym
 
     from vcnc_bench.policies import default_specs
 
     env = gym.make(env_id)
     # not the floor: the oracle solves every sampled plant afresh (minutes each); its nominal figure is in the README
-    specs = [s for s in default_specs(env) if s not in ("ppo", "oracle")] + [f"ppo:{f}" for f in folders.values()]
+    specs = [s for s in default_specs(env) if s not in ("ppo", "oracle")] + [agents_spec(f, which) for f in folders.values()]
     command = [sys.executable, "-m", "vcnc_bench.cli", "--env", env_id, "--plants", str(plants), "--json", str(out)]
     for s in specs:
         command += ["--policy", s]
     subprocess.run(command, check=True)
+
+
+#: The units of the table's figures.
+UNITS = {"max": "um", "rms": "um", "cycle": "s"}
+
+
+def figures_of(env_id: str) -> list[str]:
+    """The figures an ablation of ``env_id`` is judged on: max and RMS contour error, and the cycle time where the
+    agent sets the feed override (a :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`), which its reward pays for."""
+    import gymnasium as gym
+
+    from vcnc_gym.envs.feed_override_env import FeedOverrideEnv
+
+    env = gym.make(env_id)
+    try:
+        return ["max", "rms"] + (["cycle"] if isinstance(env.unwrapped, FeedOverrideEnv) else [])
+    finally:
+        env.close()
 
 
 def _f(v) -> str:
@@ -130,11 +161,12 @@ def table(data: dict) -> list[str]:
     agent = by_name[AGENT]
     verdicts = {(v["x"], v["figure"]): v for v in data["verdicts"]}
     env = records[0]["env"]
+    figures = data.get("figures", ["max", "rms"])
     out = [f"**{env}** (`{data['settings']['command']}`)", "",
-           "| variant | seeds | fig | IQM [95 % CI], um | variant - agent [95 % CI], um | against the agent | "
-           "strongest causal: IQM, um | against it |", "|---|---|---|---|---|---|---|---|"]
+           "| variant | seeds | fig | IQM [95 % CI] | variant - agent [95 % CI] | against the agent | "
+           "strongest causal: IQM | against it |", "|---|---|---|---|---|---|---|---|"]
     for name, members in by_name.items():
-        for figure in ("max", "rms"):
+        for figure in figures:
             x = seed_figures(members, figure)
             own = verdict(x, x, figure=figure, x_label=name, y_label=name)
             if name == agent_name:
@@ -144,10 +176,10 @@ def table(data: dict) -> list[str]:
                 cells = f"{_f(v.difference)} [{_f(v.low)}, {_f(v.high)}]", v.outcome
             row = verdicts.get((members[0]["group"], figure))
             causal = (f"`{row['y']}` {_f(row['iqm_y'])}", row["outcome"]) if row else ("—", "—")
-            out.append(f"| {name} | {len(members)} | {figure} | {_f(own.iqm_x)} [{_f(own.ci_x[0])}, "
+            out.append(f"| {name} | {len(members)} | {figure}, {UNITS[figure]} | {_f(own.iqm_x)} [{_f(own.ci_x[0])}, "
                        f"{_f(own.ci_x[1])}] | {cells[0]} | {cells[1]} | {causal[0]} | {causal[1]} |")
     for name, why in data.get("without_agent", {}).items():
-        out.append(f"| {name} | - | both | {why} | - | loses | - | loses |")
+        out.append(f"| {name} | - | all | {why} | - | loses | - | loses |")
     return out
 
 
@@ -169,6 +201,8 @@ def main(argv=None) -> int:
     p.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20)")
     p.add_argument("--output", type=Path, default=Path("runs/ablations"), help="folder (default runs/ablations)")
     p.add_argument("--agent", type=Path, help="the agent's own seeds folder, trained already")
+    p.add_argument("--which", choices=("best", "final"), default="best",
+                   help="each seed's agent judged: best (least contour error in training; default) or final")
     p.add_argument("--table", type=Path, help="print the table of this JSON and stop")
     args = p.parse_args(argv)
     if args.table is not None:
@@ -183,13 +217,16 @@ def main(argv=None) -> int:
     folder = args.output / args.env
     folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent, args.timesteps,
                     args.eval_freq)
-    missing = {name: why for name, folder in folders.items() if (why := without_agent(folder)) is not None}
+    missing = {name: why for name, folder in folders.items()
+               if (why := without_agent(folder, args.which)) is not None}
     for on in args.on or [args.env]:
         out = args.output / (f"{args.env}.json" if on == args.env else f"{args.env}-on-{on}.json")
-        evaluate(on, {n: f for n, f in folders.items() if n not in missing}, args.plants, out)
+        evaluate(on, {n: f for n, f in folders.items() if n not in missing}, args.plants, out, args.which)
         data = json.loads(out.read_text())
-        data["ablations"] = {name: f"ppo:{folder}" for name, folder in folders.items() if name not in missing}
+        data["ablations"] = {name: agents_spec(folder, args.which) for name, folder in folders.items()
+                             if name not in missing}
         data["without_agent"] = missing
+        data["figures"] = figures_of(on)
         out.write_text(json.dumps(data, indent=1))
         print("\n".join(table(data)), flush=True)
     return 0

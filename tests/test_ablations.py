@@ -74,7 +74,7 @@ def test_the_stored_table_gives_the_iqm_of_the_seeds_records():
     module = _ablations()
     data = json.loads((ROOT / "docs" / "data" / "ablations" / "VCNC-OmegaLookahead-v1.json").read_text())
     lines = module.table(data)
-    rows = {(c[1].strip(), c[3].strip()): c for line in lines if line.startswith("| ")
+    rows = {(c[1].strip(), c[3].split(",")[0].strip()): c for line in lines if line.startswith("| ")
             for c in [line.split("|")] if len(c) > 5}
     for name, group in data["ablations"].items():
         records = [r for r in data["robust"] if r.get("group") == group]
@@ -83,3 +83,20 @@ def test_the_stored_table_gives_the_iqm_of_the_seeds_records():
                                       if kind == "sample"] for r in records])
             iqm = float(rows[(name, figure)][4].split("[")[0])
             assert iqm == pytest.approx(trim_mean(values, 0.25), rel=1e-3), (name, figure)
+
+
+def test_the_override_family_is_judged_on_its_final_agents_and_on_cycle_time():
+    """``--which final`` hands the bench every seed's ``final`` agent (the bench's ``ppo`` kind expands
+    ``FOLDER/final``), and an override id adds the cycle time to the figures; a contouring id does not."""
+    from vcnc_bench.kinds.ppo import KIND
+
+    module = _ablations()
+    folder = ROOT / "agents" / "trained" / "seeds" / "override_1M" / "VCNC-OmegaOverride-v1"
+    spec = module.agents_spec(folder, "final")
+    agents = KIND.expand(spec.split(":", 1)[1])
+    assert [Path(a).parent.name for a in agents] == ["seed0", "seed1", "seed2"]
+    assert all(Path(a).name == "final" for a in agents)
+    assert module.agents_spec(folder) == f"ppo:{folder}"
+    assert module.without_agent(folder, "final") is None
+    assert module.figures_of("VCNC-OmegaOverride-v1") == ["max", "rms", "cycle"]
+    assert module.figures_of("VCNC-Heart-v1") == ["max", "rms"]

@@ -80,6 +80,16 @@ def test_sampled_figures_with_noise_seeds():
     assert x[1, 2] == np.inf  # diverged
 
 
+def test_the_cycle_time_is_a_figure_and_an_unfinished_run_is_infinite():
+    kinds = ["nominal", "sample", "sample", "sample"]
+    rec = _record("E", "x", [1, 2, 3, 4], [1, 1, 1, 1], kinds)
+    rec["per_plant"]["cycle_time_s"] = [0.7, 0.8, None, 0.9]  # plant 2 did not arrive
+    rec["per_plant"]["diverged"] = [False, False, False, True]
+    np.testing.assert_array_equal(verdicts.sampled_figures(rec, "cycle"), [0.8, np.inf, np.inf])
+    with pytest.raises(ValueError, match="figure: 'time'"):
+        verdicts.sampled_figures(rec, "time")
+
+
 def test_split_noise_and_summary():
     k, m = 2, 3
     runs = robust.PlantRuns(max_um=np.arange(6.0), rms_um=np.ones(6), cycle_time_s=np.ones(6), has_cycle_time=True,

@@ -47,7 +47,7 @@ import numpy as np
 from vcnc_gym.validation import integer
 
 __all__ = ["REPS", "CONFIDENCE", "iqm", "stratified_bootstrap_ci", "probability_of_improvement",
-           "paired_difference_ci", "Verdict", "verdict", "decide", "sampled_figures", "seed_figures", "strongest",
+           "paired_difference_ci", "Verdict", "verdict", "decide", "FIGURE_KEYS", "sampled_figures", "seed_figures", "strongest",
            "robust_verdicts",
            "format_verdicts"]
 
@@ -329,18 +329,28 @@ def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, 
 
 
 # -- the bench's verdicts (vcnc-bench --plants N) ---------------------------------------------------------------
+#: A robust record's figures by name, and their keys in its ``per_plant``: max and RMS contour error (um), and the
+#: cycle time (s; an unfinished run's is None, counted as infinite like a diverged run's).
+FIGURE_KEYS = {"max": "max_um", "rms": "rms_um", "cycle": "cycle_time_s"}
+
+
 def sampled_figures(rec: dict, figure: str) -> np.ndarray:
-    """A robust record's figure (``"max"``, ``"rms"``; um) on its sampled plants, (N,) or, with sensor-noise seeds,
-    (N, K): a diverged run infinite.  The nominal plant and the box's vertices are left out: the bootstrap
-    resamples random draws, and the vertices are not."""
+    """A robust record's figure (``"max"``, ``"rms"``: um; ``"cycle"``: s) on its sampled plants, (N,) or, with
+    sensor-noise seeds, (N, K): a diverged run infinite, and an unfinished run's cycle time too.  The nominal plant
+    and the box's vertices are left out: the bootstrap resamples random draws, and the vertices are not."""
+    if figure not in FIGURE_KEYS:
+        raise ValueError(f"figure: {figure!r} is none of {', '.join(FIGURE_KEYS)}")
     sampled = np.array(rec["per_plant"]["kind"]) == "sample"
     if "per_noise" in rec:
+        if figure == "cycle":
+            raise ValueError(f"figure: the record of {rec['policy']!r} has sensor-noise seeds, whose cycle times "
+                             "are not kept; judge its max or rms")
         shape = tuple(rec["per_noise"]["shape"])
         x = np.array([np.inf if v is None else v for v in rec["per_noise"][f"{figure}_um"]]).reshape(shape)
         x = np.where(np.array(rec["per_noise"]["diverged"], dtype=bool).reshape(shape), np.inf, x)
         return x[:, sampled].T
     per = rec["per_plant"]
-    x = np.array([np.inf if v is None else v for v in per[f"{figure}_um"]], dtype=np.float64)
+    x = np.array([np.inf if v is None else v for v in per[FIGURE_KEYS[figure]]], dtype=np.float64)
     return np.where(np.array(per["diverged"], dtype=bool), np.inf, x)[sampled]
 
 
