@@ -264,6 +264,30 @@ def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, c
     assert exc.value.code == 2 and "nope" in capsys.readouterr().err
 
 
+def test_shop_floor_option_runs_the_env_on_its_shop_floor_as_gym_make_does(tmp_path):
+    """--shop-floor makes every env (and every --program) with shop_floor=True: the bench's figure is
+    run_episode's on that env (an independent gym.make), and the papers' columns stay empty."""
+    import vcnc_baselines
+    from vcnc_bench.programs import program_recipes
+    from vcnc_gym.plants.shop_floor import ShopFloorModel
+
+    out = tmp_path / "shop.json"
+    assert bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--shop-floor", "--no-progress",
+                       "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    (record,) = data["records"]
+    assert data["settings"]["shop_floor"] is True
+    env = gym.make("VCNC-Butterfly-v1", shop_floor=True)
+    assert isinstance(env.unwrapped.plant, ShopFloorModel)
+    mine = run_episode(vcnc_baselines.make("zpetc", env), env)
+    assert record["max_contour_error_um"] == pytest.approx(mine.max_contour_error_um, rel=1e-12)
+    assert record["max_contour_error_um"] != pytest.approx(
+        run_episode(vcnc_baselines.make("zpetc", gym.make("VCNC-Butterfly-v1")), gym.make("VCNC-Butterfly-v1"))
+        .max_contour_error_um, rel=1e-3)  # the shop floor is another machine
+    assert record["paper_max_contour_error_um"] is None
+    (recipe,) = program_recipes([("part", "G1 X1 F600")], 0.01, shop_floor=True)
+    assert recipe[2]["shop_floor"] is True
+
 
 def test_commissioned_predictive_variants_are_extras_of_the_default_table():
     from vcnc_bench.kinds.baseline import KIND

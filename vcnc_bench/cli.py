@@ -220,6 +220,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="run every env on this plant instead of its own (a name of vcnc_gym.plants.plant_names(), such as "
                         "current_feed_drive: a generalist's machine on the test pieces); the papers' columns stay "
                         "empty")
+    p.add_argument("--shop-floor", action="store_true",
+                   help="run every env on its plant's shop floor (encoder, noise, delays, the mode, cutting force and "
+                        "friction: vcnc_gym.plants.shop_floor), such as the G-code test pieces for a shop-floor "
+                        "generalist; the papers' columns stay empty")
     p.add_argument("--trials", type=int, metavar="K",
                    help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
                         "and the last, the JSON every one (default 10; with --plants 1, the last scored); such "
@@ -260,10 +264,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _env_kwargs(args) -> dict:
-    """The arguments every env is made with: ``feedrate`` and ``plant`` when given."""
+    """The arguments every env is made with: ``feedrate``, ``plant`` and ``shop_floor`` when given."""
     kwargs = {} if args.feedrate is None else {"feedrate": args.feedrate}
     if args.plant is not None:
         kwargs["plant"] = args.plant
+    if args.shop_floor:
+        kwargs["shop_floor"] = True
     return kwargs
 
 
@@ -384,7 +390,8 @@ def _recipes(args, parser) -> list[EnvRecipe]:
         except ValueError as exc:
             parser.error(str(exc))
         recipes += [EnvRecipe(key, env_id, kw, specs, everything)
-                     for key, env_id, kw in programs.program_recipes(pieces, tolerance, plant=args.plant)]
+                     for key, env_id, kw in programs.program_recipes(pieces, tolerance, plant=args.plant,
+                                                                       shop_floor=args.shop_floor)]
     return recipes
 
 
@@ -482,7 +489,7 @@ def _context(args, envs: dict, results: dict) -> BenchContext:
 
 def _table_records(args, ctx: BenchContext, results: dict) -> list[dict]:
     """One record per episode (every trial), in the table's order."""
-    compare = args.feedrate is None and args.plant is None
+    compare = args.feedrate is None and args.plant is None and not args.shop_floor
     records = []
     for key, env_runs in results.items():
         for run in env_runs.runs:
@@ -554,7 +561,7 @@ def _bench_json(args, results: dict, records: list[dict], jobs: int) -> dict:
     """What ``--json`` writes: the settings, the plan (every env's policy labels) and the records."""
     settings = {"command": args.command, "seed": args.seed, "trials": args.trials or DEFAULT_TRIALS,
                 "feedrate": args.feedrate,
-                "plant": args.plant, "all": args.all, "jobs": jobs,
+                "plant": args.plant, "shop_floor": args.shop_floor, "all": args.all, "jobs": jobs,
                 "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None,
                 "provenance": provenance()}
     plan = {key: [run.label for run in env_runs.runs] for key, env_runs in results.items()}
@@ -676,7 +683,7 @@ def _nominal_floors(args, envs: dict, runs: list) -> dict:
     shipped solution (only for the ids' own configuration: default feedrate and plant, seed 0; elsewhere a
     solve costs minutes and the score is left out).  ``{env: {"max_um", "rms_um", "label"}}``."""
     out = {}
-    if args.feedrate is not None or args.plant is not None or args.seed != 0:
+    if args.feedrate is not None or args.plant is not None or args.shop_floor or args.seed != 0:
         return out
     for env_id in dict.fromkeys(e for e, _, _ in runs):
         if any(label_of(s, p).endswith(NON_CAUSAL) for e, s, p in runs if e == env_id):
@@ -795,7 +802,7 @@ def _robust(args, envs: dict, runs: list) -> int:
     if args.json is not None or args.leaderboard is not None:
         settings = {"command": args.command, "plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
                     "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate, "plant": args.plant,
-                    "noise_seeds": args.noise_seeds, "bootstrap": {"reps": verdicts.REPS, "seed": args.seed,
+                    "shop_floor": args.shop_floor, "noise_seeds": args.noise_seeds, "bootstrap": {"reps": verdicts.REPS, "seed": args.seed,
                                                                    "confidence": verdicts.CONFIDENCE},
                     "provenance": provenance()}
         out = {"settings": settings, "robust": [_json_safe(r) for r in records],

@@ -52,10 +52,10 @@ def expand_programs(specs: list[str], circle: tuple[float, float] | None) -> lis
 
 
 def program_recipes(programs: list[tuple[str, object]], tolerance: float | None,
-                    plant: str | None = None) -> list[tuple[str, str, dict]]:
+                    plant: str | None = None, shop_floor: bool = False) -> list[tuple[str, str, dict]]:
     """(table name, id, ``gym.make`` arguments) of ``VCNC-GCode-v1`` for each program, on ``plant`` (a plant's
-    name) if given."""
-    extra = {} if plant is None else {"plant": plant}
+    name) if given, on its shop floor if ``shop_floor``."""
+    extra = ({} if plant is None else {"plant": plant}) | ({"shop_floor": True} if shop_floor else {})
     return [(PROGRAM_PREFIX + name, "VCNC-GCode-v1", {"program": program, "tolerance": tolerance, **extra})
             for name, program in programs]
 
