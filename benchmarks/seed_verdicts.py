@@ -1,6 +1,6 @@
 """An agent's training seeds on the box, from a ``vcnc-bench --plants N --policy ppo:FOLDER --json`` file.
 
-    python benchmarks/seed_verdicts.py docs/data/shop_seeds/VCNC-HeartShop-v1.json [--base ff-ccc]
+    python benchmarks/seed_verdicts.py docs/data/shop_seeds/VCNC-HeartShop-v1.json [--base ff-ccc] [--within 5 10 20]
     python benchmarks/seed_verdicts.py docs/data/ideal_seeds/VCNC-Corners-v1.json --with docs/data/mpc_box/VCNC-Corners-v1.json
     python benchmarks/seed_verdicts.py --summary docs/data/generalist_seeds/current_feed_drive/*.json
     python benchmarks/seed_verdicts.py --summary docs/data/*_seeds/VCNC-*.json --before docs/data/ideal_seeds_5 --before docs/data/shop_seeds_5
@@ -18,8 +18,9 @@ training run's seeds) and judges the agents again, by the bench's own rule
 ``--only POLICY`` joins that policy's records only (an old run's costly controllers, not its agents).  ``--json
 OUT`` writes the joined run.  ``--against GROUP`` judges every training run against the seeds of
 ``GROUP`` (an ablation: the same recipe with one thing changed, "wins" where the run is better).  Runs whose settings
-differ (plants, plant seed, reset seed, trials, vertices, feed, plant, noise seeds) are refused, since their
-plants cannot be paired.
+differ (plants, plant seed, reset seed, trials, vertices, feed, plant, noise seeds, shop floor) are refused, since their
+plants cannot be paired.  ``--within T ...`` (um) adds a table: per policy, whether its max contour error on the
+nominal plant is within each contour tolerance T, and on how many sampled plants.
 """
 
 from __future__ import annotations
@@ -31,7 +32,11 @@ from vcnc_bench.headroom import NON_CAUSAL
 from vcnc_bench.verdicts import iqm, robust_verdicts, sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
 
 #: The settings two ``--plants`` runs must share for their records to be paired plant by plant.
-PAIRED_SETTINGS = ("plants", "plant_seed", "seed", "trials", "max_vertices", "feedrate", "plant", "noise_seeds")
+PAIRED_SETTINGS = ("plants", "plant_seed", "seed", "trials", "max_vertices", "feedrate", "plant", "noise_seeds",
+                   "shop_floor")
+
+#: The value of a setting a run's JSON does not hold: written before the setting existed, it ran without it.
+SETTING_DEFAULTS = {"shop_floor": False}
 
 
 def _f(v) -> str:
@@ -61,6 +66,24 @@ def tables(data: dict, base: str) -> list[str]:
                    f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
                    f"{v['p_improvement']:.2f} | {v['outcome']} |")
     out += [""] + [line[0].upper() + line[1:] for line in _against_base(records, base)]
+    return out
+
+
+def within(records: list[dict], tolerances: list[float]) -> list[str]:
+    """The Markdown lines of a table: per record, whether its max contour error on the nominal plant is within each
+    tolerance T (um), and on how many of the sampled plants it is (a diverged run is not; a part over T is
+    scrapped, issue 37)."""
+    head = " | ".join(f"within {t:g} um: nominal, sampled plants" for t in tolerances)
+    out = [f"| policy | {head} |", "|---|" + "---|" * len(tolerances)]
+    for r in records:
+        if r["policy"] == "pd-ref":
+            continue
+        x = sampled_figures(r, "max")
+        x = x.reshape(x.shape[0], -1).max(axis=1)  # with noise seeds: a plant is within T if every seed is
+        nominal = r["nominal_max_um"]
+        cells = [f"{'yes' if nominal is not None and nominal <= t else 'no'}, {int((x <= t).sum())} of {x.size}"
+                 for t in tolerances]
+        out.append(f"| `{r['policy']}` | " + " | ".join(cells) + " |")
     return out
 
 
@@ -181,10 +204,13 @@ def join(data: dict, other: dict, other_name: str = "the other run", only: tuple
     ``data``'s settings); ValueError where the two runs' settings or plants differ, or a policy of ``only`` is not
     in ``other``."""
     a, b = data["settings"], other["settings"]
-    differ = [k for k in PAIRED_SETTINGS if a.get(k) != b.get(k)]
+    def get(settings, k):
+        return settings.get(k, SETTING_DEFAULTS.get(k))
+
+    differ = [k for k in PAIRED_SETTINGS if get(a, k) != get(b, k)]
     if differ:
         raise ValueError(f"{other_name} was not run on the same plants: its settings differ in "
-                         + ", ".join(f"{k} ({a.get(k)!r} against {b.get(k)!r})" for k in differ))
+                         + ", ".join(f"{k} ({get(a, k)!r} against {get(b, k)!r})" for k in differ))
     envs = {r["env"] for r in data["robust"]}
     have = {(r["env"], r["policy"]) for r in data["robust"]}
     absent = [p for p in only if not any(r["policy"] == p for r in other["robust"])]
@@ -221,7 +247,12 @@ def main(argv=None) -> int:
                    help="with --summary: the verdicts of the JSON of the same name in DIR (an earlier run's seeds; "
                         "repeatable, the first DIR that has it) beside this run's, and how many changed")
     p.add_argument("--against", metavar="GROUP", help="judge every training run against the seeds of GROUP")
+    p.add_argument("--within", nargs="+", type=float, metavar="T",
+                   help="contour tolerances, um: per policy, whether the nominal plant's max is within each, and on "
+                        "how many sampled plants")
     args = p.parse_args(argv)
+    if args.within and any(not t > 0 for t in args.within):
+        p.error(f"--within: a tolerance is a positive number of um, got {min(args.within)!r}")
     if args.summary:
         runs = [json.loads(open(path).read()) for path in args.json_files]
         print("\n".join(summary(runs, args.base)))
@@ -252,6 +283,8 @@ def main(argv=None) -> int:
         print("\n".join(tables(data, base_of(args.base, data["robust"][0]["env"]))) + "\n")
         if args.against:
             print("\n".join(ablation(data["robust"], args.against)) + "\n")
+        if args.within:
+            print("\n".join(within(data["robust"], args.within)) + "\n")
     return 0
 
 

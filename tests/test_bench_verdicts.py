@@ -237,3 +237,29 @@ def test_the_changes_table_counts_the_verdicts_an_earlier_run_gave_otherwise():
     rms = [next(v["outcome"] for v in d["verdicts"] if v["training_seeds"] > 1 and v["figure"] == "rms")
            for d in (before, now)]
     assert lines[-1] == f"{1 + (rms[0] != rms[1])} of 2 verdicts changed."
+
+
+def test_within_counts_the_plants_whose_max_is_within_each_tolerance():
+    """``--within``: per policy, the nominal plant's verdict and the count of sampled plants whose max is at most T,
+    counted here from the JSON's per-plant figures (a diverged plant never within); a run on the shop floor is
+    not paired with one off it, and a JSON written before the setting existed counts as off it."""
+    from pathlib import Path
+
+    data = json.loads((Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds" / "VCNC-HeartShop-v1.json")
+                      .read_text())
+    sv = _seed_verdicts()
+    rows = {line.split("|")[1].strip(" `"): line.split("|")[2:5] for line in sv.within(data["robust"], [5, 10, 20])
+            if line.startswith("| `")}
+    for r in data["robust"]:
+        if r["policy"] == "pd-ref":
+            continue
+        per = r["per_plant"]
+        for t, cell in zip((5, 10, 20), rows[r["policy"]]):
+            count = sum(1 for m, k, d in zip(per["max_um"], per["kind"], per["diverged"])
+                        if k == "sample" and not d and m is not None and m <= t)
+            nominal = r["nominal_max_um"] is not None and r["nominal_max_um"] <= t
+            assert cell.strip() == f"{'yes' if nominal else 'no'}, {count} of {per['kind'].count('sample')}"
+    assert "shop_floor" not in data["settings"]
+    sv.join(data, dict(data, settings=dict(data["settings"], shop_floor=False)))  # the same: written before it
+    with pytest.raises(ValueError, match="shop_floor"):
+        sv.join(data, dict(data, settings=dict(data["settings"], shop_floor=True)))
