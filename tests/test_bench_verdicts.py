@@ -121,7 +121,31 @@ def test_provenance(tmp_path):
     assert {"numpy", "numba", "torch", "stable-baselines3", "gymnasium"} <= set(p["libraries"])
     assert p["libraries"]["numpy"] == np.__version__
     assert {"threading_layer", "threading_layer_requested", "opt"} <= set(p["numba"])
+    assert set(p["code_paths"]) == {"NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE", "ATEN_CPU_CAPABILITY",
+                                    "MKL_ENABLE_INSTRUCTIONS", "ONEDNN_MAX_CPU_ISA"}
     json.dumps(p)
+
+
+def test_another_cpus_code_paths_come_from_its_recorded_provenance():
+    """``code_paths_of``: a run made on a Zen 3 host (no AVX-512) gives numba its CPU name and features, OpenBLAS
+    its Zen kernels and torch AVX2; a CPU without a known OpenBLAS core is said, not guessed; a provenance without
+    numba's CPU is refused by name."""
+    from pathlib import Path
+
+    from vcnc_bench.provenance import code_paths_of
+
+    data = json.loads((Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds_5" /
+                       "VCNC-HeartShop-v1.json").read_text())
+    recorded = data["settings"]["provenance"]
+    env, left = code_paths_of(recorded)
+    assert env["NUMBA_CPU_NAME"] == "znver3" and "-avx512f" in env["NUMBA_CPU_FEATURES"]
+    assert env["OPENBLAS_CORETYPE"] == "Zen" and env["ATEN_CPU_CAPABILITY"] == "avx2" and not left
+    zen5 = dict(recorded, numba=dict(recorded["numba"], cpu_name="znver5"),
+                cpu=dict(recorded["cpu"], flags=recorded["cpu"]["flags"] + ["avx512f"]))
+    env, left = code_paths_of(zen5)
+    assert "OPENBLAS_CORETYPE" not in env and "znver5" in left[0] and env["ATEN_CPU_CAPABILITY"] == "avx512"
+    with pytest.raises(ValueError, match="cpu_name"):
+        code_paths_of({"cpu": recorded["cpu"], "numba": {}})
 
 
 @pytest.mark.slow
