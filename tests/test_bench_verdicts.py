@@ -287,3 +287,33 @@ def test_within_counts_the_plants_whose_max_is_within_each_tolerance():
     sv.join(data, dict(data, settings=dict(data["settings"], shop_floor=False)))  # the same: written before it
     with pytest.raises(ValueError, match="shop_floor"):
         sv.join(data, dict(data, settings=dict(data["settings"], shop_floor=True)))
+
+
+def test_cross_cpu_counts_the_figures_that_moved_and_the_verdicts_that_changed():
+    """``benchmarks/cross_cpu.py``: one plant's max moved by 1 % and one verdict flipped, counted as such; labels
+    matched after the rename; runs of other plants refused."""
+    from benchmark_script import benchmark_script
+
+    cc = benchmark_script("cross_cpu")
+    kinds = ["nominal", "sample", "sample"]
+
+    def run(cpu, max_um, outcome):
+        rec = [_record("E", "ppo:A/seed0/best", max_um, [1, 1, 1], kinds), _record("E", "zpetc", [1, 2, 3], [1, 1, 1], kinds)]
+        v = {"x": "ppo:A", "y": "zpetc", "figure": "max", "outcome": outcome, "difference": 0.1, "low": -0.1, "high": 0.3}
+        return {"settings": {"provenance": {"numba": {"cpu_name": cpu}}}, "robust": rec, "verdicts": [v]}
+
+    old, new = run("znver4", [1.0, 2.0, 3.0], "ties"), run("znver3", [1.0, 2.02, 3.0], "loses")
+    for r in new["robust"] + new["verdicts"]:
+        for key in ("policy", "x"):
+            if key in r:
+                r[key] = r[key].replace("ppo:A", "ppo:B")
+    lines = cc.compare(old, new, ("ppo:A", "ppo:B"))
+    row = next(line for line in lines if line.startswith("| `ppo:B/seed0/best`"))
+    assert [c.strip() for c in row.split("|")[2:6]] == ["3", "1", f"{0.02 / 2.0:.2g}", "0"]
+    assert next(line for line in lines if line.startswith("| `zpetc`")).split("|")[3].strip() == "0"
+    assert "**yes**" in next(line for line in lines if line.startswith("| `ppo:B` | max")) and lines[-1] == \
+        "1 of 1 verdicts changed."
+    assert "`znver4` (old) against `znver3` (new)" in lines[0]
+    new["robust"][1]["per_plant"]["max_um"] = [1, 2]
+    with pytest.raises(ValueError, match="not the same run"):
+        cc.compare(old, new, ("ppo:A", "ppo:B"))
