@@ -87,6 +87,14 @@ def within(records: list[dict], tolerances: list[float]) -> list[str]:
     return out
 
 
+def run_name(data: dict) -> str:
+    """The id of a run's JSON, with the plant it ran on (``--plant``) and ``shop floor`` (``--shop-floor``)."""
+    settings = data["settings"]
+    extra = [f"`{settings['plant']}`"] if settings.get("plant") else []
+    extra += ["shop floor"] if settings.get("shop_floor") else []
+    return data["robust"][0]["env"] + (f" ({', '.join(extra)})" if extra else "")
+
+
 def base_of(bases: list[str], env: str) -> str:
     """The base of ``env`` among ``--base`` entries: ``ID=NAME`` for that id, else a plain ``NAME``, else
     ``ff-ccc``."""
@@ -104,8 +112,7 @@ def summary(runs: list[dict], base: str | list[str]) -> list[str]:
     lines = []
     for data in runs:
         records = data["robust"]
-        plant = data["settings"].get("plant")
-        name = records[0]["env"] + (f" (`{plant}`)" if plant else "")
+        name = run_name(data)
         for v in (v for v in data["verdicts"] if v.get("training_seeds", 1) > 1):
             rows.append(f"| {name} | {v['figure']} | {_f(v['iqm_x'])} [{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | "
                         f"`{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, {_f(v['ci_y'][1])}] | "
@@ -144,8 +151,7 @@ def spread(runs: list[dict]) -> list[str]:
            "|---|---|---|---|---|"]
     for data in runs:
         records = data["robust"]
-        plant = data["settings"].get("plant")
-        name = records[0]["env"] + (f" (`{plant}`)" if plant else "")
+        name = run_name(data)
         for run in dict.fromkeys(r["group"] for r in records if r.get("group")):
             members = [r for r in records if r.get("group") == run]
             cells = []

@@ -152,3 +152,7 @@ def test_an_id_run_on_another_plant_is_a_section_of_its_own():
     other["settings"]["plant"] = "current_feed_drive"
     rows = leaderboard.merge(own, leaderboard.rows_of(other))
     assert sorted(r["env"] for r in rows) == ["A", "A on current_feed_drive"]
+    shop = _bench([_nominal("A", "ff-ccc", 5.0, 1.0)])
+    shop["settings"]["shop_floor"] = True  # vcnc-bench --shop-floor: the same machine on its shop floor
+    rows = leaderboard.merge(rows, leaderboard.rows_of(shop))
+    assert sorted(r["env"] for r in rows) == ["A", "A on current_feed_drive", "A on the shop floor"]

@@ -7,7 +7,8 @@ and its verdict, as a page of the docs site generated from bench JSONs.
     vcnc-bench --env VCNC-Heart-v1 --policy ppo:runs/mine/best --leaderboard docs/leaderboard.md   # add yours
 
 **Rows.**  One per id and policy, from the records of ``vcnc-bench --json`` (the default table: the nominal plant)
-or of ``vcnc-bench --plants N --json`` (the uncertainty box); an id run on another plant (``--plant NAME``) is a
+or of ``vcnc-bench --plants N --json`` (the uncertainty box); an id run on another plant (``--plant NAME``) or on
+the shop floor (``--shop-floor``) is a
 section of its own, "ID on NAME".  The page's rows are kept beside it
 (``leaderboard.json``); the rows of a new JSON replace those of the same id and policy, so a user's policy joins
 the board with one command (the bench's ``--leaderboard``).  Each row keeps the command line and the host that
@@ -136,9 +137,12 @@ def rows_of(bench: dict) -> list[dict]:
     rows = ([_robust_row(r) for r in robust if not r.get("group")] + [_seeds_row(m) for m in groups.values()]
             + _nominal_rows([r for r in records if "per_plant" not in r]))
     settings = bench.get("settings", {})
-    if settings.get("plant"):  # the id run on another plant (--plant) is another section, not the id's own rows
+    # the id run on another plant (--plant) or on the shop floor (--shop-floor) is another section, not the id's rows
+    where = [settings["plant"]] if settings.get("plant") else []
+    where += ["the shop floor"] if settings.get("shop_floor") else []
+    if where:
         for row in rows:
-            row["env"] = f"{row['env']} on {settings['plant']}"
+            row["env"] = f"{row['env']} on {' and '.join(where)}"
     prov = settings.get("provenance") or {}
     source = {"command": settings.get("command"), "cpu": (prov.get("cpu") or {}).get("model"),
               "version": (prov.get("libraries") or {}).get("vcnc-gym")}
