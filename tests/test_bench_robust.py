@@ -150,6 +150,6 @@ def test_the_robust_bench_on_the_override_id_has_no_floor_to_score_against():
     env = gym.make("VCNC-OmegaOverride-v1")
     with pytest.raises(ValueError, match="re-times its reference"):
         make_baseline("oracle", env)
-    args = argparse.Namespace(feedrate=None, plant=None, seed=0)
+    args = argparse.Namespace(feedrate=None, plant=None, shop_floor=False, seed=0)
     runs = [("VCNC-OmegaOverride-v1", "ff-pid-online", make_baseline("ff-pid-online", env))]
     assert cli._nominal_floors(args, {"VCNC-OmegaOverride-v1": env}, runs) == {}
