@@ -680,8 +680,8 @@ def _with_reference(runs: list, envs: dict) -> list:
 
 def _nominal_floors(args, envs: dict, runs: list) -> dict:
     """The floor's figures on the nominal plant of every env whose runs hold no floor: the oracle's replay of its
-    shipped solution (only for the ids' own configuration: default feedrate and plant, seed 0; elsewhere a
-    solve costs minutes and the score is left out).  ``{env: {"max_um", "rms_um", "label"}}``."""
+    shipped solution (only for the ids' own configuration: default feedrate and plant, no ``--shop-floor``, seed 0;
+    elsewhere a solve costs minutes and the score is left out).  ``{env: {"max_um", "rms_um", "label"}}``."""
     out = {}
     if args.feedrate is not None or args.plant is not None or args.shop_floor or args.seed != 0:
         return out
