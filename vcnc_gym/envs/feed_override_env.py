@@ -9,13 +9,13 @@ from gymnasium import spaces
 
 from . import step_kernel as sk
 from .contouring_env import ContouringEnv, check_actions
-from .retiming import padded_reference, retime
+from .retiming import lookahead_dial, padded_reference, retime
 from .signatures import forwarded_signature
 from .task import ContouringBatch
 from ..validation import non_negative, positive, real, size
 
 __all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT",
-           "DEFAULT_VIOLATION_COST", "DEFAULT_PROGRESS_REWARD", "TOLERANCES"]
+           "DEFAULT_VIOLATION_COST", "DEFAULT_PROGRESS_REWARD", "TOLERANCES", "MAX_OVERRIDE"]
 
 #: How fast the override follows its dial, 1/s: the whole range in 0.1 s.  The re-timed reference's extra
 #: acceleration, rate x feed, is then 1e3 mm/s^2 at 100 mm/s, within the ~2.6e3 mm/s^2 of Jahanpour et al.
@@ -27,6 +27,11 @@ DEFAULT_OVERRIDE_RATE = 10.0
 #: feed (0.99 s instead of 0.63 s) brings that to 1.4 um (README): at 1 um per second, slowing down pays where
 #: the error is microns, not where it is nanometres.
 DEFAULT_TIME_COST = 1e-3
+
+#: The largest override a dial may reach, 1 = 100 %: a CNC's operator panel runs its feed override to 120-150 %
+#: (Heidenhain's to 150 %), and the tolerance task's classical opponents are searched up to 1.5 times the
+#: programmed feed (vcnc_bench.reports.tolerance).  ``max_override`` is 1.0 by default (the dial of issue 24).
+MAX_OVERRIDE = 1.5
 
 #: Largest time limit, times the reference's duration at full feed: an override held below 1 % is a feed hold,
 #: not a feed (and the re-timed reference holds a row per control period up to the limit).
@@ -78,7 +83,15 @@ class FeedOverrideEnv(ContouringEnv):
     |-----|------------------|-----|-----|-------------------------------------------|
     | 0   | x-axis command   | -1  | 1   | x the plant's input limit (5 V)           |
     | 1   | y-axis command   | -1  | 1   | x the plant's input limit (5 V)           |
-    | 2   | feed override    | -1  | 1   | dial: override = (a + 1) / 2, 0 to 100 %  |
+    | 2   | feed override    | -1  | 1   | dial: override = m (a + 1) / 2, 0 to m    |
+
+    with ``m = max_override`` (1.0: 0 to 100 %).  With ``lookahead=(F, A)``
+    the dial is the operator's override on a look-ahead, as on a CNC, 50 to
+    150 %: the override in force follows ``min(m, (1 + a / 2) L(tau))``,
+    ``L`` the override that makes the reference's feed the look-ahead's of
+    top feed F (mm/s) and path acceleration A (mm/s^2) at the reference's
+    clock ``tau`` (:func:`~vcnc_gym.envs.retiming.lookahead_dial`); a = 0 is
+    the look-ahead itself.
 
     ## Observation Space
 
@@ -134,7 +147,9 @@ class FeedOverrideEnv(ContouringEnv):
 
     Every argument of ContouringEnv but ``completion_timeout`` (set by
     ``time_limit``), plus ``override_rate`` (1/s, 10: the whole range in 0.1
-    s), ``time_cost`` (mm, None: 0.001 without a tolerance; refused with
+    s), ``max_override`` (1, 1.0: the dial's top, up to MAX_OVERRIDE, 1.5 =
+    150 %), ``lookahead`` ((F mm/s, A mm/s^2), None: the dial alone),
+    ``time_cost`` (mm, None: 0.001 without a tolerance; refused with
     one), ``time_limit`` (1, 3.0), ``tolerance`` (mm, None: the contouring
     reward; T: the tolerance task), ``violation_cost`` (decision steps of
     time per step over T, 100.0) and ``progress_reward`` (full-feed cycles
@@ -147,14 +162,19 @@ class FeedOverrideEnv(ContouringEnv):
       (issue 37) came later; its default, None, leaves the env as it was.
     - v1 (``VCNC-OmegaOverrideShop-v1``): initial release (issue 37); the
       same omega on the shop floor (``shop_floor=True``), the tolerance
-      task's shop-floor twin.
+      task's shop-floor twin.  The ``max_override`` argument (issue 37) came
+      later, and so did ``lookahead``; their defaults, 1.0 and None, leave
+      both ids as they were.
+    - v1 (``VCNC-OmegaTolerance-v1``, ``VCNC-OmegaToleranceShop-v1``):
+      initial release (issue 37); the tolerance task's own ids (registry).
     """
 
     #: Classical controllers that read the reference ahead from a table computed once (feedforward, ZPETC, the
     #: oracle) refuse this env: its reference is re-timed while it runs.
     retimes_reference = True
 
-    def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, time_cost: float | None = None,
+    def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, max_override: float = 1.0,
+                 lookahead: tuple[float, float] | None = None, time_cost: float | None = None,
                  time_limit: float = DEFAULT_TIME_LIMIT, tolerance: float | None = None,
                  violation_cost: float = DEFAULT_VIOLATION_COST, progress_reward: float = DEFAULT_PROGRESS_REWARD,
                  render_mode: str | None = None, **kwargs):
@@ -162,6 +182,17 @@ class FeedOverrideEnv(ContouringEnv):
             raise ValueError("completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
                              "at full feed) in FeedOverrideEnv")
         self.override_rate = positive("override_rate", override_rate, "1/s")  # bool and str refused
+        self.max_override = real("max_override", max_override, "x the programmed feed")
+        if not 1.0 <= self.max_override <= MAX_OVERRIDE:
+            raise ValueError(f"max_override must be in [1, {MAX_OVERRIDE:g}] (the dial's top, x the programmed feed: "
+                             f"a CNC's panel reaches 120-150 %), got {max_override!r}")
+        if lookahead is not None:
+            if not isinstance(lookahead, (tuple, list)) or len(lookahead) != 2:
+                raise ValueError(f"lookahead must be None or a pair (top feed mm/s, path acceleration mm/s^2), got "
+                                 f"{lookahead!r}")
+            lookahead = (positive("lookahead[0]", lookahead[0], "mm/s (top feed)"),
+                         positive("lookahead[1]", lookahead[1], "mm/s^2 (path acceleration)"))
+        self.lookahead = lookahead
         self.tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm of contour error")
         self.violation_cost = non_negative("violation_cost", violation_cost, "decision steps of time per step over T")
         self.progress_reward = non_negative("progress_reward", progress_reward, "full-feed cycles per contour")
@@ -196,6 +227,9 @@ class FeedOverrideEnv(ContouringEnv):
         #: the time term of the tolerance task per decision step: the decision period over the full-feed duration
         self._step_time = self.task.action_repeat * dt / duration
         self._length = float(self.task.reference_arrays.samples[-1, sk.REF_ARC])  # mm of contour
+        #: the look-ahead's override per sample of the original reference (None: the dial alone)
+        self._planned = None if lookahead is None else np.minimum(
+            lookahead_dial(self._original, *lookahead), self.max_override)
 
     def _make_batch(self) -> ContouringBatch:
         task = self.task
@@ -239,7 +273,13 @@ class FeedOverrideEnv(ContouringEnv):
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         a = check_actions(action, (3,))
-        dial = 0.5 * (min(1.0, max(-1.0, float(a[2]))) + 1.0)
+        a2 = min(1.0, max(-1.0, float(a[2])))
+        if self._planned is None:
+            dial = self.max_override * 0.5 * (a2 + 1.0)
+        else:  # the operator's override (50-150 %) on the look-ahead, at the reference's clock
+            j = min(int(self._tau), self._planned.size - 2)
+            f = self._tau - j
+            dial = min(self.max_override, (1.0 + 0.5 * a2) * ((1.0 - f) * self._planned[j] + f * self._planned[j + 1]))
         task = self.task
         k = int(self._k[0])
         self._tau, self._speed, end = retime(

@@ -23,7 +23,7 @@ from numba import njit
 
 from . import step_kernel as sk
 
-__all__ = ["retime", "padded_reference"]
+__all__ = ["retime", "padded_reference", "lookahead_dial"]
 
 
 def padded_reference(samples: np.ndarray, rows: int) -> np.ndarray:
@@ -33,6 +33,25 @@ def padded_reference(samples: np.ndarray, rows: int) -> np.ndarray:
     out[:samples.shape[0]] = samples
     out[samples.shape[0]:] = samples[-1]
     return out
+
+
+def lookahead_dial(samples: np.ndarray, feed: float, acceleration: float) -> np.ndarray:
+    """The override, sample by sample of the reference ``samples`` (K, REF_COLUMNS), that makes its feed a look-ahead's:
+    along the arc s, ``v(s) = min(feed, sqrt(acceleration / |kappa(s)|))``, then ``v(s)^2`` limited to change by at
+    most ``2 acceleration`` per mm of arc, backward (braking into each limit) and forward (accelerating out of it)
+    (Altintas, Manufacturing Automation, 2nd ed. 2012, ch. 6), over the reference's own speed there (inf where it is
+    at rest).  ``feed`` in mm/s, ``acceleration`` in mm/s^2 (normal and tangential)."""
+    arc = samples[:, sk.REF_ARC]
+    speed = np.hypot(samples[:, sk.REF_VELOCITY], samples[:, sk.REF_VELOCITY + 1])
+    kappa = np.abs(samples[:, sk.REF_CURVATURE])
+    v2 = np.minimum(feed, np.sqrt(acceleration / np.maximum(kappa, 1e-12))) ** 2
+    ds = np.diff(arc)
+    for i in range(1, v2.size):  # accelerating out of each limit
+        v2[i] = min(v2[i], v2[i - 1] + 2.0 * acceleration * ds[i - 1])
+    for i in range(v2.size - 2, -1, -1):  # braking into the next
+        v2[i] = min(v2[i], v2[i + 1] + 2.0 * acceleration * ds[i])
+    with np.errstate(divide="ignore"):
+        return np.where(speed > 1e-9, np.sqrt(v2) / np.maximum(speed, 1e-300), np.inf)
 
 
 @njit(cache=True)
