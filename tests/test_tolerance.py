@@ -83,6 +83,26 @@ def test_running_out_of_time_costs_the_contour_left_as_if_over_t():
                                + i2["reward_incomplete"], rel=1e-12)
 
 
+def test_the_tolerance_ids_dial_reaches_150_percent_at_26_per_second():
+    """On VCNC-OmegaTolerance-v1 the dial held at its top takes the override from 100 % to 150 % at 26/s (a step of
+    26 dt per control period, from the rate limit alone) and the tool arrives in the full-feed duration over 1.5,
+    plus the ramp's loss (computed here: half the ramp's time times the half-speed it lacks); a third of the way up
+    the dial is 50 %, as the half dial of VCNC-OmegaOverride-v1."""
+    env = gym.make("VCNC-OmegaTolerance-v1").unwrapped
+    assert (env.tolerance, env.max_override, env.override_rate) == (0.01, 1.5, 26.0)
+    out = _dialled_episode(env, lambda k: 1.0)
+    dt, duration = env.dt, float(env.reference.t[-1])
+    ramp = [i["override"] for _, i in out[:30]]
+    assert ramp == pytest.approx([min(1.5, 1.0 + 26.0 * dt * (k + 1)) for k in range(30)], abs=1e-12)
+    assert out[-1][1]["override"] == 1.5
+    # the reference's clock reaches its end at (duration + the ramp's lag) / 1.5: over the ramp's 0.5 / 26 s the
+    # override averages 1.25, a quarter behind 1.5 (the tool, thrown millimetres off in the corners, arrives later)
+    arrival = dt * next(k + 1 for k, (_, i) in enumerate(out) if i["reference_time"] >= duration - 1e-12)
+    assert arrival == pytest.approx((duration + 0.25 * 0.5 / 26.0) / 1.5, abs=2 * dt)
+    half = _dialled_episode(env, lambda k: -1.0 / 3.0, steps=200)
+    assert half[-1][1]["override"] == pytest.approx(0.5, abs=1e-7)  # the action is float32
+
+
 def test_the_violations_restart_with_the_episode():
     env = gym.make(ID, tolerance=0.004)
     first = _dialled_episode(env, lambda k: 1.0, steps=3000)

@@ -62,7 +62,7 @@ from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
            "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
-           "format_table", "compare", "format_comparison", "main"]
+           "format_table", "runs_json", "compare", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -507,7 +507,8 @@ def format_comparison(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
-def _jsonable(runs: list[GridRun]) -> list[dict]:
+def runs_json(runs: list[GridRun]) -> list[dict]:
+    """``runs`` as the JSON of a search (a diverged error or an unreached cycle as null)."""
     def finite(x):
         return [None if not np.isfinite(v) else float(v) for v in x]
     return [{"controller": r.controller, "setting": asdict(r.setting), "max_um": finite(r.max_um),
@@ -603,7 +604,7 @@ def _search_main(parser, args, argv=None) -> int:
         print(format_table(env_id, rows), flush=True)
         print(f"({len(runs)} runs of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)
         out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": kinds, "rows": rows,
-                       "runs": _jsonable(runs)}
+                       "runs": runs_json(runs)}
     if args.json:
         from ..provenance import provenance
 

@@ -1,0 +1,98 @@
+"""The look-ahead through the feed override dial (``vcnc_bench.reports.override_schedule``): the tolerance task's third
+classical opponent."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import vcnc_gym  # noqa: F401  (registers the ids)
+from vcnc_gym.envs import step_kernel as sk
+from vcnc_bench.reports import override_schedule as osch
+from vcnc_bench.reports import tolerance as tl
+
+ID = "VCNC-OmegaTolerance-v1"
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = gym.make(ID)
+    yield e
+    e.close()
+
+
+@pytest.mark.parametrize("feed, acceleration", [(150.0, 1000.0), (100.0, 2600.0), (40.0, 500.0)])
+def test_the_dial_is_the_fastest_feed_within_the_look_ahead_s_limits(env, feed, acceleration):
+    """The scheduled feed (the dial times the S-curve's speed) is, where the dial is not at its ends, the closed form
+    of the look-ahead computed here another way: the least over every sample j of
+    ``sqrt(min(F, sqrt(A / kappa_j))^2 + 2 A |s - s_j|)`` (braking into and accelerating out of every limit at A)."""
+    t, dial = osch.dial_schedule(env, tl.Setting(feed, acceleration))
+    s = env.unwrapped.task.reference_arrays.samples
+    arc = s[:, sk.REF_ARC]
+    speed = np.hypot(s[:, sk.REF_VELOCITY], s[:, sk.REF_VELOCITY + 1])
+    limit2 = np.minimum(feed, np.sqrt(acceleration / np.maximum(np.abs(s[:, sk.REF_CURVATURE]), 1e-12))) ** 2
+    closed = np.empty(arc.size)
+    for i in range(0, arc.size, 512):
+        rows = slice(i, i + 512)
+        closed[rows] = np.sqrt((limit2[None, :] + 2 * acceleration * np.abs(arc[rows, None] - arc[None, :])).min(1))
+    inside = (dial > 0) & (dial < env.unwrapped.max_override) & (speed > 1e-9)
+    assert inside.sum() > arc.size // 4
+    assert np.allclose(dial[inside] * speed[inside], closed[inside], rtol=1e-9, atol=1e-9)
+    assert np.all(dial[~inside & (speed > 1e-9)] * speed[~inside & (speed > 1e-9)] <= closed[~inside & (speed > 1e-9)]
+                  * (1 + 1e-9))  # clipped at the dial's top: slower than the look-ahead, never faster
+    assert np.array_equal(t, env.unwrapped.reference.t)
+
+
+def test_the_grid_is_the_dial_s_reach(env):
+    """Feeds up to the dial's top (150 % of the omega's 100 mm/s), every acceleration of the look-ahead search."""
+    settings = osch.schedule_settings(env)
+    assert max(x.feed for x in settings) == 150.0
+    assert {x.acceleration for x in settings} == set(tl.ACCELERATIONS)
+    assert len(settings) == sum(f <= 1.5 for f in tl.FEED_FACTORS) * len(tl.ACCELERATIONS)
+    with pytest.raises(ValueError, match="not a feed-override id"):
+        osch.run_schedule("VCNC-Omega-v1", settings[0], env.unwrapped.nominal_parameters[None])
+
+
+def test_a_scheduled_run_reads_only_the_interpolator_s_clock():
+    """The env's look-ahead dial (``lookahead=(F, A)``, the dial at 100 %) is the schedule read at the re-timed
+    reference's own clock (what a CNC's interpolator knows): replayed here on the plain dial, step by step from the
+    env's ``info["reference_time"]``, the same max contour error (to the float32 rounding of the dial) and cycle."""
+    import vcnc_baselines
+
+    setting = tl.Setting(150.0, 1500.0)
+    plain = gym.make(ID, lookahead=None)
+    run = osch.run_schedule(ID, setting, plain.unwrapped.nominal_parameters[None])
+    t, dial = osch.dial_schedule(plain, setting)
+    policy = vcnc_baselines.make("ff-pid-online", plain)
+    obs, _ = plain.reset(seed=0, options={"parameters": plain.unwrapped.nominal_parameters})
+    tau, peak, start = 0.0, 0.0, True
+    while True:
+        a, _ = policy.predict(obs, episode_start=start)
+        start = False
+        obs, _, terminated, truncated, info = plain.step(np.r_[a, 2.0 * float(np.interp(tau, t, dial)) / 1.5 - 1.0])
+        tau, peak = info["reference_time"], max(peak, info["contour_error_max"])
+        if terminated or truncated:
+            break
+    assert info["completed"] and run.cycle_time_s[0] == pytest.approx(info["cycle_time"], abs=2 * plain.unwrapped.dt)
+    assert run.max_um[0] == pytest.approx(1e3 * peak, rel=1e-5)
+    assert run.cycle_time_s[0] > float(plain.unwrapped.reference.t[-1]) / 1.5  # it slows for the corners
+
+
+def test_the_command_writes_the_search_s_format(monkeypatch, tmp_path, capsys):
+    """``--json`` holds the tolerance search's rows and runs, which ``reports.tolerance``'s comparison reads as its
+    opponents."""
+    monkeypatch.setattr(osch, "schedule_settings", lambda env: [tl.Setting(150.0, 2000.0), tl.Setting(100.0, 2000.0)])
+    out = tmp_path / "schedule.json"
+    assert osch.main(["--id", ID, "--plants", "0", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["settings"]["command"].startswith("python -m vcnc_bench.reports.override_schedule")
+    entry = data[ID]
+    assert [r["tolerance_um"] for r in entry["rows"]] == [5.0, 10.0, 20.0]
+    opponents = tl._opponents(entry, 0.02)
+    cycle = entry["runs"][0]["cycle_time_s"][0]
+    assert math.isfinite(cycle) and opponents["per-plant search"][0] <= cycle
+    assert "look-ahead dial" in capsys.readouterr().out
