@@ -96,3 +96,13 @@ def test_the_command_writes_the_search_s_format(monkeypatch, tmp_path, capsys):
     cycle = entry["runs"][0]["cycle_time_s"][0]
     assert math.isfinite(cycle) and opponents["per-plant search"][0] <= cycle
     assert "look-ahead dial" in capsys.readouterr().out
+
+
+def test_the_contouring_mpc_refuses_a_dial_it_does_not_set_alone():
+    """The MPCC maps its progress to a dial of 0-100 % of the programmed feed: on the tolerance ids (a look-ahead under
+    the dial, a dial to 150 %) it refuses, naming both."""
+    import vcnc_baselines
+
+    for kwargs in ({}, {"lookahead": None}):
+        with pytest.raises(ValueError, match="lookahead=.*max_override="):
+            vcnc_baselines.make("mpcc", gym.make(ID, **kwargs))

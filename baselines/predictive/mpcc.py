@@ -474,6 +474,10 @@ class MPCCPolicy(BaselinePolicy):
                              f"feed-override id (VCNC-OmegaOverride-v1), got {type(u).__name__}; a plain contouring "
                              "id ends the episode completion_timeout after its reference's end, which a controller "
                              "slower than the programmed feed cannot meet")
+        if getattr(u, "lookahead", None) is not None or getattr(u, "max_override", 1.0) != 1.0:
+            raise ValueError("baseline 'mpcc' sets the override itself, 0 to 100 % of the programmed feed: it runs on "
+                             "a feed-override env without lookahead and with max_override 1 (VCNC-OmegaOverride-v1), "
+                             f"got lookahead={u.lookahead!r}, max_override={u.max_override!r}")
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
