@@ -372,3 +372,46 @@ def test_the_command_writes_the_search_and_compares_an_agent_with_it(monkeypatch
     assert tl.main(["--agents", str(tmp_path / "bench.json"), "--search", str(out), "--tolerance", "0.01"]) == 0
     printed = capsys.readouterr().out
     assert "ppo:x/final (2 seeds)" in printed and "| 10 | per-plant search |" in printed
+
+
+def test_several_searches_are_one_whose_choices_are_the_fastest_of_any(tmp_path, capsys):
+    """``merge_searches``: per plant the least cycle time of the searches' choices (numpy's elementwise minimum here),
+    the builder's setting the fastest nominal choice; ``--search A B:ID`` judges the agent against the merged search;
+    searches over other plants are refused."""
+    import json
+
+    rng = np.random.default_rng(5)
+    kinds = ["nominal", "sample", "sample", "sample"]
+
+    def search(name):
+        runs = [{"controller": name, "setting": {"feed": 100.0, "acceleration": a}, "max_um": [1.0] * 4,
+                 "cycle_time_s": list(rng.uniform(0.6, 0.8, 4))} for a in (1000.0, 2000.0)]
+        rows = []
+        for t in (5.0, 10.0, 20.0):
+            per_plant = [{"controller": name, "setting": runs[k % 2]["setting"], "cycle_time_s":
+                          runs[k % 2]["cycle_time_s"][k], "max_um": 1.0} for k in range(4)]
+            rows.append({"tolerance_um": t, "builder": per_plant[0], "machine_per_plant": per_plant, "n_plants": 3})
+        return {"plants": 3, "plant_seed": 0, "kinds": kinds, "rows": rows, "runs": runs}
+
+    a, b = search("ff-pid"), search("look-ahead dial")
+    merged = tl.merge_searches([a, b])
+    for k in range(3):
+        cycles = [np.array([c["cycle_time_s"] for c in x["rows"][k]["machine_per_plant"]]) for x in (a, b)]
+        assert np.array_equal([c["cycle_time_s"] for c in merged["rows"][k]["machine_per_plant"]],
+                              np.minimum(*cycles))
+        assert merged["rows"][k]["builder"]["cycle_time_s"] == min(cycles[0][0], cycles[1][0])
+    assert len(merged["runs"]) == 4
+    with pytest.raises(ValueError, match="other plants"):
+        tl.merge_searches([a, {**b, "plant_seed": 1}])
+    (tmp_path / "a.json").write_text(json.dumps({"VCNC-OmegaLookahead-v1": a}))
+    (tmp_path / "b.json").write_text(json.dumps({"VCNC-OmegaTolerance-v1": b, "other": b}))
+    bench = {"robust": [{"env": ID, "policy": f"ppo:x/seed{k}/final", "group": "ppo:x/final",
+                         "per_plant": {"kind": kinds, "cycle_time_s": [0.5] * 4, "max_um": [1.0] * 4}}
+                        for k in range(3)]}
+    (tmp_path / "bench.json").write_text(json.dumps(bench))
+    assert tl.main(["--agents", str(tmp_path / "bench.json"), "--search", str(tmp_path / "a.json"),
+                    f"{tmp_path / 'b.json'}:VCNC-OmegaTolerance-v1", "--tolerance", "0.01"]) == 0
+    printed = capsys.readouterr().out
+    assert "VCNC-OmegaLookahead-v1 and VCNC-OmegaTolerance-v1" in printed
+    per_plant = np.minimum(*[[c["cycle_time_s"] for c in x["rows"][1]["machine_per_plant"]] for x in (a, b)])
+    assert f"| 10 | per-plant search | 0.5, 0.5, 0.5 | 0.5 | 0+0+0 of 3 x 3 | {per_plant[0]:.4g} |" in printed

@@ -62,7 +62,7 @@ from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
            "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
-           "format_table", "runs_json", "compare", "format_comparison", "main"]
+           "format_table", "runs_json", "merge_searches", "compare", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -446,6 +446,29 @@ def _opponents(search: dict, tolerance: float) -> dict:
     return out
 
 
+def merge_searches(searches: list[dict]) -> dict:
+    """One search of several (``--json`` entries over the same plants, e.g. this module's look-ahead search and
+    :mod:`~vcnc_bench.reports.override_schedule`'s look-ahead through the dial): their runs together, and per
+    tolerance the fastest builder's setting on the nominal plant and, per plant, the fastest choice of any."""
+    first = searches[0]
+    for other in searches[1:]:
+        if (other["kinds"], other["plants"], other["plant_seed"]) != (first["kinds"], first["plants"],
+                                                                      first["plant_seed"]):
+            raise ValueError("the searches ran other plants: give each the same --plants and --plant-seed")
+        if [r["tolerance_um"] for r in other["rows"]] != [r["tolerance_um"] for r in first["rows"]]:
+            raise ValueError("the searches have other tolerances")
+    rows = []
+    for k, row in enumerate(first["rows"]):
+        mine = [x["rows"][k] for x in searches]
+        builder = min((r["builder"] for r in mine), key=lambda c: c["cycle_time_s"])
+        per_plant = [min(choices, key=lambda c: c["cycle_time_s"])
+                     for choices in zip(*(r["machine_per_plant"] for r in mine))]
+        rows.append({"tolerance_um": row["tolerance_um"], "builder": builder, "machine_per_plant": per_plant,
+                     "n_plants": row["n_plants"]})
+    return {**{k: first[k] for k in ("plants", "plant_seed", "kinds")}, "rows": rows,
+            "runs": [run for x in searches for run in x["runs"]]}
+
+
 def compare(records: list[dict], search: dict, tolerance: float, *, label: str = "agent",
             others: list[dict] = ()) -> list[dict]:
     """The agent (``records``: its seeds' bench records over the plants, one per seed) against the search's
@@ -529,8 +552,11 @@ def main(argv=None) -> int:
     parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
                         "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
                         "the JSON's causal controllers (e.g. --policy mpcc)")
-    parser.add_argument("--search", metavar="JSON", help="with --agents: a --json file of this search")
-    parser.add_argument("--search-id", metavar="ID", help="with --agents: the searched id (default the file's only)")
+    parser.add_argument("--search", metavar="JSON[:ID]", nargs="+", help="with --agents: --json files of this "
+                        "search or of vcnc_bench.reports.override_schedule, each with the searched id after a colon "
+                        "where it holds several; several are one search (merge_searches: the fastest of any)")
+    parser.add_argument("--search-id", metavar="ID", help="with --agents and one --search: the searched id "
+                        "(default the file's only)")
     parser.add_argument("--tolerance", type=float, nargs="+", default=list(TOLERANCES), metavar="MM",
                         help="with --agents: the tolerances (mm; default 0.005 0.01 0.02)")
     args = parser.parse_args(argv)
@@ -551,12 +577,22 @@ def _compare_main(parser, args) -> int:
     everything = [r for r in data["robust"] if "per_plant" in r]
     records = [r for r in everything if r.get("group")]
     others = [r for r in everything if not r.get("group") and not r["policy"].startswith(("ppo", "oracle"))]
-    with open(args.search) as f:
-        searches = json.load(f)
-    searches.pop("settings", None)
-    sid = args.search_id or (next(iter(searches)) if len(searches) == 1 else None)
-    if sid not in searches:
-        parser.error(f"--search-id: name one of {sorted(searches)}")
+    found, names = [], []
+    for item in args.search:
+        path, _, sid = item.rpartition(":") if not item.endswith(".json") else (item, "", "")
+        with open(path) as f:
+            entries = json.load(f)
+        entries.pop("settings", None)
+        sid = sid or args.search_id or (next(iter(entries)) if len(entries) == 1 else None)
+        if sid not in entries:
+            parser.error(f"--search {item}: name one of {sorted(entries)} (FILE:ID, or --search-id)")
+        found.append(entries[sid])
+        names.append(sid)
+    try:
+        search = found[0] if len(found) == 1 else merge_searches(found)
+    except ValueError as e:
+        parser.error(f"--search: {e}")
+    sid = " and ".join(names)
     groups = dict.fromkeys(r["group"] for r in records)
     if not groups:
         parser.error("--agents: the JSON holds no training seeds' group (vcnc-bench --policy ppo:FOLDER of a "
@@ -564,7 +600,7 @@ def _compare_main(parser, args) -> int:
     for group in groups:
         members = [r for r in records if r["group"] == group]
         print(f"{group} ({len(members)} seeds) against the search of {sid}:")
-        rows = [row for t in args.tolerance for row in compare(members, searches[sid], t, label=group, others=others)]
+        rows = [row for t in args.tolerance for row in compare(members, search, t, label=group, others=others)]
         print(format_comparison(rows) + "\n")
     return 0
 
