@@ -227,7 +227,9 @@ def test_a_machine_commissioned_on_the_id_s_own_reference_runs_another_setting_w
 
 
 @pytest.mark.parametrize("agent_id, searched", [(ID, "VCNC-OmegaLookahead-v1"),
-                                                 ("VCNC-OmegaOverrideShop-v1", "VCNC-OmegaLookaheadShop-v1")])
+                                                 ("VCNC-OmegaOverrideShop-v1", "VCNC-OmegaLookaheadShop-v1"),
+                                                 ("VCNC-OmegaTolerance-v1", "VCNC-OmegaLookahead-v1"),
+                                                 ("VCNC-OmegaToleranceShop-v1", "VCNC-OmegaLookaheadShop-v1")])
 def test_the_agent_s_bench_plants_are_the_search_s(agent_id, searched):
     """The tolerance agent runs on the override id (``vcnc-bench --plants 20``), its opponents on the look-ahead id:
     the same plant model, so ``plant_set`` with the same seed draws the same plants for both."""
