@@ -28,7 +28,6 @@ table and writes the runs in the search's format, so that ``python -m vcnc_bench
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -37,7 +36,8 @@ import numpy as np
 
 from vcnc_gym.validation import integer, positive
 
-from .tolerance import ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, runs_json, tolerance_table
+from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, runs_json, tolerance_table,
+                        write_search)
 
 __all__ = ["CONTROLLER", "LABEL", "schedule_settings", "dial_schedule", "run_schedule", "main"]
 
@@ -178,13 +178,7 @@ def main(argv=None) -> int:
         out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": list(kinds), "rows": rows,
                        "runs": runs_json(runs)}
     if args.json:
-        from ..provenance import provenance
-
-        command = " ".join(sys.argv[1:] if argv is None else argv)
-        out["settings"] = {"command": "python -m vcnc_bench.reports.override_schedule " + command,
-                           "provenance": provenance()}
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=1)
+        write_search(args.json, out, "vcnc_bench.reports.override_schedule", argv)
     return 0
 
 

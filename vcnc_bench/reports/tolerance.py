@@ -62,7 +62,7 @@ from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
            "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
-           "format_table", "runs_json", "merge_searches", "compare", "format_comparison", "main"]
+           "format_table", "runs_json", "write_search", "merge_searches", "compare", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -642,14 +642,19 @@ def _search_main(parser, args, argv=None) -> int:
         out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": kinds, "rows": rows,
                        "runs": runs_json(runs)}
     if args.json:
-        from ..provenance import provenance
-
-        out["settings"] = {"command": "python -m vcnc_bench.reports.tolerance " + " ".join(sys.argv[1:] if argv is None
-                                                                                          else argv),
-                           "provenance": provenance()}
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=1)
+        write_search(args.json, out, "vcnc_bench.reports.tolerance", argv)
     return 0
+
+
+def write_search(path, out: dict, module: str, argv=None) -> None:
+    """Write a search's entries ``out`` (id: plants, kinds, rows, runs) to ``path`` with the command that made them
+    (``python -m module`` and ``argv``, default the process's) and its provenance."""
+    from ..provenance import provenance
+
+    command = " ".join(sys.argv[1:] if argv is None else argv)
+    out["settings"] = {"command": f"python -m {module} {command}", "provenance": provenance()}
+    with open(path, "w") as f:
+        json.dump(out, f, indent=1)
 
 
 if __name__ == "__main__":
