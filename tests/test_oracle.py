@@ -171,3 +171,34 @@ def test_an_at_machine_start_is_the_controller_commissioned_on_that_machine():
         episode = run_episode(vcnc_baselines.make(name, env), env, seed=0)
         assert 1e3 * starts[name].max == pytest.approx(episode.max_contour_error_um, rel=1e-12, abs=0.0), name
     assert starts["zpetc"].max != starts["zpetc@machine"].max  # two designs, not one
+
+
+def test_a_key_s_next_stored_solution_is_tried_before_solving_again(monkeypatch, tmp_path):
+    """A floor solved on another CPU's code paths is stored beside the first as ``KEY~CPU.npz``: where the first does
+    not replay (tampered here), the bench's episode tries the next and reports it, solving nothing; where none
+    replays, it solves again."""
+    from vcnc_baselines.optimal import oracle as oracle_module
+    from vcnc_bench.runner import EnvRecipe, run_env
+
+    env_id = "VCNC-OmegaLookaheadShop-v1"
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    u = env.unwrapped
+    key = solutions.signature(env, u.parameters, int(u._batch.plant_arrays.rng[0]))
+    genuine = solutions.load(key)
+    solutions.store(key, genuine, tmp_path).rename(tmp_path / f"{key}~othercpu.npz")
+    solutions.store(key, solutions.Solution(**{**genuine.__dict__, "max_um": genuine.max_um * 0.5}), tmp_path)
+    monkeypatch.setenv("VCNC_ORACLE_SOLUTIONS", str(tmp_path))
+    assert [p.name for p in solutions.paths(key)] == [f"{key}.npz", f"{key}~othercpu.npz"]
+    solved = []
+    monkeypatch.setattr(oracle_module, "solve", lambda *a, **k: solved.append(1) or genuine)
+    with pytest.warns(UserWarning, match="the next stored solution"):
+        runs = run_env(EnvRecipe(env_id, env_id, specs=("oracle",)), seed=0, trials=1)
+    assert solved == [] and runs.runs[0].trials[-1].max_contour_error_um == genuine.max_um
+    (tmp_path / f"{key}~othercpu.npz").unlink()
+    solutions.store(key, solutions.Solution(**{**genuine.__dict__, "max_um": genuine.max_um * 0.7}), tmp_path)
+    (tmp_path / f"{key}.npz").rename(tmp_path / f"{key}~othercpu.npz")
+    solutions.store(key, solutions.Solution(**{**genuine.__dict__, "max_um": genuine.max_um * 0.5}), tmp_path)
+    with pytest.warns(UserWarning, match="solving again"):
+        runs = run_env(EnvRecipe(env_id, env_id, specs=("oracle",)), seed=0, trials=1)
+    assert solved == [1] and runs.runs[0].trials[-1].max_contour_error_um == genuine.max_um

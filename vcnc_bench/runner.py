@@ -176,8 +176,9 @@ def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: di
         build = time.perf_counter() - b0
         results = [run_episode(policy, env, seed=seed, progress=progress) for _ in range(trials_of(policy, trials))]
         confirm = getattr(policy, "confirm", None)
-        if confirm is not None and not confirm(results[-1]):  # a stored floor the episode did not reproduce
-            results = [run_episode(policy, env, seed=seed, progress=progress)]  # solved again by its plan
+        while confirm is not None and not confirm(results[-1]):  # a stored floor the episode did not reproduce
+            # the next stored solution, else solved again by its plan (a solved one needs no confirmation)
+            results = [run_episode(policy, env, seed=seed, progress=progress)]
         runs.append(PolicyRun(spec, label_of(spec, policy), results, build, str(getattr(policy, "paper", "") or "")))
     drawn = []
     if plots is not None:

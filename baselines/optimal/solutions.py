@@ -10,7 +10,9 @@ without one is keyed without the seed, its replay being the same for every seed.
 correction (float32: the step kernel adds it as float32, so the stored values are the replayed ones), the
 start's recorded commands where it runs open-loop, the replayed figures, the starts' figures and the
 convergence.  A floor solved on this machine is stored in :func:`user_cache` (or ``$VCNC_ORACLE_SOLUTIONS``),
-never in the package.  ``VCNC_ORACLE_RECOMPUTE=1`` ignores stored solutions (and overwrites them where writable).
+never in the package.  A key may hold several solutions, ``KEY.npz`` and ``KEY~CPU.npz``: the same floor solved on
+other CPUs' code paths, where the first does not replay to the bit; the oracle tries them in turn
+(:func:`load_all`).  ``VCNC_ORACLE_RECOMPUTE=1`` ignores stored solutions (and overwrites them where writable).
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ import numpy as np
 
 from .search import Solution
 
-__all__ = ["DIRECTORY", "SOLVER_VERSION", "signature", "user_cache", "directory", "folders", "load", "store",
+__all__ = ["DIRECTORY", "SOLVER_VERSION", "signature", "user_cache", "directory", "folders", "paths", "load",
+           "load_all", "store",
            "recompute_requested"]
 
 #: The shipped solutions.
@@ -77,11 +80,30 @@ def signature(env, parameters: np.ndarray, noise_state=None) -> str:
     return f"{name}-{h.hexdigest()[:20]}"
 
 
+def paths(key: str) -> list[Path]:
+    """The files of the solutions stored under ``key``, in the order :func:`load_all` reads them: per folder of
+    :func:`folders`, ``KEY.npz`` then ``KEY~CPU.npz`` (the same floor solved on another CPU's code paths, where the
+    first does not replay to the bit: a floor's replay is exact only on the code paths it was solved on)."""
+    out = []
+    for folder in folders():
+        first = folder / f"{key}.npz"
+        out += [first] if first.is_file() else []
+        out += sorted(folder.glob(f"{key}~*.npz"))
+    return out
+
+
+def load_all(key: str) -> list[Solution]:
+    """Every solution stored under ``key`` (:func:`paths`), the first to try first."""
+    return [_read(p) for p in paths(key)]
+
+
 def load(key: str) -> Solution | None:
-    """The solution stored under ``key``, or None."""
-    path = next((p for p in (folder / f"{key}.npz" for folder in folders()) if p.is_file()), None)
-    if path is None:
-        return None
+    """The first solution stored under ``key``, or None."""
+    found = paths(key)
+    return _read(found[0]) if found else None
+
+
+def _read(path: Path) -> Solution:
     with np.load(path, allow_pickle=False) as z:
         table = z["table"] if z["table"].size else None
         starts = json.loads(str(z["warm_starts"]))
