@@ -47,14 +47,13 @@ CONTROLLER = "ff-pid-online"
 LABEL = "ff-pid-online, look-ahead dial"
 
 
-def _feed_override_env(env_id: str):
+def _feed_override_env(env_id: str, **kwargs):
+    """``gym.make(env_id, **kwargs)`` of a feed-override id; a ValueError naming any other id."""
     import gymnasium as gym
 
-    env = gym.make(env_id)
-    if not getattr(env.unwrapped, "retimes_reference", False):
-        env.close()
+    if not str(gym.spec(env_id).entry_point).endswith(":FeedOverrideEnv"):
         raise ValueError(f"--id: {env_id} is not a feed-override id (its dial is what the schedule turns)")
-    return env
+    return gym.make(env_id, **kwargs)
 
 
 def schedule_settings(env) -> list[Setting]:
@@ -100,13 +99,9 @@ def run_schedule(env_id: str, setting: Setting, parameters: np.ndarray) -> GridR
     """:data:`CONTROLLER` on the feed-override id ``env_id`` made with ``lookahead=setting`` (the env turns its dial to
     the look-ahead's override at the reference's clock), the dial at 100 %, on every plant of ``parameters`` (M, 2,
     P), one episode each (the runs are sequential: the override env is not batched)."""
-    import gymnasium as gym
-
     import vcnc_baselines
 
-    _feed_override_env(env_id).close()
-    env = gym.make(env_id, lookahead=(positive("setting.feed", setting.feed, "mm/s"),
-                                      positive("setting.acceleration", setting.acceleration, "mm/s^2")))
+    env = _feed_override_env(env_id, lookahead=(setting.feed, setting.acceleration))  # validated by the env
     try:
         policy = vcnc_baselines.make(CONTROLLER, env)
         runs = [_episode(env, policy, p) for p in parameters]
@@ -134,12 +129,12 @@ def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: 
             r = run_schedule(env_id, setting, parameters)
             runs.append(r)
             within |= (r.max_um <= smallest_um) & np.isfinite(r.cycle_time_s)
-            if np.all(r.max_um >= 0.99 * last):
-                break
-            last = r.max_um
             print(f"{env_id} at {setting.label}: nominal {r.max_um[0]:.4g} um in {r.cycle_time_s[0]:.4g} s; "
                   f"{int(within.sum())}/{within.size} plants within {smallest_um:g} um "
                   f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+            if np.all(r.max_um >= 0.99 * last):
+                break
+            last = r.max_um
     return runs
 
 
