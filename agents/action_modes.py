@@ -34,7 +34,7 @@ import numpy as np
 from vcnc_gym.envs.history import DecisionHistory
 from vcnc_gym.validation import real
 
-__all__ = ["ActionMode", "ResidualAction", "ACTION_MODES"]
+__all__ = ["ActionMode", "ResidualAction", "PeakPrice", "ACTION_MODES"]
 
 #: The action modes and what the agent's action is in each.
 ACTION_MODES = {
@@ -68,6 +68,10 @@ class ActionMode:
     history : int
         Residual mode: the past decisions the agent remembers (:mod:`vcnc_gym.envs.history`: their commands, errors,
         velocities and reference accelerations follow the env's observation); 0, the default: none.
+    peak_weight : float
+        Residual mode, training only: the price of the episode's largest contour error, in decisions
+        (:class:`PeakPrice`: an episode's return loses ``peak_weight * e_max / reward_scale``, as many decisions'
+        contour reward at e_max); 0, the default: the env's reward alone.
     """
 
     mode: str = "direct"
@@ -76,6 +80,7 @@ class ActionMode:
     correction: float | None = None
     baseline_params: dict = field(default_factory=dict)
     history: int = 0
+    peak_weight: float = 0.0
 
     def __post_init__(self):
         if self.mode not in ACTION_MODES:
@@ -85,6 +90,9 @@ class ActionMode:
         if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 0:
             raise ValueError(f"history must be an integer >= 0 (past decisions remembered), got {h!r}")
         object.__setattr__(self, "history", int(h))
+        if not real("peak_weight", self.peak_weight, "decisions") >= 0:
+            raise ValueError(f"peak_weight must be a number >= 0 (decisions), got {self.peak_weight!r}")
+        object.__setattr__(self, "peak_weight", float(self.peak_weight))
         if self.mode == "residual":
             import vcnc_baselines
 
@@ -94,15 +102,18 @@ class ActionMode:
             if not 0 < real("correction", c, "fraction of u_max") <= 2:
                 raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
             object.__setattr__(self, "correction", float(c))
-        elif self.baseline is not None or self.correction is not None or self.baseline_params or self.history:
-            raise ValueError("baseline, correction, baseline_params and history apply to the residual mode only")
+        elif (self.baseline is not None or self.correction is not None or self.baseline_params or self.history
+              or self.peak_weight):
+            raise ValueError("baseline, correction, baseline_params, history and peak_weight apply to the residual "
+                             "mode only")
 
     # -- the two forms -----------------------------------------------------------------
     def wrap(self, env: gym.Env) -> gym.Env:
         """The env as the agent trains on it: residual wrapped, or direct with the env's repeat checked."""
         if self.mode == "residual":
             return ResidualAction(env, baseline=self.baseline, correction=self.correction,
-                                  action_repeat=self.action_repeat, history=self.history, **self.baseline_params)
+                                  action_repeat=self.action_repeat, history=self.history,
+                                  peak_weight=self.peak_weight, **self.baseline_params)
         repeat = env.unwrapped.action_repeat
         if repeat != self.action_repeat:
             raise ValueError(f"direct mode with action_repeat={self.action_repeat} needs an env made with "
@@ -137,7 +148,61 @@ class ActionMode:
             d.update(baseline=self.baseline, correction=self.correction, baseline_params=dict(self.baseline_params))
         if self.history:  # absent, as in every config.yml before it was: none
             d["history"] = self.history
+        if self.peak_weight:  # the same
+            d["peak_weight"] = self.peak_weight
         return d
+
+    def peak_price(self, env, n: int) -> "PeakPrice | None":
+        """The price of the episode's peak for ``n`` envs like ``env`` (an unwrapped env or native vector env: its
+        ``task``'s reward scale and divergence bound), or None when ``peak_weight`` is 0."""
+        if not self.peak_weight:
+            return None
+        task = getattr(env, "task", None)
+        if task is None:
+            raise ValueError(f"peak_weight needs a contouring env's reward, and {type(env).__name__} has no task")
+        return PeakPrice(self.peak_weight, task.reward_scale, task.divergence_bound, n)
+
+
+class PeakPrice:
+    """The price of a new episode maximum of the contour error, per env: a term of the training reward.
+
+    The env's reward pays for the contour error of every control period, and so for the many periods, not for the
+    few at the sharpest turn that set the max contour error (``docs/reproduction.md``, "The second id, the memory's
+    part and a recurrent policy").  This term prices the max itself: at each decision the reward loses
+    ``weight * (m_new - m_old) / reward_scale``, with ``m`` the largest contour error of the episode so far
+    (mm, clipped at the env's divergence bound as the env's reward is), so that over an episode the penalties sum
+    to ``weight * min(e_max, bound) / reward_scale``: the episode's max priced as ``weight`` decisions at that error.
+
+    Parameters
+    ----------
+    weight : float
+        Decisions, >= 0.
+    reward_scale, divergence_bound : float
+        The env's (mm).
+    n : int
+        Envs.
+    """
+
+    def __init__(self, weight: float, reward_scale: float, divergence_bound: float, n: int):
+        self.weight, self.scale, self.bound = float(weight), float(reward_scale), float(divergence_bound)
+        self.peak = np.zeros(n)
+
+    def __call__(self, decision_peak, rows=None) -> np.ndarray:
+        """The penalties (>= 0, to subtract from the rewards) of a decision whose largest contour errors (mm) were
+        ``decision_peak``, (n,); ``rows`` (bool, (n,)): the envs that decided (the others pay 0)."""
+        new = np.minimum(np.maximum(self.peak, np.asarray(decision_peak, dtype=float)), self.bound)
+        if rows is not None:
+            new = np.where(rows, new, self.peak)
+        penalty = self.weight * (new - self.peak) / self.scale
+        self.peak = new
+        return penalty
+
+    def restart(self, rows=None) -> None:
+        """A new episode for the envs ``rows`` (bool, (n,); None: all)."""
+        if rows is None:
+            self.peak[:] = 0.0
+        else:
+            self.peak[np.asarray(rows, dtype=bool)] = 0.0
 
 
 class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -161,13 +226,15 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Control periods per agent decision.
     history : int
         Past decisions the agent remembers (:mod:`vcnc_gym.envs.history`), appended to the observation; 0: none.
+    peak_weight : float
+        The price of the episode's largest contour error, in decisions (:class:`PeakPrice`); 0: none.
     **baseline_params
         Constructor parameters of the baseline.
 
     Notes
     -----
     The reward of a step is the mean of the env's rewards over its control
-    periods, so it has the scale of the direct mode's (whose env reward is the
+    periods (less :class:`PeakPrice`'s term with ``peak_weight``), so it has the scale of the direct mode's (whose env reward is the
     contour error averaged over the step); a divergence penalty, counted by the
     env in control periods, becomes the same penalty per remaining decision.
     ``info`` is the last control period's, with "contour_error_max" the
@@ -178,12 +245,14 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """
 
     def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
-                 history: int = 0, **baseline_params):
+                 history: int = 0, peak_weight: float = 0.0, **baseline_params):
         gym.utils.RecordConstructorArgs.__init__(self, baseline=baseline, correction=correction,
-                                                 action_repeat=action_repeat, history=history, **baseline_params)
+                                                 action_repeat=action_repeat, history=history,
+                                                 peak_weight=peak_weight, **baseline_params)
         super().__init__(env)
         self.mode = ActionMode("residual", action_repeat=action_repeat, baseline=baseline,
-                               correction=correction, baseline_params=baseline_params, history=history)
+                               correction=correction, baseline_params=baseline_params, history=history,
+                               peak_weight=peak_weight)
         if env.unwrapped.action_repeat != 1:
             raise ValueError("ResidualAction runs the baseline every control period: make the env with "
                              f"action_repeat=1 (got {env.unwrapped.action_repeat}) and give the wrapper the repeat")
@@ -195,6 +264,7 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self.mode.history:
             self.history = DecisionHistory(self.mode.history, env.unwrapped.layout, 1)
             self.observation_space = self.history.space(env.observation_space)
+        self.price = self.mode.peak_price(env.unwrapped, 1)
 
     def _seen(self, obs):
         """The observation the agent sees: the env's, then the remembered decisions (with ``history``)."""
@@ -218,6 +288,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._start = np.array([True])
         if self.history is not None:
             self.history.start(obs[None])
+        if self.price is not None:
+            self.price.restart()
         return self._seen(obs), info
 
     def step(self, action):
@@ -242,4 +314,7 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
             if terminated or truncated:
                 break
         info = dict(info, contour_error_max=peak)
-        return self._seen(obs), total / self.action_repeat, terminated, truncated, info
+        reward = total / self.action_repeat
+        if self.price is not None:
+            reward -= float(self.price(np.array([peak]))[0])
+        return self._seen(obs), reward, terminated, truncated, info

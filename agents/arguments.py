@@ -11,7 +11,7 @@ from pathlib import Path
 
 __all__ = ["parser", "action_mode", "MODE_OPTIONS"]
 
-MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat", "history")
+MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat", "history", "peak_weight")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -49,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--action-repeat", type=int, metavar="K", help="control periods per agent decision (>= 1)")
     g.add_argument("--history", type=int, metavar="K",
                    help="residual mode: past decisions the agent remembers (vcnc_gym.envs.history; 0: none)")
+    g.add_argument("--peak-weight", type=float, metavar="W",
+                   help="residual mode, training: the episode's largest contour error priced as W decisions of the "
+                        "reward (vcnc_agents.action_modes.PeakPrice; 0: none)")
     p.add_argument("--tolerance", type=float, metavar="MM",
                    help="the tolerance task: the contour tolerance T in mm (FeedOverrideEnv's tolerance: the reward is "
                         "the cycle time and the excess over T; set in the entry's env_kwargs; a feed-override id)")
@@ -90,6 +93,7 @@ def action_mode(args, config_file):
         d["baseline"] = given["baseline"] or base.baseline or "smc"
         d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
         d["history"] = given["history"] if given["history"] is not None else base.history
-    elif any(given[k] is not None for k in ("baseline", "correction", "history")):
-        raise ValueError("--baseline, --correction and --history apply to --action-mode residual")
+        d["peak_weight"] = given["peak_weight"] if given["peak_weight"] is not None else base.peak_weight
+    elif any(given[k] is not None for k in ("baseline", "correction", "history", "peak_weight")):
+        raise ValueError("--baseline, --correction, --history and --peak-weight apply to --action-mode residual")
     return ActionMode(**d)

@@ -325,7 +325,8 @@ def action_mode_of(hyperparams: dict) -> ActionMode:
         raise ValueError(f"env_wrapper may only be one {RESIDUAL_WRAPPER}, got {[n for n, _ in wrappers]}")
     if wrappers:
         kwargs = dict(wrappers[0][1])
-        known = {k: kwargs.pop(k) for k in ("baseline", "correction", "action_repeat", "history") if k in kwargs}
+        known = {k: kwargs.pop(k) for k in ("baseline", "correction", "action_repeat", "history", "peak_weight")
+                 if k in kwargs}
         return ActionMode("residual", baseline_params=kwargs, **known)
     env_kwargs = hyperparams.get("env_kwargs") or {}
     if not isinstance(env_kwargs, dict):
@@ -342,7 +343,8 @@ def with_action_mode(hyperparams: dict, mode: ActionMode) -> dict:
         env_kwargs.pop("action_repeat", None)
         h["env_wrapper"] = [{RESIDUAL_WRAPPER: {"baseline": mode.baseline, "correction": mode.correction,
                                                 "action_repeat": mode.action_repeat, **mode.baseline_params,
-                                                **({"history": mode.history} if mode.history else {})}}]
+                                                **({"history": mode.history} if mode.history else {}),
+                                                **({"peak_weight": mode.peak_weight} if mode.peak_weight else {})}}]
     else:
         env_kwargs["action_repeat"] = mode.action_repeat
     if env_kwargs:

@@ -156,6 +156,7 @@ class DecisionEnv:
         if mode.history and self.native:
             self.history = DecisionHistory(mode.history, self.venv.layout, n_envs)
             self.observation_space = self.history.space(self.observation_space)
+        self.price = mode.peak_price(self.venv, n_envs) if self.native else None  # else each wrapper prices its own
         self._seed = seed
         self._start = np.ones(n_envs, dtype=bool)
         self.steps = int(start_steps)
@@ -181,10 +182,20 @@ class DecisionEnv:
         self._obs = obs
         if self.history is not None:
             self.history.start(obs)
+        if self.price is not None:
+            self.price.restart()
         return self._seen(obs)
 
     def _decide(self, actions: np.ndarray, active=None):
-        """(obs, summed rewards, terminated, truncated) of one decision of the envs (all, or ``active``)."""
+        """(obs, summed rewards, terminated, truncated) of one decision of the envs (all, or ``active``); the peak's
+        price (``peak_weight``), per env, is subtracted from the sum once per decision."""
+        obs, total, te, tr, peak = self._periods(actions, active)
+        if self.price is not None:
+            total = total - self.repeat * self.price(peak, active)  # the caller divides by the repeat
+        return obs, total, te, tr
+
+    def _periods(self, actions: np.ndarray, active):
+        """(obs, summed rewards, terminated, truncated, largest contour error (mm) of the decision) per env."""
         if self.history is not None:  # the observation each deciding env decides on joins its past
             self.history.push(self._obs, active)
         if self.controller is not None:
@@ -192,13 +203,13 @@ class DecisionEnv:
                 self.controller = commission_drawn_plants(self.baseline, self.venv, self.controller)
                 self.baseline.reset(mask=self._start)
                 self._start[:] = False
-            obs, total, te, tr, _ = self.venv.step_controlled(self.controller, actions, self.mode.correction,
-                                                              self.repeat, active=active)
-            return obs, total, te, tr
+            obs, total, te, tr, info = self.venv.step_controlled(self.controller, actions, self.mode.correction,
+                                                                 self.repeat, active=active)
+            return obs, total, te, tr, info["contour_error_max"]
         if active is not None:
             raise ValueError("only a compiled residual baseline steps a subset of the envs")
         n = self.n
-        total, te_all, tr_all = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        total, te_all, tr_all, peak = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n)
         obs = self._obs
         if self.native and self.baseline is not None and self._start.any():
             commission_drawn_plants(self.baseline, self.venv, None)
@@ -209,13 +220,15 @@ class DecisionEnv:
                 self._start[:] = False
             # per-env residual wrappers (no native vector env) take the agent's action and clip it themselves
             wrapped = not self.native and self.mode.mode == "residual"
-            obs, r, te, tr, _ = self.venv.step(actions if wrapped else self.mode.command(base, actions))
+            obs, r, te, tr, info = self.venv.step(actions if wrapped else self.mode.command(base, actions))
+            if self.price is not None:
+                peak = np.where(info["_contour_error"], np.maximum(peak, info["contour_error_max"]), peak)
             total += r
             te_all |= te
             tr_all |= tr
             if (te_all | tr_all).all():
                 break
-        return obs, total, te_all, tr_all
+        return obs, total, te_all, tr_all, peak
 
     def stagger(self, obs: np.ndarray) -> np.ndarray:
         """Spread the envs along the episode: env i runs ``floor(i L / N)`` decisions of the baseline alone (which
@@ -233,6 +246,8 @@ class DecisionEnv:
                 self._start[done] = True
                 if self.history is not None:
                     self.history.start(obs, done)
+                if self.price is not None:
+                    self.price.restart(done)
             self._obs = obs
         return self._seen(obs)
 
@@ -258,6 +273,8 @@ class DecisionEnv:
             self._start[done] = True
             if self.history is not None:
                 self.history.start(obs, done)
+            if self.price is not None:
+                self.price.restart(done)
         self._obs = obs
         return self._seen(obs), rewards, te, tr, terminal
 

@@ -16,7 +16,7 @@
 
 It gives what :class:`~vcnc_agents.action_modes.ResidualAction` on a single env
 gives: the reward of a decision is the mean of the control periods' rewards
-(over ``action_repeat``), ``info["contour_error_max"]`` the largest over the
+(over ``action_repeat``; less the episode peak's price with ``peak_weight``), ``info["contour_error_max"]`` the largest over the
 decision, and an episode ending inside a decision ends the decision for that
 env (the others run on).  SB3's conventions: an ended env is reset at once,
 its last observation in ``info["terminal_observation"]``, and
@@ -155,6 +155,7 @@ class VcncVecEnv(VecEnv):
         self._lengths = np.zeros(n_envs, dtype=np.int64)
         self._t0 = time.time()
         self._writers = monitor_writers(monitor_dir, n_envs, env_id, self._t0, append)
+        self.price = mode.peak_price(self.venv, n_envs)
 
     # -- SB3 VecEnv API ---------------------------------------------------------------
     def reset(self):
@@ -163,6 +164,8 @@ class VcncVecEnv(VecEnv):
         obs, _ = self.venv.reset(seed=seed)
         self._obs = obs
         self._start[:] = True
+        if self.price is not None:
+            self.price.restart()
         return obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -220,7 +223,10 @@ class VcncVecEnv(VecEnv):
                 infos[i][key] = values[i]
         for i in range(n):
             infos[i]["contour_error_max"] = peak[i]
-        rewards = (total / self.repeat).astype(np.float32)
+        rewards = total / self.repeat
+        if self.price is not None:  # the episode's peak, priced (ActionMode.peak_weight)
+            rewards = rewards - self.price(peak)
+        rewards = rewards.astype(np.float32)
         self._steps += n
         self._returns += rewards
         self._lengths += 1
@@ -237,6 +243,8 @@ class VcncVecEnv(VecEnv):
                 self._lengths[i] = 0
             obs, _ = self.venv.reset(options={"reset_mask": done})
             self._start[done] = True
+            if self.price is not None:
+                self.price.restart(done)
         self._obs = obs
         return obs.copy(), rewards, done, infos
 
