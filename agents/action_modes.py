@@ -234,8 +234,9 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Notes
     -----
     The reward of a step is the mean of the env's rewards over its control
-    periods (less :class:`PeakPrice`'s term with ``peak_weight``), so it has the scale of the direct mode's (whose env reward is the
-    contour error averaged over the step); a divergence penalty, counted by the
+    periods (less :class:`PeakPrice`'s term with ``peak_weight``), so it has
+    the scale of the direct mode's (whose env reward is the contour error
+    averaged over the step); a divergence penalty, counted by the
     env in control periods, becomes the same penalty per remaining decision.
     ``info`` is the last control period's, with "contour_error_max" the
     largest over the step.  Usable as RL Zoo's ``env_wrapper``.  On an env
