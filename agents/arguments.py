@@ -52,6 +52,10 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--peak-weight", type=float, metavar="W",
                    help="residual mode, training: the episode's largest contour error priced as W decisions of the "
                         "reward (vcnc_agents.action_modes.PeakPrice; 0: none)")
+    p.add_argument("--init-from", metavar="AGENT",
+                   help="start a new run from a trained agent's weights and normalisation (an agent folder, RUN/final "
+                        "or RUN/best; with --seeds, {seed} is each seed's number; the lean trainer; "
+                        "vcnc_agents.warm_start)")
     p.add_argument("--tolerance", type=float, metavar="MM",
                    help="the tolerance task: the contour tolerance T in mm (FeedOverrideEnv's tolerance: the reward is "
                         "the cycle time and the excess over T; set in the entry's env_kwargs; a feed-override id)")

@@ -73,7 +73,8 @@ def _sweep_conflict(args) -> str | None:
     if args.seeds is not None:
         return "the sweep file sets every trial's seed; drop --seeds"
     given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
-                                                  *MODE_OPTIONS, *_training_options(args), "threads", "tolerance")
+                                                  *MODE_OPTIONS, *_training_options(args), "threads", "tolerance",
+                                                  "init_from")
              if getattr(args, k) is not None]
     given += ["--vec-env"] * (args.vec_env != "native") + ["--trainer"] * (args.trainer is not None)
     return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
@@ -154,7 +155,7 @@ def _check_run_options(parser, args) -> None:
     if args.resume is not None:
         if args.output is not None and args.output != args.resume:
             parser.error("--resume DIR is the run folder; --output does not apply")
-        fixed = [f"--{k.replace('_', '-')}" for k in (*MODE_OPTIONS, "n_envs", "seed", "config", "tolerance")
+        fixed = [f"--{k.replace('_', '-')}" for k in (*MODE_OPTIONS, "n_envs", "seed", "config", "tolerance", "init_from")
                  if getattr(args, k) is not None]
         if fixed:
             parser.error(f"a resumed run keeps its action mode, n_envs, seed and hyperparameters (see its config.yml); "
@@ -180,12 +181,15 @@ def _prepare(parser, args, tensorboard):
             run_dir, config, checkpoint = prepare_run(
                 args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
                 n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
-                tolerance=args.tolerance, **options)
+                tolerance=args.tolerance, init_from=args.init_from, **options)
         else:
             run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps,
                                                       **options)
         trainer = check_trainer(args.trainer, config.env_id, config.trainer, resumed=args.resume is not None,
                                 needs_sb3=sb3_only(config, args.vec_env))
+        if trainer == "sb3" and checkpoint is None and config.init_from is not None:
+            raise ValueError("--init-from: a warm start is the lean trainer's; this run needs SB3's "
+                             f"({sb3_only(config, args.vec_env) or '--trainer sb3'})")
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
         parser.error(str(exc))
     return run_dir, config, checkpoint, trainer

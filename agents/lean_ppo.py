@@ -645,6 +645,13 @@ class _LeanRun:
         rolled_back = None
         if self.checkpoint is None:
             self.done = start_folder(self.run_dir, self.config)
+            if self.config.init_from is not None:  # a warm start (vcnc_agents.warm_start): the agent's weights
+                from .warm_start import load_init_agent
+
+                space = agent_space(self.eval_env.observation_space, self.mode.history, self.eval_env.unwrapped.layout)
+                self.model, stats = load_init_agent(self.config, observation_space=space,
+                                                    action_space=self.eval_env.action_space, device=self.device)
+                self.norm = RunningNormalizer(stats, self.n_envs)
         else:
             from .model_file import load_ppo
 
@@ -665,7 +672,7 @@ class _LeanRun:
         self.env = env = DecisionEnv(config.env_id, n_envs, self.mode, config.env_kwargs, config.seed + done,
                                      monitor_dir=self.run_dir / "monitor", start_steps=done,
                                      append=self.checkpoint is not None)
-        if self.checkpoint is None:
+        if self.model is None:
             stub = _spaces_only(env.observation_space, env.action_space, n_envs)
             self.model = PPO(self.policy_name, stub, seed=config.seed, device=self.device, **self.kwargs)
             self.norm = RunningNormalizer.fresh(config.hyperparams, env.observation_space.shape[0], n_envs)

@@ -34,38 +34,12 @@ from vcnc_gym.envs.history import DecisionHistory, agent_space
 
 from .action_modes import ActionMode
 from .normalization import NormalizationStats
-from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, evaluation_row
+from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, agent_files, evaluation_row
 from .signature import (ANY_CONTOUR_IDS, MACHINE_FIELDS, as_seen_through, check_env_signature, check_signature,
                         env_signature, observation_pick)
 
 __all__ = ["AgentPolicy", "load_agent", "evaluate_model", "agent_files", "agent_mismatch", "env_signature", "check_env_signature",
            "check_signature", "ANY_CONTOUR_IDS", "MACHINE_FIELDS", "MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE"]
-
-_PICKLED_NORMALIZATION = "vecnormalize.pkl"
-
-
-def agent_files(path) -> tuple[Path, Path, Path]:
-    """(model, normalisation, config) paths of an agent folder, or of its ``model.zip``.
-
-    Raises FileNotFoundError naming what is missing.
-    """
-    if path is None or str(path) == "":
-        raise ValueError("the agent path is empty: give an agent folder (e.g. RUN/best) or its model.zip")
-    p = Path(path)
-    folder = p.parent if p.suffix == ".zip" else p
-    if not folder.is_dir():
-        raise FileNotFoundError(f"no agent at {str(path)!r}: not a folder or a model.zip in one")
-    files = (p if p.suffix == ".zip" else folder / MODEL_FILE, folder / NORMALIZATION_FILE, folder / CONFIG_FILE)
-    missing = [f.name for f in files if not f.is_file()]
-    if NORMALIZATION_FILE in missing and (folder / _PICKLED_NORMALIZATION).is_file():
-        raise ValueError(
-            f"agent folder {str(folder)!r} holds its normalisation as {_PICKLED_NORMALIZATION} (a pickle, which runs "
-            f"code when loaded) instead of {NORMALIZATION_FILE}; if you trust the folder, convert it once with "
-            f"python -m vcnc_agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}")
-    if missing:
-        raise FileNotFoundError(f"agent folder {str(folder)!r} lacks {', '.join(missing)}")
-    return files
-
 
 class AgentPolicy:
     """A trained SB3 agent as a policy called every control period of the plain env.

@@ -85,6 +85,9 @@ class RunConfig:
         The hyperparameter file the entry came from.
     trainer : str or None
         The trainer that trains it, "lean" (:mod:`vcnc_agents.lean_ppo`); None: SB3's (:mod:`vcnc_agents.training`).
+    init_from : str or None
+        The agent folder whose weights and normalisation the run started from (``--init-from``,
+        :mod:`vcnc_agents.warm_start`); None: a fresh policy.
     extra : dict
         Keys this record does not interpret (an agent folder's ``agent``), kept as read.
     """
@@ -101,6 +104,7 @@ class RunConfig:
     env: dict | None = None
     config_file: str | None = None
     trainer: str | None = None
+    init_from: str | None = None
     extra: dict = field(default_factory=dict)
 
     @classmethod
@@ -122,7 +126,7 @@ class RunConfig:
         for key in ("action_mode", "hyperparams", "env"):
             if key in data and data[key] is not None and not isinstance(data[key], dict):
                 raise ValueError(f"{source}: {key} must be a mapping, got {data[key]!r}")
-        for key in ("config_file", "trainer"):
+        for key in ("config_file", "trainer", "init_from"):
             if data.get(key) is not None and not isinstance(data[key], str):
                 raise ValueError(f"{source}: {key} must be a string, got {data[key]!r}")
         ActionMode(**data["action_mode"])  # a bad mode names its argument
@@ -228,7 +232,7 @@ TRAINING_OPTIONS = tuple(OPTION_FIELDS)
 
 #: The keys of config.yml in the order they are written.
 ORDER = ("env_id", "seed", "n_envs", "n_timesteps", *TRAINING_OPTIONS, "action_mode", "env", "hyperparams",
-         "config_file", "trainer")
+         "config_file", "trainer", "init_from")
 
 
 def check_option(name: str, value, *, where: str = "") -> int:

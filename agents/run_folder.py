@@ -59,7 +59,7 @@ from .normalization import NormalizationStats, atomic_write_bytes
 from .run_warning import note
 
 __all__ = ["MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE", "CHECKPOINT_PREFIX", "RUN_ENTRIES", "EVAL_FIELDS",
-           "evaluation_score", "evaluation_row", "checkpoint_files", "check_checkpoint",
+           "agent_files", "evaluation_score", "evaluation_row", "checkpoint_files", "check_checkpoint",
            "scan_checkpoints", "latest_checkpoint", "write_yaml", "write_config", "save_model", "save_agent", "read_evaluations",
            "write_evaluations", "best_of", "roll_back", "read_summary", "record_session", "session_rates",
            "run_lock", "check_output_folder", "stale_run", "read_run_config", "clear_new_run"]
@@ -77,6 +77,33 @@ RUN_ENTRIES = {CONFIG_FILE, "checkpoints", "best", "final", "evaluations.csv", "
                ".lock"}
 LOCK_FILE = ".lock"
 EVAL_FIELDS = ("steps", "max_um", "mean_um", "rms_um", "score_um", "diverged")
+
+
+# -- an agent folder ----------------------------------------------------------------------
+_PICKLED_NORMALIZATION = "vecnormalize.pkl"
+
+
+def agent_files(path) -> tuple[Path, Path, Path]:
+    """(model, normalisation, config) paths of an agent folder, or of its ``model.zip``.
+
+    Raises FileNotFoundError naming what is missing.
+    """
+    if path is None or str(path) == "":
+        raise ValueError("the agent path is empty: give an agent folder (e.g. RUN/best) or its model.zip")
+    p = Path(path)
+    folder = p.parent if p.suffix == ".zip" else p
+    if not folder.is_dir():
+        raise FileNotFoundError(f"no agent at {str(path)!r}: not a folder or a model.zip in one")
+    files = (p if p.suffix == ".zip" else folder / MODEL_FILE, folder / NORMALIZATION_FILE, folder / CONFIG_FILE)
+    missing = [f.name for f in files if not f.is_file()]
+    if NORMALIZATION_FILE in missing and (folder / _PICKLED_NORMALIZATION).is_file():
+        raise ValueError(
+            f"agent folder {str(folder)!r} holds its normalisation as {_PICKLED_NORMALIZATION} (a pickle, which runs "
+            f"code when loaded) instead of {NORMALIZATION_FILE}; if you trust the folder, convert it once with "
+            f"python -m vcnc_agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}")
+    if missing:
+        raise FileNotFoundError(f"agent folder {str(folder)!r} lacks {', '.join(missing)}")
+    return files
 
 
 # -- evaluations ---------------------------------------------------------------------------

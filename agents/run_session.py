@@ -82,13 +82,14 @@ class TrainingResult:
 # -- 1. the run's configuration ------------------------------------------------------------------------------------
 def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = None, seed: int = 0,
                 n_envs: int | None = None, config_file=DEFAULT_CONFIG, action_mode: ActionMode | None = None,
-                resume: bool = False, tolerance: float | None = None,
+                resume: bool = False, tolerance: float | None = None, init_from=None,
                 **options) -> tuple[Path, RunConfig, tuple | None]:
     """Check every option and build the run's config; nothing is written.
 
     ``options`` are the training options (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`: ``checkpoint_freq``,
     ``eval_freq``; None or left out: the default, or on resume the run's).  ``tolerance`` (mm) sets the entry's
-    env_kwargs ``tolerance`` (``--tolerance``: a feed-override env's tolerance task).
+    env_kwargs ``tolerance`` (``--tolerance``: a feed-override env's tolerance task).  ``init_from`` (an agent
+    folder, ``{seed}`` replaced by the seed) starts the new run from that agent (:mod:`vcnc_agents.warm_start`).
 
     Returns (run folder, :class:`vcnc_agents.run_config.RunConfig`, checkpoint to resume from or None).  Raises
     ValueError / FileNotFoundError / FileExistsError with a clear message for
@@ -104,6 +105,10 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
     config = new_config(env_id, config_file=config_file, n_timesteps=n_timesteps, seed=seed, n_envs=n_envs,
                         action_mode=action_mode, tolerance=tolerance, **options)
     config = config.with_env(check_envs(config))
+    if init_from is not None:
+        from .warm_start import check_init_agent
+
+        config = check_init_agent(init_from, config)
     check_memory(config)
     run_dir = Path(run_dir) if run_dir is not None else Path("runs") / f"{env_id}_seed{config.seed}"
     if run_dir.exists() and not run_dir.is_dir():

@@ -103,6 +103,9 @@ def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = 
     a resume that fails before training starts changes nothing (:func:`vcnc_agents.run_session.open_run`).
     """
     check_training_options(vec_env=vec_env, tensorboard=tensorboard)
+    if checkpoint is None and config.init_from is not None:
+        raise ValueError(f"init_from ({config.init_from}): a warm start is the lean trainer's "
+                         "(vcnc_agents.warm_start); train with --trainer lean")
     with open_run(run_dir, checkpoint) as stop:
         model, venv, session = _model_and_envs(run_dir, config, checkpoint, tensorboard=tensorboard,
                                                vec_env=vec_env, device=device, verbose=verbose)

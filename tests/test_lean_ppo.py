@@ -523,3 +523,71 @@ def test_a_full_disk_ends_the_run_with_one_line_naming_the_file(trainer, tmp_pat
     line = [x for x in err.splitlines() if "training failed" in x]
     assert len(line) == 1 and "No space left on device" in line[0] and "rl_model_128_steps.zip" in line[0]
     assert f"vcnc-train --resume {run}" in line[0]
+
+
+# -- a warm start (vcnc_agents.warm_start) ----------------------------------------------------------------------
+def _weights(folder):
+    policy = load_agent(folder, gym.make(HEART))
+    return {k: v.clone() for k, v in policy.model.policy.state_dict().items()}
+
+
+def test_a_warm_start_begins_from_the_agent_s_weights_and_normalisation(lean_run, small_entry, tmp_path):
+    """With a learning rate of 1e-30 a warm-started run's final agent has its source's weights (to 1e-25), and its
+    normalisation starts from the source's counts (a fresh run's differ); it counts its own steps from 0 and
+    records where it started."""
+    from vcnc_agents.normalization import NormalizationStats
+
+    entry = yaml.safe_load(small_entry.read_text())[HEART]
+    entry["learning_rate"] = 1e-30  # > 0, as the entry's check asks; a step of Adam moves a weight by ~1e-30
+    config = tmp_path / "frozen.yml"
+    config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
+    source, run = lean_run / "final", tmp_path / "warm"
+    assert train_main(["--env", HEART, "--config", str(config), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
+                       "--seed", "5", "--init-from", str(source), "--output", str(run), "--no-progress"]) == 0
+    theirs, ours = _weights(source), _weights(run / "final")
+    assert theirs.keys() == ours.keys() and all(
+        torch.allclose(theirs[k], ours[k], rtol=0.0, atol=1e-25) for k in theirs)
+    assert model_timesteps(run / "final" / "model.zip") == ROLLOUT
+    assert yaml.safe_load((run / "config.yml").read_text())["init_from"] == str(source)
+    before = NormalizationStats.load(source / "vecnormalize.npz")
+    after = NormalizationStats.load(run / "final" / "vecnormalize.npz")
+    # the running mean's count goes on from the source's: then this run's first observations and its one rollout
+    assert after.obs_count == pytest.approx(before.obs_count + N_ENVS + ROLLOUT)
+
+
+@pytest.mark.parametrize("change, named", [
+    (["--correction", "0.3"], "correction: the agent's 0.2, the run's 0.3"),
+    (["--history", "2"], "history: the agent's 0, the run's 2"),
+    (["--n-envs", "8"], None),  # the batch may differ: n_envs is the run's
+])
+def test_init_from_refuses_an_agent_that_does_not_fit_before_writing(lean_run, small_entry, tmp_path, capsys,
+                                                                     change, named):
+    run = tmp_path / "warm"
+    argv = ["--env", HEART, "--config", str(small_entry), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
+            "--init-from", str(lean_run / "final"), "--output", str(run), "--no-progress", *change]
+    if named is None:
+        assert train_main(argv) == 0
+        return
+    with pytest.raises(SystemExit) as exc:
+        train_main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "init_from" in err and named in err and not run.exists()
+
+
+def test_init_from_names_what_is_missing_or_different(lean_run, small_entry, tmp_path, capsys):
+    from vcnc_agents.warm_start import init_agent_path
+
+    assert init_agent_path("runs/x/seed{seed}/final", 7) == __import__("pathlib").Path("runs/x/seed7/final")
+    entry = yaml.safe_load(small_entry.read_text())[HEART]
+    entry["n_epochs"] = 3
+    config = tmp_path / "epochs.yml"
+    config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
+    cases = [(["--config", str(config), "--init-from", str(lean_run / "final")], "n_epochs: the agent's 2, the run's 3"),
+             (["--config", str(small_entry), "--init-from", str(tmp_path / "nowhere")], "nowhere"),
+             (["--config", str(small_entry), "--init-from", str(lean_run / "final"), "--trainer", "sb3"],
+              "lean trainer")]
+    for extra, named in cases:
+        with pytest.raises(SystemExit) as exc:
+            train_main(["--env", HEART, "--output", str(tmp_path / "warm"), "--no-progress", *extra])
+        assert exc.value.code == 2 and named in capsys.readouterr().err
+    assert not (tmp_path / "warm").exists()

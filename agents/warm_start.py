@@ -1,0 +1,115 @@
+"""A new run that starts from a trained agent (``vcnc-train --init-from AGENT``, RL Baselines3 Zoo's
+``--trained-agent``): its policy and value weights and its observation normalisation, in a run folder of its own.
+
+What it is for: fine-tuning an agent on another reward (a tighter training tolerance, a price on the max), another
+budget or another machine of the same observation, the source agent left as it is.  The run counts its steps from
+0 and trains with its own env arguments (the reward among them), seed, learning rate and clip range from its first
+step; its config.yml records the
+agent it started from (:attr:`vcnc_agents.run_config.RunConfig.init_from`).
+
+The agent must fit the run, and :func:`check_init_agent` says why not before anything is written:
+
+- the same observation and action: the signature fields that set them (:data:`FITTING_FIELDS`: the control period,
+  the preview, the shapes), compared as :func:`vcnc_agents.load_agent` compares them; the contour, the plant and the
+  shop floor may differ (a warm start onto another machine of the same observation);
+- the same action mode (what the action means: mode, baseline, correction, action repeat, history), the training
+  reward's ``peak_weight`` aside;
+- the same policy, network and PPO arguments, but for :data:`RUN_OWN` (the learning rate and clip ranges, which the
+  run sets anew).
+
+With ``--seeds``, ``{seed}`` in the path is each seed's number (``--init-from RUNS/seed{seed}/final``), so that seed k
+starts from seed k's agent.  The lean trainer only (SB3's refuses, naming the option).
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+from pathlib import Path
+
+import yaml
+
+from .action_modes import ActionMode
+from .config import ppo_arguments
+from .normalization import NormalizationStats
+from .run_folder import agent_files
+from .signature import check_signature
+
+__all__ = ["SEED_FIELD", "FITTING_FIELDS", "RUN_OWN", "init_agent_path", "check_init_agent", "load_init_agent"]
+
+#: The placeholder of ``--init-from`` that each seed of ``--seeds`` replaces with its number.
+SEED_FIELD = "{seed}"
+
+#: The :func:`vcnc_agents.signature.env_signature` fields an agent and a run it starts must share: what the
+#: observation and the action mean, not the part or the machine.
+FITTING_FIELDS = ("dt", "preview_steps", "contour_ahead", "observation_shape", "action_shape")
+
+#: The PPO arguments a warm-started run may set anew (:func:`vcnc_agents.model_file.load_ppo` replaces them in the
+#: loaded model); every other one (the network, n_steps, gamma, ...) must be the agent's.
+RUN_OWN = ("learning_rate", "clip_range", "clip_range_vf")
+
+
+def init_agent_path(init_from, seed: int) -> Path:
+    """The agent folder of ``init_from`` for ``seed`` (``{seed}`` replaced by its number)."""
+    text = str(init_from)
+    if not text:
+        raise ValueError("init_from is empty: give an agent folder (RUN/final, RUN/best) or its model.zip")
+    return Path(text.replace(SEED_FIELD, str(seed)))
+
+
+def _agent_config(path: Path) -> dict:
+    """The agent's config.yml: its env signature, action mode and hyperparameter entry, checked."""
+    config_file = agent_files(path)[2]
+    try:
+        data = yaml.safe_load(config_file.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"init_from: {config_file} is not valid YAML: {exc}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("action_mode"), dict) \
+            or not isinstance(data.get("hyperparams"), dict):
+        raise ValueError(f"init_from: {config_file} is not an agent's config.yml (a mapping with action_mode and "
+                         "hyperparams)")
+    try:
+        mode = ActionMode(**data["action_mode"])
+    except TypeError as exc:
+        raise ValueError(f"init_from: {config_file}: action_mode is not an action mode ({exc})") from None
+    return {"signature": (data.get("env") or {}).get("signature") or {}, "mode": mode,
+            "ppo": ppo_arguments(data["hyperparams"])}
+
+
+def check_init_agent(init_from, config):
+    """``config`` (a new run's :class:`vcnc_agents.run_config.RunConfig`, with its env block) recording the agent
+    it starts from; FileNotFoundError or ValueError naming ``init_from`` and every field where the agent does not
+    fit the run (see the module docstring)."""
+    path = init_agent_path(init_from, config.seed)
+    agent = _agent_config(path)
+    what = f"init_from: the agent in {str(path)!r}"
+    recorded = agent["signature"]
+    given = config.env["signature"]
+    check_signature({k: recorded[k] for k in FITTING_FIELDS if k in recorded},
+                    {k: given[k] for k in FITTING_FIELDS if k in given}, what=what)
+    theirs, ours = replace(agent["mode"], peak_weight=0.0), replace(config.mode, peak_weight=0.0)
+    if theirs != ours:
+        diffs = [f"{f.name}: the agent's {getattr(theirs, f.name)!r}, the run's {getattr(ours, f.name)!r}"
+                 for f in fields(ActionMode) if getattr(theirs, f.name) != getattr(ours, f.name)]
+        raise ValueError(f"{what} acts in another action mode: {'; '.join(diffs)}")
+    (p_theirs, k_theirs), (p_ours, k_ours) = agent["ppo"], config.ppo_arguments()
+    if p_theirs != p_ours:
+        raise ValueError(f"{what} is a {p_theirs}, the run's policy a {p_ours}")
+    diffs = [f"{k}: the agent's {k_theirs.get(k)!r}, the run's {k_ours.get(k)!r}"
+             for k in sorted(set(k_theirs) | set(k_ours)) if k not in RUN_OWN and k_theirs.get(k) != k_ours.get(k)]
+    if diffs:
+        raise ValueError(f"{what} was trained with other PPO arguments (only {', '.join(RUN_OWN)} may differ): "
+                         + "; ".join(diffs))
+    return replace(config, init_from=str(path))
+
+
+def load_init_agent(config, *, observation_space, action_space, device: str = "cpu"):
+    """(PPO model, :class:`vcnc_agents.normalization.NormalizationStats`) of the agent ``config.init_from``, the
+    model with the run's hyperparameters (:func:`vcnc_agents.model_file.load_ppo`) and seeded with its seed."""
+    from .model_file import load_ppo
+
+    model_file, norm_file, _ = agent_files(config.init_from)
+    policy, kwargs = config.ppo_arguments()
+    model = load_ppo(model_file, observation_space=observation_space, action_space=action_space,
+                     ppo_kwargs=kwargs, device=device, policy=policy)
+    model.set_random_seed(config.seed)
+    return model, NormalizationStats.load(norm_file)
