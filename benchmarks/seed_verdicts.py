@@ -11,7 +11,7 @@ its own IQM of the max with its interval (a seed's row is that seed's spread), t
 wrote, then the seeds against their own base (the classical controller their residual corrects) by the same rule.
 Every figure comes from the JSON; nothing is typed.
 
-``--with OTHER.json`` joins the records of another ``--plants`` run of the same id, plants and settings (a
+``--with OTHER.json`` (repeatable) joins the records of another ``--plants`` run of the same id, plants and settings (a
 controller added to the house after the seeds were evaluated, such as ``mpc``, whose run is costly; or another
 training run's seeds) and judges the agents again, by the bench's own rule
 (:func:`vcnc_bench.verdicts.robust_verdicts`), against the strongest causal controller of the two runs together;
@@ -243,8 +243,9 @@ def main(argv=None) -> int:
     p.add_argument("--base", action="append", default=[], metavar="[ID=]NAME",
                    help="the controller the agents' residual corrects (default ff-ccc); ID=NAME for one id's run "
                         "(repeatable: with --summary, one per id)")
-    p.add_argument("--with", dest="other", metavar="OTHER", help="another --plants run of the same id and plants: "
-                   "the records this one lacks (controllers and agents) join it, and the verdicts are judged again")
+    p.add_argument("--with", dest="other", metavar="OTHER", action="append", default=[],
+                   help="another --plants run of the same id and plants: the records this one lacks (controllers and "
+                        "agents) join it, and the verdicts are judged again (repeatable: joined in the order given)")
     p.add_argument("--only", action="append", default=[], metavar="POLICY",
                    help="with --with: join this policy's records only (repeatable; default every one this run lacks)")
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
@@ -280,9 +281,9 @@ def main(argv=None) -> int:
     for path in args.json_files:
         with open(path) as f:
             data = json.load(f)
-        if args.other:
-            with open(args.other) as f:
-                data = join(data, json.load(f), args.other, tuple(args.only))
+        for other in args.other:
+            with open(other) as f:
+                data = join(data, json.load(f), other, tuple(args.only))
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(data, f, indent=1)

@@ -227,6 +227,27 @@ def test_a_join_restricted_to_some_policies_adds_only_their_records():
         sv.join(base, box, only=("ilc",))
 
 
+def test_with_is_repeatable_and_joins_every_file_in_order(tmp_path, capsys):
+    """``--with A --with B``: the records each lacks join, A's first, then B's (a later --with replaced an earlier
+    one before)."""
+    from pathlib import Path
+
+    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
+    box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
+    paths = {}
+    for name, run, keep in (("base", seeds, lambda p: p != "lq-preview"), ("a", box, lambda p: p == "mpc"),
+                            ("b", seeds, lambda p: p == "lq-preview")):
+        paths[name] = tmp_path / f"{name}.json"
+        paths[name].write_text(json.dumps(dict(run, robust=[r for r in run["robust"] if keep(r["policy"])])))
+    out = tmp_path / "joined.json"
+    assert _seed_verdicts().main([str(paths["base"]), "--with", str(paths["a"]), "--with", str(paths["b"]),
+                                  "--json", str(out)]) == 0
+    capsys.readouterr()
+    policies = [r["policy"] for r in json.loads(out.read_text())["robust"]]
+    assert policies[-2:] == ["mpc", "lq-preview"] and policies.count("mpc") == 1
+
+
 def test_the_seeds_spread_is_the_range_of_their_own_interquartile_means():
     """``--summary``'s spread table: the lowest and highest of the seeds' IQMs over the sampled plants, each checked
     here against scipy's 25 %-trimmed mean of that seed's per-plant figures."""
