@@ -95,6 +95,13 @@ def action_mode(args, config_file):
          "action_repeat": given["action_repeat"] if given["action_repeat"] is not None else base.action_repeat}
     if mode == "residual":
         d["baseline"] = given["baseline"] or base.baseline or "smc"
+        if d["baseline"] == base.baseline:  # the entry's baseline: its arguments too
+            d["baseline_params"] = dict(base.baseline_params)
+        elif base.baseline_params:
+            from .run_warning import note
+
+            note(f"--baseline {d['baseline']}: the entry's arguments of {base.baseline} "
+                 f"({', '.join(sorted(base.baseline_params))}) do not apply to it and are dropped")
         d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
         d["history"] = given["history"] if given["history"] is not None else base.history
         d["peak_weight"] = given["peak_weight"] if given["peak_weight"] is not None else base.peak_weight

@@ -131,3 +131,25 @@ def test_vcnc_train_peak_weight_changes_the_entry_s_price_only():
     args = parser().parse_args(["--env", CIRCLE, "--action-mode", "direct", "--peak-weight", "1"])
     with pytest.raises(ValueError, match="--peak-weight apply to --action-mode residual"):
         action_mode(args, adaptive.with_name("ppo.yml"))
+
+
+def test_a_mode_option_keeps_the_entry_s_baseline_arguments_unless_it_names_another_baseline(tmp_path):
+    """An entry's ``ResidualAction`` arguments of its baseline (``baseline_params``: here ``integral: false``) stay
+    when an option changes something else, and are dropped with a note when ``--baseline`` names another one (they
+    were dropped in every case before)."""
+    import yaml
+
+    from vcnc_agents.arguments import action_mode, parser
+    from vcnc_agents.run_warning import RunWarning
+
+    omega = "VCNC-OmegaTolerance-v1"
+    entry = {"policy": "MlpPolicy", "env_wrapper": [{"vcnc_agents.action_modes.ResidualAction": {
+        "baseline": "ff-pid-online", "correction": 0.1, "action_repeat": 20, "integral": False}}]}
+    config = tmp_path / "entry.yml"
+    config.write_text(yaml.safe_dump({omega: entry}))
+    args = parser().parse_args(["--env", omega, "--config", str(config), "--peak-weight", "10"])
+    mode = action_mode(args, config)
+    assert mode.baseline_params == {"integral": False} and mode.peak_weight == 10
+    args = parser().parse_args(["--env", omega, "--config", str(config), "--baseline", "ff-pid"])
+    with pytest.warns(RunWarning, match="integral"):
+        assert action_mode(args, config).baseline_params == {}
