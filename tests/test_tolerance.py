@@ -262,6 +262,10 @@ def test_the_comparison_scraps_runs_over_t_and_judges_the_cycle_time_by_the_benc
                   for s in seeds])
     assert row["agent_over_t"] == [int(np.sum(np.array(s["per_plant"]["max_um"][1:]) > 5.0)) for s in seeds]
     assert row["agent_nominal_s"] == pytest.approx(list(x[:, 0]))
+    assert row["agent_faster"] == sum(int(a < b) for s in x for a, b in zip(s[1:], opponent_cycle[1:]))
+    letter = (all(c < opponent_cycle[0] for c in x[:, 0]) and np.median(x[:, 1:]) < np.median(opponent_cycle[1:])
+              and sum(row["agent_over_t"]) == 0)  # the opponent scraps none
+    assert row["goal_letter"] is bool(letter)
     v = row["verdict"]
     assert v["iqm_y"] == pytest.approx(trim_mean(opponent_cycle[1:], 0.25))
     finite = np.sort(x[:, 1:].ravel())  # the IQM with infinities: the middle half of the sorted runs
@@ -308,6 +312,10 @@ def test_a_controller_of_the_agent_s_bench_run_is_an_opponent_too():
     assert row["opponent_nominal_s"] == 0.68
     assert row["opponent_over_t"] == 2  # 6.0 um over T, and the unfinished run
     assert row["agent_over_t"] == [0]
+    # slower at the nominal plant (0.7 against 0.68 s): the goal's letter is not met, though faster at the median
+    assert row["agent_median_s"] < row["opponent_median_s"] and row["goal_letter"] is False
+    assert row["agent_faster"] == 3  # the MPCC's two scrapped runs and its 0.71 s; 0.7 against 0.7 is not faster
+    assert "| 3 of 1 x 4 |" in tl.format_comparison(rows) and "| not met |" in tl.format_comparison(rows)
 
 
 def test_the_contouring_mpc_runs_on_a_feed_override_id_only():
