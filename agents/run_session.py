@@ -89,7 +89,8 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
     ``options`` are the training options (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`: ``checkpoint_freq``,
     ``eval_freq``; None or left out: the default, or on resume the run's).  ``tolerance`` (mm) sets the entry's
     env_kwargs ``tolerance`` (``--tolerance``: a feed-override env's tolerance task).  ``init_from`` (an agent
-    folder, ``{seed}`` replaced by the seed) starts the new run from that agent (:mod:`vcnc_agents.warm_start`).
+    folder; ``{seed}`` in it is the run's seed number) starts the new run from that agent
+    (:mod:`vcnc_agents.warm_start`).
 
     Returns (run folder, :class:`vcnc_agents.run_config.RunConfig`, checkpoint to resume from or None).  Raises
     ValueError / FileNotFoundError / FileExistsError with a clear message for
