@@ -25,16 +25,14 @@ wrappers do.  Its ``predict`` has SB3's signature.
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
-import yaml
 
 from vcnc_gym.envs.history import DecisionHistory, agent_space
 
 from .action_modes import ActionMode
 from .normalization import NormalizationStats
-from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, agent_files, evaluation_row
+from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, agent_files, evaluation_row, read_agent_config
 from .signature import (ANY_CONTOUR_IDS, MACHINE_FIELDS, as_seen_through, check_env_signature, check_signature,
                         env_signature, observation_pick)
 
@@ -203,7 +201,7 @@ def agent_mismatch(path, env) -> str | None:
     Reads only the agent's config.yml (no model); for choosing default
     policies, e.g. the bench's shipped agent at a non-default feedrate.
     """
-    data = _read_config(agent_files(path)[2])
+    data = read_agent_config(agent_files(path)[2])
     recorded = (data.get("env") or {}).get("signature") or {"id": data.get("env_id")}
     try:
         if observation_pick(recorded, env) is not None:
@@ -212,16 +210,6 @@ def agent_mismatch(path, env) -> str | None:
     except ValueError as exc:
         return str(exc)
     return None
-
-
-def _read_config(config_file: Path) -> dict:
-    try:
-        data = yaml.safe_load(config_file.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{config_file} is not valid YAML: {exc}") from None
-    if not isinstance(data, dict) or not isinstance(data.get("action_mode", {}), dict):
-        raise ValueError(f"{config_file} is not an agent's config.yml (a mapping with env_id and action_mode)")
-    return data
 
 
 def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> AgentPolicy:
@@ -260,7 +248,7 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     from .model_file import load_ppo
 
     model_file, norm_file, config_file = agent_files(path)
-    data = _read_config(config_file)
+    data = read_agent_config(config_file)
     recorded = (data.get("env") or {}).get("signature")
     pick = observation_pick(recorded, env) if isinstance(recorded, dict) else None
     if pick is not None:  # trained with a smaller preview: it sees its own fields of this env's observation

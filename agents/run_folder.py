@@ -59,7 +59,7 @@ from .normalization import NormalizationStats, atomic_write_bytes
 from .run_warning import note
 
 __all__ = ["MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE", "CHECKPOINT_PREFIX", "RUN_ENTRIES", "EVAL_FIELDS",
-           "agent_files", "evaluation_score", "evaluation_row", "checkpoint_files", "check_checkpoint",
+           "agent_files", "read_agent_config", "evaluation_score", "evaluation_row", "checkpoint_files", "check_checkpoint",
            "scan_checkpoints", "latest_checkpoint", "write_yaml", "write_config", "save_model", "save_agent", "read_evaluations",
            "write_evaluations", "best_of", "roll_back", "read_summary", "record_session", "session_rates",
            "run_lock", "check_output_folder", "stale_run", "read_run_config", "clear_new_run"]
@@ -104,6 +104,18 @@ def agent_files(path) -> tuple[Path, Path, Path]:
     if missing:
         raise FileNotFoundError(f"agent folder {str(folder)!r} lacks {', '.join(missing)}")
     return files
+
+
+def read_agent_config(config_file: Path) -> dict:
+    """The mapping of an agent folder's config.yml (:func:`agent_files`' third path); ValueError for a file that is
+    not valid YAML or not an agent's config (a mapping whose ``action_mode``, if any, is a mapping)."""
+    try:
+        data = yaml.safe_load(Path(config_file).read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{config_file} is not valid YAML: {exc}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("action_mode", {}), dict):
+        raise ValueError(f"{config_file} is not an agent's config.yml (a mapping with env_id and action_mode)")
+    return data
 
 
 # -- evaluations ---------------------------------------------------------------------------

@@ -26,12 +26,10 @@ from __future__ import annotations
 from dataclasses import fields, replace
 from pathlib import Path
 
-import yaml
-
 from .action_modes import ActionMode
 from .config import ppo_arguments
 from .normalization import NormalizationStats
-from .run_folder import agent_files
+from .run_folder import agent_files, read_agent_config
 from .signature import check_signature
 
 __all__ = ["SEED_FIELD", "FITTING_FIELDS", "RUN_OWN", "init_agent_path", "check_init_agent", "load_init_agent"]
@@ -60,17 +58,12 @@ def _agent_config(path: Path) -> dict:
     """The agent's config.yml: its env signature, action mode and hyperparameter entry, checked."""
     config_file = agent_files(path)[2]
     try:
-        data = yaml.safe_load(config_file.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"init_from: {config_file} is not valid YAML: {exc}") from None
-    if not isinstance(data, dict) or not isinstance(data.get("action_mode"), dict) \
-            or not isinstance(data.get("hyperparams"), dict):
-        raise ValueError(f"init_from: {config_file} is not an agent's config.yml (a mapping with action_mode and "
-                         "hyperparams)")
-    try:
+        data = read_agent_config(config_file)
+        if not isinstance(data.get("action_mode"), dict) or not isinstance(data.get("hyperparams"), dict):
+            raise ValueError(f"{config_file} is not an agent's config.yml (it lacks action_mode or hyperparams)")
         mode = ActionMode(**data["action_mode"])
-    except TypeError as exc:
-        raise ValueError(f"init_from: {config_file}: action_mode is not an action mode ({exc})") from None
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"init_from: {exc}") from None
     return {"signature": (data.get("env") or {}).get("signature") or {}, "mode": mode,
             "ppo": ppo_arguments(data["hyperparams"])}
 
