@@ -648,9 +648,9 @@ class _LeanRun:
             if self.config.init_from is not None:  # a warm start (vcnc_agents.warm_start): the agent's weights
                 from .warm_start import load_init_agent
 
-                space = agent_space(self.eval_env.observation_space, self.mode.history, self.eval_env.unwrapped.layout)
-                self.model, stats = load_init_agent(self.config, observation_space=space,
-                                                    action_space=self.eval_env.action_space, device=self.device)
+                self.model, stats = load_init_agent(self.config, env_space=self.eval_env.observation_space,
+                                                    action_space=self.eval_env.action_space,
+                                                    layout=self.eval_env.unwrapped.layout, device=self.device)
                 self.norm = RunningNormalizer(stats, self.n_envs)
         else:
             from .model_file import load_ppo

@@ -557,7 +557,6 @@ def test_a_warm_start_begins_from_the_agent_s_weights_and_normalisation(lean_run
 
 @pytest.mark.parametrize("change, named", [
     (["--correction", "0.3"], "correction: the agent's 0.2, the run's 0.3"),
-    (["--history", "2"], "history: the agent's 0, the run's 2"),
     (["--n-envs", "8"], None),  # the batch may differ: n_envs is the run's
 ])
 def test_init_from_refuses_an_agent_that_does_not_fit_before_writing(lean_run, small_entry, tmp_path, capsys,
@@ -572,6 +571,48 @@ def test_init_from_refuses_an_agent_that_does_not_fit_before_writing(lean_run, s
         train_main(argv)
     err = capsys.readouterr().err
     assert exc.value.code == 2 and "init_from" in err and named in err and not run.exists()
+
+
+def test_a_grown_memory_starts_from_the_agent_s_actions_and_values(lean_run, small_entry, tmp_path):
+    """grow_agent (a memory of 2 decisions added to an agent without one): on any observation and any remembered
+    past, the grown agent's deterministic action and value are the source's on the observation alone, computed by
+    the source's own network; the new inputs are normalised as the present fields they remember; a run with
+    --history 2 starts from it."""
+    from vcnc_gym.envs.history import agent_space, history_columns
+
+    from vcnc_agents.model_file import load_ppo
+    from vcnc_agents.normalization import NormalizationStats
+    from vcnc_agents.warm_start import grow_agent
+
+    env = gym.make(HEART)
+    layout, space = env.unwrapped.layout, env.observation_space
+    files = lean_run / "final"
+    kwargs = {"policy_kwargs": dict(log_std_init=-1.0, net_arch=dict(pi=[64, 64], vf=[64, 64]))}
+    source = load_ppo(files / "model.zip", observation_space=space, action_space=env.action_space, ppo_kwargs=kwargs)
+    grown = load_ppo(files / "model.zip", observation_space=space, action_space=env.action_space, ppo_kwargs=kwargs)
+    stats = NormalizationStats.load(files / "vecnormalize.npz")
+    big = agent_space(space, 2, layout)
+    grown, grown_stats = grow_agent(grown, stats, layout, 0, 2, big)
+    columns = history_columns(layout)
+    n = space.shape[0]
+    assert big.shape[0] == n + 2 * columns.size and grown.observation_space.shape == big.shape
+    assert np.array_equal(grown_stats.obs_mean[:n], stats.obs_mean)
+    assert np.array_equal(grown_stats.obs_mean[n + columns.size:], stats.obs_mean[columns])
+    assert np.array_equal(grown_stats.obs_var[n:n + columns.size], stats.obs_var[columns])
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(16, big.shape[0])).astype(np.float32)  # normalised observations and pasts
+    with torch.no_grad():
+        a_source = source.policy.predict(x[:, :n], deterministic=True)[0]
+        a_grown = grown.policy.predict(x, deterministic=True)[0]
+        v_source = source.policy.predict_values(torch.as_tensor(x[:, :n]))
+        v_grown = grown.policy.predict_values(torch.as_tensor(x))
+    assert np.array_equal(a_source, a_grown) and torch.equal(v_source, v_grown)
+    with pytest.raises(ValueError, match="the run's observation has"):  # 2 decisions more, the space of 3 more
+        grow_agent(grown, grown_stats, layout, 2, 4, agent_space(space, 5, layout))
+    run = tmp_path / "warm"
+    assert train_main(["--env", HEART, "--config", str(small_entry), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
+                       "--history", "2", "--init-from", str(files), "--output", str(run), "--no-progress"]) == 0
+    assert load_agent(run / "final", env).model.observation_space.shape == big.shape
 
 
 def test_init_from_names_what_is_missing_or_different(lean_run, small_entry, tmp_path, capsys):

@@ -15,7 +15,8 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_bench.reports import override_schedule as osch
 from vcnc_bench.reports import tolerance as tl
 
-ID = "VCNC-OmegaTolerance-v1"
+ID = "VCNC-OmegaTolerance-v2"
+V1 = "VCNC-OmegaTolerance-v1"  # the look-ahead at its top feed from the first sample (lookahead_reach=False)
 
 
 @pytest.fixture(scope="module")
@@ -25,25 +26,38 @@ def env():
     e.close()
 
 
+@pytest.mark.parametrize("env_id", [ID, V1])
 @pytest.mark.parametrize("feed, acceleration", [(150.0, 1000.0), (100.0, 2600.0), (40.0, 500.0)])
-def test_the_dial_is_the_fastest_feed_within_the_look_ahead_s_limits(env, feed, acceleration):
-    """The scheduled feed (the dial times the S-curve's speed) is, where the dial is not at its ends, the closed form
-    of the look-ahead computed here another way: the least over every sample j of
-    ``sqrt(min(F, sqrt(A / kappa_j))^2 + 2 A |s - s_j|)`` (braking into and accelerating out of every limit at A)."""
+def test_the_dial_is_the_fastest_feed_within_the_look_ahead_s_limits(env_id, feed, acceleration):
+    """The scheduled feed (the dial times the S-curve's speed) is the closed form of the look-ahead computed here
+    another way: the least over every sample j of ``sqrt(L_j^2 + 2 A |s - s_j|)`` (braking into and accelerating
+    out of every limit at A), with ``L_j = min(F, sqrt(A / kappa_j), m v_j)`` (v2: within the dial's reach m times
+    the S-curve's speed v_j, so from rest at both ends) or, in v1, without the last term and the dial clipped at m
+    after (where it is, slower than that look-ahead, never faster)."""
+    env = gym.make(env_id)
     t, dial = osch.dial_schedule(env, tl.Setting(feed, acceleration))
     s = env.unwrapped.task.reference_arrays.samples
     arc = s[:, sk.REF_ARC]
     speed = np.hypot(s[:, sk.REF_VELOCITY], s[:, sk.REF_VELOCITY + 1])
+    top = env.unwrapped.max_override
     limit2 = np.minimum(feed, np.sqrt(acceleration / np.maximum(np.abs(s[:, sk.REF_CURVATURE]), 1e-12))) ** 2
+    if env_id == ID:
+        limit2 = np.minimum(limit2, (top * speed) ** 2)
     closed = np.empty(arc.size)
     for i in range(0, arc.size, 512):
         rows = slice(i, i + 512)
         closed[rows] = np.sqrt((limit2[None, :] + 2 * acceleration * np.abs(arc[rows, None] - arc[None, :])).min(1))
-    inside = (dial > 0) & (dial < env.unwrapped.max_override) & (speed > 1e-9)
+    moving = speed > 1e-9
+    inside = (dial > 0) & (dial < top) & moving
     assert inside.sum() > arc.size // 4
     assert np.allclose(dial[inside] * speed[inside], closed[inside], rtol=1e-9, atol=1e-9)
-    assert np.all(dial[~inside & (speed > 1e-9)] * speed[~inside & (speed > 1e-9)] <= closed[~inside & (speed > 1e-9)]
-                  * (1 + 1e-9))  # clipped at the dial's top: slower than the look-ahead, never faster
+    assert np.all(dial[~inside & moving] * speed[~inside & moving] <= closed[~inside & moving] * (1 + 1e-9))
+    if env_id == ID:  # within reach: nowhere clipped, and from rest (at A) to the top of its first limit
+        assert np.allclose(dial[moving] * speed[moving], closed[moving], rtol=1e-9, atol=1e-9)
+        first = np.argmax(moving)
+        assert dial[first] * speed[first] <= math.sqrt(2 * acceleration * (arc[first] - arc[0]) + 1e-18) * (1 + 1e-9)
+    else:  # v1: at the top feed's dial (clipped) at the first moving sample
+        assert dial[np.argmax(moving)] == top
     assert np.array_equal(t, env.unwrapped.reference.t)
 
 
@@ -96,6 +110,9 @@ def test_the_command_writes_the_search_s_format(monkeypatch, tmp_path, capsys):
     cycle = entry["runs"][0]["cycle_time_s"][0]
     assert math.isfinite(cycle) and opponents["per-plant search"][0] <= cycle
     assert "look-ahead dial" in capsys.readouterr().out
+    # refined as the look-ahead search is: bisection from 100 mm/s (within 5 um on the nominal plant) toward 150
+    feeds = [r["setting"]["feed"] for r in entry["runs"]]
+    assert feeds[:2] == [150.0, 100.0] and any(100.0 < f < 150.0 for f in feeds[2:])
 
 
 def test_the_contouring_mpc_refuses_a_dial_it_does_not_set_alone():

@@ -84,12 +84,12 @@ def test_running_out_of_time_costs_the_contour_left_as_if_over_t():
 
 
 def test_the_tolerance_ids_dial_reaches_150_percent_at_26_per_second():
-    """On VCNC-OmegaTolerance-v1's dial alone (``lookahead=None``) the dial held at its top takes the override from 100 % to 150 % at 26/s (a step of
+    """On VCNC-OmegaTolerance-v2's dial alone (``lookahead=None``) the dial held at its top takes the override from 100 % to 150 % at 26/s (a step of
     26 dt per control period, from the rate limit alone) and the tool arrives in the full-feed duration over 1.5,
     plus the ramp's loss (computed here: half the ramp's time times the half-speed it lacks); a third of the way up
     the dial is 50 %, as the half dial of VCNC-OmegaOverride-v1."""
-    assert gym.make("VCNC-OmegaTolerance-v1").unwrapped.lookahead == (150.0, 1500.0)  # the id's; the dial alone here:
-    env = gym.make("VCNC-OmegaTolerance-v1", lookahead=None).unwrapped
+    assert gym.make("VCNC-OmegaTolerance-v2").unwrapped.lookahead == (150.0, 1937.5)  # the id's; the dial alone here:
+    env = gym.make("VCNC-OmegaTolerance-v2", lookahead=None).unwrapped
     assert (env.tolerance, env.max_override, env.override_rate) == (0.01, 1.5, 26.0)
     out = _dialled_episode(env, lambda k: 1.0)
     dt, duration = env.dt, float(env.reference.t[-1])
@@ -228,8 +228,10 @@ def test_a_machine_commissioned_on_the_id_s_own_reference_runs_another_setting_w
 
 @pytest.mark.parametrize("agent_id, searched", [(ID, "VCNC-OmegaLookahead-v1"),
                                                  ("VCNC-OmegaOverrideShop-v1", "VCNC-OmegaLookaheadShop-v1"),
-                                                 ("VCNC-OmegaTolerance-v1", "VCNC-OmegaLookahead-v1"),
-                                                 ("VCNC-OmegaToleranceShop-v1", "VCNC-OmegaLookaheadShop-v1")])
+                                                 ("VCNC-OmegaTolerance-v2", "VCNC-OmegaLookahead-v1"),
+                                                 ("VCNC-OmegaToleranceShop-v2", "VCNC-OmegaLookaheadShop-v1"),
+                                                 ("VCNC-HeartTolerance-v1", "VCNC-Heart-v1"),
+                                                 ("VCNC-HeartToleranceShop-v1", "VCNC-HeartShop-v1")])
 def test_the_agent_s_bench_plants_are_the_search_s(agent_id, searched):
     """The tolerance agent runs on the override id (``vcnc-bench --plants 20``), its opponents on the look-ahead id:
     the same plant model, so ``plant_set`` with the same seed draws the same plants for both."""

@@ -8,7 +8,8 @@ feed at the same point of the path.  This is the tolerance agent's own action sp
 controller that runs on a re-timed reference: :data:`~vcnc_bench.reports.feed_override.CLASSICAL`) on the axes:
 
 - **the schedule** (:func:`dial_schedule`, :func:`vcnc_gym.envs.retiming.lookahead_dial`): along the path's arc
-  s, ``v(s) = min(F, sqrt(A / |kappa(s)|))``, then ``v(s)^2`` limited to change by at most ``2 A`` per mm of arc,
+  s, ``v(s) = min(F, sqrt(A / |kappa(s)|), m v_S(s))`` (m the dial's top, v_S the S-curve's speed: within the dial's
+  reach, from rest; the tolerance ids' v1 left the last term out), then ``v(s)^2`` limited to change by at most ``2 A`` per mm of arc,
   backward and forward (the look-ahead's braking and accelerating, Altintas, Manufacturing Automation, 2nd ed.
   2012, ch. 6); the override is ``v(s)`` over the S-curve's speed at s, within [0, ``max_override``].  The env
   runs it (``FeedOverrideEnv(lookahead=(F, A))``, the dial at 100 %);
@@ -17,10 +18,12 @@ controller that runs on a re-timed reference: :data:`~vcnc_bench.reports.feed_ov
 - **the grid and the choices** are :mod:`vcnc_bench.reports.tolerance`'s: F at the feeds of
   :data:`~vcnc_bench.reports.tolerance.FEED_FACTORS` the dial reaches, A at
   :data:`~vcnc_bench.reports.tolerance.ACCELERATIONS`, every setting on every plant (the nominal one and the bench's
-  ``--plants`` draws); the builder's setting is the fastest within T on the nominal plant, the commissioned machine
-  the fastest on each plant (:func:`~vcnc_bench.reports.tolerance.tolerance_table`).
+  ``--plants`` draws), then refined as the look-ahead search refines its own (:func:`refine_schedule`: bisection
+  toward the next faster setting on the nominal plant, settings between each plant's choice and its neighbours); the
+  builder's setting is the fastest within T on the nominal plant, the commissioned machine the fastest on each plant
+  (:func:`~vcnc_bench.reports.tolerance.tolerance_table`).
 
-``python -m vcnc_bench.reports.override_schedule --id VCNC-OmegaTolerance-v1 --plants 20 --json OUT`` prints the
+``python -m vcnc_bench.reports.override_schedule --id VCNC-OmegaTolerance-v2 --plants 20 --json OUT`` prints the
 table and writes the runs in the search's format, so that ``python -m vcnc_bench.reports.tolerance --agents BENCH
 --search OUT`` judges a tolerance agent against this opponent too.
 """
@@ -36,10 +39,10 @@ import numpy as np
 
 from vcnc_gym.validation import integer, positive
 
-from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, runs_json, tolerance_table,
-                        write_search)
+from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, refine, refine_machines, runs_json,
+                        tolerance_table, write_search)
 
-__all__ = ["CONTROLLER", "LABEL", "schedule_settings", "dial_schedule", "run_schedule", "main"]
+__all__ = ["CONTROLLER", "LABEL", "schedule_settings", "dial_schedule", "run_schedule", "refine_schedule", "main"]
 
 #: The axes' controller under the scheduled dial.
 CONTROLLER = "ff-pid-online"
@@ -74,7 +77,7 @@ def dial_schedule(env, setting: Setting) -> tuple[np.ndarray, np.ndarray]:
     u = env.unwrapped
     feed = positive("setting.feed", setting.feed, "mm/s")
     a = positive("setting.acceleration", setting.acceleration, "mm/s^2")
-    dial = lookahead_dial(u.task.reference_arrays.samples, feed, a)
+    dial = lookahead_dial(u.task.reference_arrays.samples, feed, a, reach=u.max_override if u.lookahead_reach else None)
     return np.asarray(u.task.reference.t, dtype=float), np.minimum(dial, u.max_override)
 
 
@@ -108,6 +111,21 @@ def run_schedule(env_id: str, setting: Setting, parameters: np.ndarray) -> GridR
     finally:
         env.close()
     return GridRun(LABEL, setting, np.array([r[0] for r in runs]), np.array([r[1] for r in runs]))
+
+
+def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) -> list[GridRun]:
+    """``runs`` and the look-ahead search's two refinements on the dial's settings (every run on every plant): the
+    nominal plant's choice per T by bisection (:func:`~vcnc_bench.reports.tolerance.refine`), then settings between
+    each plant's choice and its neighbours (:func:`~vcnc_bench.reports.tolerance.refine_machines`); progress on
+    stderr."""
+    def run(controller, setting):
+        return run_schedule(env_id, setting, parameters)
+
+    def progress(text):
+        print(text, file=sys.stderr, flush=True)
+
+    runs = refine(env_id, runs, parameters, run=run, progress=progress)
+    return refine_machines(env_id, runs, parameters, run=run, progress=progress)
 
 
 def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: float) -> list[GridRun]:
@@ -167,6 +185,7 @@ def main(argv=None) -> int:
         env.close()
         t0 = time.perf_counter()
         runs = _run_grid(env_id, settings, parameters, t0)
+        runs = refine_schedule(env_id, runs, parameters)
         rows = tolerance_table(runs, kinds)
         print(format_table(env_id, rows), flush=True)
         print(f"({len(runs)} settings of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)

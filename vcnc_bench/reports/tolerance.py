@@ -229,16 +229,15 @@ def run_grid(env_id: str, parameters: np.ndarray, *, controllers=CONTROLLERS, to
     return runs
 
 
-def _bisect(env_id, controller, parameters, curve, passing: Setting, failing: Setting, tol_um: float, steps: int,
-            runs: list) -> None:
-    """``steps`` runs between ``passing`` (nominal within T) and ``failing`` (not), midpoints of feed and
-    acceleration, each appended to ``runs`` and moving the bracket."""
+def _bisect(run, controller, passing: Setting, failing: Setting, tol_um: float, steps: int, runs: list) -> None:
+    """``steps`` runs (``run(controller, setting)``) between ``passing`` (nominal within T) and ``failing`` (not),
+    midpoints of feed and acceleration, each appended to ``runs`` and moving the bracket."""
     for _ in range(steps):
         a = None if passing.acceleration is None else 0.5 * (passing.acceleration + failing.acceleration)
         mid = Setting(round(0.5 * (passing.feed + failing.feed), 6), None if a is None else round(a, 3))
-        run = _run(env_id, controller, mid, parameters, curve)
-        runs.append(run)
-        ok = run.max_um[0] <= tol_um and np.isfinite(run.cycle_time_s[0])
+        result = run(controller, mid)
+        runs.append(result)
+        ok = result.max_um[0] <= tol_um and np.isfinite(result.cycle_time_s[0])
         passing, failing = (mid, failing) if ok else (passing, mid)
 
 
@@ -254,15 +253,26 @@ def _neighbours(runs: list[GridRun], controller: str, setting: Setting) -> list[
                         min(larger, key=lambda x: x.acceleration, default=None)) if x is not None]
 
 
-def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES, steps: int = 3,
-           progress=None) -> list[GridRun]:
-    """``runs`` and the refinement runs of the builder's setting (module docstring): per tolerance (mm), bisection
-    from the nominal plant's choice toward the next faster feed and the next larger acceleration."""
+def _runner(env_id: str, parameters: np.ndarray, run):
+    """``run`` or, for None, the look-ahead search's own: ``controller`` on ``env_id``'s planned feed at a setting,
+    on every plant of ``parameters``."""
+    if run is not None:
+        return run
     import gymnasium as gym
 
     env = gym.make(env_id)
     curve = env.unwrapped.curve
     env.close()
+    return lambda controller, setting: _run(env_id, controller, setting, parameters, curve)
+
+
+def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES, steps: int = 3,
+           progress=None, run=None) -> list[GridRun]:
+    """``runs`` and the refinement runs of the builder's setting (module docstring): per tolerance (mm), bisection
+    from the nominal plant's choice toward the next faster feed and the next larger acceleration.  ``run(controller,
+    setting)`` -> :class:`GridRun` on every plant (None: this search's look-ahead runs; the look-ahead through the
+    dial passes its own)."""
+    run = _runner(env_id, parameters, run)
     runs = list(runs)
     for tol in tolerances:
         choice = _fastest(runs, 0, 1e3 * tol)
@@ -271,7 +281,7 @@ def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, toleranc
         c, s = choice.controller, choice.setting
         for failing in _neighbours(runs, c, s):
             n = len(runs)
-            _bisect(env_id, c, parameters, curve, s, failing, 1e3 * tol, steps, runs)
+            _bisect(run, c, s, failing, 1e3 * tol, steps, runs)
             if progress is not None:
                 progress(f"{env_id} {c}: refined {s.label} toward {failing.label} for {1e3 * tol:g} um: "
                          + ", ".join(f"{r.setting.label} {r.max_um[0]:.3g} um" for r in runs[n:]))
@@ -279,15 +289,11 @@ def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, toleranc
 
 
 def refine_machines(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES,
-                    points: int = 3, progress=None) -> list[GridRun]:
+                    points: int = 3, progress=None, run=None) -> list[GridRun]:
     """``runs`` and the per-plant search's refinement: per tolerance (mm), ``points`` settings evenly between
     each plant's choice and each of its :func:`_neighbours`, each run once on every plant (every plant's boundary
-    lies elsewhere, and a run serves them all)."""
-    import gymnasium as gym
-
-    env = gym.make(env_id)
-    curve = env.unwrapped.curve
-    env.close()
+    lies elsewhere, and a run serves them all); ``run`` as :func:`refine`'s."""
+    run = _runner(env_id, parameters, run)
     runs = list(runs)
     done = {(r.controller, r.setting) for r in runs}
     for tol in tolerances:
@@ -303,7 +309,7 @@ def refine_machines(env_id: str, runs: list[GridRun], parameters: np.ndarray, *,
                                                                                         - s.acceleration), 3)
                     mid = Setting(round(s.feed + w * (failing.feed - s.feed), 6), a)
                     if (c, mid) not in done:
-                        runs.append(_run(env_id, c, mid, parameters, curve))
+                        runs.append(run(c, mid))
                         done.add((c, mid))
         if progress is not None:
             progress(f"{env_id}: {len(runs) - n} runs refined the per-plant choices for {1e3 * tol:g} um "

@@ -12,7 +12,7 @@ from .contouring_env import ContouringEnv, check_actions
 from .retiming import lookahead_dial, padded_reference, retime
 from .signatures import forwarded_signature
 from .task import ContouringBatch
-from ..validation import non_negative, positive, real, size
+from ..validation import flag, non_negative, positive, real, size
 
 __all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT",
            "DEFAULT_VIOLATION_COST", "DEFAULT_PROGRESS_REWARD", "TOLERANCES", "MAX_OVERRIDE"]
@@ -91,7 +91,10 @@ class FeedOverrideEnv(ContouringEnv):
     ``L`` the override that makes the reference's feed the look-ahead's of
     top feed F (mm/s) and path acceleration A (mm/s^2) at the reference's
     clock ``tau`` (:func:`~vcnc_gym.envs.retiming.lookahead_dial`); a = 0 is
-    the look-ahead itself.
+    the look-ahead itself.  The look-ahead plans within the dial's reach
+    (``lookahead_reach=True``): its speed is at most ``m`` times the
+    reference's own, so it starts and ends at rest as the reference does, at
+    most at A.
 
     ## Observation Space
 
@@ -149,6 +152,8 @@ class FeedOverrideEnv(ContouringEnv):
     ``time_limit``), plus ``override_rate`` (1/s, 10: the whole range in 0.1
     s), ``max_override`` (1, 1.0: the dial's top, up to MAX_OVERRIDE, 1.5 =
     150 %), ``lookahead`` ((F mm/s, A mm/s^2), None: the dial alone),
+    ``lookahead_reach`` (True; False: the tolerance ids' v1 look-ahead,
+    at its top feed from the first sample),
     ``time_cost`` (mm, None: 0.001 without a tolerance; refused with
     one), ``time_limit`` (1, 3.0), ``tolerance`` (mm, None: the contouring
     reward; T: the tolerance task), ``violation_cost`` (decision steps of
@@ -167,6 +172,18 @@ class FeedOverrideEnv(ContouringEnv):
       both ids as they were.
     - v1 (``VCNC-OmegaTolerance-v1``, ``VCNC-OmegaToleranceShop-v1``):
       initial release (issue 37); the tolerance task's own ids (registry).
+    - v2 (``VCNC-OmegaTolerance-v2``, ``VCNC-OmegaToleranceShop-v2``): the
+      look-ahead (a = 0) plans within the dial's reach and from rest
+      (``lookahead_reach``).  In v1 it was at its top feed from the first
+      sample and the dial, clipped at 150 %, ran the start at 1.5 times the
+      S-curve's own ramp: 2.25 times its acceleration, beyond the look-ahead's
+      A.  That start set v1's largest contour error (6.26 um of the nominal
+      omega's at 150 mm/s and 1500 mm/s^2; 1.86 um after it), the look-ahead
+      opponents' tolerance and the agents' starting point.  v1 stays
+      registered (``LEGACY``) for the figures measured on it.
+    - v1 (``VCNC-HeartTolerance-v1``, ``VCNC-HeartToleranceShop-v1``):
+      initial release (issue 37); the tolerance task on the heart, with v2's
+      look-ahead.
     """
 
     #: Classical controllers that read the reference ahead from a table computed once (feedforward, ZPETC, the
@@ -174,7 +191,8 @@ class FeedOverrideEnv(ContouringEnv):
     retimes_reference = True
 
     def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, max_override: float = 1.0,
-                 lookahead: tuple[float, float] | None = None, time_cost: float | None = None,
+                 lookahead: tuple[float, float] | None = None, lookahead_reach: bool = True,
+                 time_cost: float | None = None,
                  time_limit: float = DEFAULT_TIME_LIMIT, tolerance: float | None = None,
                  violation_cost: float = DEFAULT_VIOLATION_COST, progress_reward: float = DEFAULT_PROGRESS_REWARD,
                  render_mode: str | None = None, **kwargs):
@@ -193,6 +211,7 @@ class FeedOverrideEnv(ContouringEnv):
             lookahead = (positive("lookahead[0]", lookahead[0], "mm/s (top feed)"),
                          positive("lookahead[1]", lookahead[1], "mm/s^2 (path acceleration)"))
         self.lookahead = lookahead
+        self.lookahead_reach = flag("lookahead_reach", lookahead_reach)
         self.tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm of contour error")
         self.violation_cost = non_negative("violation_cost", violation_cost, "decision steps of time per step over T")
         self.progress_reward = non_negative("progress_reward", progress_reward, "full-feed cycles per contour")
@@ -229,7 +248,8 @@ class FeedOverrideEnv(ContouringEnv):
         self._length = float(self.task.reference_arrays.samples[-1, sk.REF_ARC])  # mm of contour
         #: the look-ahead's override per sample of the original reference (None: the dial alone)
         self._planned = None if lookahead is None else np.minimum(
-            lookahead_dial(self._original, *lookahead), self.max_override)
+            lookahead_dial(self._original, *lookahead, reach=self.max_override if self.lookahead_reach else None),
+            self.max_override)
 
     def _make_batch(self) -> ContouringBatch:
         task = self.task

@@ -35,16 +35,25 @@ def padded_reference(samples: np.ndarray, rows: int) -> np.ndarray:
     return out
 
 
-def lookahead_dial(samples: np.ndarray, feed: float, acceleration: float) -> np.ndarray:
+def lookahead_dial(samples: np.ndarray, feed: float, acceleration: float, reach: float | None = None) -> np.ndarray:
     """The override, sample by sample of the reference ``samples`` (K, REF_COLUMNS), that makes its feed a look-ahead's:
     along the arc s, ``v(s) = min(feed, sqrt(acceleration / |kappa(s)|))``, then ``v(s)^2`` limited to change by at
     most ``2 acceleration`` per mm of arc, backward (braking into each limit) and forward (accelerating out of it)
     (Altintas, Manufacturing Automation, 2nd ed. 2012, ch. 6), over the reference's own speed there (inf where it is
-    at rest).  ``feed`` in mm/s, ``acceleration`` in mm/s^2 (normal and tangential)."""
+    at rest).  ``feed`` in mm/s, ``acceleration`` in mm/s^2 (normal and tangential).
+
+    ``reach`` (x the reference's speed; the dial's top, ``max_override``): the look-ahead's speed limit also holds
+    ``reach`` times the reference's own speed at each point, before the acceleration passes, so that the look-ahead
+    starts and ends at rest where the reference does and no speed it plans is beyond the dial.  Without it (None,
+    the tolerance ids' v1) the look-ahead is at its top feed from the first sample, and a dial clipped at the top
+    afterwards makes the start ``reach`` times the reference's own ramp: ``reach^2`` times its acceleration, beyond
+    ``acceleration`` (at 150 %, 2.25 times an S-curve's start)."""
     arc = samples[:, sk.REF_ARC]
     speed = np.hypot(samples[:, sk.REF_VELOCITY], samples[:, sk.REF_VELOCITY + 1])
     kappa = np.abs(samples[:, sk.REF_CURVATURE])
     v2 = np.minimum(feed, np.sqrt(acceleration / np.maximum(kappa, 1e-12))) ** 2
+    if reach is not None:
+        v2 = np.minimum(v2, (reach * speed) ** 2)
     ds = np.diff(arc)
     for i in range(1, v2.size):  # accelerating out of each limit
         v2[i] = min(v2[i], v2[i - 1] + 2.0 * acceleration * ds[i - 1])
