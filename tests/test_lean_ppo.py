@@ -615,6 +615,22 @@ def test_a_grown_memory_starts_from_the_agent_s_actions_and_values(lean_run, sma
     assert load_agent(run / "final", env).model.observation_space.shape == big.shape
 
 
+def test_init_from_refuses_a_memory_that_would_shrink(lean_run, small_entry, tmp_path, capsys):
+    """An agent that remembers 4 decisions (its config.yml says so) cannot start a run that remembers 2."""
+    import shutil
+
+    agent = tmp_path / "agent"
+    shutil.copytree(lean_run / "final", agent)
+    config = yaml.safe_load((agent / "config.yml").read_text())
+    config["action_mode"]["history"] = 4
+    (agent / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    with pytest.raises(SystemExit) as exc:
+        train_main(["--env", HEART, "--config", str(small_entry), "--history", "2", "--init-from", str(agent),
+                    "--output", str(tmp_path / "warm"), "--no-progress"])
+    assert exc.value.code == 2 and "remembers 4 decisions, the run 2" in capsys.readouterr().err
+    assert not (tmp_path / "warm").exists()
+
+
 def test_init_from_names_what_is_missing_or_different(lean_run, small_entry, tmp_path, capsys):
     from vcnc_agents.warm_start import init_agent_path
 
