@@ -33,6 +33,9 @@ _TOLERANCE = {"tolerance": 0.01, "max_override": 1.5, "override_rate": 26.0, "lo
 #: v1 of the omega's tolerance ids (``LEGACY``): the look-ahead at its top feed from the first sample, at the
 #: 1500 mm/s^2 that v1's unrefined search found the fastest within 10 um.
 _TOLERANCE_V1 = {"lookahead": (150.0, 1500.0), "lookahead_reach": False}
+#: The heart's tolerance ids: the same dial, on the look-ahead that the bisection of ``python -m
+#: vcnc_bench.reports.override_schedule --id VCNC-HeartTolerance-v1`` found the fastest within 10 um on the heart's
+#: nominal plant (9.54 um in 2.1832 s; its per-plant refinement later found 2267 mm/s^2, 9.64 um, 0.3 ms faster).
 _HEART_TOLERANCE = {**_TOLERANCE, "lookahead": (150.0, 2262.5)}
 
 
