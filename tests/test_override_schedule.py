@@ -59,6 +59,8 @@ def test_the_dial_is_the_fastest_feed_within_the_look_ahead_s_limits(env_id, fee
     else:  # v1: at the top feed's dial (clipped) at the first moving sample
         assert dial[np.argmax(moving)] == top
     assert np.array_equal(t, env.unwrapped.reference.t)
+    with pytest.raises(ValueError, match="acceleration"):
+        env.unwrapped.lookahead_override(feed, -acceleration)
 
 
 def test_the_grid_is_the_dial_s_reach(env):

@@ -9,8 +9,8 @@ controller that runs on a re-timed reference: :data:`~vcnc_bench.reports.feed_ov
 
 - **the schedule** (:func:`dial_schedule`, :func:`vcnc_gym.envs.retiming.lookahead_dial`): along the path's arc
   s, ``v(s) = min(F, sqrt(A / |kappa(s)|), m v_S(s))`` (m the dial's top, v_S the S-curve's speed: within the dial's
-  reach, from rest; the tolerance ids' v1 left the last term out), then ``v(s)^2`` limited to change by at most ``2 A`` per mm of arc,
-  backward and forward (the look-ahead's braking and accelerating, Altintas, Manufacturing Automation, 2nd ed.
+  reach, from rest; the tolerance ids' v1 left the last term out), then ``v(s)^2`` limited to change by at most
+  ``2 A`` per mm of arc, backward and forward (the look-ahead's braking and accelerating, Altintas, Manufacturing Automation, 2nd ed.
   2012, ch. 6); the override is ``v(s)`` over the S-curve's speed at s, within [0, ``max_override``].  The env
   runs it (``FeedOverrideEnv(lookahead=(F, A))``, the dial at 100 %);
 - **causal as a CNC is**: the override at each control period is read at the interpolator's own point of the path
@@ -37,7 +37,7 @@ import time
 
 import numpy as np
 
-from vcnc_gym.validation import integer, positive
+from vcnc_gym.validation import integer
 
 from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, refine, refine_machines, runs_json,
                         tolerance_table, write_search)
@@ -72,13 +72,8 @@ def dial_schedule(env, setting: Setting) -> tuple[np.ndarray, np.ndarray]:
     """The look-ahead's override along the reference of the feed-override env ``env`` at ``setting`` (top feed mm/s,
     acceleration mm/s^2): ``(t, dial)``, the S-curve's own time of each sample (s) and the override there, within
     [0, ``max_override``] (:func:`~vcnc_gym.envs.retiming.lookahead_dial`)."""
-    from vcnc_gym.envs.retiming import lookahead_dial
-
     u = env.unwrapped
-    feed = positive("setting.feed", setting.feed, "mm/s")
-    a = positive("setting.acceleration", setting.acceleration, "mm/s^2")
-    dial = lookahead_dial(u.task.reference_arrays.samples, feed, a, reach=u.max_override if u.lookahead_reach else None)
-    return np.asarray(u.task.reference.t, dtype=float), np.minimum(dial, u.max_override)
+    return np.asarray(u.task.reference.t, dtype=float), u.lookahead_override(setting.feed, setting.acceleration)
 
 
 def _episode(env, policy, parameters) -> tuple[float, float]:

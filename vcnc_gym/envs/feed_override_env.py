@@ -247,9 +247,17 @@ class FeedOverrideEnv(ContouringEnv):
         self._step_time = self.task.action_repeat * dt / duration
         self._length = float(self.task.reference_arrays.samples[-1, sk.REF_ARC])  # mm of contour
         #: the look-ahead's override per sample of the original reference (None: the dial alone)
-        self._planned = None if lookahead is None else np.minimum(
-            lookahead_dial(self._original, *lookahead, reach=self.max_override if self.lookahead_reach else None),
-            self.max_override)
+        self._planned = None if lookahead is None else self.lookahead_override(*lookahead)
+
+    def lookahead_override(self, feed: float, acceleration: float) -> np.ndarray:
+        """The override that makes this env's reference a look-ahead's of top feed ``feed`` (mm/s) and path
+        acceleration ``acceleration`` (mm/s^2), per sample of the reference, within [0, ``max_override``]
+        (:func:`~vcnc_gym.envs.retiming.lookahead_dial`, within the dial's reach unless ``lookahead_reach`` is
+        False): what ``lookahead=(feed, acceleration)`` turns the dial to."""
+        feed = positive("feed", feed, "mm/s (top feed)")
+        acceleration = positive("acceleration", acceleration, "mm/s^2 (path acceleration)")
+        reach = self.max_override if self.lookahead_reach else None
+        return np.minimum(lookahead_dial(self._original, feed, acceleration, reach=reach), self.max_override)
 
     def _make_batch(self) -> ContouringBatch:
         task = self.task
