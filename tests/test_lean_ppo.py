@@ -580,6 +580,7 @@ def test_a_grown_memory_starts_from_the_agent_s_actions_and_values(lean_run, sma
     --history 2 starts from it."""
     from vcnc_gym.envs.history import agent_space, history_columns
 
+    from vcnc_agents.config import ppo_arguments
     from vcnc_agents.model_file import load_ppo
     from vcnc_agents.normalization import NormalizationStats
     from vcnc_agents.warm_start import grow_agent
@@ -587,7 +588,7 @@ def test_a_grown_memory_starts_from_the_agent_s_actions_and_values(lean_run, sma
     env = gym.make(HEART)
     layout, space = env.unwrapped.layout, env.observation_space
     files = lean_run / "final"
-    kwargs = {"policy_kwargs": dict(log_std_init=-1.0, net_arch=dict(pi=[64, 64], vf=[64, 64]))}
+    kwargs = ppo_arguments(yaml.safe_load(small_entry.read_text())[HEART])[1]  # the run's network
     source = load_ppo(files / "model.zip", observation_space=space, action_space=env.action_space, ppo_kwargs=kwargs)
     grown = load_ppo(files / "model.zip", observation_space=space, action_space=env.action_space, ppo_kwargs=kwargs)
     stats = NormalizationStats.load(files / "vecnormalize.npz")

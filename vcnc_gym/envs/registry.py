@@ -130,7 +130,8 @@ SUITE: tuple[SuiteEnv, ...] = (
     # opponents are searched over (vcnc_bench.reports.tolerance: up to 1.5 x the programmed feed and 2600 mm/s^2)
     SuiteEnv("VCNC-OmegaTolerance-v2", {"contour": "omega", "plant": "vcnc_feed_drive", **_TOLERANCE},
              "the tolerance task on VCNC-OmegaOverride-v1's omega: the shortest cycle within T (10 um; tolerance=T), "
-             "the operator's override (50-150 %, at 26/s) on a look-ahead of 150 mm/s and 1937.5 mm/s^2 from rest",
+             "the operator's override (50-150 %, at 26/s) on a look-ahead of "
+             f"{_TOLERANCE['lookahead'][0]:g} mm/s and {_TOLERANCE['lookahead'][1]:g} mm/s^2 from rest",
              entry_point=_OVERRIDE, vector_entry_point=None),
     SuiteEnv("VCNC-OmegaToleranceShop-v2",
              {"contour": "omega", "plant": "vcnc_feed_drive", "shop_floor": True, **_TOLERANCE},
@@ -139,7 +140,8 @@ SUITE: tuple[SuiteEnv, ...] = (
     SuiteEnv("VCNC-HeartTolerance-v1", {"contour": "heart", "plant": "vcnc_feed_drive", **_HEART_TOLERANCE},
              "the tolerance task on Jahanpour et al.'s heart (310 mm, 100 mm/s programmed) on their drives: the "
              "shortest cycle within T (10 um; tolerance=T), the operator's override (50-150 %, at 26/s) on a "
-             "look-ahead of 150 mm/s and 2262.5 mm/s^2 from rest", entry_point=_OVERRIDE, vector_entry_point=None),
+             f"look-ahead of {_HEART_TOLERANCE['lookahead'][0]:g} mm/s and {_HEART_TOLERANCE['lookahead'][1]:g} mm/s^2 "
+             "from rest", entry_point=_OVERRIDE, vector_entry_point=None),
     SuiteEnv("VCNC-HeartToleranceShop-v1",
              {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True, **_HEART_TOLERANCE},
              "VCNC-HeartTolerance-v1 on the shop floor (vcnc_gym.plants.shop_floor's defaults)",
@@ -168,8 +170,9 @@ LEGACY: tuple[SuiteEnv, ...] = tuple(
 #: Version History).
 LEGACY = LEGACY + tuple(
     SuiteEnv(e.id.replace("-v2", "-v1"), {**e.kwargs, **_TOLERANCE_V1},
-             e.summary.replace("-v2", "-v1").replace("1937.5 mm/s^2 from rest", "1500 mm/s^2")
-             + " (v1: the look-ahead at its top feed from the first sample)",
+             e.summary.replace("-v2", "-v1").split(": the shortest")[0]
+             + f": v2's task on a look-ahead of {_TOLERANCE_V1['lookahead'][0]:g} mm/s and "
+             f"{_TOLERANCE_V1['lookahead'][1]:g} mm/s^2 at its top feed from the first sample",
              entry_point=e.entry_point, vector_entry_point=None)
     for e in SUITE if e.id.startswith("VCNC-OmegaTolerance"))
 
