@@ -13,7 +13,9 @@ The agent must fit the run, and :func:`check_init_agent` says why not before any
   the preview, the shapes), compared as :func:`vcnc_agents.load_agent` compares them; the contour, the plant and the
   shop floor may differ (a warm start onto another machine of the same observation);
 - the same action mode (what the action means: mode, baseline, correction, action repeat), the training reward's
-  ``peak_weight`` aside, and a memory (``history``) as long as the agent's or longer;
+  ``peak_weight`` aside, and a memory (``history``) as long as the agent's or longer.  The baseline's commissioning
+  may differ (``ff-pid-online`` to ``ff-pid-online@machine``: the same law, fitted to each machine), as the machine
+  may;
 - the same policy, network and PPO arguments, but for :data:`RUN_OWN` (the learning rate and clip ranges, which the
   run sets anew).
 
@@ -92,7 +94,8 @@ def check_init_agent(init_from, config):
     if agent["mode"].history > config.mode.history:
         raise ValueError(f"{what} remembers {agent['mode'].history} decisions, the run {config.mode.history}: a "
                          "memory may grow in a warm start, not shrink")
-    theirs, ours = (replace(m, peak_weight=0.0, history=0) for m in (agent["mode"], config.mode))
+    theirs, ours = (replace(m, peak_weight=0.0, history=0, baseline=_law(m.baseline))
+                    for m in (agent["mode"], config.mode))
     if theirs != ours:
         diffs = [f"{f.name}: the agent's {getattr(theirs, f.name)!r}, the run's {getattr(ours, f.name)!r}"
                  for f in fields(ActionMode) if getattr(theirs, f.name) != getattr(ours, f.name)]
@@ -106,6 +109,11 @@ def check_init_agent(init_from, config):
         raise ValueError(f"{what} was trained with other PPO arguments (only {', '.join(RUN_OWN)} may differ): "
                          + "; ".join(diffs))
     return replace(config, init_from=str(path))
+
+
+def _law(baseline: str | None) -> str | None:
+    """The residual's law without its commissioning (``ff-pid-online@machine``: ``ff-pid-online``)."""
+    return baseline.split("@")[0] if baseline else baseline
 
 
 def _grown_weights(old: dict, new: dict) -> dict:

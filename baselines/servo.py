@@ -55,6 +55,7 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import positive, non_negative, per_axis
 from .base import BaselinePolicy
 from .commissioning.design import NO_NOTCH, pid_gains
+from .commissioning.machines import PerMachine
 
 __all__ = ["COMMISSIONING_SOURCES", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
            "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate", "NO_NOTCH"]
@@ -148,7 +149,7 @@ def coupling_estimate(E, tangent, curvature, variable):
     return -E[..., 0] * cx + E[..., 1] * cy, cx, cy
 
 
-class ServoPolicy(BaselinePolicy):
+class ServoPolicy(PerMachine, BaselinePolicy):
     """The servo law as a policy (see the module docstring); subclasses build the table and the gains.
 
     Parameters
@@ -201,9 +202,6 @@ class ServoPolicy(BaselinePolicy):
         self.task = task
         self.commissioning = commissioning
         self.records = [self._nominal_record()]
-        self.identification_s = 0.0
-        self.identification_task = None
-        self._commissioned_for = None
         self.table = None
         self.gains = None
         self._record = np.zeros((0, 0, 2))
@@ -223,55 +221,6 @@ class ServoPolicy(BaselinePolicy):
                                  "(build it with from_env) or a shipped record of its nominal machine "
                                  "(python -m vcnc_baselines.commissioning.record ENV_ID)")
         return model_record(self.plant, self.nominal_parameters, self.dt)
-
-    def _commission_machines(self, env) -> bool:
-        """With ``commissioning="machine"``: identify the plants ``env`` holds now that were not identified
-        before (every plant of a new set; of the same N envs, those whose plant changed, such as the envs of a
-        vector env that drew a new plant at their reset); True if the records changed."""
-        if self.commissioning != "machine":
-            return False
-        from .commissioning.record import commission
-
-        u = getattr(env, "unwrapped", env)
-        params = np.asarray(u.parameters, dtype=np.float64)
-        params = params[None] if params.ndim == 2 else params
-        done = self._commissioned_for
-        if done is not None and done.shape == params.shape:
-            changed = np.flatnonzero(np.any(done != params, axis=tuple(range(1, params.ndim))))
-        else:
-            changed = np.arange(params.shape[0])
-        if changed.size == 0:
-            return False
-        task = self.identification_task or getattr(u, "task", None) or self.task
-        records = list(self.records) if changed.size < params.shape[0] else [None] * params.shape[0]
-        for i, record in zip(changed, commission(task, "machine", params[changed])):
-            records[i] = record
-        self.records = records
-        self.identification_s = float(sum(r.identification_s for r in records))
-        self._commissioned_for = params.copy()
-        return True
-
-    def commission_again(self, env):
-        """With ``commissioning="machine"``: commission the plants ``env``'s envs drew since the last call
-        (:meth:`_commission_machines`) and rebuild the law; the compiled form around the current memory if the law
-        changed (what a native vector env steps), else None.  What a trainer calls after a reset that draws plants
-        (``randomize=True``): the law then fits every env's own machine."""
-        if not self._commission_machines(env):
-            return None
-        self._build()
-        return self._compiled_arrays()
-
-    def identify_on(self, task) -> None:
-        """With ``commissioning="machine"``: identify the machines while their axes follow ``task``'s reference
-        (a :class:`~vcnc_gym.envs.task.ContouringTask` on the same plant and control period) instead of the env's.
-        A CNC commissions a machine once, on one program, and runs every later program with that commissioning:
-        the tolerance search (``vcnc_bench.reports.tolerance``) runs each look-ahead setting with the machines
-        commissioned on the id's own reference, one identification run for every setting and controller."""
-        if task.plant.name != self.plant.name or task.dt != self.dt:
-            raise ValueError(f"identify_on: the task's plant and control period ({task.plant.name}, {task.dt} s) "
-                             f"must be the controller's ({self.plant.name}, {self.dt} s)")
-        self.identification_task = task
-        self._commissioned_for = None
 
     def commissioned(self):
         """Per design row (1, or one per env after a per-machine commissioning): ``(record, inverse, gains)``,

@@ -153,6 +153,67 @@ def test_online_feedforward_is_the_tables_linear_part(omega):
     assert np.abs(mine[rows] - table[rows]).max() < 0.05 * np.abs(table).max()
 
 
+def _machines(env_id, n, seed=3):
+    """``n`` plants of ``env_id``'s box (the nominal one left out) and an object holding them as an env does."""
+    import types
+
+    from vcnc_bench.robust import plant_set
+
+    u = gym.make(env_id).unwrapped
+    params = plant_set(u.plant, n, seed, nominal=u.nominal_parameters, max_vertices=0).parameters[1:]
+    return u, params, types.SimpleNamespace(parameters=params, task=u.task)
+
+
+def test_online_law_per_machine_fits_each_machines_model():
+    """``ff-pid-online@machine`` identifies each plant: its feedforward's coefficients (the viscous term and the
+    mass, per axis) are the plant's own inverse dynamics (the plant module's declared model at the drawn parameters,
+    which the identification never reads) within 8 %, and less than half as far from them in sum as the nominal
+    design's; the Coulomb levels within 2 %."""
+    u, params, held = _machines("VCNC-OmegaTolerance-v2", 2)
+    policy = vcnc_baselines.make("ff-pid-online@machine", u)
+    nominal = vcnc_baselines.make("ff-pid-online", u)
+    policy.plan(held)
+    assert policy.coefficients.shape == (2, 2, 2) and nominal.coefficients.shape == (1, 2, 2)
+    for i, p in enumerate(params):
+        true = u.plant.inverse(p)
+        np.testing.assert_allclose(policy.coefficients[i], true.coefficients[:, :2], rtol=0.08)
+        np.testing.assert_allclose(policy.coulomb[i], true.coulomb, rtol=0.02)
+        mine = np.abs(policy.coefficients[i] - true.coefficients[:, :2]).sum()
+        assert mine < 0.5 * np.abs(nominal.coefficients[0] - true.coefficients[:, :2]).sum(), i
+
+
+def test_online_law_per_machine_is_each_machines_law_alone_compiled_and_in_numpy():
+    """On the shop floor (the notches act): the law of env i in a batch commissioned on two machines gives, to the
+    bit, the commands and memory of the law commissioned on machine i alone, compiled (float32 observations) and in
+    NumPy (float64); a batch of another size and another control period are refused by name."""
+    u, params, held = _machines("VCNC-OmegaToleranceShop-v2", 2)
+    both = vcnc_baselines.make("ff-pid-online@machine", u)
+    both.plan(held)
+    assert both.notched.all()
+    rng = np.random.default_rng(4)
+    obs = (rng.normal(size=(40, 2, u.layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(1, 2, u.layout.size)))
+    alone = []
+    for i in range(2):
+        policy = vcnc_baselines.make("ff-pid-online@machine", u)
+        policy.plan(type(held)(parameters=params[i:i + 1], task=u.task))
+        alone.append(policy)
+    for dtype in (np.float32, np.float64):
+        for k, o in enumerate(obs.astype(dtype)):
+            a, _ = both.predict(o, episode_start=np.array([k == 0] * 2))
+            for i, policy in enumerate(alone):
+                b, _ = policy.predict(o[i], episode_start=k == 0)
+                np.testing.assert_array_equal(a[i], b, err_msg=f"{dtype.__name__}, env {i}, call {k}")
+                np.testing.assert_array_equal(both.controller_state[i], policy.controller_state[0])
+    with pytest.raises(ValueError, match="commissioned 2 machines and is given 3 envs"):
+        both.predict(obs[0, :1].repeat(3, axis=0))
+    with pytest.raises(ValueError, match="shipped record of the nominal machine"):  # none for 0.2 ms
+        vcnc_baselines.make("ff-pid-online@machine", gym.make("VCNC-OmegaToleranceShop-v2", action_repeat=2))
+    with pytest.raises(ValueError, match="control period"):
+        both.identify_on(gym.make("VCNC-Omega-v1", dt=2e-4).unwrapped.task)
+    with pytest.raises(ValueError, match="commissioning must be"):
+        vcnc_baselines.make("ff-pid-online", u, commissioning="machines")
+
+
 def test_running_out_of_time_pays_for_the_whole_contour_left():
     """The incomplete penalty counts the contour from the tool to the contour's end, however far the re-timed
     reference lags (the buffer's last row stays the contour's end)."""

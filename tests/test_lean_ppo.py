@@ -632,6 +632,33 @@ def test_init_from_refuses_a_memory_that_would_shrink(lean_run, small_entry, tmp
     assert not (tmp_path / "warm").exists()
 
 
+@pytest.mark.parametrize("theirs, named", [("ff-pid@machine", None), ("zpetc", "baseline: the agent's 'zpetc'")])
+def test_init_from_takes_the_same_law_commissioned_another_way(lean_run, small_entry, tmp_path, capsys, theirs,
+                                                                named):
+    """An agent over a baseline commissioned per machine starts a run over the same law on the nominal record (and
+    the other way: ``ff-pid-online`` to ``ff-pid-online@machine``); over another law it is refused by name."""
+    import shutil
+
+    agent = tmp_path / "agent"
+    shutil.copytree(lean_run / "final", agent)
+    config = yaml.safe_load((agent / "config.yml").read_text())
+    config["action_mode"]["baseline"] = theirs
+    (agent / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    entry = yaml.safe_load(small_entry.read_text())[HEART]
+    (wrapper,) = entry["env_wrapper"]
+    wrapper["vcnc_agents.action_modes.ResidualAction"]["baseline"] = "ff-pid"
+    run_config = tmp_path / "ff-pid.yml"
+    run_config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
+    argv = ["--env", HEART, "--config", str(run_config), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
+            "--init-from", str(agent), "--output", str(tmp_path / "warm"), "--no-progress"]
+    if named is None:
+        assert train_main(argv) == 0
+        return
+    with pytest.raises(SystemExit) as exc:
+        train_main(argv)
+    assert exc.value.code == 2 and named in capsys.readouterr().err and not (tmp_path / "warm").exists()
+
+
 def test_init_from_names_what_is_missing_or_different(lean_run, small_entry, tmp_path, capsys):
     from vcnc_agents.warm_start import init_agent_path
 

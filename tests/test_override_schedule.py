@@ -125,3 +125,46 @@ def test_the_contouring_mpc_refuses_a_dial_it_does_not_set_alone():
     for kwargs in ({}, {"lookahead": None}):
         with pytest.raises(ValueError, match="lookahead=.*max_override="):
             vcnc_baselines.make("mpcc", gym.make(ID, **kwargs))
+
+
+def test_the_dial_on_each_machine_s_commissioning_is_the_same_one_plant_at_a_time_and_in_the_bench_s_batch():
+    """``run_schedule(controller="ff-pid-online@machine")`` (one episode per plant, each plant commissioned when its
+    episode starts) and the robust bench's loop over a batch of the same plants (``run_plants``: the controller
+    commissions the batch's plants after its reset, ``SingleEnvBatch.parameters``) give every plant the same max
+    contour error and cycle time; the nominal design gives the hard plant another."""
+    from vcnc_bench.robust import SingleEnvBatch, plant_set, run_plants
+
+    import vcnc_baselines
+
+    shop = "VCNC-OmegaToleranceShop-v2"
+    setting = tl.Setting(150.0, 1500.0)
+    u = gym.make(shop).unwrapped
+    params = plant_set(u.plant, 2, 0, nominal=u.nominal_parameters, max_vertices=0).parameters[1:]
+    alone = osch.run_schedule(shop, setting, params, "ff-pid-online@machine")
+    nominal = osch.run_schedule(shop, setting, params)
+    assert alone.controller == "ff-pid-online@machine, look-ahead dial"
+
+    class AtTheLookAhead:  # the dial at 100 % of the look-ahead, the axes' law planned on the batch
+        def __init__(self, law):
+            self.law = law
+
+        def plan(self, batch):
+            self.law.plan(batch)
+
+        def predict(self, obs, episode_start=None, deterministic=True):
+            a, _ = self.law.predict(obs, episode_start=episode_start)
+            return np.c_[a, np.zeros(len(a), dtype=a.dtype)], None
+
+    kwargs = {"lookahead": (setting.feed, setting.acceleration)}
+    batch = SingleEnvBatch(shop, 2, **kwargs)
+    law = vcnc_baselines.make("ff-pid-online@machine", gym.make(shop, **kwargs))
+    law.identify_on(tl.own_task(shop))
+    for order in ([0, 1], [1, 0]):  # env i's sensor noise is seeded i: each plant first once, as run_schedule's are
+        runs = run_plants(AtTheLookAhead(law), batch, params[order], decision_period=u.decision_period)
+        assert np.array_equal(batch.parameters, params[order]) and batch.task.plant.name == u.plant.name
+        assert law.coefficients.shape[0] == 2
+        assert runs.max_um[0] == pytest.approx(alone.max_um[order[0]], rel=1e-12), order
+        assert runs.cycle_time_s[0] == alone.cycle_time_s[order[0]], order
+    assert not np.allclose(nominal.max_um, alone.max_um, rtol=0.05)
+    with pytest.raises(ValueError, match="controller must be one of"):
+        osch.run_schedule(shop, setting, params, "ff-pid")

@@ -181,6 +181,16 @@ class SingleEnvBatch:
         self._info = {}
         return self._obs.copy(), {}
 
+    @property
+    def parameters(self) -> np.ndarray:
+        """The plants the envs hold now, (M, 2, P): what a controller commissioned per machine identifies."""
+        return np.stack([env.unwrapped.parameters for env in self.envs])
+
+    @property
+    def task(self):
+        """The first env's task (every env of the batch is one id, built with the same arguments)."""
+        return self.envs[0].unwrapped.task
+
     def step(self, actions):
         m = self.num_envs
         terminated, truncated = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)

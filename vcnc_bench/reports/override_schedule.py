@@ -5,7 +5,10 @@ override.  A CNC can turn that dial itself, from the part program it reads ahead
 look-ahead (the top feed F, the path's normal and tangential acceleration within A) divided by the S-curve's own
 feed at the same point of the path.  This is the tolerance agent's own action space (the dial, at the id's
 ``override_rate``, up to its ``max_override``) with a classical law in it, and ``ff-pid-online`` (the one classical
-controller that runs on a re-timed reference: :data:`~vcnc_bench.reports.feed_override.CLASSICAL`) on the axes:
+controller that runs on a re-timed reference: :data:`~vcnc_bench.reports.feed_override.CLASSICAL`) on the axes, on
+the nominal machine's commissioning or, with ``--controller ff-pid-online@machine``, on each machine's own (an
+identification run per plant on the id's own reference before its runs, as the look-ahead search's ``@machine``
+controllers):
 
 - **the schedule** (:func:`dial_schedule`, :func:`vcnc_gym.envs.retiming.lookahead_dial`): along the path's arc
   s, ``v(s) = min(F, sqrt(A / |kappa(s)|), m v_S(s))`` (m the dial's top, v_S the S-curve's speed: within the dial's
@@ -39,15 +42,25 @@ import numpy as np
 
 from vcnc_gym.validation import integer
 
-from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, refine, refine_machines, runs_json,
-                        tolerance_table, write_search)
+from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, own_task, refine, refine_machines,
+                        runs_json, tolerance_table, write_search)
 
-__all__ = ["CONTROLLER", "LABEL", "schedule_settings", "dial_schedule", "run_schedule", "refine_schedule", "main"]
+__all__ = ["CONTROLLER", "CONTROLLERS", "LABEL", "label", "schedule_settings", "dial_schedule", "run_schedule",
+           "refine_schedule", "main"]
 
-#: The axes' controller under the scheduled dial.
+#: The axes' controller under the scheduled dial (by default), and those it may be.
 CONTROLLER = "ff-pid-online"
-#: The opponent's name in the tables.
-LABEL = "ff-pid-online, look-ahead dial"
+CONTROLLERS = ("ff-pid-online", "ff-pid-online@machine")
+_SUFFIX = ", look-ahead dial"
+
+
+def label(controller: str) -> str:
+    """The opponent's name in the tables: the axes' controller under the dial."""
+    return controller + _SUFFIX
+
+
+#: The default opponent's name in the tables.
+LABEL = label(CONTROLLER)
 
 
 def _feed_override_env(env_id: str, **kwargs):
@@ -80,6 +93,7 @@ def _episode(env, policy, parameters) -> tuple[float, float]:
     """One episode on the plant ``parameters`` (2, P), the dial at the look-ahead (1): (max contour error um, inf if
     diverged; cycle time s, inf if the tool did not arrive)."""
     obs, _ = env.reset(seed=0, options={"parameters": parameters})
+    policy.plan(env)  # a controller commissioned per machine identifies this plant (once)
     peak, start = 0.0, True
     while True:
         a, _ = policy.predict(obs, episode_start=start)
@@ -93,19 +107,25 @@ def _episode(env, policy, parameters) -> tuple[float, float]:
     return 1e3 * peak, float(info["cycle_time"]) if info["completed"] else math.inf
 
 
-def run_schedule(env_id: str, setting: Setting, parameters: np.ndarray) -> GridRun:
-    """:data:`CONTROLLER` on the feed-override id ``env_id`` made with ``lookahead=setting`` (the env turns its dial to
-    the look-ahead's override at the reference's clock), the dial at 100 %, on every plant of ``parameters`` (M, 2,
-    P), one episode each (the runs are sequential: the override env is not batched)."""
+def run_schedule(env_id: str, setting: Setting, parameters: np.ndarray, controller: str = CONTROLLER) -> GridRun:
+    """``controller`` (one of :data:`CONTROLLERS`) on the feed-override id ``env_id`` made with ``lookahead=setting``
+    (the env turns its dial to the look-ahead's override at the reference's clock), the dial at 100 %, on every plant
+    of ``parameters`` (M, 2, P), one episode each (the runs are sequential: the override env is not batched).  A
+    ``@machine`` controller commissions each plant on the id's own reference (one identification run per plant for
+    every setting: :func:`~vcnc_baselines.commissioning.record.commission` keeps its records)."""
     import vcnc_baselines
 
+    if controller not in CONTROLLERS:
+        raise ValueError(f"controller must be one of {list(CONTROLLERS)}, got {controller!r}")
     env = _feed_override_env(env_id, lookahead=(setting.feed, setting.acceleration))  # validated by the env
     try:
-        policy = vcnc_baselines.make(CONTROLLER, env)
+        policy = vcnc_baselines.make(controller, env)
+        if controller.endswith("@machine"):
+            policy.identify_on(own_task(env_id))
         runs = [_episode(env, policy, p) for p in parameters]
     finally:
         env.close()
-    return GridRun(LABEL, setting, np.array([r[0] for r in runs]), np.array([r[1] for r in runs]))
+    return GridRun(label(controller), setting, np.array([r[0] for r in runs]), np.array([r[1] for r in runs]))
 
 
 def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) -> list[GridRun]:
@@ -113,8 +133,8 @@ def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) ->
     nominal plant's choice per T by bisection (:func:`~vcnc_bench.reports.tolerance.refine`), then settings between
     each plant's choice and its neighbours (:func:`~vcnc_bench.reports.tolerance.refine_machines`); progress on
     stderr."""
-    def run(controller, setting):
-        return run_schedule(env_id, setting, parameters)
+    def run(name, setting):  # the runs' label: the controller under the dial
+        return run_schedule(env_id, setting, parameters, name.removesuffix(_SUFFIX))
 
     def progress(text):
         print(text, file=sys.stderr, flush=True)
@@ -123,7 +143,8 @@ def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) ->
     return refine_machines(env_id, runs, parameters, run=run, progress=progress)
 
 
-def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: float) -> list[GridRun]:
+def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: float,
+              controller: str = CONTROLLER) -> list[GridRun]:
     """Every setting on every plant, each acceleration's feeds fastest first, a slower feed run only while some plant
     has no run within the smallest tolerance yet (as the look-ahead search's grid: a slower feed never shortens a
     cycle) and the last one brought some plant's max contour error down by 1 % or more (below the feed at which the
@@ -139,10 +160,10 @@ def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: 
         for setting in (s for s in settings if s.acceleration == acceleration):
             if within.all():
                 break
-            r = run_schedule(env_id, setting, parameters)
+            r = run_schedule(env_id, setting, parameters, controller)
             runs.append(r)
             within |= (r.max_um <= smallest_um) & np.isfinite(r.cycle_time_s)
-            print(f"{env_id} at {setting.label}: nominal {r.max_um[0]:.4g} um in {r.cycle_time_s[0]:.4g} s; "
+            print(f"{env_id}, {controller} at {setting.label}: nominal {r.max_um[0]:.4g} um in {r.cycle_time_s[0]:.4g} s; "
                   f"{int(within.sum())}/{within.size} plants within {smallest_um:g} um "
                   f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
             if np.all(r.max_um >= 0.99 * last):
@@ -158,6 +179,9 @@ def main(argv=None) -> int:
     parser.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20, the box's "
                         "vertices left out; 0: the nominal plant alone)")
     parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
+    parser.add_argument("--controller", default=CONTROLLER, choices=CONTROLLERS,
+                        help=f"the axes' controller under the dial (default {CONTROLLER}, the nominal machine's "
+                        "commissioning; @machine: each plant's own)")
     parser.add_argument("--json", help="write the runs and the tables here (the tolerance search's format)")
     args = parser.parse_args(argv)
     from vcnc_bench.robust import plant_set
@@ -179,7 +203,7 @@ def main(argv=None) -> int:
         settings = schedule_settings(env)
         env.close()
         t0 = time.perf_counter()
-        runs = _run_grid(env_id, settings, parameters, t0)
+        runs = _run_grid(env_id, settings, parameters, t0, args.controller)
         runs = refine_schedule(env_id, runs, parameters)
         rows = tolerance_table(runs, kinds)
         print(format_table(env_id, rows), flush=True)

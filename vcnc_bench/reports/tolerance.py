@@ -60,7 +60,8 @@ import numpy as np
 from vcnc_gym.envs.feed_override_env import TOLERANCES
 from vcnc_gym.validation import integer, positive
 
-__all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "Setting", "GridRun", "Choice",
+__all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "own_task", "Setting", "GridRun",
+           "Choice",
            "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
            "format_table", "runs_json", "write_search", "merge_searches", "compare", "goal_letter", "format_comparison", "main"]
 
@@ -157,7 +158,7 @@ def planned_kwargs(env_id: str, setting: Setting, curve=None) -> dict:
 _TASKS: dict = {}
 
 
-def _own_task(env_id: str):
+def own_task(env_id: str):
     """The task of ``env_id`` as registered (its own feed): the reference the ``@machine`` identification follows."""
     if env_id not in _TASKS:
         import gymnasium as gym
@@ -180,7 +181,7 @@ def _run(env_id: str, controller: str, setting: Setting, parameters: np.ndarray,
     try:
         policy = vcnc_baselines.make(controller, env)
         if controller.endswith("@machine"):
-            policy.identify_on(_own_task(env_id))
+            policy.identify_on(own_task(env_id))
         runs = run_plants(policy, batch, parameters, decision_period=env.unwrapped.decision_period)
     finally:
         batch.close()
