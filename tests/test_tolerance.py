@@ -424,6 +424,6 @@ def test_several_searches_are_one_whose_choices_are_the_fastest_of_any(tmp_path,
     assert tl.main(["--agents", str(tmp_path / "bench.json"), "--search", str(tmp_path / "a.json"),
                     f"{tmp_path / 'b.json'}:VCNC-OmegaTolerance-v1", "--tolerance", "0.01"]) == 0
     printed = capsys.readouterr().out
-    assert "VCNC-OmegaLookahead-v1 and VCNC-OmegaTolerance-v1" in printed
+    assert "VCNC-OmegaLookahead-v1 (a.json) and VCNC-OmegaTolerance-v1 (b.json)" in printed  # each search's file
     per_plant = np.minimum(*[[c["cycle_time_s"] for c in x["rows"][1]["machine_per_plant"]] for x in (a, b)])
     assert f"| 10 | per-plant search | 0.5, 0.5, 0.5 | 0.5 | 0+0+0 of 3 x 3 | {per_plant[0]:.4g} |" in printed

@@ -51,6 +51,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -608,7 +609,7 @@ def _compare_main(parser, args) -> int:
         if sid not in entries:
             parser.error(f"--search {item}: name one of {sorted(entries)} (FILE:ID, or --search-id)")
         found.append(entries[sid])
-        names.append(sid)
+        names.append(f"{sid} ({os.path.basename(path)})")  # one id may have several searches (the dial's two laws)
     try:
         search = found[0] if len(found) == 1 else merge_searches(found)
     except ValueError as e:
