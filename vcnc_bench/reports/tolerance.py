@@ -62,9 +62,10 @@ from vcnc_gym.envs.feed_override_env import TOLERANCES
 from vcnc_gym.validation import integer, positive
 
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "own_task", "Setting", "GridRun",
-           "Choice",
-           "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc", "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table",
-           "format_table", "runs_json", "write_search", "merge_searches", "compare", "goal_letter", "format_comparison", "main"]
+           "Choice", "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc",
+           "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table", "format_table", "runs_json",
+           "write_search", "scrapped", "read_search_entry", "merge_searches", "compare", "goal_letter",
+           "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -429,8 +430,8 @@ def format_table(env_id: str, rows: list[dict]) -> str:
     return "\n".join(out)
 
 
-def _scrap(cycle, max_um, tolerance_um):
-    """Cycle times (s) with a run over the tolerance, or unfinished, as infinite."""
+def scrapped(cycle, max_um, tolerance_um):
+    """Cycle times (s) with a run over the tolerance (um), or unfinished (None or inf), as infinite: scrap."""
     cycle = np.array([np.inf if v is None else v for v in cycle], dtype=float)
     err = np.array([np.inf if v is None else v for v in max_um], dtype=float)
     return np.where(err > tolerance_um, np.inf, cycle)
@@ -450,8 +451,21 @@ def _opponents(search: dict, tolerance: float) -> dict:
                None)
     if run is not None:
         out[f"builder's setting (`{b['controller']}` {Setting(**b['setting']).label})"] = \
-            _scrap(run["cycle_time_s"], run["max_um"], t_um)
+            scrapped(run["cycle_time_s"], run["max_um"], t_um)
     return out
+
+
+def read_search_entry(item: str, default_id: str | None = None) -> tuple[str, dict]:
+    """A search's ``--json`` entry: ``item`` is ``FILE`` (its only id, or ``default_id``) or ``FILE:ID``; the id
+    and the entry."""
+    path, _, sid = item.rpartition(":") if not item.endswith(".json") else (item, "", "")
+    with open(path) as f:
+        entries = json.load(f)
+    entries.pop("settings", None)
+    sid = sid or default_id or (next(iter(entries)) if len(entries) == 1 else None)
+    if sid not in entries:
+        raise ValueError(f"{item}: name one of {sorted(entries)} as FILE:ID")
+    return sid, entries[sid]
 
 
 def merge_searches(searches: list[dict]) -> dict:
@@ -493,13 +507,13 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
                          f"{search['plants']} --plant-seed {search['plant_seed']}")
     t_um = 1e3 * tolerance
     sampled = kinds == "sample"
-    x = np.stack([_scrap(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], t_um) for r in records])
+    x = np.stack([scrapped(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], t_um) for r in records])
     over = [int(np.isinf(row[kinds != "nominal"]).sum()) for row in x]  # over T or unfinished
     opponents = _opponents(search, tolerance)
     for rec in others:
         if list(rec["per_plant"]["kind"][:n]) != list(kinds):
             raise ValueError(f"{rec['policy']} ran other plants than the search")
-        opponents[f"`{rec['policy']}`"] = _scrap(rec["per_plant"]["cycle_time_s"][:n], rec["per_plant"]["max_um"][:n],
+        opponents[f"`{rec['policy']}`"] = scrapped(rec["per_plant"]["cycle_time_s"][:n], rec["per_plant"]["max_um"][:n],
                                                  t_um)
     rows = []
     for name, y in opponents.items():
@@ -601,15 +615,13 @@ def _compare_main(parser, args) -> int:
     others = [r for r in everything if not r.get("group") and not r["policy"].startswith(("ppo", "oracle"))]
     found, names = [], []
     for item in args.search:
-        path, _, sid = item.rpartition(":") if not item.endswith(".json") else (item, "", "")
-        with open(path) as f:
-            entries = json.load(f)
-        entries.pop("settings", None)
-        sid = sid or args.search_id or (next(iter(entries)) if len(entries) == 1 else None)
-        if sid not in entries:
-            parser.error(f"--search {item}: name one of {sorted(entries)} (FILE:ID, or --search-id)")
-        found.append(entries[sid])
-        names.append(f"{sid} ({os.path.basename(path)})")  # one id may have several searches (the dial's two laws)
+        try:
+            sid, entry = read_search_entry(item, args.search_id)
+        except ValueError as e:
+            parser.error(f"--search {e} (or --search-id)")
+        found.append(entry)
+        # one id may have several searches (the dial's two laws)
+        names.append(f"{sid} ({os.path.basename(item.rpartition(':')[0] or item)})")
     try:
         search = found[0] if len(found) == 1 else merge_searches(found)
     except ValueError as e:
