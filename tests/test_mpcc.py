@@ -145,6 +145,44 @@ def test_first_steps_respect_the_input_limit_and_set_the_dial(override_env):
     assert 0.0 < pol.controller_state[0, 0] < 0.05 and info["contour_error"] < 5e-3
 
 
+def _mpcc_steps(steps, max_override, v_max):
+    """``steps`` control periods of ``mpcc`` from rest on the override omega with the dial's top ``max_override``:
+    the tool's positions (mm), the overrides in force and the controller."""
+    env = gym.make("VCNC-OmegaOverride-v1", max_override=max_override)
+    pol = vcnc_baselines.make("mpcc", env, v_max=v_max)
+    obs, _ = env.reset(seed=0)
+    positions, overrides = [], []
+    for k in range(steps):
+        a, _ = pol.predict(obs, episode_start=k == 0)
+        obs, _, term, trunc, info = env.step(a)
+        positions.append(info["position"])
+        overrides.append(info["override"])
+        assert not (term or trunc)
+    env.close()
+    return np.array(positions), np.array(overrides), pol
+
+
+def test_a_dial_to_150_percent_lets_it_run_ahead_of_the_programmed_feed():
+    """On the 0-100 % dial the override in force stays at or under 1; on a dial to 150 % (its progress capped at 1.5
+    x the programmed feed by default) the MPCC runs ahead of the programmed S-curve's start: an override over 1.2,
+    never over 1.5, and the tool further along the omega's first leg after the same 600 periods."""
+    p1, o1, pol = _mpcc_steps(600, 1.0, None)
+    assert pol.max_override == 1.0 and pol.v_max == pytest.approx(100.0) and o1.max() <= 1.0
+    p3, o3, pol = _mpcc_steps(600, 1.5, None)
+    assert pol.v_max == pytest.approx(150.0)
+    assert 1.2 < o3.max() <= 1.5 + 1e-12
+    assert np.linalg.norm(p3[-1] - p3[0]) > 1.2 * np.linalg.norm(p1[-1] - p1[0])
+
+
+def test_the_dial_s_top_is_the_env_s_and_a_look_ahead_under_it_is_refused():
+    env = gym.make("VCNC-OmegaTolerance-v2", lookahead=None)
+    assert vcnc_baselines.make("mpcc", env).max_override == env.unwrapped.max_override == 1.5
+    with pytest.raises(ValueError, match="max_override is the env's dial top"):
+        vcnc_baselines.make("mpcc", env, max_override=1.2)
+    with pytest.raises(ValueError, match="lookahead="):
+        vcnc_baselines.make("mpcc", gym.make("VCNC-OmegaTolerance-v2"))
+
+
 @pytest.mark.slow
 def test_an_episode_on_the_override_omega_finishes_within_the_input_limit():
     """The whole omega under the override (~7000 control periods, a QP each: a minute or more)."""

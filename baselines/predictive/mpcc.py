@@ -38,9 +38,10 @@ omega, it stopped 2 mm before the second 0.19 mm corner (and, at the end, 1 mm b
 never finished.
 
 subject to ``|u_j(l) + c_j(l)| <= u_max`` (the plant's input limit on the whole command, ``c`` the Coulomb
-pre-compensation), ``0 <= v_theta(l) <= min(v_max, v_feed(theta_bar))`` (``v_feed`` the programmed feed as it
-accelerates from rest, then its peak, with a look-ahead's slow-downs (:class:`PathTable`): an override runs the
-programmed feed slower, never faster; and
+pre-compensation), ``0 <= v_theta(l) <= min(v_max, m v_feed(theta_bar))`` (``v_feed`` the programmed feed as it
+accelerates from rest, then its peak, with a look-ahead's slow-downs (:class:`PathTable`), ``m`` the dial's top
+``max_override``: an override at 100 % runs the programmed feed slower, never faster, and a dial to 150 % as much
+faster; and
 ``sqrt(2 a_max (length - theta_bar))``, the speed from which the progress still stops at the path's end),
 ``theta(l) <= length`` (the path's) and ``|a_theta| <= a_max``.  The axes' model is each axis' nominal linear model discretised at the control period
 (:func:`.design.axis_model`, the one ``mpc`` and ``lq-preview`` use), over a block ``x <- A^L x + sum_i A^i B u``;
@@ -75,7 +76,8 @@ contour error to 292 um; on the shop floor's heart it did not make the MPCC fini
 How it acts on the env
 ----------------------
 It sets the progress itself, so it runs on a feed-override id (``VCNC-OmegaOverride-v1``,
-:class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`), the third action its override dial: the dial is set
+:class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`, with no look-ahead under its dial; its dial's top, up to
+150 %, is the controller's ``max_override``), the third action its override dial: the dial is set
 so that the interpolator's clock (its arc ``s_c``, found from the observed reference point on the programmed path)
 follows ``theta``: override ``= (v_theta + (theta + 0.2 mm - s_c) / tau_c) / v_ref(s_c)`` (``v_ref`` the
 programmed reference's speed at the clock), ``tau_c`` = 20 ms (the override reaches its dial at a bounded rate; a
@@ -102,7 +104,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from vcnc_gym.envs import step_kernel as sk
-from vcnc_gym.validation import integer, non_negative, positive
+from vcnc_gym.envs.feed_override_env import MAX_OVERRIDE
+from vcnc_gym.validation import integer, non_negative, positive, real
 from ..base import BaselinePolicy
 from .design import axis_model, estimator_gain, sensor_noise
 
@@ -136,7 +139,8 @@ DISTURBANCE_TIME = 5e-3
 class PathTable:
     """The programmed path by arc length: ``arc`` (K,) mm, strictly increasing from 0; ``point`` (K, 2) mm;
     ``tangent`` (K, 2) unit; ``feed`` (K,) mm/s, the programmed speed 1 ms after the reference passes each arc, which
-    an override cannot run faster than (1 ms ahead, so that the start, at rest, is not a zero feed): an S-curve's
+    an override at 100 % cannot run faster than (1 ms ahead, so that the start, at rest, is not a zero feed; a dial
+    to ``max_override`` runs up to that many times it): an S-curve's
     start, then its peak; a look-ahead's or a G-code program's slow-downs at corners too; its final stop held at
     the speed it stops from, where the progress' own bounds do the braking (the constraint ``theta <= length``);
     ``speed`` (K,) mm/s, the reference's own speed there."""
@@ -354,7 +358,7 @@ class MPCCPolicy(BaselinePolicy):
     dt : float
         The env's control period, s.
     v_max : float, optional
-        Largest progress speed, mm/s; default the programmed feed's peak.
+        Largest progress speed, mm/s; default ``max_override`` times the programmed feed's peak.
     contour_weight, lag_weight : float
         ``q_c``, ``q_l``, per um^2 and control period (default 4 and 1: on the omega at 100 mm/s, ``q_c`` 1 gave
         7.50 um max, 4 gave 3.97 um and 16 3.99 um, all in 0.687 s).
@@ -374,6 +378,10 @@ class MPCCPolicy(BaselinePolicy):
     disturbance_time : float, optional
         s, the input disturbance observer's time constant (module docstring, "Integral action"); 0: none; default
         :data:`DISTURBANCE_TIME` where the plant's position sensor is exact, else none.
+    max_override : float
+        The dial's top, x the programmed feed, 1 to 1.5 (``from_env``: the env's own): the progress runs at most
+        this many times the programmed feed at each point of the path (a CNC panel's override reaches 150 %, and
+        the tolerance task's look-ahead opponents and agents are given as much).
 
     Attributes
     ----------
@@ -395,15 +403,20 @@ class MPCCPolicy(BaselinePolicy):
 
     def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, v_max=None,
                  contour_weight=4.0, lag_weight=1.0, progress_weight=None, advance_weight=None, input_weight=1e-3,
-                 path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS, disturbance_time: float | None = None):
+                 path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS, disturbance_time: float | None = None,
+                 max_override: float = 1.0):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.dt = positive("dt", dt, "s")
+        self.max_override = real("max_override", max_override, "x the programmed feed")
+        if not 1.0 <= self.max_override <= MAX_OVERRIDE:
+            raise ValueError(f"max_override must be in [1, {MAX_OVERRIDE:g}] (the dial's top, x the programmed feed), "
+                             f"got {max_override!r}")
         if abs(self.decision_period - self.dt) > 1e-9 * self.dt:
             raise ValueError(f"mpcc is designed at the control period: it needs decision_period = dt ({self.dt} s), "
                              f"got {self.decision_period} s")
         self.path = path_table(reference, self.dt)
         peak = float(self.path.feed.max())
-        self.v_max = peak if v_max is None else positive("v_max", v_max, "mm/s")
+        self.v_max = self.max_override * peak if v_max is None else positive("v_max", v_max, "mm/s")
         # the progress rewards' defaults, tuned on the omega at 100 mm/s, in proportion to the programmed feed: a path
         # run at a hundredth of the speed earns as much for its feed as the omega does for its own
         scale = WEIGHTS_FEED / peak
@@ -474,15 +487,18 @@ class MPCCPolicy(BaselinePolicy):
                              f"feed-override id (VCNC-OmegaOverride-v1), got {type(u).__name__}; a plain contouring "
                              "id ends the episode completion_timeout after its reference's end, which a controller "
                              "slower than the programmed feed cannot meet")
-        if getattr(u, "lookahead", None) is not None or getattr(u, "max_override", 1.0) != 1.0:
-            raise ValueError("baseline 'mpcc' sets the override itself, 0 to 100 % of the programmed feed: it runs on "
-                             "a feed-override env without lookahead and with max_override 1 (VCNC-OmegaOverride-v1), "
-                             f"got lookahead={u.lookahead!r}, max_override={u.max_override!r}")
+        if getattr(u, "lookahead", None) is not None:
+            raise ValueError("baseline 'mpcc' sets the override itself, 0 to max_override of the programmed feed: it "
+                             "runs on a feed-override env without a look-ahead under the dial (VCNC-OmegaOverride-v1, "
+                             f"or a tolerance id with lookahead=None), got lookahead={u.lookahead!r}")
+        if "max_override" in params and params["max_override"] != u.max_override:
+            raise ValueError(f"max_override is the env's dial top ({u.max_override:g}), got {params['max_override']!r}")
+        params["max_override"] = u.max_override
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         """As :meth:`BaselinePolicy.predict`, the action (3,) or (n_envs, 3): the axes' normalised commands and
-        the override dial (override = (dial + 1) / 2)."""
+        the override dial (override = ``max_override`` (dial + 1) / 2)."""
         action, state = super().predict(observation, state, episode_start, deterministic)
         dial = self._dial if np.ndim(action) == 2 else self._dial[0:1]
         return np.concatenate([action, dial[..., None] if np.ndim(action) == 2 else dial], axis=-1), state
@@ -531,7 +547,7 @@ class MPCCPolicy(BaselinePolicy):
         v_bar = np.full(b, v0)
         u_prev = mem[s["u"]:s["u"] + 2]
         for _ in range(FIRST_ITERATIONS if mem[s["k"]] == 0 else 1):
-            v_cap = np.minimum(np.minimum(self.v_max, self.path.feed_at(theta_bar)),  # and the braking curve
+            v_cap = np.minimum(np.minimum(self.v_max, self.max_override * self.path.feed_at(theta_bar)),  # braking:
                                np.sqrt(2.0 * self.a_max * np.maximum(self.path.length - theta_bar, 0.0)))
             comp = self._comp(theta_bar, v_bar) - mem[s["d"]:s["d"] + 2, None]
             qp = contouring_qp(self.predictions, self.path, x0, theta0, v0, theta_bar, u_prev, mem[s["a"]],
@@ -573,8 +589,9 @@ class MPCCPolicy(BaselinePolicy):
         mem[s["clock"]] = k
         speed = path.speed[k]  # the clock's speed at 100 %
         want = mem[s["v"]] + (mem[s["theta"]] + _CLOCK_LEAD - path.arc[k]) / _CLOCK_TIME
-        override = 1.0 if speed <= 1e-9 * path.feed[-1] else min(max(want / speed, 0.0), 1.0)
-        return 2.0 * override - 1.0
+        m = self.max_override
+        override = 1.0 if speed <= 1e-9 * path.feed[-1] else min(max(want / speed, 0.0), m)
+        return 2.0 * override / m - 1.0  # the env's override is m (dial + 1) / 2
 
     def _command(self, obs):
         n = obs.shape[0]

@@ -23,8 +23,9 @@ contour error within T.  This module finds them by search, for every classical c
   plant, as a machine builder ships it; then run on every plant of the box, its cycle times and how many plants
   exceed T;
 - **the contouring MPC** (:func:`run_mpcc`, ``--mpcc OVERRIDE_ID``): it sets its own feed through the override, so it
-  runs on the override version of the id's contour and plant, its progress capped at the programmed feed and 0.8
-  of it; its runs join the grid's, and the choices below may pick it;
+  runs on the override version of the id's contour and plant, its progress capped at :data:`MPCC_CAPS` times the
+  programmed feed (up to 150 %, the dial's top, as the grid's feeds go); its runs join the grid's, and the choices
+  below may pick it;
 - **the commissioned machine** (:func:`machine_choice`): per plant, the fastest (controller, setting) within T on
   that plant, as commissioning on the machine finds it.  A plant with no setting of the grid within T is counted,
   not dropped.
@@ -320,42 +321,49 @@ def refine_machines(env_id: str, runs: list[GridRun], parameters: np.ndarray, *,
     return runs
 
 
-#: The contouring MPC's progress caps, as multiples of the programmed feed (``--mpcc``).
-MPCC_CAPS = (1.0, 0.8)
+#: The contouring MPC's progress caps, as multiples of the programmed feed (``--mpcc``): the grid's top feed factors
+#: (a dial to 150 %, as the look-ahead opponents and the tolerance agents have) and two slower.
+MPCC_CAPS = (1.5, 1.25, 1.0, 0.8)
 
 
 def run_mpcc(override_id: str, parameters: np.ndarray, *, caps=MPCC_CAPS, progress=None) -> list[GridRun]:
     """The contouring MPC (``mpcc``, which sets its own feed through the override) on the feed-override id
-    ``override_id`` (the same contour and plant as the searched id; its programmed path and feed), on every plant
-    of ``parameters``, once per cap of its progress speed (``caps`` x the programmed feed): one run each, with the
-    cap as the setting's feed."""
+    ``override_id`` (the same contour and plant as the searched id; its programmed path and feed, with no look-ahead
+    under the dial), on every plant of ``parameters``, once per cap of its progress speed (``caps`` x the programmed
+    feed, at most :data:`~vcnc_gym.envs.feed_override_env.MAX_OVERRIDE`): one run each, with the cap as the
+    setting's feed.  A cap over 1 runs on the id with its dial's top at the cap (``max_override``); a cap of 1 or
+    less on the 0-100 % dial."""
     import gymnasium as gym
 
     import vcnc_baselines
     from vcnc_bench.robust import make_batch, run_plants
+    from vcnc_gym.envs.feed_override_env import MAX_OVERRIDE
 
+    caps = [positive("caps", c, "x the programmed feed") for c in caps]
+    if max(caps) > MAX_OVERRIDE:
+        raise ValueError(f"caps: at most {MAX_OVERRIDE:g} x the programmed feed (the dial's top), got {max(caps):g}")
     env = gym.make(override_id)
     u = env.unwrapped
+    env.close()
     if not getattr(u, "retimes_reference", False):
-        env.close()
         raise ValueError(f"--mpcc: {override_id} is not a feed-override id (the contouring MPC sets its own feed)")
     feed = float(u.task.feedrate_profile.feedrate)
     runs = []
-    try:
-        for cap in caps:
-            t0 = time.perf_counter()
-            batch = make_batch(override_id, parameters.shape[0])
-            try:
-                policy = vcnc_baselines.make("mpcc", env, v_max=cap * feed)
-                r = run_plants(policy, batch, parameters, decision_period=u.decision_period)
-            finally:
-                batch.close()
-            runs.append(_grid_run("mpcc", Setting(round(cap * feed, 6)), r))
-            if progress is not None:
-                progress(f"{override_id} mpcc, progress capped at {cap * feed:g} mm/s: nominal {r.max_um[0]:.4g} um "
-                         f"in {r.cycle_time_s[0]:.4g} s ({time.perf_counter() - t0:.0f} s)")
-    finally:
-        env.close()
+    for cap in caps:
+        t0 = time.perf_counter()
+        kwargs = {"lookahead": None, "max_override": max(1.0, cap)}
+        env = gym.make(override_id, **kwargs)
+        batch = make_batch(override_id, parameters.shape[0], **kwargs)
+        try:
+            policy = vcnc_baselines.make("mpcc", env, v_max=cap * feed)
+            r = run_plants(policy, batch, parameters, decision_period=u.decision_period)
+        finally:
+            batch.close()
+            env.close()
+        runs.append(_grid_run("mpcc", Setting(round(cap * feed, 6)), r))
+        if progress is not None:
+            progress(f"{override_id} mpcc, progress capped at {cap * feed:g} mm/s: nominal {r.max_um[0]:.4g} um "
+                     f"in {r.cycle_time_s[0]:.4g} s ({time.perf_counter() - t0:.0f} s)")
     return runs
 
 
@@ -583,7 +591,7 @@ def main(argv=None) -> int:
     parser.add_argument("--json", help="write the grid's runs and the tables here")
     parser.add_argument("--mpcc", metavar="OVERRIDE_ID", help="with one --id: the contouring MPC too, on this "
                         "feed-override id of the same contour and plant (e.g. VCNC-OmegaOverride-v1 for the omega), "
-                        "its progress capped at 1 and 0.8 x the programmed feed (a QP per control period: minutes "
+                        "its progress capped at 1.5, 1.25, 1 and 0.8 x the programmed feed (a QP per control period: minutes "
                         "per plant)")
     parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
                         "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
