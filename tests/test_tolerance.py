@@ -325,6 +325,16 @@ def test_the_contouring_mpc_runs_on_a_feed_override_id_only():
         tl.run_mpcc("VCNC-OmegaLookahead-v1", np.zeros((1, 2, 6)))
 
 
+def test_a_cap_beyond_the_dial_s_reach_is_refused_before_the_grid_runs(capsys):
+    """The MPCC's progress caps go to the dial's top, 1.5 x the programmed feed: a larger one is named by the
+    command before any run (and by ``run_mpcc`` itself)."""
+    with pytest.raises(SystemExit):
+        tl.main(["--id", "VCNC-Heart-v1", "--mpcc", "VCNC-HeartTolerance-v1", "--mpcc-caps", "1.5", "2"])
+    assert "--mpcc-caps: each in (0, 1.5]" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="caps: at most 1.5"):
+        tl.run_mpcc("VCNC-OmegaOverride-v1", np.zeros((1, 2, 6)), caps=(1.0, 1.6))
+
+
 @pytest.mark.slow
 def test_the_search_s_contouring_mpc_is_the_omega_front_s():
     """``run_mpcc`` on the nominal plant (a batch of one) gives the omega front's MPCC point at 100 mm/s

@@ -593,6 +593,10 @@ def main(argv=None) -> int:
                         "feed-override id of the same contour and plant (e.g. VCNC-OmegaOverride-v1 for the omega), "
                         "its progress capped at 1.5, 1.25, 1 and 0.8 x the programmed feed (a QP per control period: minutes "
                         "per plant)")
+    parser.add_argument("--mpcc-caps", type=float, nargs="+", default=list(MPCC_CAPS), metavar="X",
+                        help="with --mpcc: the MPCC's progress caps, x the programmed feed (default "
+                        f"{' '.join(f'{c:g}' for c in MPCC_CAPS)}; a QP per control period: on the heart about 27 "
+                        "minutes a cap for 21 plants on one core)")
     parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
                         "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
                         "the JSON's causal controllers (e.g. --policy mpcc)")
@@ -655,6 +659,11 @@ def _search_main(parser, args, argv=None) -> int:
     n = integer("--plants", args.plants, 0)
     if args.mpcc is not None and len(args.ids) != 1:
         parser.error("--mpcc goes with one --id (the override id of that id's contour and plant)")
+    from vcnc_gym.envs.feed_override_env import MAX_OVERRIDE
+
+    if not all(0.0 < c <= MAX_OVERRIDE for c in args.mpcc_caps):  # before the grid's runs, not after them
+        parser.error(f"--mpcc-caps: each in (0, {MAX_OVERRIDE:g}] x the programmed feed (the dial's top), got "
+                     f"{args.mpcc_caps}")
     out = {}
     for env_id in args.ids:
         try:
@@ -677,7 +686,7 @@ def _search_main(parser, args, argv=None) -> int:
         if args.mpcc is not None:
             if gym.spec(args.mpcc).kwargs.get("plant") != gym.spec(env_id).kwargs.get("plant"):
                 parser.error(f"--mpcc: {args.mpcc} runs another plant than {env_id}")
-            runs += run_mpcc(args.mpcc, parameters, progress=say)
+            runs += run_mpcc(args.mpcc, parameters, caps=args.mpcc_caps, progress=say)
         rows = tolerance_table(runs, kinds)
         print(format_table(env_id, rows), flush=True)
         print(f"({len(runs)} runs of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)

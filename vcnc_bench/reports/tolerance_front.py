@@ -213,7 +213,7 @@ def _panel(ax, fr: Front, which: str) -> None:
     ax.set_ylim(low, top)
     ax.set_xlabel("contour tolerance T, um")
     ax.set_ylabel("cycle time, s")
-    label = "nominal plant (agents: the slowest seed)" if which == "nominal" else "median over the sampled plants"
+    label = "nominal plant (agents: slowest seed)" if which == "nominal" else "median plant"
     ax.set_title(f"{fr.title}: {label}", fontsize=9)
     ax.grid(alpha=0.3)
 
@@ -232,7 +232,7 @@ def plot_fronts(fronts: list[Front], path) -> Path:
         row[1].legend(fontsize=6.5, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.suptitle("The tolerance task's front: the fastest cycle within T (open markers on the top edge: scrap, over T "
                  "or unfinished; lines above the top run off the panel)", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))  # room for the title
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
