@@ -591,7 +591,8 @@ def main(argv=None) -> int:
     parser.add_argument("--json", help="write the grid's runs and the tables here")
     parser.add_argument("--mpcc", metavar="OVERRIDE_ID", help="with one --id: the contouring MPC too, on this "
                         "feed-override id of the same contour and plant (e.g. VCNC-OmegaOverride-v1 for the omega), "
-                        "its progress capped at 1.5, 1.25, 1 and 0.8 x the programmed feed (a QP per control period: minutes "
+                        "its progress capped at 1.5, 1.25, 1 and 0.8 x the programmed feed (--mpcc-caps; a QP per "
+                        "control period: minutes "
                         "per plant)")
     parser.add_argument("--mpcc-caps", type=float, nargs="+", default=list(MPCC_CAPS), metavar="X",
                         help="with --mpcc: the MPCC's progress caps, x the programmed feed (default "

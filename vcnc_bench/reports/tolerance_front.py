@@ -42,7 +42,8 @@ from vcnc_gym.envs.feed_override_env import TOLERANCES
 
 from .tolerance import Setting, merge_searches, read_search_entry, scrapped
 
-__all__ = ["FrontPoint", "Front", "read_search", "read_agents", "agent_records", "front", "format_front", "plot_fronts", "main"]
+__all__ = ["FrontPoint", "Front", "read_search", "read_agents", "agent_records", "front", "format_front", "plot_fronts",
+           "main"]
 
 
 @dataclass(frozen=True)
