@@ -65,8 +65,8 @@ from vcnc_gym.validation import integer, positive
 __all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "own_task", "Setting", "GridRun",
            "Choice", "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc",
            "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table", "format_table", "runs_json",
-           "write_search", "scrapped", "read_search_entry", "merge_searches", "compare", "goal_letter",
-           "format_comparison", "main"]
+           "write_search", "scrapped", "SearchCycles", "search_cycles", "agent_cycles", "read_search_entry",
+           "merge_searches", "compare", "goal_letter", "format_comparison", "main"]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -344,10 +344,11 @@ def run_mpcc(override_id: str, parameters: np.ndarray, *, caps=MPCC_CAPS, progre
         raise ValueError(f"caps: at most {MAX_OVERRIDE:g} x the programmed feed (the dial's top), got {max(caps):g}")
     env = gym.make(override_id)
     u = env.unwrapped
+    retimes, feed = getattr(u, "retimes_reference", False), float(u.task.feedrate_profile.feedrate)
+    decision_period = u.decision_period
     env.close()
-    if not getattr(u, "retimes_reference", False):
+    if not retimes:
         raise ValueError(f"--mpcc: {override_id} is not a feed-override id (the contouring MPC sets its own feed)")
-    feed = float(u.task.feedrate_profile.feedrate)
     runs = []
     for cap in caps:
         t0 = time.perf_counter()
@@ -356,7 +357,7 @@ def run_mpcc(override_id: str, parameters: np.ndarray, *, caps=MPCC_CAPS, progre
         batch = make_batch(override_id, parameters.shape[0], **kwargs)
         try:
             policy = vcnc_baselines.make("mpcc", env, v_max=cap * feed)
-            r = run_plants(policy, batch, parameters, decision_period=u.decision_period)
+            r = run_plants(policy, batch, parameters, decision_period=decision_period)
         finally:
             batch.close()
             env.close()
@@ -445,21 +446,45 @@ def scrapped(cycle, max_um, tolerance_um):
     return np.where(err > tolerance_um, np.inf, cycle)
 
 
-def _opponents(search: dict, tolerance: float) -> dict:
-    """Per-plant cycle times (s, scrap infinite) of the builder's setting and the per-plant search at ``tolerance``
-    (mm), from a ``--json`` entry of the search."""
+@dataclass(frozen=True)
+class SearchCycles:
+    """A search's opponents at one tolerance, per plant (the search's order, the nominal plant first): cycle times
+    (s, scrap infinite) of the per-plant search and of the builder's setting run on every plant (None where no run
+    kept within T on the nominal plant), and the builder's choice (the search row's ``builder``)."""
+
+    per_plant: np.ndarray
+    builder: np.ndarray | None
+    builder_choice: dict
+
+
+def search_cycles(search: dict, tolerance: float) -> SearchCycles:
+    """:class:`SearchCycles` at ``tolerance`` (mm) from a ``--json`` entry of the search."""
     t_um = 1e3 * tolerance
     row = next((r for r in search["rows"] if math.isclose(r["tolerance_um"], t_um)), None)
     if row is None:
         raise ValueError(f"the search has no row for T = {t_um:g} um (it has "
                          f"{[r['tolerance_um'] for r in search['rows']]})")
-    out = {"per-plant search": np.array([c["cycle_time_s"] for c in row["machine_per_plant"]], dtype=float)}
     b = row["builder"]
     run = next((r for r in search["runs"] if r["controller"] == b["controller"] and r["setting"] == b["setting"]),
                None)
-    if run is not None:
-        out[f"builder's setting (`{b['controller']}` {Setting(**b['setting']).label})"] = \
-            scrapped(run["cycle_time_s"], run["max_um"], t_um)
+    return SearchCycles(np.array([c["cycle_time_s"] for c in row["machine_per_plant"]], dtype=float),
+                        None if run is None else scrapped(run["cycle_time_s"], run["max_um"], t_um), b)
+
+
+def agent_cycles(records: list[dict], n: int, tolerance_um: float) -> np.ndarray:
+    """(seeds, n) cycle times (s, scrap infinite) of the seeds' bench ``records`` on their first ``n`` plants."""
+    return np.stack([scrapped(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], tolerance_um)
+                     for r in records])
+
+
+def _opponents(search: dict, tolerance: float) -> dict:
+    """Per-plant cycle times (s, scrap infinite) of the builder's setting and the per-plant search at ``tolerance``
+    (mm), by name, from a ``--json`` entry of the search."""
+    c = search_cycles(search, tolerance)
+    out = {"per-plant search": c.per_plant}
+    if c.builder is not None:
+        b = c.builder_choice
+        out[f"builder's setting (`{b['controller']}` {Setting(**b['setting']).label})"] = c.builder
     return out
 
 
@@ -515,7 +540,7 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
                          f"{search['plants']} --plant-seed {search['plant_seed']}")
     t_um = 1e3 * tolerance
     sampled = kinds == "sample"
-    x = np.stack([scrapped(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], t_um) for r in records])
+    x = agent_cycles(records, n, t_um)
     over = [int(np.isinf(row[kinds != "nominal"]).sum()) for row in x]  # over T or unfinished
     opponents = _opponents(search, tolerance)
     for rec in others:

@@ -40,7 +40,7 @@ import numpy as np
 
 from vcnc_gym.envs.feed_override_env import TOLERANCES
 
-from .tolerance import Setting, merge_searches, read_search_entry, scrapped
+from .tolerance import Setting, agent_cycles, merge_searches, read_search_entry, scrapped, search_cycles
 
 __all__ = ["FrontPoint", "Front", "read_search", "read_agents", "agent_records", "front", "format_front", "plot_fronts",
            "main"]
@@ -113,29 +113,21 @@ def _controller_points(search: dict, t_um: float) -> list[FrontPoint]:
 def _search_points(search: dict, t_um: float) -> list[FrontPoint]:
     kinds = np.asarray(search["kinds"])
     sampled, boxed = kinds == "sample", kinds != "nominal"
-    row = next((r for r in search["rows"] if math.isclose(r["tolerance_um"], t_um)), None)
-    if row is None:
-        raise ValueError(f"the search has no row for T = {t_um:g} um")
-    per_plant = np.array([c["cycle_time_s"] for c in row["machine_per_plant"]], dtype=float)
-    points = [FrontPoint("per-plant search", "per-plant", t_um, (float(per_plant[0]),),
-                         float(np.median(per_plant[sampled])), int(np.isinf(per_plant[boxed]).sum()),
+    c = search_cycles(search, 1e-3 * t_um)
+    points = [FrontPoint("per-plant search", "per-plant", t_um, (float(c.per_plant[0]),),
+                         float(np.median(c.per_plant[sampled])), int(np.isinf(c.per_plant[boxed]).sum()),
                          int(boxed.sum()))]
-    b = row["builder"]
-    run = next((r for r in search["runs"] if r["controller"] == b["controller"] and r["setting"] == b["setting"]),
-               None)
-    if run is not None:
-        cycles = scrapped(run["cycle_time_s"], run["max_um"], t_um)
-        points.append(FrontPoint("builder's setting", "builder", t_um, (float(cycles[0]),),
-                                 float(np.median(cycles[sampled])), int(np.isinf(cycles[boxed]).sum()),
+    if c.builder is not None:
+        b = c.builder_choice
+        points.append(FrontPoint("builder's setting", "builder", t_um, (float(c.builder[0]),),
+                                 float(np.median(c.builder[sampled])), int(np.isinf(c.builder[boxed]).sum()),
                                  int(boxed.sum()), f"{b['controller']}, {Setting(**b['setting']).label}"))
     return points
 
 
 def _agent_point(name: str, records: list[dict], kinds: list[str], t_um: float) -> FrontPoint:
     kinds = np.asarray(kinds)
-    n = kinds.size
-    x = np.stack([scrapped(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], t_um)
-                  for r in records])
+    x = agent_cycles(records, kinds.size, t_um)
     boxed = kinds != "nominal"
     return FrontPoint(name, "agents", t_um, tuple(float(c) for c in x[:, 0]),
                       float(np.median(x[:, kinds == "sample"])), int(np.isinf(x[:, boxed]).sum()),
