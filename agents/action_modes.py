@@ -34,7 +34,7 @@ import numpy as np
 from vcnc_gym.envs.history import DecisionHistory
 from vcnc_gym.validation import real
 
-__all__ = ["ActionMode", "ResidualAction", "PeakPrice", "ACTION_MODES"]
+__all__ = ["ActionMode", "ResidualAction", "PeakPrice", "DialSlew", "ACTION_MODES"]
 
 #: The action modes and what the agent's action is in each.
 ACTION_MODES = {
@@ -72,6 +72,10 @@ class ActionMode:
         Residual mode, training only: the price of the episode's largest contour error, in decisions
         (:class:`PeakPrice`: an episode's return loses ``peak_weight * e_max / reward_scale``, as many decisions'
         contour reward at e_max); 0, the default: the env's reward alone.
+    dial_rate : float
+        Residual mode on an env with a feed override dial (the third action component, -1 to 1): the largest change
+        of the dial the agent turns, per second (1/s; :class:`DialSlew`).  0, the default: the dial goes where the
+        agent puts it at each decision.
     """
 
     mode: str = "direct"
@@ -81,6 +85,7 @@ class ActionMode:
     baseline_params: dict = field(default_factory=dict)
     history: int = 0
     peak_weight: float = 0.0
+    dial_rate: float = 0.0
 
     def __post_init__(self):
         if self.mode not in ACTION_MODES:
@@ -93,6 +98,9 @@ class ActionMode:
         if not real("peak_weight", self.peak_weight, "decisions") >= 0:
             raise ValueError(f"peak_weight must be a number >= 0 (decisions), got {self.peak_weight!r}")
         object.__setattr__(self, "peak_weight", float(self.peak_weight))
+        if not real("dial_rate", self.dial_rate, "1/s") >= 0:
+            raise ValueError(f"dial_rate must be a number >= 0 (1/s of the dial's -1 to 1), got {self.dial_rate!r}")
+        object.__setattr__(self, "dial_rate", float(self.dial_rate))
         if self.mode == "residual":
             import vcnc_baselines
 
@@ -103,9 +111,9 @@ class ActionMode:
                 raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
             object.__setattr__(self, "correction", float(c))
         elif (self.baseline is not None or self.correction is not None or self.baseline_params or self.history
-              or self.peak_weight):
-            raise ValueError("baseline, correction, baseline_params, history and peak_weight apply to the residual "
-                             "mode only")
+              or self.peak_weight or self.dial_rate):
+            raise ValueError("baseline, correction, baseline_params, history, peak_weight and dial_rate apply to the "
+                             "residual mode only")
 
     # -- the two forms -----------------------------------------------------------------
     def wrap(self, env: gym.Env) -> gym.Env:
@@ -113,7 +121,7 @@ class ActionMode:
         if self.mode == "residual":
             return ResidualAction(env, baseline=self.baseline, correction=self.correction,
                                   action_repeat=self.action_repeat, history=self.history,
-                                  peak_weight=self.peak_weight, **self.baseline_params)
+                                  peak_weight=self.peak_weight, dial_rate=self.dial_rate, **self.baseline_params)
         repeat = env.unwrapped.action_repeat
         if repeat != self.action_repeat:
             raise ValueError(f"direct mode with action_repeat={self.action_repeat} needs an env made with "
@@ -150,7 +158,19 @@ class ActionMode:
             d["history"] = self.history
         if self.peak_weight:  # the same
             d["peak_weight"] = self.peak_weight
+        if self.dial_rate:  # the same
+            d["dial_rate"] = self.dial_rate
         return d
+
+    def dial_slew(self, env, n: int) -> "DialSlew | None":
+        """The agent's dial for ``n`` envs like ``env`` (an unwrapped env: its control period and action space), or
+        None when ``dial_rate`` is 0; ValueError if the env has no dial."""
+        if not self.dial_rate:
+            return None
+        if tuple(env.action_space.shape) != (3,):
+            raise ValueError(f"dial_rate limits a feed override dial (an action of 3 components), and "
+                             f"{type(env).__name__} takes {tuple(env.action_space.shape)}")
+        return DialSlew(self.dial_rate, env.dt, n)
 
     def peak_price(self, env, n: int) -> "PeakPrice | None":
         """The price of the episode's peak for ``n`` envs like ``env`` (an unwrapped env or native vector env: its
@@ -205,6 +225,49 @@ class PeakPrice:
             self.peak[np.asarray(rows, dtype=bool)] = 0.0
 
 
+class DialSlew:
+    """The feed override dial the agent turns, at a limited rate: the third component of its action, per env.
+
+    A dial swung from one end to the other between two decisions (20 ms) steps the path acceleration by the
+    override's whole rate times the feed, and through a shop-floor machine's 150 Hz mode that costs tens of um
+    (``docs/reproduction.md``, "The eighth step").  With a rate, the dial in force moves toward the agent's at most
+    ``rate * dt`` per control period and starts every episode at 0 (the look-ahead's own plan on the tolerance
+    ids); the env's override then follows that dial as it follows any.  The arithmetic is float32, the action
+    space's dtype, so that the training wrapper (:class:`ResidualAction`) and the evaluation
+    (:class:`vcnc_agents.policy.AgentPolicy`) turn the same dial to the bit.
+
+    Parameters
+    ----------
+    rate : float
+        Largest change of the dial (-1 to 1) per second, 1/s (> 0).
+    dt : float
+        The env's control period, s.
+    n : int
+        Envs.
+    """
+
+    def __init__(self, rate: float, dt: float, n: int):
+        self.per_period = np.float32(rate * dt)
+        self.dial = np.zeros(n, dtype=np.float32)
+
+    def __call__(self, action: np.ndarray) -> np.ndarray:
+        """The action in force for one control period: ``action`` ((3,) or (n, 3)) clipped to [-1, 1], its dial
+        moved toward the agent's by at most ``rate * dt`` (float32)."""
+        a = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+        dial = self.dial.reshape(a.shape[:-1])
+        dial = dial + np.clip(a[..., 2] - dial, -self.per_period, self.per_period)
+        self.dial[:] = np.reshape(dial, -1)
+        a[..., 2] = dial
+        return a
+
+    def restart(self, rows=None) -> None:
+        """A new episode for the envs ``rows`` (bool, (n,); None: all): their dial at 0."""
+        if rows is None:
+            self.dial[:] = 0.0
+        else:
+            self.dial[np.asarray(rows, dtype=bool)] = 0.0
+
+
 class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """The agent corrects a classical baseline: residual action mode, with action repeat.
 
@@ -228,6 +291,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Past decisions the agent remembers (:mod:`vcnc_gym.envs.history`), appended to the observation; 0: none.
     peak_weight : float
         The price of the episode's largest contour error, in decisions (:class:`PeakPrice`); 0: none.
+    dial_rate : float
+        The largest change of the agent's feed override dial per second, 1/s (:class:`DialSlew`); 0: none.
     **baseline_params
         Constructor parameters of the baseline.
 
@@ -246,14 +311,14 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """
 
     def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
-                 history: int = 0, peak_weight: float = 0.0, **baseline_params):
+                 history: int = 0, peak_weight: float = 0.0, dial_rate: float = 0.0, **baseline_params):
         gym.utils.RecordConstructorArgs.__init__(self, baseline=baseline, correction=correction,
                                                  action_repeat=action_repeat, history=history,
-                                                 peak_weight=peak_weight, **baseline_params)
+                                                 peak_weight=peak_weight, dial_rate=dial_rate, **baseline_params)
         super().__init__(env)
         self.mode = ActionMode("residual", action_repeat=action_repeat, baseline=baseline,
                                correction=correction, baseline_params=baseline_params, history=history,
-                               peak_weight=peak_weight)
+                               peak_weight=peak_weight, dial_rate=dial_rate)
         if env.unwrapped.action_repeat != 1:
             raise ValueError("ResidualAction runs the baseline every control period: make the env with "
                              f"action_repeat=1 (got {env.unwrapped.action_repeat}) and give the wrapper the repeat")
@@ -266,6 +331,7 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self.history = DecisionHistory(self.mode.history, env.unwrapped.layout, 1)
             self.observation_space = self.history.space(env.observation_space)
         self.price = self.mode.peak_price(env.unwrapped, 1)
+        self.slew = self.mode.dial_slew(env.unwrapped, 1)
 
     def _seen(self, obs):
         """The observation the agent sees: the env's, then the remembered decisions (with ``history``)."""
@@ -291,6 +357,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self.history.start(obs[None])
         if self.price is not None:
             self.price.restart()
+        if self.slew is not None:
+            self.slew.restart()
         return self._seen(obs), info
 
     def step(self, action):
@@ -308,7 +376,8 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
         for _ in range(self.action_repeat):
             base, _ = self.baseline.predict(self._obs, episode_start=self._start)
             self._start = np.array([False])
-            obs, reward, terminated, truncated, info = self.env.step(self.mode.command(base, a))
+            held = a if self.slew is None else self.slew(a)
+            obs, reward, terminated, truncated, info = self.env.step(self.mode.command(base, held))
             self._obs = obs
             total += reward
             peak = max(peak, info["contour_error_max"])

@@ -11,7 +11,7 @@ from pathlib import Path
 
 __all__ = ["parser", "action_mode", "MODE_OPTIONS"]
 
-MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat", "history", "peak_weight")
+MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat", "history", "peak_weight", "dial_rate")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -52,6 +52,9 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("--peak-weight", type=float, metavar="W",
                    help="residual mode, training: the episode's largest contour error priced as W decisions of the "
                         "reward (vcnc_agents.action_modes.PeakPrice; 0: none)")
+    g.add_argument("--dial-rate", type=float, metavar="R",
+                   help="residual mode on a feed-override id: the agent's dial (-1 to 1) moves at most R per second "
+                        "(vcnc_agents.action_modes.DialSlew; 0: at once)")
     p.add_argument("--init-from", metavar="AGENT",
                    help="start a new run from a trained agent's weights and normalisation (an agent folder, RUN/final "
                         "or RUN/best; with --seeds, {seed} is each seed's number; the lean trainer; "
@@ -105,6 +108,8 @@ def action_mode(args, config_file):
         d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
         d["history"] = given["history"] if given["history"] is not None else base.history
         d["peak_weight"] = given["peak_weight"] if given["peak_weight"] is not None else base.peak_weight
-    elif any(given[k] is not None for k in ("baseline", "correction", "history", "peak_weight")):
-        raise ValueError("--baseline, --correction, --history and --peak-weight apply to --action-mode residual")
+        d["dial_rate"] = given["dial_rate"] if given["dial_rate"] is not None else base.dial_rate
+    elif any(given[k] is not None for k in ("baseline", "correction", "history", "peak_weight", "dial_rate")):
+        raise ValueError("--baseline, --correction, --history, --peak-weight and --dial-rate apply to --action-mode "
+                         "residual")
     return ActionMode(**d)

@@ -325,7 +325,8 @@ def action_mode_of(hyperparams: dict) -> ActionMode:
         raise ValueError(f"env_wrapper may only be one {RESIDUAL_WRAPPER}, got {[n for n, _ in wrappers]}")
     if wrappers:
         kwargs = dict(wrappers[0][1])
-        known = {k: kwargs.pop(k) for k in ("baseline", "correction", "action_repeat", "history", "peak_weight")
+        known = {k: kwargs.pop(k) for k in ("baseline", "correction", "action_repeat", "history", "peak_weight",
+                                                  "dial_rate")
                  if k in kwargs}
         return ActionMode("residual", baseline_params=kwargs, **known)
     env_kwargs = hyperparams.get("env_kwargs") or {}
@@ -344,7 +345,8 @@ def with_action_mode(hyperparams: dict, mode: ActionMode) -> dict:
         h["env_wrapper"] = [{RESIDUAL_WRAPPER: {"baseline": mode.baseline, "correction": mode.correction,
                                                 "action_repeat": mode.action_repeat, **mode.baseline_params,
                                                 **({"history": mode.history} if mode.history else {}),
-                                                **({"peak_weight": mode.peak_weight} if mode.peak_weight else {})}}]
+                                                **({"peak_weight": mode.peak_weight} if mode.peak_weight else {}),
+                                                **({"dial_rate": mode.dial_rate} if mode.dial_rate else {})}}]
     else:
         env_kwargs["action_repeat"] = mode.action_repeat
     if env_kwargs:

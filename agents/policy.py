@@ -81,6 +81,9 @@ class AgentPolicy:
         self._count = None  # control periods since the last decision, per env
         self._held = None   # the agent's held action, per env
         self._layout = u.layout
+        self._env = u
+        self.slew = None  # the agent's dial at its rate, per env (action_mode.dial_rate)
+        action_mode.dial_slew(u, 1)  # an env without a dial is refused here, not at the first step
         self.history = None  # the remembered decisions, per env (action_mode.history)
         # a recurrent policy (sb3-contrib's RecurrentPPO): its LSTM states per env, and which envs start an episode
         self.recurrent = getattr(getattr(model, "policy", None), "lstm_actor", None) is not None
@@ -114,6 +117,7 @@ class AgentPolicy:
                 layers, _, size = self.model.policy.lstm_hidden_state_shape
                 self._lstm = tuple(np.zeros((layers, n, size), dtype=np.float32) for _ in range(2))
                 self._fresh = np.ones(n, dtype=bool)
+            self.slew = self.action_mode.dial_slew(self._env, n)
         if episode_start is not None:
             start = np.broadcast_to(np.asarray(episode_start, dtype=bool).reshape(-1), (n,))
             self._count[start] = 0
@@ -121,6 +125,8 @@ class AgentPolicy:
                 self.history.start(obs2, start)
             if self.recurrent:
                 self._fresh |= start
+            if self.slew is not None:
+                self.slew.restart(start)
         decide = self._count % self.action_mode.action_repeat == 0
         if decide.any():
             x = obs2[decide] if self.pick is None else obs2[decide][:, self.pick]
@@ -144,7 +150,8 @@ class AgentPolicy:
         base = None
         if self.baseline is not None:
             base, _ = self.baseline.predict(obs2, episode_start=episode_start)
-        action = self.action_mode.command(base, self._held)
+        held = self._held if self.slew is None else self.slew(self._held)
+        action = self.action_mode.command(base, held)
         return (action[0] if single else action), state
 
     def __repr__(self) -> str:

@@ -72,6 +72,9 @@ def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | 
         raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
                          f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
     kwargs["action_repeat"] = env_repeat
+    if mode.dial_rate:
+        raise ValueError(f"dial_rate limits a feed override dial, and {env_id}'s native vector env has none (its "
+                         "action is the two axes)")
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
     baseline = mode.make_baseline(venv)

@@ -13,7 +13,8 @@ The agent must fit the run, and :func:`check_init_agent` says why not before any
   the preview, the shapes), compared as :func:`vcnc_agents.load_agent` compares them; the contour, the plant and the
   shop floor may differ (a warm start onto another machine of the same observation);
 - the same action mode (what the action means: mode, baseline, correction, action repeat), the training reward's
-  ``peak_weight`` aside, and a memory (``history``) as long as the agent's or longer.  The baseline's commissioning
+  ``peak_weight`` and the dial's rate (``dial_rate``, a limit the run may add) aside, and a memory (``history``) as
+  long as the agent's or longer.  The baseline's commissioning
   may differ (``ff-pid-online`` to ``ff-pid-online@machine``: the same law, fitted to each machine), as the machine
   may;
 - the same policy, network and PPO arguments, but for :data:`RUN_OWN` (the learning rate and clip ranges, which the
@@ -94,7 +95,7 @@ def check_init_agent(init_from, config):
     if agent["mode"].history > config.mode.history:
         raise ValueError(f"{what} remembers {agent['mode'].history} decisions, the run {config.mode.history}: a "
                          "memory may grow in a warm start, not shrink")
-    theirs, ours = (replace(m, peak_weight=0.0, history=0, baseline=_law(m.baseline))
+    theirs, ours = (replace(m, peak_weight=0.0, dial_rate=0.0, history=0, baseline=_law(m.baseline))
                     for m in (agent["mode"], config.mode))
     if theirs != ours:
         diffs = [f"{f.name}: the agent's {getattr(theirs, f.name)!r}, the run's {getattr(ours, f.name)!r}"

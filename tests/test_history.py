@@ -190,7 +190,7 @@ def test_vcnc_train_history_changes_the_entry_s_memory_only():
     args = parser().parse_args(["--env", "VCNC-HeartShop-v1", "--config", str(adaptive), "--action-repeat", "10"])
     assert action_mode(args, adaptive).history == 16  # the entry's memory, unchanged by another option
     args = parser().parse_args(["--env", HEART, "--action-mode", "direct", "--history", "4"])
-    with pytest.raises(ValueError, match="--history and --peak-weight apply to --action-mode residual"):
+    with pytest.raises(ValueError, match="--peak-weight and --dial-rate apply to --action-mode residual"):
         action_mode(args, adaptive.with_name("ppo.yml"))
 
 

@@ -129,7 +129,7 @@ def test_vcnc_train_peak_weight_changes_the_entry_s_price_only():
     args = parser().parse_args(["--env", omega, "--config", str(adaptive), "--peak-weight", "100", "--history", "0"])
     assert action_mode(args, adaptive) == ActionMode("residual", 5, "ff-pid@machine", 0.3, peak_weight=100)
     args = parser().parse_args(["--env", CIRCLE, "--action-mode", "direct", "--peak-weight", "1"])
-    with pytest.raises(ValueError, match="--peak-weight apply to --action-mode residual"):
+    with pytest.raises(ValueError, match="--peak-weight and --dial-rate apply to --action-mode residual"):
         action_mode(args, adaptive.with_name("ppo.yml"))
 
 
