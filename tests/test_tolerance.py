@@ -437,3 +437,15 @@ def test_several_searches_are_one_whose_choices_are_the_fastest_of_any(tmp_path,
     assert "VCNC-OmegaLookahead-v1 (a.json) and VCNC-OmegaTolerance-v1 (b.json)" in printed  # each search's file
     per_plant = np.minimum(*[[c["cycle_time_s"] for c in x["rows"][1]["machine_per_plant"]] for x in (a, b)])
     assert f"| 10 | per-plant search | 0.5, 0.5, 0.5 | 0.5 | 0+0+0 of 3 x 3 | {per_plant[0]:.4g} |" in printed
+
+
+def test_the_table_of_the_nominal_plant_alone_prints_no_median():
+    """``--plants 0``: no sampled plant, so the medians over them are '-' (they were printed as nan)."""
+    from vcnc_bench.reports.tolerance import format_table
+
+    choice = {"controller": "mpcc", "setting": {"feed": 150.0, "acceleration": None}, "cycle_time_s": 2.1518,
+              "max_um": 4.55}
+    row = {"tolerance_um": 5.0, "builder": choice, "machine_nominal": choice, "machine_median_cycle_time_s": math.nan,
+           "machine_unreached": 0, "n_plants": 0, "builder_median_cycle_time_s": math.nan, "builder_exceeded": 0}
+    line = format_table("VCNC-Heart-v1", [row]).splitlines()[-1]
+    assert line == "| 5 | `mpcc` 150 mm/s: 2.152 s, 4.55 um | - | 0 of 0 | - | 0 of 0 |"

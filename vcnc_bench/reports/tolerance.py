@@ -433,9 +433,12 @@ def format_table(env_id: str, rows: list[dict]) -> str:
            "median cycle, s | plants with none within T |", "|---|---|---|---|---|---|"]
     for r in rows:
         med = r.get("builder_median_cycle_time_s")
+        machine = r["machine_median_cycle_time_s"]
+        if not r["n_plants"]:  # the nominal plant alone (--plants 0): no median over sampled plants
+            med = machine = None
         out.append(f"| {r['tolerance_um']:g} | {_fmt_choice(r['builder'])} | "
                    f"{'-' if med is None else f'{med:.4g}'} | {r.get('builder_exceeded', '-')} of {r['n_plants']} | "
-                   f"{r['machine_median_cycle_time_s']:.4g} | {r['machine_unreached']} of {r['n_plants']} |")
+                   f"{'-' if machine is None else f'{machine:.4g}'} | {r['machine_unreached']} of {r['n_plants']} |")
     return "\n".join(out)
 
 
