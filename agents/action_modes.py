@@ -183,6 +183,14 @@ class ActionMode:
         return PeakPrice(self.peak_weight, task.reward_scale, task.divergence_bound, n)
 
 
+def _zero(values: np.ndarray, rows) -> None:
+    """Set the per-env ``values`` of the envs ``rows`` (bool, (n,); None: all) to 0: an episode starts there."""
+    if rows is None:
+        values[:] = 0.0
+    else:
+        values[np.asarray(rows, dtype=bool)] = 0.0
+
+
 class PeakPrice:
     """The price of a new episode maximum of the contour error, per env: a term of the training reward.
 
@@ -219,10 +227,7 @@ class PeakPrice:
 
     def restart(self, rows=None) -> None:
         """A new episode for the envs ``rows`` (bool, (n,); None: all)."""
-        if rows is None:
-            self.peak[:] = 0.0
-        else:
-            self.peak[np.asarray(rows, dtype=bool)] = 0.0
+        _zero(self.peak, rows)
 
 
 class DialSlew:
@@ -262,10 +267,7 @@ class DialSlew:
 
     def restart(self, rows=None) -> None:
         """A new episode for the envs ``rows`` (bool, (n,); None: all): their dial at 0."""
-        if rows is None:
-            self.dial[:] = 0.0
-        else:
-            self.dial[np.asarray(rows, dtype=bool)] = 0.0
+        _zero(self.dial, rows)
 
 
 class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
