@@ -34,7 +34,7 @@ import numpy as np
 from vcnc_gym.envs.history import DecisionHistory
 from vcnc_gym.validation import real
 
-__all__ = ["ActionMode", "ResidualAction", "PeakPrice", "DialSlew", "ACTION_MODES"]
+__all__ = ["ActionMode", "ResidualAction", "PeakPrice", "DialSlew", "ACTION_MODES", "RESIDUAL_OPTIONS"]
 
 #: The action modes and what the agent's action is in each.
 ACTION_MODES = {
@@ -47,6 +47,11 @@ def _check_repeat(action_repeat) -> int:
     if isinstance(action_repeat, bool) or not isinstance(action_repeat, (int, np.integer)) or action_repeat < 1:
         raise ValueError(f"action_repeat must be an integer >= 1, got {action_repeat!r}")
     return int(action_repeat)
+
+
+#: The fields of :class:`ActionMode` that only the residual mode takes (a config entry's wrapper arguments and
+#: ``vcnc-train``'s options of the same names, besides ``action_repeat``).
+RESIDUAL_OPTIONS = ("baseline", "correction", "history", "peak_weight", "dial_rate")
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .action_modes import RESIDUAL_OPTIONS
+
 __all__ = ["parser", "action_mode", "MODE_OPTIONS"]
 
-MODE_OPTIONS = ("action_mode", "baseline", "correction", "action_repeat", "history", "peak_weight", "dial_rate")
+MODE_OPTIONS = ("action_mode", "action_repeat", *RESIDUAL_OPTIONS)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -106,10 +108,9 @@ def action_mode(args, config_file):
             note(f"--baseline {d['baseline']}: the entry's arguments of {base.baseline} "
                  f"({', '.join(sorted(base.baseline_params))}) do not apply to it and are dropped")
         d["correction"] = next(c for c in (given["correction"], base.correction, 0.2) if c is not None)
-        d["history"] = given["history"] if given["history"] is not None else base.history
-        d["peak_weight"] = given["peak_weight"] if given["peak_weight"] is not None else base.peak_weight
-        d["dial_rate"] = given["dial_rate"] if given["dial_rate"] is not None else base.dial_rate
-    elif any(given[k] is not None for k in ("baseline", "correction", "history", "peak_weight", "dial_rate")):
+        for k in ("history", "peak_weight", "dial_rate"):
+            d[k] = given[k] if given[k] is not None else getattr(base, k)
+    elif any(given[k] is not None for k in RESIDUAL_OPTIONS):
         raise ValueError("--baseline, --correction, --history, --peak-weight and --dial-rate apply to --action-mode "
                          "residual")
     return ActionMode(**d)

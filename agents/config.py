@@ -39,7 +39,7 @@ import yaml
 
 from vcnc_gym.validation import flag, integer
 
-from .action_modes import ActionMode
+from .action_modes import RESIDUAL_OPTIONS, ActionMode
 from .model_file import POLICIES
 
 __all__ = [
@@ -325,9 +325,7 @@ def action_mode_of(hyperparams: dict) -> ActionMode:
         raise ValueError(f"env_wrapper may only be one {RESIDUAL_WRAPPER}, got {[n for n, _ in wrappers]}")
     if wrappers:
         kwargs = dict(wrappers[0][1])
-        known = {k: kwargs.pop(k) for k in ("baseline", "correction", "action_repeat", "history", "peak_weight",
-                                                  "dial_rate")
-                 if k in kwargs}
+        known = {k: kwargs.pop(k) for k in ("action_repeat", *RESIDUAL_OPTIONS) if k in kwargs}
         return ActionMode("residual", baseline_params=kwargs, **known)
     env_kwargs = hyperparams.get("env_kwargs") or {}
     if not isinstance(env_kwargs, dict):

@@ -82,8 +82,9 @@ class AgentPolicy:
         self._held = None   # the agent's held action, per env
         self._layout = u.layout
         self._env = u
-        self.slew = None  # the agent's dial at its rate, per env (action_mode.dial_rate)
-        action_mode.dial_slew(u, 1)  # an env without a dial is refused here, not at the first step
+        # the agent's dial at its rate, per env (action_mode.dial_rate; None: none); an env without a dial is refused
+        # here, not at the first step
+        self.slew = action_mode.dial_slew(u, 1)
         self.history = None  # the remembered decisions, per env (action_mode.history)
         # a recurrent policy (sb3-contrib's RecurrentPPO): its LSTM states per env, and which envs start an episode
         self.recurrent = getattr(getattr(model, "policy", None), "lstm_actor", None) is not None
