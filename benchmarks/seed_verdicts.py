@@ -15,7 +15,9 @@ Every figure comes from the JSON; nothing is typed.
 controller added to the house after the seeds were evaluated, such as ``mpc``, whose run is costly; or another
 training run's seeds) and judges the agents again, by the bench's own rule
 (:func:`vcnc_bench.verdicts.robust_verdicts`), against the strongest causal controller of the two runs together;
-``--only POLICY`` joins that policy's records only (an old run's costly controllers, not its agents).  ``--json
+``--only POLICY`` joins that policy's records only (an old run's costly controllers, not its agents).  Where the floor
+joins (``vcnc-bench --plants N --policy oracle``, run apart: a search per plant), every record's normalised score is
+computed again plant by plant (:func:`vcnc_bench.score.add_scores`) and the table gets its IQM.  ``--json
 OUT`` writes the joined run.  ``--against GROUP`` judges every training run against the seeds of
 ``GROUP`` (an ablation: the same recipe with one thing changed, "wins" where the run is better).  Runs whose settings
 differ (plants, plant seed, reset seed, trials, vertices, feed, plant, noise seeds, shop floor) are refused, since their
@@ -29,6 +31,7 @@ import argparse
 import json
 
 from vcnc_bench.headroom import NON_CAUSAL
+from vcnc_bench.score import add_scores
 from vcnc_bench.verdicts import iqm, robust_verdicts, sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
 
 #: The settings two ``--plants`` runs must share for their records to be paired plant by plant.
@@ -43,20 +46,28 @@ def _f(v) -> str:
     return "inf" if v is None else f"{v:.4g}"
 
 
+def _score(v) -> str:
+    """A normalised score (None: -inf, a diverged plant, or no score)."""
+    return "-" if v is None else f"{v:.3f}"
+
+
 def tables(data: dict, base: str) -> list[str]:
     """The Markdown lines of one JSON (one env)."""
     records = data["robust"]
     env = records[0]["env"]
+    scored = any((r.get("score") or {}).get("iqm_max") for r in records)  # the floor ran on the plants
     out = [f"**{env}** (`{data['settings']['command']}`)", "",
-           "| policy | max nominal / median / worst, um | RMS nominal / median / worst, um | IQM max [95 % CI], um |",
-           "|---|---|---|---|"]
+           "| policy | max nominal / median / worst, um | RMS nominal / median / worst, um | IQM max [95 % CI], um |"
+           + (" score of the max, IQM [95 % CI] |" if scored else ""), "|---|---|---|---|" + ("---|" if scored else "")]
     for r in records:
         if r["policy"] == "pd-ref":
             continue
         iqm = stratified_bootstrap_ci(sampled_figures(r, "max"), seed=0)
+        s = (r.get("score") or {}).get("iqm_max") or [None] * 3
         out.append(f"| `{r['policy']}` | {_f(r['nominal_max_um'])} / {_f(r['median_max_um'])} / "
                    f"{_f(r['worst_max_um'])} | {_f(r['nominal_rms_um'])} / {_f(r['median_rms_um'])} / "
-                   f"{_f(r['worst_rms_um'])} | {_f(iqm[0])} [{_f(iqm[1])}, {_f(iqm[2])}] |")
+                   f"{_f(r['worst_rms_um'])} | {_f(iqm[0])} [{_f(iqm[1])}, {_f(iqm[2])}] |"
+                   + (f" {_score(s[0])} [{_score(s[1])}, {_score(s[2])}] |" if scored else ""))
     out += ["", "| learned X | fig | X IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | "
                 "P(X<Y) | verdict |", "|---|---|---|---|---|---|---|---|"]
     for v in data["verdicts"]:
@@ -233,6 +244,8 @@ def join(data: dict, other: dict, other_name: str = "the other run", only: tuple
     learned = {r["policy"] for r in records if r.get("kind") not in (None, "baseline")}
     causal = {r["policy"] for r in records if _causal(r)}
     rows = robust_verdicts(records, learned, causal, seed=a.get("seed", 0))
+    if any(r["policy"].endswith(NON_CAUSAL) for r in added):  # the floor ran on these plants: scores per plant
+        add_scores(records, seed=a.get("seed", 0))
     command = a["command"] + f"  # joined with{' the ' + ', '.join(only) + ' of' if only else ''}: {b['command']}"
     return {"settings": dict(a, command=command), "robust": records, "verdicts": rows}
 

@@ -338,3 +338,39 @@ def test_cross_cpu_counts_the_figures_that_moved_and_the_verdicts_that_changed()
     new["robust"][1]["per_plant"]["max_um"] = [1, 2]
     with pytest.raises(ValueError, match="not the same run"):
         cc.compare(old, new, ("ppo:A", "ppo:B"))
+
+
+def test_a_joined_floor_scores_every_record_plant_by_plant(capsys):
+    """``--with`` a floor's own ``--plants`` run (``vcnc-bench --policy oracle``: minutes a plant, run apart from the
+    agents): every record's score is then per plant, its IQM scipy's trimmed mean of (ref - e) / (ref - floor) over
+    the sampled plants, and the table gets the score column; a join without a floor leaves the scores as they were."""
+    from scipy.stats import trim_mean
+
+    rng = np.random.default_rng(3)
+    base = rng.uniform(1.0, 2.0, len(KINDS))
+    settings = {"command": "vcnc-bench --plants 12", "plants": 12, "plant_seed": 0, "seed": 0}
+    agents = [_record("E", "pd-ref", 10 * base, 5 * base, KINDS), _record("E", "ff-pid", 4 * base, 2 * base, KINDS),
+              _record("E", "ppo:run/seed0/best", 3 * base + 0.1 * rng.random(len(KINDS)), base, KINDS)]
+    agents[1]["kind"], agents[2]["kind"] = "baseline", "ppo"
+    for r in agents:
+        r["score"] = {"max": 0.5}  # the bench's nominal score, from the shipped nominal floor
+    floor = _record("E", "oracle (non-causal)", base, 0.5 * base, KINDS)
+    floor["kind"] = "baseline"
+    sv = _seed_verdicts()
+    unchanged = sv.join({"settings": settings, "robust": agents[:2], "verdicts": []},
+                        {"settings": settings, "robust": agents[2:], "verdicts": []})
+    assert all(r["score"] == {"max": 0.5} for r in unchanged["robust"])
+    joined = sv.join({"settings": settings, "robust": agents, "verdicts": []},
+                     {"settings": settings, "robust": [floor], "verdicts": []}, only=("oracle (non-causal)",))
+    sampled = np.array(KINDS) == "sample"
+    for r in joined["robust"]:
+        e = np.array(r["per_plant"]["max_um"])
+        expected = trim_mean(((10 * base - e) / (9 * base))[sampled], 0.25)
+        assert r["score"]["iqm_max"][0] == pytest.approx(expected, rel=1e-12)
+    assert agents[1]["score"] == {"max": 0.5}  # the inputs are not changed
+    for r in joined["robust"]:  # the figures a --plants record carries beside its per-plant ones
+        x = np.array(r["per_plant"]["max_um"]), np.array(r["per_plant"]["rms_um"])
+        for k, v in zip(("max", "rms"), x):
+            r[f"nominal_{k}_um"], r[f"median_{k}_um"], r[f"worst_{k}_um"] = v[0], np.median(v[1:]), v.max()
+    lines = sv.tables(joined, "ff-pid")
+    assert "score of the max" in lines[2] and lines[4].startswith("| `ff-pid`") and lines[4].count("|") == 6
