@@ -77,7 +77,29 @@ def tables(data: dict, base: str) -> list[str]:
                    f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
                    f"{v['p_improvement']:.2f} | {v['outcome']} |")
     out += [""] + [line[0].upper() + line[1:] for line in _against_base(records, base)]
+    absent = not_run(env, {r["policy"] for r in records})
+    if absent:
+        out += ["", f"Not in this run, so not weighed by its verdicts: the causal controllers of {env} "
+                    + ", ".join(f"`{n}`" for n in absent) + "."]
     return out
+
+
+def not_run(env_id: str, policies: set[str]) -> list[str]:
+    """The causal controllers of :mod:`vcnc_baselines` that apply to ``env_id`` (the floor's starts,
+    :func:`vcnc_baselines.optimal.search.causal_names`) and have no record among ``policies``: a verdict names the
+    strongest of those that ran.  Empty for an id that is not registered."""
+    import gymnasium as gym
+
+    import vcnc_gym  # noqa: F401  (registers the ids)
+    from vcnc_baselines.optimal.search import causal_names
+
+    if env_id not in gym.registry:
+        return []
+    env = gym.make(env_id)
+    try:
+        return [n for n in causal_names(env) if n not in policies]
+    finally:
+        env.close()
 
 
 def within(records: list[dict], tolerances: list[float]) -> list[str]:
@@ -131,6 +153,10 @@ def summary(runs: list[dict], base: str | list[str]) -> list[str]:
                         f"{v['outcome']} |")
         own = base_of([base] if isinstance(base, str) else base, records[0]["env"])
         lines += [f"- {name}: {line}" for line in _against_base(records, own)]
+        absent = not_run(records[0]["env"], {r["policy"] for r in records})
+        if absent:
+            lines.append(f"- {name}: not in the run, so not weighed by its verdicts: "
+                         + ", ".join(f"`{n}`" for n in absent) + ".")
     return rows + [""] + spread(runs) + [""] + lines
 
 

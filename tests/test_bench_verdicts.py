@@ -374,3 +374,22 @@ def test_a_joined_floor_scores_every_record_plant_by_plant(capsys):
             r[f"nominal_{k}_um"], r[f"median_{k}_um"], r[f"worst_{k}_um"] = v[0], np.median(v[1:]), v.max()
     lines = sv.tables(joined, "ff-pid")
     assert "score of the max" in lines[2] and lines[4].startswith("| `ff-pid`") and lines[4].count("|") == 6
+
+
+def test_the_tables_name_the_causal_controllers_a_run_did_not_hold():
+    """A verdict weighs the strongest causal controller among those that ran: the shop-floor heart's 10-seed run
+    holds ``ff-pid@machine`` but not ``zpetc@machine``, which is stronger there on the max (an IQM of 5.96 against
+    6.06 um over the same plants, "The floor over the box"); the tables say so.  Neither the reference PD (never a
+    start of the floor) nor ``mpcc`` (it sets a feed override) is asked for, and an unregistered id asks for none."""
+    from pathlib import Path
+
+    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    run = json.loads((data_dir / "shop_seeds" / "VCNC-HeartShop-v1.json").read_text())
+    sv = _seed_verdicts()
+    present = {r["policy"] for r in run["robust"]}
+    absent = sv.not_run("VCNC-HeartShop-v1", present)
+    assert "zpetc@machine" in absent and "ff-ccc@machine" in absent
+    assert not {"ff-pid@machine", "pd-ref", "mpcc", "oracle"} & set(absent)
+    assert sv.not_run("VCNC-HeartShop-v1", present | set(absent)) == []
+    assert sv.not_run("E", set()) == []
+    assert any("`zpetc@machine`" in line for line in sv.tables(run, "ff-ccc"))
