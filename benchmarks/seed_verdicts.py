@@ -87,7 +87,8 @@ def tables(data: dict, base: str) -> list[str]:
 def not_run(env_id: str, policies: set[str]) -> list[str]:
     """The causal controllers of :mod:`vcnc_baselines` that apply to ``env_id`` (the floor's starts,
     :func:`vcnc_baselines.optimal.search.causal_names`) and have no record among ``policies``: a verdict names the
-    strongest of those that ran.  Empty for an id that is not registered."""
+    strongest of those that ran (a learning controller's ``NAME (trial K)`` counts as ``NAME``).  Empty for an id that
+    is not registered."""
     import gymnasium as gym
 
     import vcnc_gym  # noqa: F401  (registers the ids)
@@ -97,7 +98,8 @@ def not_run(env_id: str, policies: set[str]) -> list[str]:
         return []
     env = gym.make(env_id)
     try:
-        return [n for n in causal_names(env) if n not in policies]
+        ran = {p.split(" (trial ")[0] for p in policies}  # a learning controller's label names its trial
+        return [n for n in causal_names(env) if n not in ran]
     finally:
         env.close()
 

@@ -392,4 +392,5 @@ def test_the_tables_name_the_causal_controllers_a_run_did_not_hold():
     assert not {"ff-pid@machine", "pd-ref", "mpcc", "oracle"} & set(absent)
     assert sv.not_run("VCNC-HeartShop-v1", present | set(absent)) == []
     assert sv.not_run("E", set()) == []
+    assert "ilc" not in sv.not_run("VCNC-CornersSmoothShop-v1", {"ilc (trial 10)"})
     assert any("`zpetc@machine`" in line for line in sv.tables(run, "ff-ccc"))
