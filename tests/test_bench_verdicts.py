@@ -377,14 +377,14 @@ def test_a_joined_floor_scores_every_record_plant_by_plant(capsys):
 
 
 def test_the_tables_name_the_causal_controllers_a_run_did_not_hold():
-    """A verdict weighs the strongest causal controller among those that ran: the shop-floor heart's 10-seed run
+    """A verdict weighs the strongest causal controller among those that ran: the shop-floor heart's 5-seed run
     holds ``ff-pid@machine`` but not ``zpetc@machine``, which is stronger there on the max (an IQM of 5.96 against
-    6.06 um over the same plants, "The floor over the box"); the tables say so.  Neither the reference PD (never a
+    6.06 um over the same plants, "Every causal controller and the floor over the box"); the tables say so.  Neither the reference PD (never a
     start of the floor) nor ``mpcc`` (it sets a feed override) is asked for, and an unregistered id asks for none."""
     from pathlib import Path
 
     data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
-    run = json.loads((data_dir / "shop_seeds" / "VCNC-HeartShop-v1.json").read_text())
+    run = json.loads((data_dir / "shop_seeds_5" / "VCNC-HeartShop-v1.json").read_text())
     sv = _seed_verdicts()
     present = {r["policy"] for r in run["robust"]}
     absent = sv.not_run("VCNC-HeartShop-v1", present)
