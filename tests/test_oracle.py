@@ -106,6 +106,27 @@ def test_every_contouring_id_ships_its_nominal_floor(stored):
     assert not missing
 
 
+def test_the_robust_path_reports_the_floor_s_plants_as_it_plans_them(stored):
+    """``robust.run_plants(planning=...)`` hands the callback to the floor's ``plan`` (it plans each plant apart,
+    minutes each when solved), which calls it after each plant: here the shipped nominal floor, loaded, one call
+    (1, 1); a controller without ``plans_per_plant`` is planned as before and never calls it.  The vector env finds
+    the floor stored from a single env (its key leaves out the vector env's own arguments; it was solved again)."""
+    from vcnc_bench import robust
+
+    env_id = "VCNC-OmegaLookaheadShop-v1"
+    env = gym.make(env_id)
+    u = env.unwrapped
+    calls = []
+    for policy in (vcnc_baselines.make("oracle", env), vcnc_baselines.make("ff-pid@machine", env)):
+        batch = robust.make_batch(env_id, 1)
+        try:
+            robust.run_plants(policy, batch, u.nominal_parameters[None], decision_period=u.decision_period, seed=0,
+                              planning=lambda done, total, name=policy.name: calls.append((name, done, total)))
+        finally:
+            batch.close()
+    assert calls == [("oracle", 1, 1)]
+
+
 def test_oracle_refuses_to_act_without_a_plan():
     env = gym.make("VCNC-Circle-v1")
     oracle = vcnc_baselines.make("oracle", env)

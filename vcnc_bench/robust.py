@@ -252,7 +252,8 @@ class PlantRuns:
 
 def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float, contouring: bool = True,
                seed: int | None = 0, trials: int = 1,
-               progress: Callable[[int, int], object] | None = None, progress_every: int = 1000) -> PlantRuns:
+               progress: Callable[[int, int], object] | None = None, progress_every: int = 1000,
+               planning: Callable[[int, int], object] | None = None) -> PlantRuns:
     """Run ``policy`` (SB3's ``predict`` on batches) on every plant of ``parameters`` at once.
 
     Parameters
@@ -273,6 +274,9 @@ def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float,
         Episodes in a row per plant (a policy that learns across episodes); the last is scored.
     progress : callable (trial, steps), optional
         Called every ``progress_every`` steps.
+    planning : callable (plants done, plants), optional
+        Passed to the ``plan`` of a policy that plans each plant apart (``plans_per_plant``: the floor, minutes a
+        plant), called as its plants are planned.
     """
     trials = integer("trials", trials, 1)
     m = parameters.shape[0]
@@ -281,7 +285,10 @@ def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float,
     for trial in range(1, trials + 1):
         obs, _ = batch.reset(seed=seed, options={"parameters": parameters})
         if hasattr(policy, "plan"):  # a non-causal floor (baselines' oracle) plans with the plants it now runs on
-            policy.plan(batch)
+            if planning is not None and getattr(policy, "plans_per_plant", False):
+                policy.plan(batch, progress=planning)
+            else:
+                policy.plan(batch)
         active = np.ones(m, dtype=bool)
         start, not_start = np.ones(m, dtype=bool), np.zeros(m, dtype=bool)
         steps = np.zeros(m, dtype=np.int64)
@@ -556,9 +563,14 @@ def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int 
                         bar.set_postfix_str(f"{env_id} {name}" + (f" trial {trial}/{k}" if k > 1 else "")
                                             + f" step {step}")
 
+                def planning(done, total, name=name):
+                    if bar is not None:
+                        bar.set_postfix_str(f"{env_id} {name}: plant {done} of {total} planned")
+
                 progress(1, 0)
                 result = run_plants(policy, batch, parameters, decision_period=u.decision_period,
-                                    contouring=suite_env(env_id).contouring, seed=seed, trials=k, progress=progress)
+                                    contouring=suite_env(env_id).contouring, seed=seed, trials=k, progress=progress,
+                                    planning=planning)
                 first, per_noise = split_noise(result, copies)
                 rec = {"env": env_id, "policy": name, **summarize(first, plants, u.plant)}
                 if copies > 1:

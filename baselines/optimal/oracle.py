@@ -132,9 +132,13 @@ class OraclePolicy(BaselinePolicy):
     def _initial_state(self):
         return np.zeros(0)
 
-    def plan(self, env) -> None:
+    #: :meth:`plan` searches each plant apart (minutes each) and takes ``progress``: the bench's bar shows it.
+    plans_per_plant = True
+
+    def plan(self, env, progress=None) -> None:
         """Find (or load) the floor for the plants ``env`` holds now, after its reset:
-        ``env.unwrapped.parameters``, (2, P) for a single env or (N, 2, P) for a vector env."""
+        ``env.unwrapped.parameters``, (2, P) for a single env or (N, 2, P) for a vector env.  ``progress``, if
+        given, is called with (plants done, plants) after each plant's floor is solved or loaded."""
         u = getattr(env, "unwrapped", env)
         task = getattr(u, "task", None)
         if task is None or not hasattr(u, "parameters") or not hasattr(u, "_batch"):
@@ -177,6 +181,8 @@ class OraclePolicy(BaselinePolicy):
             self.solutions.append(sol)
             self._starts.append(start)
             self._corrections.append(np.asarray(sol.correction, dtype=np.float32))
+            if progress is not None:
+                progress(i + 1, params.shape[0])
         self.reset(n_envs=params.shape[0])
         self._steps = [0] * params.shape[0]
         self.solve_time_s = time.perf_counter() - t0

@@ -61,16 +61,22 @@ def recompute_requested() -> bool:
     return os.environ.get("VCNC_ORACLE_RECOMPUTE", "") not in ("", "0")
 
 
+#: A vector env's own arguments in its spec: how the envs are batched, not what they simulate; not in a key, so
+#: that the floor of a plant stored from a single env is found from a vector env (the bench's ``--plants``) too.
+VECTOR_KWARGS = ("autoreset_mode", "parallel", "vectorization_mode", "num_envs")
+
+
 def signature(env, parameters: np.ndarray, noise_state=None) -> str:
-    """The key of the floor for ``env`` (after its reset) on the plant ``parameters`` (2, P): a file name
-    ``ID-HASH`` (see the module notes)."""
+    """The key of the floor for ``env`` (after its reset; a single env or a vector env) on the plant ``parameters``
+    (2, P): a file name ``ID-HASH`` (see the module notes)."""
     u = env.unwrapped
     task = u.task
     spec = getattr(u, "spec", None) or getattr(env, "spec", None)
     name = spec.id if spec is not None else task.plant.name
+    kwargs = None if spec is None else {k: v for k, v in spec.kwargs.items() if k not in VECTOR_KWARGS}
     h = hashlib.sha256()
     h.update(json.dumps({"version": SOLVER_VERSION, "id": name,
-                         "kwargs": spec.kwargs if spec is not None else None, "dt": task.dt,
+                         "kwargs": kwargs, "dt": task.dt,
                          "n_repeat": int(task.config.n_repeat), "plant": task.plant.name,
                          "options": task.plant_options}, sort_keys=True, default=repr).encode())
     h.update(np.ascontiguousarray(task.reference_arrays.samples).tobytes())
