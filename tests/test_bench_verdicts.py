@@ -340,7 +340,7 @@ def test_cross_cpu_counts_the_figures_that_moved_and_the_verdicts_that_changed()
         cc.compare(old, new, ("ppo:A", "ppo:B"))
 
 
-def test_a_joined_floor_scores_every_record_plant_by_plant(capsys):
+def test_a_joined_floor_scores_every_record_plant_by_plant():
     """``--with`` a floor's own ``--plants`` run (``vcnc-bench --policy oracle``: minutes a plant, run apart from the
     agents): every record's score is then per plant, its IQM scipy's trimmed mean of (ref - e) / (ref - floor) over
     the sampled plants, and the table gets the score column; a join without a floor leaves the scores as they were."""
@@ -379,8 +379,9 @@ def test_a_joined_floor_scores_every_record_plant_by_plant(capsys):
 def test_the_tables_name_the_causal_controllers_a_run_did_not_hold():
     """A verdict weighs the strongest causal controller among those that ran: the shop-floor heart's 5-seed run
     holds ``ff-pid@machine`` but not ``zpetc@machine``, which is stronger there on the max (an IQM of 5.96 against
-    6.06 um over the same plants, "Every causal controller and the floor over the box"); the tables say so.  Neither the reference PD (never a
-    start of the floor) nor ``mpcc`` (it sets a feed override) is asked for, and an unregistered id asks for none."""
+    6.06 um over the same plants, ``docs/reproduction.md``, "Every causal controller and the floor over the box");
+    the tables say so.  Neither the reference PD (never a start of the floor) nor ``mpcc`` (it sets a feed
+    override) is asked for, and an unregistered id asks for none."""
     from pathlib import Path
 
     data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"

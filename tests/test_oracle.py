@@ -110,7 +110,8 @@ def test_the_robust_path_reports_the_floor_s_plants_as_it_plans_them(stored):
     """``robust.run_plants(planning=...)`` hands the callback to the floor's ``plan`` (it plans each plant apart,
     minutes each when solved), which calls it after each plant: here the shipped nominal floor, loaded, one call
     (1, 1); a controller without ``plans_per_plant`` is planned as before and never calls it.  The vector env finds
-    the floor stored from a single env (its key leaves out the vector env's own arguments; it was solved again)."""
+    the floor stored from a single env: its key leaves out the vector env's own arguments (with them it was solved
+    again, and here the solve is refused)."""
     from vcnc_bench import robust
 
     env_id = "VCNC-OmegaLookaheadShop-v1"
