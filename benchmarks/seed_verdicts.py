@@ -77,11 +77,15 @@ def tables(data: dict, base: str) -> list[str]:
                    f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
                    f"{v['p_improvement']:.2f} | {v['outcome']} |")
     out += [""] + [line[0].upper() + line[1:] for line in _against_base(records, base)]
-    absent = not_run(env, {r["policy"] for r in records})
+    absent = _not_run_names(records)
     if absent:
-        out += ["", f"Not in this run, so not weighed by its verdicts: the causal controllers of {env} "
-                    + ", ".join(f"`{n}`" for n in absent) + "."]
+        out += ["", f"Not in this run, so not weighed by its verdicts: the causal controllers of {env} {absent}."]
     return out
+
+
+def _not_run_names(records: list[dict]) -> str:
+    """:func:`not_run` of a run's records, as Markdown names ('' when none)."""
+    return ", ".join(f"`{n}`" for n in not_run(records[0]["env"], {r["policy"] for r in records}))
 
 
 def not_run(env_id: str, policies: set[str]) -> list[str]:
@@ -155,10 +159,9 @@ def summary(runs: list[dict], base: str | list[str]) -> list[str]:
                         f"{v['outcome']} |")
         own = base_of([base] if isinstance(base, str) else base, records[0]["env"])
         lines += [f"- {name}: {line}" for line in _against_base(records, own)]
-        absent = not_run(records[0]["env"], {r["policy"] for r in records})
+        absent = _not_run_names(records)
         if absent:
-            lines.append(f"- {name}: not in the run, so not weighed by its verdicts: "
-                         + ", ".join(f"`{n}`" for n in absent) + ".")
+            lines.append(f"- {name}: not in the run, so not weighed by its verdicts: {absent}.")
     return rows + [""] + spread(runs) + [""] + lines
 
 
