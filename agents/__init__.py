@@ -43,8 +43,21 @@ TRAINED = {folder.name: folder for folder in _SHIPPED if folder.name.startswith(
 
 #: Plant name -> folder of the generalist shipped for it (``agents/trained/generalist-<plant>``): trained on
 #: ``VCNC-RandomContour-v1``, it runs on any contouring env of that plant (:data:`vcnc_agents.policy.ANY_CONTOUR_IDS`).
-GENERALISTS = {folder.name.removeprefix("generalist-"): folder for folder in _SHIPPED
-               if folder.name.startswith("generalist-")}
+GENERALISTS = {
+    folder.name.removeprefix("generalist-"): folder for folder in _SHIPPED if folder.name.startswith("generalist-")
+}
 
-__all__ = ["train", "TrainingResult", "RunWarning", "load_agent", "AgentPolicy", "env_signature",
-           "NormalizationStats", "ActionMode", "ResidualAction", "ACTION_MODES", "TRAINED", "GENERALISTS"]
+__all__ = [
+    "train",
+    "TrainingResult",
+    "RunWarning",
+    "load_agent",
+    "AgentPolicy",
+    "env_signature",
+    "NormalizationStats",
+    "ActionMode",
+    "ResidualAction",
+    "ACTION_MODES",
+    "TRAINED",
+    "GENERALISTS",
+]

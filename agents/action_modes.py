@@ -110,27 +110,46 @@ class ActionMode:
             import vcnc_baselines
 
             if self.baseline not in vcnc_baselines.names():
-                raise ValueError(f"residual mode needs a baseline among {vcnc_baselines.names()}, got {self.baseline!r}")
+                raise ValueError(
+                    f"residual mode needs a baseline among {vcnc_baselines.names()}, got {self.baseline!r}"
+                )
             c = self.correction
             if not 0 < real("correction", c, "fraction of u_max") <= 2:
                 raise ValueError(f"correction must be a number in (0, 2] (fraction of u_max), got {c!r}")
             object.__setattr__(self, "correction", float(c))
-        elif (self.baseline is not None or self.correction is not None or self.baseline_params or self.history
-              or self.peak_weight or self.dial_rate):
-            raise ValueError("baseline, correction, baseline_params, history, peak_weight and dial_rate apply to the "
-                             "residual mode only")
+        elif (
+            self.baseline is not None
+            or self.correction is not None
+            or self.baseline_params
+            or self.history
+            or self.peak_weight
+            or self.dial_rate
+        ):
+            raise ValueError(
+                "baseline, correction, baseline_params, history, peak_weight and dial_rate apply to the "
+                "residual mode only"
+            )
 
     # -- the two forms -----------------------------------------------------------------
     def wrap(self, env: gym.Env) -> gym.Env:
         """The env as the agent trains on it: residual wrapped, or direct with the env's repeat checked."""
         if self.mode == "residual":
-            return ResidualAction(env, baseline=self.baseline, correction=self.correction,
-                                  action_repeat=self.action_repeat, history=self.history,
-                                  peak_weight=self.peak_weight, dial_rate=self.dial_rate, **self.baseline_params)
+            return ResidualAction(
+                env,
+                baseline=self.baseline,
+                correction=self.correction,
+                action_repeat=self.action_repeat,
+                history=self.history,
+                peak_weight=self.peak_weight,
+                dial_rate=self.dial_rate,
+                **self.baseline_params,
+            )
         repeat = env.unwrapped.action_repeat
         if repeat != self.action_repeat:
-            raise ValueError(f"direct mode with action_repeat={self.action_repeat} needs an env made with "
-                             f"action_repeat={self.action_repeat}, got {repeat}")
+            raise ValueError(
+                f"direct mode with action_repeat={self.action_repeat} needs an env made with "
+                f"action_repeat={self.action_repeat}, got {repeat}"
+            )
         return env
 
     def make_baseline(self, env):
@@ -173,8 +192,10 @@ class ActionMode:
         if not self.dial_rate:
             return None
         if tuple(env.action_space.shape) != (3,):
-            raise ValueError(f"dial_rate limits a feed override dial (an action of 3 components), and "
-                             f"{type(env).__name__} takes {tuple(env.action_space.shape)}")
+            raise ValueError(
+                f"dial_rate limits a feed override dial (an action of 3 components), and "
+                f"{type(env).__name__} takes {tuple(env.action_space.shape)}"
+            )
         return DialSlew(self.dial_rate, env.dt, n)
 
     def peak_price(self, env, n: int) -> "PeakPrice | None":
@@ -317,18 +338,43 @@ class ResidualAction(gym.Wrapper, gym.utils.RecordConstructorArgs):
     components pass through unchanged.
     """
 
-    def __init__(self, env: gym.Env, baseline: str = "smc", correction: float = 0.2, action_repeat: int = 1,
-                 history: int = 0, peak_weight: float = 0.0, dial_rate: float = 0.0, **baseline_params):
-        gym.utils.RecordConstructorArgs.__init__(self, baseline=baseline, correction=correction,
-                                                 action_repeat=action_repeat, history=history,
-                                                 peak_weight=peak_weight, dial_rate=dial_rate, **baseline_params)
+    def __init__(
+        self,
+        env: gym.Env,
+        baseline: str = "smc",
+        correction: float = 0.2,
+        action_repeat: int = 1,
+        history: int = 0,
+        peak_weight: float = 0.0,
+        dial_rate: float = 0.0,
+        **baseline_params,
+    ):
+        gym.utils.RecordConstructorArgs.__init__(
+            self,
+            baseline=baseline,
+            correction=correction,
+            action_repeat=action_repeat,
+            history=history,
+            peak_weight=peak_weight,
+            dial_rate=dial_rate,
+            **baseline_params,
+        )
         super().__init__(env)
-        self.mode = ActionMode("residual", action_repeat=action_repeat, baseline=baseline,
-                               correction=correction, baseline_params=baseline_params, history=history,
-                               peak_weight=peak_weight, dial_rate=dial_rate)
+        self.mode = ActionMode(
+            "residual",
+            action_repeat=action_repeat,
+            baseline=baseline,
+            correction=correction,
+            baseline_params=baseline_params,
+            history=history,
+            peak_weight=peak_weight,
+            dial_rate=dial_rate,
+        )
         if env.unwrapped.action_repeat != 1:
-            raise ValueError("ResidualAction runs the baseline every control period: make the env with "
-                             f"action_repeat=1 (got {env.unwrapped.action_repeat}) and give the wrapper the repeat")
+            raise ValueError(
+                "ResidualAction runs the baseline every control period: make the env with "
+                f"action_repeat=1 (got {env.unwrapped.action_repeat}) and give the wrapper the repeat"
+            )
         self.baseline = self.mode.make_baseline(env)
         self.action_repeat = self.mode.action_repeat
         self._obs = None

@@ -100,8 +100,11 @@ class BehaviourCloning:
             if buf is None or buf.shape[0] != obs.shape[0]:
                 buf = self._history = np.repeat(obs[:, None], k, axis=1)
             else:
-                start = (np.ones(obs.shape[0], dtype=bool) if episode_start is None
-                         else np.asarray(episode_start, dtype=bool).reshape(-1))
+                start = (
+                    np.ones(obs.shape[0], dtype=bool)
+                    if episode_start is None
+                    else np.asarray(episode_start, dtype=bool).reshape(-1)
+                )
                 buf[:, 1:] = buf[:, :-1].copy()
                 buf[:, 0] = obs
                 buf[start] = obs[start][:, None]
@@ -116,14 +119,18 @@ class BehaviourCloning:
             check_env_signature(recorded, env, what="the behaviour-cloning policy")
         d = int(np.prod(env.observation_space.shape))
         if d * self.history != self.obs_mean.size:
-            raise ValueError(f"env has {d} observation entries, the behaviour-cloning policy "
-                             f"{self.obs_mean.size // self.history}")
+            raise ValueError(
+                f"env has {d} observation entries, the behaviour-cloning policy {self.obs_mean.size // self.history}"
+            )
 
     def save(self, path) -> Path:
         """Write the data-only ``.npz`` (numbers and a JSON header, nothing pickled); returns its path."""
         path = Path(path)
-        arrays = {"obs_mean": self.obs_mean, "obs_std": self.obs_std,
-                  "header": np.array(json.dumps(self.header, sort_keys=True))}
+        arrays = {
+            "obs_mean": self.obs_mean,
+            "obs_std": self.obs_std,
+            "header": np.array(json.dumps(self.header, sort_keys=True)),
+        }
         for k, (w, b) in enumerate(zip(self.weights, self.biases)):
             arrays[f"w{k}"], arrays[f"b{k}"] = w, b
         with open(path, "wb") as f:
@@ -180,9 +187,21 @@ def dataset_pairs(dataset, history: int = 1) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(obs), np.concatenate(act)
 
 
-def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_size: int = 1024,
-        learning_rate: float = 1e-3, validation: float = 0.05, seed: int = 0, signature: dict | None = None,
-        source: str | None = None, history: int = 1, progress=None) -> BehaviourCloning:
+def fit(
+    observations,
+    actions,
+    *,
+    hidden=(256, 256),
+    epochs: int = 20,
+    batch_size: int = 1024,
+    learning_rate: float = 1e-3,
+    validation: float = 0.05,
+    seed: int = 0,
+    signature: dict | None = None,
+    source: str | None = None,
+    history: int = 1,
+    progress=None,
+) -> BehaviourCloning:
     """Fit an MLP to ``(observations, actions)`` by mean squared error (torch, Adam, on the CPU).
 
     Parameters
@@ -220,8 +239,9 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
     obs = np.asarray(observations, dtype=np.float32)
     act = np.clip(np.asarray(actions, dtype=np.float32), -1.0, 1.0)
     if obs.ndim != 2 or act.ndim != 2 or obs.shape[0] != act.shape[0] or obs.shape[0] < 2:
-        raise ValueError(f"observations (S, D) and actions (S, A) must have the same S >= 2, got {obs.shape} "
-                         f"and {act.shape}")
+        raise ValueError(
+            f"observations (S, D) and actions (S, A) must have the same S >= 2, got {obs.shape} and {act.shape}"
+        )
     if not (np.isfinite(obs).all() and np.isfinite(act).all()):
         raise ValueError("observations and actions must be finite")
     history = integer("history", history, 1)
@@ -265,7 +285,7 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
     for epoch in range(epochs):
         perm = train_t[torch.from_numpy(rng.permutation(train.size))]
         for k in range(0, perm.numel(), batch_size):
-            idx = perm[k:k + batch_size]
+            idx = perm[k : k + batch_size]
             loss = torch.mean((net(x[idx]) - y[idx]) ** 2)
             opt.zero_grad()
             loss.backward()
@@ -275,13 +295,30 @@ def fit(observations, actions, *, hidden=(256, 256), epochs: int = 20, batch_siz
         if progress is not None:
             progress(epoch + 1, losses["train"][-1], losses["validation"][-1])
     linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    header = {"format": FORMAT, "signature": signature, "source": source, "losses": losses, "history": history,
-              "settings": {"hidden": hidden, "epochs": epochs, "batch_size": batch_size,
-                           "learning_rate": learning_rate, "validation": validation, "seed": seed,
-                           "pairs": int(obs.shape[0]), "train_s": time.perf_counter() - t0}}
-    return BehaviourCloning(weights=[m.weight.detach().numpy().T.astype(np.float32).copy() for m in linears],
-                            biases=[m.bias.detach().numpy().astype(np.float32).copy() for m in linears],
-                            obs_mean=mean.astype(np.float32), obs_std=std, header=header)
+    header = {
+        "format": FORMAT,
+        "signature": signature,
+        "source": source,
+        "losses": losses,
+        "history": history,
+        "settings": {
+            "hidden": hidden,
+            "epochs": epochs,
+            "batch_size": batch_size,
+            "learning_rate": learning_rate,
+            "validation": validation,
+            "seed": seed,
+            "pairs": int(obs.shape[0]),
+            "train_s": time.perf_counter() - t0,
+        },
+    }
+    return BehaviourCloning(
+        weights=[m.weight.detach().numpy().T.astype(np.float32).copy() for m in linears],
+        biases=[m.bias.detach().numpy().astype(np.float32).copy() for m in linears],
+        obs_mean=mean.astype(np.float32),
+        obs_std=std,
+        header=header,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -324,11 +361,23 @@ def main(argv: list[str] | None = None) -> int:
     def report(epoch, tr, va):
         print(f"epoch {epoch:3d}: train MSE {tr:.4g}, validation MSE {va:.4g}", flush=True)
 
-    bc = fit(obs, act, hidden=args.hidden, epochs=args.epochs, batch_size=args.batch_size,
-             learning_rate=args.learning_rate, seed=args.seed, signature=signature,
-             source=" + ".join(args.dataset), history=args.history, progress=report)
-    print(f"wrote {bc.save(args.out)} (initial train MSE {bc.header['losses']['initial_train']:.4g}, "
-          f"{bc.header['settings']['train_s']:.1f} s)")
+    bc = fit(
+        obs,
+        act,
+        hidden=args.hidden,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        learning_rate=args.learning_rate,
+        seed=args.seed,
+        signature=signature,
+        source=" + ".join(args.dataset),
+        history=args.history,
+        progress=report,
+    )
+    print(
+        f"wrote {bc.save(args.out)} (initial train MSE {bc.header['losses']['initial_train']:.4g}, "
+        f"{bc.header['settings']['train_s']:.1f} s)"
+    )
     return 0
 
 

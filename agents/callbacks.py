@@ -122,6 +122,8 @@ class _RunCallbackSteps:
             save_agent(self._run_dir / "best", self.model, stats, self._config, n, row)
         if self.verbose:
             best = f"{self.best['score_um']:.2f}" if self.best else "-"
-            print(f"eval at {n} steps: " + ("diverged" if row["diverged"] else
-                                              f"max {row['max_um']:.2f} um, "
-                                              f"RMS {row['rms_um']:.2f} um") + f" (best score {best})")
+            print(
+                f"eval at {n} steps: "
+                + ("diverged" if row["diverged"] else f"max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um")
+                + f" (best score {best})"
+            )

@@ -28,6 +28,7 @@ from .arguments import parser as make_parser
 
 __all__ = ["main"]
 
+
 @contextmanager
 def _print_run_warnings():
     """Show the trainer's RunWarnings as one plain line each on stderr."""
@@ -72,10 +73,23 @@ def _sweep_conflict(args) -> str | None:
         return "--jobs applies to --seeds K" if args.jobs is not None and args.seeds is None else None
     if args.seeds is not None:
         return "the sweep file sets every trial's seed; drop --seeds"
-    given = [f"--{k.replace('_', '-')}" for k in ("env", "resume", "timesteps", "seed", "n_envs", "config",
-                                                  *MODE_OPTIONS, *_training_options(args), "threads", "tolerance",
-                                                  "init_from")
-             if getattr(args, k) is not None]
+    given = [
+        f"--{k.replace('_', '-')}"
+        for k in (
+            "env",
+            "resume",
+            "timesteps",
+            "seed",
+            "n_envs",
+            "config",
+            *MODE_OPTIONS,
+            *_training_options(args),
+            "threads",
+            "tolerance",
+            "init_from",
+        )
+        if getattr(args, k) is not None
+    ]
     given += ["--vec-env"] * (args.vec_env != "native") + ["--trainer"] * (args.trainer is not None)
     return f"the sweep file sets every trial's options; drop {', '.join(given)}" if given else None
 
@@ -115,8 +129,15 @@ def _seeds_main(parser, args, argv: list[str]) -> int:
         parser.error(f"--seeds and --jobs must be positive, got {args.seeds} and {args.jobs}")
     try:
         check_env_id(args.env)
-        runs = run_seeds(argv, args.env, 0 if args.seed is None else args.seed, args.seeds, args.output,
-                         jobs=args.jobs, ray_address=args.ray_address)
+        runs = run_seeds(
+            argv,
+            args.env,
+            0 if args.seed is None else args.seed,
+            args.seeds,
+            args.output,
+            jobs=args.jobs,
+            ray_address=args.ray_address,
+        )
     except (ValueError, ImportError) as exc:
         parser.error(str(exc))
     return next((r.code for r in runs if r.code != 0), 0)
@@ -155,11 +176,16 @@ def _check_run_options(parser, args) -> None:
     if args.resume is not None:
         if args.output is not None and args.output != args.resume:
             parser.error("--resume DIR is the run folder; --output does not apply")
-        fixed = [f"--{k.replace('_', '-')}" for k in (*MODE_OPTIONS, "n_envs", "seed", "config", "tolerance", "init_from")
-                 if getattr(args, k) is not None]
+        fixed = [
+            f"--{k.replace('_', '-')}"
+            for k in (*MODE_OPTIONS, "n_envs", "seed", "config", "tolerance", "init_from")
+            if getattr(args, k) is not None
+        ]
         if fixed:
-            parser.error(f"a resumed run keeps its action mode, n_envs, seed and hyperparameters (see its config.yml); "
-                         f"drop {', '.join(fixed)}")
+            parser.error(
+                f"a resumed run keeps its action mode, n_envs, seed and hyperparameters (see its config.yml); "
+                f"drop {', '.join(fixed)}"
+            )
     if args.threads is not None and args.threads < 1:
         parser.error(f"--threads must be positive, got {args.threads}")
 
@@ -179,17 +205,33 @@ def _prepare(parser, args, tensorboard):
             check_env_id(args.env)
             config_file = args.config if args.config is not None else DEFAULT_CONFIG
             run_dir, config, checkpoint = prepare_run(
-                args.env, args.output, n_timesteps=args.timesteps, seed=0 if args.seed is None else args.seed,
-                n_envs=args.n_envs, config_file=config_file, action_mode=action_mode(args, config_file),
-                tolerance=args.tolerance, init_from=args.init_from, **options)
+                args.env,
+                args.output,
+                n_timesteps=args.timesteps,
+                seed=0 if args.seed is None else args.seed,
+                n_envs=args.n_envs,
+                config_file=config_file,
+                action_mode=action_mode(args, config_file),
+                tolerance=args.tolerance,
+                init_from=args.init_from,
+                **options,
+            )
         else:
-            run_dir, config, checkpoint = prepare_run(args.env, args.resume, resume=True, n_timesteps=args.timesteps,
-                                                      **options)
-        trainer = check_trainer(args.trainer, config.env_id, config.trainer, resumed=args.resume is not None,
-                                needs_sb3=sb3_only(config, args.vec_env))
+            run_dir, config, checkpoint = prepare_run(
+                args.env, args.resume, resume=True, n_timesteps=args.timesteps, **options
+            )
+        trainer = check_trainer(
+            args.trainer,
+            config.env_id,
+            config.trainer,
+            resumed=args.resume is not None,
+            needs_sb3=sb3_only(config, args.vec_env),
+        )
         if trainer == "sb3" and checkpoint is None and config.init_from is not None:
-            raise ValueError("--init-from: a warm start is the lean trainer's; this run needs SB3's "
-                             f"({sb3_only(config, args.vec_env) or '--trainer sb3'})")
+            raise ValueError(
+                "--init-from: a warm start is the lean trainer's; this run needs SB3's "
+                f"({sb3_only(config, args.vec_env) or '--trainer sb3'})"
+            )
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
         parser.error(str(exc))
     return run_dir, config, checkpoint, trainer
@@ -204,15 +246,25 @@ def _train(args, trainer: str, run_dir, config, checkpoint, tensorboard):
             from .lean_ppo import learn as learn_lean
 
             return learn_lean(run_dir, config, checkpoint, progress_bar=not args.no_progress, verbose=args.verbose)
-        return learn(run_dir, config, checkpoint, progress_bar=not args.no_progress, tensorboard=tensorboard,
-                     vec_env=args.vec_env, verbose=args.verbose)
+        return learn(
+            run_dir,
+            config,
+            checkpoint,
+            progress_bar=not args.no_progress,
+            tensorboard=tensorboard,
+            vec_env=args.vec_env,
+            verbose=args.verbose,
+        )
     except KeyboardInterrupt:  # a second Ctrl-C
         print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
         return 130
     except OSError as exc:  # disk full, a folder made read-only during the run: one line, no traceback
         where = f" {exc.filename}" if exc.filename else ""
-        print(f"vcnc-train: training failed: cannot write{where}: {exc.strerror or exc}; "
-              f"{_after_failure(run_dir, checkpoint)}", file=sys.stderr)
+        print(
+            f"vcnc-train: training failed: cannot write{where}: {exc.strerror or exc}; "
+            f"{_after_failure(run_dir, checkpoint)}",
+            file=sys.stderr,
+        )
         return 1
     except Exception:
         print(f"vcnc-train: training failed; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
@@ -223,19 +275,26 @@ def _report(result) -> int:
     """The session's summary printed; the exit code (128 + the signal of a stopped run)."""
     resume = f"vcnc-train --resume {result.run_dir}"
     if result.interrupted is not None:
-        print(f"vcnc-train: stopped by {result.interrupted} after {result.session_timesteps} agent steps of this "
-              f"session; checkpoint at {result.timesteps} steps saved. Resume with: {resume}", file=sys.stderr)
+        print(
+            f"vcnc-train: stopped by {result.interrupted} after {result.session_timesteps} agent steps of this "
+            f"session; checkpoint at {result.timesteps} steps saved. Resume with: {resume}",
+            file=sys.stderr,
+        )
         return 128 + int(getattr(signal, result.interrupted))
-    print(f"trained {result.session_timesteps} agent steps in {result.wall_s:.1f} s: "
-          f"{result.steps_per_s:.0f} steps/s ({result.control_periods_per_s:.0f} control periods/s); "
-          f"{result.timesteps} in all")
+    print(
+        f"trained {result.session_timesteps} agent steps in {result.wall_s:.1f} s: "
+        f"{result.steps_per_s:.0f} steps/s ({result.control_periods_per_s:.0f} control periods/s); "
+        f"{result.timesteps} in all"
+    )
     if result.best is not None:
         b = result.best
         print(f"best evaluation at {int(b['steps'])} steps: max {b['max_um']:.2f} um, RMS {b['rms_um']:.2f} um")
     agents = [str(result.run_dir / name) for name in ("best", "final") if (result.run_dir / name).is_dir()]
     if result.best is None:
-        agents.append("no best/: " + ("every evaluation diverged" if (result.run_dir / "evaluations.csv").is_file()
-                                      else "no evaluation ran"))
+        agents.append(
+            "no best/: "
+            + ("every evaluation diverged" if (result.run_dir / "evaluations.csv").is_file() else "no evaluation ran")
+        )
     print(f"run folder: {result.run_dir}  (agents: {', '.join(agents) or 'none'})")
     return 0
 

@@ -45,7 +45,6 @@ from .model_file import POLICIES
 __all__ = [
     "DEFAULT_CONFIG",
     "RESIDUAL_WRAPPER",
-
     "TORCH_NAMES",
     "load_hyperparameters",
     "action_mode_of",
@@ -69,12 +68,29 @@ _OLD_RESIDUAL_WRAPPER = "agents.action_modes.ResidualAction"
 _ZOO_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "env_kwargs", "env_wrapper")
 
 #: Zoo keys vcnc-train does not implement (refused rather than ignored).
-_UNSUPPORTED_ZOO_KEYS = ("frame_stack", "callback", "vec_env_wrapper", "normalize_kwargs", "eval_env_kwargs",
-                         "monitor_kwargs", "replay_buffer_class", "replay_buffer_kwargs")
+_UNSUPPORTED_ZOO_KEYS = (
+    "frame_stack",
+    "callback",
+    "vec_env_wrapper",
+    "normalize_kwargs",
+    "eval_env_kwargs",
+    "monitor_kwargs",
+    "replay_buffer_class",
+    "replay_buffer_kwargs",
+)
 
 #: PPO arguments vcnc-train sets itself.
-_SET_BY_TRAINER = ("tensorboard_log", "verbose", "seed", "device", "env", "policy", "_init_setup_model",
-                   "rollout_buffer_class", "rollout_buffer_kwargs")
+_SET_BY_TRAINER = (
+    "tensorboard_log",
+    "verbose",
+    "seed",
+    "device",
+    "env",
+    "policy",
+    "_init_setup_model",
+    "rollout_buffer_class",
+    "rollout_buffer_kwargs",
+)
 
 #: VecNormalize arguments an entry's ``normalize`` dict may hold.
 _NORMALIZE_KEYS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "epsilon", "gamma")
@@ -83,8 +99,19 @@ _NORMALIZE_KEYS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "epsilo
 def _torch_names() -> dict[str, Any]:
     import torch
 
-    activations = ("ReLU", "Tanh", "ELU", "LeakyReLU", "SiLU", "GELU", "Sigmoid", "Softplus", "Mish", "SELU",
-                   "Identity")
+    activations = (
+        "ReLU",
+        "Tanh",
+        "ELU",
+        "LeakyReLU",
+        "SiLU",
+        "GELU",
+        "Sigmoid",
+        "Softplus",
+        "Mish",
+        "SELU",
+        "Identity",
+    )
     optimisers = ("Adam", "AdamW", "RMSprop", "SGD")
     names = {}
     for n in activations:
@@ -104,8 +131,10 @@ def _named(name: str):
     if not TORCH_NAMES:
         TORCH_NAMES.update(_torch_names())
     if name not in TORCH_NAMES:
-        raise ValueError(f"policy_kwargs may only name {', '.join(n for n in TORCH_NAMES if n.startswith(('nn.', 'th.optim.')))}; "
-                         f"got {name!r}")
+        raise ValueError(
+            f"policy_kwargs may only name {', '.join(n for n in TORCH_NAMES if n.startswith(('nn.', 'th.optim.')))}; "
+            f"got {name!r}"
+        )
     return TORCH_NAMES[name]
 
 
@@ -206,8 +235,10 @@ def _literal(node: ast.AST, text: str):
         return {k.arg: _literal(k.value, text) for k in node.keywords}
     if isinstance(node, (ast.Name, ast.Attribute)):
         return _named(ast.unparse(node))
-    raise ValueError(f"policy_kwargs may hold only literals, dict(...) and the names of vcnc_agents.config.TORCH_NAMES; "
-                     f"{ast.unparse(node)!r} in {text!r} is none of them")
+    raise ValueError(
+        f"policy_kwargs may hold only literals, dict(...) and the names of vcnc_agents.config.TORCH_NAMES; "
+        f"{ast.unparse(node)!r} in {text!r} is none of them"
+    )
 
 
 def parse_policy_kwargs(value, policy: str = "MlpPolicy") -> dict:
@@ -245,7 +276,12 @@ def parse_policy_kwargs(value, policy: str = "MlpPolicy") -> dict:
     from .model_file import algorithm
 
     known = set(inspect.signature(algorithm(policy).policy_aliases[policy].__init__).parameters) - {
-        "self", "observation_space", "action_space", "lr_schedule", "features_extractor_class"}
+        "self",
+        "observation_space",
+        "action_space",
+        "lr_schedule",
+        "features_extractor_class",
+    }
     refuse_unknown("policy_kwargs", kwargs, known)
     return kwargs
 
@@ -302,13 +338,19 @@ def _wrappers(spec) -> list[tuple[str, dict]]:
         if isinstance(item, str):
             out.append((item, {}))
         elif isinstance(item, dict) and len(item) == 1 and isinstance(next(iter(item.values())) or {}, dict):
-            (name, kwargs), = item.items()
+            ((name, kwargs),) = item.items()
             out.append((name, dict(kwargs or {})))
         else:
-            raise ValueError(f"env_wrapper entries must be 'module.Class' or {{'module.Class': {{kwargs}}}}, got {item!r}")
+            raise ValueError(
+                f"env_wrapper entries must be 'module.Class' or {{'module.Class': {{kwargs}}}}, got {item!r}"
+            )
     if any(name == _OLD_RESIDUAL_WRAPPER for name, _ in out):
-        warnings.warn(f"env_wrapper {_OLD_RESIDUAL_WRAPPER} is now {RESIDUAL_WRAPPER} (the package installs as "
-                      "vcnc_agents); the old path is read until vcnc-gym 0.4", DeprecationWarning, stacklevel=3)
+        warnings.warn(
+            f"env_wrapper {_OLD_RESIDUAL_WRAPPER} is now {RESIDUAL_WRAPPER} (the package installs as "
+            "vcnc_agents); the old path is read until vcnc-gym 0.4",
+            DeprecationWarning,
+            stacklevel=3,
+        )
         out = [(RESIDUAL_WRAPPER if name == _OLD_RESIDUAL_WRAPPER else name, kwargs) for name, kwargs in out]
     return out
 
@@ -340,11 +382,19 @@ def with_action_mode(hyperparams: dict, mode: ActionMode) -> dict:
     h.pop("env_wrapper", None)
     if mode.mode == "residual":
         env_kwargs.pop("action_repeat", None)
-        h["env_wrapper"] = [{RESIDUAL_WRAPPER: {"baseline": mode.baseline, "correction": mode.correction,
-                                                "action_repeat": mode.action_repeat, **mode.baseline_params,
-                                                **({"history": mode.history} if mode.history else {}),
-                                                **({"peak_weight": mode.peak_weight} if mode.peak_weight else {}),
-                                                **({"dial_rate": mode.dial_rate} if mode.dial_rate else {})}}]
+        h["env_wrapper"] = [
+            {
+                RESIDUAL_WRAPPER: {
+                    "baseline": mode.baseline,
+                    "correction": mode.correction,
+                    "action_repeat": mode.action_repeat,
+                    **mode.baseline_params,
+                    **({"history": mode.history} if mode.history else {}),
+                    **({"peak_weight": mode.peak_weight} if mode.peak_weight else {}),
+                    **({"dial_rate": mode.dial_rate} if mode.dial_rate else {}),
+                }
+            }
+        ]
     else:
         env_kwargs["action_repeat"] = mode.action_repeat
     if env_kwargs:
@@ -398,8 +448,10 @@ def ppo_arguments(hyperparams: dict) -> tuple[str, dict[str, Any]]:
         raise ValueError(f"hyperparameters must be a mapping, got {hyperparams!r}")
     unsupported = [k for k in hyperparams if k in _UNSUPPORTED_ZOO_KEYS or k in _SET_BY_TRAINER and k != "policy"]
     if unsupported:
-        raise ValueError(f"vcnc-train does not support the hyperparameter(s) {unsupported} "
-                         "(it sets the seed, device, logging and buffers itself)")
+        raise ValueError(
+            f"vcnc-train does not support the hyperparameter(s) {unsupported} "
+            "(it sets the seed, device, logging and buffers itself)"
+        )
     refuse_unknown("the hyperparameters", hyperparams, set(_PPO_RULES) | set(_ZOO_KEYS))
     policy = hyperparams.get("policy", "MlpPolicy")
     if policy not in POLICIES:

@@ -56,8 +56,7 @@ def _gym_env_factory(env_id: str, env_kwargs: dict, mode: ActionMode, start: int
     return make
 
 
-def make_training_venv(config, run_dir: Path, *, vec_env: str = "native", start_steps: int = 0,
-                       append: bool = False):
+def make_training_venv(config, run_dir: Path, *, vec_env: str = "native", start_steps: int = 0, append: bool = False):
     """The run's training VecEnv (without normalisation): n_envs envs with their Monitor files.
 
     ``config`` is the run's :class:`vcnc_agents.run_config.RunConfig`.  Env i is seeded ``seed + start_steps + i``
@@ -83,12 +82,25 @@ def make_training_venv(config, run_dir: Path, *, vec_env: str = "native", start_
     if vec_env == "native":
         from .vec_env import VcncVecEnv
 
-        return VcncVecEnv(env_id, n_envs, config.mode, config.env_kwargs, seed=seed,
-                          monitor_dir=run_dir / "monitor", start_steps=start_steps, append=append)
+        return VcncVecEnv(
+            env_id,
+            n_envs,
+            config.mode,
+            config.env_kwargs,
+            seed=seed,
+            monitor_dir=run_dir / "monitor",
+            start_steps=start_steps,
+            append=append,
+        )
     cls = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv}[vec_env]
-    return make_vec_env(_gym_env_factory(env_id, config.env_kwargs, config.mode, start_steps, n_envs),
-                        n_envs=n_envs, seed=seed, vec_env_cls=cls, monitor_dir=str(run_dir / "monitor"),
-                        monitor_kwargs={"info_keywords": ("steps",), "override_existing": not append})
+    return make_vec_env(
+        _gym_env_factory(env_id, config.env_kwargs, config.mode, start_steps, n_envs),
+        n_envs=n_envs,
+        seed=seed,
+        vec_env_cls=cls,
+        monitor_dir=str(run_dir / "monitor"),
+        monitor_kwargs={"info_keywords": ("steps",), "override_existing": not append},
+    )
 
 
 def eval_kwargs(env_kwargs: dict) -> dict:
@@ -116,8 +128,9 @@ def check_envs(config) -> dict:
         train_env.close()
         eval_env = gym.make(env_id, **eval_kwargs(env_kwargs))
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"env_kwargs {env_kwargs} do not make a {env_id} env for the {mode.mode} action mode: "
-                         f"{exc}") from None
+        raise ValueError(
+            f"env_kwargs {env_kwargs} do not make a {env_id} env for the {mode.mode} action mode: {exc}"
+        ) from None
     policy, ppo_kwargs = config.ppo_arguments()
     policy_kwargs = ppo_kwargs.get("policy_kwargs")
     try:

@@ -61,7 +61,16 @@ from .run_session import Session, TrainingResult, open_run, prepare_run, roll_ba
 from .run_warning import note
 from .vec_env import commission_drawn_plants, monitor_writers, native_batch, per_env_batch
 
-__all__ = ["TRAINERS", "sb3_only", "check_trainer", "DecisionEnv", "RunningNormalizer", "PhaseClock", "learn", "train_lean"]
+__all__ = [
+    "TRAINERS",
+    "sb3_only",
+    "check_trainer",
+    "DecisionEnv",
+    "RunningNormalizer",
+    "PhaseClock",
+    "learn",
+    "train_lean",
+]
 
 #: The trainers of ``vcnc-train --trainer``: SB3's PPO (vcnc_agents.training) and this module's.
 TRAINERS = ("sb3", "lean")
@@ -79,8 +88,14 @@ def sb3_only(config: RunConfig, vec_env: str = "native") -> str | None:
     return None
 
 
-def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None, *, resumed: bool = False,
-                  needs_sb3: str | None = None) -> str:
+def check_trainer(
+    trainer: str | None,
+    env_id: str,
+    recorded: str | None = None,
+    *,
+    resumed: bool = False,
+    needs_sb3: str | None = None,
+) -> str:
     """The trainer a run goes on with; ValueError, before the training starts, when it cannot.
 
     ``trainer`` is the one asked for (None: a resumed run's own, or for a new run ``"lean"``, the default, unless
@@ -99,8 +114,9 @@ def check_trainer(trainer: str | None, env_id: str, recorded: str | None = None,
     if trainer not in TRAINERS:
         raise ValueError(f"trainer must be one of {list(TRAINERS)}, got {trainer!r}")
     if recorded is not None and trainer != recorded:
-        raise ValueError(f"the run was trained with the {recorded!r} trainer and goes on with it; drop --trainer "
-                         f"{trainer}")
+        raise ValueError(
+            f"the run was trained with the {recorded!r} trainer and goes on with it; drop --trainer {trainer}"
+        )
     if trainer == "lean" and needs_sb3:
         raise ValueError(f"the lean trainer cannot train this run: {needs_sb3}; use --trainer sb3")
     return trainer
@@ -141,8 +157,18 @@ class DecisionEnv:
         Append to existing monitor files (a resumed run).
     """
 
-    def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict, seed: int, *,
-                 monitor_dir=None, start_steps: int = 0, append: bool = False):
+    def __init__(
+        self,
+        env_id: str,
+        n_envs: int,
+        mode: ActionMode,
+        env_kwargs: dict,
+        seed: int,
+        *,
+        monitor_dir=None,
+        start_steps: int = 0,
+        append: bool = False,
+    ):
         from vcnc_gym.envs.registry import VECTOR_IDS
 
         self.native = env_id in VECTOR_IDS
@@ -203,8 +229,9 @@ class DecisionEnv:
                 self.controller = commission_drawn_plants(self.baseline, self.venv, self.controller)
                 self.baseline.reset(mask=self._start)
                 self._start[:] = False
-            obs, total, te, tr, info = self.venv.step_controlled(self.controller, actions, self.mode.correction,
-                                                                 self.repeat, active=active)
+            obs, total, te, tr, info = self.venv.step_controlled(
+                self.controller, actions, self.mode.correction, self.repeat, active=active
+            )
             return obs, total, te, tr, info["contour_error_max"]
         if active is not None:
             raise ValueError("only a compiled residual baseline steps a subset of the envs")
@@ -265,8 +292,14 @@ class DecisionEnv:
             terminal = obs[done].copy() if self.history is None else self.history.seen(obs, done)  # ended rows only
             for i in np.flatnonzero(done):
                 if self._writers is not None:
-                    self._writers[i].write_row({"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
-                                                "t": round(time.time() - self._t0, 6), "steps": self.steps})
+                    self._writers[i].write_row(
+                        {
+                            "r": round(float(self._returns[i]), 6),
+                            "l": int(self._lengths[i]),
+                            "t": round(time.time() - self._t0, 6),
+                            "steps": self.steps,
+                        }
+                    )
             self._returns[done] = 0.0
             self._lengths[done] = 0
             obs, _ = self.venv.reset(options={"reset_mask": done})
@@ -306,14 +339,24 @@ class RunningNormalizer:
         from stable_baselines3.common.running_mean_std import RunningMeanStd
 
         self.norm_obs, self.norm_reward = stats.norm_obs, stats.norm_reward
-        self.clip_obs, self.clip_reward, self.epsilon, self.gamma = (stats.clip_obs, stats.clip_reward,
-                                                                     stats.epsilon, stats.gamma)
+        self.clip_obs, self.clip_reward, self.epsilon, self.gamma = (
+            stats.clip_obs,
+            stats.clip_reward,
+            stats.epsilon,
+            stats.gamma,
+        )
         self.obs_rms = RunningMeanStd(shape=stats.obs_mean.shape)
-        self.obs_rms.mean, self.obs_rms.var, self.obs_rms.count = stats.obs_mean.copy(), stats.obs_var.copy(), \
-            stats.obs_count
+        self.obs_rms.mean, self.obs_rms.var, self.obs_rms.count = (
+            stats.obs_mean.copy(),
+            stats.obs_var.copy(),
+            stats.obs_count,
+        )
         self.ret_rms = RunningMeanStd(shape=())
-        self.ret_rms.mean, self.ret_rms.var, self.ret_rms.count = (np.float64(stats.ret_mean),
-                                                                   np.float64(stats.ret_var), stats.ret_count)
+        self.ret_rms.mean, self.ret_rms.var, self.ret_rms.count = (
+            np.float64(stats.ret_mean),
+            np.float64(stats.ret_var),
+            stats.ret_count,
+        )
         self.returns = np.zeros(n_envs)
 
     @classmethod
@@ -321,18 +364,39 @@ class RunningNormalizer:
         """Statistics of a new run from the entry's ``normalize`` (VecNormalize's defaults)."""
         kw = normalize_kwargs(hyperparams)
         kw = {"norm_obs": False, "norm_reward": False} if kw is None else kw
-        return cls(NormalizationStats(
-            norm_obs=bool(kw.get("norm_obs", True)), norm_reward=bool(kw.get("norm_reward", True)),
-            obs_mean=np.zeros(obs_size), obs_var=np.ones(obs_size), obs_count=1e-4, ret_mean=0.0, ret_var=1.0,
-            ret_count=1e-4, clip_obs=float(kw.get("clip_obs", 10.0)), clip_reward=float(kw.get("clip_reward", 10.0)),
-            epsilon=float(kw.get("epsilon", 1e-8)), gamma=float(kw.get("gamma", 0.99))), n_envs)
+        return cls(
+            NormalizationStats(
+                norm_obs=bool(kw.get("norm_obs", True)),
+                norm_reward=bool(kw.get("norm_reward", True)),
+                obs_mean=np.zeros(obs_size),
+                obs_var=np.ones(obs_size),
+                obs_count=1e-4,
+                ret_mean=0.0,
+                ret_var=1.0,
+                ret_count=1e-4,
+                clip_obs=float(kw.get("clip_obs", 10.0)),
+                clip_reward=float(kw.get("clip_reward", 10.0)),
+                epsilon=float(kw.get("epsilon", 1e-8)),
+                gamma=float(kw.get("gamma", 0.99)),
+            ),
+            n_envs,
+        )
 
     def stats(self) -> NormalizationStats:
         return NormalizationStats(
-            norm_obs=self.norm_obs, norm_reward=self.norm_reward, obs_mean=np.array(self.obs_rms.mean, dtype=float),
-            obs_var=np.array(self.obs_rms.var, dtype=float), obs_count=float(self.obs_rms.count),
-            ret_mean=float(self.ret_rms.mean), ret_var=float(self.ret_rms.var), ret_count=float(self.ret_rms.count),
-            clip_obs=self.clip_obs, clip_reward=self.clip_reward, epsilon=self.epsilon, gamma=self.gamma)
+            norm_obs=self.norm_obs,
+            norm_reward=self.norm_reward,
+            obs_mean=np.array(self.obs_rms.mean, dtype=float),
+            obs_var=np.array(self.obs_rms.var, dtype=float),
+            obs_count=float(self.obs_rms.count),
+            ret_mean=float(self.ret_rms.mean),
+            ret_var=float(self.ret_rms.var),
+            ret_count=float(self.ret_rms.count),
+            clip_obs=self.clip_obs,
+            clip_reward=self.clip_reward,
+            epsilon=self.epsilon,
+            gamma=self.gamma,
+        )
 
     def observe(self, obs: np.ndarray, update: bool = True) -> np.ndarray:
         """Normalised observations (float32); ``update`` adds them to the statistics first."""
@@ -340,8 +404,9 @@ class RunningNormalizer:
             return obs.astype(np.float32)
         if update:
             self.obs_rms.update(obs)
-        return np.clip((obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon),
-                       -self.clip_obs, self.clip_obs).astype(np.float32)
+        return np.clip(
+            (obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon), -self.clip_obs, self.clip_obs
+        ).astype(np.float32)
 
     def reward(self, rewards: np.ndarray, done: np.ndarray) -> np.ndarray:
         """Normalised rewards (float32) of a decision; the returns of ended episodes restart."""
@@ -446,8 +511,7 @@ class LeanPPO:
         The run's total, for the schedules' progress.
     """
 
-    def __init__(self, model, env: DecisionEnv, normalizer: RunningNormalizer, total_timesteps: int,
-                 clock: PhaseClock):
+    def __init__(self, model, env: DecisionEnv, normalizer: RunningNormalizer, total_timesteps: int, clock: PhaseClock):
         import torch
         from stable_baselines3.common.distributions import DiagGaussianDistribution
 
@@ -455,7 +519,8 @@ class LeanPPO:
 
         policy = model.policy
         if not isinstance(policy.action_dist, DiagGaussianDistribution) or not isinstance(
-                policy.pi_features_extractor, FlattenExtractor):
+            policy.pi_features_extractor, FlattenExtractor
+        ):
             raise ValueError("the lean trainer runs MlpPolicy's Gaussian policies (no state-dependent exploration)")
         self.torch = torch
         self.model, self.policy, self.env, self.norm = model, policy, env, normalizer
@@ -463,11 +528,14 @@ class LeanPPO:
         self.clock = clock
         self.n_steps, self.n = model.n_steps, env.n
         obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-        self.buf = _Rollout(obs=torch.zeros((self.n_steps, self.n, obs_dim)),
-                            actions=torch.zeros((self.n_steps, self.n, act_dim)),
-                            logp=torch.zeros((self.n_steps, self.n)), values=torch.zeros((self.n_steps, self.n)),
-                            rewards=np.zeros((self.n_steps, self.n), dtype=np.float32),
-                            starts=np.zeros((self.n_steps, self.n), dtype=np.float32))
+        self.buf = _Rollout(
+            obs=torch.zeros((self.n_steps, self.n, obs_dim)),
+            actions=torch.zeros((self.n_steps, self.n, act_dim)),
+            logp=torch.zeros((self.n_steps, self.n)),
+            values=torch.zeros((self.n_steps, self.n)),
+            rewards=np.zeros((self.n_steps, self.n), dtype=np.float32),
+            starts=np.zeros((self.n_steps, self.n), dtype=np.float32),
+        )
         self.last_obs = None  # normalised, float32
         self.last_starts = np.ones(self.n, dtype=np.float32)
         self.stats = {}
@@ -528,8 +596,15 @@ class LeanPPO:
             self.last_starts = done.astype(np.float32)
         with clock("forward"), torch.no_grad():
             last_values = self._forward(torch.from_numpy(self.last_obs))[1].numpy()
-        adv, ret = _gae(b.rewards, b.values.numpy(), b.starts, last_values, self.last_starts, self.model.gamma,
-                        self.model.gae_lambda)
+        adv, ret = _gae(
+            b.rewards,
+            b.values.numpy(),
+            b.starts,
+            last_values,
+            self.last_starts,
+            self.model.gamma,
+            self.model.gae_lambda,
+        )
         self.advantages, self.returns = torch.from_numpy(adv), torch.from_numpy(ret.astype(np.float32))
 
     def update(self, num_timesteps: int) -> None:
@@ -553,7 +628,7 @@ class LeanPPO:
         for _ in range(m.n_epochs):
             order = torch.randperm(size)
             for start in range(0, size, batch):
-                idx = order[start:start + batch]
+                idx = order[start : start + batch]
                 values, logp, entropy = self.evaluate(obs[idx], actions[idx])
                 adv = advantages[idx]
                 if m.normalize_advantage and len(idx) > 1:
@@ -581,13 +656,25 @@ class LeanPPO:
             if not go_on:
                 break
         m._n_updates += m.n_epochs
-        self.stats = {"policy_loss": float(np.mean(pg_losses)), "clip_fraction": float(np.mean(clip_fractions)),
-                      "approx_kl": float(np.mean(kls)), "learning_rate": float(lr)}
+        self.stats = {
+            "policy_loss": float(np.mean(pg_losses)),
+            "clip_fraction": float(np.mean(clip_fractions)),
+            "approx_kl": float(np.mean(kls)),
+            "learning_rate": float(lr),
+        }
 
 
 # -- the run -----------------------------------------------------------------------------------------------------
-def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = True, device: str = "cpu",
-          verbose: int = 0, stagger: bool = True) -> TrainingResult:
+def learn(
+    run_dir: Path,
+    config: RunConfig,
+    checkpoint,
+    *,
+    progress_bar: bool = True,
+    device: str = "cpu",
+    verbose: int = 0,
+    stagger: bool = True,
+) -> TrainingResult:
     """Train the run :func:`vcnc_agents.run_session.prepare_run` set up with the lean trainer (from ``checkpoint`` if
     not None); the run folder, its guarantees and the returned :class:`vcnc_agents.run_session.TrainingResult` are
     those of :func:`vcnc_agents.training.learn`, and so is the scaffolding (:mod:`vcnc_agents.run_session`).
@@ -648,30 +735,47 @@ class _LeanRun:
             if self.config.init_from is not None:  # a warm start (vcnc_agents.warm_start): the agent's weights
                 from .warm_start import load_init_agent
 
-                self.model, stats = load_init_agent(self.config, env_space=self.eval_env.observation_space,
-                                                    action_space=self.eval_env.action_space,
-                                                    layout=self.eval_env.unwrapped.layout, device=self.device)
+                self.model, stats = load_init_agent(
+                    self.config,
+                    env_space=self.eval_env.observation_space,
+                    action_space=self.eval_env.action_space,
+                    layout=self.eval_env.unwrapped.layout,
+                    device=self.device,
+                )
                 self.norm = RunningNormalizer(stats, self.n_envs)
         else:
             from .model_file import load_ppo
 
             self.done, model_zip, norm_file = self.checkpoint
             space = agent_space(self.eval_env.observation_space, self.mode.history, self.eval_env.unwrapped.layout)
-            self.model = load_ppo(model_zip, observation_space=space, action_space=self.eval_env.action_space,
-                                  ppo_kwargs=self.kwargs, device=self.device)
+            self.model = load_ppo(
+                model_zip,
+                observation_space=space,
+                action_space=self.eval_env.action_space,
+                ppo_kwargs=self.kwargs,
+                device=self.device,
+            )
             self.norm = RunningNormalizer(NormalizationStats.load(norm_file), self.n_envs)
             rolled_back = roll_back_to(self.run_dir, self.config, self.done)
-        self.session = Session(self.run_dir, self.config, self.done, vec_env="native", rolled_back=rolled_back,
-                               clock=self.clock)
+        self.session = Session(
+            self.run_dir, self.config, self.done, vec_env="native", rolled_back=rolled_back, clock=self.clock
+        )
 
     def build(self) -> None:
         """The training envs, the model (fresh unless resumed), the trainer and the evaluations logged so far."""
         from stable_baselines3 import PPO
 
         config, done, n_envs = self.config, self.done, self.n_envs
-        self.env = env = DecisionEnv(config.env_id, n_envs, self.mode, config.env_kwargs, config.seed + done,
-                                     monitor_dir=self.run_dir / "monitor", start_steps=done,
-                                     append=self.checkpoint is not None)
+        self.env = env = DecisionEnv(
+            config.env_id,
+            n_envs,
+            self.mode,
+            config.env_kwargs,
+            config.seed + done,
+            monitor_dir=self.run_dir / "monitor",
+            start_steps=done,
+            append=self.checkpoint is not None,
+        )
         if self.model is None:
             stub = _spaces_only(env.observation_space, env.action_space, n_envs)
             self.model = PPO(self.policy_name, stub, seed=config.seed, device=self.device, **self.kwargs)
@@ -755,8 +859,9 @@ class _LeanRun:
             self.best = row
             save_agent(self.run_dir / "best", self.model, stats, self.config, n, row)
         if self.verbose:
-            print(f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, "
-                  f"diverged {row['diverged']}")
+            print(
+                f"eval at {n} steps: max {row['max_um']:.2f} um, RMS {row['rms_um']:.2f} um, diverged {row['diverged']}"
+            )
 
 
 def _progress(enabled: bool, total: int, done: int):
@@ -767,10 +872,19 @@ def _progress(enabled: bool, total: int, done: int):
     return tqdm(total=total, initial=done, unit="step", desc="lean PPO")
 
 
-def train_lean(env_id: str | None = None, run_dir=None, *, progress_bar: bool = True, device: str = "cpu",
-               verbose: int = 0, stagger: bool = True, **options):
+def train_lean(
+    env_id: str | None = None,
+    run_dir=None,
+    *,
+    progress_bar: bool = True,
+    device: str = "cpu",
+    verbose: int = 0,
+    stagger: bool = True,
+    **options,
+):
     """:func:`vcnc_agents.run_session.prepare_run` (``options``: n_timesteps, seed, n_envs, config_file, action_mode,
     resume, checkpoint_freq, eval_freq) then :func:`learn`; the :class:`vcnc_agents.run_session.TrainingResult`."""
     run_dir, config, checkpoint = prepare_run(env_id, run_dir, **options)
-    return learn(run_dir, config, checkpoint, progress_bar=progress_bar, device=device, verbose=verbose,
-                 stagger=stagger)
+    return learn(
+        run_dir, config, checkpoint, progress_bar=progress_bar, device=device, verbose=verbose, stagger=stagger
+    )

@@ -37,23 +37,74 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["POLICIES", "algorithm", "load_ppo", "read_model_data", "check_model_data", "recorded_shape", "model_timesteps",
-           "PPO_DATA_KEYS", "check_torch", "check_tensor_files"]
+__all__ = [
+    "POLICIES",
+    "algorithm",
+    "load_ppo",
+    "read_model_data",
+    "check_model_data",
+    "recorded_shape",
+    "model_timesteps",
+    "PPO_DATA_KEYS",
+    "check_torch",
+    "check_tensor_files",
+]
 
 #: The attributes a PPO model.zip may hold in ``data``; anything else is refused.
-PPO_DATA_KEYS = frozenset({
-    "policy_class", "verbose", "policy_kwargs", "num_timesteps", "_total_timesteps", "_num_timesteps_at_start",
-    "seed", "action_noise", "start_time", "learning_rate", "tensorboard_log", "_last_obs", "_last_episode_starts",
-    "_last_original_obs", "_episode_num", "use_sde", "sde_sample_freq", "_current_progress_remaining",
-    "_stats_window_size", "ep_info_buffer", "ep_success_buffer", "_n_updates", "observation_space", "action_space",
-    "n_envs", "n_steps", "gamma", "gae_lambda", "ent_coef", "vf_coef", "max_grad_norm", "rollout_buffer_class",
-    "rollout_buffer_kwargs", "batch_size", "n_epochs", "clip_range", "clip_range_vf", "normalize_advantage",
-    "target_kl", "lr_schedule",
-})
+PPO_DATA_KEYS = frozenset(
+    {
+        "policy_class",
+        "verbose",
+        "policy_kwargs",
+        "num_timesteps",
+        "_total_timesteps",
+        "_num_timesteps_at_start",
+        "seed",
+        "action_noise",
+        "start_time",
+        "learning_rate",
+        "tensorboard_log",
+        "_last_obs",
+        "_last_episode_starts",
+        "_last_original_obs",
+        "_episode_num",
+        "use_sde",
+        "sde_sample_freq",
+        "_current_progress_remaining",
+        "_stats_window_size",
+        "ep_info_buffer",
+        "ep_success_buffer",
+        "_n_updates",
+        "observation_space",
+        "action_space",
+        "n_envs",
+        "n_steps",
+        "gamma",
+        "gae_lambda",
+        "ent_coef",
+        "vf_coef",
+        "max_grad_norm",
+        "rollout_buffer_class",
+        "rollout_buffer_kwargs",
+        "batch_size",
+        "n_epochs",
+        "clip_range",
+        "clip_range_vf",
+        "normalize_advantage",
+        "target_kl",
+        "lr_schedule",
+    }
+)
 
 #: Entries rebuilt when training goes on (or unused by predict): replaced by None.
-_RUNTIME_ONLY = ("_last_obs", "_last_episode_starts", "_last_original_obs", "ep_info_buffer", "ep_success_buffer",
-                 "action_noise")
+_RUNTIME_ONLY = (
+    "_last_obs",
+    "_last_episode_starts",
+    "_last_original_obs",
+    "ep_info_buffer",
+    "ep_success_buffer",
+    "action_noise",
+)
 
 _MIN_TORCH = (2, 6)
 
@@ -74,15 +125,16 @@ def algorithm(policy: str):
     return getattr(importlib.import_module(module), name)
 
 
-
 def check_torch() -> None:
     """RuntimeError unless torch >= 2.6 (its ``torch.load`` defaults to the weights-only unpickler)."""
     import torch
 
     version = tuple(int(x) for x in torch.__version__.split("+")[0].split(".")[:2])
     if version < _MIN_TORCH:
-        raise RuntimeError(f"loading a model.zip without running its code needs torch >= 2.6 "
-                           f"(weights-only torch.load by default), found {torch.__version__}")
+        raise RuntimeError(
+            f"loading a model.zip without running its code needs torch >= 2.6 "
+            f"(weights-only torch.load by default), found {torch.__version__}"
+        )
 
 
 #: Largest ``data`` member (JSON) of a model.zip read, bytes: a PPO's is a few kB.
@@ -106,9 +158,11 @@ def read_model_data(path) -> dict:
             for info in archive.infolist():  # declared sizes, before anything is inflated (zipfile reads no more)
                 limit = MAX_DATA_BYTES if info.filename == "data" else MAX_MEMBER_BYTES
                 if info.file_size > limit:
-                    raise ValueError(f"{path}: member {info.filename!r} inflates to {info.file_size:,} bytes, more "
-                                     f"than an SB3 model holds (at most {limit:,}: "
-                                     f"{'MAX_DATA_BYTES' if info.filename == 'data' else 'MAX_MEMBER_BYTES'})")
+                    raise ValueError(
+                        f"{path}: member {info.filename!r} inflates to {info.file_size:,} bytes, more "
+                        f"than an SB3 model holds (at most {limit:,}: "
+                        f"{'MAX_DATA_BYTES' if info.filename == 'data' else 'MAX_MEMBER_BYTES'})"
+                    )
             bad = archive.testzip()
             if bad is not None:
                 raise ValueError(f"{path} is damaged: member {bad!r} fails its CRC check")
@@ -129,8 +183,20 @@ def read_model_data(path) -> dict:
 
 
 #: The pickled entries :func:`load_ppo` rebuilds itself.
-_REPLACED = frozenset({"policy_class", "observation_space", "action_space", "rollout_buffer_class", "learning_rate",
-                       "lr_schedule", "clip_range", "clip_range_vf", "policy_kwargs", *_RUNTIME_ONLY})
+_REPLACED = frozenset(
+    {
+        "policy_class",
+        "observation_space",
+        "action_space",
+        "rollout_buffer_class",
+        "learning_rate",
+        "lr_schedule",
+        "clip_range",
+        "clip_range_vf",
+        "policy_kwargs",
+        *_RUNTIME_ONLY,
+    }
+)
 
 
 def check_model_data(data: dict, path) -> None:
@@ -145,7 +211,9 @@ def check_model_data(data: dict, path) -> None:
         raise ValueError(f"{path} holds entries a PPO model does not save: {unknown}; refusing to load it")
     for key, value in data.items():
         if _serialized(value) and key not in _REPLACED:
-            raise ValueError(f"{path}: entry {key!r} is pickled and this loader cannot rebuild it; refusing to unpickle it")
+            raise ValueError(
+                f"{path}: entry {key!r} is pickled and this loader cannot rebuild it; refusing to unpickle it"
+            )
     if not isinstance(data.get("policy_kwargs", {}), dict) and not _serialized(data.get("policy_kwargs")):
         raise ValueError(f"{path}: policy_kwargs must be a JSON object")
     for key in ("observation_space", "action_space"):
@@ -160,14 +228,27 @@ def recorded_shape(data: dict, key: str, path) -> tuple[int, ...]:
     """The shape a Box space entry of ``data`` records in plain JSON (``_shape``)."""
     entry = data.get(key)
     shape = entry.get("_shape") if isinstance(entry, dict) else None
-    if (not isinstance(entry, dict) or "gymnasium.spaces.box.Box" not in str(entry.get(":type:"))
-            or not isinstance(shape, list) or not all(isinstance(n, int) and n > 0 for n in shape)):
+    if (
+        not isinstance(entry, dict)
+        or "gymnasium.spaces.box.Box" not in str(entry.get(":type:"))
+        or not isinstance(shape, list)
+        or not all(isinstance(n, int) and n > 0 for n in shape)
+    ):
         raise ValueError(f"{path}: {key} must be a gymnasium Box with a recorded shape, got {str(entry)[:120]!r}")
     return tuple(shape)
 
 
-def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=None, device: str = "cpu",
-             policy: str = "MlpPolicy", **kwargs):
+def load_ppo(
+    path,
+    *,
+    observation_space,
+    action_space,
+    ppo_kwargs: dict,
+    env=None,
+    device: str = "cpu",
+    policy: str = "MlpPolicy",
+    **kwargs,
+):
     """An SB3 PPO (or sb3-contrib's ``RecurrentPPO``, ``policy="MlpLstmPolicy"``) from ``path`` with nothing of
     the file unpickled.
 
@@ -208,8 +289,10 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
     for key, space in (("observation_space", observation_space), ("action_space", action_space)):
         shape = recorded_shape(data, key, path)
         if shape != tuple(space.shape):
-            raise ValueError(f"{path}: the model's {key} has shape {shape}, the env's {tuple(space.shape)}: "
-                             "it was trained on another env configuration")
+            raise ValueError(
+                f"{path}: the model's {key} has shape {shape}, the env's {tuple(space.shape)}: "
+                "it was trained on another env configuration"
+            )
     lr = ppo_kwargs.get("learning_rate", 3e-4)
     replacements = {
         "policy_class": algo.policy_aliases[policy],
@@ -228,11 +311,15 @@ def load_ppo(path, *, observation_space, action_space, ppo_kwargs: dict, env=Non
         return algo.load(path, env=env, device=device, custom_objects=custom, **kwargs)
     except pickle.UnpicklingError as exc:
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ValueError(f"{path}: its tensor files (policy.pth, ...) hold more than tensors and are refused by "
-                         f"torch's weights-only reader ({reason})") from None
+        raise ValueError(
+            f"{path}: its tensor files (policy.pth, ...) hold more than tensors and are refused by "
+            f"torch's weights-only reader ({reason})"
+        ) from None
     except (RuntimeError, KeyError, ValueError, AssertionError) as exc:
-        raise ValueError(f"{path} does not load as the PPO its config.yml describes "
-                         f"({type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''})") from None
+        raise ValueError(
+            f"{path} does not load as the PPO its config.yml describes "
+            f"({type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''})"
+        ) from None
 
 
 def check_tensor_files(path) -> None:
@@ -251,8 +338,10 @@ def check_tensor_files(path) -> None:
                         torch.load(io.BytesIO(z.read(name)), map_location="cpu", weights_only=True)
                     except pickle.UnpicklingError as exc:
                         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-                        raise ValueError(f"{path}: {name} holds more than tensors and is refused by torch's "
-                                         f"weights-only reader ({reason})") from None
+                        raise ValueError(
+                            f"{path}: {name} holds more than tensors and is refused by torch's "
+                            f"weights-only reader ({reason})"
+                        ) from None
                     except (RuntimeError, EOFError) as exc:
                         raise ValueError(f"{path}: {name} is not a torch tensor file ({type(exc).__name__})") from None
     except (zipfile.BadZipFile, OSError) as exc:

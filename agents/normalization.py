@@ -82,8 +82,9 @@ class NormalizationStats:
         """ValueError naming ``where`` and the field for shapes or values VecNormalize never writes."""
         m, v = np.asarray(self.obs_mean), np.asarray(self.obs_var)
         if m.ndim != 1 or v.shape != m.shape or m.size == 0:
-            raise ValueError(f"{where}: obs_mean and obs_var must be two equal non-empty vectors, "
-                             f"got shapes {m.shape} and {v.shape}")
+            raise ValueError(
+                f"{where}: obs_mean and obs_var must be two equal non-empty vectors, got shapes {m.shape} and {v.shape}"
+            )
         if not (np.all(np.isfinite(m)) and np.all(np.isfinite(v)) and np.all(v >= 0)):
             raise ValueError(f"{where}: obs_mean must be finite and obs_var finite and >= 0")
         for name in _SCALARS:
@@ -101,20 +102,29 @@ class NormalizationStats:
         """Observations as the agent saw them in training (VecNormalize.normalize_obs), float32."""
         if not self.norm_obs:
             return np.array(obs, copy=True)
-        return np.clip((obs - self.obs_mean) / np.sqrt(self.obs_var + self.epsilon),
-                       -self.clip_obs, self.clip_obs).astype(np.float32)
+        return np.clip(
+            (obs - self.obs_mean) / np.sqrt(self.obs_var + self.epsilon), -self.clip_obs, self.clip_obs
+        ).astype(np.float32)
 
     # -- VecNormalize ------------------------------------------------------------------------------
     @classmethod
     def from_vecnormalize(cls, vec_normalize) -> "NormalizationStats":
         """A copy of a live VecNormalize's statistics."""
         o, r = vec_normalize.obs_rms, vec_normalize.ret_rms
-        return cls(norm_obs=bool(vec_normalize.norm_obs), norm_reward=bool(vec_normalize.norm_reward),
-                   obs_mean=np.array(o.mean, dtype=np.float64), obs_var=np.array(o.var, dtype=np.float64),
-                   obs_count=float(o.count), ret_mean=float(np.asarray(r.mean).reshape(())),
-                   ret_var=float(np.asarray(r.var).reshape(())), ret_count=float(r.count),
-                   clip_obs=float(vec_normalize.clip_obs), clip_reward=float(vec_normalize.clip_reward),
-                   epsilon=float(vec_normalize.epsilon), gamma=float(vec_normalize.gamma))
+        return cls(
+            norm_obs=bool(vec_normalize.norm_obs),
+            norm_reward=bool(vec_normalize.norm_reward),
+            obs_mean=np.array(o.mean, dtype=np.float64),
+            obs_var=np.array(o.var, dtype=np.float64),
+            obs_count=float(o.count),
+            ret_mean=float(np.asarray(r.mean).reshape(())),
+            ret_var=float(np.asarray(r.var).reshape(())),
+            ret_count=float(r.count),
+            clip_obs=float(vec_normalize.clip_obs),
+            clip_reward=float(vec_normalize.clip_reward),
+            epsilon=float(vec_normalize.epsilon),
+            gamma=float(vec_normalize.gamma),
+        )
 
     def vecnormalize(self, venv, training: bool = True):
         """A VecNormalize around ``venv`` holding these statistics (``returns`` start at zero, as after a reset)."""
@@ -122,19 +132,38 @@ class NormalizationStats:
 
         n = venv.observation_space.shape
         if n != (self.observation_size,):
-            raise ValueError(f"the normalisation statistics describe {self.observation_size} observation entries, "
-                             f"the env gives shape {n}")
-        v = VecNormalize(venv, training=training, norm_obs=self.norm_obs, norm_reward=self.norm_reward,
-                         clip_obs=self.clip_obs, clip_reward=self.clip_reward, gamma=self.gamma, epsilon=self.epsilon)
+            raise ValueError(
+                f"the normalisation statistics describe {self.observation_size} observation entries, "
+                f"the env gives shape {n}"
+            )
+        v = VecNormalize(
+            venv,
+            training=training,
+            norm_obs=self.norm_obs,
+            norm_reward=self.norm_reward,
+            clip_obs=self.clip_obs,
+            clip_reward=self.clip_reward,
+            gamma=self.gamma,
+            epsilon=self.epsilon,
+        )
         v.obs_rms.mean, v.obs_rms.var, v.obs_rms.count = self.obs_mean.copy(), self.obs_var.copy(), self.obs_count
-        v.ret_rms.mean, v.ret_rms.var, v.ret_rms.count = np.float64(self.ret_mean), np.float64(self.ret_var), self.ret_count
+        v.ret_rms.mean, v.ret_rms.var, v.ret_rms.count = (
+            np.float64(self.ret_mean),
+            np.float64(self.ret_var),
+            self.ret_count,
+        )
         return v
 
     # -- the file -----------------------------------------------------------------------------------
     def save(self, path) -> None:
         """Write the ``.npz`` atomically (a temporary file renamed over ``path``)."""
-        arrays = {"format": np.int64(FORMAT_VERSION), "norm_obs": np.bool_(self.norm_obs),
-                  "norm_reward": np.bool_(self.norm_reward), "obs_mean": self.obs_mean, "obs_var": self.obs_var}
+        arrays = {
+            "format": np.int64(FORMAT_VERSION),
+            "norm_obs": np.bool_(self.norm_obs),
+            "norm_reward": np.bool_(self.norm_reward),
+            "obs_mean": self.obs_mean,
+            "obs_var": self.obs_var,
+        }
         arrays.update({k: np.float64(getattr(self, k)) for k in _SCALARS})
         buffer = io.BytesIO()
         np.savez(buffer, **arrays)
@@ -163,8 +192,7 @@ class NormalizationStats:
             try:
                 data = {k: z[k] for k in _KEYS}
             except Exception as exc:  # object arrays (pickles), damaged members
-                raise ValueError(f"{path} is damaged or holds non-numeric data "
-                                 f"({type(exc).__name__}: {exc})") from None
+                raise ValueError(f"{path} is damaged or holds non-numeric data ({type(exc).__name__}: {exc})") from None
         if int(data["format"]) != FORMAT_VERSION:
             raise ValueError(f"{path} has format {int(data['format'])}, this code reads format {FORMAT_VERSION}")
         for k, a in data.items():
@@ -173,9 +201,13 @@ class NormalizationStats:
             if k not in ("obs_mean", "obs_var") and a.shape != ():
                 raise ValueError(f"{path}: {k} must be a scalar, got shape {a.shape}")
         try:
-            return cls(norm_obs=bool(data["norm_obs"]), norm_reward=bool(data["norm_reward"]),
-                       obs_mean=data["obs_mean"].astype(np.float64), obs_var=data["obs_var"].astype(np.float64),
-                       **{k: float(data[k]) for k in _SCALARS})
+            return cls(
+                norm_obs=bool(data["norm_obs"]),
+                norm_reward=bool(data["norm_reward"]),
+                obs_mean=data["obs_mean"].astype(np.float64),
+                obs_var=data["obs_var"].astype(np.float64),
+                **{k: float(data[k]) for k in _SCALARS},
+            )
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
 
@@ -220,10 +252,18 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m vcnc_agents.normalization --convert-trusted-pickle FILE.pkl [FILE.pkl ...]``"""
     import argparse
 
-    p = argparse.ArgumentParser(prog="python -m vcnc_agents.normalization",
-                                description="Convert VecNormalize pickles you trust into data-only .npz files.")
-    p.add_argument("--convert-trusted-pickle", nargs="+", metavar="PKL", required=True, type=Path,
-                   help="pickles to convert (each becomes a .npz next to it); unpickling runs the file's code")
+    p = argparse.ArgumentParser(
+        prog="python -m vcnc_agents.normalization",
+        description="Convert VecNormalize pickles you trust into data-only .npz files.",
+    )
+    p.add_argument(
+        "--convert-trusted-pickle",
+        nargs="+",
+        metavar="PKL",
+        required=True,
+        type=Path,
+        help="pickles to convert (each becomes a .npz next to it); unpickling runs the file's code",
+    )
     args = p.parse_args(argv)
     for pkl in args.convert_trusted_pickle:
         print(f"{pkl} -> {convert_trusted_pickle(pkl)}")

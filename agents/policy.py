@@ -33,11 +33,32 @@ from vcnc_gym.envs.history import DecisionHistory, agent_space
 from .action_modes import ActionMode
 from .normalization import NormalizationStats
 from .run_folder import CONFIG_FILE, MODEL_FILE, NORMALIZATION_FILE, agent_files, evaluation_row, read_agent_config
-from .signature import (ANY_CONTOUR_IDS, MACHINE_FIELDS, as_seen_through, check_env_signature, check_signature,
-                        env_signature, observation_pick)
+from .signature import (
+    ANY_CONTOUR_IDS,
+    MACHINE_FIELDS,
+    as_seen_through,
+    check_env_signature,
+    check_signature,
+    env_signature,
+    observation_pick,
+)
 
-__all__ = ["AgentPolicy", "load_agent", "evaluate_model", "agent_files", "agent_mismatch", "env_signature", "check_env_signature",
-           "check_signature", "ANY_CONTOUR_IDS", "MACHINE_FIELDS", "MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE"]
+__all__ = [
+    "AgentPolicy",
+    "load_agent",
+    "evaluate_model",
+    "agent_files",
+    "agent_mismatch",
+    "env_signature",
+    "check_env_signature",
+    "check_signature",
+    "ANY_CONTOUR_IDS",
+    "MACHINE_FIELDS",
+    "MODEL_FILE",
+    "NORMALIZATION_FILE",
+    "CONFIG_FILE",
+]
+
 
 class AgentPolicy:
     """A trained SB3 agent as a policy called every control period of the plain env.
@@ -64,22 +85,25 @@ class AgentPolicy:
         if u.action_repeat != 1:
             raise ValueError(f"an agent is evaluated on the plain env (action_repeat=1), got {u.action_repeat}")
         if model.action_space.shape != u.action_space.shape:
-            raise ValueError(f"the agent acts with shape {model.action_space.shape}, "
-                             f"the env takes {u.action_space.shape}")
+            raise ValueError(
+                f"the agent acts with shape {model.action_space.shape}, the env takes {u.action_space.shape}"
+            )
         space = u.observation_space
         if pick is not None:
             space = type(space)(space.low[pick], space.high[pick], dtype=space.dtype)
         seen = agent_space(space, action_mode.history, u.layout).shape
         if model.observation_space.shape != seen:
-            raise ValueError(f"the agent observes shape {model.observation_space.shape}, "
-                             f"the env gives {seen}: it was trained with another layout")
+            raise ValueError(
+                f"the agent observes shape {model.observation_space.shape}, "
+                f"the env gives {seen}: it was trained with another layout"
+            )
         self.pick = pick
         self.model = model
         self.normalization = normalization
         self.action_mode = action_mode
         self.baseline = action_mode.make_baseline(env)
         self._count = None  # control periods since the last decision, per env
-        self._held = None   # the agent's held action, per env
+        self._held = None  # the agent's held action, per env
         self._layout = u.layout
         self._env = u
         # the agent's dial at its rate, per env (action_mode.dial_rate; None: none); an env without a dial is refused
@@ -138,8 +162,9 @@ class AgentPolicy:
                 x = self.normalization.normalize_obs(x)
             if self.recurrent:  # its LSTM steps once per decision, from zeros where an episode starts
                 state = tuple(h[:, decide] for h in self._lstm)
-                self._held[decide], state = self.model.predict(x, state=state, episode_start=self._fresh[decide],
-                                                               deterministic=deterministic)
+                self._held[decide], state = self.model.predict(
+                    x, state=state, episode_start=self._fresh[decide], deterministic=deterministic
+                )
                 for h, new in zip(self._lstm, state):
                     h[:, decide] = new
                 self._fresh[decide] = False
@@ -173,8 +198,12 @@ def _deterministic_actor(model):
     policy = getattr(model, "policy", None)
     if getattr(policy, "lstm_actor", None) is not None:  # recurrent: its actor reads the LSTM's state
         return None
-    if (not isinstance(policy, ActorCriticPolicy) or type(policy.action_dist) is not DiagGaussianDistribution
-            or policy.squash_output or not isinstance(policy.action_space, spaces.Box)):
+    if (
+        not isinstance(policy, ActorCriticPolicy)
+        or type(policy.action_dist) is not DiagGaussianDistribution
+        or policy.squash_output
+        or not isinstance(policy.action_space, spaces.Box)
+    ):
         return None
     policy.set_training_mode(False)
     low, high, shape = policy.action_space.low, policy.action_space.high, policy.action_space.shape
@@ -264,10 +293,14 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     if isinstance(recorded, dict):
         check_env_signature(recorded, env, what=f"the agent in {str(path)!r}", allow_mismatch=allow_mismatch)
     else:
-        check_env_signature({"id": data.get("env_id")}, env, what=f"the agent in {str(path)!r}",
-                            allow_mismatch=allow_mismatch)
-        warnings.warn(f"{config_file} records no env configuration (an agent from an older vcnc-train): only its "
-                      "env id and observation size are checked", stacklevel=2)
+        check_env_signature(
+            {"id": data.get("env_id")}, env, what=f"the agent in {str(path)!r}", allow_mismatch=allow_mismatch
+        )
+        warnings.warn(
+            f"{config_file} records no env configuration (an agent from an older vcnc-train): only its "
+            "env id and observation size are checked",
+            stacklevel=2,
+        )
     stats = NormalizationStats.load(norm_file)
     space = env.unwrapped.observation_space
     if pick is not None:
@@ -279,9 +312,17 @@ def load_agent(path, env, device: str = "cpu", allow_mismatch: bool = False) -> 
     space = agent_space(space, mode.history, env.unwrapped.layout)
     obs_shape = tuple(space.shape)
     if (stats.observation_size,) != obs_shape:
-        raise ValueError(f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
-                         f"shape {obs_shape}: it belongs to another agent or env configuration")
+        raise ValueError(
+            f"{norm_file} normalises {stats.observation_size} observation entries, the env gives "
+            f"shape {obs_shape}: it belongs to another agent or env configuration"
+        )
     policy_name, ppo_kwargs = ppo_arguments(data.get("hyperparams") or {})
-    model = load_ppo(model_file, observation_space=space, action_space=env.unwrapped.action_space,
-                     ppo_kwargs=ppo_kwargs, device=device, policy=policy_name)
+    model = load_ppo(
+        model_file,
+        observation_space=space,
+        action_space=env.unwrapped.action_space,
+        ppo_kwargs=ppo_kwargs,
+        device=device,
+        policy=policy_name,
+    )
     return AgentPolicy(model, stats, mode, env, pick=pick)

@@ -22,15 +22,32 @@ from vcnc_gym.envs.registry import suite_env
 from vcnc_gym.validation import size
 
 from .action_modes import ActionMode
-from .config import (DEFAULT_CONFIG, action_mode_of, count, load_hyperparameters, ppo_arguments,
-                     with_action_mode)
+from .config import DEFAULT_CONFIG, action_mode_of, count, load_hyperparameters, ppo_arguments, with_action_mode
 from .run_folder import read_run_config
 from .run_warning import note
 
-__all__ = ["RunConfig", "training_option", "TRAINING_OPTIONS", "OPTION_FIELDS", "ORDER", "check_option",
-           "check_options", "new_config", "check_env_id", "check_seed", "check_training_options", "check_n_envs",
-           "check_timesteps", "check_memory", "round_to_rollouts", "VEC_ENVS", "DEFAULT_CHECKPOINT_FREQ",
-           "DEFAULT_EVAL_FREQ", "MAX_TIMESTEPS", "SEED_MAX"]
+__all__ = [
+    "RunConfig",
+    "training_option",
+    "TRAINING_OPTIONS",
+    "OPTION_FIELDS",
+    "ORDER",
+    "check_option",
+    "check_options",
+    "new_config",
+    "check_env_id",
+    "check_seed",
+    "check_training_options",
+    "check_n_envs",
+    "check_timesteps",
+    "check_memory",
+    "round_to_rollouts",
+    "VEC_ENVS",
+    "DEFAULT_CHECKPOINT_FREQ",
+    "DEFAULT_EVAL_FREQ",
+    "MAX_TIMESTEPS",
+    "SEED_MAX",
+]
 
 DEFAULT_CHECKPOINT_FREQ = 50_000
 DEFAULT_EVAL_FREQ = 20_000
@@ -100,7 +117,8 @@ class RunConfig:
     hyperparams: dict
     checkpoint_freq: int | None = training_option(DEFAULT_CHECKPOINT_FREQ, 1, "agent steps between checkpoints")
     eval_freq: int | None = training_option(
-        DEFAULT_EVAL_FREQ, 0, "agent steps between deterministic evaluations on the nominal plant, 0: only at the end")
+        DEFAULT_EVAL_FREQ, 0, "agent steps between deterministic evaluations on the nominal plant, 0: only at the end"
+    )
     env: dict | None = None
     config_file: str | None = None
     trainer: str | None = None
@@ -112,8 +130,9 @@ class RunConfig:
         """The record of a config.yml's mapping; ValueError naming the field that is missing or of the wrong type."""
         if not isinstance(data, dict):
             raise ValueError(f"{source} must be a mapping, got {type(data).__name__}")
-        missing = [k for k in ("env_id", "seed", "n_envs", "n_timesteps", "action_mode", "hyperparams")
-                   if k not in data]
+        missing = [
+            k for k in ("env_id", "seed", "n_envs", "n_timesteps", "action_mode", "hyperparams") if k not in data
+        ]
         if missing:
             raise ValueError(f"{source} lacks {', '.join(missing)}")
         if not isinstance(data["env_id"], str):
@@ -131,8 +150,9 @@ class RunConfig:
                 raise ValueError(f"{source}: {key} must be a string, got {data[key]!r}")
         ActionMode(**data["action_mode"])  # a bad mode names its argument
         known = {f.name for f in fields(cls)} - {"extra"}
-        return cls(**{k: v for k, v in data.items() if k in known},
-                   extra={k: v for k, v in data.items() if k not in known})
+        return cls(
+            **{k: v for k, v in data.items() if k in known}, extra={k: v for k, v in data.items() if k not in known}
+        )
 
     def to_dict(self) -> dict:
         """The mapping config.yml holds (fields in :data:`ORDER`, absent optional ones left out, then ``extra``)."""
@@ -187,14 +207,18 @@ class RunConfig:
         changed = {}
         for name in TRAINING_OPTIONS:
             given, recorded = options.get(name), getattr(self, name)
-            changed[name] = (given if given is not None else recorded if recorded is not None
-                             else OPTION_FIELDS[name].metadata["default"])
+            changed[name] = (
+                given
+                if given is not None
+                else recorded
+                if recorded is not None
+                else OPTION_FIELDS[name].metadata["default"]
+            )
         return replace(self, **changed)
 
     def with_total(self, n_timesteps: int) -> RunConfig:
         """A new total of agent steps, checked and rounded up to whole rollouts (:class:`RunWarning`)."""
-        total = round_to_rollouts("n_timesteps", check_timesteps(count("n_timesteps", n_timesteps)),
-                                  self.rollout_size)
+        total = round_to_rollouts("n_timesteps", check_timesteps(count("n_timesteps", n_timesteps)), self.rollout_size)
         return replace(self, n_timesteps=total, hyperparams=dict(self.hyperparams, n_timesteps=total))
 
     def with_env(self, env: dict) -> RunConfig:
@@ -231,8 +255,19 @@ OPTION_FIELDS = {f.name: f for f in fields(RunConfig) if f.metadata.get("option"
 TRAINING_OPTIONS = tuple(OPTION_FIELDS)
 
 #: The keys of config.yml in the order they are written.
-ORDER = ("env_id", "seed", "n_envs", "n_timesteps", *TRAINING_OPTIONS, "action_mode", "env", "hyperparams",
-         "config_file", "trainer", "init_from")
+ORDER = (
+    "env_id",
+    "seed",
+    "n_envs",
+    "n_timesteps",
+    *TRAINING_OPTIONS,
+    "action_mode",
+    "env",
+    "hyperparams",
+    "config_file",
+    "trainer",
+    "init_from",
+)
 
 
 def check_option(name: str, value, *, where: str = "") -> int:
@@ -244,7 +279,9 @@ def check_options(options: dict) -> None:
     """Every training option given that is not None checked; TypeError naming one that is none."""
     unknown = sorted(set(options) - set(TRAINING_OPTIONS))
     if unknown:
-        raise TypeError(f"unknown training option(s) {', '.join(unknown)}; the options are {', '.join(TRAINING_OPTIONS)}")
+        raise TypeError(
+            f"unknown training option(s) {', '.join(unknown)}; the options are {', '.join(TRAINING_OPTIONS)}"
+        )
     for name, value in options.items():
         if value is not None:
             check_option(name, value)
@@ -263,14 +300,20 @@ def check_training_options(*, vec_env, tensorboard, **options) -> None:
 def round_to_rollouts(name: str, n_timesteps: int, rollout: int) -> int:
     total = -(-n_timesteps // rollout) * rollout
     if total != n_timesteps:
-        note(f"{name} {n_timesteps} is rounded up to {total}: PPO trains whole rollouts of n_steps x n_envs = "
-              f"{rollout} agent steps")
+        note(
+            f"{name} {n_timesteps} is rounded up to {total}: PPO trains whole rollouts of n_steps x n_envs = "
+            f"{rollout} agent steps"
+        )
     return total
 
 
 def check_timesteps(n_timesteps: int) -> int:
-    return size("n_timesteps", n_timesteps, ceiling=MAX_TIMESTEPS,
-                why="MAX_TIMESTEPS, 20 days at the 5 630 steps/s measured on 2 cores; resume a run to go further")
+    return size(
+        "n_timesteps",
+        n_timesteps,
+        ceiling=MAX_TIMESTEPS,
+        why="MAX_TIMESTEPS, 20 days at the 5 630 steps/s measured on 2 cores; resume a run to go further",
+    )
 
 
 def check_n_envs(n_envs: int, n_steps: int | None = None, observation_size: int | None = None) -> int:
@@ -279,19 +322,26 @@ def check_n_envs(n_envs: int, n_steps: int | None = None, observation_size: int 
 
     soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
     if soft != resource.RLIM_INFINITY:
-        size("n_envs", n_envs, ceiling=max(1, soft - RESERVED_FILES),
-             why=f"each env keeps its Monitor file open and this process may open {soft} files (ulimit -n), "
-                 f"{RESERVED_FILES} kept for the rest")
+        size(
+            "n_envs",
+            n_envs,
+            ceiling=max(1, soft - RESERVED_FILES),
+            why=f"each env keeps its Monitor file open and this process may open {soft} files (ulimit -n), "
+            f"{RESERVED_FILES} kept for the rest",
+        )
     if n_steps is not None and observation_size is not None:
         rollout = n_steps * (observation_size + 2 + 6) * 4  # float32 observation, action and 6 scalars per step
-        size("n_envs", n_envs, bytes_each=rollout + ENV_BYTES,
-             why=f"each env fills n_steps = {n_steps} rows of PPO's rollout buffer ({observation_size} observation "
-                 "entries, 2 actions, 6 scalars in float32) and holds its Monitor file and batch rows")
+        size(
+            "n_envs",
+            n_envs,
+            bytes_each=rollout + ENV_BYTES,
+            why=f"each env fills n_steps = {n_steps} rows of PPO's rollout buffer ({observation_size} observation "
+            "entries, 2 actions, 6 scalars in float32) and holds its Monitor file and batch rows",
+        )
     return n_envs
 
 
-def new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, tolerance=None,
-               **options) -> RunConfig:
+def new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, tolerance=None, **options) -> RunConfig:
     """A new run's config from the hyperparameter entry and the options, all checked but the envs
     (:func:`vcnc_agents.env_factory.check_envs` builds them and gives the env block, :meth:`RunConfig.with_env`);
     ``tolerance`` (mm, ``--tolerance``) goes into the entry's env_kwargs (a feed-override env's tolerance task)."""
@@ -311,10 +361,15 @@ def new_config(env_id, *, config_file, n_timesteps, seed, n_envs, action_mode, t
         raise ValueError("n_steps x n_envs must be at least 2 (PPO normalises advantages over a rollout)")
     n_timesteps = round_to_rollouts("n_timesteps", n_timesteps, rollout)
     h["n_timesteps"], h["n_envs"] = n_timesteps, n_envs
-    return RunConfig(env_id=env_id, seed=seed, n_envs=n_envs, n_timesteps=n_timesteps,
-                     action_mode=mode.to_dict(), hyperparams=h,
-                     config_file="agents/hyperparams/ppo.yml" if Path(config_file) == DEFAULT_CONFIG
-                     else str(config_file)).with_options(**options)
+    return RunConfig(
+        env_id=env_id,
+        seed=seed,
+        n_envs=n_envs,
+        n_timesteps=n_timesteps,
+        action_mode=mode.to_dict(),
+        hyperparams=h,
+        config_file="agents/hyperparams/ppo.yml" if Path(config_file) == DEFAULT_CONFIG else str(config_file),
+    ).with_options(**options)
 
 
 def check_memory(config: RunConfig) -> None:

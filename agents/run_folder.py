@@ -58,11 +58,38 @@ from .model_file import check_model_data, check_tensor_files, read_model_data, r
 from .normalization import NormalizationStats, atomic_write_bytes
 from .run_warning import note
 
-__all__ = ["MODEL_FILE", "NORMALIZATION_FILE", "CONFIG_FILE", "CHECKPOINT_PREFIX", "RUN_ENTRIES", "EVAL_FIELDS",
-           "agent_files", "read_agent_config", "evaluation_score", "evaluation_row", "checkpoint_files", "check_checkpoint",
-           "scan_checkpoints", "latest_checkpoint", "write_yaml", "write_config", "save_model", "save_agent", "read_evaluations",
-           "write_evaluations", "best_of", "roll_back", "read_summary", "record_session", "session_rates",
-           "run_lock", "check_output_folder", "stale_run", "read_run_config", "clear_new_run"]
+__all__ = [
+    "MODEL_FILE",
+    "NORMALIZATION_FILE",
+    "CONFIG_FILE",
+    "CHECKPOINT_PREFIX",
+    "RUN_ENTRIES",
+    "EVAL_FIELDS",
+    "agent_files",
+    "read_agent_config",
+    "evaluation_score",
+    "evaluation_row",
+    "checkpoint_files",
+    "check_checkpoint",
+    "scan_checkpoints",
+    "latest_checkpoint",
+    "write_yaml",
+    "write_config",
+    "save_model",
+    "save_agent",
+    "read_evaluations",
+    "write_evaluations",
+    "best_of",
+    "roll_back",
+    "read_summary",
+    "record_session",
+    "session_rates",
+    "run_lock",
+    "check_output_folder",
+    "stale_run",
+    "read_run_config",
+    "clear_new_run",
+]
 
 #: The files of an agent folder (a run's ``best/`` and ``final/``, a shipped agent): what
 #: :func:`vcnc_agents.load_agent` reads.
@@ -73,8 +100,7 @@ CONFIG_FILE = "config.yml"
 CHECKPOINT_PREFIX = "rl_model"
 CHECKPOINT_NAME = re.compile(rf"^{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
 #: Entries a run folder may hold; a folder holding others is not ours to clear.
-RUN_ENTRIES = {CONFIG_FILE, "checkpoints", "best", "final", "evaluations.csv", "monitor", "tb", "summary.json",
-               ".lock"}
+RUN_ENTRIES = {CONFIG_FILE, "checkpoints", "best", "final", "evaluations.csv", "monitor", "tb", "summary.json", ".lock"}
 LOCK_FILE = ".lock"
 EVAL_FIELDS = ("steps", "max_um", "mean_um", "rms_um", "score_um", "diverged")
 
@@ -100,7 +126,8 @@ def agent_files(path) -> tuple[Path, Path, Path]:
         raise ValueError(
             f"agent folder {str(folder)!r} holds its normalisation as {_PICKLED_NORMALIZATION} (a pickle, which runs "
             f"code when loaded) instead of {NORMALIZATION_FILE}; if you trust the folder, convert it once with "
-            f"python -m vcnc_agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}")
+            f"python -m vcnc_agents.normalization --convert-trusted-pickle {folder / _PICKLED_NORMALIZATION}"
+        )
     if missing:
         raise FileNotFoundError(f"agent folder {str(folder)!r} lacks {', '.join(missing)}")
     return files
@@ -136,17 +163,28 @@ def evaluation_row(steps: int, result) -> dict:
     """
     diverged = bool(result.diverged)
     completed = bool(result.completed)
-    figures = ((math.inf,) * 3 if diverged else
-               (result.max_contour_error_um, result.mean_contour_error_um, result.rms_contour_error_um))
+    figures = (
+        (math.inf,) * 3
+        if diverged
+        else (result.max_contour_error_um, result.mean_contour_error_um, result.rms_contour_error_um)
+    )
     score = math.inf if diverged or not completed else evaluation_score(figures[0], figures[2])
-    return {"steps": int(steps), "max_um": float(figures[0]), "mean_um": float(figures[1]),
-            "rms_um": float(figures[2]), "score_um": float(score), "diverged": diverged}
+    return {
+        "steps": int(steps),
+        "max_um": float(figures[0]),
+        "mean_um": float(figures[1]),
+        "rms_um": float(figures[2]),
+        "score_um": float(score),
+        "diverged": diverged,
+    }
 
 
 # -- checkpoints ------------------------------------------------------------------------
 def checkpoint_files(folder: Path, steps: int) -> tuple[Path, Path]:
-    return (folder / f"{CHECKPOINT_PREFIX}_{steps}_steps.zip",
-            folder / f"{CHECKPOINT_PREFIX}_vecnormalize_{steps}_steps.npz")
+    return (
+        folder / f"{CHECKPOINT_PREFIX}_{steps}_steps.zip",
+        folder / f"{CHECKPOINT_PREFIX}_vecnormalize_{steps}_steps.npz",
+    )
 
 
 def check_checkpoint(steps: int, model_zip: Path, norm: Path, n_envs: int | None = None) -> None:
@@ -269,9 +307,13 @@ def read_evaluations(csv_path: Path) -> list[dict]:
     with open(csv_path, newline="") as f:
         for r in csv.DictReader(f):
             try:
-                rows.append({"steps": int(r["steps"]),
-                             **{k: float(r[k]) for k in ("max_um", "mean_um", "rms_um", "score_um")},
-                             "diverged": {"True": True, "False": False}[r["diverged"]]})
+                rows.append(
+                    {
+                        "steps": int(r["steps"]),
+                        **{k: float(r[k]) for k in ("max_um", "mean_um", "rms_um", "score_um")},
+                        "diverged": {"True": True, "False": False}[r["diverged"]],
+                    }
+                )
             except (KeyError, TypeError, ValueError):
                 continue
     return rows
@@ -439,8 +481,9 @@ def run_lock(run_dir: Path, *, probe: bool = False):
         except BlockingIOError:
             f.seek(0)
             owner = f.read().strip() or "?"
-            raise ValueError(f"{run_dir} is being trained by another process (pid {owner}); "
-                             "wait for it to end or stop it first") from None
+            raise ValueError(
+                f"{run_dir} is being trained by another process (pid {owner}); wait for it to end or stop it first"
+            ) from None
         if not probe:
             f.seek(0)
             f.truncate()
@@ -455,12 +498,15 @@ def run_lock(run_dir: Path, *, probe: bool = False):
 def check_writable(run_dir: Path) -> None:
     """ValueError unless the run folder and its sub-folders can be written (a resumed run writes its lock,
     checkpoints and logs there): checked before anything is written."""
-    folders = [run_dir] + [run_dir / name for name in ("checkpoints", "monitor", "best", "final")
-                           if (run_dir / name).is_dir()]
+    folders = [run_dir] + [
+        run_dir / name for name in ("checkpoints", "monitor", "best", "final") if (run_dir / name).is_dir()
+    ]
     for folder in folders:
         if not os.access(folder, os.W_OK | os.X_OK):
-            raise ValueError(f"{folder} is not writable: a resumed run writes its checkpoints and logs there "
-                             "(check its permissions, or copy the run folder somewhere writable)")
+            raise ValueError(
+                f"{folder} is not writable: a resumed run writes its checkpoints and logs there "
+                "(check its permissions, or copy the run folder somewhere writable)"
+            )
 
 
 def check_output_folder(run_dir: Path) -> None:
@@ -473,8 +519,10 @@ def check_output_folder(run_dir: Path) -> None:
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".vcnc-train-probe-", dir=ancestor))
     except OSError as exc:
-        raise ValueError(f"cannot make the run folder {run_dir}: no folder can be made in {ancestor} "
-                         f"({exc.strerror or type(exc).__name__}); choose another --output") from None
+        raise ValueError(
+            f"cannot make the run folder {run_dir}: no folder can be made in {ancestor} "
+            f"({exc.strerror or type(exc).__name__}); choose another --output"
+        ) from None
 
 
 def stale_run(run_dir: Path) -> bool:

@@ -30,14 +30,33 @@ from .action_modes import ActionMode
 from .config import DEFAULT_CONFIG
 from .env_factory import check_envs
 from .run_config import RunConfig, check_env_id, check_memory, check_training_options, new_config
-from .run_folder import (CHECKPOINT_PREFIX, LOCK_FILE, check_output_folder, check_writable, clear_new_run,
-                         latest_checkpoint, record_session, roll_back, run_lock, scan_checkpoints, stale_run,
-                         write_config)
+from .run_folder import (
+    CHECKPOINT_PREFIX,
+    LOCK_FILE,
+    check_output_folder,
+    check_writable,
+    clear_new_run,
+    latest_checkpoint,
+    record_session,
+    roll_back,
+    run_lock,
+    scan_checkpoints,
+    stale_run,
+    write_config,
+)
 from .run_warning import note
 from .signature import check_signature
 
-__all__ = ["prepare_run", "open_run", "start_folder", "roll_back_to", "Session", "TrainingResult", "StopSignal",
-           "stop_on_signals"]
+__all__ = [
+    "prepare_run",
+    "open_run",
+    "start_folder",
+    "roll_back_to",
+    "Session",
+    "TrainingResult",
+    "StopSignal",
+    "stop_on_signals",
+]
 
 
 @dataclass
@@ -80,10 +99,20 @@ class TrainingResult:
 
 
 # -- 1. the run's configuration ------------------------------------------------------------------------------------
-def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = None, seed: int = 0,
-                n_envs: int | None = None, config_file=DEFAULT_CONFIG, action_mode: ActionMode | None = None,
-                resume: bool = False, tolerance: float | None = None, init_from=None,
-                **options) -> tuple[Path, RunConfig, tuple | None]:
+def prepare_run(
+    env_id: str | None = None,
+    run_dir=None,
+    *,
+    n_timesteps: int | None = None,
+    seed: int = 0,
+    n_envs: int | None = None,
+    config_file=DEFAULT_CONFIG,
+    action_mode: ActionMode | None = None,
+    resume: bool = False,
+    tolerance: float | None = None,
+    init_from=None,
+    **options,
+) -> tuple[Path, RunConfig, tuple | None]:
     """Check every option and build the run's config; nothing is written.
 
     ``options`` are the training options (:data:`vcnc_agents.run_config.TRAINING_OPTIONS`: ``checkpoint_freq``,
@@ -103,8 +132,16 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
     if resume:
         return _prepare_resume(env_id, run_dir, n_timesteps, options)
     check_env_id(env_id)
-    config = new_config(env_id, config_file=config_file, n_timesteps=n_timesteps, seed=seed, n_envs=n_envs,
-                        action_mode=action_mode, tolerance=tolerance, **options)
+    config = new_config(
+        env_id,
+        config_file=config_file,
+        n_timesteps=n_timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        action_mode=action_mode,
+        tolerance=tolerance,
+        **options,
+    )
     config = config.with_env(check_envs(config))
     if init_from is not None:
         from .warm_start import check_init_agent
@@ -119,10 +156,14 @@ def prepare_run(env_id: str | None = None, run_dir=None, *, n_timesteps: int | N
         with run_lock(run_dir, probe=True):
             pass
         if not stale_run(run_dir):
-            raise FileExistsError(f"{run_dir} already holds a run (or other files); resume it with "
-                                  f"vcnc-train --resume {run_dir}, or choose another output folder")
-        note(f"{run_dir} holds a run without an intact checkpoint (it never reached one, or all are damaged): "
-             "starting it over")
+            raise FileExistsError(
+                f"{run_dir} already holds a run (or other files); resume it with "
+                f"vcnc-train --resume {run_dir}, or choose another output folder"
+            )
+        note(
+            f"{run_dir} holds a run without an intact checkpoint (it never reached one, or all are damaged): "
+            "starting it over"
+        )
     return run_dir, config, None
 
 
@@ -143,7 +184,8 @@ def _prepare_resume(env_id, run_dir, n_timesteps, options: dict):
         raise FileNotFoundError(
             f"cannot resume: {run_dir / 'checkpoints'} holds no intact checkpoint "
             f"({CHECKPOINT_PREFIX}_<steps>_steps.zip with its vecnormalize .npz); it never reached one or all "
-            f"are damaged: start it again with vcnc-train --env {config.env_id} --output {run_dir}")
+            f"are damaged: start it again with vcnc-train --env {config.env_id} --output {run_dir}"
+        )
     config = config.with_options(**options)
     env = check_envs(config)
     recorded = (config.env or {}).get("signature")
@@ -153,8 +195,10 @@ def _prepare_resume(env_id, run_dir, n_timesteps, options: dict):
     if n_timesteps is not None:
         config = config.with_total(n_timesteps)
     if checkpoint[0] >= config.n_timesteps:
-        raise ValueError(f"the run has {checkpoint[0]} steps already, its total is {config.n_timesteps}: "
-                         "pass a larger n_timesteps (--timesteps) to go on")
+        raise ValueError(
+            f"the run has {checkpoint[0]} steps already, its total is {config.n_timesteps}: "
+            "pass a larger n_timesteps (--timesteps) to go on"
+        )
     return run_dir, config, checkpoint
 
 
@@ -166,7 +210,7 @@ class StopSignal:
 
     @property
     def name(self) -> str | None:
-        """"SIGINT" or "SIGTERM", None before a signal came."""
+        """ "SIGINT" or "SIGTERM", None before a signal came."""
         return None if self.signum is None else signal.Signals(self.signum).name
 
 
@@ -181,8 +225,12 @@ def stop_on_signals(stop: StopSignal):
     def handler(signum, frame):
         stop.signum = signum
         signal.signal(signum, previous[signum])
-        print(f"\nvcnc-train: {signal.Signals(signum).name} received: saving a checkpoint at the last PPO update "
-              "(send it again to quit at once)", file=sys.stderr, flush=True)
+        print(
+            f"\nvcnc-train: {signal.Signals(signum).name} received: saving a checkpoint at the last PPO update "
+            "(send it again to quit at once)",
+            file=sys.stderr,
+            flush=True,
+        )
 
     for s in (signal.SIGINT, signal.SIGTERM):
         previous[s] = signal.signal(s, handler)
@@ -235,8 +283,10 @@ def roll_back_to(run_dir: Path, config: RunConfig, done: int) -> dict:
     damaged += [c for c in intact if c[0] > done]  # passed over by latest_checkpoint: tensors unreadable
     rolled_back = roll_back(run_dir, config, done, damaged)
     if rolled_back["evaluations"] or rolled_back["episodes"]:
-        note(f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
-             f"{rolled_back['episodes']} episode(s) logged after that checkpoint (their training was lost)")
+        note(
+            f"resuming from {done} steps: dropped {rolled_back['evaluations']} evaluation(s) and "
+            f"{rolled_back['episodes']} episode(s) logged after that checkpoint (their training was lost)"
+        )
     set_random_seed(config.seed + done)
     write_config(run_dir, config)
     return rolled_back
@@ -264,9 +314,16 @@ class Session:
 
     def __init__(self, run_dir: Path, config: RunConfig, done: int, *, vec_env: str, rolled_back=None, clock=None):
         self.run_dir, self.start, self.repeat, self.clock = run_dir, done, config.action_repeat, clock
-        self.row = {"id": f"{done}@{time.time():.0f}", "start_timesteps": done, "end_timesteps": done,
-                    "wall_s": 0.0, "steps_per_s": 0.0, "control_periods_per_s": 0.0, "n_envs": config.n_envs,
-                    "vec_env": vec_env}
+        self.row = {
+            "id": f"{done}@{time.time():.0f}",
+            "start_timesteps": done,
+            "end_timesteps": done,
+            "wall_s": 0.0,
+            "steps_per_s": 0.0,
+            "control_periods_per_s": 0.0,
+            "n_envs": config.n_envs,
+            "vec_env": vec_env,
+        }
         if config.trainer is not None:
             self.row["trainer"] = config.trainer
         self.row["status"] = "running"
@@ -296,10 +353,18 @@ class Session:
     def end(self, n: int, best: dict | None, interrupted: str | None) -> TrainingResult:
         """The session ended at ``n`` steps (finished, or stopped by the signal named ``interrupted``): its last
         record, and the result."""
-        self.row.update(end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished",
-                        **self._rates(n))
+        self.row.update(
+            end_timesteps=n, status=f"interrupted ({interrupted})" if interrupted else "finished", **self._rates(n)
+        )
         record_session(self.run_dir, self.row, best)
-        return TrainingResult(run_dir=self.run_dir, timesteps=n, session_timesteps=n - self.start,
-                              wall_s=self.row["wall_s"], steps_per_s=self.row["steps_per_s"],
-                              control_periods_per_s=self.row["control_periods_per_s"], best=best,
-                              interrupted=interrupted, rolled_back=self.rolled_back)
+        return TrainingResult(
+            run_dir=self.run_dir,
+            timesteps=n,
+            session_timesteps=n - self.start,
+            wall_s=self.row["wall_s"],
+            steps_per_s=self.row["steps_per_s"],
+            control_periods_per_s=self.row["control_periods_per_s"],
+            best=best,
+            interrupted=interrupted,
+            rolled_back=self.rolled_back,
+        )

@@ -80,8 +80,10 @@ def _earlier(summary: Path, env_id: str, argv: list[str], seeds: list[int]) -> l
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{summary} is not a seeds.json ({type(exc).__name__}); choose another --output") from None
     if data.get("env") != env_id or _options(data.get("argv") or []) != _options(argv):
-        raise ValueError(f"{summary} holds the seeds of another run (env {data.get('env')!r}, options "
-                         f"{' '.join(_options(data.get('argv') or []))!r}); choose another --output")
+        raise ValueError(
+            f"{summary} holds the seeds of another run (env {data.get('env')!r}, options "
+            f"{' '.join(_options(data.get('argv') or []))!r}); choose another --output"
+        )
     return [r for r in runs if r.get("seed") not in seeds]
 
 
@@ -102,8 +104,9 @@ def _run_one(argv: list[str], folder: str) -> tuple[int, float, str]:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     with log.open("w") as f:
         threads = [] if any(a.split("=", 1)[0] == "--threads" for a in argv) else ["--threads", "1"]
-        code = subprocess.run([sys.executable, "-m", "vcnc_agents.cli", *argv, *threads], stdout=f,
-                              stderr=subprocess.STDOUT, env=env).returncode
+        code = subprocess.run(
+            [sys.executable, "-m", "vcnc_agents.cli", *argv, *threads], stdout=f, stderr=subprocess.STDOUT, env=env
+        ).returncode
     lines = [ln for ln in log.read_text().splitlines() if ln.strip()]
     return code, time.perf_counter() - t0, lines[-1] if lines else ""
 
@@ -133,8 +136,10 @@ def _ray(tasks: list[tuple[list[str], str]], address: str, report) -> list[tuple
     try:
         import ray
     except ImportError:
-        raise ImportError("vcnc-train --seeds --ray-address runs on Ray, an optional extra that is not installed: "
-                          "pip install 'vcnc-gym[sweep]'") from None
+        raise ImportError(
+            "vcnc-train --seeds --ray-address runs on Ray, an optional extra that is not installed: "
+            "pip install 'vcnc-gym[sweep]'"
+        ) from None
     ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
     remote = ray.remote(num_cpus=1)(_run_one)
     refs = [remote.remote(argv, folder) for argv, folder in tasks]
@@ -145,8 +150,16 @@ def _ray(tasks: list[tuple[list[str], str]], address: str, report) -> list[tuple
     return results
 
 
-def run_seeds(argv: list[str], env_id: str, first: int, count: int, output: Path | None, *, jobs: int | None = None,
-              ray_address: str | None = None) -> list[SeedRun]:
+def run_seeds(
+    argv: list[str],
+    env_id: str,
+    first: int,
+    count: int,
+    output: Path | None,
+    *,
+    jobs: int | None = None,
+    ray_address: str | None = None,
+) -> list[SeedRun]:
     """Train seeds ``first .. first + count - 1`` with the options ``argv`` (see the module docstring); the runs,
     in seed order, written to ``seeds.json`` in the folders' parent.  ValueError for a bad seed range or a run
     folder that exists."""
@@ -161,8 +174,11 @@ def run_seeds(argv: list[str], env_id: str, first: int, count: int, output: Path
     tasks = [(seed_argv(argv, s, f), str(f)) for s, f in zip(seeds, folders)]
     jobs = jobs or _idle_cores()
     where = f"the Ray cluster at {ray_address}" if ray_address else f"{min(jobs, count)} local process(es)"
-    print(f"vcnc-train: {count} seeds ({seeds[0]}..{seeds[-1]}) of {env_id} on {where}; each seed's output in "
-          f"its folder's .log", flush=True)
+    print(
+        f"vcnc-train: {count} seeds ({seeds[0]}..{seeds[-1]}) of {env_id} on {where}; each seed's output in "
+        f"its folder's .log",
+        flush=True,
+    )
 
     def report(folder, result):
         code, wall, last = result

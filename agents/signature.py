@@ -16,15 +16,34 @@ import warnings
 import numpy as np
 import yaml
 
-__all__ = ["env_signature", "check_signature", "check_env_signature", "observation_pick", "as_seen_through",
-           "ANY_CONTOUR_IDS", "MACHINE_FIELDS", "LAYOUT_FIELDS"]
+__all__ = [
+    "env_signature",
+    "check_signature",
+    "check_env_signature",
+    "observation_pick",
+    "as_seen_through",
+    "ANY_CONTOUR_IDS",
+    "MACHINE_FIELDS",
+    "LAYOUT_FIELDS",
+]
 
 
 #: Fields of :func:`env_signature` with their unit, in the order they are reported.
-_SIGNATURE_UNITS = {"id": "", "contour": "", "curve_sha256": "", "plant": "", "plant_options": "", "shop_floor": "",
-                    "dt": " s",
-                    "feedrate": " mm/s", "ramp_time": " s", "preview_steps": " control periods",
-                    "contour_ahead": " mm", "observation_shape": "", "action_shape": ""}
+_SIGNATURE_UNITS = {
+    "id": "",
+    "contour": "",
+    "curve_sha256": "",
+    "plant": "",
+    "plant_options": "",
+    "shop_floor": "",
+    "dt": " s",
+    "feedrate": " mm/s",
+    "ramp_time": " s",
+    "preview_steps": " control periods",
+    "contour_ahead": " mm",
+    "observation_shape": "",
+    "action_shape": "",
+}
 
 
 def _attr(obj, dotted: str):
@@ -51,7 +70,7 @@ def _shop_floor(plant) -> dict | None:
     inner = getattr(plant, "inner", None)
     if inner is None:
         return None
-    return {p.name: [float(v) for v in p.nominal] for p in plant.parameters[inner.n_parameters:]}
+    return {p.name: [float(v) for v in p.nominal] for p in plant.parameters[inner.n_parameters :]}
 
 
 def env_signature(env) -> dict:
@@ -66,8 +85,14 @@ def env_signature(env) -> dict:
     u = env.unwrapped
     spec = getattr(u, "spec", None)
     options = _attr(u, "task.plant_options") or {}
-    floats = {k: _attr(u, a) for k, a in (("dt", "dt"), ("feedrate", "feedrate_profile.feedrate"),
-                                          ("ramp_time", "feedrate_profile.ramp_time"))}
+    floats = {
+        k: _attr(u, a)
+        for k, a in (
+            ("dt", "dt"),
+            ("feedrate", "feedrate_profile.feedrate"),
+            ("ramp_time", "feedrate_profile.ramp_time"),
+        )
+    }
     preview = _attr(u, "layout.preview_steps")
     ahead = _attr(u, "layout.contour_ahead")
     return {
@@ -96,8 +121,16 @@ def _same(a, b) -> bool:
 ANY_CONTOUR_IDS = ("VCNC-RandomContour-v1",)
 
 #: The signature fields that describe the machine and the observation, not the part.
-MACHINE_FIELDS = ("plant", "plant_options", "shop_floor", "dt", "preview_steps", "contour_ahead", "observation_shape",
-                  "action_shape")
+MACHINE_FIELDS = (
+    "plant",
+    "plant_options",
+    "shop_floor",
+    "dt",
+    "preview_steps",
+    "contour_ahead",
+    "observation_shape",
+    "action_shape",
+)
 
 
 def check_signature(recorded: dict, given: dict, *, what: str = "the agent", allow_mismatch: bool = False) -> None:
@@ -125,9 +158,11 @@ def check_signature(recorded: dict, given: dict, *, what: str = "the agent", all
             fatal |= key in ("observation_shape", "action_shape")
     if not diffs:
         return
-    head = (f"{what} was trained on {recorded['id']}, not {given['id']}"
-            if recorded.get("id") and given.get("id") and recorded["id"] != given["id"]
-            else f"{what} was trained on another env configuration")
+    head = (
+        f"{what} was trained on {recorded['id']}, not {given['id']}"
+        if recorded.get("id") and given.get("id") and recorded["id"] != given["id"]
+        else f"{what} was trained on another env configuration"
+    )
     message = f"{head}: " + "; ".join(diffs)
     if fatal or not allow_mismatch:
         raise ValueError(message + ("" if fatal else " (allow_mismatch=True runs it anyway)"))
@@ -161,15 +196,20 @@ def observation_pick(recorded: dict, env) -> np.ndarray | None:
     ahead = layout.contour_ahead if ahead is None else tuple(float(a) for a in ahead)
     if steps == layout.preview_steps and ahead == layout.contour_ahead:
         return None
-    missing = ([f"preview step {s}" for s in steps if s not in layout.preview_steps]
-               + [f"contour preview at {a:g} mm" for a in ahead if a not in layout.contour_ahead])
+    missing = [f"preview step {s}" for s in steps if s not in layout.preview_steps] + [
+        f"contour preview at {a:g} mm" for a in ahead if a not in layout.contour_ahead
+    ]
     if missing:
-        raise ValueError(f"the agent observes {', '.join(missing)}, which this env's observation does not give "
-                         f"(preview_steps {list(layout.preview_steps)}, contour_ahead {list(layout.contour_ahead)})")
+        raise ValueError(
+            f"the agent observes {', '.join(missing)}, which this env's observation does not give "
+            f"(preview_steps {list(layout.preview_steps)}, contour_ahead {list(layout.contour_ahead)})"
+        )
     agent = dataclasses.replace(layout, preview_steps=steps, contour_ahead=ahead)
-    columns = {"preview": [2 * layout.preview_steps.index(s) + k for s in steps for k in (0, 1)],
-               "contour_preview": [2 * layout.contour_ahead.index(a) + k for a in ahead for k in (0, 1)],
-               "contour_curvature": [layout.contour_ahead.index(a) for a in ahead]}
+    columns = {
+        "preview": [2 * layout.preview_steps.index(s) + k for s in steps for k in (0, 1)],
+        "contour_preview": [2 * layout.contour_ahead.index(a) + k for a in ahead for k in (0, 1)],
+        "contour_curvature": [layout.contour_ahead.index(a) for a in ahead],
+    }
     pick = [layout.slice(f.name).start + c for f in agent.fields for c in columns.get(f.name, range(f.size))]
     return np.array(pick, dtype=np.int64)
 

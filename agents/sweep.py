@@ -76,25 +76,71 @@ import yaml
 
 from .run_config import TRAINING_OPTIONS
 
-__all__ = ["SweepSpec", "SweepResult", "load_sweep", "run_sweep", "trial_argv", "import_ray", "SEARCH_KEYS",
-           "RESULT_FIELDS"]
+__all__ = [
+    "SweepSpec",
+    "SweepResult",
+    "load_sweep",
+    "run_sweep",
+    "trial_argv",
+    "import_ray",
+    "SEARCH_KEYS",
+    "RESULT_FIELDS",
+]
 
 #: Parameters a sweep may search, and the kind of their values.
-SEARCH_KEYS = {"seed": "int", "learning_rate": "float", "action_mode": "str", "baseline": "str",
-               "correction": "float", "action_repeat": "int", "n_envs": "int", "timesteps": "int"}
+SEARCH_KEYS = {
+    "seed": "int",
+    "learning_rate": "float",
+    "action_mode": "str",
+    "baseline": "str",
+    "correction": "float",
+    "action_repeat": "int",
+    "n_envs": "int",
+    "timesteps": "int",
+}
 #: The vcnc-train option of each searchable parameter (learning_rate goes into the trial's hyperparameter file).
-_FLAGS = {"seed": "--seed", "n_envs": "--n-envs", "timesteps": "--timesteps", "action_mode": "--action-mode",
-          "baseline": "--baseline", "correction": "--correction", "action_repeat": "--action-repeat"}
+_FLAGS = {
+    "seed": "--seed",
+    "n_envs": "--n-envs",
+    "timesteps": "--timesteps",
+    "action_mode": "--action-mode",
+    "baseline": "--baseline",
+    "correction": "--correction",
+    "action_repeat": "--action-repeat",
+}
 #: Search-space forms: which kinds of parameter each applies to.
 _DOMAINS = {"choice": ("int", "float", "str"), "uniform": ("float",), "loguniform": ("float",), "randint": ("int",)}
 #: Keys of a sweep file.
-_FILE_KEYS = ("env", "hyperparams", "overrides", "search", "num_samples", "search_seed", *TRAINING_OPTIONS,
-              "vec_env", "cpus_per_trial", "max_concurrent_trials")
+_FILE_KEYS = (
+    "env",
+    "hyperparams",
+    "overrides",
+    "search",
+    "num_samples",
+    "search_seed",
+    *TRAINING_OPTIONS,
+    "vec_env",
+    "cpus_per_trial",
+    "max_concurrent_trials",
+)
 #: Hyperparameter keys of the entry that a searched parameter sets (refused in overrides, set in two places).
 _ENTRY_KEYS = {"learning_rate": "learning_rate", "n_envs": "n_envs", "timesteps": "n_timesteps"}
 #: Columns of sweep_results.csv.
-RESULT_FIELDS = ("trial", "status", *SEARCH_KEYS, "max_um", "rms_um", "score_um", "best_steps", "trained_steps",
-                 "wall_s", "train_wall_s", "run_dir", "command", "note")
+RESULT_FIELDS = (
+    "trial",
+    "status",
+    *SEARCH_KEYS,
+    "max_um",
+    "rms_um",
+    "score_um",
+    "best_steps",
+    "trained_steps",
+    "wall_s",
+    "train_wall_s",
+    "run_dir",
+    "command",
+    "note",
+)
 #: The oldest Ray whose Tune has ``tune.report(metrics)`` and ``tune.get_context()`` in function trainables.
 _RAY_MIN = (2, 41)
 _INSTALL = "pip install 'vcnc-gym[sweep]'"
@@ -137,9 +183,14 @@ class SweepSpec:
         """The search space in Ray Tune's terms."""
         from ray import tune
 
-        make = {"value": lambda v: v, "grid": tune.grid_search, "choice": tune.choice,
-                "uniform": lambda b: tune.uniform(*b), "loguniform": lambda b: tune.loguniform(*b),
-                "randint": lambda b: tune.randint(b[0], b[1] + 1)}  # Tune's upper bound is excluded
+        make = {
+            "value": lambda v: v,
+            "grid": tune.grid_search,
+            "choice": tune.choice,
+            "uniform": lambda b: tune.uniform(*b),
+            "loguniform": lambda b: tune.loguniform(*b),
+            "randint": lambda b: tune.randint(b[0], b[1] + 1),
+        }  # Tune's upper bound is excluded
         return {k: make[form](v) for k, (form, v) in self.search.items()}
 
     def entry(self, settings: dict) -> dict:
@@ -170,20 +221,23 @@ def _value_rules():
             if v not in allowed:
                 raise ValueError(f"{name} must be one of {sorted(allowed)}, got {v!r}")
             return v
+
         return check
 
     def learning_rate(v):
         ppo_arguments({"learning_rate": v})
         return v
 
-    return {"seed": check_seed,
-            "learning_rate": learning_rate,
-            "action_mode": one_of("action_mode", ACTION_MODES),
-            "baseline": one_of("baseline", vcnc_baselines.names()),
-            "correction": lambda v: ActionMode("residual", baseline=vcnc_baselines.names()[0], correction=v).correction,
-            "action_repeat": lambda v: count("action_repeat", v),
-            "n_envs": lambda v: count("n_envs", v),
-            "timesteps": lambda v: count("timesteps", v)}
+    return {
+        "seed": check_seed,
+        "learning_rate": learning_rate,
+        "action_mode": one_of("action_mode", ACTION_MODES),
+        "baseline": one_of("baseline", vcnc_baselines.names()),
+        "correction": lambda v: ActionMode("residual", baseline=vcnc_baselines.names()[0], correction=v).correction,
+        "action_repeat": lambda v: count("action_repeat", v),
+        "n_envs": lambda v: count("n_envs", v),
+        "timesteps": lambda v: count("timesteps", v),
+    }
 
 
 def _typed(key: str, v):
@@ -211,9 +265,10 @@ def _parse_domain(key: str, raw) -> tuple[str, object]:
     try:
         if isinstance(raw, dict):
             if len(raw) != 1 or next(iter(raw)) not in _DOMAINS:
-                raise ValueError(f"a search form is one of {{{', '.join(f'{k}: [...]' for k in _DOMAINS)}}}, "
-                                 f"got {raw!r}")
-            (form, args), = raw.items()
+                raise ValueError(
+                    f"a search form is one of {{{', '.join(f'{k}: [...]' for k in _DOMAINS)}}}, got {raw!r}"
+                )
+            ((form, args),) = raw.items()
             if SEARCH_KEYS[key] not in _DOMAINS[form]:
                 applies = " and ".join(k for k, t in SEARCH_KEYS.items() if t in _DOMAINS[form])
                 raise ValueError(f"{form} applies to {applies}, not to {key}")
@@ -286,14 +341,22 @@ def load_sweep(path) -> SweepSpec:
         vec_env = data.get("vec_env", "native")
         check_training_options(vec_env=vec_env, tensorboard=None, **options)
         spec = SweepSpec(
-            path=path, env_id=env_id, hyperparams=config, overrides=dict(overrides),
+            path=path,
+            env_id=env_id,
+            hyperparams=config,
+            overrides=dict(overrides),
             search={k: _parse_domain(k, v) for k, v in search.items()},
             num_samples=count("num_samples", data.get("num_samples", 1)),
             search_seed=count("search_seed", data.get("search_seed", 0), 0),
-            options=options, vec_env=vec_env,
+            options=options,
+            vec_env=vec_env,
             cpus_per_trial=count("cpus_per_trial", data.get("cpus_per_trial", 1)),
-            max_concurrent_trials=(None if data.get("max_concurrent_trials") is None
-                                   else count("max_concurrent_trials", data["max_concurrent_trials"])))
+            max_concurrent_trials=(
+                None
+                if data.get("max_concurrent_trials") is None
+                else count("max_concurrent_trials", data["max_concurrent_trials"])
+            ),
+        )
         ppo_arguments(spec.entry({}))
     except (ValueError, FileNotFoundError) as exc:
         raise _error(path, str(exc)) from None
@@ -313,8 +376,9 @@ def _check_trials(spec: SweepSpec) -> None:
     mode_keys = ("action_mode", "baseline", "action_repeat")
     axes = {k: _values(*spec.search[k]) for k in mode_keys if k in spec.search}
     rest = {k: _values(*v)[0] for k, v in spec.search.items() if k not in axes}
-    combos = {tuple(sorted(_direct(dict(rest, **dict(zip(axes, c)))).items()))
-              for c in itertools.product(*axes.values())}
+    combos = {
+        tuple(sorted(_direct(dict(rest, **dict(zip(axes, c)))).items())) for c in itertools.product(*axes.values())
+    }
     seen = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, combo in enumerate(sorted(combos, key=repr)):
@@ -361,16 +425,23 @@ def _train_kwargs(argv: list[str]) -> dict:
     from .arguments import action_mode, parser
 
     args = parser().parse_args(argv)
-    return {"env_id": args.env, "run_dir": args.output, "n_timesteps": args.timesteps,
-            "seed": 0 if args.seed is None else args.seed, "n_envs": args.n_envs, "config_file": args.config,
-            "action_mode": action_mode(args, args.config),
-            **{name: getattr(args, name) for name in TRAINING_OPTIONS}}
+    return {
+        "env_id": args.env,
+        "run_dir": args.output,
+        "n_timesteps": args.timesteps,
+        "seed": 0 if args.seed is None else args.seed,
+        "n_envs": args.n_envs,
+        "config_file": args.config,
+        "action_mode": action_mode(args, args.config),
+        **{name: getattr(args, name) for name in TRAINING_OPTIONS},
+    }
 
 
 def _write_entry(spec: SweepSpec, settings: dict, path: Path) -> None:
     text = yaml.safe_dump({spec.env_id: spec.entry(settings)}, sort_keys=False)
-    path.write_text(f"# hyperparameters of a trial of the sweep {spec.path}: its entry, overrides and learning rate\n"
-                    + text)
+    path.write_text(
+        f"# hyperparameters of a trial of the sweep {spec.path}: its entry, overrides and learning rate\n" + text
+    )
 
 
 def _trial(settings: dict, *, spec: SweepSpec, sweep_dir: str) -> None:
@@ -398,14 +469,27 @@ def _trial(settings: dict, *, spec: SweepSpec, sweep_dir: str) -> None:
     run = RunConfig.read(folder / "run")
     mode = run.mode
     best = result.best or {}
-    tune.report({
-        "trial": name, "seed": run.seed, "learning_rate": run.hyperparams.get("learning_rate"),
-        "action_mode": mode.mode, "baseline": mode.baseline, "correction": mode.correction,
-        "action_repeat": mode.action_repeat, "n_envs": run.n_envs, "timesteps": run.n_timesteps,
-        "max_um": best.get("max_um", math.inf), "rms_um": best.get("rms_um", math.inf),
-        "score_um": best.get("score_um", math.inf), "best_steps": best.get("steps"),
-        "trained_steps": result.timesteps, "wall_s": wall, "train_wall_s": result.wall_s,
-        "note": "; ".join(dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, RunWarning)))})
+    tune.report(
+        {
+            "trial": name,
+            "seed": run.seed,
+            "learning_rate": run.hyperparams.get("learning_rate"),
+            "action_mode": mode.mode,
+            "baseline": mode.baseline,
+            "correction": mode.correction,
+            "action_repeat": mode.action_repeat,
+            "n_envs": run.n_envs,
+            "timesteps": run.n_timesteps,
+            "max_um": best.get("max_um", math.inf),
+            "rms_um": best.get("rms_um", math.inf),
+            "score_um": best.get("score_um", math.inf),
+            "best_steps": best.get("steps"),
+            "trained_steps": result.timesteps,
+            "wall_s": wall,
+            "train_wall_s": result.wall_s,
+            "note": "; ".join(dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, RunWarning))),
+        }
+    )
 
 
 # -- Ray -------------------------------------------------------------------------------------------
@@ -415,12 +499,15 @@ def import_ray():
         import ray
         from ray import tune
     except ImportError:
-        raise ImportError(f"vcnc-train --sweep runs on Ray Tune, an optional extra that is not installed: "
-                          f"{_INSTALL}") from None
+        raise ImportError(
+            f"vcnc-train --sweep runs on Ray Tune, an optional extra that is not installed: {_INSTALL}"
+        ) from None
     version = tuple(int(p) for p in ray.__version__.split(".")[:2] if p.isdigit())
     if version < _RAY_MIN:
-        raise ImportError(f"vcnc-train --sweep needs Ray >= {'.'.join(map(str, _RAY_MIN))}, found "
-                          f"{ray.__version__}: pip install -U 'vcnc-gym[sweep]'")
+        raise ImportError(
+            f"vcnc-train --sweep needs Ray >= {'.'.join(map(str, _RAY_MIN))}, found "
+            f"{ray.__version__}: pip install -U 'vcnc-gym[sweep]'"
+        )
     return ray, tune
 
 
@@ -436,8 +523,9 @@ def _start_ray(ray, address: str | None, cpus_per_trial: int) -> tuple[bool, str
     if address is None:
         cpus = _local_cpus()
         if cpus_per_trial > cpus:
-            raise ValueError(f"cpus_per_trial {cpus_per_trial} is more than this machine's {cpus} CPUs: "
-                             "no trial could start")
+            raise ValueError(
+                f"cpus_per_trial {cpus_per_trial} is more than this machine's {cpus} CPUs: no trial could start"
+            )
         ray.init(num_cpus=cpus, **quiet)
         return True, f"local Ray, {cpus} CPUs"
     try:
@@ -459,8 +547,11 @@ def _progress(tune, n_trials: int):
 
         def on_trial_complete(self, iteration, trials, trial, **info):
             m = trial.last_result or {}
-            figures = (f"max {m['max_um']:.2f} um, RMS {m['rms_um']:.2f} um, score {m['score_um']:.2f} um"
-                       if "score_um" in m else "no figures")
+            figures = (
+                f"max {m['max_um']:.2f} um, RMS {m['rms_um']:.2f} um, score {m['score_um']:.2f} um"
+                if "score_um" in m
+                else "no figures"
+            )
             self._line(trials, trial, f"finished: {figures}")
 
         def on_trial_error(self, iteration, trials, trial, **info):
@@ -529,19 +620,29 @@ def run_sweep(spec, output=None, *, ray_address: str | None = None, verbose: int
         output.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(spec.path, output / "sweep.yml")
         t0 = time.perf_counter()
-        trainable = tune.with_resources(tune.with_parameters(_trial, spec=spec, sweep_dir=str(output.resolve())),
-                                        {"cpu": spec.cpus_per_trial})
+        trainable = tune.with_resources(
+            tune.with_parameters(_trial, spec=spec, sweep_dir=str(output.resolve())), {"cpu": spec.cpus_per_trial}
+        )
         tuner = tune.Tuner(
-            trainable, param_space=spec.param_space(),
+            trainable,
+            param_space=spec.param_space(),
             tune_config=tune.TuneConfig(
-                metric="score_um", mode="min", num_samples=spec.num_samples,
+                metric="score_um",
+                mode="min",
+                num_samples=spec.num_samples,
                 search_alg=BasicVariantGenerator(random_state=spec.search_seed),
                 max_concurrent_trials=spec.max_concurrent_trials,
                 trial_name_creator=lambda t: f"trial_{t.trial_id.rsplit('_', 1)[-1]}",
-                trial_dirname_creator=lambda t: str(t)),
-            run_config=tune.RunConfig(name="tune", storage_path=str(output.resolve()), verbose=1 if verbose else 0,
-                                      failure_config=tune.FailureConfig(max_failures=0),
-                                      callbacks=[_progress(tune, spec.n_trials)]))
+                trial_dirname_creator=lambda t: str(t),
+            ),
+            run_config=tune.RunConfig(
+                name="tune",
+                storage_path=str(output.resolve()),
+                verbose=1 if verbose else 0,
+                failure_config=tune.FailureConfig(max_failures=0),
+                callbacks=[_progress(tune, spec.n_trials)],
+            ),
+        )
         with _no_tune_loggers():
             grid = tuner.fit()
         wall = time.perf_counter() - t0
@@ -573,12 +674,23 @@ def _row(spec: SweepSpec, output: Path, r) -> dict:
         note = str(r.error).strip().splitlines()[-1]
     folder = output / "trials" / name
     ppo = folder / "ppo.yml"
-    command = "vcnc-train " + shlex.join(trial_argv(spec, {k: v for k, v in r.config.items() if k in SEARCH_KEYS},
-                                                    ppo, Path("runs") / f"{output.name}-{name}"))
-    return {"trial": name, "status": status, **settings,
-            **{k: m.get(k, "") for k in ("max_um", "rms_um", "score_um", "best_steps", "trained_steps", "wall_s",
-                                         "train_wall_s")},
-            "run_dir": str(folder / "run"), "command": command, "note": note}
+    command = "vcnc-train " + shlex.join(
+        trial_argv(
+            spec, {k: v for k, v in r.config.items() if k in SEARCH_KEYS}, ppo, Path("runs") / f"{output.name}-{name}"
+        )
+    )
+    return {
+        "trial": name,
+        "status": status,
+        **settings,
+        **{
+            k: m.get(k, "")
+            for k in ("max_um", "rms_um", "score_um", "best_steps", "trained_steps", "wall_s", "train_wall_s")
+        },
+        "run_dir": str(folder / "run"),
+        "command": command,
+        "note": note,
+    }
 
 
 def _fmt(v, digits: int = 2) -> str:
@@ -601,36 +713,61 @@ def _write_results(spec: SweepSpec, result: SweepResult, ray_version: str) -> No
 
     searched = [k for k in SEARCH_KEYS if k in spec.search]
     finished = sum(r["status"] == "finished" for r in result.rows)
-    lines = [f"# Sweep `{spec.name}` on {spec.env_id}", "",
-             f"Sweep file `{spec.path}` (copied to `sweep.yml`); {len(result.rows)} trials, {finished} finished, "
-             f"in {result.wall_s / 60:.1f} min on {result.where} (Ray {ray_version}).", "",
-             "Metric: vcnc-train's evaluation score, sqrt(max x RMS) contour error (um) of each run's best "
-             "deterministic evaluation on the nominal plant; lower is better.", ""]
+    lines = [
+        f"# Sweep `{spec.name}` on {spec.env_id}",
+        "",
+        f"Sweep file `{spec.path}` (copied to `sweep.yml`); {len(result.rows)} trials, {finished} finished, "
+        f"in {result.wall_s / 60:.1f} min on {result.where} (Ray {ray_version}).",
+        "",
+        "Metric: vcnc-train's evaluation score, sqrt(max x RMS) contour error (um) of each run's best "
+        "deterministic evaluation on the nominal plant; lower is better.",
+        "",
+    ]
     b = result.best
     if b is None:
         lines += ["No trial finished with a finite score.", ""]
     else:
-        mode = (f"residual over {b['baseline']}, correction {_fmt(b['correction'], 3)}"
-                if b["action_mode"] == "residual" else "direct")
-        lines += [f"## Best trial: {b['trial']}", "",
-                  f"- max contour error {_fmt(b['max_um'])} um, RMS {_fmt(b['rms_um'])} um, score "
-                  f"{_fmt(b['score_um'])} um (its best evaluation, at {b['best_steps']} of {b['trained_steps']} "
-                  f"agent steps); {_fmt(b['wall_s'], 0)} s",
-                  f"- seed {b['seed']}, learning rate {_fmt(b['learning_rate'], 6)}, {mode}, action repeat "
-                  f"{b['action_repeat']}, n_envs {b['n_envs']}, {b['timesteps']} agent steps",
-                  f"- agent: `{b['run_dir']}/best` "
-                  f"(`vcnc-bench --env {spec.env_id} --policy ppo:{b['run_dir']}/best`)",
-                  "- retrain it (from the folder the sweep ran in):", "", "```bash", b["command"], "```", ""]
-    lines += ["## Trials, best first", "",
-              "| rank | trial | " + " | ".join(searched) + " | max um | RMS um | score um | wall s | status |",
-              "|" + "---|" * (len(searched) + 7)]
+        mode = (
+            f"residual over {b['baseline']}, correction {_fmt(b['correction'], 3)}"
+            if b["action_mode"] == "residual"
+            else "direct"
+        )
+        lines += [
+            f"## Best trial: {b['trial']}",
+            "",
+            f"- max contour error {_fmt(b['max_um'])} um, RMS {_fmt(b['rms_um'])} um, score "
+            f"{_fmt(b['score_um'])} um (its best evaluation, at {b['best_steps']} of {b['trained_steps']} "
+            f"agent steps); {_fmt(b['wall_s'], 0)} s",
+            f"- seed {b['seed']}, learning rate {_fmt(b['learning_rate'], 6)}, {mode}, action repeat "
+            f"{b['action_repeat']}, n_envs {b['n_envs']}, {b['timesteps']} agent steps",
+            f"- agent: `{b['run_dir']}/best` (`vcnc-bench --env {spec.env_id} --policy ppo:{b['run_dir']}/best`)",
+            "- retrain it (from the folder the sweep ran in):",
+            "",
+            "```bash",
+            b["command"],
+            "```",
+            "",
+        ]
+    lines += [
+        "## Trials, best first",
+        "",
+        "| rank | trial | " + " | ".join(searched) + " | max um | RMS um | score um | wall s | status |",
+        "|" + "---|" * (len(searched) + 7),
+    ]
     for i, r in enumerate(result.rows, 1):
-        cells = [str(i), r["trial"], *(_fmt(r[k], 6 if k == "learning_rate" else 3) for k in searched),
-                 _fmt(r["max_um"]), _fmt(r["rms_um"]), _fmt(r["score_um"]), _fmt(r["wall_s"], 0), r["status"]]
+        cells = [
+            str(i),
+            r["trial"],
+            *(_fmt(r[k], 6 if k == "learning_rate" else 3) for k in searched),
+            _fmt(r["max_um"]),
+            _fmt(r["rms_um"]),
+            _fmt(r["score_um"]),
+            _fmt(r["wall_s"], 0),
+            r["status"],
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     notes = [f"- {r['trial']}: {r['note']}" for r in result.rows if r["note"]]
     if notes:
         lines += ["", "Notes:", "", *notes]
     lines += ["", "Every trial's command line is in `sweep_results.csv` (column `command`)."]
     atomic_write_bytes(result.sweep_dir / "sweep_results.md", ("\n".join(lines) + "\n").encode())
-

@@ -29,21 +29,55 @@ from .config import DEFAULT_CONFIG, normalize_kwargs
 from .env_factory import make_eval_env, make_training_venv
 from .model_file import algorithm, load_ppo
 from .normalization import NormalizationStats
-from .run_config import (DEFAULT_CHECKPOINT_FREQ, DEFAULT_EVAL_FREQ, VEC_ENVS, RunConfig, check_env_id, check_seed,
-                         check_training_options)
+from .run_config import (
+    DEFAULT_CHECKPOINT_FREQ,
+    DEFAULT_EVAL_FREQ,
+    VEC_ENVS,
+    RunConfig,
+    check_env_id,
+    check_seed,
+    check_training_options,
+)
 from .run_folder import evaluation_score, latest_checkpoint, save_agent, scan_checkpoints
 from .run_session import Session, TrainingResult, open_run, prepare_run, roll_back_to, start_folder
 from .run_warning import RunWarning
 
-__all__ = ["train", "prepare_run", "learn", "check_training_options", "TrainingResult", "RunWarning",
-           "latest_checkpoint", "scan_checkpoints", "check_env_id", "check_seed", "evaluation_score",
-           "make_training_venv", "DEFAULT_CHECKPOINT_FREQ", "DEFAULT_EVAL_FREQ", "VEC_ENVS"]
+__all__ = [
+    "train",
+    "prepare_run",
+    "learn",
+    "check_training_options",
+    "TrainingResult",
+    "RunWarning",
+    "latest_checkpoint",
+    "scan_checkpoints",
+    "check_env_id",
+    "check_seed",
+    "evaluation_score",
+    "make_training_venv",
+    "DEFAULT_CHECKPOINT_FREQ",
+    "DEFAULT_EVAL_FREQ",
+    "VEC_ENVS",
+]
 
 
-def train(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = None, seed: int = 0,
-          n_envs: int | None = None, config_file=DEFAULT_CONFIG, action_mode: ActionMode | None = None,
-          resume: bool = False, progress_bar: bool = True, tensorboard: bool | None = None,
-          vec_env: str = "native", device: str = "cpu", verbose: int = 0, **options) -> TrainingResult:
+def train(
+    env_id: str | None = None,
+    run_dir=None,
+    *,
+    n_timesteps: int | None = None,
+    seed: int = 0,
+    n_envs: int | None = None,
+    config_file=DEFAULT_CONFIG,
+    action_mode: ActionMode | None = None,
+    resume: bool = False,
+    progress_bar: bool = True,
+    tensorboard: bool | None = None,
+    vec_env: str = "native",
+    device: str = "cpu",
+    verbose: int = 0,
+    **options,
+) -> TrainingResult:
     """Train PPO on ``env_id`` (or resume the run in ``run_dir``) and save everything in the run folder.
 
     Parameters
@@ -87,16 +121,40 @@ def train(env_id: str | None = None, run_dir=None, *, n_timesteps: int | None = 
           (default 20 000).
     """
     check_training_options(vec_env=vec_env, tensorboard=tensorboard, **options)
-    run_dir, config, checkpoint = prepare_run(env_id, run_dir, n_timesteps=n_timesteps, seed=seed, n_envs=n_envs,
-                                              config_file=config_file, action_mode=action_mode, resume=resume,
-                                              **options)
-    return learn(run_dir, config, checkpoint, progress_bar=progress_bar, tensorboard=tensorboard, vec_env=vec_env,
-                 device=device, verbose=verbose)
+    run_dir, config, checkpoint = prepare_run(
+        env_id,
+        run_dir,
+        n_timesteps=n_timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        config_file=config_file,
+        action_mode=action_mode,
+        resume=resume,
+        **options,
+    )
+    return learn(
+        run_dir,
+        config,
+        checkpoint,
+        progress_bar=progress_bar,
+        tensorboard=tensorboard,
+        vec_env=vec_env,
+        device=device,
+        verbose=verbose,
+    )
 
 
-def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = True,
-          tensorboard: bool | None = None, vec_env: str = "native", device: str = "cpu",
-          verbose: int = 0) -> TrainingResult:
+def learn(
+    run_dir: Path,
+    config: RunConfig,
+    checkpoint,
+    *,
+    progress_bar: bool = True,
+    tensorboard: bool | None = None,
+    vec_env: str = "native",
+    device: str = "cpu",
+    verbose: int = 0,
+) -> TrainingResult:
     """Train the run :func:`prepare_run` set up (from ``checkpoint`` if not None); options as :func:`train`.
 
     A new run that fails before its first checkpoint removes what it wrote;
@@ -104,17 +162,25 @@ def learn(run_dir: Path, config: RunConfig, checkpoint, *, progress_bar: bool = 
     """
     check_training_options(vec_env=vec_env, tensorboard=tensorboard)
     if checkpoint is None and config.init_from is not None:
-        raise ValueError(f"init_from ({config.init_from}): a warm start is the lean trainer's "
-                         "(vcnc_agents.warm_start); train with --trainer lean")
+        raise ValueError(
+            f"init_from ({config.init_from}): a warm start is the lean trainer's "
+            "(vcnc_agents.warm_start); train with --trainer lean"
+        )
     with open_run(run_dir, checkpoint) as stop:
-        model, venv, session = _model_and_envs(run_dir, config, checkpoint, tensorboard=tensorboard,
-                                               vec_env=vec_env, device=device, verbose=verbose)
+        model, venv, session = _model_and_envs(
+            run_dir, config, checkpoint, tensorboard=tensorboard, vec_env=vec_env, device=device, verbose=verbose
+        )
         callback = make_run_callback(config, run_dir, session, stop, verbose)
         end, interrupted = session.start, None
         try:
             session.start_clock()
-            model.learn(total_timesteps=config.n_timesteps - session.start, callback=callback,
-                        progress_bar=progress_bar, reset_num_timesteps=checkpoint is None, tb_log_name="PPO")
+            model.learn(
+                total_timesteps=config.n_timesteps - session.start,
+                callback=callback,
+                progress_bar=progress_bar,
+                reset_num_timesteps=checkpoint is None,
+                tb_log_name="PPO",
+            )
             end = model.num_timesteps
             interrupted = stop.name if callback.stopped_early else None
             if interrupted is None:
@@ -139,15 +205,24 @@ def _model_and_envs(run_dir, config: RunConfig, checkpoint, *, tensorboard, vec_
         if norm is None:
             norm = {"norm_obs": False, "norm_reward": False}  # kept, so every agent folder has the same files
         venv = VecNormalize(make_training_venv(config, run_dir, vec_env=vec_env), **norm)
-        model = algorithm(policy)(policy, venv, seed=config.seed, tensorboard_log=tb_dir, device=device,
-                                  verbose=verbose, **kwargs)
+        model = algorithm(policy)(
+            policy, venv, seed=config.seed, tensorboard_log=tb_dir, device=device, verbose=verbose, **kwargs
+        )
         return model, venv, Session(run_dir, config, done, vec_env=vec_env)
     done, model_zip, norm_file = checkpoint
     stats = NormalizationStats.load(norm_file)
     probe = make_eval_env(config)
     space = agent_space(probe.observation_space, config.mode.history, probe.unwrapped.layout)
-    model = load_ppo(model_zip, observation_space=space, action_space=probe.action_space,
-                     ppo_kwargs=kwargs, device=device, policy=policy, tensorboard_log=tb_dir, verbose=verbose)
+    model = load_ppo(
+        model_zip,
+        observation_space=space,
+        action_space=probe.action_space,
+        ppo_kwargs=kwargs,
+        device=device,
+        policy=policy,
+        tensorboard_log=tb_dir,
+        verbose=verbose,
+    )
     probe.close()
     # the checkpoint loads: from here on the run folder changes
     rolled_back = roll_back_to(run_dir, config, done)

@@ -61,22 +61,32 @@ class NativeBatch(NamedTuple):
     repeat: int
 
 
-def native_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None, *,
-                 compiled: bool = True) -> NativeBatch:
+def native_batch(
+    env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None, *, compiled: bool = True
+) -> NativeBatch:
     """Build ``n_envs`` envs of ``env_id`` as one native vector env for ``mode``: what :class:`VcncVecEnv` (SB3's
     trainer) and the lean trainer step.  ValueError when ``env_kwargs``' action_repeat contradicts the mode."""
     kwargs = dict(env_kwargs or {})
     residual = mode.mode == "residual"
     env_repeat = 1 if residual else mode.action_repeat
     if kwargs.get("action_repeat", env_repeat) != env_repeat:
-        raise ValueError(f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
-                         f"action_repeat={env_repeat}, got {kwargs['action_repeat']}")
+        raise ValueError(
+            f"{mode.mode} mode with action_repeat={mode.action_repeat} needs env_kwargs "
+            f"action_repeat={env_repeat}, got {kwargs['action_repeat']}"
+        )
     kwargs["action_repeat"] = env_repeat
     if mode.dial_rate:
-        raise ValueError(f"dial_rate limits a feed override dial, and {env_id}'s native vector env has none (its "
-                         "action is the two axes)")
-    venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
-                        autoreset_mode=AutoresetMode.DISABLED, **kwargs).unwrapped
+        raise ValueError(
+            f"dial_rate limits a feed override dial, and {env_id}'s native vector env has none (its "
+            "action is the two axes)"
+        )
+    venv = gym.make_vec(
+        env_id,
+        num_envs=n_envs,
+        vectorization_mode="vector_entry_point",
+        autoreset_mode=AutoresetMode.DISABLED,
+        **kwargs,
+    ).unwrapped
     baseline = mode.make_baseline(venv)
     controller = baseline.compiled(n_envs) if baseline is not None and compiled else None
     return NativeBatch(venv, baseline, controller, mode.action_repeat if residual else 1)
@@ -99,8 +109,9 @@ def per_env_batch(env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict |
     it with the agent's action itself (``baseline`` None, ``repeat`` 1): a step is a decision."""
     kwargs = dict(env_kwargs or {})
     kwargs.setdefault("action_repeat", 1 if mode.mode == "residual" else mode.action_repeat)
-    venv = gym.vector.SyncVectorEnv([lambda: mode.wrap(gym.make(env_id, **kwargs)) for _ in range(n_envs)],
-                                    autoreset_mode=AutoresetMode.DISABLED)
+    venv = gym.vector.SyncVectorEnv(
+        [lambda: mode.wrap(gym.make(env_id, **kwargs)) for _ in range(n_envs)], autoreset_mode=AutoresetMode.DISABLED
+    )
     return NativeBatch(venv, None, None, 1)
 
 
@@ -141,9 +152,19 @@ class VcncVecEnv(VecEnv):
         compiled form (default); False calls its ``predict`` every period.
     """
 
-    def __init__(self, env_id: str, n_envs: int, mode: ActionMode, env_kwargs: dict | None = None,
-                 seed: int | None = None, *, monitor_dir=None, start_steps: int = 0, append: bool = False,
-                 compiled: bool = True):
+    def __init__(
+        self,
+        env_id: str,
+        n_envs: int,
+        mode: ActionMode,
+        env_kwargs: dict | None = None,
+        seed: int | None = None,
+        *,
+        monitor_dir=None,
+        start_steps: int = 0,
+        append: bool = False,
+        compiled: bool = True,
+    ):
         self.mode = mode
         batch = native_batch(env_id, n_envs, mode, env_kwargs, compiled=compiled)
         self.venv, self.baseline, self.controller, self.repeat = batch
@@ -183,7 +204,8 @@ class VcncVecEnv(VecEnv):
                 self.baseline.reset(mask=self._start)
                 self._start[:] = False
             obs, total, terminated, truncated, last_info = self.venv.step_controlled(
-                self.controller, self._actions, self.mode.correction, self.repeat)
+                self.controller, self._actions, self.mode.correction, self.repeat
+            )
             return self._finish(obs, total, terminated, truncated, last_info, last_info["contour_error_max"])
         n = self.num_envs
         a = self._actions
@@ -219,8 +241,18 @@ class VcncVecEnv(VecEnv):
         n = self.num_envs
         done = terminated | truncated
         infos = [{} for _ in range(n)]
-        for key in ("contour_error", "position", "reference_position", "tracking_error", "command", "time",
-                    "diverged", "reward_contour", "reward_effort", "reward_divergence"):
+        for key in (
+            "contour_error",
+            "position",
+            "reference_position",
+            "tracking_error",
+            "command",
+            "time",
+            "diverged",
+            "reward_contour",
+            "reward_effort",
+            "reward_divergence",
+        ):
             values = last_info[key]
             for i in range(n):
                 infos[i][key] = values[i]
@@ -237,8 +269,11 @@ class VcncVecEnv(VecEnv):
             for i in np.flatnonzero(done):
                 infos[i]["terminal_observation"] = obs[i].copy()
                 infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-                episode = {"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
-                           "t": round(time.time() - self._t0, 6)}
+                episode = {
+                    "r": round(float(self._returns[i]), 6),
+                    "l": int(self._lengths[i]),
+                    "t": round(time.time() - self._t0, 6),
+                }
                 infos[i]["episode"] = episode
                 if self._writers is not None:
                     self._writers[i].write_row({**episode, "steps": self._steps})
@@ -299,5 +334,12 @@ def monitor_writers(monitor_dir, n_envs: int, env_id: str, t0: float, append: bo
     from stable_baselines3.common.monitor import ResultsWriter
 
     Path(monitor_dir).mkdir(parents=True, exist_ok=True)
-    return [ResultsWriter(str(Path(monitor_dir) / f"{i}"), header={"t_start": t0, "env_id": env_id},
-                          extra_keys=("steps",), override_existing=not append) for i in range(n_envs)]
+    return [
+        ResultsWriter(
+            str(Path(monitor_dir) / f"{i}"),
+            header={"t_start": t0, "env_id": env_id},
+            extra_keys=("steps",),
+            override_existing=not append,
+        )
+        for i in range(n_envs)
+    ]

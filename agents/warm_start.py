@@ -44,8 +44,15 @@ from .normalization import NormalizationStats
 from .run_folder import agent_files, read_agent_config
 from .signature import check_signature
 
-__all__ = ["SEED_FIELD", "FITTING_FIELDS", "RUN_OWN", "init_agent_path", "check_init_agent", "grow_agent",
-           "load_init_agent"]
+__all__ = [
+    "SEED_FIELD",
+    "FITTING_FIELDS",
+    "RUN_OWN",
+    "init_agent_path",
+    "check_init_agent",
+    "grow_agent",
+    "load_init_agent",
+]
 
 #: The placeholder of ``--init-from`` that each seed of ``--seeds`` replaces with its number.
 SEED_FIELD = "{seed}"
@@ -77,8 +84,11 @@ def _agent_config(path: Path) -> dict:
         mode = ActionMode(**data["action_mode"])
     except (ValueError, TypeError) as exc:
         raise ValueError(f"init_from: {exc}") from None
-    return {"signature": (data.get("env") or {}).get("signature") or {}, "mode": mode,
-            "ppo": ppo_arguments(data["hyperparams"])}
+    return {
+        "signature": (data.get("env") or {}).get("signature") or {},
+        "mode": mode,
+        "ppo": ppo_arguments(data["hyperparams"]),
+    }
 
 
 def check_init_agent(init_from, config):
@@ -90,25 +100,39 @@ def check_init_agent(init_from, config):
     what = f"init_from: the agent in {str(path)!r}"
     recorded = agent["signature"]
     given = config.env["signature"]
-    check_signature({k: recorded[k] for k in FITTING_FIELDS if k in recorded},
-                    {k: given[k] for k in FITTING_FIELDS if k in given}, what=what)
+    check_signature(
+        {k: recorded[k] for k in FITTING_FIELDS if k in recorded},
+        {k: given[k] for k in FITTING_FIELDS if k in given},
+        what=what,
+    )
     if agent["mode"].history > config.mode.history:
-        raise ValueError(f"{what} remembers {agent['mode'].history} decisions, the run {config.mode.history}: a "
-                         "memory may grow in a warm start, not shrink")
-    theirs, ours = (replace(m, peak_weight=0.0, dial_rate=0.0, history=0, baseline=_law(m.baseline))
-                    for m in (agent["mode"], config.mode))
+        raise ValueError(
+            f"{what} remembers {agent['mode'].history} decisions, the run {config.mode.history}: a "
+            "memory may grow in a warm start, not shrink"
+        )
+    theirs, ours = (
+        replace(m, peak_weight=0.0, dial_rate=0.0, history=0, baseline=_law(m.baseline))
+        for m in (agent["mode"], config.mode)
+    )
     if theirs != ours:
-        diffs = [f"{f.name}: the agent's {getattr(theirs, f.name)!r}, the run's {getattr(ours, f.name)!r}"
-                 for f in fields(ActionMode) if getattr(theirs, f.name) != getattr(ours, f.name)]
+        diffs = [
+            f"{f.name}: the agent's {getattr(theirs, f.name)!r}, the run's {getattr(ours, f.name)!r}"
+            for f in fields(ActionMode)
+            if getattr(theirs, f.name) != getattr(ours, f.name)
+        ]
         raise ValueError(f"{what} acts in another action mode: {'; '.join(diffs)}")
     (p_theirs, k_theirs), (p_ours, k_ours) = agent["ppo"], config.ppo_arguments()
     if p_theirs != p_ours:
         raise ValueError(f"{what} is a {p_theirs}, the run's policy a {p_ours}")
-    diffs = [f"{k}: the agent's {k_theirs.get(k)!r}, the run's {k_ours.get(k)!r}"
-             for k in sorted(set(k_theirs) | set(k_ours)) if k not in RUN_OWN and k_theirs.get(k) != k_ours.get(k)]
+    diffs = [
+        f"{k}: the agent's {k_theirs.get(k)!r}, the run's {k_ours.get(k)!r}"
+        for k in sorted(set(k_theirs) | set(k_ours))
+        if k not in RUN_OWN and k_theirs.get(k) != k_ours.get(k)
+    ]
     if diffs:
-        raise ValueError(f"{what} was trained with other PPO arguments (only {', '.join(RUN_OWN)} may differ): "
-                         + "; ".join(diffs))
+        raise ValueError(
+            f"{what} was trained with other PPO arguments (only {', '.join(RUN_OWN)} may differ): " + "; ".join(diffs)
+        )
     return replace(config, init_from=str(path))
 
 
@@ -130,10 +154,12 @@ def _grown_weights(old: dict, new: dict) -> dict:
         if source.shape == target.shape:
             grown[key] = source.clone()
         elif source.dim() == 2 and source.shape[0] == target.shape[0] and source.shape[1] < target.shape[1]:
-            grown[key] = torch.cat([source, torch.zeros_like(target[:, source.shape[1]:])], dim=1)
+            grown[key] = torch.cat([source, torch.zeros_like(target[:, source.shape[1] :])], dim=1)
         else:
-            raise ValueError(f"grow_agent: {key!r} has shape {tuple(source.shape)} in the agent and "
-                             f"{tuple(target.shape)} in the run: only a first layer's inputs may grow")
+            raise ValueError(
+                f"grow_agent: {key!r} has shape {tuple(source.shape)} in the agent and "
+                f"{tuple(target.shape)} in the run: only a first layer's inputs may grow"
+            )
     return grown
 
 
@@ -147,16 +173,21 @@ def grow_agent(model, stats: NormalizationStats, layout, before: int, after: int
     columns = history_columns(layout)
     extra = (after - before) * columns.size
     if stats.observation_size + extra != observation_space.shape[0]:
-        raise ValueError(f"grow_agent: {stats.observation_size} entries and {after - before} decisions of "
-                         f"{columns.size} make {stats.observation_size + extra}, the run's observation has "
-                         f"{observation_space.shape[0]}")
+        raise ValueError(
+            f"grow_agent: {stats.observation_size} entries and {after - before} decisions of "
+            f"{columns.size} make {stats.observation_size + extra}, the run's observation has "
+            f"{observation_space.shape[0]}"
+        )
     old = model.policy
     policy = model.policy_class(observation_space, model.action_space, model.lr_schedule, **model.policy_kwargs)
     policy.load_state_dict(_grown_weights(old.state_dict(), policy.state_dict()))
     model.policy, model.observation_space = policy.to(model.device), observation_space
     reps = after - before
-    grown = replace(stats, obs_mean=np.r_[stats.obs_mean, np.tile(stats.obs_mean[columns], reps)],
-                    obs_var=np.r_[stats.obs_var, np.tile(stats.obs_var[columns], reps)])
+    grown = replace(
+        stats,
+        obs_mean=np.r_[stats.obs_mean, np.tile(stats.obs_mean[columns], reps)],
+        obs_var=np.r_[stats.obs_var, np.tile(stats.obs_var[columns], reps)],
+    )
     return model, grown
 
 
@@ -172,8 +203,14 @@ def load_init_agent(config, *, env_space, action_space, layout, device: str = "c
     model_file, norm_file, config_file = agent_files(config.init_from)
     policy, kwargs = config.ppo_arguments()
     before, after = ActionMode(**read_agent_config(config_file)["action_mode"]).history, config.mode.history
-    model = load_ppo(model_file, observation_space=agent_space(env_space, before, layout), action_space=action_space,
-                     ppo_kwargs=kwargs, device=device, policy=policy)
+    model = load_ppo(
+        model_file,
+        observation_space=agent_space(env_space, before, layout),
+        action_space=action_space,
+        ppo_kwargs=kwargs,
+        device=device,
+        policy=policy,
+    )
     stats = NormalizationStats.load(norm_file)
     if before < after:
         model, stats = grow_agent(model, stats, layout, before, after, agent_space(env_space, after, layout))

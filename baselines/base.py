@@ -84,9 +84,14 @@ class BaselinePolicy:
             plant = self.plants[0]
         self.plant = get_plant(plant)
         if not type(self).designed_for(self.plant):
-            raise ValueError(f"baseline {self.name!r} is not designed for the plant {self.plant.name!r}"
-                             + (f" (it is for {list(self.plants)})" if self.plants else
-                                " (it needs a plant that declares its inverse dynamics and servo_bandwidth)"))
+            raise ValueError(
+                f"baseline {self.name!r} is not designed for the plant {self.plant.name!r}"
+                + (
+                    f" (it is for {list(self.plants)})"
+                    if self.plants
+                    else " (it needs a plant that declares its inverse dynamics and servo_bandwidth)"
+                )
+            )
         p = np.asarray(nominal_parameters)
         if p.dtype.kind not in "iuf":
             raise ValueError(f"nominal_parameters must be numeric, got dtype {p.dtype}")
@@ -192,8 +197,9 @@ class BaselinePolicy:
         single = obs.ndim == 1
         obs2 = obs.reshape(1, -1) if single else obs
         if obs2.ndim != 2 or obs2.shape[1] != self.layout.size:
-            raise ValueError(f"observation must have shape ({self.layout.size},) or (n_envs, {self.layout.size}), "
-                             f"got {obs.shape}")
+            raise ValueError(
+                f"observation must have shape ({self.layout.size},) or (n_envs, {self.layout.size}), got {obs.shape}"
+            )
         n = obs2.shape[0]
         start = None
         if episode_start is not None:

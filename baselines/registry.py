@@ -31,8 +31,18 @@ from .predictive.lq_preview import LQPreviewPolicy
 from .predictive.mpc import MPCPolicy
 from .predictive.mpcc import MPCCPolicy
 
-__all__ = ["make", "names", "policy_class", "in_default_table", "register_floor", "CONTROLLERS", "FLOORS", "REGISTRY",
-           "VARIANTS", "EXTRA_VARIANTS"]
+__all__ = [
+    "make",
+    "names",
+    "policy_class",
+    "in_default_table",
+    "register_floor",
+    "CONTROLLERS",
+    "FLOORS",
+    "REGISTRY",
+    "VARIANTS",
+    "EXTRA_VARIANTS",
+]
 
 #: The causal controllers, by family (each class names itself: its ``name`` attribute is its registry key).
 CONTROLLERS: tuple[type[BaselinePolicy], ...] = (
@@ -78,6 +88,7 @@ def register_floor(cls: type[BaselinePolicy]) -> type[BaselinePolicy]:
         raise ValueError(f"baseline name {cls.name!r} is taken by {REGISTRY[cls.name].__name__}")
     FLOORS[cls.name] = REGISTRY[cls.name] = cls
     return cls
+
 
 #: Name -> (registered class name, parameters it fixes): a controller of the
 #: registry with some of its parameters changed, benchmarked under its own name.

@@ -57,8 +57,22 @@ from .base import BaselinePolicy
 from .commissioning.design import NO_NOTCH, pid_gains
 from .commissioning.machines import PerMachine
 
-__all__ = ["COMMISSIONING_SOURCES", "ServoGains", "ServoPolicy", "ServoArrays", "pid_gains", "TABLE_COLUMNS", "U_FF", "OFFSET",
-           "VELOCITY_OFFSET", "TANGENT", "CURVATURE", "reference_table", "coupling_estimate", "NO_NOTCH"]
+__all__ = [
+    "COMMISSIONING_SOURCES",
+    "ServoGains",
+    "ServoPolicy",
+    "ServoArrays",
+    "pid_gains",
+    "TABLE_COLUMNS",
+    "U_FF",
+    "OFFSET",
+    "VELOCITY_OFFSET",
+    "TANGENT",
+    "CURVATURE",
+    "reference_table",
+    "coupling_estimate",
+    "NO_NOTCH",
+]
 
 #: Columns of a servo table row: feedforward input (2, input unit), position offset of the loop's reference
 #: (2, mm), its velocity offset (2, mm/s), the reference's unit tangent (2) and signed curvature (1/mm).
@@ -124,14 +138,24 @@ class ServoGains:
     notch: np.ndarray = None
 
 
-_GAIN_FIELDS = ("kp", "kd", "ki", "kc", "kci", "variable", "integral_limit", "coupling_limit", "velocity_filter",
-                "notch")
+_GAIN_FIELDS = (
+    "kp",
+    "kd",
+    "ki",
+    "kc",
+    "kci",
+    "variable",
+    "integral_limit",
+    "coupling_limit",
+    "velocity_filter",
+    "notch",
+)
 
 
 def reference_table(samples: np.ndarray) -> np.ndarray:
     """A servo table (K, TABLE_COLUMNS) with the reference's tangent and curvature and no feedforward."""
     table = np.zeros((samples.shape[0], TABLE_COLUMNS))
-    table[:, TANGENT:TANGENT + 2] = samples[:, sk.REF_TANGENT:sk.REF_TANGENT + 2]
+    table[:, TANGENT : TANGENT + 2] = samples[:, sk.REF_TANGENT : sk.REF_TANGENT + 2]
     table[:, CURVATURE] = samples[:, sk.REF_CURVATURE]
     return table
 
@@ -181,22 +205,37 @@ class ServoPolicy(PerMachine, BaselinePolicy):
         and its ``servo_bandwidth`` (the ceiling of the commissioning's design rule): a plant is one module."""
         return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
-                 commissioning: str | None = None):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        task=None,
+        commissioning: str | None = None,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         if commissioning is not None and commissioning not in COMMISSIONING_SOURCES:
-            raise ValueError(f"commissioning must be one of {list(COMMISSIONING_SOURCES)} (or None: the nominal "
-                             f"machine's record where there is one, else the model's), got {commissioning!r}")
+            raise ValueError(
+                f"commissioning must be one of {list(COMMISSIONING_SOURCES)} (or None: the nominal "
+                f"machine's record where there is one, else the model's), got {commissioning!r}"
+            )
         samples = np.asarray(reference, dtype=np.float64)
         if samples.ndim != 2 or samples.shape[1] != sk.REF_COLUMNS or samples.shape[0] < 2:
-            raise ValueError(f"reference must be the env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), "
-                             f"got shape {samples.shape}")
+            raise ValueError(
+                f"reference must be the env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), "
+                f"got shape {samples.shape}"
+            )
         self.reference = samples
         self.dt = positive("dt", dt)
         stride = self.decision_period / self.dt
         if abs(stride - round(stride)) > 1e-9 * stride:
-            raise ValueError(f"decision_period {self.decision_period} s is not a whole number of control periods "
-                             f"dt = {self.dt} s")
+            raise ValueError(
+                f"decision_period {self.decision_period} s is not a whole number of control periods dt = {self.dt} s"
+            )
         self.stride = int(round(stride))
         self.inverse = self.plant.inverse(self.nominal_parameters)
         self.task = task
@@ -217,9 +256,11 @@ class ServoPolicy(PerMachine, BaselinePolicy):
             if record is not None:
                 return record
             if self.commissioning is not None:
-                raise ValueError(f"baseline {self.name!r}: commissioning={self.commissioning!r} needs the env's task "
-                                 "(build it with from_env) or a shipped record of its nominal machine "
-                                 "(python -m vcnc_baselines.commissioning.record ENV_ID)")
+                raise ValueError(
+                    f"baseline {self.name!r}: commissioning={self.commissioning!r} needs the env's task "
+                    "(build it with from_env) or a shipped record of its nominal machine "
+                    "(python -m vcnc_baselines.commissioning.record ENV_ID)"
+                )
         return model_record(self.plant, self.nominal_parameters, self.dt)
 
     def commissioned(self):
@@ -246,12 +287,16 @@ class ServoPolicy(PerMachine, BaselinePolicy):
         else:
             task = getattr(getattr(env, "unwrapped", env), "task", None)
         if task is None or not hasattr(task, "reference_arrays"):
-            raise ValueError(f"baseline {cls.name!r} follows a contour's reference: it needs a contouring env "
-                             f"(env.unwrapped.task.reference_arrays), got {type(env).__name__}")
+            raise ValueError(
+                f"baseline {cls.name!r} follows a contour's reference: it needs a contouring env "
+                f"(env.unwrapped.task.reference_arrays), got {type(env).__name__}"
+            )
         if getattr(getattr(env, "unwrapped", env), "retimes_reference", False):
-            raise ValueError(f"baseline {cls.name!r} reads the reference ahead from a table computed once; "
-                             f"{type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
-                             "override): use 'ff-pid-online'")
+            raise ValueError(
+                f"baseline {cls.name!r} reads the reference ahead from a table computed once; "
+                f"{type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
+                "override): use 'ff-pid-online'"
+            )
         if "task" in inspect.signature(cls.__init__).parameters:  # the task commissions the nominal machine
             params = {"task": task, **params}
         return super().from_env(env, reference=task.reference_arrays.samples, dt=task.dt, **params)
@@ -285,11 +330,11 @@ class ServoPolicy(PerMachine, BaselinePolicy):
         if table.ndim == 2:
             table = table[None]
         if table.ndim != 3 or table.shape[2] != TABLE_COLUMNS or not np.all(np.isfinite(table)):
-            raise ValueError(f"servo table must be finite, (K, {TABLE_COLUMNS}) or (N, K, {TABLE_COLUMNS}), "
-                             f"got shape {table.shape}")
+            raise ValueError(
+                f"servo table must be finite, (K, {TABLE_COLUMNS}) or (N, K, {TABLE_COLUMNS}), got shape {table.shape}"
+            )
         rows = [self._checked(g) for g in ([gains] if isinstance(gains, ServoGains) else gains)]
-        self.gains = ServoGains(*(np.ascontiguousarray(np.stack([getattr(r, f) for r in rows]))
-                                  for f in _GAIN_FIELDS))
+        self.gains = ServoGains(*(np.ascontiguousarray(np.stack([getattr(r, f) for r in rows])) for f in _GAIN_FIELDS))
         self.table = table
         self._compiled = None
 
@@ -308,17 +353,28 @@ class ServoPolicy(PerMachine, BaselinePolicy):
         coupling_limit = gains.coupling_limit
         if coupling_limit is None:
             coupling_limit = float(np.min(self.u_max)) / kci if kci > 0 else 0.0
-        alpha = np.zeros(2) if gains.velocity_filter is None else per_axis(
-            "velocity_filter", gains.velocity_filter, rule=non_negative)
+        alpha = (
+            np.zeros(2)
+            if gains.velocity_filter is None
+            else per_axis("velocity_filter", gains.velocity_filter, rule=non_negative)
+        )
         if np.any(alpha >= 1.0):
             raise ValueError(f"velocity_filter must be a low-pass pole in [0, 1) per axis, got {alpha}")
         notch = np.array([NO_NOTCH, NO_NOTCH]) if gains.notch is None else np.array(gains.notch, dtype=np.float64)
         if notch.shape != (2, 5) or not np.all(np.isfinite(notch)):
             raise ValueError(f"notch must be finite (b0, b1, b2, a1, a2) per axis, shape (2, 5), got {gains.notch!r}")
-        return ServoGains(per_axis("kp", gains.kp, rule=positive), per_axis("kd", gains.kd, rule=non_negative),
-                          per_axis("ki", gains.ki, rule=non_negative), non_negative("kc", gains.kc), kci,
-                          non_negative("variable", gains.variable), per_axis("integral_limit", limit, rule=non_negative),
-                          non_negative("coupling_limit", coupling_limit), alpha, notch)
+        return ServoGains(
+            per_axis("kp", gains.kp, rule=positive),
+            per_axis("kd", gains.kd, rule=non_negative),
+            per_axis("ki", gains.ki, rule=non_negative),
+            non_negative("kc", gains.kc),
+            kci,
+            non_negative("variable", gains.variable),
+            per_axis("integral_limit", limit, rule=non_negative),
+            non_negative("coupling_limit", coupling_limit),
+            alpha,
+            notch,
+        )
 
     def record(self, n_envs: int, steps: int) -> np.ndarray:
         """Record the next episodes' commands: returns the (n_envs, steps, 2) array the law writes into, row k
@@ -340,33 +396,35 @@ class ServoPolicy(PerMachine, BaselinePolicy):
         k = mem[:, _M_K].astype(np.int64)
         rows = table[own if table.shape[0] > 1 else first, np.minimum(k, table.shape[1] - 1)]
         E = self.layout.tracking_error(obs)
-        v = g.velocity_filter * mem[:, _M_V:_M_V + 2] + (1.0 - g.velocity_filter) * self.layout.velocity(obs)
-        mem[:, _M_V:_M_V + 2] = v
+        v = g.velocity_filter * mem[:, _M_V : _M_V + 2] + (1.0 - g.velocity_filter) * self.layout.velocity(obs)
+        mem[:, _M_V : _M_V + 2] = v
         Ed = self.layout.reference_velocity(obs) - v
         limit = ERROR_LIMIT * self.u_max / g.kp
-        e = np.minimum(np.maximum(E + rows[:, OFFSET:OFFSET + 2], -limit), limit)
-        ed = Ed + rows[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2]
-        eps, cx, cy = coupling_estimate(E, rows[:, TANGENT:TANGENT + 2], rows[:, CURVATURE], g.variable)
+        e = np.minimum(np.maximum(E + rows[:, OFFSET : OFFSET + 2], -limit), limit)
+        ed = Ed + rows[:, VELOCITY_OFFSET : VELOCITY_OFFSET + 2]
+        eps, cx, cy = coupling_estimate(E, rows[:, TANGENT : TANGENT + 2], rows[:, CURVATURE], g.variable)
         w = g.kc * eps + g.kci * mem[:, _M_J]
         coupling = np.column_stack([-cx * w, cy * w])
-        integral = mem[:, _M_I:_M_I + 2]
+        integral = mem[:, _M_I : _M_I + 2]
         notched = np.any(g.notch != np.array(NO_NOTCH), axis=2)  # (n, 2)
         if notched.any():
             x = g.kp * e + g.kd * ed + g.ki * integral + coupling
             b0, b1, b2, a1, a2 = (g.notch[:, :, c] for c in range(5))
-            z1, z2 = mem[:, _M_N:_M_N + 4:2], mem[:, _M_N + 1:_M_N + 4:2]
+            z1, z2 = mem[:, _M_N : _M_N + 4 : 2], mem[:, _M_N + 1 : _M_N + 4 : 2]
             y = b0 * x + z1
             z1_new, z2_new = b1 * x - a1 * y + z2, b2 * x - a2 * y
-            mem[:, _M_N:_M_N + 4:2] = np.where(notched, z1_new, z1)
-            mem[:, _M_N + 1:_M_N + 4:2] = np.where(notched, z2_new, z2)
-            u_notched = rows[:, U_FF:U_FF + 2] + y
-        u = rows[:, U_FF:U_FF + 2] + g.kp * e + g.kd * ed + g.ki * integral + coupling
+            mem[:, _M_N : _M_N + 4 : 2] = np.where(notched, z1_new, z1)
+            mem[:, _M_N + 1 : _M_N + 4 : 2] = np.where(notched, z2_new, z2)
+            u_notched = rows[:, U_FF : U_FF + 2] + y
+        u = rows[:, U_FF : U_FF + 2] + g.kp * e + g.kd * ed + g.ki * integral + coupling
         if notched.any():
             u = np.where(notched, u_notched, u)
-        mem[:, _M_I:_M_I + 2] = np.minimum(np.maximum(integral + e * self.decision_period, -g.integral_limit),
-                                           g.integral_limit)
-        mem[:, _M_J] = np.minimum(np.maximum(mem[:, _M_J] + eps * self.decision_period, -g.coupling_limit),
-                                  g.coupling_limit)
+        mem[:, _M_I : _M_I + 2] = np.minimum(
+            np.maximum(integral + e * self.decision_period, -g.integral_limit), g.integral_limit
+        )
+        mem[:, _M_J] = np.minimum(
+            np.maximum(mem[:, _M_J] + eps * self.decision_period, -g.coupling_limit), g.coupling_limit
+        )
         if self._record.shape[0]:
             rows = np.flatnonzero((k < self._record.shape[1]) & (np.arange(n) < self._record.shape[0]))
             self._record[rows, k[rows]] = np.clip(u[rows] / self.u_max, -1.0, 1.0).astype(np.float32) * self.u_max
@@ -376,18 +434,53 @@ class ServoPolicy(PerMachine, BaselinePolicy):
     def _compiled_arrays(self) -> ServoArrays:
         g = self.gains
         notched = np.ascontiguousarray(np.any(g.notch != np.array(NO_NOTCH), axis=2).astype(np.float64))
-        return ServoArrays(self._state, self.table, g.kp, g.kd, g.ki, g.integral_limit, g.kc, g.kci, g.variable,
-                           g.coupling_limit, self.decision_period, float(self.stride), self.u_max, self._record,
-                           g.velocity_filter, g.notch, notched)
+        return ServoArrays(
+            self._state,
+            self.table,
+            g.kp,
+            g.kd,
+            g.ki,
+            g.integral_limit,
+            g.kc,
+            g.kci,
+            g.variable,
+            g.coupling_limit,
+            self.decision_period,
+            float(self.stride),
+            self.u_max,
+            self._record,
+            g.velocity_filter,
+            g.notch,
+            notched,
+        )
 
 
 #: The compiled servo law: memory (N, 4) (k, I_x, I_y, J), table (1 or N, K, TABLE_COLUMNS), gains ((1 or N, 2)
 #: or (1 or N,)), the call period (s), control periods per call, u_max (2,), the command record (N_r, K_r, 2)
 #: (ServoPolicy.record), the velocity filters' poles (1 or N, 2), the notches (1 or N, 2, 5) and whether each is one
 #: (1 or N, 2; 0: the command skips it, the same operations as without the field).
-ServoArrays = namedtuple("ServoArrays", ["memory", "table", "kp", "kd", "ki", "integral_limit", "kc", "kci",
-                                         "variable", "coupling_limit", "period", "stride", "u_max", "record",
-                                         "velocity_filter", "notch", "notched"])
+ServoArrays = namedtuple(
+    "ServoArrays",
+    [
+        "memory",
+        "table",
+        "kp",
+        "kd",
+        "ki",
+        "integral_limit",
+        "kc",
+        "kci",
+        "variable",
+        "coupling_limit",
+        "period",
+        "stride",
+        "u_max",
+        "record",
+        "velocity_filter",
+        "notch",
+        "notched",
+    ],
+)
 
 
 @njit(cache=True, _nrt=False)

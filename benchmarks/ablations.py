@@ -59,22 +59,31 @@ def variants(entry: dict) -> dict[str, dict]:
     mode = action_mode_of(entry)
     if mode.mode != "residual":
         raise ValueError("the ablations vary a residual specialist; this entry is direct")
-    out = {AGENT: entry,
-           "direct": with_action_mode(entry, ActionMode("direct", action_repeat=mode.action_repeat))}
+    out = {AGENT: entry, "direct": with_action_mode(entry, ActionMode("direct", action_repeat=mode.action_repeat))}
     bare = dict(entry)
     bare["env_kwargs"] = {**(entry.get("env_kwargs") or {}), "preview_steps": [], "contour_ahead": []}
     out["no-preview"] = bare
     for r in (max(1, mode.action_repeat // 2), 2 * mode.action_repeat):
-        out[f"repeat-{r}"] = with_action_mode(entry, ActionMode("residual", r, mode.baseline, mode.correction,
-                                                                mode.baseline_params))
+        out[f"repeat-{r}"] = with_action_mode(
+            entry, ActionMode("residual", r, mode.baseline, mode.correction, mode.baseline_params)
+        )
     for c in (mode.correction / 4, min(1.0, 5 * mode.correction)):
-        out[f"correction-{c:g}"] = with_action_mode(entry, ActionMode("residual", mode.action_repeat, mode.baseline,
-                                                                       c, mode.baseline_params))
+        out[f"correction-{c:g}"] = with_action_mode(
+            entry, ActionMode("residual", mode.action_repeat, mode.baseline, c, mode.baseline_params)
+        )
     return out
 
 
-def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs: int, agent: Path | None,
-          timesteps: int | None = None, eval_freq: int = 262144) -> dict:
+def train(
+    env_id: str,
+    configs: dict[str, dict],
+    folder: Path,
+    seeds: int,
+    jobs: int,
+    agent: Path | None,
+    timesteps: int | None = None,
+    eval_freq: int = 262144,
+) -> dict:
     """Train every variant's seeds (skipping finished ones); their seeds folders by name."""
     folders = {}
     for name, entry in configs.items():
@@ -90,10 +99,31 @@ def train(env_id: str, configs: dict[str, dict], folder: Path, seeds: int, jobs:
         config = folder / f"{name}.yml"
         config.write_text(yaml.safe_dump({env_id: entry}, sort_keys=False))
         print(f"{name}: training {seeds} seeds into {out}", flush=True)
-        subprocess.run([sys.executable, "-m", "vcnc_agents.cli", "--trainer", "lean", "--config", str(config),
-                        "--env", env_id, "--seeds", str(seeds), "--jobs", str(jobs), "--eval-freq", str(eval_freq),
-                        "--output", str(out), "--no-progress", "--no-tensorboard"]
-                       + ([] if timesteps is None else ["--timesteps", str(timesteps)]), check=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "vcnc_agents.cli",
+                "--trainer",
+                "lean",
+                "--config",
+                str(config),
+                "--env",
+                env_id,
+                "--seeds",
+                str(seeds),
+                "--jobs",
+                str(jobs),
+                "--eval-freq",
+                str(eval_freq),
+                "--output",
+                str(out),
+                "--no-progress",
+                "--no-tensorboard",
+            ]
+            + ([] if timesteps is None else ["--timesteps", str(timesteps)]),
+            check=True,
+        )
     return folders
 
 
@@ -122,7 +152,9 @@ def evaluate(env_id: str, folders: dict, plants: int, out: Path, which: str = "b
 
     env = gym.make(env_id)
     # not the floor: the oracle solves every sampled plant afresh (minutes each); its nominal figure is in the README
-    specs = [s for s in default_specs(env) if s not in ("ppo", "oracle")] + [agents_spec(f, which) for f in folders.values()]
+    specs = [s for s in default_specs(env) if s not in ("ppo", "oracle")] + [
+        agents_spec(f, which) for f in folders.values()
+    ]
     command = [sys.executable, "-m", "vcnc_bench.cli", "--env", env_id, "--plants", str(plants), "--json", str(out)]
     for s in specs:
         command += ["--policy", s]
@@ -155,16 +187,23 @@ def table(data: dict) -> list[str]:
     """The Markdown lines: every variant against the agent and against the strongest causal controller (the
     variants' groups are ``data["ablations"]``, written by :func:`main`)."""
     records = data["robust"]
-    by_name = {name: [r for r in records if r.get("group") == group] for name, group in data["ablations"].items()
-               if group is not None}
+    by_name = {
+        name: [r for r in records if r.get("group") == group]
+        for name, group in data["ablations"].items()
+        if group is not None
+    }
     agent_name = AGENT
     agent = by_name[AGENT]
     verdicts = {(v["x"], v["figure"]): v for v in data["verdicts"]}
     env = records[0]["env"]
     figures = data.get("figures", ["max", "rms"])
-    out = [f"**{env}** (`{data['settings']['command']}`)", "",
-           "| variant | seeds | fig | IQM [95 % CI] | variant - agent [95 % CI] | against the agent | "
-           "strongest causal: IQM | against it |", "|---|---|---|---|---|---|---|---|"]
+    out = [
+        f"**{env}** (`{data['settings']['command']}`)",
+        "",
+        "| variant | seeds | fig | IQM [95 % CI] | variant - agent [95 % CI] | against the agent | "
+        "strongest causal: IQM | against it |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for name, members in by_name.items():
         for figure in figures:
             x = seed_figures(members, figure)
@@ -176,8 +215,10 @@ def table(data: dict) -> list[str]:
                 cells = f"{_f(v.difference)} [{_f(v.low)}, {_f(v.high)}]", v.outcome
             row = verdicts.get((members[0]["group"], figure))
             causal = (f"`{row['y']}` {_f(row['iqm_y'])}", row["outcome"]) if row else ("—", "—")
-            out.append(f"| {name} | {len(members)} | {figure}, {UNITS[figure]} | {_f(own.iqm_x)} [{_f(own.ci_x[0])}, "
-                       f"{_f(own.ci_x[1])}] | {cells[0]} | {cells[1]} | {causal[0]} | {causal[1]} |")
+            out.append(
+                f"| {name} | {len(members)} | {figure}, {UNITS[figure]} | {_f(own.iqm_x)} [{_f(own.ci_x[0])}, "
+                f"{_f(own.ci_x[1])}] | {cells[0]} | {cells[1]} | {causal[0]} | {causal[1]} |"
+            )
     for name, why in data.get("without_agent", {}).items():
         out.append(f"| {name} | - | all | {why} | - | loses | - | loses |")
     return out
@@ -185,24 +226,48 @@ def table(data: dict) -> list[str]:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--env", default="VCNC-OmegaLookahead-v1",
-                   help="the id of the agent's entry, the one it trains on (default %(default)s)")
-    p.add_argument("--config", type=Path, default=SPECIALISTS,
-                   help="the family's recipe (default agents/hyperparams/specialists.yml)")
-    p.add_argument("--on", action="append", metavar="ID",
-                   help="an id to evaluate on (repeatable; default --env); the agents must run there")
+    p.add_argument(
+        "--env",
+        default="VCNC-OmegaLookahead-v1",
+        help="the id of the agent's entry, the one it trains on (default %(default)s)",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=SPECIALISTS,
+        help="the family's recipe (default agents/hyperparams/specialists.yml)",
+    )
+    p.add_argument(
+        "--on",
+        action="append",
+        metavar="ID",
+        help="an id to evaluate on (repeatable; default --env); the agents must run there",
+    )
     p.add_argument("--timesteps", type=int, metavar="N", help="agent steps of every variant (default the entry's)")
-    p.add_argument("--variants", nargs="+", metavar="NAME",
-                   help="only these variants (and the agent), e.g. the ones trained so far (default all)")
-    p.add_argument("--eval-freq", type=int, default=262144, metavar="N",
-                   help="agent steps between training evaluations, as the agent's own run (default %(default)s)")
+    p.add_argument(
+        "--variants",
+        nargs="+",
+        metavar="NAME",
+        help="only these variants (and the agent), e.g. the ones trained so far (default all)",
+    )
+    p.add_argument(
+        "--eval-freq",
+        type=int,
+        default=262144,
+        metavar="N",
+        help="agent steps between training evaluations, as the agent's own run (default %(default)s)",
+    )
     p.add_argument("--seeds", type=int, default=5, help="training seeds per variant (default 5)")
     p.add_argument("--jobs", type=int, default=2, help="seeds trained at a time (default 2)")
     p.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20)")
     p.add_argument("--output", type=Path, default=Path("runs/ablations"), help="folder (default runs/ablations)")
     p.add_argument("--agent", type=Path, help="the agent's own seeds folder, trained already")
-    p.add_argument("--which", choices=("best", "final"), default="best",
-                   help="each seed's agent judged: best (least contour error in training; default) or final")
+    p.add_argument(
+        "--which",
+        choices=("best", "final"),
+        default="best",
+        help="each seed's agent judged: best (least contour error in training; default) or final",
+    )
     p.add_argument("--table", type=Path, help="print the table of this JSON and stop")
     args = p.parse_args(argv)
     if args.table is not None:
@@ -215,16 +280,15 @@ def main(argv=None) -> int:
     if args.variants:
         configs = {n: c for n, c in configs.items() if n == AGENT or n in args.variants}
     folder = args.output / args.env
-    folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent, args.timesteps,
-                    args.eval_freq)
-    missing = {name: why for name, folder in folders.items()
-               if (why := without_agent(folder, args.which)) is not None}
+    folders = train(args.env, configs, folder, args.seeds, args.jobs, args.agent, args.timesteps, args.eval_freq)
+    missing = {name: why for name, folder in folders.items() if (why := without_agent(folder, args.which)) is not None}
     for on in args.on or [args.env]:
         out = args.output / (f"{args.env}.json" if on == args.env else f"{args.env}-on-{on}.json")
         evaluate(on, {n: f for n, f in folders.items() if n not in missing}, args.plants, out, args.which)
         data = json.loads(out.read_text())
-        data["ablations"] = {name: agents_spec(folder, args.which) for name, folder in folders.items()
-                             if name not in missing}
+        data["ablations"] = {
+            name: agents_spec(folder, args.which) for name, folder in folders.items() if name not in missing
+        }
         data["without_agent"] = missing
         data["figures"] = figures_of(on)
         out.write_text(json.dumps(data, indent=1))

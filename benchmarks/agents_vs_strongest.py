@@ -22,8 +22,11 @@ def rows(data: dict) -> list[str]:
         if "table" in r or r.get("trial") not in (None,):
             continue
         by_env.setdefault(r["env"], {})[r["policy"]] = r
-    out = ["| env | strongest causal | its max ; RMS, um | `ppo` max ; RMS, um | floor max ; RMS, um | `ppo` on the "
-           "nominal plant |", "|---|---|---|---|---|---|"]
+    out = [
+        "| env | strongest causal | its max ; RMS, um | `ppo` max ; RMS, um | floor max ; RMS, um | `ppo` on the "
+        "nominal plant |",
+        "|---|---|---|---|---|---|",
+    ]
     for env, runs in by_env.items():
         if "ppo" not in runs:
             continue
@@ -35,8 +38,9 @@ def rows(data: dict) -> list[str]:
         floor = next((v for k, v in runs.items() if NON_CAUSAL in k), None)
         fmt = lambda r: f"{r['max_contour_error_um']:.4g} ; {r['rms_contour_error_um']:.4g}"  # noqa: E731
         wins = [agent[k] < best[k] for k in ("max_contour_error_um", "rms_contour_error_um")]
-        stand = {(True, True): "below in both", (False, False): "above in both"}.get(tuple(wins), (
-            "below in max, above in RMS" if wins[0] else "above in max, below in RMS"))
+        stand = {(True, True): "below in both", (False, False): "above in both"}.get(
+            tuple(wins), ("below in max, above in RMS" if wins[0] else "above in max, below in RMS")
+        )
         out.append(f"| {env} | `{name}` | {fmt(best)} | {fmt(agent)} | {fmt(floor) if floor else '-'} | {stand} |")
     return out
 

@@ -107,9 +107,14 @@ class Worker:
     """One side's worker process (:data:`WORKER`)."""
 
     def __init__(self, side_env: dict, settings: list):
-        self.proc = subprocess.Popen([sys.executable, "-c", WORKER, json.dumps(settings)], env=side_env,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                                     cwd=tempfile.gettempdir())
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", WORKER, json.dumps(settings)],
+            env=side_env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=tempfile.gettempdir(),
+        )
         line = self.proc.stdout.readline()
         if not line:
             raise RuntimeError(f"the worker failed to start (PYTHONPATH={side_env.get('PYTHONPATH')})")
@@ -148,8 +153,9 @@ def main(argv=None) -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         tree = Path(tmp) / "before"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.before],
-                       check=True)
+        subprocess.run(
+            ["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.before], check=True
+        )
         workers = {}
         try:
             for name, path in (("before", tree), ("after", ROOT)):
@@ -168,18 +174,23 @@ def main(argv=None) -> None:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=False)
 
     rng = np.random.default_rng(0)
-    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                         text=True).stdout.strip()
-    print(f"\nbefore {args.before}, after {rev} (this tree): median over {args.pairs} adjacent block pairs "
-          f"({args.block} single-env steps, {args.vector_block} vector steps of {args.envs} envs a block)")
+    rev = subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    print(
+        f"\nbefore {args.before}, after {rev} (this tree): median over {args.pairs} adjacent block pairs "
+        f"({args.block} single-env steps, {args.vector_block} vector steps of {args.envs} envs a block)"
+    )
     print(f"{'figure':44s} {'before':>10s} {'after':>10s} {'after/before':>13s} {'95 % interval':>17s}")
     for kind, env_id in figures:
         b, a = (np.array(blocks[f"{kind} {env_id}"][n]) for n in ("before", "after"))
         ratios = a / b
         lo, hi = ratio_interval(ratios, rng)
         label = "us per env.step" if kind == "single" else f"native N={args.envs}, env-steps/s"
-        print(f"{env_id + ', ' + label:44s} {np.median(b):10.4g} {np.median(a):10.4g} "
-              f"{np.median(ratios):13.3f} {f'[{lo:.3f}, {hi:.3f}]':>17s}")
+        print(
+            f"{env_id + ', ' + label:44s} {np.median(b):10.4g} {np.median(a):10.4g} "
+            f"{np.median(ratios):13.3f} {f'[{lo:.3f}, {hi:.3f}]':>17s}"
+        )
     if args.json:
         Path(args.json).write_text(json.dumps({"before": args.before, "after": rev, "blocks": blocks}, indent=1))
 

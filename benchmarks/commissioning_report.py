@@ -37,27 +37,49 @@ def main(argv=None) -> None:
         for j, (a, d) in enumerate(zip(r.axes, r.designs)):
             f_true = p[j, names.index("mode_frequency")] if "mode_frequency" in names else 0.0
             z_true = p[j, names.index("mode_damping")] if "mode_damping" in names else 0.0
-            rows.append((f_true, a.mode_frequency, z_true, a.mode_damping, d.bandwidth, d.margins.crossover,
-                         d.margins.gain_db, d.margins.phase_deg, d.margins.sensitivity_db))
+            rows.append(
+                (
+                    f_true,
+                    a.mode_frequency,
+                    z_true,
+                    a.mode_damping,
+                    d.bandwidth,
+                    d.margins.crossover,
+                    d.margins.gain_db,
+                    d.margins.phase_deg,
+                    d.margins.sensitivity_db,
+                )
+            )
     rows = np.array(rows)
     found = rows[:, 1] > 0
     f_err = np.abs(rows[found, 1] / rows[found, 0] - 1.0) * 100
     z_err = np.abs(rows[found, 3] / rows[found, 2] - 1.0) * 100
     frac = rows[found, 5] / (2 * np.pi * rows[found, 1])
-    print(f"{args.env_id}: {len(plants)} plants (nominal + {args.plants}), {len(rows)} axes; identification "
-          f"{wall:.1f} s in all ({wall / len(plants):.2f} s per machine, batched)")
+    print(
+        f"{args.env_id}: {len(plants)} plants (nominal + {args.plants}), {len(rows)} axes; identification "
+        f"{wall:.1f} s in all ({wall / len(plants):.2f} s per machine, batched)"
+    )
     print(f"  mode found on {found.sum()} of {len(rows)} axes")
-    for label, v, unit in (("mode frequency error", f_err, "%"), ("mode damping error", z_err, "%"),
-                           ("crossover / mode", frac, ""), ("bandwidth (pole)", rows[:, 4], "rad/s"),
-                           ("gain margin", rows[:, 6], "dB"), ("phase margin", rows[:, 7], "deg"),
-                           ("sensitivity peak", rows[:, 8], "dB")):
+    for label, v, unit in (
+        ("mode frequency error", f_err, "%"),
+        ("mode damping error", z_err, "%"),
+        ("crossover / mode", frac, ""),
+        ("bandwidth (pole)", rows[:, 4], "rad/s"),
+        ("gain margin", rows[:, 6], "dB"),
+        ("phase margin", rows[:, 7], "deg"),
+        ("sensitivity peak", rows[:, 8], "dB"),
+    ):
         if v.size:
             higher_is_worse = "error" in label or "mode" in label or "sensitivity" in label
-            print(f"  {label}: median {np.median(v):.3g}, worst {np.max(v) if higher_is_worse else np.min(v):.3g}"
-                  f" (min {np.min(v):.3g}, max {np.max(v):.3g}) {unit}")
-    print(f"  nominal plant: mode {rows[0, 1]:.2f} Hz (true {rows[0, 0]:.2f}), zeta {rows[0, 3]:.4f} "
-          f"(true {rows[0, 2]:.4f})" + ("" if rows[0, 1] > 0 else "; no mode found (0): the band's top is "
-                                       f"{bands[0]:.1f} Hz"))
+            print(
+                f"  {label}: median {np.median(v):.3g}, worst {np.max(v) if higher_is_worse else np.min(v):.3g}"
+                f" (min {np.min(v):.3g}, max {np.max(v):.3g}) {unit}"
+            )
+    print(
+        f"  nominal plant: mode {rows[0, 1]:.2f} Hz (true {rows[0, 0]:.2f}), zeta {rows[0, 3]:.4f} "
+        f"(true {rows[0, 2]:.4f})"
+        + ("" if rows[0, 1] > 0 else f"; no mode found (0): the band's top is {bands[0]:.1f} Hz")
+    )
 
 
 if __name__ == "__main__":

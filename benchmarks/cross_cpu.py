@@ -37,13 +37,18 @@ def _relative(a: np.ndarray, b: np.ndarray) -> float:
 
 def compare(old: dict, new: dict, rename: tuple[str, str] | None = None) -> list[str]:
     """The Markdown lines of both tables (see the module docstring)."""
+
     def label(s: str) -> str:
         return s.replace(rename[0], rename[1]) if rename else s
 
     mine = {r["policy"]: r for r in new["robust"]}
-    out = [f"{old['robust'][0]['env']}: numba target `{_cpu(old)}` (old) against `{_cpu(new)}` (new)", "",
-           "| policy | plants | max differs on | largest relative difference of the max | RMS differs on | "
-           "largest of the RMS |", "|---|---|---|---|---|---|"]
+    out = [
+        f"{old['robust'][0]['env']}: numba target `{_cpu(old)}` (old) against `{_cpu(new)}` (new)",
+        "",
+        "| policy | plants | max differs on | largest relative difference of the max | RMS differs on | "
+        "largest of the RMS |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in old["robust"]:
         other = mine.get(label(r["policy"]))
         if other is None:
@@ -55,8 +60,12 @@ def compare(old: dict, new: dict, rename: tuple[str, str] | None = None) -> list
                 raise ValueError(f"{r['policy']}: {a.size} plants against {b.size}: not the same run")
             cells += [f"{int(np.sum(a != b))}", f"{_relative(a, b):.2g}"]
         out.append(f"| `{label(r['policy'])}` | {len(r['per_plant']['kind'])} | " + " | ".join(cells) + " |")
-    out += ["", "| learned X | fig | old: verdict (against), X - Y [95 % CI] | new: verdict (against), X - Y [95 % CI] | "
-                "changed |", "|---|---|---|---|---|"]
+    out += [
+        "",
+        "| learned X | fig | old: verdict (against), X - Y [95 % CI] | new: verdict (against), X - Y [95 % CI] | "
+        "changed |",
+        "|---|---|---|---|---|",
+    ]
     verdicts = {(label(v["x"]), v["figure"]): v for v in new["verdicts"]}
     changed = total = 0
     for v in old["verdicts"]:
@@ -66,8 +75,10 @@ def compare(old: dict, new: dict, rename: tuple[str, str] | None = None) -> list
         total += 1
         changed += v["outcome"] != w["outcome"]
         cell = [f"{u['outcome']} (`{u['y']}`), {u['difference']:.4g} [{u['low']:.4g}, {u['high']:.4g}]" for u in (v, w)]
-        out.append(f"| `{label(v['x'])}` | {v['figure']} | {cell[0]} | {cell[1]} | "
-                   f"{'**yes**' if v['outcome'] != w['outcome'] else 'no'} |")
+        out.append(
+            f"| `{label(v['x'])}` | {v['figure']} | {cell[0]} | {cell[1]} | "
+            f"{'**yes**' if v['outcome'] != w['outcome'] else 'no'} |"
+        )
     return out + ["", f"{changed} of {total} verdicts changed."]
 
 

@@ -17,9 +17,13 @@ import numpy as np
 import vcnc_baselines
 import vcnc_gym  # noqa: F401
 
-CASES = [("VCNC-Heart-v1", ["qft", "smc", "fuzzy"]), ("VCNC-Omega-v1", ["qft", "smc", "fuzzy"]),
-         ("VCNC-Corners-v1", ["contouring-fb", "ilc-q"]), ("VCNC-CornersSmooth-v1", ["contouring-fb"]),
-         ("VCNC-Circle-v1", ["nctf"])]
+CASES = [
+    ("VCNC-Heart-v1", ["qft", "smc", "fuzzy"]),
+    ("VCNC-Omega-v1", ["qft", "smc", "fuzzy"]),
+    ("VCNC-Corners-v1", ["contouring-fb", "ilc-q"]),
+    ("VCNC-CornersSmooth-v1", ["contouring-fb"]),
+    ("VCNC-Circle-v1", ["nctf"]),
+]
 BANDS_UM = (20, 5, 2, 1)
 
 
@@ -43,13 +47,17 @@ def arrival(env_id: str, name: str):
 
 
 def main():
-    print(f"{'env':<22} {'policy':<14} {'left at ref end um':>18} {'at rest um':>10} "
-          + " ".join(f"{f'to {b} um s':>10}" for b in BANDS_UM))
+    print(
+        f"{'env':<22} {'policy':<14} {'left at ref end um':>18} {'at rest um':>10} "
+        + " ".join(f"{f'to {b} um s':>10}" for b in BANDS_UM)
+    )
     for env_id, names in CASES:
         for name in names:
             first, final, after = arrival(env_id, name)
-            print(f"{env_id:<22} {name:<14} {first:18.2f} {final:10.2f} "
-                  + " ".join(f"{'-' if a is None else f'{a:.4f}':>10}" for a in after))
+            print(
+                f"{env_id:<22} {name:<14} {first:18.2f} {final:10.2f} "
+                + " ".join(f"{'-' if a is None else f'{a:.4f}':>10}" for a in after)
+            )
 
 
 if __name__ == "__main__":

@@ -23,8 +23,14 @@ def _run(p) -> str:
 
 def row(env_id: str, points) -> str:
     front = pareto([p for p in points if p.kind == "planned"])
-    planned = (f"`{front[0].policy}` {front[0].setting}: {_run(front[0])} ; `{front[-1].policy}` {front[-1].setting}: "
-               f"{_run(front[-1])}") if front else "-"
+    planned = (
+        (
+            f"`{front[0].policy}` {front[0].setting}: {_run(front[0])} ; `{front[-1].policy}` {front[-1].setting}: "
+            f"{_run(front[-1])}"
+        )
+        if front
+        else "-"
+    )
     operator = [p for p in points if p.kind == "operator"]
     best = min(operator, key=lambda p: p.max_um) if operator else None
     op = f"{best.setting}: {_run(best)}" if best else "(not designed for the plant)"
@@ -33,7 +39,9 @@ def row(env_id: str, points) -> str:
     for p in mpcc:
         speed = p.setting.replace("v_max ", "")
         done = math.isfinite(p.cycle_time_s)
-        runs.append(f"{speed}: {p.cycle_time_s:.4g} / {p.max_um:.4g}" if done else f"{speed}: unfinished / {p.max_um:.4g}")
+        runs.append(
+            f"{speed}: {p.cycle_time_s:.4g} / {p.max_um:.4g}" if done else f"{speed}: unfinished / {p.max_um:.4g}"
+        )
         if not done:
             beaten.append("-")
         else:
@@ -46,8 +54,10 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("json", nargs="+")
     args = parser.parse_args(argv)
-    print("| id | classical front (planned): fastest ; most accurate, s / um | operator's override, best max, s / um "
-          "| `mpcc` at its caps, s / um | `mpcc` beaten by a planned run? |")
+    print(
+        "| id | classical front (planned): fastest ; most accurate, s / um | operator's override, best max, s / um "
+        "| `mpcc` at its caps, s / um | `mpcc` beaten by a planned run? |"
+    )
     print("|---|---|---|---|---|")
     for env_id, points in read_fronts(args.json).items():
         print(row(env_id, points))

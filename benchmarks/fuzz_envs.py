@@ -78,7 +78,8 @@ def random_settings(rng: np.random.Generator) -> dict:
         plant=plant,
         profile=profile,
         feedrate=float(np.exp(rng.uniform(np.log(f_lo), np.log(f_hi)))),
-        dt=float(np.exp(rng.uniform(np.log(dt_lo), np.log(dt_hi)))) if plant != "cncmt_axis"
+        dt=float(np.exp(rng.uniform(np.log(dt_lo), np.log(dt_hi))))
+        if plant != "cncmt_axis"
         else 0.1 / int(rng.integers(50, 1000)),  # Yadav et al.'s 0.1 s dead time is a whole number of periods
         action_repeat=int(rng.integers(1, 21)),
         randomize=bool(rng.random() < 0.5),
@@ -165,8 +166,14 @@ def fuzz(episodes: int, steps: int, seed: int, progress: bool = True) -> dict:
     return {"counts": counts, "refused": refused, "failures": failures, "wall_s": time.perf_counter() - t0}
 
 
-FAILURE_KEYS = ("non-finite observation", "non-finite reward", "positive reward", "observation outside the space",
-                "observation clipped", "exceptions")
+FAILURE_KEYS = (
+    "non-finite observation",
+    "non-finite reward",
+    "positive reward",
+    "observation outside the space",
+    "observation clipped",
+    "exceptions",
+)
 
 #: What the per-id fuzz counts as a failure besides :data:`FAILURE_KEYS`.
 ID_FAILURE_KEYS = FAILURE_KEYS + ("NaN state not ended as a divergence",)
@@ -198,8 +205,11 @@ def fuzz_ids(episodes: int, steps: int, seed: int, ids=ENV_IDS, progress: bool =
             poison = ep % 2 == 1
             kwargs = {"randomize": True} if env_id in VECTOR_IDS else {}
             try:
-                env = (gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kwargs) if vector
-                       else gym.make(env_id, **kwargs))
+                env = (
+                    gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kwargs)
+                    if vector
+                    else gym.make(env_id, **kwargs)
+                )
                 space = env.single_observation_space if vector else env.observation_space
                 obs, _ = env.reset(seed=int(rng.integers(0, 2**31)))
                 at = int(rng.integers(0, steps)) if poison else -1
@@ -208,7 +218,7 @@ def fuzz_ids(episodes: int, steps: int, seed: int, ids=ENV_IDS, progress: bool =
                     if k == at:
                         _plant_state(env)[0] = np.nan
                     shape = (3, 2) if vector else (2,)
-                    action = (rng.uniform(-1.0, 1.0, shape) if ep % 3 else np.sign(rng.normal(size=shape)))
+                    action = rng.uniform(-1.0, 1.0, shape) if ep % 3 else np.sign(rng.normal(size=shape))
                     obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
                     c["steps"] += 1
                     rows = obs if vector else obs[None]
@@ -222,9 +232,14 @@ def fuzz_ids(episodes: int, steps: int, seed: int, ids=ENV_IDS, progress: bool =
                     clipped = np.atleast_1d(info.get("observation_clipped", 0))
                     c["observation clipped"] += int(np.any((clipped > 0) & ~diverged))
                     if k == at:
-                        ok = (bool(np.atleast_1d(terminated)[0]) and bool(diverged[0])
-                              and np.isfinite(rewards[0]) and rewards[0] <= _penalty(env)
-                              and np.all(np.isfinite(rows[0])) and space.contains(rows[0]))
+                        ok = (
+                            bool(np.atleast_1d(terminated)[0])
+                            and bool(diverged[0])
+                            and np.isfinite(rewards[0])
+                            and rewards[0] <= _penalty(env)
+                            and np.all(np.isfinite(rows[0]))
+                            and space.contains(rows[0])
+                        )
                         c["NaN checks"] += 1
                         c["NaN state not ended as a divergence"] += int(not ok)
                     if not vector and (terminated or truncated):
@@ -250,24 +265,30 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     out = fuzz(args.episodes, args.steps, args.seed)
     c = out["counts"]
-    print(f"{args.episodes} drawn; {c['episodes']} episodes ran ({c['steps']} steps, {c['ended episodes']} ended, "
-          f"{c['diverged episodes']} diverged) in {out['wall_s']:.0f} s; "
-          f"{args.episodes - c['episodes']} refused at construction with a ValueError:")
+    print(
+        f"{args.episodes} drawn; {c['episodes']} episodes ran ({c['steps']} steps, {c['ended episodes']} ended, "
+        f"{c['diverged episodes']} diverged) in {out['wall_s']:.0f} s; "
+        f"{args.episodes - c['episodes']} refused at construction with a ValueError:"
+    )
     for reason, n in out["refused"].most_common():
         print(f"  {n:5d}  {reason}")
     print("failures:")
     for key in FAILURE_KEYS:
         print(f"  {key:32s} {c[key]}")
-    print(f"(not failures: observation clipped on the diverging step itself: {c['observation clipped at a divergence']})")
+    print(
+        f"(not failures: observation clipped on the diverging step itself: {c['observation clipped at a divergence']})"
+    )
     for where, settings, tb in out["failures"][:5]:
         print(f"--- {where} with {settings}\n{tb}")
     failed = any(c[k] for k in FAILURE_KEYS)
     if args.id_episodes > 0:
         ids = fuzz_ids(args.id_episodes, args.steps, args.seed)
         ci = ids["counts"]
-        print(f"\nevery id ({len(ids['per_id'])}), {args.id_episodes} episodes each (half of the vector ids' as "
-              f"vector envs of 3): {ci['episodes']} episodes, {ci['steps']} steps, {ci['NaN checks']} NaN checks, "
-              f"in {ids['wall_s']:.0f} s")
+        print(
+            f"\nevery id ({len(ids['per_id'])}), {args.id_episodes} episodes each (half of the vector ids' as "
+            f"vector envs of 3): {ci['episodes']} episodes, {ci['steps']} steps, {ci['NaN checks']} NaN checks, "
+            f"in {ids['wall_s']:.0f} s"
+        )
         print(f"  {'id':<26}{'episodes':>9}{'steps':>8}" + "".join(f"{k[:14]:>16}" for k in ID_FAILURE_KEYS))
         for env_id, c in ids["per_id"].items():
             print(f"  {env_id:<26}{c['episodes']:>9}{c['steps']:>8}" + "".join(f"{c[k]:>16}" for k in ID_FAILURE_KEYS))

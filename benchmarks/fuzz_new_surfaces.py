@@ -55,8 +55,11 @@ def fuzz_programs(n: int, rng, failures: list) -> dict:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 path = read_program(text, float(rng.choice([0.001, 0.01, 0.1])))
-            pts = path.curve.evaluate(np.linspace(*path.curve.u_range, 50)) if hasattr(path.curve, "evaluate") \
+            pts = (
+                path.curve.evaluate(np.linspace(*path.curve.u_range, 50))
+                if hasattr(path.curve, "evaluate")
                 else path.curve.control_points
+            )
             if not np.all(np.isfinite(pts)):
                 failures.append(("program", i, "non-finite contour"))
             counts["read"] += 1
@@ -72,8 +75,25 @@ def fuzz_programs(n: int, rng, failures: list) -> dict:
 def fuzz_shop_floor(n: int, rng, failures: list) -> dict:
     from vcnc_gym.plants.shop_floor import EFFECT_NAMES, shop_floor
 
-    values = [True, False, None, "abc", "1", 1.5, 2, -1.0, 0.0, float("nan"), float("inf"), 1e-4, (1, 2), (1.0,),
-              [3, 4, 5], 1j, 100.0]
+    values = [
+        True,
+        False,
+        None,
+        "abc",
+        "1",
+        1.5,
+        2,
+        -1.0,
+        0.0,
+        float("nan"),
+        float("inf"),
+        1e-4,
+        (1, 2),
+        (1.0,),
+        [3, 4, 5],
+        1j,
+        100.0,
+    ]
     counts = {"built": 0, "clear error": 0}
     for i in range(n):
         name = EFFECT_NAMES[int(rng.integers(0, len(EFFECT_NAMES)))]
@@ -147,13 +167,19 @@ def fuzz_kill_resume(failures: list) -> dict:
         with tempfile.TemporaryDirectory() as tmp:
             r = kill_and_resume(Path(tmp), trainer=trainer)
         a = r["audit"]
-        ok = (r["pre_checkpoint_rows_unchanged"] and a["evaluations"]["increasing"]
-              and not a["evaluations"]["duplicates"]
-              and all(m["chain_breaks"] == 0 and m["duplicates"] == 0 and not m["tail_lost"]
-                      for m in a["monitor"].values()))
+        ok = (
+            r["pre_checkpoint_rows_unchanged"]
+            and a["evaluations"]["increasing"]
+            and not a["evaluations"]["duplicates"]
+            and all(
+                m["chain_breaks"] == 0 and m["duplicates"] == 0 and not m["tail_lost"] for m in a["monitor"].values()
+            )
+        )
         rows = sum(m["rows"] for m in a["monitor"].values())
-        out[trainer] = f"resumed from {r['resumed_from']}: {rows} monitor rows, {a['evaluations']['rows']} evaluations, " \
-                       f"{'ok' if ok else 'LOST OR DUPLICATED ROWS'}"
+        out[trainer] = (
+            f"resumed from {r['resumed_from']}: {rows} monitor rows, {a['evaluations']['rows']} evaluations, "
+            f"{'ok' if ok else 'LOST OR DUPLICATED ROWS'}"
+        )
         if not ok:
             failures.append(("kill/resume", trainer, str(a)))
     return out
@@ -168,10 +194,12 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     failures: list = []
-    for name, run in (("G-code programs", lambda: fuzz_programs(args.n, rng, failures)),
-                      ("shop-floor settings", lambda: fuzz_shop_floor(args.n, rng, failures)),
-                      ("random-contour specs", lambda: fuzz_specs(args.n, rng, failures)),
-                      ("override actions", lambda: fuzz_override(args.episodes, rng, failures))):
+    for name, run in (
+        ("G-code programs", lambda: fuzz_programs(args.n, rng, failures)),
+        ("shop-floor settings", lambda: fuzz_shop_floor(args.n, rng, failures)),
+        ("random-contour specs", lambda: fuzz_specs(args.n, rng, failures)),
+        ("override actions", lambda: fuzz_override(args.episodes, rng, failures)),
+    ):
         print(f"{name}: {run()}", flush=True)
     if args.kill_resume:
         print(f"kill and resume: {fuzz_kill_resume(failures)}", flush=True)

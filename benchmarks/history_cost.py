@@ -57,12 +57,16 @@ def main(argv=None) -> int:
     for _ in range(args.blocks):
         for k, env in envs.items():
             best[k] = max(best[k], _block(env, actions))
-    print(f"{args.env}, {args.n_envs} envs, {mode.baseline} residual, a decision every {mode.action_repeat} control "
-          f"periods; best of {args.blocks} blocks of {args.decisions} decisions")
+    print(
+        f"{args.env}, {args.n_envs} envs, {mode.baseline} residual, a decision every {mode.action_repeat} control "
+        f"periods; best of {args.blocks} blocks of {args.decisions} decisions"
+    )
     for k in lengths:
         size = envs[k].observation_space.shape[0]
-        print(f"  history {k:3d} ({size:4d} observed numbers): {best[k]:9.0f} agent steps/s, "
-              f"{best[k] / best[0]:.3f} x none")
+        print(
+            f"  history {k:3d} ({size:4d} observed numbers): {best[k]:9.0f} agent steps/s, "
+            f"{best[k] / best[0]:.3f} x none"
+        )
     for env in envs.values():
         env.close()
     return 0

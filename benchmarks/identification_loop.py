@@ -26,14 +26,22 @@ from vcnc_gym.envs import step_kernel as sk
 
 def random_loop(rng, n: int, periods: int, u_max) -> sk.HoldingLoop:
     """A holding loop of ``periods`` periods with random feedforward, moves and excitation (fresh outputs)."""
-    return sk.HoldingLoop(feedforward=0.2 * u_max * rng.standard_normal((periods // 2, 2)),
-                          legs=0.05 * u_max * rng.standard_normal((periods, 2)),
-                          offset=np.cumsum(1e-4 * rng.standard_normal((periods, 2)), axis=0),
-                          offset_rate=0.5 * rng.standard_normal((periods, 2)),
-                          excitation=0.3 * u_max * np.where(rng.random((n, periods, 2)) < 0.5, -1.0, 1.0),
-                          kp=np.array([40.0, 55.0]), kd=np.array([0.3, 0.4]), ki=np.array([900.0, 700.0]),
-                          alpha=np.array([0.6, 0.7]), dt=1e-3, u_max=np.asarray(u_max, dtype=np.float64),
-                          u=np.zeros((n, periods, 2)), e=np.zeros((n, periods, 2)), velocity=np.zeros((n, periods, 2)))
+    return sk.HoldingLoop(
+        feedforward=0.2 * u_max * rng.standard_normal((periods // 2, 2)),
+        legs=0.05 * u_max * rng.standard_normal((periods, 2)),
+        offset=np.cumsum(1e-4 * rng.standard_normal((periods, 2)), axis=0),
+        offset_rate=0.5 * rng.standard_normal((periods, 2)),
+        excitation=0.3 * u_max * np.where(rng.random((n, periods, 2)) < 0.5, -1.0, 1.0),
+        kp=np.array([40.0, 55.0]),
+        kd=np.array([0.3, 0.4]),
+        ki=np.array([900.0, 700.0]),
+        alpha=np.array([0.6, 0.7]),
+        dt=1e-3,
+        u_max=np.asarray(u_max, dtype=np.float64),
+        u=np.zeros((n, periods, 2)),
+        e=np.zeros((n, periods, 2)),
+        velocity=np.zeros((n, periods, 2)),
+    )
 
 
 def numpy_loop(machines: Machines, h: sk.HoldingLoop) -> None:
@@ -51,9 +59,14 @@ def numpy_loop(machines: Machines, h: sk.HoldingLoop) -> None:
         ek = E + h.offset[k]
         h.e[:, k] = E
         integral += ek * h.dt
-        h.u[:, k] = (h.feedforward[min(k, h.feedforward.shape[0] - 1)] + h.legs[k] + h.kp * ek
-                     + h.kd * (lay.reference_velocity(obs) + h.offset_rate[k] - vf) + h.ki * integral
-                     + h.excitation[:, k])
+        h.u[:, k] = (
+            h.feedforward[min(k, h.feedforward.shape[0] - 1)]
+            + h.legs[k]
+            + h.kp * ek
+            + h.kd * (lay.reference_velocity(obs) + h.offset_rate[k] - vf)
+            + h.ki * integral
+            + h.excitation[:, k]
+        )
         h.u[:, k] = np.clip(h.u[:, k], -h.u_max, h.u_max)
         obs = machines.step(h.u[:, k])
 
@@ -89,8 +102,10 @@ def main(argv=None) -> int:
                 t0 = time.perf_counter()
                 machines.hold(h) if name == "kernel" else numpy_loop(machines, h)
                 best[name] = min(best[name], time.perf_counter() - t0)
-        print(f"  {n} machine(s): kernel {best['kernel']:.4f} s, numpy loop {best['numpy']:.3f} s: "
-              f"{best['numpy'] / best['kernel']:.0f} x")
+        print(
+            f"  {n} machine(s): kernel {best['kernel']:.4f} s, numpy loop {best['numpy']:.3f} s: "
+            f"{best['numpy'] / best['kernel']:.0f} x"
+        )
     return 0
 
 

@@ -58,7 +58,7 @@ VCNC-Omega-v1:
 _MODES = {
     "direct": "  env_kwargs:\n    action_repeat: 10",
     "residual": "  env_wrapper:\n    - vcnc_agents.action_modes.ResidualAction:\n        baseline: qft\n"
-                "        correction: 0.3\n        action_repeat: 10",
+    "        correction: 0.3\n        action_repeat: 10",
 }
 
 
@@ -103,7 +103,9 @@ def audit_monitor(rows: list[dict], n_envs: int, session_starts: list[int], end:
     return {"rows": len(rows), "chain_breaks": broken, "duplicates": duplicates, "tail_lost": bool(tail_lost)}
 
 
-def audit_run(run_dir: Path, monitors: dict[str, list[dict]] | None = None, evaluations: list[int] | None = None) -> dict:
+def audit_run(
+    run_dir: Path, monitors: dict[str, list[dict]] | None = None, evaluations: list[int] | None = None
+) -> dict:
     """Audit a run folder's logs (or the given rows instead of its files)."""
     summary = json.loads((run_dir / "summary.json").read_text())
     starts = [s["start_timesteps"] for s in summary["sessions"]]
@@ -112,29 +114,62 @@ def audit_run(run_dir: Path, monitors: dict[str, list[dict]] | None = None, eval
         monitors = {p.name: monitor_rows(p) for p in sorted((run_dir / "monitor").glob("*.monitor.csv"))}
     steps = evaluation_steps(run_dir) if evaluations is None else evaluations
     return {
-        "monitor": {name: audit_monitor(rows, config_n_envs, starts, summary["sessions"][-1]["end_timesteps"])
-                    for name, rows in monitors.items()},
-        "evaluations": {"rows": len(steps), "duplicates": len(steps) - len(set(steps)),
-                        "increasing": all(a < b for a, b in zip(steps, steps[1:])), "steps": steps},
+        "monitor": {
+            name: audit_monitor(rows, config_n_envs, starts, summary["sessions"][-1]["end_timesteps"])
+            for name, rows in monitors.items()
+        },
+        "evaluations": {
+            "rows": len(steps),
+            "duplicates": len(steps) - len(set(steps)),
+            "increasing": all(a < b for a, b in zip(steps, steps[1:])),
+            "steps": steps,
+        },
         "sessions": [(s["start_timesteps"], s["end_timesteps"], s["status"]) for s in summary["sessions"]],
     }
 
 
-def kill_and_resume(workdir: Path, *, mode: str = "direct", timesteps: int = 8192, kill_after: int = 1024,
-                    max_wait: float = 3.0, timeout: float = 600.0, trainer: str = "sb3") -> dict:
+def kill_and_resume(
+    workdir: Path,
+    *,
+    mode: str = "direct",
+    timesteps: int = 8192,
+    kill_after: int = 1024,
+    max_wait: float = 3.0,
+    timeout: float = 600.0,
+    trainer: str = "sb3",
+) -> dict:
     """Run, SIGKILL, resume and audit; returns the figures (see :func:`main` for their print-out)."""
     workdir.mkdir(parents=True, exist_ok=True)
     run_dir = workdir / "run"
     config = write_config(workdir, mode)
     common = ["--checkpoint-freq", "512", "--eval-freq", "768"]
-    first = subprocess.Popen(_command("--env", "VCNC-Omega-v1", "--config", str(config), "--output", str(run_dir),
-                                      "--timesteps", str(timesteps), "--trainer", trainer, *common),
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = subprocess.Popen(
+        _command(
+            "--env",
+            "VCNC-Omega-v1",
+            "--config",
+            str(config),
+            "--output",
+            str(run_dir),
+            "--timesteps",
+            str(timesteps),
+            "--trainer",
+            trainer,
+            *common,
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + timeout
+
     def newest_checkpoint() -> int:
         folder = run_dir / "checkpoints"
-        steps = [int(p.name.split("_")[2]) for p in folder.glob("rl_model_*_steps.zip")
-                 if "vecnormalize" not in p.name] if folder.is_dir() else []
+        steps = (
+            [int(p.name.split("_")[2]) for p in folder.glob("rl_model_*_steps.zip") if "vecnormalize" not in p.name]
+            if folder.is_dir()
+            else []
+        )
         return max(steps, default=-1)
 
     def rows_past(steps: int) -> int:
@@ -160,24 +195,31 @@ def kill_and_resume(workdir: Path, *, mode: str = "direct", timesteps: int = 819
     first.wait()
     before = {p.name: monitor_rows(p) for p in sorted((run_dir / "monitor").glob("*.monitor.csv"))}
     evals_before = evaluation_steps(run_dir)
-    checkpoints = sorted(int(p.name.split("_")[2]) for p in (run_dir / "checkpoints").glob("rl_model_*_steps.zip")
-                         if not p.name.startswith("rl_model_vecnormalize"))
+    checkpoints = sorted(
+        int(p.name.split("_")[2])
+        for p in (run_dir / "checkpoints").glob("rl_model_*_steps.zip")
+        if not p.name.startswith("rl_model_vecnormalize")
+    )
     resumed = subprocess.run(_command("--resume", str(run_dir)), capture_output=True, text=True, timeout=timeout)
     if resumed.returncode != 0:
         raise RuntimeError(f"resume failed ({resumed.returncode}):\n{resumed.stderr}")
     summary = json.loads((run_dir / "summary.json").read_text())
     resumed_from = summary["sessions"][-1]["start_timesteps"]
     after = {p.name: monitor_rows(p) for p in sorted((run_dir / "monitor").glob("*.monitor.csv"))}
-    kept_intact = all(after[name][:len([r for r in rows if int(r["steps"]) <= resumed_from])]
-                      == [r for r in rows if int(r["steps"]) <= resumed_from] for name, rows in before.items())
-    naive_monitors = {name: before[name] + [r for r in after[name] if int(r["steps"]) > resumed_from]
-                      for name in after}
+    kept_intact = all(
+        after[name][: len([r for r in rows if int(r["steps"]) <= resumed_from])]
+        == [r for r in rows if int(r["steps"]) <= resumed_from]
+        for name, rows in before.items()
+    )
+    naive_monitors = {name: before[name] + [r for r in after[name] if int(r["steps"]) > resumed_from] for name in after}
     naive_evals = evals_before + [s for s in evaluation_steps(run_dir) if s > resumed_from]
     return {
         "killed_at_checkpoints": checkpoints,
         "resumed_from": resumed_from,
         "rows_before_kill": {name: len(rows) for name, rows in before.items()},
-        "rows_past_checkpoint": {name: sum(int(r["steps"]) > resumed_from for r in rows) for name, rows in before.items()},
+        "rows_past_checkpoint": {
+            name: sum(int(r["steps"]) > resumed_from for r in rows) for name, rows in before.items()
+        },
         "evaluations_before_kill": evals_before,
         "pre_checkpoint_rows_unchanged": kept_intact,
         "audit": audit_run(run_dir),
@@ -189,19 +231,27 @@ def kill_and_resume(workdir: Path, *, mode: str = "direct", timesteps: int = 819
 
 def _print(report: dict) -> None:
     a, n = report["audit"], report["naive_merge_audit"]
-    print(f"killed (SIGKILL) with checkpoints at {report['killed_at_checkpoints']}; resumed from "
-          f"{report['resumed_from']} steps; finished at {report['total_timesteps']}")
+    print(
+        f"killed (SIGKILL) with checkpoints at {report['killed_at_checkpoints']}; resumed from "
+        f"{report['resumed_from']} steps; finished at {report['total_timesteps']}"
+    )
     print(f"sessions: {a['sessions']}")
-    print(f"{'file':<18}{'rows@kill':>10}{'past ckpt':>10}{'rows now':>10}{'breaks':>8}{'dups':>6}"
-          f"{'naive breaks':>14}{'naive dups':>12}")
+    print(
+        f"{'file':<18}{'rows@kill':>10}{'past ckpt':>10}{'rows now':>10}{'breaks':>8}{'dups':>6}"
+        f"{'naive breaks':>14}{'naive dups':>12}"
+    )
     for name, m in a["monitor"].items():
         nm = n["monitor"][name]
-        print(f"{name:<18}{report['rows_before_kill'][name]:>10}{report['rows_past_checkpoint'][name]:>10}"
-              f"{m['rows']:>10}{m['chain_breaks']:>8}{m['duplicates']:>6}{nm['chain_breaks']:>14}{nm['duplicates']:>12}")
+        print(
+            f"{name:<18}{report['rows_before_kill'][name]:>10}{report['rows_past_checkpoint'][name]:>10}"
+            f"{m['rows']:>10}{m['chain_breaks']:>8}{m['duplicates']:>6}{nm['chain_breaks']:>14}{nm['duplicates']:>12}"
+        )
     e, ne = a["evaluations"], n["evaluations"]
-    print(f"{'evaluations.csv':<18}{len(report['evaluations_before_kill']):>10}"
-          f"{sum(s > report['resumed_from'] for s in report['evaluations_before_kill']):>10}{e['rows']:>10}"
-          f"{'-' if e['increasing'] else 'NO':>8}{e['duplicates']:>6}{'-':>14}{ne['duplicates']:>12}")
+    print(
+        f"{'evaluations.csv':<18}{len(report['evaluations_before_kill']):>10}"
+        f"{sum(s > report['resumed_from'] for s in report['evaluations_before_kill']):>10}{e['rows']:>10}"
+        f"{'-' if e['increasing'] else 'NO':>8}{e['duplicates']:>6}{'-':>14}{ne['duplicates']:>12}"
+    )
     print(f"evaluation steps: {e['steps']}")
     print(f"rows up to the checkpoint unchanged: {report['pre_checkpoint_rows_unchanged']}")
     for line in report["resume_stderr"]:
@@ -222,10 +272,12 @@ def main(argv=None) -> int:
             report = kill_and_resume(Path(tmp), mode=args.mode, trainer=args.trainer)
             _print(report)
     a = report["audit"]
-    ok = (report["pre_checkpoint_rows_unchanged"] and a["evaluations"]["increasing"]
-          and not a["evaluations"]["duplicates"]
-          and all(m["chain_breaks"] == 0 and m["duplicates"] == 0 and not m["tail_lost"]
-                  for m in a["monitor"].values()))
+    ok = (
+        report["pre_checkpoint_rows_unchanged"]
+        and a["evaluations"]["increasing"]
+        and not a["evaluations"]["duplicates"]
+        and all(m["chain_breaks"] == 0 and m["duplicates"] == 0 and not m["tail_lost"] for m in a["monitor"].values())
+    )
     print("OK: no lost or duplicated rows" if ok else "FAILED: lost or duplicated rows")
     return 0 if ok else 1
 

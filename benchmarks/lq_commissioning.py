@@ -45,11 +45,15 @@ def report(env, name: str, **params) -> str:
         loop = "measured outputs differ"
     else:
         m = margins(loop_response(model, design, L, omega, plant=plant), omega)
-        loop = (f"GM {m.gain_db:5.1f} dB, PM {m.phase_deg:5.1f} deg, Ms {m.sensitivity_db:4.1f} dB, crossover "
-                f"{m.crossover:6.0f} rad/s")
+        loop = (
+            f"GM {m.gain_db:5.1f} dB, PM {m.phase_deg:5.1f} deg, Ms {m.sensitivity_db:4.1f} dB, crossover "
+            f"{m.crossover:6.0f} rad/s"
+        )
     r = run_episode(policy, env)
-    return (f"{name:24s} rho {design.rho:9.3g}  on the identified model: {loop}  |  max {r.max_contour_error_um:8.4g} um"
-            f", RMS {r.rms_contour_error_um:8.4g} um")
+    return (
+        f"{name:24s} rho {design.rho:9.3g}  on the identified model: {loop}  |  max {r.max_contour_error_um:8.4g} um"
+        f", RMS {r.rms_contour_error_um:8.4g} um"
+    )
 
 
 def sweep(env, exponents) -> None:
@@ -57,13 +61,16 @@ def sweep(env, exponents) -> None:
     model, L = base.axis_models[0], base.estimator_gains[0]
     omega = np.logspace(-1, np.log10(0.999 * np.pi / base.dt), 4000)
     for e in exponents:
-        policy = vcnc_baselines.make("lq-preview@commissioned", env, input_weight=10.0 ** e)
+        policy = vcnc_baselines.make("lq-preview@commissioned", env, input_weight=10.0**e)
         design = policy.designs[0]
         m = margins(loop_response(model, design, L, omega), omega)
         r = run_episode(policy, env)
-        print(f"  rho 1e{e:+.1f}: GM {m.gain_db:5.1f} dB, PM {m.phase_deg:5.1f} deg, Ms {m.sensitivity_db:4.1f} dB, "
-              f"crossover {m.crossover:6.0f} rad/s, stable {closed_loop_stable(model, design, L)}  |  max "
-              f"{r.max_contour_error_um:8.4g} um, RMS {r.rms_contour_error_um:8.4g} um", flush=True)
+        print(
+            f"  rho 1e{e:+.1f}: GM {m.gain_db:5.1f} dB, PM {m.phase_deg:5.1f} deg, Ms {m.sensitivity_db:4.1f} dB, "
+            f"crossover {m.crossover:6.0f} rad/s, stable {closed_loop_stable(model, design, L)}  |  max "
+            f"{r.max_contour_error_um:8.4g} um, RMS {r.rms_contour_error_um:8.4g} um",
+            flush=True,
+        )
 
 
 def main(argv=None) -> None:

@@ -102,8 +102,17 @@ def main(argv=None) -> None:
     for qp in policy.qps:
         s = osqp.OSQP()
         Hs, _ = scaled(qp.H, np.zeros(b))
-        s.setup(sparse.csc_matrix(np.triu(Hs)), np.zeros(b), sparse.identity(b, format="csc"), -np.ones(b),
-                np.ones(b), verbose=False, eps_abs=1e-9, eps_rel=1e-9, polishing=True)
+        s.setup(
+            sparse.csc_matrix(np.triu(Hs)),
+            np.zeros(b),
+            sparse.identity(b, format="csc"),
+            -np.ones(b),
+            np.ones(b),
+            verbose=False,
+            eps_abs=1e-9,
+            eps_rel=1e-9,
+            polishing=True,
+        )
         osqp_solvers.append(s)
 
     def osqp_solve(axis, H, f, lo, hi):
@@ -114,7 +123,7 @@ def main(argv=None) -> None:
     piqp_failures = [0]
 
     def piqp_solve(axis, H, f, lo, hi):  # set up per QP: its update of the bounds after a solve gave wrong
-        s = piqp.DenseSolver()            # solutions (up to 10 V off) with piqp 0.7.0
+        s = piqp.DenseSolver()  # solutions (up to 10 V off) with piqp 0.7.0
         s.settings.eps_abs, s.settings.eps_rel = 1e-9, 1e-9
         Hs, fs = scaled(H, f)
         s.setup(np.asfortranarray(Hs), fs, x_l=lo, x_u=hi)
@@ -138,8 +147,13 @@ def main(argv=None) -> None:
 
     reference_time, reference = timed(bvls, kept, args.repeat)
     rows = []
-    for name, fn in (("daqp (cold)", daqp_cold), ("daqp (warm)", daqp_warm), ("osqp", osqp_solve),
-                     ("piqp", piqp_solve), ("scipy bvls", bvls)):
+    for name, fn in (
+        ("daqp (cold)", daqp_cold),
+        ("daqp (warm)", daqp_warm),
+        ("osqp", osqp_solve),
+        ("piqp", piqp_solve),
+        ("scipy bvls", bvls),
+    ):
         seconds, solutions = timed(fn, kept, args.repeat)
         error = max(float(np.abs(np.asarray(z) - r).max()) for z, r in zip(solutions, reference))
         rows.append((name, seconds, error))
@@ -147,10 +161,14 @@ def main(argv=None) -> None:
     print(f"{'solver':<14}{'us/solve':>10}{'/ daqp':>9}{'max |z - z_bvls| V':>21}")
     for name, seconds, error in rows:
         print(f"{name:<14}{1e6 * seconds:>10.1f}{seconds / base:>9.2f}{error:>21.2e}")
-    print(f"unconstrained minimiser (one axis, matrix product): {1e6 * unconstrained:.1f} us ({unconstrained / base:.2f}"
-          " x daqp)")
-    print(f"predict per call, one env: mpc {1e6 * mpc_call:.0f} us (median over the run), lq-preview (compiled) "
-          f"{1e6 * lq_call:.0f} us")
+    print(
+        f"unconstrained minimiser (one axis, matrix product): {1e6 * unconstrained:.1f} us ({unconstrained / base:.2f}"
+        " x daqp)"
+    )
+    print(
+        f"predict per call, one env: mpc {1e6 * mpc_call:.0f} us (median over the run), lq-preview (compiled) "
+        f"{1e6 * lq_call:.0f} us"
+    )
     if piqp_failures[0]:
         print(f"piqp did not report PIQP_SOLVED on {piqp_failures[0]} of its {(args.repeat + 1) * len(kept)} solves")
     _ = reference_time

@@ -62,17 +62,29 @@ def main(argv=None) -> None:
     p.add_argument("--envs", type=int, default=256, help="envs, and observations per forward pass (default 256)")
     p.add_argument("--calls", type=int, default=200, help="kernel calls, each followed by a forward pass")
     args = p.parse_args(argv)
-    print(f"VCNC-Heart-v1, N = {args.envs}, 2 numba threads (parallel=True), 1 torch thread; medians over "
-          f"{args.calls} kernel calls")
-    print(f"{'threading layer':16s} {'forward alone':>14s} {'after a kernel':>15s} {'ratio':>6s} "
-          f"{'50 after the calls':>19s} {'ratio':>6s} {'kernel call':>12s}")
+    print(
+        f"VCNC-Heart-v1, N = {args.envs}, 2 numba threads (parallel=True), 1 torch thread; medians over "
+        f"{args.calls} kernel calls"
+    )
+    print(
+        f"{'threading layer':16s} {'forward alone':>14s} {'after a kernel':>15s} {'ratio':>6s} "
+        f"{'50 after the calls':>19s} {'ratio':>6s} {'kernel call':>12s}"
+    )
     for layer in ("omp", "workqueue"):
         env = dict(os.environ, NUMBA_THREADING_LAYER=layer, NUMBA_NUM_THREADS="2")
-        out = subprocess.run([sys.executable, "-c", _CHILD, str(args.envs), str(args.calls)], env=env,
-                             capture_output=True, text=True, check=True).stdout
+        out = subprocess.run(
+            [sys.executable, "-c", _CHILD, str(args.envs), str(args.calls)],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
         r = json.loads(out.strip().splitlines()[-1])
-        print(f"{r['layer']:16s} {r['before_ms']:11.3f} ms {r['after_ms']:12.3f} ms {r['after_ms'] / r['before_ms']:6.1f} "
-              f"{r['block_ms']:16.3f} ms {r['block_ms'] / r['before_ms']:6.1f} {r['kernel_ms']:9.3f} ms", flush=True)
+        print(
+            f"{r['layer']:16s} {r['before_ms']:11.3f} ms {r['after_ms']:12.3f} ms {r['after_ms'] / r['before_ms']:6.1f} "
+            f"{r['block_ms']:16.3f} ms {r['block_ms'] / r['before_ms']:6.1f} {r['kernel_ms']:9.3f} ms",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -51,7 +51,7 @@ def _saturated(result, env) -> str:
     u = np.abs(result.command) / env.unwrapped.u_max
     at = np.any(u >= 0.999, axis=1)
     k = int(np.argmax(result.contour_error))
-    return f"{at.mean():.3f} overall, {at[max(0, k - 200):k + 1].mean():.3f} before the max"
+    return f"{at.mean():.3f} overall, {at[max(0, k - 200) : k + 1].mean():.3f} before the max"
 
 
 def main() -> None:
@@ -61,10 +61,15 @@ def main() -> None:
     parser.add_argument("--stored", action="store_true", help="replay the shipped solutions, do not solve")
     parser.add_argument("--plot", help="convergence plot (PNG) of every id solved")
     parser.add_argument("--seed", type=int, default=0, help="env.reset seed (the bench's default: 0)")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"a smaller search ({QUICK}), a quarter of the default's episodes")
-    parser.add_argument("--no-agents", dest="agents", action="store_false",
-                        help="leave out the shipped specialist (agents/trained/ID) among the starts")
+    parser.add_argument(
+        "--quick", action="store_true", help=f"a smaller search ({QUICK}), a quarter of the default's episodes"
+    )
+    parser.add_argument(
+        "--no-agents",
+        dest="agents",
+        action="store_false",
+        help="leave out the shipped specialist (agents/trained/ID) among the starts",
+    )
     parser.add_argument("--plot-stored", metavar="PNG", help="only plot the shipped solutions' convergence")
     args = parser.parse_args()
     if args.plot_stored:
@@ -89,11 +94,13 @@ def main() -> None:
         best = min(sol.warm_starts, key=lambda k: tuple(sol.warm_starts[k]))
         b_max, b_rms = sol.warm_starts[best]
         curves[env_id] = sol.history
-        print(f"{env_id:28s} floor {result.max_contour_error_um:9.4f} um max {result.rms_contour_error_um:9.4f} um rms"
-              f" (search {sol.max_um:.4f}) | strongest causal {best} {b_max:9.4f} / {b_rms:9.4f} | headroom "
-              f"{b_max / result.max_contour_error_um:6.3f} | solve {sol.solve_time_s:6.1f} s, {sol.evaluations} "
-              f"episodes | plan {solve:5.1f} s, episode {result.wall_s:5.1f} s | saturated {_saturated(result, env)}",
-              flush=True)
+        print(
+            f"{env_id:28s} floor {result.max_contour_error_um:9.4f} um max {result.rms_contour_error_um:9.4f} um rms"
+            f" (search {sol.max_um:.4f}) | strongest causal {best} {b_max:9.4f} / {b_rms:9.4f} | headroom "
+            f"{b_max / result.max_contour_error_um:6.3f} | solve {sol.solve_time_s:6.1f} s, {sol.evaluations} "
+            f"episodes | plan {solve:5.1f} s, episode {result.wall_s:5.1f} s | saturated {_saturated(result, env)}",
+            flush=True,
+        )
         env.close()
     if args.plot and curves:
         plot(curves, args.plot)

@@ -52,12 +52,16 @@ def update(env_id: str, seed: int = 0) -> str:
         print(f"{env_id}: {', '.join(beats)} below the stored floor {sol.max_um:.4g} um: solving again", flush=True)
         sol = solve(env, p, noise_state=noise, log=print)
         solutions.store(key, sol, solutions.DIRECTORY)
-        return (f"{env_id}: solved again in {time.perf_counter() - t0:.0f} s, floor {sol.max_um:.4g} um "
-                f"(start {sol.start})")
+        return (
+            f"{env_id}: solved again in {time.perf_counter() - t0:.0f} s, floor {sol.max_um:.4g} um (start {sol.start})"
+        )
     sol.warm_starts.update(figures)
     solutions.store(key, sol, solutions.DIRECTORY)
-    return (f"{env_id}: floor {sol.max_um:.4g} um at or below "
-            + ", ".join(f"{k} {mx:.4g}" for k, (mx, _) in figures.items()) + f" ({time.perf_counter() - t0:.0f} s)")
+    return (
+        f"{env_id}: floor {sol.max_um:.4g} um at or below "
+        + ", ".join(f"{k} {mx:.4g}" for k, (mx, _) in figures.items())
+        + f" ({time.perf_counter() - t0:.0f} s)"
+    )
 
 
 def main(argv=None) -> int:

@@ -23,8 +23,9 @@ from vcnc_agents.action_modes import ResidualAction
 
 def episodes(env_id: str, baseline: str, n: int) -> tuple[float, float]:
     """Mean wall time (s) of a reset and of the episode after it, over ``n`` episodes of new plants."""
-    env = ResidualAction(gym.make(env_id, action_repeat=1, randomize=True), baseline=baseline, correction=0.1,
-                         action_repeat=20)
+    env = ResidualAction(
+        gym.make(env_id, action_repeat=1, randomize=True), baseline=baseline, correction=0.1, action_repeat=20
+    )
     resets, runs = [], []
     for k in range(n + 1):  # the first episode compiles: left out
         t0 = time.perf_counter()
@@ -50,8 +51,10 @@ def main(argv=None) -> int:
     base = rows["ff-pid-online"][1]
     print(f"{args.env}, {args.episodes} episodes of new plants each (the residual wrapper, decisions of 2 ms):")
     for name, (reset, run) in rows.items():
-        print(f"  {name:<22} reset {reset:7.3f} s, episode {run:6.3f} s; reset + episode = "
-              f"{(reset + run) / base:5.2f} x the nominal design's episode")
+        print(
+            f"  {name:<22} reset {reset:7.3f} s, episode {run:6.3f} s; reset + episode = "
+            f"{(reset + run) / base:5.2f} x the nominal design's episode"
+        )
     return 0
 
 

@@ -187,9 +187,13 @@ def run_candidate(spec: str, n_envs: int, steps: int, folder: Path) -> dict:
     config = folder / "ppo.yml"
     folder.mkdir(parents=True)
     config.write_text(yaml.safe_dump({ENV_ID: entry}, sort_keys=False))
-    proc = subprocess.run([sys.executable, "-c", _CHILD, trainer, str(config), str(folder), ENV_ID, str(steps),
-                           str(n_envs), threads], cwd=ROOT, capture_output=True, text=True,
-                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    proc = subprocess.run(
+        [sys.executable, "-c", _CHILD, trainer, str(config), str(folder), ENV_ID, str(steps), str(n_envs), threads],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+    )
     if proc.returncode != 0:
         raise SystemExit(f"candidate {spec} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     r = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -200,19 +204,32 @@ def run_candidate(spec: str, n_envs: int, steps: int, folder: Path) -> dict:
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n-envs", type=int, default=64, help="training envs of every candidate (default 64)")
-    p.add_argument("--steps", type=int, default=131072,
-                   help="agent steps of every candidate, rounded up to whole rollouts of all (default 131072)")
-    p.add_argument("--candidates", nargs="+", default=DEFAULT_CANDIDATES, metavar="SPEC",
-                   help="TRAINER[:key=value,...] (see the module docstring); default: " + " ".join(DEFAULT_CANDIDATES))
+    p.add_argument(
+        "--steps",
+        type=int,
+        default=131072,
+        help="agent steps of every candidate, rounded up to whole rollouts of all (default 131072)",
+    )
+    p.add_argument(
+        "--candidates",
+        nargs="+",
+        default=DEFAULT_CANDIDATES,
+        metavar="SPEC",
+        help="TRAINER[:key=value,...] (see the module docstring); default: " + " ".join(DEFAULT_CANDIDATES),
+    )
     p.add_argument("--json", type=Path, help="also write the records to this file")
     args = p.parse_args(argv)
     rollouts = [entry_for(parse_candidate(c)[1], args.n_envs)["n_steps"] * args.n_envs for c in args.candidates]
     lcm = math.lcm(*rollouts)
     steps = -(-args.steps // lcm) * lcm
-    print(f"{ENV_ID}, residual over SMC (correction 0.2, action repeat {REPEAT}), n_envs {args.n_envs}, "
-          f"{steps} agent steps per candidate, seed 0; rates of training without the final evaluation")
-    print(f"{'candidate':58s} {'agent st/s':>10s} {'env st/s':>10s} {'env':>5s} {'fwd':>5s} {'upd':>5s} "
-          f"{'other':>5s} {'stagger':>7s} {'CPU us/st':>9s} {'max um':>7s} {'RMS um':>7s}")
+    print(
+        f"{ENV_ID}, residual over SMC (correction 0.2, action repeat {REPEAT}), n_envs {args.n_envs}, "
+        f"{steps} agent steps per candidate, seed 0; rates of training without the final evaluation"
+    )
+    print(
+        f"{'candidate':58s} {'agent st/s':>10s} {'env st/s':>10s} {'env':>5s} {'fwd':>5s} {'upd':>5s} "
+        f"{'other':>5s} {'stagger':>7s} {'CPU us/st':>9s} {'max um':>7s} {'RMS um':>7s}"
+    )
     records = []
     with tempfile.TemporaryDirectory(prefix="vcnc_ppo_trainers_") as tmp:
         for k, spec in enumerate(args.candidates):
@@ -223,18 +240,35 @@ def main(argv=None) -> None:
             shares = {ph: r[ph] / train_s for ph in ("env", "forward", "update")}
             shares["other"] = 1.0 - sum(shares.values())
             cpu_us = 1e6 * (r["cpu_s"] - r["eval_cpu"]) / r["steps"]  # the staggered start included
-            records.append({"candidate": spec, "n_envs": args.n_envs, "steps": r["steps"], "agent_steps_per_s": rate,
-                            "cpu_us_per_agent_step": cpu_us,
-                            "env_steps_per_s": rate * REPEAT, "train_s": train_s, "stagger_s": r["stagger_s"],
-                            "shares": shares, "max_um": r["max_um"], "rms_um": r["rms_um"], "entry": r["entry"],
-                            "torch_threads": r["threads"]})
-            print(f"{spec:58s} {rate:10,.0f} {rate * REPEAT:10,.0f} " +
-                  " ".join(f"{shares[ph]:5.2f}" for ph in ("env", "forward", "update", "other")) +
-                  f" {r['stagger_s']:6.1f}s {cpu_us:9.1f} {r['max_um']:7.2f} {r['rms_um']:7.2f}", flush=True)
+            records.append(
+                {
+                    "candidate": spec,
+                    "n_envs": args.n_envs,
+                    "steps": r["steps"],
+                    "agent_steps_per_s": rate,
+                    "cpu_us_per_agent_step": cpu_us,
+                    "env_steps_per_s": rate * REPEAT,
+                    "train_s": train_s,
+                    "stagger_s": r["stagger_s"],
+                    "shares": shares,
+                    "max_um": r["max_um"],
+                    "rms_um": r["rms_um"],
+                    "entry": r["entry"],
+                    "torch_threads": r["threads"],
+                }
+            )
+            print(
+                f"{spec:58s} {rate:10,.0f} {rate * REPEAT:10,.0f} "
+                + " ".join(f"{shares[ph]:5.2f}" for ph in ("env", "forward", "update", "other"))
+                + f" {r['stagger_s']:6.1f}s {cpu_us:9.1f} {r['max_um']:7.2f} {r['rms_um']:7.2f}",
+                flush=True,
+            )
     base = records[0]
     for rec in records[1:]:
-        print(f"{rec['candidate']:58s} {rec['agent_steps_per_s'] / base['agent_steps_per_s']:9.2f}x of "
-              f"{base['candidate']}")
+        print(
+            f"{rec['candidate']:58s} {rec['agent_steps_per_s'] / base['agent_steps_per_s']:9.2f}x of "
+            f"{base['candidate']}"
+        )
     if args.json:
         args.json.write_text(json.dumps(records, indent=1))
 

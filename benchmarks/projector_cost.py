@@ -82,10 +82,10 @@ def trajectories(seed: int):
         out.append((f"{name} far (1-3 mm)", proj, path + random_walk(rng, len(path), 1.0, 3.0, 0.01)))
         if name == "omega":
             corners = path[corner_mask(curve, ref, 4, 3.0)]
-            out.append((f"{name} corners far (1-3 mm)", proj,
-                        corners + random_walk(rng, len(corners), 1.0, 3.0, 0.01)))
-            out.append((f"{name} corners near (0-20 um)", proj,
-                        corners + random_walk(rng, len(corners), 0.0, 0.02, 0.001)))
+            out.append((f"{name} corners far (1-3 mm)", proj, corners + random_walk(rng, len(corners), 1.0, 3.0, 0.01)))
+            out.append(
+                (f"{name} corners near (0-20 um)", proj, corners + random_walk(rng, len(corners), 0.0, 0.02, 0.001))
+            )
     return out
 
 
@@ -106,8 +106,10 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=5, help="timing repeats, best kept (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random-walk errors (default 0)")
     args = parser.parse_args(argv)
-    print(f"{'trajectory':30s} {'points':>7s} {'global ns':>10s} {'warm ns':>9s} {'ratio':>6s} "
-          f"{'max |d_w - d_g| mm':>19s}")
+    print(
+        f"{'trajectory':30s} {'points':>7s} {'global ns':>10s} {'warm ns':>9s} {'ratio':>6s} "
+        f"{'max |d_w - d_g| mm':>19s}"
+    )
     for label, proj, q in trajectories(args.seed):
         q = np.ascontiguousarray(q)
         t_global, d_global = time_run(proj, q, False, args.repeats)

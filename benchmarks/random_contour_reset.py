@@ -28,8 +28,11 @@ from vcnc_gym.gcode import read_program, toolpath
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=10)
-    parser.add_argument("--cold", action="store_true",
-                        help="leave the corner-design cache empty (each new angle designed inside the reset)")
+    parser.add_argument(
+        "--cold",
+        action="store_true",
+        help="leave the corner-design cache empty (each new angle designed inside the reset)",
+    )
     args = parser.parse_args()
     env = gym.make("VCNC-RandomContour-v1")
     u = env.unwrapped
@@ -39,11 +42,15 @@ def main() -> None:
         t0 = time.perf_counter()
         for turn in range(math.ceil(spec.turn_min), math.floor(spec.turn_max) + 1):
             toolpath._design(math.pi - math.radians(turn), u._tolerance, a, j)
-        print(f"corner designs of the {math.floor(spec.turn_max) - math.ceil(spec.turn_min) + 1} turn angles: "
-              f"{time.perf_counter() - t0:.1f} s once per process")
+        print(
+            f"corner designs of the {math.floor(spec.turn_max) - math.ceil(spec.turn_min) + 1} turn angles: "
+            f"{time.perf_counter() - t0:.1f} s once per process"
+        )
     resets, steps, reads, counts = [], [], [], []
-    print(f"{'seed':>4} {'moves':>5} {'length_mm':>9} {'steps':>6} {'reset_s':>8} {'read_s':>7} {'episode_s':>9} "
-          f"{'reset/episode':>13}")
+    print(
+        f"{'seed':>4} {'moves':>5} {'length_mm':>9} {'steps':>6} {'reset_s':>8} {'read_s':>7} {'episode_s':>9} "
+        f"{'reset/episode':>13}"
+    )
     for seed in range(args.episodes):
         t0 = time.perf_counter()
         obs, info = env.reset(seed=seed)
@@ -55,8 +62,12 @@ def main() -> None:
         stepping = 0.0
         n = 0
         while True:
-            a = np.clip((300.0 * layout.tracking_error(obs) + 1.0 * (layout.reference_velocity(obs)
-                         - layout.velocity(obs))) / 5.0, -1, 1).astype(np.float32)
+            a = np.clip(
+                (300.0 * layout.tracking_error(obs) + 1.0 * (layout.reference_velocity(obs) - layout.velocity(obs)))
+                / 5.0,
+                -1,
+                1,
+            ).astype(np.float32)
             t0 = time.perf_counter()
             obs, _, term, trunc, _ = env.step(a)
             stepping += time.perf_counter() - t0
@@ -67,12 +78,16 @@ def main() -> None:
         steps.append(stepping)
         reads.append(read)
         counts.append(n)
-        print(f"{seed:>4} {len(u.toolpath.program.moves) if hasattr(u, 'toolpath') else len(u.task.path.program.moves):>5} "
-              f"{u.task.contour_length:9.1f} {n:>6} {reset:8.3f} {read:7.3f} {stepping:9.3f} {reset / stepping:13.2f}")
+        print(
+            f"{seed:>4} {len(u.toolpath.program.moves) if hasattr(u, 'toolpath') else len(u.task.path.program.moves):>5} "
+            f"{u.task.contour_length:9.1f} {n:>6} {reset:8.3f} {read:7.3f} {stepping:9.3f} {reset / stepping:13.2f}"
+        )
     r, s = float(np.sum(resets)), float(np.sum(steps))
-    print(f"total: {args.episodes} resets {r:.2f} s (reading the programs with their blends {np.sum(reads):.2f} s), "
-          f"{int(np.sum(counts))} steps {s:.2f} s ({1e6 * s / np.sum(counts):.1f} us per step); reset / episode = "
-          f"{r / s:.2f}")
+    print(
+        f"total: {args.episodes} resets {r:.2f} s (reading the programs with their blends {np.sum(reads):.2f} s), "
+        f"{int(np.sum(counts))} steps {s:.2f} s ({1e6 * s / np.sum(counts):.1f} us per step); reset / episode = "
+        f"{r / s:.2f}"
+    )
 
 
 if __name__ == "__main__":

@@ -51,8 +51,10 @@ def main(argv=None) -> int:
         text = "G01 X1 F600\n" + "G01 X2\nG01 X1\n" * 500_000
         ok &= _timed("a 1e6-line program text", lambda: read_program_text(text))
         ok &= _timed("a 10 MB line", lambda: read_program_text("G01 X" + "1" * 10_000_000 + "\n"))
-        ok &= _timed("VCNC-RandomContour-v1 spec moves_max=10**9",
-                     lambda: gym.make("VCNC-RandomContour-v1", spec={"moves_max": 10**9}))
+        ok &= _timed(
+            "VCNC-RandomContour-v1 spec moves_max=10**9",
+            lambda: gym.make("VCNC-RandomContour-v1", spec={"moves_max": 10**9}),
+        )
         ok &= _timed("VCNC-OmegaOverride-v1 time_limit=1e9", lambda: gym.make("VCNC-OmegaOverride-v1", time_limit=1e9))
         bomb = tmp / "model.zip"
         t0 = time.perf_counter()
@@ -64,9 +66,11 @@ def main(argv=None) -> int:
                 for _ in range(int(args.bomb_gb * 1e9) // len(chunk)):
                     f.write(chunk)
             z.writestr("policy.pth", b"")
-        print(f"(model.zip bomb: {bomb.stat().st_size / 1e6:.1f} MB on disk, data member "
-              f"{zipfile.ZipFile(bomb).getinfo('data').file_size / 1e9:.2f} GB, written in "
-              f"{time.perf_counter() - t0:.0f} s)")
+        print(
+            f"(model.zip bomb: {bomb.stat().st_size / 1e6:.1f} MB on disk, data member "
+            f"{zipfile.ZipFile(bomb).getinfo('data').file_size / 1e9:.2f} GB, written in "
+            f"{time.perf_counter() - t0:.0f} s)"
+        )
         ok &= _timed(f"a model.zip whose data inflates to {args.bomb_gb:g} GB", lambda: read_model_data(bomb))
     print("OK: every case refused within 1 s" if ok else "FAILED")
     return 0 if ok else 1

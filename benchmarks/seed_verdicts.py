@@ -35,8 +35,17 @@ from vcnc_bench.score import add_scores
 from vcnc_bench.verdicts import iqm, robust_verdicts, sampled_figures, seed_figures, stratified_bootstrap_ci, verdict
 
 #: The settings two ``--plants`` runs must share for their records to be paired plant by plant.
-PAIRED_SETTINGS = ("plants", "plant_seed", "seed", "trials", "max_vertices", "feedrate", "plant", "noise_seeds",
-                   "shop_floor")
+PAIRED_SETTINGS = (
+    "plants",
+    "plant_seed",
+    "seed",
+    "trials",
+    "max_vertices",
+    "feedrate",
+    "plant",
+    "noise_seeds",
+    "shop_floor",
+)
 
 #: The value of a setting a run's JSON does not hold: written before the setting existed, it ran without it.
 SETTING_DEFAULTS = {"shop_floor": False}
@@ -56,26 +65,38 @@ def tables(data: dict, base: str) -> list[str]:
     records = data["robust"]
     env = records[0]["env"]
     scored = any((r.get("score") or {}).get("iqm_max") for r in records)  # the floor ran on the plants
-    out = [f"**{env}** (`{data['settings']['command']}`)", "",
-           "| policy | max nominal / median / worst, um | RMS nominal / median / worst, um | IQM max [95 % CI], um |"
-           + (" score of the max, IQM [95 % CI] |" if scored else ""), "|---|---|---|---|" + ("---|" if scored else "")]
+    out = [
+        f"**{env}** (`{data['settings']['command']}`)",
+        "",
+        "| policy | max nominal / median / worst, um | RMS nominal / median / worst, um | IQM max [95 % CI], um |"
+        + (" score of the max, IQM [95 % CI] |" if scored else ""),
+        "|---|---|---|---|" + ("---|" if scored else ""),
+    ]
     for r in records:
         if r["policy"] == "pd-ref":
             continue
         iqm = stratified_bootstrap_ci(sampled_figures(r, "max"), seed=0)
         s = (r.get("score") or {}).get("iqm_max") or [None] * 3
-        out.append(f"| `{r['policy']}` | {_f(r['nominal_max_um'])} / {_f(r['median_max_um'])} / "
-                   f"{_f(r['worst_max_um'])} | {_f(r['nominal_rms_um'])} / {_f(r['median_rms_um'])} / "
-                   f"{_f(r['worst_rms_um'])} | {_f(iqm[0])} [{_f(iqm[1])}, {_f(iqm[2])}] |"
-                   + (f" {_score(s[0])} [{_score(s[1])}, {_score(s[2])}] |" if scored else ""))
-    out += ["", "| learned X | fig | X IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | "
-                "P(X<Y) | verdict |", "|---|---|---|---|---|---|---|---|"]
+        out.append(
+            f"| `{r['policy']}` | {_f(r['nominal_max_um'])} / {_f(r['median_max_um'])} / "
+            f"{_f(r['worst_max_um'])} | {_f(r['nominal_rms_um'])} / {_f(r['median_rms_um'])} / "
+            f"{_f(r['worst_rms_um'])} | {_f(iqm[0])} [{_f(iqm[1])}, {_f(iqm[2])}] |"
+            + (f" {_score(s[0])} [{_score(s[1])}, {_score(s[2])}] |" if scored else "")
+        )
+    out += [
+        "",
+        "| learned X | fig | X IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | "
+        "P(X<Y) | verdict |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for v in data["verdicts"]:
         seeds = v.get("training_seeds", 1)
-        out.append(f"| `{v['x']}`{f' ({seeds} seeds)' if seeds > 1 else ''} | {v['figure']} | {_f(v['iqm_x'])} "
-                   f"[{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | `{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, "
-                   f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
-                   f"{v['p_improvement']:.2f} | {v['outcome']} |")
+        out.append(
+            f"| `{v['x']}`{f' ({seeds} seeds)' if seeds > 1 else ''} | {v['figure']} | {_f(v['iqm_x'])} "
+            f"[{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | `{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, "
+            f"{_f(v['ci_y'][1])}] | {_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | "
+            f"{v['p_improvement']:.2f} | {v['outcome']} |"
+        )
     out += [""] + [line[0].upper() + line[1:] for line in _against_base(records, base)]
     absent = _not_run_names(records)
     if absent:
@@ -120,8 +141,10 @@ def within(records: list[dict], tolerances: list[float]) -> list[str]:
         x = sampled_figures(r, "max")
         x = x.reshape(x.shape[0], -1).max(axis=1)  # with noise seeds: a plant is within T if every seed is
         nominal = r["nominal_max_um"]
-        cells = [f"{'yes' if nominal is not None and nominal <= t else 'no'}, {int((x <= t).sum())} of {x.size}"
-                 for t in tolerances]
+        cells = [
+            f"{'yes' if nominal is not None and nominal <= t else 'no'}, {int((x <= t).sum())} of {x.size}"
+            for t in tolerances
+        ]
         out.append(f"| `{r['policy']}` | " + " | ".join(cells) + " |")
     return out
 
@@ -146,17 +169,22 @@ def summary(runs: list[dict], base: str | list[str]) -> list[str]:
     """One Markdown table over several runs (one id each): every training run's seeds against the strongest causal
     controller, figure by figure, then a line per id against their ``base``; what ``docs/reproduction.md``'s seed
     tables hold."""
-    rows = ["| id | fig | seeds' IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | "
-            "verdict |", "|---|---|---|---|---|---|---|---|"]
+    rows = [
+        "| id | fig | seeds' IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | "
+        "verdict |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     lines = []
     for data in runs:
         records = data["robust"]
         name = run_name(data)
         for v in (v for v in data["verdicts"] if v.get("training_seeds", 1) > 1):
-            rows.append(f"| {name} | {v['figure']} | {_f(v['iqm_x'])} [{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | "
-                        f"`{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, {_f(v['ci_y'][1])}] | "
-                        f"{_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | {v['p_improvement']:.2f} | "
-                        f"{v['outcome']} |")
+            rows.append(
+                f"| {name} | {v['figure']} | {_f(v['iqm_x'])} [{_f(v['ci_x'][0])}, {_f(v['ci_x'][1])}] | "
+                f"`{v['y']}` | {_f(v['iqm_y'])} [{_f(v['ci_y'][0])}, {_f(v['ci_y'][1])}] | "
+                f"{_f(v['difference'])} [{_f(v['low'])}, {_f(v['high'])}] | {v['p_improvement']:.2f} | "
+                f"{v['outcome']} |"
+            )
         own = base_of([base] if isinstance(base, str) else base, records[0]["env"])
         lines += [f"- {name}: {line}" for line in _against_base(records, own)]
         absent = _not_run_names(records)
@@ -168,16 +196,19 @@ def summary(runs: list[dict], base: str | list[str]) -> list[str]:
 def changes(pairs: list[tuple[dict, dict]]) -> list[str]:
     """Per id and figure, the verdict of an earlier run's training seeds (``before``) beside this run's (``now``),
     each against the strongest causal controller of its own run; pairs of (before, now) runs of one id each."""
-    out = ["| id | fig | before: seeds, verdict (against) | now: seeds, verdict (against) | changed |",
-           "|---|---|---|---|---|"]
+    out = [
+        "| id | fig | before: seeds, verdict (against) | now: seeds, verdict (against) | changed |",
+        "|---|---|---|---|---|",
+    ]
     n = 0
     for before, now in pairs:
         name = now["robust"][0]["env"]
         for figure in ("max", "rms"):
             cells = []
             for data in (before, now):
-                v = next((v for v in data["verdicts"] if v.get("training_seeds", 1) > 1 and v["figure"] == figure),
-                         None)
+                v = next(
+                    (v for v in data["verdicts"] if v.get("training_seeds", 1) > 1 and v["figure"] == figure), None
+                )
                 cells.append(None if v is None else (v["training_seeds"], v["outcome"], v["y"]))
             moved = None not in cells and cells[0][1] != cells[1][1]
             n += moved
@@ -189,8 +220,10 @@ def changes(pairs: list[tuple[dict, dict]]) -> list[str]:
 def spread(runs: list[dict]) -> list[str]:
     """The training seeds' spread: per id and training run, the lowest and highest of the seeds' own IQMs (over
     the run's plants) of the max and of the RMS contour error."""
-    out = ["| id | training run | seeds | seeds' IQM of the max, lowest - highest, um | of the RMS, um |",
-           "|---|---|---|---|---|"]
+    out = [
+        "| id | training run | seeds | seeds' IQM of the max, lowest - highest, um | of the RMS, um |",
+        "|---|---|---|---|---|",
+    ]
     for data in runs:
         records = data["robust"]
         name = run_name(data)
@@ -212,8 +245,13 @@ def _against_base(records: list[dict], base: str) -> list[str]:
         members = [r for r in records if r.get("group") == run]
         cells = []
         for figure in ("max", "rms"):
-            v = verdict(seed_figures(members, figure), sampled_figures(against, figure), figure=figure,
-                        x_label=run, y_label=base)
+            v = verdict(
+                seed_figures(members, figure),
+                sampled_figures(against, figure),
+                figure=figure,
+                x_label=run,
+                y_label=base,
+            )
             cells.append(f"{figure} {v.outcome}, X - Y {_f(v.difference)} [{_f(v.low)}, {_f(v.high)}] um")
         out.append(f"the {len(members)} seeds of `{run}` against `{base}`: " + "; ".join(cells) + ".")
     return out
@@ -228,17 +266,26 @@ def ablation(records: list[dict], against: str) -> list[str]:
             groups.setdefault(r["group"], []).append(r)
     if against not in groups:
         raise ValueError(f"no training run {against!r} among {sorted(groups)}")
-    out = [f"| run X | seeds | fig | X IQM [95 % CI] | `{against}` IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | "
-           "verdict |", "|---|---|---|---|---|---|---|---|"]
+    out = [
+        f"| run X | seeds | fig | X IQM [95 % CI] | `{against}` IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | verdict |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for run, members in groups.items():
         if run == against:
             continue
         for figure in ("max", "rms"):
-            v = verdict(seed_figures(members, figure), seed_figures(groups[against], figure), figure=figure,
-                        x_label=run, y_label=against)
-            out.append(f"| `{run}` | {len(members)} | {figure} | {_f(v.iqm_x)} [{_f(v.ci_x[0])}, {_f(v.ci_x[1])}] | "
-                       f"{_f(v.iqm_y)} [{_f(v.ci_y[0])}, {_f(v.ci_y[1])}] | {_f(v.difference)} [{_f(v.low)}, "
-                       f"{_f(v.high)}] | {v.p_improvement:.2f} | {v.outcome} |")
+            v = verdict(
+                seed_figures(members, figure),
+                seed_figures(groups[against], figure),
+                figure=figure,
+                x_label=run,
+                y_label=against,
+            )
+            out.append(
+                f"| `{run}` | {len(members)} | {figure} | {_f(v.iqm_x)} [{_f(v.ci_x[0])}, {_f(v.ci_x[1])}] | "
+                f"{_f(v.iqm_y)} [{_f(v.ci_y[0])}, {_f(v.ci_y[1])}] | {_f(v.difference)} [{_f(v.low)}, "
+                f"{_f(v.high)}] | {v.p_improvement:.2f} | {v.outcome} |"
+            )
     return out
 
 
@@ -252,25 +299,33 @@ def join(data: dict, other: dict, other_name: str = "the other run", only: tuple
     ``data``'s settings); ValueError where the two runs' settings or plants differ, or a policy of ``only`` is not
     in ``other``."""
     a, b = data["settings"], other["settings"]
+
     def get(settings, k):
         return settings.get(k, SETTING_DEFAULTS.get(k))
 
     differ = [k for k in PAIRED_SETTINGS if get(a, k) != get(b, k)]
     if differ:
-        raise ValueError(f"{other_name} was not run on the same plants: its settings differ in "
-                         + ", ".join(f"{k} ({get(a, k)!r} against {get(b, k)!r})" for k in differ))
+        raise ValueError(
+            f"{other_name} was not run on the same plants: its settings differ in "
+            + ", ".join(f"{k} ({get(a, k)!r} against {get(b, k)!r})" for k in differ)
+        )
     envs = {r["env"] for r in data["robust"]}
     have = {(r["env"], r["policy"]) for r in data["robust"]}
     absent = [p for p in only if not any(r["policy"] == p for r in other["robust"])]
     if absent:
         raise ValueError(f"{other_name} has no records of {absent[0]!r}")
-    added = [r for r in other["robust"] if r["env"] in envs and (r["env"], r["policy"]) not in have
-             and (not only or r["policy"] in only)]
+    added = [
+        r
+        for r in other["robust"]
+        if r["env"] in envs and (r["env"], r["policy"]) not in have and (not only or r["policy"] in only)
+    ]
     for r in added:
         mine = next(m for m in data["robust"] if m["env"] == r["env"])
         if r["per_plant"]["kind"] != mine["per_plant"]["kind"]:
-            raise ValueError(f"{other_name}'s {r['policy']} on {r['env']} ran other plants "
-                             f"({len(r['per_plant']['kind'])} against {len(mine['per_plant']['kind'])})")
+            raise ValueError(
+                f"{other_name}'s {r['policy']} on {r['env']} ran other plants "
+                f"({len(r['per_plant']['kind'])} against {len(mine['per_plant']['kind'])})"
+            )
     records = [dict(r) for r in data["robust"]] + [dict(r) for r in added]
     learned = {r["policy"] for r in records if r.get("kind") not in (None, "baseline")}
     causal = {r["policy"] for r in records if _causal(r)}
@@ -284,23 +339,49 @@ def join(data: dict, other: dict, other_name: str = "the other run", only: tuple
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("json_files", nargs="+", metavar="JSON", help="vcnc-bench --plants N --json files")
-    p.add_argument("--base", action="append", default=[], metavar="[ID=]NAME",
-                   help="the controller the agents' residual corrects (default ff-ccc); ID=NAME for one id's run "
-                        "(repeatable: with --summary, one per id)")
-    p.add_argument("--with", dest="other", metavar="OTHER", action="append", default=[],
-                   help="another --plants run of the same id and plants: the records this one lacks (controllers and "
-                        "agents) join it, and the verdicts are judged again (repeatable: joined in the order given)")
-    p.add_argument("--only", action="append", default=[], metavar="POLICY",
-                   help="with --with: join this policy's records only (repeatable; default every one this run lacks)")
+    p.add_argument(
+        "--base",
+        action="append",
+        default=[],
+        metavar="[ID=]NAME",
+        help="the controller the agents' residual corrects (default ff-ccc); ID=NAME for one id's run "
+        "(repeatable: with --summary, one per id)",
+    )
+    p.add_argument(
+        "--with",
+        dest="other",
+        metavar="OTHER",
+        action="append",
+        default=[],
+        help="another --plants run of the same id and plants: the records this one lacks (controllers and "
+        "agents) join it, and the verdicts are judged again (repeatable: joined in the order given)",
+    )
+    p.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="POLICY",
+        help="with --with: join this policy's records only (repeatable; default every one this run lacks)",
+    )
     p.add_argument("--json", metavar="OUT", help="with --with and one JSON: write the joined run here")
     p.add_argument("--summary", action="store_true", help="one table of every JSON's seeds' verdicts")
-    p.add_argument("--before", metavar="DIR", action="append", default=[],
-                   help="with --summary: the verdicts of the JSON of the same name in DIR (an earlier run's seeds; "
-                        "repeatable, the first DIR that has it) beside this run's, and how many changed")
+    p.add_argument(
+        "--before",
+        metavar="DIR",
+        action="append",
+        default=[],
+        help="with --summary: the verdicts of the JSON of the same name in DIR (an earlier run's seeds; "
+        "repeatable, the first DIR that has it) beside this run's, and how many changed",
+    )
     p.add_argument("--against", metavar="GROUP", help="judge every training run against the seeds of GROUP")
-    p.add_argument("--within", nargs="+", type=float, metavar="T",
-                   help="contour tolerances, um: per policy, whether the nominal plant's max is within each, and on "
-                        "how many sampled plants")
+    p.add_argument(
+        "--within",
+        nargs="+",
+        type=float,
+        metavar="T",
+        help="contour tolerances, um: per policy, whether the nominal plant's max is within each, and on "
+        "how many sampled plants",
+    )
     args = p.parse_args(argv)
     if args.within and any(not t > 0 for t in args.within):
         p.error(f"--within: a tolerance is a positive number of um, got {min(args.within)!r}")

@@ -89,11 +89,17 @@ def time_batch(batch, n_steps: int) -> tuple[float, float]:
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=1000, help="control periods per round (default 1000, 0.1 s "
-                        "of the heart's 3.2 s)")
+    parser.add_argument(
+        "--steps", type=int, default=1000, help="control periods per round (default 1000, 0.1 s of the heart's 3.2 s)"
+    )
     parser.add_argument("--envs", type=int, default=16, help="machines in the batch (default 16)")
-    parser.add_argument("--repeats", type=int, default=30, help="interleaved rounds, best kept (default 30: short "
-                        "rounds, many of them, so that the best of each escapes other processes' load)")
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=30,
+        help="interleaved rounds, best kept (default 30: short "
+        "rounds, many of them, so that the best of each escapes other processes' load)",
+    )
     args = parser.parse_args(argv)
 
     from tqdm import tqdm
@@ -117,8 +123,10 @@ def main(argv=None):
     print(f"{'configuration':<36} {'us/env-step':>12} {'x plain':>8} {'max error um':>13}")
     for name, cost in best.items():
         print(f"{name:<36} {cost * 1e6:12.3f} {cost / plain:8.3f} {peaks[name] * 1e3:13.2f}")
-    print(f"(serial kernel, {args.envs} envs x {args.steps} control periods of 0.1 ms, best of {args.repeats} "
-          f"interleaved rounds)")
+    print(
+        f"(serial kernel, {args.envs} envs x {args.steps} control periods of 0.1 ms, best of {args.repeats} "
+        f"interleaved rounds)"
+    )
 
 
 if __name__ == "__main__":

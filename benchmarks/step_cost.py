@@ -72,9 +72,14 @@ def start_up_times() -> tuple[float, float]:
     """(cold, warm) seconds for import + make + reset + first step."""
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        runs = [float(subprocess.run([sys.executable, "-c", START_UP], env=env, check=True,
-                                     capture_output=True, text=True).stdout.strip().splitlines()[-1])
-                for _ in range(2)]
+        runs = [
+            float(
+                subprocess.run([sys.executable, "-c", START_UP], env=env, check=True, capture_output=True, text=True)
+                .stdout.strip()
+                .splitlines()[-1]
+            )
+            for _ in range(2)
+        ]
     return runs[0], runs[1]
 
 
@@ -83,8 +88,12 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=100_000, help="steps timed per env (default 100000)")
     parser.add_argument("--repeats", type=int, default=3, help="timing repeats, best kept (default 3)")
     parser.add_argument("--no-start-up", action="store_true", help="skip the cold/warm start-up timing")
-    parser.add_argument("--ids", nargs="+", default=list(ENV_IDS), help="env ids on Jahanpour et al.'s drive "
-                        f"(default {' '.join(ENV_IDS)})")
+    parser.add_argument(
+        "--ids",
+        nargs="+",
+        default=list(ENV_IDS),
+        help=f"env ids on Jahanpour et al.'s drive (default {' '.join(ENV_IDS)})",
+    )
     args = parser.parse_args(argv)
 
     import gymnasium as gym
@@ -106,8 +115,10 @@ def main(argv=None):
     print(f"{'CartPole-v1':<{width}} {cart_cost * 1e6:9.2f} {1.0:11.2f}")
     for env_id, cost in rows:
         print(f"{env_id:<{width}} {cost * 1e6:9.2f} {cost / cart_cost:11.2f}")
-    print(f"(best of {args.repeats} x {args.steps} steps, gym.make wrappers included; "
-          f"plant substeps per step: {gym.make('VCNC-Heart-v1').unwrapped._batch.plant_arrays.n_substeps})")
+    print(
+        f"(best of {args.repeats} x {args.steps} steps, gym.make wrappers included; "
+        f"plant substeps per step: {gym.make('VCNC-Heart-v1').unwrapped._batch.plant_arrays.n_substeps})"
+    )
     if not args.no_start_up:
         cold, warm = start_up_times()
         print(f"import + make + reset + first step: cold numba cache {cold:.2f} s, warm cache {warm:.2f} s")

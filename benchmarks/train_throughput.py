@@ -104,8 +104,13 @@ def _heart_entry_file(folder: Path) -> Path:
 
 def _run_side(code_root: Path, config_file: Path, out_dir: Path, steps: int, n_envs: int) -> dict:
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1", PYTHONPATH=str(code_root))
-    proc = subprocess.run([sys.executable, "-c", _CHILD, str(code_root), str(config_file), str(out_dir), ENV_ID,
-                           str(steps), str(n_envs)], cwd=code_root, env=env, capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", _CHILD, str(code_root), str(config_file), str(out_dir), ENV_ID, str(steps), str(n_envs)],
+        cwd=code_root,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     if proc.returncode != 0:
         raise SystemExit(f"training in {code_root} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -118,13 +123,26 @@ def _rates(r: dict, repeat: int) -> tuple[float, float, float, float]:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--steps", type=int, default=40_960,
-                   help="agent steps of each timed run, rounded up to whole rollouts by both trainers (default 40960)")
-    p.add_argument("--n-envs", type=int, nargs="+", default=[2, 16, 64],
-                   help="training envs, the same on both sides; one comparison each (default: 2, the entry's, 16, 64)")
+    p.add_argument(
+        "--steps",
+        type=int,
+        default=40_960,
+        help="agent steps of each timed run, rounded up to whole rollouts by both trainers (default 40960)",
+    )
+    p.add_argument(
+        "--n-envs",
+        type=int,
+        nargs="+",
+        default=[2, 16, 64],
+        help="training envs, the same on both sides; one comparison each (default: 2, the entry's, 16, 64)",
+    )
     p.add_argument("--before", default=BEFORE, help=f"commit of the 'before' trainer (default {BEFORE})")
-    p.add_argument("--worktree", type=Path, default=Path(tempfile.gettempdir()) / "vcnc_before",
-                   help="where the 'before' commit is checked out (default /tmp/vcnc_before)")
+    p.add_argument(
+        "--worktree",
+        type=Path,
+        default=Path(tempfile.gettempdir()) / "vcnc_before",
+        help="where the 'before' commit is checked out (default /tmp/vcnc_before)",
+    )
     p.add_argument("--keep-worktree", action="store_true", help="leave the worktree (and its numba cache) in place")
     args = p.parse_args(argv)
 
@@ -132,18 +150,26 @@ def main(argv=None) -> None:
     repeat = entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]["action_repeat"]
     made = not args.worktree.exists()
     if made:
-        subprocess.run(["git", "worktree", "add", "--detach", str(args.worktree), args.before], cwd=ROOT, check=True,
-                       capture_output=True)
+        subprocess.run(
+            ["git", "worktree", "add", "--detach", str(args.worktree), args.before],
+            cwd=ROOT,
+            check=True,
+            capture_output=True,
+        )
     try:
         with tempfile.TemporaryDirectory(prefix="vcnc_train_throughput_") as tmp:
             tmp = Path(tmp)
             config_file = _heart_entry_file(tmp)
             mode = entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]
-            print(f"{ENV_ID} with {ENTRY}'s hyperparameters: {args.steps} agent steps per run (whole rollouts "
-                  f"of n_steps {entry['n_steps']} x n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
-                  f"{repeat}), 1 torch + 1 numba thread; before = {args.before}, after = the working tree")
-            header = (f"{'n_envs':>6s} {'side':7s} {'VecEnv':7s} {'steps':>7s} {'steps/s':>9s} {'periods/s':>10s} "
-                      f"{'steps/s*':>9s} {'periods/s*':>11s}  code")
+            print(
+                f"{ENV_ID} with {ENTRY}'s hyperparameters: {args.steps} agent steps per run (whole rollouts "
+                f"of n_steps {entry['n_steps']} x n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
+                f"{repeat}), 1 torch + 1 numba thread; before = {args.before}, after = the working tree"
+            )
+            header = (
+                f"{'n_envs':>6s} {'side':7s} {'VecEnv':7s} {'steps':>7s} {'steps/s':>9s} {'periods/s':>10s} "
+                f"{'steps/s*':>9s} {'periods/s*':>11s}  code"
+            )
             print(header)
             for n in args.n_envs:
                 before = _run_side(args.worktree, config_file, tmp / f"before_{n}", args.steps, n)
@@ -151,16 +177,23 @@ def main(argv=None) -> None:
                 rb, ra = _rates(before, repeat), _rates(after, repeat)
                 for side, r, rates in (("before", before, rb), ("after", after, ra)):
                     vec = r["vec_env"] or "dummy"
-                    print(f"{n:6d} {side:7s} {vec:7s} {r['steps']:7d} {rates[0]:9.0f} {rates[1]:10.0f} {rates[2]:9.0f} "
-                          f"{rates[3]:11.0f}  {Path(r['agents']).parent}")
-                print(f"{n:6d} {'ratio':7s} {'':7s} {'':7s} {ra[0] / rb[0]:8.2f}x {ra[1] / rb[1]:9.2f}x "
-                      f"{ra[2] / rb[2]:8.2f}x {ra[3] / rb[3]:10.2f}x")
-            print("steps/s, periods/s: as the trainer reports them (model.learn wall time, final checkpoint and "
-                  "evaluation included); * without the final evaluation's time")
+                    print(
+                        f"{n:6d} {side:7s} {vec:7s} {r['steps']:7d} {rates[0]:9.0f} {rates[1]:10.0f} {rates[2]:9.0f} "
+                        f"{rates[3]:11.0f}  {Path(r['agents']).parent}"
+                    )
+                print(
+                    f"{n:6d} {'ratio':7s} {'':7s} {'':7s} {ra[0] / rb[0]:8.2f}x {ra[1] / rb[1]:9.2f}x "
+                    f"{ra[2] / rb[2]:8.2f}x {ra[3] / rb[3]:10.2f}x"
+                )
+            print(
+                "steps/s, periods/s: as the trainer reports them (model.learn wall time, final checkpoint and "
+                "evaluation included); * without the final evaluation's time"
+            )
     finally:
         if made and not args.keep_worktree:
-            subprocess.run(["git", "worktree", "remove", "--force", str(args.worktree)], cwd=ROOT, check=True,
-                           capture_output=True)
+            subprocess.run(
+                ["git", "worktree", "remove", "--force", str(args.worktree)], cwd=ROOT, check=True, capture_output=True
+            )
 
 
 if __name__ == "__main__":

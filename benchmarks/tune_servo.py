@@ -58,8 +58,11 @@ def shop_floor(env_ids) -> None:
                 for w in bandwidths:
                     for ft in frictions:
                         r = run_episode(vcnc_baselines.make(name, env, bandwidth=w, friction_time=ft), env)
-                        print(f"{env_id:26s} {name:8s} {w:9g} {ft * 1e3:11g} "
-                              f"{r.max_contour_error_um:8.3f} {r.rms_contour_error_um:8.4f}", flush=True)
+                        print(
+                            f"{env_id:26s} {name:8s} {w:9g} {ft * 1e3:11g} "
+                            f"{r.max_contour_error_um:8.3f} {r.rms_contour_error_um:8.4f}",
+                            flush=True,
+                        )
 
 
 def transitions(env_ids) -> None:
@@ -75,8 +78,11 @@ def transitions(env_ids) -> None:
                 for ft in FRICTION_TIMES:
                     for bt in backlash:
                         r = run_episode(vcnc_baselines.make(name, env, friction_time=ft, backlash_time=bt), env)
-                        print(f"{env_id:26s} {name:8s} {ft * 1e3:11g} {bt * 1e3:11g} "
-                              f"{r.max_contour_error_um:8.4f} {r.rms_contour_error_um:8.5f}", flush=True)
+                        print(
+                            f"{env_id:26s} {name:8s} {ft * 1e3:11g} {bt * 1e3:11g} "
+                            f"{r.max_contour_error_um:8.4f} {r.rms_contour_error_um:8.5f}",
+                            flush=True,
+                        )
 
 
 def main() -> None:
@@ -103,8 +109,11 @@ def main() -> None:
                     params = {"bandwidth": w} | ({"coupling": coupling} if coupling is not None else {})
                     r = run_episode(vcnc_baselines.make(name, env, **params), env)
                     flag = " diverged" if r.diverged else ""
-                    print(f"{env_id:26s} {name:8s} {w:9g} {coupling if coupling is not None else '':>8} "
-                          f"{r.max_contour_error_um:8.3f} {r.rms_contour_error_um:8.4f}{flag}", flush=True)
+                    print(
+                        f"{env_id:26s} {name:8s} {w:9g} {coupling if coupling is not None else '':>8} "
+                        f"{r.max_contour_error_um:8.3f} {r.rms_contour_error_um:8.4f}{flag}",
+                        flush=True,
+                    )
 
 
 if __name__ == "__main__":

@@ -105,8 +105,9 @@ def main(argv=None) -> None:
     cores = numba.config.NUMBA_NUM_THREADS
     threads = min(2, cores)
     print(f"numba threads available: {cores}; PD controller on every env; env-steps/s of step() alone")
-    loads = [("idle", None)] + ([] if args.no_load else [(f"loaded (busy loop, nice {args.load_nice})",
-                                                          args.load_nice)])
+    loads = [("idle", None)] + (
+        [] if args.no_load else [(f"loaded (busy loop, nice {args.load_nice})", args.load_nice)]
+    )
     print(f"{'env':15s} {'load':28s} {'vector env':40s} {'env-steps/s':>12s} {'x Sync(8)':>10s} {'x 1 thread':>10s}")
     for env_id in args.ids:
         sync = gym.make_vec(env_id, num_envs=8, vectorization_mode="sync")
@@ -115,10 +116,12 @@ def main(argv=None) -> None:
         for load, nice in loads:
             with busy_core(nice):
                 # the rows take turns in slices of 0.2 s, so a change of the host's load falls on all of them
-                rows = [("SyncVectorEnv, N = 8", Stepper(sync), None),
-                        (f"native, N = {args.envs}, 1 thread", Stepper(auto), 1),
-                        (f"native, N = {args.envs}, {threads} threads (default)", Stepper(auto), threads),
-                        (f"native, N = {args.envs}, {threads} threads, parallel=True", Stepper(forced), threads)]
+                rows = [
+                    ("SyncVectorEnv, N = 8", Stepper(sync), None),
+                    (f"native, N = {args.envs}, 1 thread", Stepper(auto), 1),
+                    (f"native, N = {args.envs}, {threads} threads (default)", Stepper(auto), threads),
+                    (f"native, N = {args.envs}, {threads} threads, parallel=True", Stepper(forced), threads),
+                ]
                 path = auto.unwrapped._path
                 calls0 = list(path.calls) if path is not None else None
                 for _ in range(max(1, round(args.seconds / 0.2))):
@@ -133,8 +136,11 @@ def main(argv=None) -> None:
                     if t == threads and stepper.envs is auto and path is not None:
                         serial, parallel = (c - c0 for c, c0 in zip(path.calls, calls0))
                         note = f"  parallel kernel on {parallel / max(1, serial + parallel):.0%} of calls"
-                    print(f"{env_id:15s} {load:28s} {label:40s} {rate:12,.0f} {rate / base:10.2f} "
-                          f"{'' if t is None else f'{rate / one:10.2f}'}{note}", flush=True)
+                    print(
+                        f"{env_id:15s} {load:28s} {label:40s} {rate:12,.0f} {rate / base:10.2f} "
+                        f"{'' if t is None else f'{rate / one:10.2f}'}{note}",
+                        flush=True,
+                    )
         for envs in (sync, auto, forced):
             envs.close()
     print(f"numba threading layer: {numba.threading_layer()}")

@@ -55,8 +55,16 @@ SLOW_BY_MEASUREMENT = (
 
 #: The ids test_envs.py's per-id checks run on in ``make test``: one of every kind and machine with a short episode
 #: (the others are marked slow by :func:`pytest_collection_modifyitems`).
-FAST_ENV_IDS = ("VCNC-Omega-v1", "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-OmegaLookaheadShop-v1",
-                "VCNC-GCode-v1", "VCNC-RandomContour-v1", "VCNC-OmegaOverride-v1", "VCNC-Step-v0")
+FAST_ENV_IDS = (
+    "VCNC-Omega-v1",
+    "VCNC-Circle-v1",
+    "VCNC-CircleShop-v1",
+    "VCNC-OmegaLookaheadShop-v1",
+    "VCNC-GCode-v1",
+    "VCNC-RandomContour-v1",
+    "VCNC-OmegaOverride-v1",
+    "VCNC-Step-v0",
+)
 
 
 def pytest_collection_modifyitems(config, items):
@@ -125,8 +133,24 @@ def _short_run_in_the_bench(tmp_path, env_id: str, change, timesteps: int):
     config = tmp_path / "ppo.yml"
     config.write_text(yaml.safe_dump({env_id: entry}, sort_keys=False))
     run = tmp_path / "run"
-    assert train_main(["--env", env_id, "--config", str(config), "--timesteps", str(timesteps), "--eval-freq", "0",
-                       "--output", str(run), "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                env_id,
+                "--config",
+                str(config),
+                "--timesteps",
+                str(timesteps),
+                "--eval-freq",
+                "0",
+                "--output",
+                str(run),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     recorded = yaml.safe_load((run / "best" / "config.yml").read_text())
     out = tmp_path / "bench.json"
     assert bench.main(["--env", env_id, "--policy", f"ppo:{run / 'best'}", "--no-progress", "--json", str(out)]) == 0

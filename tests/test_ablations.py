@@ -11,8 +11,11 @@ import pytest
 from benchmark_script import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[1]
-FAMILIES = [("specialists.yml", "VCNC-OmegaLookahead-v1"), ("generalists.yml", "VCNC-RandomContour-v1"),
-            ("override.yml", "VCNC-OmegaOverride-v1")]
+FAMILIES = [
+    ("specialists.yml", "VCNC-OmegaLookahead-v1"),
+    ("generalists.yml", "VCNC-RandomContour-v1"),
+    ("override.yml", "VCNC-OmegaOverride-v1"),
+]
 
 
 def _ablations():
@@ -41,8 +44,15 @@ def test_each_variant_changes_one_thing_of_the_recipe(recipe, env_id):
     assert out["agent"] == entry
     wrapper = entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]
     repeat, bound = wrapper["action_repeat"], wrapper["correction"]
-    assert set(out) == {"agent", "direct", "no-preview", f"repeat-{max(1, repeat // 2)}", f"repeat-{2 * repeat}",
-                        f"correction-{bound / 4:g}", f"correction-{min(1.0, 5 * bound):g}"}
+    assert set(out) == {
+        "agent",
+        "direct",
+        "no-preview",
+        f"repeat-{max(1, repeat // 2)}",
+        f"repeat-{2 * repeat}",
+        f"correction-{bound / 4:g}",
+        f"correction-{min(1.0, 5 * bound):g}",
+    }
     assert _differences(entry, out["no-preview"]) == [("env_kwargs", "contour_ahead"), ("env_kwargs", "preview_steps")]
     for name, variant in out.items():
         changed = _differences(entry, variant)
@@ -74,13 +84,22 @@ def test_the_stored_table_gives_the_iqm_of_the_seeds_records():
     module = _ablations()
     data = json.loads((ROOT / "docs" / "data" / "ablations" / "VCNC-OmegaLookahead-v1.json").read_text())
     lines = module.table(data)
-    rows = {(c[1].strip(), c[3].split(",")[0].strip()): c for line in lines if line.startswith("| ")
-            for c in [line.split("|")] if len(c) > 5}
+    rows = {
+        (c[1].strip(), c[3].split(",")[0].strip()): c
+        for line in lines
+        if line.startswith("| ")
+        for c in [line.split("|")]
+        if len(c) > 5
+    }
     for name, group in data["ablations"].items():
         records = [r for r in data["robust"] if r.get("group") == group]
         for figure in ("max", "rms"):
-            values = np.concatenate([[v for v, kind in zip(r["per_plant"][f"{figure}_um"], r["per_plant"]["kind"])
-                                      if kind == "sample"] for r in records])
+            values = np.concatenate(
+                [
+                    [v for v, kind in zip(r["per_plant"][f"{figure}_um"], r["per_plant"]["kind"]) if kind == "sample"]
+                    for r in records
+                ]
+            )
             iqm = float(rows[(name, figure)][4].split("[")[0])
             assert iqm == pytest.approx(trim_mean(values, 0.25), rel=1e-3), (name, figure)
 

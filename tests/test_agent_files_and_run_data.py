@@ -165,9 +165,11 @@ def test_a_crafted_model_zip_does_not_run(omega_agent, tmp_path):
     assert not marker.exists()
     assert float(policy.model.clip_range(1.0)) == 0.2  # from the agent's config.yml
     # a pickled entry it cannot rebuild, and a key a PPO never saves: refused
-    for change, message in [(lambda d: d.update(n_steps=_serialized(marker)), "cannot rebuild"),
-                            (lambda d: d.update(env=_serialized(marker)), "does not save"),
-                            (lambda d: d.update(env="os:system"), "does not save")]:
+    for change, message in [
+        (lambda d: d.update(n_steps=_serialized(marker)), "cannot rebuild"),
+        (lambda d: d.update(env=_serialized(marker)), "does not save"),
+        (lambda d: d.update(env="os:system"), "does not save"),
+    ]:
         shutil.copyfile(TRAINED[SHIPPED] / "model.zip", model_zip)
         _rewrite_data(model_zip, change)
         with pytest.raises(ValueError, match=message):
@@ -198,31 +200,43 @@ def test_the_shipped_model_holds_only_known_entries():
         assert not (folder / "vecnormalize.pkl").exists()
 
 
-@pytest.mark.parametrize("text", [
-    "__import__('os').system('touch ran')",
-    "dict(net_arch=[8], activation_fn=__import__('os').system)",
-    "().__class__.__bases__[0].__subclasses__()",
-    "(lambda: 0)()",
-    "dict(**{'net_arch': [8]})",
-    "dict(activation_fn=nn.Module)",           # a torch name, not an activation
-    "dict(net_arch=[8], optimizer_class=th.load)",
-    "dict(net_arc=[8])",                        # misspelt key
-    "[8, 8]",                                   # not a dict
-    "dict(net_arch=",                           # not an expression
-])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "__import__('os').system('touch ran')",
+        "dict(net_arch=[8], activation_fn=__import__('os').system)",
+        "().__class__.__bases__[0].__subclasses__()",
+        "(lambda: 0)()",
+        "dict(**{'net_arch': [8]})",
+        "dict(activation_fn=nn.Module)",  # a torch name, not an activation
+        "dict(net_arch=[8], optimizer_class=th.load)",
+        "dict(net_arc=[8])",  # misspelt key
+        "[8, 8]",  # not a dict
+        "dict(net_arch=",  # not an expression
+    ],
+)
 def test_policy_kwargs_are_never_evaluated(text):
     with pytest.raises(ValueError, match="policy_kwargs"):
         parse_policy_kwargs(text)
 
 
 def test_policy_kwargs_parse_the_zoo_literal_subset():
-    assert parse_policy_kwargs("dict(log_std_init=-1.5, ortho_init=False, net_arch=dict(pi=[64, 64], vf=[64]), "
-                               "activation_fn=nn.ReLU, optimizer_class=th.optim.AdamW, "
-                               "optimizer_kwargs={'eps': 1e-5})") == {
-        "log_std_init": -1.5, "ortho_init": False, "net_arch": {"pi": [64, 64], "vf": [64]},
-        "activation_fn": torch.nn.ReLU, "optimizer_class": torch.optim.AdamW, "optimizer_kwargs": {"eps": 1e-5}}
+    assert parse_policy_kwargs(
+        "dict(log_std_init=-1.5, ortho_init=False, net_arch=dict(pi=[64, 64], vf=[64]), "
+        "activation_fn=nn.ReLU, optimizer_class=th.optim.AdamW, "
+        "optimizer_kwargs={'eps': 1e-5})"
+    ) == {
+        "log_std_init": -1.5,
+        "ortho_init": False,
+        "net_arch": {"pi": [64, 64], "vf": [64]},
+        "activation_fn": torch.nn.ReLU,
+        "optimizer_class": torch.optim.AdamW,
+        "optimizer_kwargs": {"eps": 1e-5},
+    }
     assert parse_policy_kwargs({"net_arch": [8], "activation_fn": "nn.Tanh"}) == {
-        "net_arch": [8], "activation_fn": torch.nn.Tanh}
+        "net_arch": [8],
+        "activation_fn": torch.nn.Tanh,
+    }
     with pytest.raises(ValueError, match="did you mean 'net_arch'"):
         parse_policy_kwargs("dict(net_arc=[8])")
 
@@ -241,7 +255,8 @@ def test_an_agent_refuses_another_env_configuration(omega_agent):
     # a normalisation file of another observation size: refused even with allow_mismatch
     stats = NormalizationStats.load(omega_agent / "vecnormalize.npz")
     NormalizationStats(**{**stats.__dict__, "obs_mean": stats.obs_mean[:-1], "obs_var": stats.obs_var[:-1]}).save(
-        omega_agent / "vecnormalize.npz")
+        omega_agent / "vecnormalize.npz"
+    )
     with pytest.raises(ValueError, match=f"normalises {stats.obs_mean.size - 1} observation entries"):
         load_agent(omega_agent, gym.make(SHIPPED), allow_mismatch=True)
     with pytest.raises(ValueError, match="empty"):
@@ -254,7 +269,11 @@ def test_normalisation_round_trip_equals_vecnormalize():
 
     stats = NormalizationStats.load(TRAINED[SHIPPED] / "vecnormalize.npz")
     venv = stats.vecnormalize(DummyVecEnv([lambda: gym.make(SHIPPED)]), training=False)
-    obs = np.random.default_rng(0).normal(stats.obs_mean, 3 * np.sqrt(stats.obs_var), (50, stats.obs_mean.size)).astype(np.float32)
+    obs = (
+        np.random.default_rng(0)
+        .normal(stats.obs_mean, 3 * np.sqrt(stats.obs_var), (50, stats.obs_mean.size))
+        .astype(np.float32)
+    )
     np.testing.assert_array_equal(venv.normalize_obs(obs), stats.normalize_obs(obs))
     assert NormalizationStats.from_vecnormalize(venv).__dict__.keys() == stats.__dict__.keys()
     venv.close()
@@ -339,8 +358,22 @@ def tiny(tmp_path_factory) -> Path:
 def base_run(tiny, tmp_path_factory):
     """A run of 1000 steps asked for (4 rollouts once rounded), checkpoints every 256, evaluations every 512."""
     run = tmp_path_factory.mktemp("base") / "run"
-    code, out, err = _cli(["--env", OMEGA, "--config", str(tiny), "--output", str(run), "--timesteps", "1000",
-                           "--checkpoint-freq", "256", "--eval-freq", "512"])
+    code, out, err = _cli(
+        [
+            "--env",
+            OMEGA,
+            "--config",
+            str(tiny),
+            "--output",
+            str(run),
+            "--timesteps",
+            "1000",
+            "--checkpoint-freq",
+            "256",
+            "--eval-freq",
+            "512",
+        ]
+    )
     assert code == 0, err
     return run, out, err
 
@@ -383,7 +416,11 @@ def test_timesteps_are_rounded_up_with_a_warning(base_run):
     assert config["env"]["signature"]["observation_shape"] == list(gym.make(OMEGA).observation_space.shape)
     assert _eval_steps(run) == [512, 1024] and _chain_breaks(run) == 0
     assert sorted(int(p.name.split("_")[2]) for p in (run / "checkpoints").glob("rl_model_*_steps.zip")) == [
-        256, 512, 768, 1024]
+        256,
+        512,
+        768,
+        1024,
+    ]
     assert not (run / "best").exists()  # every evaluation of the untrained direct agent diverged
     final = yaml.safe_load((run / "final" / "config.yml").read_text())
     assert final.pop("agent") == {"timesteps": 1024, "evaluation": None} and final == config
@@ -398,7 +435,7 @@ def test_resume_appends_monitors_and_keeps_the_run_s_periods(base_run, tmp_path)
     assert code == 0, err
     after = _monitor(run)
     for name, lines in before.items():  # appended, not overwritten
-        assert after[name][:len(lines)] == lines and len(after[name]) > len(lines)
+        assert after[name][: len(lines)] == lines and len(after[name]) > len(lines)
     assert _eval_steps(run) == [512, 1024, 1536]  # the run's eval_freq (512), no duplicate
     assert {1280, 1536} <= {int(p.name.split("_")[2]) for p in (run / "checkpoints").glob("rl_model_*_steps.zip")}
     config = yaml.safe_load((run / "config.yml").read_text())
@@ -406,7 +443,9 @@ def test_resume_appends_monitors_and_keeps_the_run_s_periods(base_run, tmp_path)
     assert _chain_breaks(run) == 0
     sessions = json.loads((run / "summary.json").read_text())["sessions"]
     assert [(s["start_timesteps"], s["end_timesteps"], s["status"]) for s in sessions] == [
-        (0, 1024, "finished"), (1024, 1536, "finished")]
+        (0, 1024, "finished"),
+        (1024, 1536, "finished"),
+    ]
 
 
 @pytest.mark.parametrize("damage", ["truncated", "empty", "garbage", "no statistics", "foreign entry"])
@@ -453,7 +492,7 @@ def test_resume_after_a_lost_session_rolls_the_logs_back(base_run, tmp_path):
     assert _chain_breaks(run) == 0
     for name, lines in monitor_before.items():  # the rows up to the checkpoint are kept as they were
         kept = [line for line in lines[2:] if int(line.rsplit(",", 1)[1]) <= 768]
-        assert _monitor(run)[name][2:2 + len(kept)] == kept
+        assert _monitor(run)[name][2 : 2 + len(kept)] == kept
     assert (run / "checkpoints" / "rl_model_1024_steps.zip.damaged").exists()
     assert (run / "checkpoints" / "rl_model_1024_steps.zip").stat().st_size > 0  # trained again
     summary = json.loads((run / "summary.json").read_text())
@@ -518,8 +557,16 @@ def test_a_failed_fresh_start_never_blocks_a_retry(tiny, base_run, tmp_path, mon
 
     monkeypatch.setattr(vcnc_gym.evaluation, "run_episode", failing_episode)
     with pytest.raises(RuntimeError, match="evaluation failed"):
-        vcnc_agents.train(OMEGA, run, config_file=tiny, n_timesteps=1024, eval_freq=512, checkpoint_freq=256,
-                     progress_bar=False, tensorboard=False)
+        vcnc_agents.train(
+            OMEGA,
+            run,
+            config_file=tiny,
+            n_timesteps=1024,
+            eval_freq=512,
+            checkpoint_freq=256,
+            progress_bar=False,
+            tensorboard=False,
+        )
     assert latest_checkpoint(run)[0] == 512
     monkeypatch.undo()
     result = vcnc_agents.train(run_dir=run, resume=True, progress_bar=False, tensorboard=False)
@@ -540,8 +587,22 @@ def test_a_signal_saves_a_checkpoint_and_says_how_to_resume(tiny, tmp_path, sig,
 
     thread = threading.Thread(target=send_after_first_checkpoint, daemon=True)
     thread.start()
-    rc, out, err = _cli(["--env", OMEGA, "--config", str(tiny), "--output", str(run), "--timesteps", "25600",
-                         "--checkpoint-freq", "256", "--eval-freq", "0"])
+    rc, out, err = _cli(
+        [
+            "--env",
+            OMEGA,
+            "--config",
+            str(tiny),
+            "--output",
+            str(run),
+            "--timesteps",
+            "25600",
+            "--checkpoint-freq",
+            "256",
+            "--eval-freq",
+            "0",
+        ]
+    )
     thread.join()
     assert rc == code, err
     assert f"Resume with: vcnc-train --resume {run}" in err and "Traceback" not in err
@@ -556,10 +617,19 @@ def test_a_signal_saves_a_checkpoint_and_says_how_to_resume(tiny, tmp_path, sig,
 def test_two_sessions_never_write_one_run_folder(base_run, tmp_path):
     """The run lock: a resume while another process trains the folder exits 2 with its pid."""
     run = _copy(base_run[0], tmp_path)
-    holder = subprocess.Popen([sys.executable, "-c", (
-        "import fcntl, sys, time; f = open(sys.argv[1], 'a+'); fcntl.flock(f, fcntl.LOCK_EX); "
-        "f.seek(0); f.truncate(); f.write('4242'); f.flush(); print('locked', flush=True); time.sleep(30)"),
-        str(run / ".lock")], stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            (
+                "import fcntl, sys, time; f = open(sys.argv[1], 'a+'); fcntl.flock(f, fcntl.LOCK_EX); "
+                "f.seek(0); f.truncate(); f.write('4242'); f.flush(); print('locked', flush=True); time.sleep(30)"
+            ),
+            str(run / ".lock"),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout.readline().strip() == "locked"
         with pytest.raises(ValueError, match=r"being trained by another process \(pid 4242\)"):

@@ -53,8 +53,15 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 def omega_run(tmp_path_factory):
     """One PPO rollout on the omega with the shipped entry; a checkpoint asked for every half rollout."""
     run_dir = tmp_path_factory.mktemp("omega") / "run"
-    result = vcnc_agents.train(OMEGA, run_dir, n_timesteps=ROLLOUT, n_envs=2, eval_freq=ROLLOUT,
-                          checkpoint_freq=ROLLOUT // 2, progress_bar=False)
+    result = vcnc_agents.train(
+        OMEGA,
+        run_dir,
+        n_timesteps=ROLLOUT,
+        n_envs=2,
+        eval_freq=ROLLOUT,
+        checkpoint_freq=ROLLOUT // 2,
+        progress_bar=False,
+    )
     return result
 
 
@@ -84,7 +91,9 @@ def test_short_run_writes_agents_checkpoints_and_logs(omega_run):
             assert (d / agent / name).is_file(), f"{agent}/{name} missing"
     # checkpoints are written between PPO updates only: at the end of the one rollout
     assert sorted(p.name for p in (d / "checkpoints").iterdir()) == [
-        f"rl_model_{ROLLOUT}_steps.zip", f"rl_model_vecnormalize_{ROLLOUT}_steps.npz"]
+        f"rl_model_{ROLLOUT}_steps.zip",
+        f"rl_model_vecnormalize_{ROLLOUT}_steps.npz",
+    ]
     config = yaml.safe_load((d / "config.yml").read_text())
     assert config["env_id"] == OMEGA and config["n_timesteps"] == ROLLOUT and config["n_envs"] == 2
     assert config["action_mode"] == OMEGA_MODE.to_dict() and OMEGA_MODE.mode == "residual"
@@ -145,8 +154,15 @@ def resumed_run(omega_run, tmp_path_factory):
     """A copy of the shared run resumed through the Python API to two rollouts (checkpoint at the end)."""
     run_dir = tmp_path_factory.mktemp("resume") / "run"
     shutil.copytree(omega_run.run_dir, run_dir)
-    result = vcnc_agents.train(run_dir=run_dir, resume=True, n_timesteps=2 * ROLLOUT, eval_freq=0,
-                          checkpoint_freq=ROLLOUT, progress_bar=False, tensorboard=False)
+    result = vcnc_agents.train(
+        run_dir=run_dir,
+        resume=True,
+        n_timesteps=2 * ROLLOUT,
+        eval_freq=0,
+        checkpoint_freq=ROLLOUT,
+        progress_bar=False,
+        tensorboard=False,
+    )
     return result
 
 
@@ -169,7 +185,10 @@ def test_cli_resume_goes_on_to_a_new_total(resumed_run, capsys):
     assert model_timesteps(d / "final" / "model.zip") == 3 * ROLLOUT
     s = sessions(d)
     assert [(x["start_timesteps"], x["end_timesteps"]) for x in s] == [
-        (0, ROLLOUT), (ROLLOUT, 2 * ROLLOUT), (2 * ROLLOUT, 3 * ROLLOUT)]
+        (0, ROLLOUT),
+        (ROLLOUT, 2 * ROLLOUT),
+        (2 * ROLLOUT, 3 * ROLLOUT),
+    ]
 
 
 # -- 3. fail-fast errors ---------------------------------------------------------------------
@@ -188,18 +207,54 @@ def _bad_runs(tmp_path, omega_run):
     config_only = _dir_with_config_only(tmp_path, omega_run)
     existing = omega_run.run_dir
     return [
-        ("unknown env", ["--env", "VCNC-Nope-v0", "--output", str(out)],
-         dict(env_id="VCNC-Nope-v0", run_dir=out), ValueError, [HEART, OMEGA], out),
-        ("zero steps", ["--env", OMEGA, "--output", str(out), "--timesteps", "0"],
-         dict(env_id=OMEGA, run_dir=out, n_timesteps=0), ValueError, ["n_timesteps"], out),
-        ("negative steps", ["--env", OMEGA, "--output", str(out), "--timesteps", "-5"],
-         dict(env_id=OMEGA, run_dir=out, n_timesteps=-5), ValueError, ["n_timesteps", "-5"], out),
-        ("resume empty", ["--resume", str(empty)],
-         dict(run_dir=empty, resume=True), FileNotFoundError, ["config.yml"], empty),
-        ("resume without checkpoint", ["--resume", str(config_only)],
-         dict(run_dir=config_only, resume=True), FileNotFoundError, ["checkpoint"], config_only),
-        ("existing run", ["--env", OMEGA, "--output", str(existing)],
-         dict(env_id=OMEGA, run_dir=existing), FileExistsError, ["already holds a run"], existing),
+        (
+            "unknown env",
+            ["--env", "VCNC-Nope-v0", "--output", str(out)],
+            dict(env_id="VCNC-Nope-v0", run_dir=out),
+            ValueError,
+            [HEART, OMEGA],
+            out,
+        ),
+        (
+            "zero steps",
+            ["--env", OMEGA, "--output", str(out), "--timesteps", "0"],
+            dict(env_id=OMEGA, run_dir=out, n_timesteps=0),
+            ValueError,
+            ["n_timesteps"],
+            out,
+        ),
+        (
+            "negative steps",
+            ["--env", OMEGA, "--output", str(out), "--timesteps", "-5"],
+            dict(env_id=OMEGA, run_dir=out, n_timesteps=-5),
+            ValueError,
+            ["n_timesteps", "-5"],
+            out,
+        ),
+        (
+            "resume empty",
+            ["--resume", str(empty)],
+            dict(run_dir=empty, resume=True),
+            FileNotFoundError,
+            ["config.yml"],
+            empty,
+        ),
+        (
+            "resume without checkpoint",
+            ["--resume", str(config_only)],
+            dict(run_dir=config_only, resume=True),
+            FileNotFoundError,
+            ["checkpoint"],
+            config_only,
+        ),
+        (
+            "existing run",
+            ["--env", OMEGA, "--output", str(existing)],
+            dict(env_id=OMEGA, run_dir=existing),
+            FileExistsError,
+            ["already holds a run"],
+            existing,
+        ),
     ]
 
 
@@ -278,8 +333,9 @@ def test_residual_command_and_reward_against_a_hand_written_loop():
             obs, r, t, _, inner = plain.step(np.clip(b + 0.3 * a, -1, 1).astype(np.float32))
             rewards.append(r)
             peaks.append(inner["contour_error_max"])
-        np.testing.assert_allclose(info["command"], 5.0 * np.clip(b.astype(np.float64) + 0.3 * a, -1, 1),
-                                   rtol=0, atol=1e-5)
+        np.testing.assert_allclose(
+            info["command"], 5.0 * np.clip(b.astype(np.float64) + 0.3 * a, -1, 1), rtol=0, atol=1e-5
+        )
         assert reward == pytest.approx(np.mean(rewards), rel=1e-12)
         assert info["contour_error_max"] == max(peaks)
         np.testing.assert_array_equal(info["position"], inner["position"])
@@ -317,18 +373,21 @@ def test_residual_wrapper_can_be_remade_from_its_spec():
     assert isinstance(remade, ResidualAction) and remade.action_repeat == 5
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(mode="hybrid"),
-    dict(mode="residual", correction=0.3),                       # no baseline
-    dict(mode="residual", baseline="nope", correction=0.3),
-    dict(mode="residual", baseline="smc", correction=0),
-    dict(mode="residual", baseline="smc", correction=3),
-    dict(mode="residual", baseline="smc", correction=float("nan")),
-    dict(mode="residual", baseline="smc"),                       # no correction
-    dict(mode="direct", action_repeat=0),
-    dict(mode="direct", action_repeat=2.5),
-    dict(mode="direct", baseline="smc"),                         # residual-only options
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(mode="hybrid"),
+        dict(mode="residual", correction=0.3),  # no baseline
+        dict(mode="residual", baseline="nope", correction=0.3),
+        dict(mode="residual", baseline="smc", correction=0),
+        dict(mode="residual", baseline="smc", correction=3),
+        dict(mode="residual", baseline="smc", correction=float("nan")),
+        dict(mode="residual", baseline="smc"),  # no correction
+        dict(mode="direct", action_repeat=0),
+        dict(mode="direct", action_repeat=2.5),
+        dict(mode="direct", baseline="smc"),  # residual-only options
+    ],
+)
 def test_action_mode_refuses_bad_arguments(kwargs):
     with pytest.raises(ValueError):
         ActionMode(**kwargs)
@@ -352,8 +411,17 @@ def test_action_mode_command_and_dict_round_trip():
 def direct_run(tmp_path_factory):
     """A tiny direct-mode agent deciding every 4 control periods (1024 steps, 1 env)."""
     run_dir = tmp_path_factory.mktemp("direct") / "run"
-    return vcnc_agents.train(OMEGA, run_dir, n_timesteps=1024, n_envs=1, action_mode=ActionMode("direct", action_repeat=4),
-                        eval_freq=0, checkpoint_freq=10**6, progress_bar=False, tensorboard=False)
+    return vcnc_agents.train(
+        OMEGA,
+        run_dir,
+        n_timesteps=1024,
+        n_envs=1,
+        action_mode=ActionMode("direct", action_repeat=4),
+        eval_freq=0,
+        checkpoint_freq=10**6,
+        progress_bar=False,
+        tensorboard=False,
+    )
 
 
 def model_positions(policy, env) -> list[np.ndarray]:
@@ -386,7 +454,7 @@ def test_direct_agent_on_the_plain_env_matches_its_repeating_env(direct_run):
     positions = model_positions(policy, gym.make(OMEGA, action_repeat=4))
     n = min(len(positions), res.episode_steps // 4)  # the repeating env runs whole steps past the end
     assert n >= len(positions) - 1 and n > 100
-    np.testing.assert_array_equal(np.array(positions[:n]), res.position[3:4 * n:4])
+    np.testing.assert_array_equal(np.array(positions[:n]), res.position[3 : 4 * n : 4])
 
 
 def test_a_diverged_evaluation_is_never_the_best(direct_run):
@@ -493,15 +561,18 @@ def test_an_env_without_a_native_vector_env_trains_on_sb3s(tmp_path):
     entry = load_hyperparameters("VCNC-Step-v0")
     rollout = entry["n_steps"] * entry["n_envs"]
     with pytest.warns(vcnc_agents.RunWarning, match="no native vector env"):
-        result = vcnc_agents.train("VCNC-Step-v0", tmp_path / "run", n_timesteps=rollout, progress_bar=False,
-                              tensorboard=False)
+        result = vcnc_agents.train(
+            "VCNC-Step-v0", tmp_path / "run", n_timesteps=rollout, progress_bar=False, tensorboard=False
+        )
     assert result.timesteps == rollout and result.best is not None
     assert sessions(result.run_dir)[-1]["status"] == "finished"
 
 
 def test_hyperparameters_of_both_envs_load_and_describe_their_action_mode():
-    expected = {HEART: ActionMode("residual", action_repeat=10, baseline="smc", correction=0.2),
-                OMEGA: ActionMode("residual", action_repeat=10, baseline="qft", correction=1.0)}
+    expected = {
+        HEART: ActionMode("residual", action_repeat=10, baseline="smc", correction=0.2),
+        OMEGA: ActionMode("residual", action_repeat=10, baseline="qft", correction=1.0),
+    }
     for env_id in (HEART, OMEGA):
         h = load_hyperparameters(env_id)
         assert h["n_envs"] >= 1 and h["n_timesteps"] > 0 and h["policy"] == "MlpPolicy"
@@ -531,8 +602,14 @@ def test_with_action_mode_round_trips_both_modes():
 
 
 def test_ppo_arguments_evaluate_schedules_and_policy_kwargs():
-    _, kwargs = ppo_arguments({"learning_rate": "lin_3e-4", "clip_range": 0.2, "n_timesteps": 10,
-                               "policy_kwargs": "dict(log_std_init=-1.0, net_arch=[32, 32], activation_fn=nn.Tanh)"})
+    _, kwargs = ppo_arguments(
+        {
+            "learning_rate": "lin_3e-4",
+            "clip_range": 0.2,
+            "n_timesteps": 10,
+            "policy_kwargs": "dict(log_std_init=-1.0, net_arch=[32, 32], activation_fn=nn.Tanh)",
+        }
+    )
     assert callable(kwargs["learning_rate"])
     assert kwargs["learning_rate"](1.0) == pytest.approx(3e-4) and kwargs["learning_rate"](0.5) == pytest.approx(1.5e-4)
     assert kwargs["clip_range"] == 0.2 and "n_timesteps" not in kwargs
@@ -544,7 +621,9 @@ def test_ppo_arguments_evaluate_schedules_and_policy_kwargs():
     assert normalize_kwargs({"normalize": False, "gamma": 0.9}) is None
     assert normalize_kwargs({"normalize": True, "gamma": 0.9}) == {"gamma": 0.9}
     assert normalize_kwargs({"normalize": "{'norm_obs': True, 'norm_reward': False}"}) == {
-        "norm_obs": True, "norm_reward": False}
+        "norm_obs": True,
+        "norm_reward": False,
+    }
 
 
 # -- 9. RL Zoo ---------------------------------------------------------------------------------------
@@ -552,9 +631,31 @@ def test_ppo_arguments_evaluate_schedules_and_policy_kwargs():
 @pytest.mark.skipif(importlib.util.find_spec("rl_zoo3") is None, reason="rl_zoo3 is not installed")
 def test_rl_zoo_trains_with_the_shipped_hyperparameters(tmp_path):
     """The YAML is in the Zoo's format: its train script runs one rollout and saves model and VecNormalize."""
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", OMEGA, "--gym-packages", "vcnc_gym",
-           "--conf-file", str(ROOT / "agents" / "hyperparams" / "ppo.yml"), "-n", str(ROLLOUT), "-f", str(tmp_path),
-           "--eval-freq", "-1", "--save-freq", "-1", "--seed", "0", "--num-threads", "1"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        "ppo",
+        "--env",
+        OMEGA,
+        "--gym-packages",
+        "vcnc_gym",
+        "--conf-file",
+        str(ROOT / "agents" / "hyperparams" / "ppo.yml"),
+        "-n",
+        str(ROLLOUT),
+        "-f",
+        str(tmp_path),
+        "--eval-freq",
+        "-1",
+        "--save-freq",
+        "-1",
+        "--seed",
+        "0",
+        "--num-threads",
+        "1",
+    ]
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert list(tmp_path.rglob(f"{OMEGA}.zip")), "no model saved"

@@ -64,7 +64,7 @@ def test_agents_modules_take_no_private_names_and_import_around_no_loop():
     def visit(module, path):
         for dep in sorted(graph.get(module, ((), ()))[0]):
             if dep in path:
-                loops.append(path[path.index(dep):] + [dep])
+                loops.append(path[path.index(dep) :] + [dep])
             elif dep not in done:
                 visit(dep, path + [dep])
         done.add(module)
@@ -81,10 +81,12 @@ def test_agents_modules_take_no_private_names_and_import_around_no_loop():
 #: test compares the figures within 1e-5 and the digest where it matches the CPU's own fingerprint.
 BEFORE_SPLIT = {
     "versions": ("2.13.0+cpu", "2.4.6", "2.9.2"),
-    "sb3": ("2f6aeb17343644cdbaac4263e9383f14a9a97c23891e148ef522cdaea1188749", 9.846793763788218,
-            2.5193685605993608),
-    "lean": ("feaf7df193b8c238737a4622615b9af94516ad3b9ea697597feec0a63d822541", 10.008636612608605,
-             2.1592023869127965),
+    "sb3": ("2f6aeb17343644cdbaac4263e9383f14a9a97c23891e148ef522cdaea1188749", 9.846793763788218, 2.5193685605993608),
+    "lean": (
+        "feaf7df193b8c238737a4622615b9af94516ad3b9ea697597feec0a63d822541",
+        10.008636612608605,
+        2.1592023869127965,
+    ),
 }
 
 
@@ -100,8 +102,9 @@ def test_a_short_run_trains_the_model_it_trained_before_the_split(trainer, tmp_p
     from vcnc_agents.lean_ppo import learn as learn_lean
     from vcnc_agents.training import learn, prepare_run
 
-    run_dir, config, checkpoint = prepare_run("VCNC-Heart-v1", tmp_path / trainer, n_timesteps=4096, seed=7,
-                                              checkpoint_freq=2048, eval_freq=0)
+    run_dir, config, checkpoint = prepare_run(
+        "VCNC-Heart-v1", tmp_path / trainer, n_timesteps=4096, seed=7, checkpoint_freq=2048, eval_freq=0
+    )
     if trainer == "lean":
         result = learn_lean(run_dir, config, checkpoint, progress_bar=False)
     else:
@@ -123,8 +126,13 @@ def test_no_module_subscripts_a_run_config_as_a_dict():
     import re
 
     pattern = re.compile(r"(?<![.\w])config\[|(?<![.\w])config\.get\(|\.to_dict\(\)\[")
-    found = [f"{path.name}:{i}: {line.strip()}" for path in sorted(AGENTS.glob("*.py")) if path.name != "run_config.py"
-             for i, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]
+    found = [
+        f"{path.name}:{i}: {line.strip()}"
+        for path in sorted(AGENTS.glob("*.py"))
+        if path.name != "run_config.py"
+        for i, line in enumerate(path.read_text().splitlines(), 1)
+        if pattern.search(line)
+    ]
     assert found == []
     assert pattern.search('x = config["eval_freq"]') and pattern.search("mode.to_dict()['mode']")  # it can fail
 
@@ -139,8 +147,11 @@ def test_a_training_option_is_a_flag_a_keyword_a_check_and_a_config_key_from_its
     from vcnc_agents.arguments import parser
     from vcnc_agents.run_config import TRAINING_OPTIONS, check_training_options
 
-    assert TRAINING_OPTIONS == tuple(f.name for f in fields(RunConfig) if f.metadata.get("option")) \
+    assert (
+        TRAINING_OPTIONS
+        == tuple(f.name for f in fields(RunConfig) if f.metadata.get("option"))
         == ("checkpoint_freq", "eval_freq")
+    )
     data = yaml.safe_load((AGENTS / "trained" / "VCNC-Heart-v1" / "config.yml").read_text())
     shipped = RunConfig.from_dict(data)
     helps = {a.dest: a.help for a in parser()._actions}
@@ -156,8 +167,10 @@ def test_a_training_option_is_a_flag_a_keyword_a_check_and_a_config_key_from_its
         assert name not in unrecorded.to_dict()
         assert getattr(unrecorded.with_options(), name) == default  # a config.yml that recorded none
         assert getattr(shipped.with_options(), name) == data[name]  # the run's
-        assert getattr(shipped.with_options(**{name: 3}), name) == 3 and shipped.with_options(**{name: 3}).to_dict()[
-            name] == 3
+        assert (
+            getattr(shipped.with_options(**{name: 3}), name) == 3
+            and shipped.with_options(**{name: 3}).to_dict()[name] == 3
+        )
     with pytest.raises(TypeError, match="eval_frq"):
         vcnc_agents.train("VCNC-Heart-v1", tmp_path / "run", eval_frq=100)
     assert not (tmp_path / "run").exists()

@@ -100,8 +100,7 @@ def test_evaluate_policy_runs_and_resets_memory(name):
 
     vec = make_vec_env("VCNC-Omega-v1", n_envs=1, seed=0)
     policy = vcnc_baselines.make(name, vec)
-    rewards, lengths = evaluate_policy(policy, vec, n_eval_episodes=2, deterministic=True,
-                                       return_episode_rewards=True)
+    rewards, lengths = evaluate_policy(policy, vec, n_eval_episodes=2, deterministic=True, return_episode_rewards=True)
     assert len(rewards) == 2 and lengths[0] == lengths[1]
     assert np.isfinite(rewards).all()
     assert rewards[0] == pytest.approx(rewards[1], rel=1e-12)
@@ -132,10 +131,13 @@ def test_evaluate_policy_batched_envs():
 
 #: The controllers of Jahanpour et al.'s plant (not the non-causal oracle, a floor planned offline:
 #: tests/test_feedforward.py; not mpcc, which sets its own progress on a feed-override id: tests/test_mpcc.py).
-JAHANPOUR_BASELINES = [n for n in vcnc_baselines.names()
-                       if vcnc_baselines.registry.policy_class(n).designed_for(get_plant("vcnc_feed_drive"))
-                       and getattr(vcnc_baselines.registry.policy_class(n), "causal", True)
-                       and not getattr(vcnc_baselines.registry.policy_class(n), "sets_feed_override", False)]
+JAHANPOUR_BASELINES = [
+    n
+    for n in vcnc_baselines.names()
+    if vcnc_baselines.registry.policy_class(n).designed_for(get_plant("vcnc_feed_drive"))
+    and getattr(vcnc_baselines.registry.policy_class(n), "causal", True)
+    and not getattr(vcnc_baselines.registry.policy_class(n), "sets_feed_override", False)
+]
 
 
 def _omega_case(name):
@@ -144,13 +146,19 @@ def _omega_case(name):
     the box can follow), found when the commissioning replaced the hand table, and mpc on the same 8: an open
     defect, kept visible."""
     if name in ("mpc", "mpc@commissioned"):  # lq-preview's 8 vertices: its model and preview (found at 82c5693)
-        return pytest.param(name, marks=[pytest.mark.slow, pytest.mark.xfail(
-            strict=True, reason="diverges on the 8 vertices lq-preview diverges on (open)")])
+        return pytest.param(
+            name,
+            marks=[
+                pytest.mark.slow,
+                pytest.mark.xfail(strict=True, reason="diverges on the 8 vertices lq-preview diverges on (open)"),
+            ],
+        )
     if name == "pd-ref" or name.endswith("@machine"):  # pd-ref: the score's reference, tested elsewhere
         return pytest.param(name, marks=pytest.mark.slow)
     if name in ("lq-preview", "lq-preview@commissioned"):  # on either model (the identified one: slow to design)
-        xfail = pytest.mark.xfail(strict=True, reason="diverges on 8 vertices of the S-curve omega at the "
-                                  "commissioned bandwidth (open)")
+        xfail = pytest.mark.xfail(
+            strict=True, reason="diverges on 8 vertices of the S-curve omega at the commissioned bandwidth (open)"
+        )
         return pytest.param(name, marks=[xfail] + ([pytest.mark.slow] if "@" in name else []))
     return name
 
@@ -162,7 +170,11 @@ def test_omega_completes_on_every_vertex_of_the_uncertainty_box(name):
     from vcnc_bench.robust import make_batch, run_plants
 
     env = gym.make("VCNC-Omega-v1")
-    runs = run_plants(vcnc_baselines.make(name, env), make_batch("VCNC-Omega-v1", len(VERTICES)), np.array(VERTICES),
-                      decision_period=env.unwrapped.decision_period)
+    runs = run_plants(
+        vcnc_baselines.make(name, env),
+        make_batch("VCNC-Omega-v1", len(VERTICES)),
+        np.array(VERTICES),
+        decision_period=env.unwrapped.decision_period,
+    )
     assert not runs.diverged.any(), f"{name} diverged on vertices {np.flatnonzero(runs.diverged).tolist()}"
     assert np.all(runs.steps <= env.unwrapped.task.time_limit_steps)

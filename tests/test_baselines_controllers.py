@@ -30,17 +30,28 @@ LAYOUT = ObservationLayout()
 
 def fake_env(dt=DT, parameters=None):
     """What the baselines read from ``env.unwrapped``, without building a contour."""
-    return SimpleNamespace(unwrapped=SimpleNamespace(
-        layout=LAYOUT, dt=dt, action_repeat=1, decision_period=dt,
-        nominal_parameters=plant.nominal_parameters() if parameters is None else parameters))
+    return SimpleNamespace(
+        unwrapped=SimpleNamespace(
+            layout=LAYOUT,
+            dt=dt,
+            action_repeat=1,
+            decision_period=dt,
+            nominal_parameters=plant.nominal_parameters() if parameters is None else parameters,
+        )
+    )
 
 
 def make_obs(n=None, *, e=0.0, v_ref=0.0, a_ref=0.0, v=0.0, x_ref=0.0):
     """Observations (float32) with the given fields, per axis (scalars or (..., 2))."""
     shape = (LAYOUT.size,) if n is None else tuple(np.atleast_1d(n)) + (LAYOUT.size,)
     obs = np.zeros(shape, dtype=np.float32)
-    for name, val in (("tracking_error", e), ("reference_velocity", v_ref), ("reference_acceleration", a_ref),
-                      ("velocity", v), ("reference_position", x_ref)):
+    for name, val in (
+        ("tracking_error", e),
+        ("reference_velocity", v_ref),
+        ("reference_acceleration", a_ref),
+        ("velocity", v),
+        ("reference_position", x_ref),
+    ):
         obs[..., LAYOUT.slice(name)] = val
     return obs
 
@@ -99,8 +110,8 @@ def test_qft_policy_output_matches_scipy_filters():
     pol = vcnc_baselines.make("qft", fake_env())
     rng = np.random.default_rng(0)
     n = 400
-    v_r = np.cumsum(rng.normal(0, 1.0, (n, 2)), axis=0)   # mm/s
-    e = rng.normal(0, 1e-3, (n, 2))                        # mm
+    v_r = np.cumsum(rng.normal(0, 1.0, (n, 2)), axis=0)  # mm/s
+    e = rng.normal(0, 1e-3, (n, 2))  # mm
     u = np.empty((n, 2))
     pol.reset(n_envs=1)
     for k in range(n):  # the unclipped command in V (the action would saturate at 5 V)
@@ -193,8 +204,11 @@ def skfuzzy_system():
         err[label] = skf.trimf(x_in, tri)
         chg[label] = skf.trimf(x_in, tri)
         out[label] = skf.trimf(fz.OUTPUT_GRID, tri)
-    rules = [ctrl.Rule(err[fz.LABELS[i]] & chg[fz.LABELS[j]], out[fz.LABELS[fz.RULE_TABLE[j, i]]])
-             for j in range(7) for i in range(7)]
+    rules = [
+        ctrl.Rule(err[fz.LABELS[i]] & chg[fz.LABELS[j]], out[fz.LABELS[fz.RULE_TABLE[j, i]]])
+        for j in range(7)
+        for i in range(7)
+    ]
     return ctrl.ControlSystemSimulation(ctrl.ControlSystem(rules))
 
 
@@ -350,29 +364,32 @@ def test_qft_g_variant_is_qft_without_prefilter():
         vcnc_baselines.make("qft-g", env, prefilter=((1.0,), (1.0,)))
 
 
-@pytest.mark.parametrize("name, params", [
-    ("smc", {"lam": -200.0}),
-    ("smc", {"lam": 0.0}),
-    ("smc", {"K_s": -0.3}),
-    ("smc", {"rho": float("nan")}),
-    ("smc", {"rho": float("inf")}),
-    ("smc", {"d_minus": "low"}),
-    ("smc", {"d_minus": 0.2}),
-    ("smc", {"d_plus": (0.4, 0.5, 0.6)}),
-    ("smc", {"K_s": True}),
-    ("smc", {"gain": 1.0}),
-    ("fuzzy", {"error_scale": 0.0}),
-    ("fuzzy", {"rate_scale": -1.0}),
-    ("fuzzy", {"output_scale": "5 V"}),
-    ("fuzzy", {"error_scale": float("nan")}),
-    ("qft", {"prefilter": ((-1.0,), (1.0, 0.0, -1.0))}),         # unstable, F(0) = 1
-    ("qft", {"prefilter": ((2.0,), (1.0, 1.0))}),                # F(0) = 2
-    ("qft", {"prefilter": "F"}),
-    ("qft", {"controller": ((1.0, 0.0, 0.0), (1.0, 1.0))}),       # improper
-    ("qft", {"controller": ((np.inf, 1.0), (1.0, 1.0))}),
-    ("qft", {"controller": ((1.0,), (0.0,))}),
-    ("qft", {"method": 5}),
-])
+@pytest.mark.parametrize(
+    "name, params",
+    [
+        ("smc", {"lam": -200.0}),
+        ("smc", {"lam": 0.0}),
+        ("smc", {"K_s": -0.3}),
+        ("smc", {"rho": float("nan")}),
+        ("smc", {"rho": float("inf")}),
+        ("smc", {"d_minus": "low"}),
+        ("smc", {"d_minus": 0.2}),
+        ("smc", {"d_plus": (0.4, 0.5, 0.6)}),
+        ("smc", {"K_s": True}),
+        ("smc", {"gain": 1.0}),
+        ("fuzzy", {"error_scale": 0.0}),
+        ("fuzzy", {"rate_scale": -1.0}),
+        ("fuzzy", {"output_scale": "5 V"}),
+        ("fuzzy", {"error_scale": float("nan")}),
+        ("qft", {"prefilter": ((-1.0,), (1.0, 0.0, -1.0))}),  # unstable, F(0) = 1
+        ("qft", {"prefilter": ((2.0,), (1.0, 1.0))}),  # F(0) = 2
+        ("qft", {"prefilter": "F"}),
+        ("qft", {"controller": ((1.0, 0.0, 0.0), (1.0, 1.0))}),  # improper
+        ("qft", {"controller": ((np.inf, 1.0), (1.0, 1.0))}),
+        ("qft", {"controller": ((1.0,), (0.0,))}),
+        ("qft", {"method": 5}),
+    ],
+)
 def test_bad_parameters_raise_value_error(name, params):
     with pytest.raises(ValueError):
         vcnc_baselines.make(name, fake_env(), **params)
@@ -398,8 +415,13 @@ def _sequence(n_steps, n_envs, seed, scale=1.0):
     """Random observations; scale = 1e-3 keeps every controller below saturation."""
     rng = np.random.default_rng(seed)
     size = (n_steps, n_envs, 2)
-    return make_obs((n_steps, n_envs), e=rng.normal(0, 5e-3 * scale, size), v_ref=rng.normal(0, 10 * scale, size),
-                    v=rng.normal(0, 10 * scale, size), a_ref=rng.normal(0, 1e5 * scale, size))
+    return make_obs(
+        (n_steps, n_envs),
+        e=rng.normal(0, 5e-3 * scale, size),
+        v_ref=rng.normal(0, 10 * scale, size),
+        v=rng.normal(0, 10 * scale, size),
+        a_ref=rng.normal(0, 1e5 * scale, size),
+    )
 
 
 @pytest.mark.parametrize("name", ["qft", "smc", "fuzzy"])
@@ -432,7 +454,7 @@ def test_episode_start_resets_only_that_env(name):
         a, _ = pol.predict(seq[k], episode_start=np.array([False, k == 20, False]))
         af, _ = fresh.predict(seq[k, 1], episode_start=k == 20)
         ac, _ = cont.predict(seq[k], episode_start=np.zeros(3, bool))
-        np.testing.assert_array_equal(a[1], af)        # env 1 restarted from rest
+        np.testing.assert_array_equal(a[1], af)  # env 1 restarted from rest
         np.testing.assert_array_equal(a[[0, 2]], ac[[0, 2]])  # the others kept their memory
         differs = differs or not np.array_equal(a[1], ac[1])
         assert np.all(np.abs(a) < 1.0)  # unsaturated: the memory shows in the action

@@ -37,7 +37,8 @@ class PDPolicy:
             self.state_mismatches += 1
         lay = self.layout
         u = self.kp * lay.tracking_error(observation) + self.kd * (
-            lay.reference_velocity(observation) - lay.velocity(observation))
+            lay.reference_velocity(observation) - lay.velocity(observation)
+        )
         self._last_state = (len(self.starts),)  # a fresh object every call
         return np.clip(u / 5.0, -1.0, 1.0).astype(np.float32), self._last_state
 
@@ -55,8 +56,13 @@ def test_run_episode_metrics_match_the_traces(omega_pd):
     n = env.unwrapped.episode_steps
     assert res.episode_steps == n
     assert res.terminated and not res.truncated and not res.diverged
-    for trace, shape in [(res.time, (n,)), (res.contour_error, (n,)), (res.position, (n, 2)),
-                         (res.reference_position, (n, 2)), (res.command, (n, 2))]:
+    for trace, shape in [
+        (res.time, (n,)),
+        (res.contour_error, (n,)),
+        (res.position, (n, 2)),
+        (res.reference_position, (n, 2)),
+        (res.command, (n, 2)),
+    ]:
         assert trace.shape == shape
         assert np.all(np.isfinite(trace))
     e_um = 1e3 * res.contour_error
@@ -112,7 +118,7 @@ def test_sharp_corners_of_the_omega_are_its_two_small_radius_corners():
     radii = sorted(1.0 / k for _, k in corners)
     assert 0.15 < radii[0] <= radii[1] < 0.25 and radii[2] > 0.5
     pts = np.array([p for p, _ in corners])
-    gaps = [np.hypot(*(a - b)) for i, a in enumerate(pts) for b in pts[i + 1:]]
+    gaps = [np.hypot(*(a - b)) for i, a in enumerate(pts) for b in pts[i + 1 :]]
     assert min(gaps) > 2.0  # mm: three different places, not one corner three times
 
 
@@ -139,8 +145,11 @@ def test_plots_are_written(omega_pd, tmp_path):
 def _install_pd(monkeypatch):
     """Register kind "pd" ("pd:KP", KP in V/mm) the way a trained-agent kind would be."""
     bench.policy_kinds()  # the installed kinds first, so that "pd" is added to them
-    monkeypatch.setitem(bench.POLICY_KINDS, "pd", PolicyKind(
-        "pd", make=lambda arg, env: PDPolicy(env.unwrapped.layout, kp=float(arg or 300.0))))
+    monkeypatch.setitem(
+        bench.POLICY_KINDS,
+        "pd",
+        PolicyKind("pd", make=lambda arg, env: PDPolicy(env.unwrapped.layout, kp=float(arg or 300.0))),
+    )
 
 
 def _parse_table(text):
@@ -156,8 +165,21 @@ def _parse_table(text):
 def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path, capsys):
     _install_pd(monkeypatch)
     out_json, plots = tmp_path / "out" / "bench.json", tmp_path / "plots"
-    code = bench.main(["--env", OMEGA, "--policy", "pd:300", "--policy", "pd:100",
-                       "--json", str(out_json), "--plots", str(plots), "--no-progress"])
+    code = bench.main(
+        [
+            "--env",
+            OMEGA,
+            "--policy",
+            "pd:300",
+            "--policy",
+            "pd:100",
+            "--json",
+            str(out_json),
+            "--plots",
+            str(plots),
+            "--no-progress",
+        ]
+    )
     assert code == 0
     out = capsys.readouterr().out
     assert re.search(r"total wall time \d+\.\d s", out)
@@ -167,13 +189,24 @@ def test_bench_json_holds_what_was_printed_and_plots_exist(monkeypatch, tmp_path
     assert [(r["env"], r["policy"]) for r in records] == [(OMEGA, "pd:300"), (OMEGA, "pd:100")]
     assert set(rows) == {(OMEGA, "pd:300"), (OMEGA, "pd:100")}
     for rec in records:
-        assert {"env", "policy", "max_contour_error_um", "mean_contour_error_um", "rms_contour_error_um",
-                "episode_steps", "wall_s"} <= set(rec)
+        assert {
+            "env",
+            "policy",
+            "max_contour_error_um",
+            "mean_contour_error_um",
+            "rms_contour_error_um",
+            "episode_steps",
+            "wall_s",
+        } <= set(rec)
         mx, mean, rms, paper, ratio, cycle, steps, wall, diverged, complete = rows[(rec["env"], rec["policy"])]
         assert complete == ("yes" if rec["completed"] else "no")
         assert cycle == ("-" if rec["cycle_time_s"] is None else f"{rec['cycle_time_s']:.4f}")
-        for printed, key in [(mx, "max_contour_error_um"), (mean, "mean_contour_error_um"),
-                             (rms, "rms_contour_error_um"), (wall, "wall_s")]:
+        for printed, key in [
+            (mx, "max_contour_error_um"),
+            (mean, "mean_contour_error_um"),
+            (rms, "rms_contour_error_um"),
+            (wall, "wall_s"),
+        ]:
             assert float(printed) == pytest.approx(rec[key], abs=0.005 + 1e-9), key
         assert paper == "-" and ratio == "-" and rec["paper_max_contour_error_um"] is None
         assert int(steps) == rec["episode_steps"] <= gym.make(OMEGA).unwrapped.task.time_limit_steps
@@ -215,11 +248,14 @@ def test_resolve_policy_builds_baselines_by_name():
             assert bench.policy_label(spec) == name
 
 
-@pytest.mark.parametrize("argv, must_name", [
-    (["--env", "VCNC-Nope-v0"], list(vcnc_gym.ENV_IDS)),
-    (["--policy", "nope"], ["KIND:ARGUMENT", "baseline"]),
-    (["--policy", "nope:x"], ["KIND:ARGUMENT", "baseline"]),
-])
+@pytest.mark.parametrize(
+    "argv, must_name",
+    [
+        (["--env", "VCNC-Nope-v0"], list(vcnc_gym.ENV_IDS)),
+        (["--policy", "nope"], ["KIND:ARGUMENT", "baseline"]),
+        (["--policy", "nope:x"], ["KIND:ARGUMENT", "baseline"]),
+    ],
+)
 def test_unknown_env_or_policy_exits_2_naming_the_valid_choices(argv, must_name, capsys):
     with pytest.raises(SystemExit) as exc:
         bench.main(argv + ["--no-progress"])
@@ -236,8 +272,12 @@ def test_unknown_env_or_policy_exits_2_naming_the_valid_choices(argv, must_name,
 
 def test_feedrate_option_runs_a_slower_pass_without_paper_columns(tmp_path, capsys):
     out = tmp_path / "slow.json"
-    assert bench.main(["--env", "VCNC-Omega-v1", "--policy", "smc", "--feedrate", "20",
-                       "--no-progress", "--json", str(out)]) == 0
+    assert (
+        bench.main(
+            ["--env", "VCNC-Omega-v1", "--policy", "smc", "--feedrate", "20", "--no-progress", "--json", str(out)]
+        )
+        == 0
+    )
     (record,) = json.loads(out.read_text())["records"]
     assert record["paper_max_contour_error_um"] is None
     assert record["episode_steps"] == gym.make("VCNC-Omega-v1", feedrate=20.0).unwrapped.episode_steps
@@ -251,8 +291,22 @@ def test_plant_option_runs_the_env_on_another_plant_as_gym_make_does(tmp_path, c
     import vcnc_baselines
 
     out = tmp_path / "plant.json"
-    assert bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--plant", "current_feed_drive",
-                       "--no-progress", "--json", str(out)]) == 0
+    assert (
+        bench.main(
+            [
+                "--env",
+                "VCNC-Butterfly-v1",
+                "--policy",
+                "zpetc",
+                "--plant",
+                "current_feed_drive",
+                "--no-progress",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     (record,) = json.loads(out.read_text())["records"]
     env = gym.make("VCNC-Butterfly-v1", plant="current_feed_drive")
     assert env.unwrapped.plant.name == "current_feed_drive"
@@ -272,8 +326,12 @@ def test_shop_floor_option_runs_the_env_on_its_shop_floor_as_gym_make_does(tmp_p
     from vcnc_gym.plants.shop_floor import ShopFloorModel
 
     out = tmp_path / "shop.json"
-    assert bench.main(["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--shop-floor", "--no-progress",
-                       "--json", str(out)]) == 0
+    assert (
+        bench.main(
+            ["--env", "VCNC-Butterfly-v1", "--policy", "zpetc", "--shop-floor", "--no-progress", "--json", str(out)]
+        )
+        == 0
+    )
     data = json.loads(out.read_text())
     (record,) = data["records"]
     assert data["settings"]["shop_floor"] is True
@@ -282,8 +340,11 @@ def test_shop_floor_option_runs_the_env_on_its_shop_floor_as_gym_make_does(tmp_p
     mine = run_episode(vcnc_baselines.make("zpetc", env), env)
     assert record["max_contour_error_um"] == pytest.approx(mine.max_contour_error_um, rel=1e-12)
     assert record["max_contour_error_um"] != pytest.approx(
-        run_episode(vcnc_baselines.make("zpetc", gym.make("VCNC-Butterfly-v1")), gym.make("VCNC-Butterfly-v1"))
-        .max_contour_error_um, rel=1e-3)  # the shop floor is another machine
+        run_episode(
+            vcnc_baselines.make("zpetc", gym.make("VCNC-Butterfly-v1")), gym.make("VCNC-Butterfly-v1")
+        ).max_contour_error_um,
+        rel=1e-3,
+    )  # the shop floor is another machine
     assert record["paper_max_contour_error_um"] is None
     (recipe,) = program_recipes([("part", "G1 X1 F600")], 0.01, shop_floor=True)
     assert recipe[2]["shop_floor"] is True

@@ -53,8 +53,20 @@ def test_the_default_path_on_the_positioning_env_and_the_override(tmp_path, caps
     end): every default policy of the positioning env and of the feed override through the pool, the reports, the
     JSON and the plots."""
     out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
-    code = cli.main(["--env", "VCNC-Step-v0", "--env", "VCNC-OmegaOverride-v1", "--jobs", "2", "--json", str(out_json),
-                     "--plots", str(plots)])
+    code = cli.main(
+        [
+            "--env",
+            "VCNC-Step-v0",
+            "--env",
+            "VCNC-OmegaOverride-v1",
+            "--jobs",
+            "2",
+            "--json",
+            str(out_json),
+            "--plots",
+            str(plots),
+        ]
+    )
     assert code == 0
     captured = capsys.readouterr()
     data = json.loads(out_json.read_text())
@@ -75,8 +87,22 @@ def test_a_program_through_the_bench_gets_its_iso230_report(tmp_path, capsys):
     part = tmp_path / "part.nc"
     part.write_text(SHORT_PROGRAM)
     out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
-    code = cli.main(["--program", str(part), "--policy", "ff-pid", "--policy", "zpetc@machine", "--jobs", "1",
-                     "--json", str(out_json), "--plots", str(plots)])
+    code = cli.main(
+        [
+            "--program",
+            str(part),
+            "--policy",
+            "ff-pid",
+            "--policy",
+            "zpetc@machine",
+            "--jobs",
+            "1",
+            "--json",
+            str(out_json),
+            "--plots",
+            str(plots),
+        ]
+    )
     assert code == 0
     captured = capsys.readouterr()
     data = json.loads(out_json.read_text())
@@ -91,8 +117,10 @@ def test_a_program_through_the_bench_gets_its_iso230_report(tmp_path, capsys):
 @pytest.mark.slow  # a worker pool: make bench runs this path in CI (.ci/run)
 def test_two_processes_give_the_figures_of_one(tmp_path):
     """The pool's workers build their envs and policies again: the same figures, to the bit, as this process."""
-    recipes = [EnvRecipe("VCNC-Step-v0", "VCNC-Step-v0", {}, ("pi", "imc")),
-               EnvRecipe("GCode:part", "VCNC-GCode-v1", {"program": SHORT_PROGRAM, "tolerance": 0.01}, ("ff-pid",))]
+    recipes = [
+        EnvRecipe("VCNC-Step-v0", "VCNC-Step-v0", {}, ("pi", "imc")),
+        EnvRecipe("GCode:part", "VCNC-GCode-v1", {"program": SHORT_PROGRAM, "tolerance": 0.01}, ("ff-pid",)),
+    ]
     one = run_table(recipes, seed=0, trials=1, jobs=1)
     two = run_table(recipes, seed=0, trials=1, jobs=2)
     for key in one:
@@ -104,23 +132,55 @@ def test_two_processes_give_the_figures_of_one(tmp_path):
 @pytest.mark.slow  # a worker pool: make bench runs this path in CI (.ci/run)
 def test_a_policy_that_cannot_be_built_exits_2_naming_it(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
-        cli.main(["--env", "VCNC-Step-v0", "--env", "VCNC-Circle-v1", "--policy", f"ppo:{tmp_path / 'nope'}",
-                  "--jobs", "2", "--no-progress"])
+        cli.main(
+            [
+                "--env",
+                "VCNC-Step-v0",
+                "--env",
+                "VCNC-Circle-v1",
+                "--policy",
+                f"ppo:{tmp_path / 'nope'}",
+                "--jobs",
+                "2",
+                "--no-progress",
+            ]
+        )
     assert exc.value.code == 2
     assert "cannot build policy" in capsys.readouterr().err
 
 
 def test_check_names_what_is_missing():
-    data = {"settings": {}, "plan": {"A": ["p", "q"], "B": []},
-            "records": [{"env": "A", "policy": "p", "max_contour_error_um": 1.0, "mean_contour_error_um": 0.5,
-                         "rms_contour_error_um": None}]}
+    data = {
+        "settings": {},
+        "plan": {"A": ["p", "q"], "B": []},
+        "records": [
+            {
+                "env": "A",
+                "policy": "p",
+                "max_contour_error_um": 1.0,
+                "mean_contour_error_um": 0.5,
+                "rms_contour_error_um": None,
+            }
+        ],
+    }
     found = check.problems(data, default_ids=("A", "C"))
     assert any("not the default table" in f for f in found)
     assert "A p: no finite rms_contour_error_um (diverged: None)" in found
     assert "A q: no record" in found and "B: no policy ran" in found
-    stale = {**data, "records": data["records"] + [{"table": "headroom", "env": "A", "strongest": "p",
-                                                      "strongest_max_um": 1.0, "floor_max_um": 1.1,
-                                                      "headroom": 1 / 1.1}]}
+    stale = {
+        **data,
+        "records": data["records"]
+        + [
+            {
+                "table": "headroom",
+                "env": "A",
+                "strongest": "p",
+                "strongest_max_um": 1.0,
+                "floor_max_um": 1.1,
+                "headroom": 1 / 1.1,
+            }
+        ],
+    }
     assert any("A: the floor (1.1 um) is above the strongest causal" in f for f in check.problems(stale))
     assert check.problems([]) != []
 

@@ -26,9 +26,17 @@ def test_circle_with_the_iso_circle_program_is_accepted():
         check_program_options(_args(program=[name], circle=(50.0, 3000.0)))
 
 
-@pytest.mark.parametrize("circle, option", [((float("inf"), 3000.0), "--circle D"), ((50.0, float("nan")), "--circle F"),
-                                            ((-50.0, 3000.0), "--circle D"), ((50.0, 0.0), "--circle F"),
-                                            ((1e9, 3000.0), "--circle D"), ((50.0, 1e9), "--circle F")])
+@pytest.mark.parametrize(
+    "circle, option",
+    [
+        ((float("inf"), 3000.0), "--circle D"),
+        ((50.0, float("nan")), "--circle F"),
+        ((-50.0, 3000.0), "--circle D"),
+        ((50.0, 0.0), "--circle F"),
+        ((1e9, 3000.0), "--circle D"),
+        ((50.0, 1e9), "--circle F"),
+    ],
+)
 def test_a_circle_the_reader_would_refuse_is_an_error_naming_the_number(circle, option):
     with pytest.raises(ValueError, match=option):
         check_program_options(_args(program=["iso230-4"], circle=circle))
@@ -65,12 +73,15 @@ def test_plants_with_a_program_is_an_error():
         check_program_options(_args(program=["butterfly"], plants=4))
 
 
-@pytest.mark.parametrize("argv, names", [
-    (["--env", "VCNC-Circle-v1", "--circle", "10", "1200"], "--circle"),
-    (["--env", "VCNC-Circle-v1", "--tolerance", "0.02"], "--tolerance"),
-    (["--program", "iso230-4", "--circle", "inf", "3000"], "--circle"),
-    (["--program", "iso230-4", "--plants", "3"], "--plants"),
-])
+@pytest.mark.parametrize(
+    "argv, names",
+    [
+        (["--env", "VCNC-Circle-v1", "--circle", "10", "1200"], "--circle"),
+        (["--env", "VCNC-Circle-v1", "--tolerance", "0.02"], "--tolerance"),
+        (["--program", "iso230-4", "--circle", "inf", "3000"], "--circle"),
+        (["--program", "iso230-4", "--plants", "3"], "--plants"),
+    ],
+)
 def test_vcnc_bench_refuses_an_option_that_does_not_apply_before_building_anything(argv, names, capsys):
     from vcnc_bench import cli
 

@@ -26,8 +26,23 @@ N = 3
 @pytest.fixture(scope="module")
 def omega_robust(tmp_path_factory):
     out = tmp_path_factory.mktemp("robust")
-    code = bench.main(["--env", OMEGA, "--policy", "smc", "--plants", str(N), "--plant-seed", "5",
-                       "--json", str(out / "r.json"), "--plots", str(out), "--no-progress"])
+    code = bench.main(
+        [
+            "--env",
+            OMEGA,
+            "--policy",
+            "smc",
+            "--plants",
+            str(N),
+            "--plant-seed",
+            "5",
+            "--json",
+            str(out / "r.json"),
+            "--plots",
+            str(out),
+            "--no-progress",
+        ]
+    )
     assert code == 0
     return json.loads((out / "r.json").read_text()), out
 
@@ -49,25 +64,51 @@ def test_nominal_row_is_the_ordinary_bench_episode(omega_robust):
 
 def test_json_has_the_figures_of_every_plant(omega_robust):
     data, out = omega_robust
-    expected = {"plants": N, "plant_seed": 5, "seed": 0, "trials": 1, "max_vertices": robust.MAX_VERTICES,
-                "feedrate": None, "plant": None}
+    expected = {
+        "plants": N,
+        "plant_seed": 5,
+        "seed": 0,
+        "trials": 1,
+        "max_vertices": robust.MAX_VERTICES,
+        "feedrate": None,
+        "plant": None,
+    }
     assert {k: data["settings"][k] for k in expected} == expected
     assert "provenance" in data["settings"]
     # the policy named, and the score's reference PD the bench adds under --plants
     assert [r["policy"] for r in data["robust"]] == ["smc", "pd-ref"]
     rec = _smc(data)
-    assert (rec["env"], rec["policy"], rec["n_samples"], rec["n_vertices"], rec["n_plants"]) == (OMEGA, "smc", N, 64,
-                                                                                                  N + 64)
-    for key in ("nominal_max_um", "median_max_um", "p95_max_um", "worst_max_um", "nominal_rms_um", "median_rms_um",
-                "p95_rms_um", "worst_rms_um", "nominal_cycle_time_s", "median_cycle_time_s", "worst_cycle_time_s",
-                "n_diverged", "n_incomplete", "worst_max_plant", "wall_s"):
+    assert (rec["env"], rec["policy"], rec["n_samples"], rec["n_vertices"], rec["n_plants"]) == (
+        OMEGA,
+        "smc",
+        N,
+        64,
+        N + 64,
+    )
+    for key in (
+        "nominal_max_um",
+        "median_max_um",
+        "p95_max_um",
+        "worst_max_um",
+        "nominal_rms_um",
+        "median_rms_um",
+        "p95_rms_um",
+        "worst_rms_um",
+        "nominal_cycle_time_s",
+        "median_cycle_time_s",
+        "worst_cycle_time_s",
+        "n_diverged",
+        "n_incomplete",
+        "worst_max_plant",
+        "wall_s",
+    ):
         assert key in rec, key
     per = rec["per_plant"]
     assert per["kind"] == ["nominal"] + ["sample"] * N + ["vertex"] * 64
     assert all(len(v) == 1 + N + 64 for v in per.values())
     # the figures from the per-plant lists (no plant diverged here)
     assert rec["n_diverged"] == 0
-    samples = np.array(per["max_um"][1:1 + N])
+    samples = np.array(per["max_um"][1 : 1 + N])
     assert rec["median_max_um"] == pytest.approx(np.median(samples), rel=1e-12)
     assert rec["p95_max_um"] == pytest.approx(np.percentile(samples, 95), rel=1e-12)
     assert rec["worst_max_um"] == max(per["max_um"][1:])
@@ -101,8 +142,9 @@ def test_positioning_env_runs_as_a_batch_of_single_envs():
     plants = robust.plant_set(env.unwrapped.plant, 1)
     batch = robust.make_batch(STEP, len(plants.kinds))
     assert isinstance(batch, robust.SingleEnvBatch)
-    runs = robust.run_plants(policy, batch, plants.parameters, decision_period=env.unwrapped.decision_period,
-                             contouring=False)
+    runs = robust.run_plants(
+        policy, batch, plants.parameters, decision_period=env.unwrapped.decision_period, contouring=False
+    )
     single = run_episode(make_baseline("imc", env), env, seed=0)
     assert runs.rms_um[0] == pytest.approx(single.rms_contour_error_um, rel=1e-9, abs=0.0)
     assert runs.max_um[0] == pytest.approx(single.max_contour_error_um, rel=1e-9, abs=0.0)
@@ -130,8 +172,13 @@ def test_quantile_reaches_infinite_values():
     assert robust._quantile(np.array([math.inf, 1.0]), 0.0) == 1.0
 
 
-@pytest.mark.parametrize("argv, message", [(["--plants", "0"], "--plants must be >= 1, got 0"),
-                                           (["--plants", "2", "--plant-seed", "-1"], "--plant-seed must be >= 0")])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--plants", "0"], "--plants must be >= 1, got 0"),
+        (["--plants", "2", "--plant-seed", "-1"], "--plant-seed must be >= 0"),
+    ],
+)
 def test_bad_plants_exit_2(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
         bench.main(["--env", OMEGA, "--policy", "smc"] + argv)

@@ -14,9 +14,16 @@ from vcnc_bench.provenance import cpu, provenance
 
 def _record(env, policy, max_um, rms_um, kinds, diverged=None, per_noise=None):
     n = len(kinds)
-    rec = {"env": env, "policy": policy,
-           "per_plant": {"kind": list(kinds), "max_um": list(map(float, max_um)), "rms_um": list(map(float, rms_um)),
-                         "diverged": list(diverged if diverged is not None else [False] * n)}}
+    rec = {
+        "env": env,
+        "policy": policy,
+        "per_plant": {
+            "kind": list(kinds),
+            "max_um": list(map(float, max_um)),
+            "rms_um": list(map(float, rms_um)),
+            "diverged": list(diverged if diverged is not None else [False] * n),
+        },
+    }
     if per_noise is not None:
         rec["per_noise"] = per_noise
     return rec
@@ -71,8 +78,13 @@ def test_robust_verdicts_pick_the_strongest_per_figure_and_pair_the_plants():
 
 def test_sampled_figures_with_noise_seeds():
     k, kinds = 3, ["nominal", "sample", "sample"]
-    per_noise = {"shape": [k, 3], "max_um": [float(i) for i in range(9)], "rms_um": [1.0] * 9,
-                 "diverged": [False] * 8 + [True], "completed": [True] * 9}
+    per_noise = {
+        "shape": [k, 3],
+        "max_um": [float(i) for i in range(9)],
+        "rms_um": [1.0] * 9,
+        "diverged": [False] * 8 + [True],
+        "completed": [True] * 9,
+    }
     rec = _record("E", "x", [0, 1, 2], [1, 1, 1], kinds, per_noise=per_noise)
     x = verdicts.sampled_figures(rec, "max")
     assert x.shape == (2, 3)  # (sampled plants, noise seeds)
@@ -92,9 +104,17 @@ def test_the_cycle_time_is_a_figure_and_an_unfinished_run_is_infinite():
 
 def test_split_noise_and_summary():
     k, m = 2, 3
-    runs = robust.PlantRuns(max_um=np.arange(6.0), rms_um=np.ones(6), cycle_time_s=np.ones(6), has_cycle_time=True,
-                            diverged=np.zeros(6, bool), completed=np.ones(6, bool), steps=np.ones(6, int), trials=1,
-                            wall_s=1.0)
+    runs = robust.PlantRuns(
+        max_um=np.arange(6.0),
+        rms_um=np.ones(6),
+        cycle_time_s=np.ones(6),
+        has_cycle_time=True,
+        diverged=np.zeros(6, bool),
+        completed=np.ones(6, bool),
+        steps=np.ones(6, int),
+        trials=1,
+        wall_s=1.0,
+    )
     first, per = robust.split_noise(runs, k)
     np.testing.assert_array_equal(first.max_um, [0.0, 1.0, 2.0])  # copy 0: envs 0..M-1
     assert per["max_um"].shape == (k, m)
@@ -113,16 +133,23 @@ def test_noise_seeds_options_are_checked():
 
 def test_provenance(tmp_path):
     info = tmp_path / "cpuinfo"
-    info.write_text("processor\t: 0\nmodel name\t: Test CPU 9000\nflags\t\t: sse2 fma avx2\n\n"
-                    "processor\t: 1\nmodel name\t: Test CPU 9000\nflags\t\t: sse2 fma avx2\n")
+    info.write_text(
+        "processor\t: 0\nmodel name\t: Test CPU 9000\nflags\t\t: sse2 fma avx2\n\n"
+        "processor\t: 1\nmodel name\t: Test CPU 9000\nflags\t\t: sse2 fma avx2\n"
+    )
     c = cpu(info)
     assert c["model"] == "Test CPU 9000" and c["flags"] == ["avx2", "fma", "sse2"]
     p = provenance()
     assert {"numpy", "numba", "torch", "stable-baselines3", "gymnasium"} <= set(p["libraries"])
     assert p["libraries"]["numpy"] == np.__version__
     assert {"threading_layer", "threading_layer_requested", "opt"} <= set(p["numba"])
-    assert set(p["code_paths"]) == {"NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE", "ATEN_CPU_CAPABILITY",
-                                    "MKL_ENABLE_INSTRUCTIONS", "ONEDNN_MAX_CPU_ISA"}
+    assert set(p["code_paths"]) == {
+        "NPY_DISABLE_CPU_FEATURES",
+        "OPENBLAS_CORETYPE",
+        "ATEN_CPU_CAPABILITY",
+        "MKL_ENABLE_INSTRUCTIONS",
+        "ONEDNN_MAX_CPU_ISA",
+    }
     json.dumps(p)
 
 
@@ -134,14 +161,18 @@ def test_another_cpus_code_paths_come_from_its_recorded_provenance():
 
     from vcnc_bench.provenance import code_paths_of
 
-    data = json.loads((Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds_5" /
-                       "VCNC-HeartShop-v1.json").read_text())
+    data = json.loads(
+        (Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds_5" / "VCNC-HeartShop-v1.json").read_text()
+    )
     recorded = data["settings"]["provenance"]
     env, left = code_paths_of(recorded)
     assert env["NUMBA_CPU_NAME"] == "znver3" and "-avx512f" in env["NUMBA_CPU_FEATURES"]
     assert env["OPENBLAS_CORETYPE"] == "Zen" and env["ATEN_CPU_CAPABILITY"] == "avx2" and not left
-    zen5 = dict(recorded, numba=dict(recorded["numba"], cpu_name="znver5"),
-                cpu=dict(recorded["cpu"], flags=recorded["cpu"]["flags"] + ["avx512f"]))
+    zen5 = dict(
+        recorded,
+        numba=dict(recorded["numba"], cpu_name="znver5"),
+        cpu=dict(recorded["cpu"], flags=recorded["cpu"]["flags"] + ["avx512f"]),
+    )
     env, left = code_paths_of(zen5)
     assert "OPENBLAS_CORETYPE" not in env and "znver5" in left[0] and env["ATEN_CPU_CAPABILITY"] == "avx512"
     with pytest.raises(ValueError, match="cpu_name"):
@@ -153,8 +184,26 @@ def test_plants_json_carries_scores_verdicts_noise_and_provenance(tmp_path, caps
     """End to end on a cheap shop-floor id: pd-ref is added, the floor's nominal replay scores every record, the
     agent gets a verdict per figure, every plant runs over 2 noise seeds, and the JSON is strict."""
     out = tmp_path / "robust.json"
-    assert cli.main(["--env", "VCNC-OmegaLookaheadShop-v1", "--plants", "3", "--noise-seeds", "2", "--policy",
-                     "ff-pid", "--policy", "ppo", "--no-progress", "--json", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "--env",
+                "VCNC-OmegaLookaheadShop-v1",
+                "--plants",
+                "3",
+                "--noise-seeds",
+                "2",
+                "--policy",
+                "ff-pid",
+                "--policy",
+                "ppo",
+                "--no-progress",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = out.read_text()
     assert "Infinity" not in text and "NaN" not in text
     data = json.loads(text)
@@ -221,7 +270,7 @@ def test_a_join_restricted_to_some_policies_adds_only_their_records():
     assert lacking == {"mpc"}  # what a plain join adds
     base = dict(seeds, robust=[r for r in seeds["robust"] if r["policy"] != "lq-preview"])
     joined = sv.join(base, box, only=("mpc",))
-    added = [r["policy"] for r in joined["robust"][len(base["robust"]):]]
+    added = [r["policy"] for r in joined["robust"][len(base["robust"]) :]]
     assert added == ["mpc"] and "joined with the mpc of" in joined["settings"]["command"]
     with pytest.raises(ValueError, match="no records of 'ilc'"):
         sv.join(base, box, only=("ilc",))
@@ -236,13 +285,20 @@ def test_with_is_repeatable_and_joins_every_file_in_order(tmp_path, capsys):
     seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
     box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
     paths = {}
-    for name, run, keep in (("base", seeds, lambda p: p != "lq-preview"), ("a", box, lambda p: p == "mpc"),
-                            ("b", seeds, lambda p: p == "lq-preview")):
+    for name, run, keep in (
+        ("base", seeds, lambda p: p != "lq-preview"),
+        ("a", box, lambda p: p == "mpc"),
+        ("b", seeds, lambda p: p == "lq-preview"),
+    ):
         paths[name] = tmp_path / f"{name}.json"
         paths[name].write_text(json.dumps(dict(run, robust=[r for r in run["robust"] if keep(r["policy"])])))
     out = tmp_path / "joined.json"
-    assert _seed_verdicts().main([str(paths["base"]), "--with", str(paths["a"]), "--with", str(paths["b"]),
-                                  "--json", str(out)]) == 0
+    assert (
+        _seed_verdicts().main(
+            [str(paths["base"]), "--with", str(paths["a"]), "--with", str(paths["b"]), "--json", str(out)]
+        )
+        == 0
+    )
     capsys.readouterr()
     policies = [r["policy"] for r in json.loads(out.read_text())["robust"]]
     assert policies[-2:] == ["mpc", "lq-preview"] and policies.count("mpc") == 1
@@ -255,12 +311,18 @@ def test_the_seeds_spread_is_the_range_of_their_own_interquartile_means():
 
     from scipy.stats import trim_mean
 
-    data = json.loads((Path(__file__).resolve().parents[1] / "docs" / "data" / "ideal_seeds_5" / "VCNC-Heart-v1.json")
-                      .read_text())
+    data = json.loads(
+        (Path(__file__).resolve().parents[1] / "docs" / "data" / "ideal_seeds_5" / "VCNC-Heart-v1.json").read_text()
+    )
     row = next(line for line in _seed_verdicts().spread([data]) if "runs/seeds/VCNC-Heart-v1" in line)
     seeds = [r for r in data["robust"] if r.get("group") == "ppo:runs/seeds/VCNC-Heart-v1"]
-    iqms = {f: [trim_mean([m for m, k in zip(r["per_plant"][f"{f}_um"], r["per_plant"]["kind"]) if k == "sample"],
-                          0.25) for r in seeds] for f in ("max", "rms")}
+    iqms = {
+        f: [
+            trim_mean([m for m, k in zip(r["per_plant"][f"{f}_um"], r["per_plant"]["kind"]) if k == "sample"], 0.25)
+            for r in seeds
+        ]
+        for f in ("max", "rms")
+    }
     cells = [c.strip() for c in row.split("|")[1:-1]]
     assert cells[2] == "5"
     for cell, f in zip(cells[3:], ("max", "rms")):
@@ -274,13 +336,17 @@ def test_the_changes_table_counts_the_verdicts_an_earlier_run_gave_otherwise():
     from pathlib import Path
 
     data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
-    before, now = (json.loads((data_dir / d / "VCNC-Corners-v1.json").read_text())
-                   for d in ("ideal_seeds_before_mpc", "ideal_seeds_5"))
+    before, now = (
+        json.loads((data_dir / d / "VCNC-Corners-v1.json").read_text())
+        for d in ("ideal_seeds_before_mpc", "ideal_seeds_5")
+    )
     lines = _seed_verdicts().changes([(before, now)])
     row = next(line for line in lines if line.startswith("| VCNC-Corners-v1 | max |"))
     assert "5, ties (`lq-preview`)" in row and "5, loses (`mpc`)" in row and row.endswith("**yes** |")
-    rms = [next(v["outcome"] for v in d["verdicts"] if v["training_seeds"] > 1 and v["figure"] == "rms")
-           for d in (before, now)]
+    rms = [
+        next(v["outcome"] for v in d["verdicts"] if v["training_seeds"] > 1 and v["figure"] == "rms")
+        for d in (before, now)
+    ]
     assert lines[-1] == f"{1 + (rms[0] != rms[1])} of 2 verdicts changed."
 
 
@@ -290,18 +356,25 @@ def test_within_counts_the_plants_whose_max_is_within_each_tolerance():
     not paired with one off it, and a JSON written before the setting existed counts as off it."""
     from pathlib import Path
 
-    data = json.loads((Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds" / "VCNC-HeartShop-v1.json")
-                      .read_text())
+    data = json.loads(
+        (Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds" / "VCNC-HeartShop-v1.json").read_text()
+    )
     sv = _seed_verdicts()
-    rows = {line.split("|")[1].strip(" `"): line.split("|")[2:5] for line in sv.within(data["robust"], [5, 10, 20])
-            if line.startswith("| `")}
+    rows = {
+        line.split("|")[1].strip(" `"): line.split("|")[2:5]
+        for line in sv.within(data["robust"], [5, 10, 20])
+        if line.startswith("| `")
+    }
     for r in data["robust"]:
         if r["policy"] == "pd-ref":
             continue
         per = r["per_plant"]
         for t, cell in zip((5, 10, 20), rows[r["policy"]]):
-            count = sum(1 for m, k, d in zip(per["max_um"], per["kind"], per["diverged"])
-                        if k == "sample" and not d and m is not None and m <= t)
+            count = sum(
+                1
+                for m, k, d in zip(per["max_um"], per["kind"], per["diverged"])
+                if k == "sample" and not d and m is not None and m <= t
+            )
             nominal = r["nominal_max_um"] is not None and r["nominal_max_um"] <= t
             assert cell.strip() == f"{'yes' if nominal else 'no'}, {count} of {per['kind'].count('sample')}"
     assert "shop_floor" not in data["settings"]
@@ -319,8 +392,19 @@ def test_cross_cpu_counts_the_figures_that_moved_and_the_verdicts_that_changed()
     kinds = ["nominal", "sample", "sample"]
 
     def run(cpu, max_um, outcome):
-        rec = [_record("E", "ppo:A/seed0/best", max_um, [1, 1, 1], kinds), _record("E", "zpetc", [1, 2, 3], [1, 1, 1], kinds)]
-        v = {"x": "ppo:A", "y": "zpetc", "figure": "max", "outcome": outcome, "difference": 0.1, "low": -0.1, "high": 0.3}
+        rec = [
+            _record("E", "ppo:A/seed0/best", max_um, [1, 1, 1], kinds),
+            _record("E", "zpetc", [1, 2, 3], [1, 1, 1], kinds),
+        ]
+        v = {
+            "x": "ppo:A",
+            "y": "zpetc",
+            "figure": "max",
+            "outcome": outcome,
+            "difference": 0.1,
+            "low": -0.1,
+            "high": 0.3,
+        }
         return {"settings": {"provenance": {"numba": {"cpu_name": cpu}}}, "robust": rec, "verdicts": [v]}
 
     old, new = run("znver4", [1.0, 2.0, 3.0], "ties"), run("znver3", [1.0, 2.02, 3.0], "loses")
@@ -332,8 +416,10 @@ def test_cross_cpu_counts_the_figures_that_moved_and_the_verdicts_that_changed()
     row = next(line for line in lines if line.startswith("| `ppo:B/seed0/best`"))
     assert [c.strip() for c in row.split("|")[2:6]] == ["3", "1", f"{0.02 / 2.0:.2g}", "0"]
     assert next(line for line in lines if line.startswith("| `zpetc`")).split("|")[3].strip() == "0"
-    assert "**yes**" in next(line for line in lines if line.startswith("| `ppo:B` | max")) and lines[-1] == \
-        "1 of 1 verdicts changed."
+    assert (
+        "**yes**" in next(line for line in lines if line.startswith("| `ppo:B` | max"))
+        and lines[-1] == "1 of 1 verdicts changed."
+    )
     assert "`znver4` (old) against `znver3` (new)" in lines[0]
     new["robust"][1]["per_plant"]["max_um"] = [1, 2]
     with pytest.raises(ValueError, match="not the same run"):
@@ -349,19 +435,27 @@ def test_a_joined_floor_scores_every_record_plant_by_plant():
     rng = np.random.default_rng(3)
     base = rng.uniform(1.0, 2.0, len(KINDS))
     settings = {"command": "vcnc-bench --plants 12", "plants": 12, "plant_seed": 0, "seed": 0}
-    agents = [_record("E", "pd-ref", 10 * base, 5 * base, KINDS), _record("E", "ff-pid", 4 * base, 2 * base, KINDS),
-              _record("E", "ppo:run/seed0/best", 3 * base + 0.1 * rng.random(len(KINDS)), base, KINDS)]
+    agents = [
+        _record("E", "pd-ref", 10 * base, 5 * base, KINDS),
+        _record("E", "ff-pid", 4 * base, 2 * base, KINDS),
+        _record("E", "ppo:run/seed0/best", 3 * base + 0.1 * rng.random(len(KINDS)), base, KINDS),
+    ]
     agents[1]["kind"], agents[2]["kind"] = "baseline", "ppo"
     for r in agents:
         r["score"] = {"max": 0.5}  # the bench's nominal score, from the shipped nominal floor
     floor = _record("E", "oracle (non-causal)", base, 0.5 * base, KINDS)
     floor["kind"] = "baseline"
     sv = _seed_verdicts()
-    unchanged = sv.join({"settings": settings, "robust": agents[:2], "verdicts": []},
-                        {"settings": settings, "robust": agents[2:], "verdicts": []})
+    unchanged = sv.join(
+        {"settings": settings, "robust": agents[:2], "verdicts": []},
+        {"settings": settings, "robust": agents[2:], "verdicts": []},
+    )
     assert all(r["score"] == {"max": 0.5} for r in unchanged["robust"])
-    joined = sv.join({"settings": settings, "robust": agents, "verdicts": []},
-                     {"settings": settings, "robust": [floor], "verdicts": []}, only=("oracle (non-causal)",))
+    joined = sv.join(
+        {"settings": settings, "robust": agents, "verdicts": []},
+        {"settings": settings, "robust": [floor], "verdicts": []},
+        only=("oracle (non-causal)",),
+    )
     sampled = np.array(KINDS) == "sample"
     for r in joined["robust"]:
         e = np.array(r["per_plant"]["max_um"])

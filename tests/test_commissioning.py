@@ -22,9 +22,18 @@ from vcnc_baselines.servo import NO_NOTCH, ServoGains  # noqa: E402
 
 def _axis(mode=150.0, zeta=0.05, delay=1.5e-4, noise=0.8):
     """Jahanpour et al.'s x axis on the shop floor as its nominal parameters declare it."""
-    return identify.AxisModel(mass=0.007774 / 4.7, damping=0.02 / 4.7, mode_frequency=mode, mode_damping=zeta,
-                              delay=delay, coulomb=(0.7, -0.5), fit_error=0.0, band=(0.0, 0.0), velocity_noise=noise,
-                              dt=1e-4)
+    return identify.AxisModel(
+        mass=0.007774 / 4.7,
+        damping=0.02 / 4.7,
+        mode_frequency=mode,
+        mode_damping=zeta,
+        delay=delay,
+        coulomb=(0.7, -0.5),
+        fit_error=0.0,
+        band=(0.0, 0.0),
+        velocity_noise=noise,
+        dt=1e-4,
+    )
 
 
 @pytest.mark.parametrize("f0,q,dt", [(150.0, 1.0, 1e-4), (150.0, 4.0, 1e-3), (37.5, 2.0, 1e-4)])
@@ -84,10 +93,17 @@ def test_frf_estimate_is_python_controls_response_with_the_mode():
     Pc = control.tf([1.0], [m, c, 0.0]) * control.tf([2 * zeta * w, w * w], [1.0, 2 * zeta * w, w * w])
     P = control.c2d(Pc, dt, "zoh") * control.tf([1.0], [1.0, 0.0], dt)
     r, x, u = _closed_loop_run(P, dt, n)
-    meas = identify.Measurement(r=r[None, :, None].repeat(2, 2), u=u[None, :, None].repeat(2, 2),
-                                e=-x[None, :, None].repeat(2, 2), leg_command=np.zeros((1, 0, 2)),
-                                leg_speeds=np.zeros((0, 2)), dt=dt, seconds=0.0, velocity_noise=np.zeros((1, 2)),
-                                holding_bandwidth=np.full(2, 50.0))
+    meas = identify.Measurement(
+        r=r[None, :, None].repeat(2, 2),
+        u=u[None, :, None].repeat(2, 2),
+        e=-x[None, :, None].repeat(2, 2),
+        leg_command=np.zeros((1, 0, 2)),
+        leg_speeds=np.zeros((0, 2)),
+        dt=dt,
+        seconds=0.0,
+        velocity_noise=np.zeros((1, 2)),
+        holding_bandwidth=np.full(2, 50.0),
+    )
     f, G, coh = identify.frf(meas, 0, 0)
     band = (f > 20.0) & (f < 400.0)
     truth = control.frequency_response(P, 2 * np.pi * f[band]).complex.ravel()
@@ -132,8 +148,13 @@ def test_servo_law_filters_compiled_equals_numpy():
     outs = []
     for filtered in (True, False):
         g = pol._gains_row(0)
-        gains = ServoGains(g.kp, g.kd, g.ki, velocity_filter=g.velocity_filter if filtered else None,
-                           notch=g.notch if filtered else None)
+        gains = ServoGains(
+            g.kp,
+            g.kd,
+            g.ki,
+            velocity_filter=g.velocity_filter if filtered else None,
+            notch=g.notch if filtered else None,
+        )
         for compiled in (True, False):
             pol._set_law(table, gains)
             pol.reset(n_envs=3)
@@ -235,10 +256,25 @@ def test_a_shipped_machine_run_is_the_run_on_the_cpu_it_was_made_on(tmp_path):
     stored = record.commission(task, "machine")
     record._MACHINES.clear()
     assert stored[0].identification_s > 0
-    out = subprocess.run([sys.executable, "-m", "vcnc_bench.provenance", "--like", str(SHIPPING_HOST), "--cache",
-                          str(tmp_path / "numba"), "--", sys.executable, "-c", _FRESH_RUN],
-                         env={**os.environ, "VCNC_COMMISSION_RECOMPUTE": "1"}, capture_output=True, text=True,
-                         check=True)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "vcnc_bench.provenance",
+            "--like",
+            str(SHIPPING_HOST),
+            "--cache",
+            str(tmp_path / "numba"),
+            "--",
+            sys.executable,
+            "-c",
+            _FRESH_RUN,
+        ],
+        env={**os.environ, "VCNC_COMMISSION_RECOMPUTE": "1"},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     fresh = json.loads(out.stdout.splitlines()[-1])
     assert json.loads(json.dumps({**stored[0].to_dict(), "identification_s": 0.0})) == fresh
     assert "NUMBA_CPU_NAME=znver3" in out.stderr
@@ -280,7 +316,7 @@ def test_a_machines_record_is_the_same_alone_and_in_a_batch(env_id, monkeypatch)
     P = robust.plant_set(task.plant, 2, seed=5, max_vertices=0).parameters
     batch = record.commission(task, "machine", P)
     for i in range(P.shape[0]):
-        a, b = batch[i].to_dict(), record.commission(task, "machine", P[i:i + 1])[0].to_dict()
+        a, b = batch[i].to_dict(), record.commission(task, "machine", P[i : i + 1])[0].to_dict()
         a.pop("identification_s"), b.pop("identification_s")
         assert a == b, i
 
@@ -295,12 +331,22 @@ def _friction_measurement(stribeck, coulomb, viscous, force, noise, seed=0):
     for j in range(2):
         v = speeds[:, j]
         level = np.where(v > 0, coulomb[j][0], np.where(v < 0, coulomb[j][1], 0.0))
-        curve = stribeck[j][0] * np.exp(-(v / stribeck[j][1]) ** 2) * np.sign(v)
+        curve = stribeck[j][0] * np.exp(-((v / stribeck[j][1]) ** 2)) * np.sign(v)
         command[0, :, j] = viscous[j] * v + level + curve + force[j] * v / path + noise * rng.standard_normal(len(v))
     zeros = np.zeros((1, 1, 2))
-    return identify.Measurement(r=zeros, u=zeros, e=zeros, leg_command=command, leg_speeds=speeds, dt=1e-3,
-                                seconds=0.0, velocity_noise=np.zeros((1, 2)), holding_bandwidth=np.ones(2),
-                                leg_velocity=speeds[None].copy(), leg_spread=np.zeros((1, len(speeds), 2)))
+    return identify.Measurement(
+        r=zeros,
+        u=zeros,
+        e=zeros,
+        leg_command=command,
+        leg_speeds=speeds,
+        dt=1e-3,
+        seconds=0.0,
+        velocity_noise=np.zeros((1, 2)),
+        holding_bandwidth=np.ones(2),
+        leg_velocity=speeds[None].copy(),
+        leg_spread=np.zeros((1, len(speeds), 2)),
+    )
 
 
 def test_friction_fit_is_scipys_curve_fit_and_finds_the_stribeck_curve():
@@ -309,8 +355,12 @@ def test_friction_fit_is_scipys_curve_fit_and_finds_the_stribeck_curve():
     gives on the same noisy data; a map without a Stribeck curve gets none."""
     from scipy.optimize import curve_fit
 
-    truth = dict(stribeck=((0.06, 0.7), (0.03, 1.5)), coulomb=((0.02, -0.015), (0.01, -0.01)),
-                 viscous=(0.02, 0.018), force=(0.005, 0.0))
+    truth = dict(
+        stribeck=((0.06, 0.7), (0.03, 1.5)),
+        coulomb=((0.02, -0.015), (0.01, -0.01)),
+        viscous=(0.02, 0.018),
+        force=(0.005, 0.0),
+    )
     meas = _friction_measurement(**truth, noise=2e-4)
     c, coulomb, force, stribeck = identify.friction_levels(meas, 0)
     speeds = meas.leg_speeds
@@ -321,7 +371,7 @@ def test_friction_fit_is_scipys_curve_fit_and_finds_the_stribeck_curve():
 
         def model(x, cv, fp, fm, fs, vs, F):
             vv, sh = x
-            return cv * vv + np.where(vv > 0, fp, fm) + fs * np.exp(-(vv / vs) ** 2) * np.sign(vv) + F * sh
+            return cv * vv + np.where(vv > 0, fp, fm) + fs * np.exp(-((vv / vs) ** 2)) * np.sign(vv) + F * sh
 
         ref, _ = curve_fit(model, (v, share), y, p0=(0.01, 0.01, -0.01, 0.01, 1.0, 0.0))
         ours = (c[j], coulomb[j, 0], coulomb[j, 1], stribeck[j, 0], stribeck[j, 1], force[j])
@@ -331,25 +381,37 @@ def test_friction_fit_is_scipys_curve_fit_and_finds_the_stribeck_curve():
         assert stribeck[j, 0] == pytest.approx(truth["stribeck"][j][0], rel=0.15)
         assert stribeck[j, 1] == pytest.approx(truth["stribeck"][j][1], rel=0.15)
         assert coulomb[j, 0] == pytest.approx(truth["coulomb"][j][0], abs=3e-3)
-    flat = _friction_measurement(stribeck=((0.0, 1.0), (0.0, 1.0)), **{k: v for k, v in truth.items() if k != "stribeck"},
-                                 noise=2e-4)
+    flat = _friction_measurement(
+        stribeck=((0.0, 1.0), (0.0, 1.0)), **{k: v for k, v in truth.items() if k != "stribeck"}, noise=2e-4
+    )
     assert np.all(identify.friction_levels(flat, 0)[3] == 0.0)
 
 
 def test_a_sweep_leg_counts_only_at_speed():
     """A sweep leg where the axis stuck (its mean speed far from the leg's) or stuck and slipped (its velocity's
     spread beyond LEG_SPREAD of its speed) does not enter the fit, nor does its partner (out and back)."""
-    truth = dict(stribeck=((0.06, 0.7), (0.03, 1.5)), coulomb=((0.02, -0.015), (0.01, -0.01)),
-                 viscous=(0.02, 0.018), force=(0.005, 0.0))
+    truth = dict(
+        stribeck=((0.06, 0.7), (0.03, 1.5)),
+        coulomb=((0.02, -0.015), (0.01, -0.01)),
+        viscous=(0.02, 0.018),
+        force=(0.005, 0.0),
+    )
     import dataclasses
 
     meas = _friction_measurement(**truth, noise=0.0)
     slow = np.flatnonzero(np.abs(meas.leg_speeds[:, 0]) == meas.leg_speeds[:, 0].max() / 64)
     assert slow.size == 2 and slow.min() >= identify.REVERSAL_LEGS
     keep = np.setdiff1d(np.arange(len(meas.leg_speeds)), slow)
-    clean = identify.friction_levels(dataclasses.replace(
-        meas, leg_command=meas.leg_command[:, keep], leg_speeds=meas.leg_speeds[keep],
-        leg_velocity=meas.leg_velocity[:, keep], leg_spread=meas.leg_spread[:, keep]), 0)
+    clean = identify.friction_levels(
+        dataclasses.replace(
+            meas,
+            leg_command=meas.leg_command[:, keep],
+            leg_speeds=meas.leg_speeds[keep],
+            leg_velocity=meas.leg_velocity[:, keep],
+            leg_spread=meas.leg_spread[:, keep],
+        ),
+        0,
+    )
     meas.leg_command[0, slow] = -meas.leg_command[0, slow]  # what a stuck axis' holding loop would show
     meas.leg_velocity[0, slow] = 0.0
     for a, b in zip(clean, identify.friction_levels(meas, 0)):
@@ -369,8 +431,12 @@ def test_friction_fit_takes_out_an_unsettled_legs_acceleration():
     the scheduled speeds and the raw commands (the fit before this change) are biased by several per cent."""
     import dataclasses
 
-    truth = dict(stribeck=((0.0, 1.0), (0.0, 1.0)), coulomb=((0.7, -0.5), (0.7, -0.68)),
-                 viscous=(0.0043, 0.0052), force=(0.0, 0.0))
+    truth = dict(
+        stribeck=((0.0, 1.0), (0.0, 1.0)),
+        coulomb=((0.7, -0.5), (0.7, -0.68)),
+        viscous=(0.0043, 0.0052),
+        force=(0.0, 0.0),
+    )
     meas = _friction_measurement(**truth, noise=0.0)
     speeds = meas.leg_speeds
     rng = np.random.default_rng(3)
@@ -380,10 +446,13 @@ def test_friction_fit_takes_out_an_unsettled_legs_acceleration():
     command = np.zeros_like(meas.leg_command)
     for j in range(2):
         v = measured[:, j]
-        level = np.where(speeds[:, j] > 0, truth["coulomb"][j][0], np.where(speeds[:, j] < 0, truth["coulomb"][j][1], 0))
+        level = np.where(
+            speeds[:, j] > 0, truth["coulomb"][j][0], np.where(speeds[:, j] < 0, truth["coulomb"][j][1], 0)
+        )
         command[0, :, j] = truth["viscous"][j] * v + level + mass[j] * acceleration[:, j]
-    meas = dataclasses.replace(meas, leg_command=command, leg_velocity=measured[None],
-                               leg_acceleration=acceleration[None])
+    meas = dataclasses.replace(
+        meas, leg_command=command, leg_velocity=measured[None], leg_acceleration=acceleration[None]
+    )
     c, coulomb, force, stribeck = identify.friction_levels(meas, 0, mass=mass)
     np.testing.assert_allclose(c, truth["viscous"], rtol=1e-6)
     np.testing.assert_allclose(coulomb, truth["coulomb"], rtol=1e-6)
@@ -420,8 +489,9 @@ def test_no_mode_beyond_the_band_on_purtojos_table(env_id):
     env = gym.make(env_id)
     task = env.unwrapped.task
     names = task.plant.parameter_names
-    models, _ = identify.identify(task, task.nominal_parameters, task.plant.inverse(task.nominal_parameters),
-                                  identify.Experiment(sweep_steps=0))
+    models, _ = identify.identify(
+        task, task.nominal_parameters, task.plant.inverse(task.nominal_parameters), identify.Experiment(sweep_steps=0)
+    )
     for j, a in enumerate(models[0]):
         K, alpha = (task.nominal_parameters[j, names.index(n)] for n in ("K", "alpha"))
         assert a.mass == pytest.approx(1.0 / (K * alpha), rel=0.03)

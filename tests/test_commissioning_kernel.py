@@ -20,8 +20,10 @@ def _bench():
     return benchmark_script("identification_loop")
 
 
-@pytest.mark.parametrize("env_id", ["VCNC-HeartShop-v1", "VCNC-Heart-v1", "VCNC-Circle-v1", "VCNC-CircleShop-v1",
-                                    "VCNC-CornersSmoothShop-v1"])
+@pytest.mark.parametrize(
+    "env_id",
+    ["VCNC-HeartShop-v1", "VCNC-Heart-v1", "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-CornersSmoothShop-v1"],
+)
 def test_the_kernel_loop_is_the_numpy_loop_to_the_bit(env_id):
     bench = _bench()
     task = gym.make(env_id).unwrapped.task

@@ -113,8 +113,9 @@ class Oracle:
         best = (float(ds[k0]), float(self.v[k0]))
         # lower bounds per sample interval: any curve point between samples k and k+1 is
         # within (arc <= 2 chord) / 2 of one of them, and within sag_k of their chord
-        lower = np.maximum(np.minimum(ds[:-1], ds[1:]) - self.chord,
-                           self._segment_distance(q, self.pts[:-1], self.pts[1:]) - self.sag)
+        lower = np.maximum(
+            np.minimum(ds[:-1], ds[1:]) - self.chord, self._segment_distance(q, self.pts[:-1], self.pts[1:]) - self.sag
+        )
         for k in np.argsort(lower):
             if lower[k] > best[0]:
                 break
@@ -319,8 +320,11 @@ def test_omega_corner_centre_regression():
     curve = omega()
     proj = ContourProjector(curve)
     oracle = Oracle(curve)
-    qs = [[5.09364798612845, 0.6044378774866681], [5.0936355759589516, 0.604450849148157],
-          [10.906375037398636, 0.6044576725115884]]
+    qs = [
+        [5.09364798612845, 0.6044378774866681],
+        [5.0936355759589516, 0.604450849148157],
+        [10.906375037398636, 0.6044576725115884],
+    ]
     check_against_oracle("omega", curve, proj, oracle, qs, "corner-centre regression")
 
 
@@ -431,12 +435,15 @@ def test_single_point_and_batch_agree(setup):
 # --------------------------------------------------------------------------- bad input
 
 
-@pytest.mark.parametrize("bad", [
-    [np.nan, 0.0],
-    [0.0, np.inf],
-    [-np.inf, 1.0],
-    [[1.0, 2.0], [np.nan, np.nan]],
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        [np.nan, 0.0],
+        [0.0, np.inf],
+        [-np.inf, 1.0],
+        [[1.0, 2.0], [np.nan, np.nan]],
+    ],
+)
 def test_non_finite_points_raise(bad):
     proj = ContourProjector(omega())
     with pytest.raises(ValueError, match="points must be finite"):
@@ -445,8 +452,9 @@ def test_non_finite_points_raise(bad):
         proj.contour_error(bad)
 
 
-@pytest.mark.parametrize("kw", [{"piece_length": 0.0}, {"cell_size": -1.0}, {"margin": np.nan},
-                                {"piece_length": np.inf}])
+@pytest.mark.parametrize(
+    "kw", [{"piece_length": 0.0}, {"cell_size": -1.0}, {"margin": np.nan}, {"piece_length": np.inf}]
+)
 def test_bad_projector_parameters_raise(kw):
     with pytest.raises(ValueError, match="must be positive and finite"):
         ContourProjector(omega(), **kw)

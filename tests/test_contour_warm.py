@@ -74,8 +74,7 @@ def check_warm(proj, q, d_warm, u_warm, label):
     d_glob, _u = proj.project(q)
     dev = np.abs(d_warm - d_glob)
     worst = int(np.argmax(dev))
-    assert dev[worst] < TOL, (f"{label}: warm {d_warm[worst]!r} vs global {d_glob[worst]!r} "
-                              f"at q={q[worst].tolist()}")
+    assert dev[worst] < TOL, f"{label}: warm {d_warm[worst]!r} vs global {d_glob[worst]!r} at q={q[worst].tolist()}"
     lo, hi = proj.curve.u_range
     assert np.all((u_warm >= lo) & (u_warm <= hi))
     foot = np.linalg.norm(proj.curve.points(u_warm) - q, axis=1)
@@ -252,10 +251,18 @@ def test_non_finite_points_in_the_kernels():
     the NaN foot then means "no previous foot"."""
     proj = ContourProjector(heart())
     args = (proj.arrays, np.empty((3, 2)))
-    for qx, qy, want in ((np.nan, 1.0, np.nan), (1.0, np.nan, np.nan), (np.inf, 0.0, np.inf),
-                         (0.0, -np.inf, np.inf), (np.nan, np.inf, np.nan)):
-        for d, u in (project_point(qx, qy, *args), project_point_warm(qx, qy, 1.0, *args),
-                     project_point_warm(qx, qy, NO_FOOT, *args)):
+    for qx, qy, want in (
+        (np.nan, 1.0, np.nan),
+        (1.0, np.nan, np.nan),
+        (np.inf, 0.0, np.inf),
+        (0.0, -np.inf, np.inf),
+        (np.nan, np.inf, np.nan),
+    ):
+        for d, u in (
+            project_point(qx, qy, *args),
+            project_point_warm(qx, qy, 1.0, *args),
+            project_point_warm(qx, qy, NO_FOOT, *args),
+        ):
             assert (math.isnan(d) if math.isnan(want) else d == want) and math.isnan(u)
 
 
@@ -299,8 +306,13 @@ def test_concurrent_calls_from_prange_threads():
     shape = Shape("heart")
     rng = np.random.default_rng(91)
     n_machines, steps = 8, 3000
-    paths = np.stack([shape.path[rng.integers(0, len(shape.path) - steps):][:steps]
-                      + walk(rng, steps, 0.0, 0.02 + 0.5 * (m % 3), 0.002) for m in range(n_machines)])
+    paths = np.stack(
+        [
+            shape.path[rng.integers(0, len(shape.path) - steps) :][:steps]
+            + walk(rng, steps, 0.0, 0.02 + 0.5 * (m % 3), 0.002)
+            for m in range(n_machines)
+        ]
+    )
     dist = np.empty((n_machines, steps))
     feet = np.empty((n_machines, steps))
     der = np.zeros((n_machines, 3, 2))
@@ -368,9 +380,12 @@ def test_convexity_bounds_hold_on_dense_samples(projectors):
         for _ in range(40):
             q = c[:, mid] + rng.normal(0.0, 1.0, (n, 2)) * 10.0 ** rng.uniform(-4, math.log10(5.0), (n, 1))
             q = np.where(rng.random((n, 1)) < 0.3, centre + rng.normal(0.0, 0.2, (n, 2)), q)
-            m = t[:-1, P._CONVEX:P._CONVEX + 2] - q
-            bound = (t[:-1, P._CONVEX + 5] + np.sum(m * t[:-1, P._CONVEX + 2:P._CONVEX + 4], axis=1)
-                     - np.linalg.norm(m, axis=1) * t[:-1, P._CONVEX + 4])
+            m = t[:-1, P._CONVEX : P._CONVEX + 2] - q
+            bound = (
+                t[:-1, P._CONVEX + 5]
+                + np.sum(m * t[:-1, P._CONVEX + 2 : P._CONVEX + 4], axis=1)
+                - np.linalg.norm(m, axis=1) * t[:-1, P._CONVEX + 4]
+            )
             g2 = np.sum(d1 * d1, axis=-1) + np.sum((c - q[:, None, :]) * d2, axis=-1)
             convex = bound > 0.0
             claimed += convex.sum()
@@ -398,5 +413,4 @@ def test_isolation_radii_hold_on_dense_samples(projectors):
                 continue
             near = tree.query_ball_point(pts[owner == i], rho[i])
             others = {j for hits in near for j in owner[hits] if abs(j - i) > 1}
-            assert not others, (f"degree {proj.curve.degree}: piece {i} within {rho[i]} mm of "
-                                f"{sorted(others)[:5]}")
+            assert not others, f"degree {proj.curve.degree}: piece {i} within {rho[i]} mm of {sorted(others)[:5]}"

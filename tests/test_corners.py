@@ -168,7 +168,9 @@ def test_eq13_is_the_distance_from_the_corner_to_the_blend(theta_deg, n):
     i = int(np.argmin(dist))
     res = minimize_scalar(
         lambda x: float(np.linalg.norm(eq12(p, [x])[0])),
-        bounds=(h[max(i - 1, 0)], h[min(i + 1, 2000)]), method="bounded", options={"xatol": 1e-12},
+        bounds=(h[max(i - 1, 0)], h[min(i + 1, 2000)]),
+        method="bounded",
+        options={"xatol": 1e-12},
     )
     assert abs(res.fun - EPS) < 1e-12
     assert abs(res.x - 0.5) < 1e-5  # on the bisector
@@ -180,7 +182,9 @@ def test_epsilon_on_simba_path(path):
     for k, g in enumerate(path.vertices[1:-1]):
         u0, u1 = path.blend_u[k]
         res = minimize_scalar(
-            lambda u: float(np.linalg.norm(curve.point(u) - g)), bounds=(u0, u1), method="bounded",
+            lambda u: float(np.linalg.norm(curve.point(u) - g)),
+            bounds=(u0, u1),
+            method="bounded",
             options={"xatol": 1e-12},
         )
         assert abs(res.fun - EPS) < 1e-12

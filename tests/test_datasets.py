@@ -50,9 +50,17 @@ def tiny(tmp_path_factory):
     mp.setenv("MINARI_DATASETS_PATH", str(root))
     env = gym.make(ENV, **KWARGS)
     # the controller built directly (resolve_policy("pd-ref", env) is the same; it loads every bench kind, torch too)
-    report = datasets.write_dataset(ENV, "pd-ref", parameters=env.unwrapped.nominal_parameters[None],
-                                    kinds=["nominal"], scores=SCORES, command="pytest tiny", seed=3,
-                                    env_kwargs=KWARGS, policy=make("pd-ref", env))
+    report = datasets.write_dataset(
+        ENV,
+        "pd-ref",
+        parameters=env.unwrapped.nominal_parameters[None],
+        kinds=["nominal"],
+        scores=SCORES,
+        command="pytest tiny",
+        seed=3,
+        env_kwargs=KWARGS,
+        policy=make("pd-ref", env),
+    )
     yield report, minari.load_dataset(report.dataset_id)
     mp.undo()
 
@@ -61,8 +69,11 @@ def test_dataset_ids_follow_minaris_rules():
     from minari.dataset.minari_dataset import parse_dataset_id
 
     assert datasets.dataset_id("VCNC-HeartShop-v1", "pd-ref") == "vcnc/HeartShop-v1/pd-ref-v0"
-    assert parse_dataset_id(datasets.dataset_id("VCNC-Circle-v1", "zpetc@machine")) == \
-        ("vcnc/Circle-v1", "zpetc_machine", 0)
+    assert parse_dataset_id(datasets.dataset_id("VCNC-Circle-v1", "zpetc@machine")) == (
+        "vcnc/Circle-v1",
+        "zpetc_machine",
+        0,
+    )
     with pytest.raises(ValueError, match="policy"):
         datasets.dataset_id(ENV, "")
 
@@ -82,8 +93,16 @@ def test_a_tiny_dataset_reads_back_as_the_policys_own_episode(tiny):
     for key in ("ref_min_score", "ref_max_score", "env_spec", "algorithm_name", "description", "requirements"):
         assert key in meta, key
     v = meta["vcnc"]
-    for key in ("command", "code_version", "policy", "non_causal", "score", "plant_parameters", "reset_seeds",
-                "episodes"):
+    for key in (
+        "command",
+        "code_version",
+        "policy",
+        "non_causal",
+        "score",
+        "plant_parameters",
+        "reset_seeds",
+        "episodes",
+    ):
         assert key in v, key
     assert v["command"] == "pytest tiny" and v["non_causal"] is False and v["reset_seeds"] == [3]
     assert v["code_version"]["vcnc_gym"] == vcnc_gym.__version__
@@ -102,8 +121,15 @@ def test_an_existing_dataset_is_not_overwritten_unless_asked(tiny, monkeypatch):
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(report.path.parent.parent.parent))
     env = gym.make(ENV, **KWARGS)
     with pytest.raises(ValueError, match="overwrite"):
-        datasets.write_dataset(ENV, "pd-ref", parameters=env.unwrapped.nominal_parameters[None], kinds=["nominal"],
-                               scores=SCORES, command="again", env_kwargs=KWARGS)
+        datasets.write_dataset(
+            ENV,
+            "pd-ref",
+            parameters=env.unwrapped.nominal_parameters[None],
+            kinds=["nominal"],
+            scores=SCORES,
+            command="again",
+            env_kwargs=KWARGS,
+        )
 
 
 @pytest.mark.slow  # torch and Stable-Baselines3 imported (agents): ~10 s before the fit

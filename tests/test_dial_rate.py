@@ -72,8 +72,14 @@ def test_the_bench_s_policy_turns_the_dial_the_wrapper_turned():
 
     mode = ActionMode("residual", 20, "ff-pid-online", 0.1, dial_rate=RATE)
     plain = Recorder(gym.make(OMEGA, action_repeat=1))
-    model = PPO("MlpPolicy", _spaces_only(plain.observation_space, plain.action_space, 1), n_steps=8, batch_size=8,
-                seed=0, policy_kwargs={"log_std_init": 0.0})
+    model = PPO(
+        "MlpPolicy",
+        _spaces_only(plain.observation_space, plain.action_space, 1),
+        n_steps=8,
+        batch_size=8,
+        seed=0,
+        policy_kwargs={"log_std_init": 0.0},
+    )
     with np.errstate(all="ignore"):
         for p in model.policy.action_net.parameters():  # a dial that swings: the rate binds
             p.data.mul_(50.0)

@@ -24,12 +24,18 @@ import pytest
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 #: ```python ... ``` or ```{code-block} python ... ``` with its :option: lines
-_FENCE = re.compile(r"^```(?:python|\{code-block\} python)[ \t]*\n((?::[\w-]+:[^\n]*\n)*)(.*?)^```[ \t]*$",
-                    re.MULTILINE | re.DOTALL)
+_FENCE = re.compile(
+    r"^```(?:python|\{code-block\} python)[ \t]*\n((?::[\w-]+:[^\n]*\n)*)(.*?)^```[ \t]*$", re.MULTILINE | re.DOTALL
+)
 
-PAGES = ["getting-started.md", "guides/add-a-plant.md", "guides/add-a-contour.md", "guides/add-a-controller.md",
-         "guides/add-a-training-option.md",
-         "guides/add-a-shop-floor-effect.md"]
+PAGES = [
+    "getting-started.md",
+    "guides/add-a-plant.md",
+    "guides/add-a-contour.md",
+    "guides/add-a-controller.md",
+    "guides/add-a-training-option.md",
+    "guides/add-a-shop-floor-effect.md",
+]
 
 
 def code_blocks(page: Path) -> list[tuple[str | None, str]]:
@@ -43,8 +49,10 @@ def code_blocks(page: Path) -> list[tuple[str | None, str]]:
 
 def test_the_block_reader_finds_both_fence_kinds(tmp_path):
     page = tmp_path / "page.md"
-    page.write_text("intro\n```python\nx = 1\n```\n\n```{code-block} python\n:caption: mod.py\n\ny = 2\n```\n"
-                    "```diff\n+z\n```\n```bash\nmake\n```\n")
+    page.write_text(
+        "intro\n```python\nx = 1\n```\n\n```{code-block} python\n:caption: mod.py\n\ny = 2\n```\n"
+        "```diff\n+z\n```\n```bash\nmake\n```\n"
+    )
     assert code_blocks(page) == [(None, "x = 1\n"), ("mod.py", "\ny = 2\n")]
 
 
@@ -84,18 +92,23 @@ def _script(page: Path, folder: Path) -> Path:
         (folder / f"{hashed}.py").write_text(code)
         modules.append((stem, hashed))
     assert body, f"{page} has no Python block to run"
-    head = _HEAD.format(modules=tuple(modules)) + "\n".join(
-        f"sys.modules[{stem!r}] = importlib.import_module({hashed!r})" for stem, hashed in modules) + "\n"
+    head = (
+        _HEAD.format(modules=tuple(modules))
+        + "\n".join(f"sys.modules[{stem!r}] = importlib.import_module({hashed!r})" for stem, hashed in modules)
+        + "\n"
+    )
     script = folder / "page.py"
     script.write_text(head + "\n".join(body))
     return script
 
 
-@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if "plant" in p or "effect" in p else p
-                                  for p in PAGES])
+@pytest.mark.parametrize(
+    "page", [pytest.param(p, marks=pytest.mark.slow) if "plant" in p or "effect" in p else p for p in PAGES]
+)
 def test_page_code_runs(page, tmp_path):
     script = _script(DOCS / page, tmp_path)
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=600)
+    proc = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+    )
     assert proc.returncode == 0, f"{page}'s code failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-6000:]}"

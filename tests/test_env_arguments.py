@@ -19,29 +19,32 @@ from vcnc_gym.geometry import NurbsCurve
 OMEGA = "VCNC-Omega-v1"
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"randomize": "no"}, "randomize must be True or False"),
-    ({"randomize": 1}, "randomize must be True or False"),
-    ({"preview_steps": (2.7,)}, "preview_steps"),
-    ({"preview_steps": 10}, "preview_steps"),
-    ({"preview_steps": (True,)}, "preview_steps"),  # () is no preview field (the ablations)
-    ({"preview_steps": (0, 5)}, "preview_steps"),
-    ({"dt": 0.1}, r"dt=0.1 s is outside"),
-    ({"dt": 1e-9}, r"outside"),
-    ({"dt": "1e-4"}, "dt must be a real number"),
-    ({"dt": 1e-4 + 0j}, "dt must be a real number"),
-    ({"action_repeat": 10**9}, "longer than the whole episode"),
-    ({"action_repeat": 0}, "action_repeat must be an integer >= 1"),
-    ({"action_repeat": 2.0}, "action_repeat must be an integer"),
-    ({"action_repeat": True}, "action_repeat must be an integer"),
-    ({"reward_scale": float("nan")}, "reward_scale must be finite"),
-    ({"divergence_bound": -1.0}, "divergence_bound must be > 0"),
-    ({"plant": "nope"}, "unknown plant 'nope'"),
-    ({"plant_options": {"substeps": 3}}, r"unknown option\(s\) \['substeps'\]"),
-    ({"plant_options": {"substep": 0.0}}, "substep must be > 0"),
-    ({"max_episode_steps": 0}, "max_episode_steps must be an integer >= 1"),
-    ({"contour": "circle-ish"}, "contour must be one of"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"randomize": "no"}, "randomize must be True or False"),
+        ({"randomize": 1}, "randomize must be True or False"),
+        ({"preview_steps": (2.7,)}, "preview_steps"),
+        ({"preview_steps": 10}, "preview_steps"),
+        ({"preview_steps": (True,)}, "preview_steps"),  # () is no preview field (the ablations)
+        ({"preview_steps": (0, 5)}, "preview_steps"),
+        ({"dt": 0.1}, r"dt=0.1 s is outside"),
+        ({"dt": 1e-9}, r"outside"),
+        ({"dt": "1e-4"}, "dt must be a real number"),
+        ({"dt": 1e-4 + 0j}, "dt must be a real number"),
+        ({"action_repeat": 10**9}, "longer than the whole episode"),
+        ({"action_repeat": 0}, "action_repeat must be an integer >= 1"),
+        ({"action_repeat": 2.0}, "action_repeat must be an integer"),
+        ({"action_repeat": True}, "action_repeat must be an integer"),
+        ({"reward_scale": float("nan")}, "reward_scale must be finite"),
+        ({"divergence_bound": -1.0}, "divergence_bound must be > 0"),
+        ({"plant": "nope"}, "unknown plant 'nope'"),
+        ({"plant_options": {"substeps": 3}}, r"unknown option\(s\) \['substeps'\]"),
+        ({"plant_options": {"substep": 0.0}}, "substep must be > 0"),
+        ({"max_episode_steps": 0}, "max_episode_steps must be an integer >= 1"),
+        ({"contour": "circle-ish"}, "contour must be one of"),
+    ],
+)
 def test_bad_arguments_raise_naming_the_argument(kwargs, message):
     with pytest.raises(ValueError, match=message):
         vcnc_gym.ContouringEnv(**{"contour": "omega", **kwargs})
@@ -64,16 +67,19 @@ def test_an_infinite_input_limit_is_refused():
         env.reset(options={"parameters": p})
 
 
-@pytest.mark.parametrize("action, message", [
-    (np.array([0.1, 0.2, 0.3]), "shape"),
-    (np.array([[0.1, 0.2]]), "shape"),
-    (np.array([np.nan, 0.0]), "finite"),
-    (np.array([np.inf, 0.0]), "finite"),
-    (np.array([0.1 + 1j, 0.0]), "real"),
-    (np.array(["0.1", "0.2"]), "real"),
-    (["a", "b"], "real"),
-    (np.array([True, False]), "real"),
-])
+@pytest.mark.parametrize(
+    "action, message",
+    [
+        (np.array([0.1, 0.2, 0.3]), "shape"),
+        (np.array([[0.1, 0.2]]), "shape"),
+        (np.array([np.nan, 0.0]), "finite"),
+        (np.array([np.inf, 0.0]), "finite"),
+        (np.array([0.1 + 1j, 0.0]), "real"),
+        (np.array(["0.1", "0.2"]), "real"),
+        (["a", "b"], "real"),
+        (np.array([True, False]), "real"),
+    ],
+)
 def test_bad_actions_raise(action, message):
     env = gym.make(OMEGA)
     env.reset(seed=0)
@@ -98,8 +104,9 @@ def test_a_large_divergence_bound_costs_no_memory():
 
 def test_far_contours_are_observed_without_clipping():
     """A contour at x = 1500 mm: the position bound follows the contour instead of clipping at 1000 mm."""
-    curve = NurbsCurve(np.array([[1500.0, 0.0], [1510.0, 5.0], [1520.0, 0.0]]), np.ones(3),
-                       np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]), 2)
+    curve = NurbsCurve(
+        np.array([[1500.0, 0.0], [1510.0, 5.0], [1520.0, 0.0]]), np.ones(3), np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]), 2
+    )
     env = vcnc_gym.ContouringEnv(contour=curve, feedrate=20.0, ramp_time=0.05)
     obs, _ = env.reset(seed=0)
     assert env.layout.reference_position(obs)[0] == pytest.approx(1500.0)

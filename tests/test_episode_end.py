@@ -35,7 +35,7 @@ class GeomdlPath:
         v = float(np.interp(min(s, self.s[-1]), self.s, self.v))
         d = np.array(self.g.derivatives(v, order=2))
         speed = np.linalg.norm(d[1])
-        kappa = (d[1][0] * d[2][1] - d[1][1] * d[2][0]) / speed ** 3
+        kappa = (d[1][0] * d[2][1] - d[1][1] * d[2][0]) / speed**3
         return d[0], d[1] / speed, kappa
 
 
@@ -69,8 +69,9 @@ def test_the_episode_ends_when_the_tool_arrives():
 
 def test_a_tool_still_short_of_the_end_at_the_time_limit_is_penalised_and_incomplete():
     # SMC arrives at the reference's end on the omega; without any wait and with a 0.1 um band it cannot
-    env, infos, reward, terminated, truncated = _smc_episode("VCNC-Omega-v1", completion_timeout=0.0,
-                                                             completion_tolerance=1e-4)
+    env, infos, reward, terminated, truncated = _smc_episode(
+        "VCNC-Omega-v1", completion_timeout=0.0, completion_tolerance=1e-4
+    )
     u = env.unwrapped
     last = infos[-1]
     assert terminated and not last["completed"] and not last["diverged"] and "cycle_time" not in last
@@ -108,8 +109,9 @@ def test_the_contour_ahead_matches_geomdl(env_id):
     u = env.unwrapped
     lay = u.layout
     path = GeomdlPath(u.curve)
-    policy = vcnc_baselines.make({"VCNC-Omega-v1": "qft", "VCNC-CornersSmooth-v1": "contouring-fb",
-                             "VCNC-Circle-v1": "nctf"}[env_id], env)
+    policy = vcnc_baselines.make(
+        {"VCNC-Omega-v1": "qft", "VCNC-CornersSmooth-v1": "contouring-fb", "VCNC-Circle-v1": "nctf"}[env_id], env
+    )
     obs, _ = env.reset(seed=0)
     checked = 0
     for t in range(4000):
@@ -124,8 +126,11 @@ def test_the_contour_ahead_matches_geomdl(env_id):
                 np.testing.assert_allclose(lay.contour_preview(obs)[j], [tangent @ rel, normal @ rel], atol=1e-4)
                 # curvature: linear between samples, so within the exact values around the point
                 near = [path.at_arc(info["progress"] + ahead + d)[2] for d in (-0.02, 0.0, 0.02)]
-                assert min(near) - 1e-3 * abs(kappa) - 1e-4 <= lay.contour_curvature(obs)[j] <= \
-                    max(near) + 1e-3 * abs(kappa) + 1e-4
+                assert (
+                    min(near) - 1e-3 * abs(kappa) - 1e-4
+                    <= lay.contour_curvature(obs)[j]
+                    <= max(near) + 1e-3 * abs(kappa) + 1e-4
+                )
             checked += 1
         if terminated or truncated:
             break
@@ -137,10 +142,14 @@ def test_v0_ids_keep_their_episode_and_observation():
     and the observation has no contour preview; their shared fields equal v1's."""
     tolerance_v1 = {"VCNC-OmegaTolerance-v1", "VCNC-OmegaToleranceShop-v1"}  # their look-ahead at full feed at once
     assert {e.id for e in LEGACY if not e.id.endswith("-v0")} == tolerance_v1
-    assert {e.id for e in LEGACY if e.id.endswith("-v0")} == {e.id.replace("-v1", "-v0") for e in SUITE
-                                      if e.contouring and e.kwargs.get("profile") != "lookahead"
-                                      and "shop_floor" not in e.kwargs  # the shop-floor ids began at v1
-                                      and "program" not in e.kwargs}  # so did the G-code ids
+    assert {e.id for e in LEGACY if e.id.endswith("-v0")} == {
+        e.id.replace("-v1", "-v0")
+        for e in SUITE
+        if e.contouring
+        and e.kwargs.get("profile") != "lookahead"
+        and "shop_floor" not in e.kwargs  # the shop-floor ids began at v1
+        and "program" not in e.kwargs
+    }  # so did the G-code ids
     v0 = gym.make("VCNC-Omega-v0").unwrapped
     v1 = gym.make("VCNC-Omega-v1").unwrapped
     assert v0.observation_space.shape == (21,) and v0.layout.contour_ahead == ()
@@ -157,8 +166,7 @@ def test_v0_ids_keep_their_episode_and_observation():
 
 
 def test_the_vector_env_reports_cycle_times_only_for_arrived_envs():
-    env = gym.make_vec("VCNC-Omega-v1", num_envs=3, vectorization_mode="vector_entry_point",
-                       autoreset_mode="Disabled")
+    env = gym.make_vec("VCNC-Omega-v1", num_envs=3, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
     single = gym.make("VCNC-Omega-v1")
     policy = vcnc_baselines.make("smc", single)
     obs, info = env.reset(seed=0)

@@ -65,15 +65,18 @@ def test_constant_override_is_the_slower_scurve(omega, s):
     the interpolators' own differences (0.2 um, 0.1 mm/s)."""
     original = omega.task.reference_arrays.samples
     dt = omega.task.dt
-    slow = pack_reference(omega.curve, interpolate(omega.curve, SCurveFeedrate(feedrate=100.0 * s,
-                                                                             ramp_time=0.12 / s), dt))
+    slow = pack_reference(
+        omega.curve, interpolate(omega.curve, SCurveFeedrate(feedrate=100.0 * s, ramp_time=0.12 / s), dt)
+    )
     n = slow.shape[0]
     out = padded_reference(original, n)
     retime(original, out, 1, n - 1, n - 1, 0.0, s, s, 0.1, dt)
     position = np.hypot(*(out[:n, :2] - slow[:, :2]).T)
     assert position.max() < 2e-4  # mm
-    assert np.abs(out[:n, sk.REF_VELOCITY:sk.REF_VELOCITY + 2] - slow[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-                  ).max() < 0.1  # mm/s: the two interpolations' timing differs by microseconds, and the
+    assert (
+        np.abs(out[:n, sk.REF_VELOCITY : sk.REF_VELOCITY + 2] - slow[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]).max()
+        < 0.1
+    )  # mm/s: the two interpolations' timing differs by microseconds, and the
     # velocity turns at 2e4 (s = 0.37) to 5e4 deg/s in the 0.19 mm corners
     assert np.abs(out[:n, sk.REF_ARC] - slow[:, sk.REF_ARC]).max() < 1e-3
 
@@ -102,8 +105,12 @@ def test_bad_arguments_and_actions_are_named():
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(3,\)"):
         env.step(np.zeros(2))
-    for kwargs, word in (({"time_limit": 0.5}, "time_limit"), ({"time_cost": -1.0}, "time_cost"),
-                         ({"override_rate": 0.0}, "override_rate"), ({"completion_timeout": 1.0}, "time_limit")):
+    for kwargs, word in (
+        ({"time_limit": 0.5}, "time_limit"),
+        ({"time_cost": -1.0}, "time_cost"),
+        ({"override_rate": 0.0}, "override_rate"),
+        ({"completion_timeout": 1.0}, "time_limit"),
+    ):
         with pytest.raises(ValueError, match=word):
             gym.make(ID, **kwargs)
     with pytest.raises(ValueError, match="ff-pid-online"):
@@ -144,8 +151,8 @@ def test_online_feedforward_is_the_tables_linear_part(omega):
     online = vcnc_baselines.make("ff-pid-online", omega)
     samples = omega.task.reference_arrays.samples
     table = inverse_feedforward(online.inverse, samples, omega.dt, friction=False, backlash=False)
-    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-    a = samples[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2]
+    v = samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
+    a = samples[:, sk.REF_ACCELERATION : sk.REF_ACCELERATION + 2]
     c = online.inverse.coefficients
     mine = c[:, 0] * (v + 0.5 * omega.dt * a) + c[:, 1] * a
     smooth = np.all(np.abs(np.diff(a, axis=0)) < 1e3, axis=1)  # away from the NURBS' acceleration steps
@@ -191,11 +198,11 @@ def test_online_law_per_machine_is_each_machines_law_alone_compiled_and_in_numpy
     both.plan(held)
     assert both.notched.all()
     rng = np.random.default_rng(4)
-    obs = (rng.normal(size=(40, 2, u.layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(1, 2, u.layout.size)))
+    obs = rng.normal(size=(40, 2, u.layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(1, 2, u.layout.size))
     alone = []
     for i in range(2):
         policy = vcnc_baselines.make("ff-pid-online@machine", u)
-        policy.plan(type(held)(parameters=params[i:i + 1], task=u.task))
+        policy.plan(type(held)(parameters=params[i : i + 1], task=u.task))
         alone.append(policy)
     for dtype in (np.float32, np.float64):
         for k, o in enumerate(obs.astype(dtype)):
@@ -251,12 +258,20 @@ def test_the_front_keeps_exactly_the_points_nothing_beats():
     from vcnc_bench.reports.feed_override import FrontPoint, pareto
 
     rng = np.random.default_rng(0)
-    points = [FrontPoint("p", str(k), float(t), float(m), 0.0, "planned")
-              for k, (t, m) in enumerate(zip(rng.choice([0.7, 0.8, 0.9, 1.0, np.inf], 60), rng.uniform(1, 9, 60)))]
+    points = [
+        FrontPoint("p", str(k), float(t), float(m), 0.0, "planned")
+        for k, (t, m) in enumerate(zip(rng.choice([0.7, 0.8, 0.9, 1.0, np.inf], 60), rng.uniform(1, 9, 60)))
+    ]
     mine = pareto(points)
-    brute = [p for p in points if np.isfinite(p.cycle_time_s) and not any(
-        q is not p and np.isfinite(q.cycle_time_s) and q.cycle_time_s <= p.cycle_time_s and q.max_um < p.max_um
-        for q in points)]
+    brute = [
+        p
+        for p in points
+        if np.isfinite(p.cycle_time_s)
+        and not any(
+            q is not p and np.isfinite(q.cycle_time_s) and q.cycle_time_s <= p.cycle_time_s and q.max_um < p.max_um
+            for q in points
+        )
+    ]
     assert sorted(mine, key=lambda p: p.setting) == sorted(brute, key=lambda p: p.setting)
     assert [p.cycle_time_s for p in mine] == sorted(p.cycle_time_s for p in mine)
 
@@ -301,9 +316,13 @@ def test_the_fronts_json_reads_back_and_replots(tmp_path):
     included), and --replot draws them on one grid without running anything."""
     from vcnc_bench.reports.feed_override import FrontPoint, _write_json, main, read_fronts
 
-    fronts = {"VCNC-Heart-v1": [FrontPoint("ff-pid", "100 mm/s", 3.22, 1.9, 0.05, "planned"),
-                                FrontPoint("mpcc", "v_max 35 mm/s", float("inf"), 4.0, 0.3, "mpcc")],
-              "VCNC-Circle-v1": [FrontPoint("zpetc", "1 mm/s", 6.284, 0.55, 0.1, "planned")]}
+    fronts = {
+        "VCNC-Heart-v1": [
+            FrontPoint("ff-pid", "100 mm/s", 3.22, 1.9, 0.05, "planned"),
+            FrontPoint("mpcc", "v_max 35 mm/s", float("inf"), 4.0, 0.3, "mpcc"),
+        ],
+        "VCNC-Circle-v1": [FrontPoint("zpetc", "1 mm/s", 6.284, 0.55, 0.1, "planned")],
+    }
     _write_json(fronts, tmp_path / "f.json")
     assert read_fronts([tmp_path / "f.json"]) == fronts
     assert main(["--replot", str(tmp_path / "f.json"), "--plot", str(tmp_path / "grid.png")]) == 0

@@ -13,12 +13,26 @@ from vcnc_gym.envs.feed_override_env import MAX_TIME_LIMIT
 ID = "VCNC-OmegaOverride-v1"
 
 
-@pytest.mark.parametrize("name, value", [("time_cost", "1"), ("time_cost", True), ("time_cost", -1.0),
-                                         ("time_limit", True), ("time_limit", "3"), ("time_limit", 0.5),
-                                         ("override_rate", False), ("override_rate", "10"),
-                                         ("max_override", True), ("max_override", 0.9), ("max_override", 2.0),
-                                         ("lookahead", (100.0,)), ("lookahead", "fast"), ("lookahead", (0.0, 1e3)),
-                                         ("lookahead", (100.0, "1000"))])
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("time_cost", "1"),
+        ("time_cost", True),
+        ("time_cost", -1.0),
+        ("time_limit", True),
+        ("time_limit", "3"),
+        ("time_limit", 0.5),
+        ("override_rate", False),
+        ("override_rate", "10"),
+        ("max_override", True),
+        ("max_override", 0.9),
+        ("max_override", 2.0),
+        ("lookahead", (100.0,)),
+        ("lookahead", "fast"),
+        ("lookahead", (0.0, 1e3)),
+        ("lookahead", (100.0, "1000")),
+    ],
+)
 def test_an_override_argument_that_is_not_a_valid_number_is_refused_naming_it(name, value):
     with pytest.raises(ValueError, match=name):
         gym.make(ID, **{name: value})

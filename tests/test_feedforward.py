@@ -53,11 +53,11 @@ def test_feedforward_makes_the_nominal_model_follow_the_reference(plant, heart):
     u = inverse_feedforward(inverse, samples, dt, friction=False, backlash=False)
     undelayed = type(inverse)(inverse.coefficients, inverse.coulomb, inverse.backlash, np.zeros(2))
     before = inverse_feedforward(undelayed, samples, dt, friction=False, backlash=False)
-    x_d = samples[:, sk.REF_POSITION:sk.REF_POSITION + 2]
+    x_d = samples[:, sk.REF_POSITION : sk.REF_POSITION + 2]
     for axis in (0, 1):
         sampled = control.c2d(model.linear_model(axis=axis), dt, "zoh")
         delay = int(round(inverse.delay[axis] / dt))
-        held = np.concatenate([before[:delay, axis], u[:, axis]])[:len(u)]
+        held = np.concatenate([before[:delay, axis], u[:, axis]])[: len(u)]
         response = control.forced_response(sampled, U=held).outputs
         error = x_d[:, axis] - x_d[0, axis] - response
         assert np.max(np.abs(error)) < 5e-5, f"axis {axis}: {np.max(np.abs(error)) * 1e3:.4f} um"
@@ -74,15 +74,16 @@ def test_stribeck_curve_precompensation_is_the_static_map_at_the_reference_speed
     curved = dataclasses.replace(inverse, delay=np.zeros(2), stribeck=stribeck)
     samples = heart.unwrapped.task.reference_arrays.samples
     dt = heart.unwrapped.dt
-    friction = (inverse_feedforward(curved, samples, dt, backlash=False)
-                - inverse_feedforward(curved, samples, dt, friction=False, backlash=False))
-    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    friction = inverse_feedforward(curved, samples, dt, backlash=False) - inverse_feedforward(
+        curved, samples, dt, friction=False, backlash=False
+    )
+    v = samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
     half = 0.5 * (v[:-1] + v[1:])  # the velocity at k + 1/2
     for axis in (0, 1):
         level, vs = stribeck[axis]
         moving = np.abs(half[:, axis]) > 1.0  # mm/s: away from the reversals' 1 ms transitions
         coulomb = np.where(half[:, axis] > 0, inverse.coulomb[axis, 0], inverse.coulomb[axis, 1])
-        expected = coulomb + level * np.exp(-(half[:, axis] / vs) ** 2) * np.sign(half[:, axis])
+        expected = coulomb + level * np.exp(-((half[:, axis] / vs) ** 2)) * np.sign(half[:, axis])
         np.testing.assert_allclose(friction[:-1, axis][moving], expected[moving], rtol=2e-3, atol=1e-6)
     with pytest.raises(ValueError, match="stribeck"):
         dataclasses.replace(inverse, stribeck=np.array([[0.3, 0.0], [0.0, 0.0]]))
@@ -95,7 +96,7 @@ def test_friction_and_backlash_precompensation_switch_at_reversals(heart):
     dt = heart.unwrapped.dt
     base = inverse_feedforward(inverse, samples, dt, friction=False, backlash=False)
     friction = inverse_feedforward(inverse, samples, dt, backlash=False) - base
-    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    v = samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
     moving = np.abs(v) > 1.0  # mm/s: away from the reversals' 1 ms transitions
     for axis in (0, 1):
         fwd, back = moving[:, axis] & (v[:, axis] > 0), moving[:, axis] & (v[:, axis] < 0)
@@ -136,8 +137,9 @@ def test_zpetc_closed_loop_and_zero_phase(plant):
     kp, kd, ki = pid_gains(inverse.mass, inverse.damping, w)
     loop = closed_loop(inverse, 0, dt, kp[0], kd[0], ki[0])
     r = np.cumsum(np.random.default_rng(0).normal(size=400)) * 1e-3
-    np.testing.assert_allclose(control.forced_response(loop, U=r).outputs,
-                               _simulate_loop(inverse, 0, dt, kp[0], kd[0], ki[0], r), atol=1e-12)
+    np.testing.assert_allclose(
+        control.forced_response(loop, U=r).outputs, _simulate_loop(inverse, 0, dt, kp[0], kd[0], ki[0], r), atol=1e-12
+    )
     b, a, preview = zpetc_filter(loop)
     freqs = np.logspace(-1, np.log10(0.05 / dt), 30)  # Hz, up to a tenth of Nyquist
     z = np.exp(2j * np.pi * freqs * dt)
@@ -177,10 +179,14 @@ def test_koren_lo_estimate_is_the_distance_to_a_circle_to_second_order():
     variable, cx, cy = coupling_estimate(E, tangent, np.full(n, 1 / R), 1.0)
     fixed, _, _ = coupling_estimate(E, tangent, np.full(n, 1 / R), 0.0)
     size = np.linalg.norm(E, axis=1)
-    np.testing.assert_allclose(variable, -E[:, 0] * (tangent[:, 1] - E[:, 0] / (2 * R))
-                               + E[:, 1] * (tangent[:, 0] + E[:, 1] / (2 * R)), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        variable,
+        -E[:, 0] * (tangent[:, 1] - E[:, 0] / (2 * R)) + E[:, 1] * (tangent[:, 0] + E[:, 1] / (2 * R)),
+        rtol=0,
+        atol=1e-15,
+    )
     assert np.all(np.abs(variable - exact) <= e_n**2 / (2 * R) + size**3 / R**2)
-    assert np.all(np.abs(fixed - exact - (-e_t**2 / (2 * R))) <= size**3 / R**2 + e_n**2 / R)
+    assert np.all(np.abs(fixed - exact - (-(e_t**2) / (2 * R))) <= size**3 / R**2 + e_n**2 / R)
     assert np.max(np.abs(variable - exact)) < 0.05 * np.max(np.abs(fixed - exact))
     # Koren's fixed estimate is the env's normal error (-t_y E_x + t_x E_y), with the sign of exact distance
     np.testing.assert_allclose(fixed, -tangent[:, 1] * E[:, 0] + tangent[:, 0] * E[:, 1], rtol=0, atol=1e-15)

@@ -17,8 +17,19 @@ from package_layout import ROOT, TOP
 
 MAX_CODE_LINES = 80
 #: Decorators of compiled numba code (by their last name: ``numba.njit``, ``njit(cache=True)``, ...).
-KERNEL_DECORATORS = {"njit", "jit", "overload", "overload_method", "overload_attribute", "register_jitable",
-                     "intrinsic", "vectorize", "guvectorize", "generated_jit", "cfunc"}
+KERNEL_DECORATORS = {
+    "njit",
+    "jit",
+    "overload",
+    "overload_method",
+    "overload_attribute",
+    "register_jitable",
+    "intrinsic",
+    "vectorize",
+    "guvectorize",
+    "generated_jit",
+    "cfunc",
+}
 
 
 def _decorator_name(node: ast.expr) -> str:
@@ -37,8 +48,14 @@ def _comment_or_blank_lines(source: str) -> set[int]:
     """Line numbers (1-based) holding no token but comments and newlines."""
     code = set()
     for tok in tokenize.generate_tokens(io.StringIO(source).readline):
-        if tok.type not in (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
-                            tokenize.ENDMARKER):
+        if tok.type not in (
+            tokenize.COMMENT,
+            tokenize.NL,
+            tokenize.NEWLINE,
+            tokenize.INDENT,
+            tokenize.DEDENT,
+            tokenize.ENDMARKER,
+        ):
             code.update(range(tok.start[0], tok.end[0] + 1))
     return set(range(1, source.count("\n") + 2)) - code
 
@@ -55,8 +72,13 @@ def code_lines(fn: ast.FunctionDef, not_code: set[int]) -> int:
 def long_functions(source: str, name: str = "<source>") -> list[tuple[str, int]]:
     """(``name:line function``, code lines) of every non-kernel function of ``source`` over the limit."""
     tree = ast.parse(source)
-    candidates = [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
-                  and not _is_kernel(node) and node.end_lineno - node.lineno + 1 > MAX_CODE_LINES]
+    candidates = [
+        node
+        for node in ast.walk(tree)
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+        and not _is_kernel(node)
+        and node.end_lineno - node.lineno + 1 > MAX_CODE_LINES
+    ]
     not_code = _comment_or_blank_lines(source) if candidates else set()  # tokenized only where it can matter
     out = []
     for node in candidates:
@@ -70,8 +92,10 @@ def _function(code_lines_: int, decorator: str = "") -> str:
     """A function of ``code_lines_`` code lines (def line and return included), padded with a docstring,
     blank lines, comment lines and trailing comments that must not count."""
     body = "\n".join(f"    x{k} = {k}  # a trailing comment" for k in range(code_lines_ - 2))
-    return (f'{decorator}def f():\n    """A docstring\n    of three\n    lines."""\n\n    # only a comment\n\n'
-            f'{body}\n\n    return (\n        x0\n    )\n')
+    return (
+        f'{decorator}def f():\n    """A docstring\n    of three\n    lines."""\n\n    # only a comment\n\n'
+        f"{body}\n\n    return (\n        x0\n    )\n"
+    )
 
 
 def test_the_counter_counts_code_lines_only():
@@ -88,4 +112,5 @@ def test_no_function_is_longer_than_80_code_lines():
         for path in sorted(top.rglob("*.py")):
             found += long_functions(path.read_text(encoding="utf-8"), str(path.relative_to(ROOT)))
     assert not found, "split these into named steps (<= 80 code lines each): " + ", ".join(
-        f"{where} ({n} lines)" for where, n in found)
+        f"{where} ({n} lines)" for where, n in found
+    )

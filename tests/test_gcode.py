@@ -29,8 +29,14 @@ def _arc_points(tp, k, n=257):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.floats(-40, 40), st.floats(-40, 40), st.floats(-30, 30), st.floats(-30, 30),
-       st.floats(0.05, 2 * math.pi - 0.05), st.booleans())
+@given(
+    st.floats(-40, 40),
+    st.floats(-40, 40),
+    st.floats(-30, 30),
+    st.floats(-30, 30),
+    st.floats(0.05, 2 * math.pi - 0.05),
+    st.booleans(),
+)
 def test_ij_arc_on_its_radius_with_the_programs_centre_and_sweep(x0, y0, i, j, sweep, ccw):
     """An I/J arc: every point on the circle about start + (I, J) to 1e-9 mm, its length r |sweep| with the
     sweep computed here from the words (complex arithmetic), end point as programmed."""
@@ -40,8 +46,10 @@ def test_ij_arc_on_its_radius_with_the_programs_centre_and_sweep(x0, y0, i, j, s
     c = complex(x0 + i, y0 + j)
     z0 = complex(x0, y0)
     z1 = c + (z0 - c) * cmath.exp(1j * (sweep if ccw else -sweep))
-    text = (f"G21 G90 G17\nG00 X{x0:.12f} Y{y0:.12f}\n{'G03' if ccw else 'G02'} X{z1.real:.12f} Y{z1.imag:.12f} "
-            f"I{i:.12f} J{j:.12f} F600\n")
+    text = (
+        f"G21 G90 G17\nG00 X{x0:.12f} Y{y0:.12f}\n{'G03' if ccw else 'G02'} X{z1.real:.12f} Y{z1.imag:.12f} "
+        f"I{i:.12f} J{j:.12f} F600\n"
+    )
     tp = read_program(text, None)
     (m,) = tp.program.moves
     pts = _arc_points(tp, 0)
@@ -97,8 +105,9 @@ def test_full_circle_and_geomdl():
 def test_units_distance_modes_and_feeds():
     """G20 (inch) equals the mm program scaled by 25.4; G91 equals G90; F mm/min and in/min in mm/s."""
     mm = read_program("G21 G90\nG0 X0 Y0\nG1 X25.4 Y0 F600\nG3 X50.8 Y25.4 I0 J25.4\nG1 Y50.8 F1200\n", 0.01)
-    inch = read_program("G20 G90\nG0 X0 Y0\nG1 X1 Y0 F23.62204724409449\nG3 X2 Y1 I0 J1\nG1 Y2 F47.24409448818898\n",
-                        0.01)
+    inch = read_program(
+        "G20 G90\nG0 X0 Y0\nG1 X1 Y0 F23.62204724409449\nG3 X2 Y1 I0 J1\nG1 Y2 F47.24409448818898\n", 0.01
+    )
     rel = read_program("G21 G91\nG0 X0 Y0\nG1 X25.4 Y0 F600\nG3 X25.4 Y25.4 I0 J25.4\nG1 Y25.4 F1200\n", 0.01)
     us = np.linspace(*mm.curve.u_range, 101)
     for other in (inch, rel):
@@ -135,8 +144,10 @@ def test_feed_plan_follows_the_blocks_and_stops_at_sharp_corners():
 
 
 def test_ignored_words_are_listed_and_zero_moves_warn():
-    text = "%\nO42 (part)\nN10 G21 G17 G90 G40\nN20 T1 M6\nN30 S1000 M3\nN40 G0 X0 Y0 Z5\nN50 G1 Z-1 F100\n" \
-           "N60 G1 X10 F600\nN70 G1 X10\nN80 Y10\nN90 G0 Z5\nN100 M30\nN110 G1 X0\n%"
+    text = (
+        "%\nO42 (part)\nN10 G21 G17 G90 G40\nN20 T1 M6\nN30 S1000 M3\nN40 G0 X0 Y0 Z5\nN50 G1 Z-1 F100\n"
+        "N60 G1 X10 F600\nN70 G1 X10\nN80 Y10\nN90 G0 Z5\nN100 M30\nN110 G1 X0\n%"
+    )
     with pytest.warns(UserWarning, match="zero length"):
         p = read_program_text(text)
     assert len(p.moves) == 2 and p.moves[0].number == 60
@@ -203,10 +214,45 @@ def test_blend_that_does_not_fit_names_the_line():
 # ------------------------------------------------------------------ fuzz
 
 _WORDS = st.one_of(
-    st.sampled_from(["G0", "G1", "G2", "G3", "G17", "G18", "G20", "G21", "G90", "G91", "G94", "G40", "G64", "M3",
-                     "M30", "T1", "S100", "N5", "(c)", ";c", "%", "(", ")", "#1", "G1.5", "X", "E3", "+", "..", "-"]),
-    st.builds(lambda letter, v: f"{letter}{v}", st.sampled_from("XYIJRFZ"),
-              st.one_of(st.integers(-60, 60), st.floats(-60, 60, allow_nan=False).map(lambda x: f"{x:.3f}"))),
+    st.sampled_from(
+        [
+            "G0",
+            "G1",
+            "G2",
+            "G3",
+            "G17",
+            "G18",
+            "G20",
+            "G21",
+            "G90",
+            "G91",
+            "G94",
+            "G40",
+            "G64",
+            "M3",
+            "M30",
+            "T1",
+            "S100",
+            "N5",
+            "(c)",
+            ";c",
+            "%",
+            "(",
+            ")",
+            "#1",
+            "G1.5",
+            "X",
+            "E3",
+            "+",
+            "..",
+            "-",
+        ]
+    ),
+    st.builds(
+        lambda letter, v: f"{letter}{v}",
+        st.sampled_from("XYIJRFZ"),
+        st.one_of(st.integers(-60, 60), st.floats(-60, 60, allow_nan=False).map(lambda x: f"{x:.3f}")),
+    ),
 )
 _LINES = st.lists(st.lists(_WORDS, min_size=0, max_size=6).map(" ".join), min_size=1, max_size=12)
 
@@ -292,8 +338,9 @@ def test_iso230_4_figures_against_a_known_path():
     nominal = np.hypot(*pts.T) - R
     assert fig.radial_deviation_max_um == pytest.approx(1e3 * nominal.max(), rel=1e-12)
     # both directions: the second path 1 um larger all round
-    both = circular_figures(np.vstack([pts, pts + 0.001 * (pts - shift) / np.hypot(*(pts - shift).T)[:, None]]),
-                            [0, 0], R)
+    both = circular_figures(
+        np.vstack([pts, pts + 0.001 * (pts - shift) / np.hypot(*(pts - shift).T)[:, None]]), [0, 0], R
+    )
     assert both.circular_deviation_um == pytest.approx(2 * a * 1e3 + 1.0, rel=1e-3)
 
 
@@ -334,7 +381,10 @@ def test_random_programs_follow_their_distributions(seed):
             assert math.radians(spec.sweep_min) - 1e-5 <= abs(m.sweep) <= math.radians(spec.sweep_max) + 1e-5
     for j, (a, b) in zip(tp.joints, zip(moves[:-1], moves[1:])):
         if a.kind == b.kind == "line":
-            assert j.kind == "blend" and math.radians(spec.turn_min) - 1e-5 <= j.angle <= math.radians(spec.turn_max) + 1e-5
+            assert (
+                j.kind == "blend"
+                and math.radians(spec.turn_min) - 1e-5 <= j.angle <= math.radians(spec.turn_max) + 1e-5
+            )
         else:
             assert j.kind == "tangent"
     assert 2000 / 60 - 1e-9 <= tp.feeds[0] <= 6000 / 60 + 1e-9
@@ -375,8 +425,27 @@ def test_bench_runs_programs_and_reports_iso230_4(monkeypatch, tmp_path, capsys)
 
     _install_pd(monkeypatch)
     out_json, plots = tmp_path / "bench.json", tmp_path / "plots"
-    assert bench.main(["--jobs", "1", "--program", "iso230-4", "--circle", "10", "1200", "--policy", "pd:300", "--json",
-                       str(out_json), "--plots", str(plots), "--no-progress"]) == 0
+    assert (
+        bench.main(
+            [
+                "--jobs",
+                "1",
+                "--program",
+                "iso230-4",
+                "--circle",
+                "10",
+                "1200",
+                "--policy",
+                "pd:300",
+                "--json",
+                str(out_json),
+                "--plots",
+                str(plots),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "ISO 230-4 circular test" in out
     iso = [r for r in json.loads(out_json.read_text())["records"] if r.get("table") == "iso230-4"]
@@ -419,8 +488,14 @@ def test_random_contours_of_the_xy_table_keep_its_scale_and_path_limits():
     from vcnc_gym.gcode.random_contour import RandomContourSpec, spec_for
 
     spec = spec_for("nct_xy_table")
-    assert (spec.line_min, spec.line_max, spec.radius_min, spec.radius_max, spec.feed_min, spec.feed_max) == \
-        (0.5, 3.0, 0.2, 2.0, 30.0, 120.0)
+    assert (spec.line_min, spec.line_max, spec.radius_min, spec.radius_max, spec.feed_min, spec.feed_max) == (
+        0.5,
+        3.0,
+        0.2,
+        2.0,
+        30.0,
+        120.0,
+    )
     env = gym.make("VCNC-RandomContour-v1", plant="nct_xy_table", dt=1e-3)
     for seed in (0, 1):
         env.reset(seed=seed)
@@ -434,8 +509,9 @@ def test_random_contours_of_the_xy_table_keep_its_scale_and_path_limits():
         speed = np.hypot(*np.diff(xy, axis=0).T) / u.dt
         assert speed.max() <= 1.001 * spec.feed_max / 60
         assert np.hypot(*u.reference.acceleration.T).max() < 1.05 * path_limits("nct_xy_table")[0] == 1.05 * 30.0
-    assert spec_for("nct_xy_table", {"feed_min": 30.0, "feed_max": 120.0}) == RandomContourSpec(feed_min=30.0,
-                                                                                                 feed_max=120.0)
+    assert spec_for("nct_xy_table", {"feed_min": 30.0, "feed_max": 120.0}) == RandomContourSpec(
+        feed_min=30.0, feed_max=120.0
+    )
     assert spec_for("vcnc_feed_drive") == RandomContourSpec()
     with pytest.raises(ValueError, match="feed_mni"):
         spec_for("nct_xy_table", {"feed_mni": 1.0})

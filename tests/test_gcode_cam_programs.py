@@ -43,8 +43,12 @@ def test_a_move_below_one_nanometre_is_dropped_with_its_line_named():
 @pytest.mark.parametrize("word", ["R1000000000", "X" + "9" * 200, "I-200000", "F2000000"])
 def test_a_number_out_of_range_is_named_by_line_and_word(word):
     letter = word[0]
-    text = {"R": f"G01 X1 F600\nG02 X2 Y0 {word}\n", "X": f"G01 {word} F600\n",
-            "I": f"G01 X1 F600\nG02 X2 {word}\n", "F": f"G01 X1 {word}\n"}[letter]
+    text = {
+        "R": f"G01 X1 F600\nG02 X2 Y0 {word}\n",
+        "X": f"G01 {word} F600\n",
+        "I": f"G01 X1 F600\nG02 X2 {word}\n",
+        "F": f"G01 X1 {word}\n",
+    }[letter]
     with pytest.raises(GCodeError) as exc:
         read_program_text(text)
     assert exc.value.word is not None and exc.value.word.startswith(letter)
@@ -186,8 +190,10 @@ def test_a_program_name_that_is_no_file_and_no_g_code_lists_the_shipped_pieces()
         gym.make("VCNC-GCode-v1", program="iso230-4")
 
 
-@pytest.mark.parametrize("name, value", [("tolerance", True), ("tolerance", "0.01"), ("acceleration", "1000"),
-                                         ("jerk", False), ("spacing", 0)])
+@pytest.mark.parametrize(
+    "name, value",
+    [("tolerance", True), ("tolerance", "0.01"), ("acceleration", "1000"), ("jerk", False), ("spacing", 0)],
+)
 def test_read_program_numbers_go_through_validation(name, value):
     kwargs = {"tolerance": 0.01, name: value}
     with pytest.raises(ValueError, match=name):

@@ -276,8 +276,7 @@ def quad_arc_length(g: GeomdlCurve, knots, lo: float, hi: float) -> float:
     breaks = np.unique(np.concatenate([[lo, hi], [k for k in knots if lo < k < hi]]))
     total = 0.0
     for s, e in zip(breaks[:-1], breaks[1:]):
-        val, _err = quad(lambda u: math.hypot(*g.derivatives(u, 1)[1]), s, e, epsabs=1e-13, epsrel=1e-13,
-                         limit=200)
+        val, _err = quad(lambda u: math.hypot(*g.derivatives(u, 1)[1]), s, e, epsabs=1e-13, epsrel=1e-13, limit=200)
         total += val
     return total
 
@@ -383,14 +382,17 @@ def test_multiplicity_p_interior_and_p_plus_one_ends_are_accepted():
     NurbsCurve(CP4 + [[5, 1]], W4 + [1], [0, 0, 0, 0.5, 0.5, 1, 1, 1], 2)
 
 
-@pytest.mark.parametrize("bad_u, msg", [
-    (-1e-9, "outside the knot range"),
-    (6.0 + 1e-9, "outside the knot range"),
-    (-100.0, "outside the knot range"),
-    (float("nan"), "u must be finite"),
-    (float("inf"), "u must be finite"),
-    (float("-inf"), "u must be finite"),
-])
+@pytest.mark.parametrize(
+    "bad_u, msg",
+    [
+        (-1e-9, "outside the knot range"),
+        (6.0 + 1e-9, "outside the knot range"),
+        (-100.0, "outside the knot range"),
+        (float("nan"), "u must be finite"),
+        (float("inf"), "u must be finite"),
+        (float("-inf"), "u must be finite"),
+    ],
+)
 def test_u_outside_the_range_raises(bad_u, msg):
     c = heart()
     with pytest.raises(ValueError, match=msg):
@@ -516,8 +518,7 @@ def test_speed_tolerance_boundary(gap, regular):
     """P1 = P0 + gap (10, 0) on a nearly straight quadratic of length ~10: |C'(0)| / mean speed = 2 gap."""
     curve = NurbsCurve([[0, 0], [10 * gap, 0], [10, 1]], [1, 1, 1], [0, 0, 0, 1, 1, 1], 2)
     mean_speed = curve.arc_length()
-    assert np.linalg.norm(GeomdlCurve.of(curve).derivatives(0.0, 1)[1]) / mean_speed == pytest.approx(
-        2 * gap, rel=0.01)
+    assert np.linalg.norm(GeomdlCurve.of(curve).derivatives(0.0, 1)[1]) / mean_speed == pytest.approx(2 * gap, rel=0.01)
     assert (_message(curve) is None) == regular
 
 
@@ -570,4 +571,6 @@ def test_bezier_arc_length_through_a_cusp():
     ref = quad(speed, 0, 0.5, epsabs=0, epsrel=1e-13)[0] + quad(speed, 0.5, 1, epsabs=0, epsrel=1e-13)[0]
     assert speed(0.5) == 0.0
     assert bezier_arc_length(p) == pytest.approx(ref, rel=1e-11)
-    assert arc_length(np.vectorize(speed, otypes=[float]), np.array([0.0, 0.5, 1.0]), nodes=7) == pytest.approx(ref, rel=1e-11)
+    assert arc_length(np.vectorize(speed, otypes=[float]), np.array([0.0, 0.5, 1.0]), nodes=7) == pytest.approx(
+        ref, rel=1e-11
+    )

@@ -114,8 +114,13 @@ def make_vec(env_id: str, vectorization: str, mode: AutoresetMode, **vector_kwar
     kwargs, _ = KINDS[env_id]
     if vectorization == "vector_entry_point":
         return gym.make_vec(env_id, num_envs=2, vectorization_mode=vectorization, autoreset_mode=mode, **kwargs)
-    return gym.make_vec(env_id, num_envs=2, vectorization_mode=vectorization,
-                        vector_kwargs={"autoreset_mode": mode, **vector_kwargs}, **kwargs)
+    return gym.make_vec(
+        env_id,
+        num_envs=2,
+        vectorization_mode=vectorization,
+        vector_kwargs={"autoreset_mode": mode, **vector_kwargs},
+        **kwargs,
+    )
 
 
 @pytest.mark.parametrize("mode", MODES, ids=lambda m: m.value)
@@ -177,8 +182,9 @@ def test_make_spec_round_trips_an_ids_arguments():
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_make_spec_round_trips_every_current_id(env_id):
     check_spec_round_trip(env_id)
-    check_spec_round_trip(env_id, randomize=True, action_repeat=2) if env_id != "VCNC-RandomContour-v1" else \
-        check_spec_round_trip(env_id, randomize=True, tolerance=0.02)
+    check_spec_round_trip(
+        env_id, randomize=True, action_repeat=2
+    ) if env_id != "VCNC-RandomContour-v1" else check_spec_round_trip(env_id, randomize=True, tolerance=0.02)
 
 
 # -- pickling -------------------------------------------------------------------------------------------------
@@ -219,8 +225,9 @@ def test_a_pickled_env_continues_its_episode():
 def test_every_current_id_pickles_mid_episode(env_id):
     # the step response's axes leave its bound within 5 decisions of 5 periods under these commands
     repeat = 1 if env_id == "VCNC-Step-v0" else 20
-    kwargs = {"action_repeat": repeat} if env_id == "VCNC-RandomContour-v1" else {"action_repeat": repeat,
-                                                                                  "randomize": True}
+    kwargs = (
+        {"action_repeat": repeat} if env_id == "VCNC-RandomContour-v1" else {"action_repeat": repeat, "randomize": True}
+    )
     check_pickle_continues_the_episode(env_id, **kwargs)
 
 

@@ -81,18 +81,19 @@ def test_history_round_trips_through_a_config_entry():
 
 @pytest.mark.filterwarnings("ignore:.*is different from the unwrapped version")  # the wrapper is what is checked
 def test_the_wrapper_shows_the_past_and_passes_gymnasium_s_checker(layout):
-    env = ResidualAction(gym.make(HEART, action_repeat=1), baseline="ff-pid", correction=0.2, action_repeat=10,
-                         history=K)
+    env = ResidualAction(
+        gym.make(HEART, action_repeat=1), baseline="ff-pid", correction=0.2, action_repeat=10, history=K
+    )
     check_env(env, skip_render_check=True)
     assert env.observation_space.shape == (layout.size + DecisionHistory(K, layout, 1).size,)
     obs, _ = env.reset(seed=3)
-    plain = [obs[:layout.size]]
-    np.testing.assert_array_equal(obs[layout.size:], _by_hand(layout, plain, 0))
+    plain = [obs[: layout.size]]
+    np.testing.assert_array_equal(obs[layout.size :], _by_hand(layout, plain, 0))
     rng = np.random.default_rng(0)
     for t in range(1, 8):
         obs, *_ = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
-        plain.append(obs[:layout.size])
-        np.testing.assert_array_equal(obs[layout.size:], _by_hand(layout, plain, t))
+        plain.append(obs[: layout.size])
+        np.testing.assert_array_equal(obs[layout.size :], _by_hand(layout, plain, t))
     assert env.observation_space.contains(obs)
     env.close()
 
@@ -109,15 +110,15 @@ def test_the_lean_trainer_s_envs_show_what_the_wrapper_shows(layout):
     own = np.stack([w.reset(seed=5 + i)[0] for i, w in enumerate(wrapped)])
     np.testing.assert_allclose(obs, own, rtol=1e-6, atol=1e-9)
     rng = np.random.default_rng(2)
-    plain = [obs[:, :layout.size]]
+    plain = [obs[:, : layout.size]]
     for t in range(1, 12):
         a = rng.uniform(-1, 1, (2, 2)).astype(np.float32)
         obs, *_ = batch.step(a)
         own = np.stack([w.step(a[i])[0] for i, w in enumerate(wrapped)])
         np.testing.assert_allclose(obs, own, rtol=1e-5, atol=1e-9)
-        plain.append(obs[:, :layout.size])
+        plain.append(obs[:, : layout.size])
         for i in range(2):
-            np.testing.assert_array_equal(obs[i, layout.size:], _by_hand(layout, [p[i] for p in plain], t))
+            np.testing.assert_array_equal(obs[i, layout.size :], _by_hand(layout, [p[i] for p in plain], t))
     batch.close()
     # staggered starts: env i's baseline runs k_i decisions alone, which its past remembers (env 0 runs none)
     batch = DecisionEnv(HEART, 2, mode, {}, seed=5)
@@ -125,7 +126,7 @@ def test_the_lean_trainer_s_envs_show_what_the_wrapper_shows(layout):
     obs = batch.stagger(first)
     assert obs.shape == (2, batch.observation_space.shape[0])
     np.testing.assert_array_equal(obs[0], first[0])
-    assert not np.array_equal(obs[1, layout.size:], _by_hand(layout, [obs[1, :layout.size]], 0))
+    assert not np.array_equal(obs[1, layout.size :], _by_hand(layout, [obs[1, : layout.size]], 0))
     batch.close()
 
 
@@ -149,9 +150,9 @@ def test_the_bench_s_agent_sees_the_same_past(layout):
     env = gym.wrappers.TimeLimit(env.unwrapped, max_episode_steps=200)
     run_episode(policy, env, seed=0)
     assert len(seen) == 20
-    plain = [s[0, :layout.size] for s in seen]
+    plain = [s[0, : layout.size] for s in seen]
     for t, s in enumerate(seen):
-        np.testing.assert_array_equal(s[0, layout.size:], _by_hand(layout, plain, t))
+        np.testing.assert_array_equal(s[0, layout.size :], _by_hand(layout, plain, t))
     env.close()
 
 

@@ -75,9 +75,13 @@ def check_limits(plan, feedrate, a_max, j_max):
     breaks, coeffs = plan.kernel_args
     tau = np.diff(breaks)[:-1, None]
     c = coeffs[:-2]
-    ends = np.hstack([c[:, :1] + tau * (c[:, 1:2] + tau * (c[:, 2:3] + tau * c[:, 3:4])),
-                      c[:, 1:2] + tau * (2 * c[:, 2:3] + 3 * tau * c[:, 3:4]),
-                      2 * c[:, 2:3] + 6 * tau * c[:, 3:4]])
+    ends = np.hstack(
+        [
+            c[:, :1] + tau * (c[:, 1:2] + tau * (c[:, 2:3] + tau * c[:, 3:4])),
+            c[:, 1:2] + tau * (2 * c[:, 2:3] + 3 * tau * c[:, 3:4]),
+            2 * c[:, 2:3] + 6 * tau * c[:, 3:4],
+        ]
+    )
     starts = coeffs[1:-1, :3] * [1, 1, 2]
     assert np.all(np.abs(ends - starts) <= [1e-9 * plan.length, 1e-9 * feedrate, 1e-9 * a_max])
     assert plan.distance(plan.duration) == plan.length
@@ -141,7 +145,8 @@ def test_cycle_time_against_the_linear_path(path, plan):
     assert times["linear_time"] == 200.0 / F == constant_feedrate(200.0).duration
     rebuilt = sum(
         ruckig_1dof(s.v_start, s.v_end, A, J, F, s.s_end - s.s_start).duration
-        for s in plan.sections if s.kind == "straight"
+        for s in plan.sections
+        if s.kind == "straight"
     ) + sum(d / v for d, v in zip(np.diff(path.zones, axis=1)[:, 0], path.corner_speeds))
     assert abs(times["smooth_time"] - rebuilt) < 1e-8
     assert times["smooth_time"] == plan.duration

@@ -48,9 +48,9 @@ def test_the_parallel_path_is_taken_again_when_the_load_goes(two_threads):
     path = cve.KernelPath()
     loaded = 1000  # parallel stalls (5 ms) for the first 1000 calls, then takes 0.5 ms; serial 1 ms
     chosen = _drive(path, lambda par, k: (5e-3 if k < loaded else 0.5e-3) if par else 1e-3, 4000)
-    assert chosen[loaded - 100:loaded].mean() < 0.1
+    assert chosen[loaded - 100 : loaded].mean() < 0.1
     # the first try after the change comes within PROBE_RATIO x (a loaded try) of serial calls, a second ~200 later
-    assert chosen[loaded + 1300:].mean() > 0.95, "back on the parallel path once it is cheaper (a try or two)"
+    assert chosen[loaded + 1300 :].mean() > 0.95, "back on the parallel path once it is cheaper (a try or two)"
 
 
 def test_one_numba_thread_runs_the_serial_path_untimed(monkeypatch):

@@ -35,7 +35,7 @@ def _imports() -> dict[str, set[str]]:
                 base = node.module or ""
                 if node.level:
                     anchor = package.split(".")
-                    anchor = anchor[:len(anchor) - node.level + 1]
+                    anchor = anchor[: len(anchor) - node.level + 1]
                     base = ".".join(anchor + ([base] if base else []))
                 targets = [f"{base}.{a.name}" for a in node.names]  # a name, or a module of the package
             else:
@@ -73,7 +73,7 @@ def test_no_module_imports_itself_round_a_loop():
     def visit(module, path):
         for dep in sorted(graph.get(module, ())):
             if dep in path:
-                loops.append(path[path.index(dep):] + [dep])
+                loops.append(path[path.index(dep) :] + [dep])
             elif dep not in done:
                 visit(dep, path + [dep])
         done.add(module)
@@ -83,22 +83,29 @@ def test_no_module_imports_itself_round_a_loop():
     assert loops == []
 
 
-
 #: The most floors ``vcnc_agents`` (``agents/``) may stand on (issue 34: it stood on 11): floor 1 is a module that imports no other
 #: module of the package, and a module stands one floor above the highest it imports (``farm-studio look agents``).
 AGENTS_MAX_FLOORS = 7
 
 #: The storage and IO of ``vcnc_agents``: the run folder, the model file, the normalisation file, the env signature an
 #: agent records and the run's warnings.  Each imports no module of the package but leaves.
-AGENTS_STORAGE = ("vcnc_agents.run_folder", "vcnc_agents.model_file", "vcnc_agents.normalization", "vcnc_agents.signature",
-                  "vcnc_agents.run_warning")
+AGENTS_STORAGE = (
+    "vcnc_agents.run_folder",
+    "vcnc_agents.model_file",
+    "vcnc_agents.normalization",
+    "vcnc_agents.signature",
+    "vcnc_agents.run_warning",
+)
 
 
 def _floors(package: str) -> dict[str, int]:
     """Module of ``package`` -> its floor among the package's modules (1: imports none of them)."""
     graph = _imports()
-    inside = {m: {d for d in deps if d == package or d.startswith(package + ".")}
-              for m, deps in graph.items() if m == package or m.startswith(package + ".")}
+    inside = {
+        m: {d for d in deps if d == package or d.startswith(package + ".")}
+        for m, deps in graph.items()
+        if m == package or m.startswith(package + ".")
+    }
     floors: dict[str, int] = {}
 
     def floor(module: str) -> int:
@@ -113,8 +120,16 @@ def _floors(package: str) -> dict[str, int]:
 
 def test_the_agents_package_stands_on_at_most_seven_floors_with_its_storage_on_leaves():
     floors = _floors("vcnc_agents")
-    assert {"vcnc_agents", "vcnc_agents.cli", "vcnc_agents.training", "vcnc_agents.lean_ppo", "vcnc_agents.run_session"} <= set(floors)
-    assert floors["vcnc_agents.cli"] > floors["vcnc_agents.training"] > floors["vcnc_agents.run_session"] > 1  # the reading sees
+    assert {
+        "vcnc_agents",
+        "vcnc_agents.cli",
+        "vcnc_agents.training",
+        "vcnc_agents.lean_ppo",
+        "vcnc_agents.run_session",
+    } <= set(floors)
+    assert (
+        floors["vcnc_agents.cli"] > floors["vcnc_agents.training"] > floors["vcnc_agents.run_session"] > 1
+    )  # the reading sees
     too_high = {m: f for m, f in floors.items() if f > AGENTS_MAX_FLOORS}
     assert too_high == {}, f"above floor {AGENTS_MAX_FLOORS}: {too_high}"
     graph = _imports()

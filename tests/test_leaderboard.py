@@ -13,23 +13,38 @@ from vcnc_bench import leaderboard
 
 
 def _nominal(env, policy, mx, rms, kind="baseline", completed=True):
-    return {"env": env, "policy": policy, "kind": kind, "trial": None, "max_contour_error_um": mx,
-            "rms_contour_error_um": rms, "completed": completed, "diverged": False}
+    return {
+        "env": env,
+        "policy": policy,
+        "kind": kind,
+        "trial": None,
+        "max_contour_error_um": mx,
+        "rms_contour_error_um": rms,
+        "completed": completed,
+        "diverged": False,
+    }
 
 
 def _bench(records, command="vcnc-bench --json x.json"):
-    return {"settings": {"command": command, "provenance": {"cpu": {"model": "test CPU"},
-                                                            "libraries": {"vcnc-gym": "0.0"}}},
-            "records": records}
+    return {
+        "settings": {
+            "command": command,
+            "provenance": {"cpu": {"model": "test CPU"}, "libraries": {"vcnc-gym": "0.0"}},
+        },
+        "records": records,
+    }
 
 
 def _default_json():
     recs = []
     for env, scale in (("A", 1.0), ("B", 10.0), ("C", 100.0)):
-        recs += [_nominal(env, "pd-ref", 10 * scale, 5 * scale), _nominal(env, "oracle (non-causal)", 1 * scale,
-                                                                          0.5 * scale),
-                 _nominal(env, "ff-pid", 2 * scale, 1 * scale), _nominal(env, "qft", 8 * scale, 4 * scale),
-                 _nominal(env, "ppo", 1.5 * scale, 1.2 * scale, kind="ppo")]
+        recs += [
+            _nominal(env, "pd-ref", 10 * scale, 5 * scale),
+            _nominal(env, "oracle (non-causal)", 1 * scale, 0.5 * scale),
+            _nominal(env, "ff-pid", 2 * scale, 1 * scale),
+            _nominal(env, "qft", 8 * scale, 4 * scale),
+            _nominal(env, "ppo", 1.5 * scale, 1.2 * scale, kind="ppo"),
+        ]
     recs.append({"table": "headroom", "env": "A"})
     return _bench(recs)
 
@@ -62,7 +77,9 @@ def test_a_users_policy_joins_the_board_and_replaces_its_own_row(tmp_path):
     rows = json.loads(page.with_suffix(".json").read_text())["rows"]
     assert sum(r["policy"] == "mine:v1" for r in rows) == 1 and len(rows) == 16
     text = page.read_text()
-    assert "`mine:v1`" in text and "| 2 | `mine:v1` |" in text and "| 0.9778 |" in text  # second to the floor: (10-1.2)/9 > ppo's
+    assert (
+        "`mine:v1`" in text and "| 2 | `mine:v1` |" in text and "| 0.9778 |" in text
+    )  # second to the floor: (10-1.2)/9 > ppo's
     assert "nominal only" in text and "vcnc-bench --policy mine:v1" in text
     assert (tmp_path / "leaderboard_profile.png").stat().st_size > 1000
 
@@ -97,17 +114,36 @@ def test_profile_is_the_fraction_of_ids_at_or_above_tau():
 def test_a_plants_record_gives_its_iqm_interval_and_verdict():
     rng = np.random.default_rng(0)
     x = rng.uniform(1.0, 2.0, 20)
-    per = {"kind": ["nominal"] + ["sample"] * 20, "max_um": [1.5] + list(x), "rms_um": [0.5] + list(x / 3),
-           "diverged": [False] * 21, "completed": [True] * 21}
-    rec = {"env": "A", "policy": "ppo", "kind": "ppo", "nominal_max_um": 1.5, "nominal_rms_um": 0.5,
-           "nominal_completed": True, "nominal_diverged": False, "n_samples": 20, "per_plant": per,
-           "verdicts": {"max": {"outcome": "ties", "y": "ff-pid", "difference": 0.1, "low": -0.1, "high": 0.2}}}
+    per = {
+        "kind": ["nominal"] + ["sample"] * 20,
+        "max_um": [1.5] + list(x),
+        "rms_um": [0.5] + list(x / 3),
+        "diverged": [False] * 21,
+        "completed": [True] * 21,
+    }
+    rec = {
+        "env": "A",
+        "policy": "ppo",
+        "kind": "ppo",
+        "nominal_max_um": 1.5,
+        "nominal_rms_um": 0.5,
+        "nominal_completed": True,
+        "nominal_diverged": False,
+        "n_samples": 20,
+        "per_plant": per,
+        "verdicts": {"max": {"outcome": "ties", "y": "ff-pid", "difference": 0.1, "low": -0.1, "high": 0.2}},
+    }
     (row,) = leaderboard.rows_of({"settings": {}, "robust": [rec]})
     assert row["plants"] == 20
     assert row["iqm_max"][0] == pytest.approx(stats.trim_mean(x, 0.25))
     assert row["iqm_max"][1] < row["iqm_max"][0] < row["iqm_max"][2]
-    assert row["verdicts"]["max"] == {"outcome": "ties", "opponent": "ff-pid", "difference": [0.1, -0.1, 0.2],
-                                      "controller": None, "training_seeds": 1}
+    assert row["verdicts"]["max"] == {
+        "outcome": "ties",
+        "opponent": "ff-pid",
+        "difference": [0.1, -0.1, 0.2],
+        "controller": None,
+        "training_seeds": 1,
+    }
 
 
 def test_the_command_line_refuses_what_is_not_a_bench_json(tmp_path, capsys):
@@ -123,17 +159,42 @@ def test_a_runs_seeds_are_one_row_with_their_median_and_their_verdicts_interval(
     one: a single row ``GROUP (K seeds)`` whose nominal figures are the seeds' medians (numpy's, here) and whose IQM
     and interval are the verdict's (which resampled the seeds with the plants)."""
     rng = np.random.default_rng(1)
-    verdict = {"outcome": "loses", "y": "ff-pid@machine", "x": "ppo:run", "difference": 1.0, "low": 0.5,
-               "high": 2.0, "iqm_x": 1.7, "ci_x": [1.5, 1.9], "training_seeds": 3}
+    verdict = {
+        "outcome": "loses",
+        "y": "ff-pid@machine",
+        "x": "ppo:run",
+        "difference": 1.0,
+        "low": 0.5,
+        "high": 2.0,
+        "iqm_x": 1.7,
+        "ci_x": [1.5, 1.9],
+        "training_seeds": 3,
+    }
     records = []
     for seed, nominal in enumerate((1.0, 3.0, 2.0)):
         x = rng.uniform(1.0, 2.0, 20)
-        per = {"kind": ["nominal"] + ["sample"] * 20, "max_um": [nominal] + list(x), "rms_um": [nominal / 2]
-               + list(x / 3), "diverged": [False] * 21, "completed": [True] * 21}
-        records.append({"env": "A", "policy": f"ppo:run/seed{seed}/best", "kind": "ppo", "group": "ppo:run",
-                        "nominal_max_um": nominal, "nominal_rms_um": nominal / 2, "nominal_completed": True,
-                        "nominal_diverged": False, "n_samples": 20, "per_plant": per,
-                        "verdicts": {"max": verdict}})
+        per = {
+            "kind": ["nominal"] + ["sample"] * 20,
+            "max_um": [nominal] + list(x),
+            "rms_um": [nominal / 2] + list(x / 3),
+            "diverged": [False] * 21,
+            "completed": [True] * 21,
+        }
+        records.append(
+            {
+                "env": "A",
+                "policy": f"ppo:run/seed{seed}/best",
+                "kind": "ppo",
+                "group": "ppo:run",
+                "nominal_max_um": nominal,
+                "nominal_rms_um": nominal / 2,
+                "nominal_completed": True,
+                "nominal_diverged": False,
+                "n_samples": 20,
+                "per_plant": per,
+                "verdicts": {"max": verdict},
+            }
+        )
     (row,) = leaderboard.rows_of({"settings": {}, "robust": records})
     assert row["policy"] == "ppo:run (3 seeds)" and row["seeds"] == 3
     assert row["max_um"] == np.median([1.0, 3.0, 2.0]) and row["rms_um"] == np.median([0.5, 1.5, 1.0])

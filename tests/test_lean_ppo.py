@@ -50,9 +50,28 @@ def small_entry(tmp_path_factory):
 @pytest.fixture(scope="module")
 def lean_run(tmp_path_factory, small_entry):
     run_dir = tmp_path_factory.mktemp("lean") / "run"
-    assert train_main(["--env", HEART, "--trainer", "lean", "--config", str(small_entry), "--timesteps",
-                       str(3 * ROLLOUT), "--eval-freq", "0", "--checkpoint-freq", str(ROLLOUT),
-                       "--output", str(run_dir), "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                HEART,
+                "--trainer",
+                "lean",
+                "--config",
+                str(small_entry),
+                "--timesteps",
+                str(3 * ROLLOUT),
+                "--eval-freq",
+                "0",
+                "--checkpoint-freq",
+                str(ROLLOUT),
+                "--output",
+                str(run_dir),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     return run_dir
 
 
@@ -70,8 +89,7 @@ def test_advantages_and_returns_equal_sb3_rollout_buffer():
     space = gym.spaces.Box(-1, 1, (1,))
     buf = RolloutBuffer(t_len, space, space, n_envs=n, gamma=gamma, gae_lambda=lam)
     for t in range(t_len):
-        buf.add(np.zeros((n, 1)), np.zeros((n, 1)), rewards[t], starts[t], torch.tensor(values[t]),
-                torch.zeros(n))
+        buf.add(np.zeros((n, 1)), np.zeros((n, 1)), rewards[t], starts[t], torch.tensor(values[t]), torch.zeros(n))
     buf.compute_returns_and_advantage(torch.tensor(last_values), last_done)
     adv, ret = _gae(rewards, values, starts, last_values, last_done, gamma, lam)
     np.testing.assert_allclose(adv, buf.advantages, rtol=1e-5, atol=1e-6)
@@ -126,10 +144,17 @@ def test_written_out_log_probability_equals_the_policy_s(small_entry):
 
     from vcnc_agents.lean_ppo import _spaces_only
 
-    model = PPO("MlpPolicy", _spaces_only(env.observation_space, env.action_space, 3), n_steps=4, batch_size=6,
-                policy_kwargs=dict(log_std_init=-1.5), seed=0)
-    ppo = LeanPPO(model, env, RunningNormalizer.fresh({"normalize": True}, env.observation_space.shape[0], 3),
-                  100, PhaseClock())
+    model = PPO(
+        "MlpPolicy",
+        _spaces_only(env.observation_space, env.action_space, 3),
+        n_steps=4,
+        batch_size=6,
+        policy_kwargs=dict(log_std_init=-1.5),
+        seed=0,
+    )
+    ppo = LeanPPO(
+        model, env, RunningNormalizer.fresh({"normalize": True}, env.observation_space.shape[0], 3), 100, PhaseClock()
+    )
     ppo.start(env.reset())
     ppo.collect()
     b = ppo.buf
@@ -177,7 +202,8 @@ def test_a_lean_run_writes_the_run_folder_of_vcnc_train(lean_run):
     rows = (lean_run / "evaluations.csv").read_text().splitlines()
     assert [int(r.split(",")[0]) for r in rows[1:]] == [3 * ROLLOUT]  # --eval-freq 0: at the end only
     assert sorted(p.name for p in (lean_run / "checkpoints").glob("*.zip")) == [
-        f"rl_model_{k * ROLLOUT}_steps.zip" for k in (1, 2, 3)]
+        f"rl_model_{k * ROLLOUT}_steps.zip" for k in (1, 2, 3)
+    ]
     monitor = list((lean_run / "monitor").glob("*.monitor.csv"))
     assert len(monitor) == N_ENVS
 
@@ -205,8 +231,26 @@ def test_an_agent_trained_without_the_preview_runs_on_the_full_observation(small
     config = tmp_path / "no_preview.yml"
     config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
     run_dir = tmp_path / "run"
-    assert train_main(["--env", HEART, "--trainer", "lean", "--config", str(config), "--timesteps", str(ROLLOUT),
-                       "--eval-freq", "0", "--output", str(run_dir), "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                HEART,
+                "--trainer",
+                "lean",
+                "--config",
+                str(config),
+                "--timesteps",
+                str(ROLLOUT),
+                "--eval-freq",
+                "0",
+                "--output",
+                str(run_dir),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     recorded = yaml.safe_load((run_dir / "best" / "config.yml").read_text())
     assert recorded["env"]["signature"]["preview_steps"] == []
     assert recorded["env"]["signature"]["contour_ahead"] == [0.5]
@@ -214,12 +258,13 @@ def test_an_agent_trained_without_the_preview_runs_on_the_full_observation(small
     policy = load_agent(run_dir / "best", env)
     lay = env.unwrapped.layout
     start = lay.offset("contour_preview")
-    assert policy.pick.tolist() == (list(range(lay.offset("preview"))) + [start + 2, start + 3]
-                                    + [lay.offset("contour_curvature") + 1, lay.offset("previous_action"),
-                                       lay.offset("previous_action") + 1])
+    assert policy.pick.tolist() == (
+        list(range(lay.offset("preview")))
+        + [start + 2, start + 3]
+        + [lay.offset("contour_curvature") + 1, lay.offset("previous_action"), lay.offset("previous_action") + 1]
+    )
     out = tmp_path / "bench.json"
-    assert bench.main(["--env", HEART, "--policy", f"ppo:{run_dir / 'best'}", "--no-progress", "--json",
-                       str(out)]) == 0
+    assert bench.main(["--env", HEART, "--policy", f"ppo:{run_dir / 'best'}", "--no-progress", "--json", str(out)]) == 0
     record = json.loads(out.read_text())["records"][0]
     assert record["max_contour_error_um"] == pytest.approx(recorded["agent"]["evaluation"]["max_um"], rel=1e-9)
 
@@ -273,9 +318,26 @@ def short_run(tmp_path_factory):
     config = folder / "short.yml"
     config.write_text(_SHORT)
     run_dir = folder / "run"
-    assert train_main(["--env", "VCNC-GCode-v1", "--trainer", "lean", "--config", str(config), "--eval-freq",
-                       str(SHORT_ROLLOUT), "--checkpoint-freq", str(SHORT_ROLLOUT), "--output", str(run_dir),
-                       "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                "VCNC-GCode-v1",
+                "--trainer",
+                "lean",
+                "--config",
+                str(config),
+                "--eval-freq",
+                str(SHORT_ROLLOUT),
+                "--checkpoint-freq",
+                str(SHORT_ROLLOUT),
+                "--output",
+                str(run_dir),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     return run_dir
 
 
@@ -306,8 +368,8 @@ def test_a_resumed_lean_run_appends_monitor_rows_and_keeps_the_old_ones(short_ru
     assert train_main(["--resume", str(run), "--timesteps", str(4 * SHORT_ROLLOUT), "--no-progress"]) == 0
     after = _monitor_steps(run)
     for name, steps in after.items():
-        assert steps[:len(before[name])] == before[name]  # kept as they were
-        new = steps[len(before[name]):]
+        assert steps[: len(before[name])] == before[name]  # kept as they were
+        new = steps[len(before[name]) :]
         assert new and all(s > 2 * SHORT_ROLLOUT for s in new)  # the resumed session's episodes, logged
         assert len(set(steps)) == len(steps) and steps == sorted(steps)  # none duplicated
 
@@ -334,8 +396,9 @@ def test_a_lean_diverged_evaluation_is_written_as_inf(short_run, tmp_path, monke
 
     run = tmp_path / "run"
     shutil.copytree(short_run, run)
-    diverged = SimpleNamespace(diverged=True, completed=False, max_contour_error_um=0.0, mean_contour_error_um=0.0,
-                               rms_contour_error_um=0.0)
+    diverged = SimpleNamespace(
+        diverged=True, completed=False, max_contour_error_um=0.0, mean_contour_error_um=0.0, rms_contour_error_um=0.0
+    )
     monkeypatch.setattr(vcnc_gym.evaluation, "run_episode", lambda *a, **k: diverged)
     assert train_main(["--resume", str(run), "--timesteps", str(3 * SHORT_ROLLOUT), "--no-progress"]) == 0
     import csv
@@ -378,14 +441,16 @@ def test_an_id_without_a_native_vector_env_steps_as_its_wrapped_envs(env_id):
     trainer's DummyVecEnv path), with the same seeds and actions; an ended env is reset at once."""
     from vcnc_agents.config import action_mode_of
 
-    entry = load_hyperparameters(env_id, "agents/hyperparams/override.yml" if "Override" in env_id
-                                 else "agents/hyperparams/generalists.yml")
+    entry = load_hyperparameters(
+        env_id, "agents/hyperparams/override.yml" if "Override" in env_id else "agents/hyperparams/generalists.yml"
+    )
     mode, kwargs = action_mode_of(entry), dict(entry.get("env_kwargs") or {})
     batch = DecisionEnv(env_id, 2, mode, kwargs, seed=7)
     own = []
     for i in range(2):
-        env = mode.wrap(gym.make(env_id, **{**kwargs, "action_repeat": 1 if mode.mode == "residual" else
-                                            mode.action_repeat}))
+        env = mode.wrap(
+            gym.make(env_id, **{**kwargs, "action_repeat": 1 if mode.mode == "residual" else mode.action_repeat})
+        )
         own.append((env, env.reset(seed=7 + i)[0]))
     obs = batch.stagger(batch.reset())
     np.testing.assert_array_equal(obs, np.stack([o for _, o in own]))
@@ -428,7 +493,7 @@ def test_a_residual_over_a_per_machine_commissioning_is_commissioned_for_each_pl
     params = np.array(u.parameters)
     for i in range(2):
         assert not np.array_equal(params[i], u.nominal_parameters)  # a plant of the box, not the nominal one
-        own = commission(u.task, "machine", params[i:i + 1])[0]
+        own = commission(u.task, "machine", params[i : i + 1])[0]
         np.testing.assert_array_equal(base.records[i].gains()["kp"], own.gains()["kp"])
     kept = base.records[1]
     u.reset(options={"reset_mask": np.array([True, False])})
@@ -448,8 +513,24 @@ def test_the_lean_trainer_is_the_default_and_trains_the_feed_override(tmp_path):
     config = tmp_path / "override.yml"
     config.write_text(yaml.safe_dump({"VCNC-OmegaOverride-v1": entry}, sort_keys=False))
     run = tmp_path / "run"
-    assert train_main(["--env", "VCNC-OmegaOverride-v1", "--config", str(config), "--timesteps", "32",
-                       "--eval-freq", "0", "--output", str(run), "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                "VCNC-OmegaOverride-v1",
+                "--config",
+                str(config),
+                "--timesteps",
+                "32",
+                "--eval-freq",
+                "0",
+                "--output",
+                str(run),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert yaml.safe_load((run / "final" / "config.yml").read_text())["trainer"] == "lean"
 
 
@@ -459,8 +540,19 @@ def test_the_default_trainer_is_sb3_where_the_run_needs_it(small_entry, tmp_path
     config = tmp_path / "sde.yml"
     config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
     with pytest.raises(SystemExit) as exc:
-        train_main(["--env", HEART, "--config", str(config), "--trainer", "lean", "--output", str(tmp_path / "r"),
-                    "--no-progress"])
+        train_main(
+            [
+                "--env",
+                HEART,
+                "--config",
+                str(config),
+                "--trainer",
+                "lean",
+                "--output",
+                str(tmp_path / "r"),
+                "--no-progress",
+            ]
+        )
     assert exc.value.code == 2
     from vcnc_agents.lean_ppo import check_trainer
 
@@ -475,8 +567,9 @@ def test_the_default_trainer_is_sb3_where_the_run_needs_it(small_entry, tmp_path
 
 
 @pytest.mark.slow  # the short run's fixture
-def test_a_read_only_run_folder_is_refused_on_resume_before_anything_is_written(short_run, tmp_path, monkeypatch,
-                                                                                capsys):
+def test_a_read_only_run_folder_is_refused_on_resume_before_anything_is_written(
+    short_run, tmp_path, monkeypatch, capsys
+):
     import os
     import shutil
 
@@ -514,9 +607,24 @@ def test_a_full_disk_ends_the_run_with_one_line_naming_the_file(trainer, tmp_pat
     for module in (vcnc_agents.run_folder, vcnc_agents.lean_ppo, vcnc_agents.callbacks):
         monkeypatch.setattr(module, "save_model", full)
     run = tmp_path / "run"
-    code = train_main(["--env", "VCNC-GCode-v1", "--trainer", trainer, "--config", str(config), "--output", str(run),
-                       "--checkpoint-freq", str(SHORT_ROLLOUT), "--eval-freq", "0", "--no-progress",
-                       "--no-tensorboard"])
+    code = train_main(
+        [
+            "--env",
+            "VCNC-GCode-v1",
+            "--trainer",
+            trainer,
+            "--config",
+            str(config),
+            "--output",
+            str(run),
+            "--checkpoint-freq",
+            str(SHORT_ROLLOUT),
+            "--eval-freq",
+            "0",
+            "--no-progress",
+            "--no-tensorboard",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 1
     assert "Traceback" not in err
@@ -542,11 +650,32 @@ def test_a_warm_start_begins_from_the_agent_s_weights_and_normalisation(lean_run
     config = tmp_path / "frozen.yml"
     config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
     source, run = lean_run / "final", tmp_path / "warm"
-    assert train_main(["--env", HEART, "--config", str(config), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
-                       "--seed", "5", "--init-from", str(source), "--output", str(run), "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                HEART,
+                "--config",
+                str(config),
+                "--timesteps",
+                str(ROLLOUT),
+                "--eval-freq",
+                "0",
+                "--seed",
+                "5",
+                "--init-from",
+                str(source),
+                "--output",
+                str(run),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     theirs, ours = _weights(source), _weights(run / "final")
     assert theirs.keys() == ours.keys() and all(
-        torch.allclose(theirs[k], ours[k], rtol=0.0, atol=1e-25) for k in theirs)
+        torch.allclose(theirs[k], ours[k], rtol=0.0, atol=1e-25) for k in theirs
+    )
     assert model_timesteps(run / "final" / "model.zip") == ROLLOUT
     assert yaml.safe_load((run / "config.yml").read_text())["init_from"] == str(source)
     before = NormalizationStats.load(source / "vecnormalize.npz")
@@ -555,15 +684,33 @@ def test_a_warm_start_begins_from_the_agent_s_weights_and_normalisation(lean_run
     assert after.obs_count == pytest.approx(before.obs_count + N_ENVS + ROLLOUT)
 
 
-@pytest.mark.parametrize("change, named", [
-    (["--correction", "0.3"], "correction: the agent's 0.2, the run's 0.3"),
-    (["--n-envs", "8"], None),  # the batch may differ: n_envs is the run's
-])
-def test_init_from_refuses_an_agent_that_does_not_fit_before_writing(lean_run, small_entry, tmp_path, capsys,
-                                                                     change, named):
+@pytest.mark.parametrize(
+    "change, named",
+    [
+        (["--correction", "0.3"], "correction: the agent's 0.2, the run's 0.3"),
+        (["--n-envs", "8"], None),  # the batch may differ: n_envs is the run's
+    ],
+)
+def test_init_from_refuses_an_agent_that_does_not_fit_before_writing(
+    lean_run, small_entry, tmp_path, capsys, change, named
+):
     run = tmp_path / "warm"
-    argv = ["--env", HEART, "--config", str(small_entry), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
-            "--init-from", str(lean_run / "final"), "--output", str(run), "--no-progress", *change]
+    argv = [
+        "--env",
+        HEART,
+        "--config",
+        str(small_entry),
+        "--timesteps",
+        str(ROLLOUT),
+        "--eval-freq",
+        "0",
+        "--init-from",
+        str(lean_run / "final"),
+        "--output",
+        str(run),
+        "--no-progress",
+        *change,
+    ]
     if named is None:
         assert train_main(argv) == 0
         return
@@ -598,8 +745,8 @@ def test_a_grown_memory_starts_from_the_agent_s_actions_and_values(lean_run, sma
     n = space.shape[0]
     assert big.shape[0] == n + 2 * columns.size and grown.observation_space.shape == big.shape
     assert np.array_equal(grown_stats.obs_mean[:n], stats.obs_mean)
-    assert np.array_equal(grown_stats.obs_mean[n + columns.size:], stats.obs_mean[columns])
-    assert np.array_equal(grown_stats.obs_var[n:n + columns.size], stats.obs_var[columns])
+    assert np.array_equal(grown_stats.obs_mean[n + columns.size :], stats.obs_mean[columns])
+    assert np.array_equal(grown_stats.obs_var[n : n + columns.size], stats.obs_var[columns])
     rng = np.random.default_rng(0)
     x = rng.normal(size=(16, big.shape[0])).astype(np.float32)  # normalised observations and pasts
     with torch.no_grad():
@@ -611,8 +758,28 @@ def test_a_grown_memory_starts_from_the_agent_s_actions_and_values(lean_run, sma
     with pytest.raises(ValueError, match="the run's observation has"):  # 2 decisions more, the space of 3 more
         grow_agent(grown, grown_stats, layout, 2, 4, agent_space(space, 5, layout))
     run = tmp_path / "warm"
-    assert train_main(["--env", HEART, "--config", str(small_entry), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
-                       "--history", "2", "--init-from", str(files), "--output", str(run), "--no-progress"]) == 0
+    assert (
+        train_main(
+            [
+                "--env",
+                HEART,
+                "--config",
+                str(small_entry),
+                "--timesteps",
+                str(ROLLOUT),
+                "--eval-freq",
+                "0",
+                "--history",
+                "2",
+                "--init-from",
+                str(files),
+                "--output",
+                str(run),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert load_agent(run / "final", env).model.observation_space.shape == big.shape
 
 
@@ -626,15 +793,27 @@ def test_init_from_refuses_a_memory_that_would_shrink(lean_run, small_entry, tmp
     config["action_mode"]["history"] = 4
     (agent / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
     with pytest.raises(SystemExit) as exc:
-        train_main(["--env", HEART, "--config", str(small_entry), "--history", "2", "--init-from", str(agent),
-                    "--output", str(tmp_path / "warm"), "--no-progress"])
+        train_main(
+            [
+                "--env",
+                HEART,
+                "--config",
+                str(small_entry),
+                "--history",
+                "2",
+                "--init-from",
+                str(agent),
+                "--output",
+                str(tmp_path / "warm"),
+                "--no-progress",
+            ]
+        )
     assert exc.value.code == 2 and "remembers 4 decisions, the run 2" in capsys.readouterr().err
     assert not (tmp_path / "warm").exists()
 
 
 @pytest.mark.parametrize("theirs, named", [("ff-pid@machine", None), ("zpetc", "baseline: the agent's 'zpetc'")])
-def test_init_from_takes_the_same_law_commissioned_another_way(lean_run, small_entry, tmp_path, capsys, theirs,
-                                                                named):
+def test_init_from_takes_the_same_law_commissioned_another_way(lean_run, small_entry, tmp_path, capsys, theirs, named):
     """An agent over a baseline commissioned per machine starts a run over the same law on the nominal record (and
     the other way: ``ff-pid-online`` to ``ff-pid-online@machine``); over another law it is refused by name."""
     import shutil
@@ -649,8 +828,21 @@ def test_init_from_takes_the_same_law_commissioned_another_way(lean_run, small_e
     wrapper["vcnc_agents.action_modes.ResidualAction"]["baseline"] = "ff-pid"
     run_config = tmp_path / "ff-pid.yml"
     run_config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
-    argv = ["--env", HEART, "--config", str(run_config), "--timesteps", str(ROLLOUT), "--eval-freq", "0",
-            "--init-from", str(agent), "--output", str(tmp_path / "warm"), "--no-progress"]
+    argv = [
+        "--env",
+        HEART,
+        "--config",
+        str(run_config),
+        "--timesteps",
+        str(ROLLOUT),
+        "--eval-freq",
+        "0",
+        "--init-from",
+        str(agent),
+        "--output",
+        str(tmp_path / "warm"),
+        "--no-progress",
+    ]
     if named is None:
         assert train_main(argv) == 0
         return
@@ -667,10 +859,11 @@ def test_init_from_names_what_is_missing_or_different(lean_run, small_entry, tmp
     entry["n_epochs"] = 3
     config = tmp_path / "epochs.yml"
     config.write_text(yaml.safe_dump({HEART: entry}, sort_keys=False))
-    cases = [(["--config", str(config), "--init-from", str(lean_run / "final")], "n_epochs: the agent's 2, the run's 3"),
-             (["--config", str(small_entry), "--init-from", str(tmp_path / "nowhere")], "nowhere"),
-             (["--config", str(small_entry), "--init-from", str(lean_run / "final"), "--trainer", "sb3"],
-              "lean trainer")]
+    cases = [
+        (["--config", str(config), "--init-from", str(lean_run / "final")], "n_epochs: the agent's 2, the run's 3"),
+        (["--config", str(small_entry), "--init-from", str(tmp_path / "nowhere")], "nowhere"),
+        (["--config", str(small_entry), "--init-from", str(lean_run / "final"), "--trainer", "sb3"], "lean trainer"),
+    ]
     for extra, named in cases:
         with pytest.raises(SystemExit) as exc:
             train_main(["--env", HEART, "--output", str(tmp_path / "warm"), "--no-progress", *extra])

@@ -132,8 +132,7 @@ def omega_peak_curvature() -> tuple[float, float]:
 
     us = np.linspace(0.0, 1.0, 4001)
     u0 = us[np.argmin([minus_kappa(u) for u in us])]
-    best = minimize_scalar(minus_kappa, bounds=(u0 - 1e-3, u0 + 1e-3), method="bounded",
-                           options={"xatol": 1e-12})
+    best = minimize_scalar(minus_kappa, bounds=(u0 - 1e-3, u0 + 1e-3), method="bounded", options={"xatol": 1e-12})
     return -best.fun, best.x
 
 
@@ -272,8 +271,9 @@ def test_default_limits_from_jahanpour_drive():
     assert 0.9 * A * SMC_TABLE2["lam"] / (2 * math.pi) < J <= A * SMC_TABLE2["lam"] / (2 * math.pi)
 
 
-@pytest.mark.parametrize("name", ["feedrate", "normal_acceleration", "normal_jerk", "tangential_acceleration",
-                                  "tangential_jerk", "spacing"])
+@pytest.mark.parametrize(
+    "name", ["feedrate", "normal_acceleration", "normal_jerk", "tangential_acceleration", "tangential_jerk", "spacing"]
+)
 @pytest.mark.parametrize("value", [0.0, -1.0, math.inf, math.nan, True, "100", 1j])
 def test_bad_arguments_are_refused(name, value):
     with pytest.raises(ValueError, match=name):

@@ -56,9 +56,7 @@ def quad_length(name: str) -> float:
     def speed(u):
         return math.hypot(*g.derivatives(u, order=1)[1])
 
-    return sum(
-        quad(speed, a, b, epsabs=1e-12, epsrel=1e-13, limit=200)[0] for a, b in zip(knots[:-1], knots[1:])
-    )
+    return sum(quad(speed, a, b, epsabs=1e-12, epsrel=1e-13, limit=200)[0] for a, b in zip(knots[:-1], knots[1:]))
 
 
 @functools.lru_cache(maxsize=None)
@@ -132,8 +130,9 @@ def test_integral_of_feed_is_length_any_plan(feedrate, ramp_time, length):
 @pytest.mark.parametrize("length", [310.0, 5.0])
 def test_peak_acceleration_is_one_and_a_half_v_over_ta(length):
     plan = SCurveFeedrate(V_PAPER, TA_PAPER).plan(length)
-    res = minimize_scalar(lambda t: -plan.acceleration(t), bounds=(0.0, plan.ramp_time), method="bounded",
-                          options={"xatol": 1e-10})
+    res = minimize_scalar(
+        lambda t: -plan.acceleration(t), bounds=(0.0, plan.ramp_time), method="bounded", options={"xatol": 1e-10}
+    )
     assert -res.fun == pytest.approx(1.5 * plan.v_peak / plan.ramp_time, rel=1e-9)
     assert res.x == pytest.approx(plan.ramp_time / 2, abs=1e-6)
     grid = np.linspace(-0.1, plan.duration + 0.1, 20001)
@@ -305,8 +304,10 @@ def test_feedrate_fluctuation_small(name, dt):
     assert ref.feedrate_fluctuation == pytest.approx(expected, rel=1e-12)
     assert ref.feedrate_fluctuation < FLUCTUATION_TOL[(name, dt)]
     assert ref.cruise_fluctuation_percent <= 100 * ref.feedrate_fluctuation * (1 + 1e-12)
-    print(f"{name} dt={dt:g}: fluctuation {ref.feedrate_fluctuation:.3e} of V_peak, "
-          f"cruise {ref.cruise_fluctuation_percent:.4f} %, end gap {ref.end_gap:.3e} mm")
+    print(
+        f"{name} dt={dt:g}: fluctuation {ref.feedrate_fluctuation:.3e} of V_peak, "
+        f"cruise {ref.cruise_fluctuation_percent:.4f} %, end gap {ref.end_gap:.3e} mm"
+    )
 
 
 @pytest.mark.parametrize("name", SHAPES)
@@ -370,9 +371,13 @@ def test_step_past_the_end_is_clamped():
     pos, vel, acc, tan = (np.empty((k_max, 2)) for _ in range(4))
     info = np.zeros(I.INFO_SIZE)
     u_start, u_end = c.u_range
-    n = I.taylor_interpolate_kernel(c.kernel_args, plan_arrays(plan),
-                                    I.InterpolationSettings(u_start, u_end, dt, plan.v_peak, 0.1),
-                                    I.ReferenceBuffers(t, u, pos, vel, acc, tan, feed), info)
+    n = I.taylor_interpolate_kernel(
+        c.kernel_args,
+        plan_arrays(plan),
+        I.InterpolationSettings(u_start, u_end, dt, plan.v_peak, 0.1),
+        I.ReferenceBuffers(t, u, pos, vel, acc, tan, feed),
+        info,
+    )
     assert info[I.INFO_END_CODE] == I.END_CLAMPED
     u = u[:n]
     assert u[-1] == u_end and np.all(u <= u_end) and np.all(np.diff(u) >= 0)

@@ -47,7 +47,7 @@ def test_linearised_errors_against_the_exact_projection(override_env):
     assert np.max(dist) > 4e-3  # the points are off the path, not on it
     for delta in (-2e-2, 5e-3, 2e-2):
         e_c, e_l = M.linearised_errors(q, foot, foot + delta, path)
-        bound = kappa * (np.abs(d) * abs(delta) + delta ** 2) + 2e-4
+        bound = kappa * (np.abs(d) * abs(delta) + delta**2) + 2e-4
         assert np.all(np.abs(np.abs(e_c) - dist) <= bound)
         assert np.all(np.abs(e_l) <= bound)
     # the lag error is the arc between the foot point and theta, to first order
@@ -70,7 +70,7 @@ def test_block_prediction_is_the_model_stepped_period_by_period(override_env):
     theta, v = 0.3, 20.0
     for m, L in enumerate(pred.blocks):  # the double integrator, period by period
         for _ in range(L):
-            theta += v * pol.dt + 0.5 * a[m] * pol.dt ** 2
+            theta += v * pol.dt + 0.5 * a[m] * pol.dt**2
             v += a[m] * pol.dt
     np.testing.assert_allclose(0.3 + pred.times[-1] * 20.0 + pred.St[-1] @ a, theta, rtol=1e-12)
     np.testing.assert_allclose(20.0 + pred.Sv[-1] @ a, v, rtol=1e-12)
@@ -83,11 +83,28 @@ def _braking_qp(pol):
     theta0, v0 = 5.5, 50.0
     p, t = path.at(theta0)
     y = p + 0.2 * np.array([-t[1], t[0]])
-    x0 = np.stack([np.linalg.pinv(m.measurement()) @ np.array([y[j], v0 * t[j]])[:m.measurement().shape[0]]
-                   for j, m in enumerate(pol.models)])
+    x0 = np.stack(
+        [
+            np.linalg.pinv(m.measurement()) @ np.array([y[j], v0 * t[j]])[: m.measurement().shape[0]]
+            for j, m in enumerate(pol.models)
+        ]
+    )
     theta_bar = theta0 + pol.predictions[0].times * v0
-    return M.contouring_qp(pol.predictions, path, x0, theta0, v0, theta_bar, np.zeros(2), 0.0, np.zeros((2, b)),
-                           pol.u_max, np.full(b, 30.0), pol.a_max, pol.weights)
+    return M.contouring_qp(
+        pol.predictions,
+        path,
+        x0,
+        theta0,
+        v0,
+        theta_bar,
+        np.zeros(2),
+        0.0,
+        np.zeros((2, b)),
+        pol.u_max,
+        np.full(b, 30.0),
+        pol.a_max,
+        pol.weights,
+    )
 
 
 def test_qp_against_a_second_solver(override_env):
@@ -102,11 +119,22 @@ def test_qp_against_a_second_solver(override_env):
     A = sparse.csc_matrix(np.vstack([np.eye(nz), qp.G]))
     lower, upper = np.maximum(qp.lower, -1e30), np.minimum(qp.upper, 1e30)
     solver = osqp.OSQP()
-    solver.setup(sparse.csc_matrix(np.triu(qp.H)), qp.f, A, lower, upper, eps_abs=1e-10, eps_rel=1e-10,
-                 max_iter=200000, polishing=True, verbose=False)
+    solver.setup(
+        sparse.csc_matrix(np.triu(qp.H)),
+        qp.f,
+        A,
+        lower,
+        upper,
+        eps_abs=1e-10,
+        eps_rel=1e-10,
+        max_iter=200000,
+        polishing=True,
+        verbose=False,
+    )
     ref = solver.solve().x
-    active = np.isclose(np.concatenate([z, qp.G @ z]), upper, atol=1e-7) | \
-        np.isclose(np.concatenate([z, qp.G @ z]), lower, atol=1e-7)
+    active = np.isclose(np.concatenate([z, qp.G @ z]), upper, atol=1e-7) | np.isclose(
+        np.concatenate([z, qp.G @ z]), lower, atol=1e-7
+    )
     assert active[:nz].any() and active[nz:].any()  # input limits and progress bounds both bind
     cost = lambda w: 0.5 * w @ qp.H @ w + qp.f @ w  # noqa: E731
     assert abs(cost(z) - cost(ref)) <= 1e-8 * abs(cost(ref))
@@ -125,7 +153,12 @@ def test_it_runs_on_feed_override_ids_only_and_refuses_bad_arguments(override_en
         vcnc_baselines.make("mpcc", plain)
     assert applies("mpcc", override_env) and not applies("mpcc", plain)
     assert not applies("ff-pid", override_env)
-    for name, value in (("v_max", -1.0), ("progress_weight", float("nan")), ("a_max", 0.0), ("disturbance_time", -1e-3)):
+    for name, value in (
+        ("v_max", -1.0),
+        ("progress_weight", float("nan")),
+        ("a_max", 0.0),
+        ("disturbance_time", -1e-3),
+    ):
         with pytest.raises(ValueError, match=name):
             vcnc_baselines.make("mpcc", override_env, **{name: value})
     with pytest.raises(ValueError, match="blocks"):
@@ -253,12 +286,12 @@ def test_disturbance_observer_finds_an_input_disturbance(override_env, time_cons
         y = np.array([m.C @ xj for m, xj in zip(pol.models, x)])
         v = np.array([m.Cv @ xj for m, xj in zip(pol.models, x)])
         pol._estimate(mem, y, v)
-        d_hat = mem[s["d"]:s["d"] + 2].copy()
+        d_hat = mem[s["d"] : s["d"] + 2].copy()
         applied = u_lin - d_hat
-        mem[s["u"]:s["u"] + 2] = applied + d_hat  # the policy's record: the command less (c - d_hat)
+        mem[s["u"] : s["u"] + 2] = applied + d_hat  # the policy's record: the command less (c - d_hat)
         mem[s["k"]] += 1
         x = [m.A @ xj + m.B * (applied[j] + truth[j]) for j, (m, xj) in enumerate(zip(pol.models, x))]
     expected = truth * (1.0 - (1.0 - pol.dt / time_constant) ** (steps - 1)) if time_constant else np.zeros(2)
-    np.testing.assert_allclose(mem[s["d"]:s["d"] + 2], expected, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(mem[s["d"] : s["d"] + 2], expected, rtol=1e-6, atol=1e-12)
     if time_constant:
-        np.testing.assert_allclose(mem[s["d"]:s["d"] + 2], truth, rtol=1e-3)
+        np.testing.assert_allclose(mem[s["d"] : s["d"] + 2], truth, rtol=1e-3)

@@ -51,8 +51,9 @@ def _check_fields(env, n_steps=400):
             kp = min(k + s, ref.shape[0] - 1)
             np.testing.assert_allclose(lay.preview(obs)[j], ref[kp, 0:2] - info["measured_position"], atol=1e-5)
         if shop and prev_measured is not None:  # a shop-floor sensor: the readings' difference (no sensor delay)
-            np.testing.assert_allclose(lay.velocity(obs), (info["measured_position"] - prev_measured) / u.dt,
-                                       rtol=1e-6, atol=1e-3)
+            np.testing.assert_allclose(
+                lay.velocity(obs), (info["measured_position"] - prev_measured) / u.dt, rtol=1e-6, atol=1e-3
+            )
         prev_measured = info["measured_position"].copy()
         # the velocity field is the table's: it matches the position's finite difference on average
         if prev_pos is not None and t > 50 and not shop:

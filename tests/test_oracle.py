@@ -50,8 +50,7 @@ def test_shipped_floor_replays_to_its_stored_figure(stored):
     assert all(sol.max_um <= v[0] for v in sol.warm_starts.values())
 
 
-def test_the_bench_checks_a_stored_floor_by_its_own_episode_and_solves_a_stale_one_again(stored, monkeypatch,
-                                                                                           tmp_path):
+def test_the_bench_checks_a_stored_floor_by_its_own_episode_and_solves_a_stale_one_again(stored, monkeypatch, tmp_path):
     """With ``check_by_episode`` (the bench's kind) the oracle loads a stored floor without a rollout of its own
     (none runs), and the bench's runner confirms it by its episode.  A stored figure the episode does not reproduce
     (here tampered) is refused with a warning, and the runner's second episode is the floor solved again (a stub
@@ -65,8 +64,11 @@ def test_the_bench_checks_a_stored_floor_by_its_own_episode_and_solves_a_stale_o
     noise = int(u._batch.plant_arrays.rng[0])
     key = solutions.signature(env, u.parameters, noise)
     genuine = solutions.load(key)
-    monkeypatch.setattr(oracle_module.OraclePolicy, "_replay",
-                        staticmethod(lambda *a: pytest.fail("a rollout replay ran: the episode is the check")))
+    monkeypatch.setattr(
+        oracle_module.OraclePolicy,
+        "_replay",
+        staticmethod(lambda *a: pytest.fail("a rollout replay ran: the episode is the check")),
+    )
     runs = run_env(EnvRecipe(env_id, env_id, specs=("oracle",)), seed=0, trials=1)
     result = runs.runs[0].trials[-1]
     assert result.max_contour_error_um == genuine.max_um
@@ -121,8 +123,14 @@ def test_the_robust_path_reports_the_floor_s_plants_as_it_plans_them(stored):
     for policy in (vcnc_baselines.make("oracle", env), vcnc_baselines.make("ff-pid@machine", env)):
         batch = robust.make_batch(env_id, 1)
         try:
-            robust.run_plants(policy, batch, u.nominal_parameters[None], decision_period=u.decision_period, seed=0,
-                              planning=lambda done, total, name=policy.name: calls.append((name, done, total)))
+            robust.run_plants(
+                policy,
+                batch,
+                u.nominal_parameters[None],
+                decision_period=u.decision_period,
+                seed=0,
+                planning=lambda done, total, name=policy.name: calls.append((name, done, total)),
+            )
         finally:
             batch.close()
     assert calls == [("oracle", 1, 1)]
@@ -139,10 +147,12 @@ def test_oracle_refuses_to_act_without_a_plan():
 
 
 def test_headroom_is_the_strongest_causal_figure_over_the_floors():
-    results = {"qft": {"max_contour_error_um": 547.0, "rms_contour_error_um": 247.0},
-               "ff-pid": {"max_contour_error_um": 1790.0, "rms_contour_error_um": 650.0},
-               "smc": {"max_contour_error_um": math.inf, "rms_contour_error_um": math.inf},
-               "oracle" + NON_CAUSAL: {"max_contour_error_um": 500.0, "rms_contour_error_um": 240.0}}
+    results = {
+        "qft": {"max_contour_error_um": 547.0, "rms_contour_error_um": 247.0},
+        "ff-pid": {"max_contour_error_um": 1790.0, "rms_contour_error_um": 650.0},
+        "smc": {"max_contour_error_um": math.inf, "rms_contour_error_um": math.inf},
+        "oracle" + NON_CAUSAL: {"max_contour_error_um": 500.0, "rms_contour_error_um": 240.0},
+    }
     h = headroom(results)
     assert (h.strongest, h.floor) == ("qft", "oracle" + NON_CAUSAL)
     assert h.ratio == 547.0 / 500.0
@@ -187,8 +197,7 @@ def test_an_at_machine_start_is_the_controller_commissioned_on_that_machine():
     env = gym.make("VCNC-OmegaLookahead-v1")
     env.reset(seed=0)
     u = env.unwrapped
-    starts = warm_starts(env, Rollouts(u.task, np.asarray(u.parameters), 1, None),
-                         names=["zpetc", "zpetc@machine"])
+    starts = warm_starts(env, Rollouts(u.task, np.asarray(u.parameters), 1, None), names=["zpetc", "zpetc@machine"])
     for name in ("zpetc", "zpetc@machine"):
         episode = run_episode(vcnc_baselines.make(name, env), env, seed=0)
         assert 1e3 * starts[name].max == pytest.approx(episode.max_contour_error_um, rel=1e-12, abs=0.0), name

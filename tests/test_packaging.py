@@ -56,9 +56,14 @@ def _old_imports(path: Path) -> list[str]:
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and not node.level:
             names = [node.module or ""]
-        elif (isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) in
-              ("import_module", "importorskip", "__import__") and node.args
-              and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)):
+        elif (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "attr", getattr(node.func, "id", ""))
+            in ("import_module", "importorskip", "__import__")
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+        ):
             names = [node.args[0].value]
         else:
             continue
@@ -89,9 +94,14 @@ def test_the_old_residual_wrapper_path_is_read_with_a_warning():
 # -- the wheel, installed ------------------------------------------------------------------------------------------
 
 #: What the wheel must carry that is no Python file: the package reads each at run time.
-DATA = ("vcnc_gym/gcode/programs/", "vcnc_agents/trained/VCNC-Heart-v1/model.zip",
-        "vcnc_agents/trained/VCNC-Heart-v1/config.yml", "vcnc_agents/hyperparams/ppo.yml",
-        "vcnc_baselines/optimal/solutions/", "vcnc_baselines/commissioning/shipped/machines/")
+DATA = (
+    "vcnc_gym/gcode/programs/",
+    "vcnc_agents/trained/VCNC-Heart-v1/model.zip",
+    "vcnc_agents/trained/VCNC-Heart-v1/config.yml",
+    "vcnc_agents/hyperparams/ppo.yml",
+    "vcnc_baselines/optimal/solutions/",
+    "vcnc_baselines/commissioning/shipped/machines/",
+)
 #: The cheapest env to compile (a single axis): the smoke test's.
 ENV = "VCNC-Step-v0"
 #: Someone else's top-level packages, already installed where vcnc-gym is installed.
@@ -115,8 +125,10 @@ def _read_only(site: Path) -> list[str]:
     if os.geteuid() != 0:
         return []
     prefix = ["unshare", "--mount", "--", "sh", "-c", _READ_ONLY, "sh", str(site)]
-    if (shutil.which("unshare") is None
-            or subprocess.run([*prefix, "sh", "-c", f"! touch {site}/probe 2>/dev/null"], capture_output=True).returncode):
+    if (
+        shutil.which("unshare") is None
+        or subprocess.run([*prefix, "sh", "-c", f"! touch {site}/probe 2>/dev/null"], capture_output=True).returncode
+    ):
         pytest.skip("root here, and no mount namespace to make site-packages read-only in")
     return prefix
 
@@ -140,27 +152,42 @@ def installed(tmp_path_factory):
     venv's site-packages)."""
     tmp = tmp_path_factory.mktemp("wheel")
     dist = tmp / "dist"
-    _run([sys.executable, "-m", "build", "--no-isolation", "--outdir", dist, ROOT], cwd=tmp, env=os.environ,
-         timeout=300)
+    _run(
+        [sys.executable, "-m", "build", "--no-isolation", "--outdir", dist, ROOT], cwd=tmp, env=os.environ, timeout=300
+    )
     wheel = next(dist.glob("vcnc_gym-*.whl"))
     venv = tmp / "venv"
     _run([sys.executable, "-m", "venv", "--without-pip", venv], cwd=tmp, env=os.environ)
     python = venv / "bin" / "python"
-    site = Path(_run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=tmp,
-                     env=os.environ).stdout.strip())
+    site = Path(
+        _run(
+            [python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=tmp, env=os.environ
+        ).stdout.strip()
+    )
     for name, who in OTHERS.items():
         (site / name).mkdir()
         (site / name / "__init__.py").write_text(f"WHO = {who!r}\n")
     (site / "vcnc_test_dependencies.pth").write_text(f"{_dependencies_overlay(tmp / 'dependencies')}\n")
-    _run([sys.executable, "-m", "pip", "--python", python, "install", "-q", "--no-deps", "--no-index", wheel],
-         cwd=tmp, env=os.environ)
+    _run(
+        [sys.executable, "-m", "pip", "--python", python, "install", "-q", "--no-deps", "--no-index", wheel],
+        cwd=tmp,
+        env=os.environ,
+    )
     for path in (site, *site.rglob("*")):  # read-only, as a system's site-packages
         if not path.is_symlink():
             path.chmod(path.stat().st_mode & ~(stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith(("NUMBA_CACHE_DIR", "PYTHONPATH", "VIRTUAL_ENV", "PYTEST", "COV_"))}
-    env.update(PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}", HOME=str(tmp / "home"),
-               XDG_CACHE_HOME=str(tmp / "cache"), MPLBACKEND="Agg", PYTHONWARNINGS="ignore::DeprecationWarning")
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith(("NUMBA_CACHE_DIR", "PYTHONPATH", "VIRTUAL_ENV", "PYTEST", "COV_"))
+    }
+    env.update(
+        PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}",
+        HOME=str(tmp / "home"),
+        XDG_CACHE_HOME=str(tmp / "cache"),
+        MPLBACKEND="Agg",
+        PYTHONWARNINGS="ignore::DeprecationWarning",
+    )
     work = tmp / "work"
     work.mkdir()
     yield wheel, python, env, work, site
@@ -210,12 +237,43 @@ print(vcnc_baselines.make("pi", env).predict(obs)[0])
 def test_the_installed_commands_run(installed):
     _, python, env, work, site = installed
     read_only, bin_dir = _read_only(site), python.parent
-    _run([*read_only, bin_dir / "vcnc-bench", "--env", ENV, "--policy", "pi", "--json", "bench.json", "--no-progress",
-          "--jobs", "1"], cwd=work, env=env)
+    _run(
+        [
+            *read_only,
+            bin_dir / "vcnc-bench",
+            "--env",
+            ENV,
+            "--policy",
+            "pi",
+            "--json",
+            "bench.json",
+            "--no-progress",
+            "--jobs",
+            "1",
+        ],
+        cwd=work,
+        env=env,
+    )
     records = json.loads((work / "bench.json").read_text())["records"]
     assert (ENV, "pi") in [(r.get("env"), r.get("policy")) for r in records]
-    _run([*read_only, bin_dir / "vcnc-train", "--env", ENV, "--timesteps", "1", "--n-envs", "2", "--no-progress",
-          "--no-tensorboard", "--output", "run"], cwd=work, env=env)  # one PPO rollout
+    _run(
+        [
+            *read_only,
+            bin_dir / "vcnc-train",
+            "--env",
+            ENV,
+            "--timesteps",
+            "1",
+            "--n-envs",
+            "2",
+            "--no-progress",
+            "--no-tensorboard",
+            "--output",
+            "run",
+        ],
+        cwd=work,
+        env=env,
+    )  # one PPO rollout
     assert (work / "run" / "config.yml").is_file() and (work / "run" / "final").is_dir()
     help_text = _run([*read_only, bin_dir / "vcnc-datasets", "--help"], cwd=work, env=env).stdout
     assert "vcnc-datasets" in help_text
@@ -224,8 +282,13 @@ def test_the_installed_commands_run(installed):
 def test_a_missing_extra_is_named(installed):
     """Without python-control the controllers' import names the extra to install."""
     _, python, env, work, site = installed
-    proc = subprocess.run([*_read_only(site), python, "-c",
-                           "import sys; sys.modules['control'] = None; import vcnc_baselines"],
-                          cwd=work, env=env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [*_read_only(site), python, "-c", "import sys; sys.modules['control'] = None; import vcnc_baselines"],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode != 0
     assert "pip install 'vcnc-gym[baselines]'" in proc.stderr.strip().splitlines()[-1]

@@ -143,8 +143,19 @@ def test_a_mode_option_keeps_the_entry_s_baseline_arguments_unless_it_names_anot
     from vcnc_agents.run_warning import RunWarning
 
     omega = "VCNC-OmegaTolerance-v2"
-    entry = {"policy": "MlpPolicy", "env_wrapper": [{"vcnc_agents.action_modes.ResidualAction": {
-        "baseline": "ff-pid-online", "correction": 0.1, "action_repeat": 20, "integral": False}}]}
+    entry = {
+        "policy": "MlpPolicy",
+        "env_wrapper": [
+            {
+                "vcnc_agents.action_modes.ResidualAction": {
+                    "baseline": "ff-pid-online",
+                    "correction": 0.1,
+                    "action_repeat": 20,
+                    "integral": False,
+                }
+            }
+        ],
+    }
     config = tmp_path / "entry.yml"
     config.write_text(yaml.safe_dump({omega: entry}))
     args = parser().parse_args(["--env", omega, "--config", str(config), "--peak-weight", "10"])

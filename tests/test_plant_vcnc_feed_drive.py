@@ -68,8 +68,17 @@ def test_numbers_match_jahanpour2014():
     assert d["T_coul_pos"] == (2.1529, 2.5228)
     assert d["T_coul_neg"] == (-1.4730, -2.3887)
     assert fd.PARAMETER_NAMES == (
-        "r_g", "K_t", "K_a", "J", "B", "T_stat_pos", "T_stat_neg",
-        "T_coul_pos", "T_coul_neg", "backlash", "u_max",
+        "r_g",
+        "K_t",
+        "K_a",
+        "J",
+        "B",
+        "T_stat_pos",
+        "T_stat_neg",
+        "T_coul_pos",
+        "T_coul_neg",
+        "backlash",
+        "u_max",
     )
     assert p.shape == (2, len(fd.PARAMETER_NAMES)) and p.dtype == np.float64
     assert fd.parameter_intervals() == {
@@ -156,8 +165,7 @@ def test_transfer_function_coefficients():
 
 def test_below_static_friction_stays_exactly_at_rest():
     p = fd.nominal_parameters()
-    u = np.array([0.999 * p[IX, fd.IDX_T_STAT_POS] / k_motor(p, IX),
-                  0.999 * p[IY, fd.IDX_T_STAT_NEG] / k_motor(p, IY)])
+    u = np.array([0.999 * p[IX, fd.IDX_T_STAT_POS] / k_motor(p, IX), 0.999 * p[IY, fd.IDX_T_STAT_NEG] / k_motor(p, IY)])
     x0 = np.array([[1.25, -7.5]])
     traj = simulate(p, np.tile(u, (500, 1)), x0=x0)
     assert np.array_equal(traj[-1], traj[0])
@@ -166,8 +174,7 @@ def test_below_static_friction_stays_exactly_at_rest():
 
 def test_just_above_static_friction_moves():
     p = fd.nominal_parameters()
-    u = np.array([1.001 * p[IX, fd.IDX_T_STAT_POS] / k_motor(p, IX),
-                  1.001 * p[IY, fd.IDX_T_STAT_NEG] / k_motor(p, IY)])
+    u = np.array([1.001 * p[IX, fd.IDX_T_STAT_POS] / k_motor(p, IX), 1.001 * p[IY, fd.IDX_T_STAT_NEG] / k_motor(p, IY)])
     traj = simulate(p, np.tile(u, (500, 1)))
     assert traj[1, 0, IX, fd.S_W] > 0 and traj[1, 0, IY, fd.S_W] < 0
     assert traj[-1, 0, IX, fd.S_XT] > 0.01 and traj[-1, 0, IY, fd.S_XT] < -0.01
@@ -391,7 +398,7 @@ def test_batch_equals_separate_machines():
     x0 = rng.uniform(-50, 50, size=(n, 2))
     batched = simulate(params, volts, x0=x0)
     for m in range(n):
-        single = simulate(params[m], volts[:, m, :], x0=x0[m:m + 1])
+        single = simulate(params[m], volts[:, m, :], x0=x0[m : m + 1])
         np.testing.assert_array_equal(batched[:, m], single[:, 0])
     assert len({batched[-1, m, 0, fd.S_XT] for m in range(n)}) == n
 
@@ -425,8 +432,15 @@ def test_sample_parameters():
     rng = np.random.default_rng(123)
     samples = np.stack([fd.sample_parameters(rng) for _ in range(2000)])
     nominal = fd.nominal_parameters()
-    fixed = [fd.IDX_J, fd.IDX_T_STAT_POS, fd.IDX_T_STAT_NEG, fd.IDX_T_COUL_POS,
-             fd.IDX_T_COUL_NEG, fd.IDX_BACKLASH, fd.IDX_U_MAX]
+    fixed = [
+        fd.IDX_J,
+        fd.IDX_T_STAT_POS,
+        fd.IDX_T_STAT_NEG,
+        fd.IDX_T_COUL_POS,
+        fd.IDX_T_COUL_NEG,
+        fd.IDX_BACKLASH,
+        fd.IDX_U_MAX,
+    ]
     for p in samples:
         c = _box_coords(p)
         assert all(lo <= v <= hi for v, (lo, hi) in zip(c, BOX))

@@ -10,7 +10,12 @@ from scipy import linalg, optimize
 
 import vcnc_gym  # noqa: F401  (registers the ids)
 import vcnc_baselines
-from vcnc_baselines.predictive.design import axis_model, input_weight_for_bandwidth, preview_design, closed_loop_bandwidth
+from vcnc_baselines.predictive.design import (
+    axis_model,
+    input_weight_for_bandwidth,
+    preview_design,
+    closed_loop_bandwidth,
+)
 from vcnc_baselines.predictive.mpc import condensed_qp, solve_box_qp
 from vcnc_gym.plants import get_plant
 
@@ -36,7 +41,7 @@ def test_axis_model_is_python_controls_zoh_discretisation(periods):
     model = _model(periods * DT, axis=1)
     u = np.random.default_rng(0).normal(size=60)
     reference = control.forced_response(control.c2d(tf, DT, "zoh"), U=u).outputs
-    delayed = np.concatenate([np.zeros(periods), reference[:u.size - periods]])
+    delayed = np.concatenate([np.zeros(periods), reference[: u.size - periods]])
     np.testing.assert_allclose(_simulate(model, u), delayed, rtol=1e-9, atol=1e-12 * np.abs(reference).max())
     assert model.delay_periods == periods
 
@@ -47,14 +52,14 @@ def _preview_system_here(model, M):
     size = 1 + n + M
     A = np.zeros((size, size))
     A[0, 0] = 1.0
-    A[0, 1:1 + n] = -model.C @ model.A
-    A[1:1 + n, 1:1 + n] = model.A
+    A[0, 1 : 1 + n] = -model.C @ model.A
+    A[1 : 1 + n, 1 : 1 + n] = model.A
     A[0, 1 + n] = 1.0  # e(k+1) gets Dr(k+1)
     for j in range(M - 1):
         A[1 + n + j, 2 + n + j] = 1.0  # the shift register
     B = np.zeros((size, 1))
     B[0, 0] = -model.C @ model.B
-    B[1:1 + n, 0] = model.B
+    B[1 : 1 + n, 0] = model.B
     Q = np.zeros((size, size))
     Q[0, 0] = 1.0
     return A, B, Q
@@ -138,8 +143,7 @@ def test_mpc_qp_against_a_second_solver():
         bound = 0.3 * np.abs(free).max()
         lower, upper = -bound * np.ones(free.size), bound * np.ones(free.size) * (1.0 + 0.1 * trial)
         z = solve_box_qp(qp.H, f, lower, upper)
-        ref = optimize.lsq_linear(L.T, -np.linalg.solve(L, f), bounds=(lower, upper), method="bvls",
-                                  tol=1e-14).x
+        ref = optimize.lsq_linear(L.T, -np.linalg.solve(L, f), bounds=(lower, upper), method="bvls", tol=1e-14).x
         assert np.any(np.isclose(ref, lower) | np.isclose(ref, upper))  # the bounds are active
         np.testing.assert_allclose(z, ref, rtol=1e-6, atol=1e-7 * bound)
 
@@ -199,8 +203,9 @@ def test_the_estimator_reads_the_velocity_only_from_an_exact_sensor():
     """Purtojo et al.'s table reads a 1 um encoder (its velocity a difference of counts): position only, through the
     Kalman filter; Jahanpour et al.'s drive reads the exact state: the estimate is the measurement."""
     heart, circle = gym.make("VCNC-Heart-v1"), gym.make("VCNC-Circle-v1")
-    exact = vcnc_baselines.make("mpc", heart, input_weight=1e-5, models=[heart.unwrapped.plant.linear_model(axis=j)
-                                                                    for j in range(2)])
+    exact = vcnc_baselines.make(
+        "mpc", heart, input_weight=1e-5, models=[heart.unwrapped.plant.linear_model(axis=j) for j in range(2)]
+    )
     assert exact.velocity and exact.axis_models[0].Cv is not None
     L = exact.estimator_gains[0]
     np.testing.assert_allclose(L @ exact.axis_models[0].measurement(), np.eye(2), atol=1e-12)
@@ -223,8 +228,7 @@ def test_lq_loop_against_python_control(commissioned_lq):
     same controller and model interconnected by python-control, and the margin rule's weight (margin_weight)
     meeting the rule on python-control's response."""
     from vcnc_baselines.commissioning.design import GAIN_MARGIN, PHASE_MARGIN, margins
-    from vcnc_baselines.predictive.design import (closed_loop_stable, feedback_controller, loop_response,
-                                                  margin_weight)
+    from vcnc_baselines.predictive.design import closed_loop_stable, feedback_controller, loop_response, margin_weight
 
     policy = commissioned_lq
     assert policy.model == "commissioned"
@@ -240,8 +244,9 @@ def test_lq_loop_against_python_control(commissioned_lq):
     poles = control.poles(control.feedback(P, C, sign=1))  # u = C y_m: positive feedback
     assert closed_loop_stable(model, design, L) == bool(np.all(np.abs(poles) < 1.0))
     record = policy.records[0]
-    assert margin_weight(model, L, record.designs[0].margins.crossover, record.axes[0].mode_frequency) == \
-        pytest.approx(design.rho)
+    assert margin_weight(model, L, record.designs[0].margins.crossover, record.axes[0].mode_frequency) == pytest.approx(
+        design.rho
+    )
     # the rule's margins, read back from python-control's response at the crossover the grid found (its own
     # stability_margins roots the 13th-order polynomial at dt = 0.1 ms and finds crossings that are not there)
     grid = np.logspace(-1, np.log10(0.999 * np.pi / DT), 4000)

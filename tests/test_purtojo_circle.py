@@ -31,8 +31,9 @@ def test_circle_is_an_exact_nurbs_against_geomdl(radius):
     for k in (0, 37, 100, 163):
         np.testing.assert_allclose(ours[k, 1, :], ref.derivatives(u[k], 1)[1], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(np.hypot(ours[:, 0, 0], ours[:, 0, 1]), radius, rtol=1e-15)  # on the circle
-    np.testing.assert_allclose(ours[[0, 50, 100, 150, 200], 0, :],
-                               radius * np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [0, 1]]), atol=1e-15)
+    np.testing.assert_allclose(
+        ours[[0, 50, 100, 150, 200], 0, :], radius * np.array([[0, 1], [1, 0], [0, -1], [-1, 0], [0, 1]]), atol=1e-15
+    )
     # clockwise, as x = R sin, y = R cos: the tangent at the start points along +x
     assert ours[0, 1, 0] > 0 and abs(ours[0, 1, 1]) < 1e-12
     assert SHAPES["circle"] is circle

@@ -36,7 +36,7 @@ def test_stepwise_experiment_is_the_quantised_step_response():
         got = ex.position[: ex.switch_index + 1, axis]
         assert np.all(np.abs(got - exact) <= 0.5e-3 + 1e-9)  # the 1 um sensor's reading
     np.testing.assert_array_equal(ex.input[: ex.switch_index], 1.0)
-    np.testing.assert_array_equal(ex.input[ex.switch_index:], 0.0)
+    np.testing.assert_array_equal(ex.input[ex.switch_index :], 0.0)
 
 
 @pytest.mark.parametrize("vertex", [None, 0, 15])
@@ -81,9 +81,17 @@ def test_membership_design_follows_eqs_1_and_2(policy):
 # The fuzzy compensator against scikit-fuzzy
 # --------------------------------------------------------------------------
 def test_rule_table_is_table_1():
-    table = {("N", "N"): "N", ("N", "Z"): "N", ("N", "P"): "Z",
-             ("Z", "N"): "N", ("Z", "Z"): "Z", ("Z", "P"): "P",
-             ("P", "N"): "Z", ("P", "Z"): "P", ("P", "P"): "P"}
+    table = {
+        ("N", "N"): "N",
+        ("N", "Z"): "N",
+        ("N", "P"): "Z",
+        ("Z", "N"): "N",
+        ("Z", "Z"): "Z",
+        ("Z", "P"): "P",
+        ("P", "N"): "Z",
+        ("P", "Z"): "P",
+        ("P", "P"): "P",
+    }
     for (up, ui), out in table.items():
         assert nctf.LABELS[nctf.RULE_TABLE[nctf.LABELS.index(up), nctf.LABELS.index(ui)]] == out
 
@@ -109,8 +117,11 @@ def _skfuzzy_system(comp):
     out["Z"] = skf.trimf(grid, [0.0, 0.0, 0.0])  # the singleton
     out["P"] = skf.smf(grid, 0.0, comp.u_r)
     np.testing.assert_allclose(nctf.output_memberships(grid), [out[t].mf for t in ("N", "Z", "P")], atol=1e-15)
-    rules = [ctrl.Rule(up[a] & ui[b], out[nctf.LABELS[nctf.RULE_TABLE[i, j]]])
-             for i, a in enumerate(nctf.LABELS) for j, b in enumerate(nctf.LABELS)]
+    rules = [
+        ctrl.Rule(up[a] & ui[b], out[nctf.LABELS[nctf.RULE_TABLE[i, j]]])
+        for i, a in enumerate(nctf.LABELS)
+        for j, b in enumerate(nctf.LABELS)
+    ]
     return ctrl.ControlSystemSimulation(ctrl.ControlSystem(rules))
 
 
@@ -124,8 +135,9 @@ def test_fuzzy_inference_matches_skfuzzy(policy, axis):
     up_values = np.concatenate([-rel[::-1], rel[1:]]) * comp.h_s_res
     up_values = np.concatenate([up_values, [-1.3 * comp.h_max, -0.6 * comp.h_max, 0.25 * comp.h_max, comp.h_max]])
     ui_values = np.concatenate([-rel[::-1], rel[1:]]) * comp.u_i_s_res
-    ui_values = np.concatenate([ui_values, [-comp.u_i_max, -0.2 * comp.u_i_max, 0.7 * comp.u_i_max,
-                                            2.0 * comp.u_i_max]])
+    ui_values = np.concatenate(
+        [ui_values, [-comp.u_i_max, -0.2 * comp.u_i_max, 0.7 * comp.u_i_max, 2.0 * comp.u_i_max]]
+    )
     UP, UI = np.meshgrid(up_values, ui_values, indexing="ij")
     ours = comp.infer(UP, UI)
     ref = np.empty_like(ours)
@@ -224,14 +236,17 @@ def test_registered_and_built_from_an_env():
         vcnc_baselines.make("nctf", jahanpour_env)
 
 
-@pytest.mark.parametrize("kwargs, words", [
-    (dict(integral_gain=-1.0), "integral_gain"),
-    (dict(zero_rate="tachometer"), "zero_rate"),
-    (dict(fit_fraction=1.5), "fit_fraction"),
-    (dict(on_time=0.0), "on_time"),
-    (dict(off_time=0.002), "too short"),
-    (dict(velocity_window=float("nan")), "velocity_window"),
-])
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        (dict(integral_gain=-1.0), "integral_gain"),
+        (dict(zero_rate="tachometer"), "zero_rate"),
+        (dict(fit_fraction=1.5), "fit_fraction"),
+        (dict(on_time=0.0), "on_time"),
+        (dict(off_time=0.002), "too short"),
+        (dict(velocity_window=float("nan")), "velocity_window"),
+    ],
+)
 def test_bad_parameters_raise_value_error(kwargs, words):
     with pytest.raises(ValueError, match=words):
         NCTFPolicy(LAYOUT, DT, MODEL.nominal(), **kwargs)
@@ -239,8 +254,9 @@ def test_bad_parameters_raise_value_error(kwargs, words):
 
 def test_construct_nct_rejects_a_table_that_does_not_move():
     ex = nctf.stepwise_experiment(dt=DT)
-    still = nctf.StepwiseExperiment(ex.time, np.zeros_like(ex.position), ex.input, ex.switch_index, ex.dt,
-                                    ex.u_r, ex.resolution)
+    still = nctf.StepwiseExperiment(
+        ex.time, np.zeros_like(ex.position), ex.input, ex.switch_index, ex.dt, ex.u_r, ex.resolution
+    )
     with pytest.raises(ValueError, match="did not move"):
         nctf.construct_nct(still, 0)
     with pytest.raises(ValueError, match="axis"):

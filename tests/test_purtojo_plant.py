@@ -108,14 +108,17 @@ def test_reset_puts_the_table_at_rest_at_the_position():
     np.testing.assert_array_equal(arrays.state[0], 0.0)
 
 
-@pytest.mark.parametrize("column, value, words", [
-    ("resolution", 0.0, ("resolution", "mm", "positive")),
-    ("resolution", -0.001, ("resolution", "mm", "positive")),
-    ("K", -50.7, ("K", "positive")),
-    ("alpha", 0.0, ("alpha", "1/s", "positive")),
-    ("u_r", 0.0, ("u_r", "positive")),
-    ("alpha", np.nan, ("finite", "alpha")),
-])
+@pytest.mark.parametrize(
+    "column, value, words",
+    [
+        ("resolution", 0.0, ("resolution", "mm", "positive")),
+        ("resolution", -0.001, ("resolution", "mm", "positive")),
+        ("K", -50.7, ("K", "positive")),
+        ("alpha", 0.0, ("alpha", "1/s", "positive")),
+        ("u_r", 0.0, ("u_r", "positive")),
+        ("alpha", np.nan, ("finite", "alpha")),
+    ],
+)
 def test_bad_parameters_raise_value_error(column, value, words):
     p = MODEL.nominal()
     p[1, MODEL.index(column)] = value

@@ -14,12 +14,21 @@ from vcnc_gym.gcode.random_contour import MAX_MOVES, RandomContourSpec
 ID = "VCNC-RandomContour-v1"
 
 
-@pytest.mark.parametrize("field, value, message", [
-    ("moves_min", 2.5, "moves_min must be an integer"), ("moves_max", True, "moves_max must be an integer"),
-    ("line_min", "5", "line_min must be a real number"), ("feed_max", None, "feed_max must be a real number"),
-    ("radius_min", 0.0, "radius_min must be > 0"), ("line_probability", "0.5", "line_probability"),
-    ("line_min", 40.0, "line_min must be at most line_max"), ("turn_max", 180.0, "U-turn"),
-    ("turn_min", 20.2, None), ("line_probability", 1.5, r"line_probability must be in \[0, 1\]")])
+@pytest.mark.parametrize(
+    "field, value, message",
+    [
+        ("moves_min", 2.5, "moves_min must be an integer"),
+        ("moves_max", True, "moves_max must be an integer"),
+        ("line_min", "5", "line_min must be a real number"),
+        ("feed_max", None, "feed_max must be a real number"),
+        ("radius_min", 0.0, "radius_min must be > 0"),
+        ("line_probability", "0.5", "line_probability"),
+        ("line_min", 40.0, "line_min must be at most line_max"),
+        ("turn_max", 180.0, "U-turn"),
+        ("turn_min", 20.2, None),
+        ("line_probability", 1.5, r"line_probability must be in \[0, 1\]"),
+    ],
+)
 def test_a_bad_spec_field_is_refused_naming_it(field, value, message):
     kwargs = {field: value}
     if field == "turn_min":  # 20.2..20.8 holds no whole degree

@@ -22,8 +22,14 @@ def _model(env, seed=0):
     from vcnc_agents.lean_ppo import _spaces_only
 
     stub = _spaces_only(env.observation_space, env.action_space, 1)
-    return RecurrentPPO("MlpLstmPolicy", stub, n_steps=8, batch_size=8, seed=seed,
-                        policy_kwargs=dict(lstm_hidden_size=8, net_arch=dict(pi=[16], vf=[16])))
+    return RecurrentPPO(
+        "MlpLstmPolicy",
+        stub,
+        n_steps=8,
+        batch_size=8,
+        seed=seed,
+        policy_kwargs=dict(lstm_hidden_size=8, net_arch=dict(pi=[16], vf=[16])),
+    )
 
 
 def test_the_bench_carries_the_lstm_state_as_sb3_contrib_does():
@@ -43,8 +49,9 @@ def test_the_bench_carries_the_lstm_state_as_sb3_contrib_does():
     forgetful = []
     for k in range(40):
         a_ref, state = model.predict(obs_w[None], state=state, episode_start=start, deterministic=True)
-        forgetful.append(model.predict(obs_w[None], state=None, episode_start=np.array([True]),
-                                       deterministic=True)[0][0])
+        forgetful.append(
+            model.predict(obs_w[None], state=None, episode_start=np.array([True]), deterministic=True)[0][0]
+        )
         start = np.array([False])
         for j in range(10):
             u, _ = policy.predict(obs_p, episode_start=np.array([k == 0 and j == 0]))
@@ -78,8 +85,14 @@ def test_a_recurrent_agent_trains_loads_and_scores_its_evaluation_in_the_bench(t
     from vcnc_agents import load_agent
 
     def change(entry):
-        entry.update(n_envs=2, n_steps=16, batch_size=32, n_epochs=1, policy="MlpLstmPolicy",
-                     policy_kwargs="dict(lstm_hidden_size=16, net_arch=dict(pi=[32], vf=[32]))")
+        entry.update(
+            n_envs=2,
+            n_steps=16,
+            batch_size=32,
+            n_epochs=1,
+            policy="MlpLstmPolicy",
+            policy_kwargs="dict(lstm_hidden_size=16, net_arch=dict(pi=[32], vf=[32]))",
+        )
 
     run, recorded, record = short_run_in_the_bench(tmp_path, HEART, change, 64)
     assert recorded.get("trainer") is None  # SB3's

@@ -52,7 +52,8 @@ MESSAGE_KINDS = {
     "zero-length curve": re.compile(r"curve has \(near-\)zero length"),
     "knot span too short in u (u cannot resolve the step)": re.compile(
         r"the reference cannot follow the curve (near|at) u = .* one floating-point step of u moves .* mm; the knot "
-        r"span \[.*\] is too short in u"),
+        r"span \[.*\] is too short in u"
+    ),
     "cannot follow": re.compile(r"the reference cannot follow the curve near u = "),
     "too many samples": re.compile(r"would make .* reference samples \(.* GiB\); the limit is max_samples="),
 }
@@ -124,8 +125,7 @@ def broken_promises(curve: NurbsCurve, ref) -> list[str]:
     error = np.abs(arcs - np.diff(ref.plan.distance(ref.t)))
     k = int(np.argmax(error))
     if error[k] > tol * (1.0 + 1e-6):
-        problems.append(f"step {k} (u = {ref.u[k]!r}) is off by {error[k] / vdt:.3g} V_peak dt > "
-                        f"{ref.step_tolerance}")
+        problems.append(f"step {k} (u = {ref.u[k]!r}) is off by {error[k] / vdt:.3g} V_peak dt > {ref.step_tolerance}")
     # the kernel's arcs are accurate to ~1e-6 tol, to ~1e-3 tol in knot spans narrow for their |u| (both
     # quadratures place their nodes on floats)
     if not abs(error[k] / vdt - ref.step_error) <= 2e-3 * ref.step_tolerance:
@@ -178,8 +178,10 @@ def nurbs_cases(draw):
     n1 = len(knots) - p - 1
     scale = draw(st.sampled_from([1.0, 10.0, 50.0]), label="size mm")
     cps = rng.uniform(-scale, scale, size=(n1, 2)) + rng.uniform(-200.0, 200.0, size=2)
-    for i, gap in draw(st.lists(st.tuples(st.integers(0, n1 - 2), st.sampled_from([0.0, 1e-16, 1e-12, 1e-8, 1e-4])),
-                                max_size=2), label="near-coincident control points (index, gap / size)"):
+    for i, gap in draw(
+        st.lists(st.tuples(st.integers(0, n1 - 2), st.sampled_from([0.0, 1e-16, 1e-12, 1e-8, 1e-4])), max_size=2),
+        label="near-coincident control points (index, gap / size)",
+    ):
         cps[i + 1] = cps[i] + gap * scale * rng.normal(size=2)
     weights = 10.0 ** rng.uniform(-1.0, 1.0, size=n1) if draw(st.booleans(), label="rational") else np.ones(n1)
     dt = draw(st.sampled_from([1e-3, 1e-4]), label="dt s")
@@ -201,8 +203,11 @@ def fuzz_tally():
         print(f"\nfuzz of interpolate: {total} cases in {time.perf_counter() - start:.1f} s\n{lines}")
 
 
-@settings(max_examples=FUZZ_EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                           HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=FUZZ_EXAMPLES,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(case=nurbs_cases())
 def test_fuzz_reference_is_clean_or_refused_with_a_reason(case, fuzz_tally):
     cps, weights, knots, p, dt, feedrate, ramp_time = case
@@ -216,8 +221,9 @@ def test_fuzz_reference_is_clean_or_refused_with_a_reason(case, fuzz_tally):
         return
     problems = broken_promises(curve, ref)
     assert not problems, problems
-    fuzz_tally["clean reference, eq. (8) only" if ref.corrected_steps == 0 else
-               "clean reference, some steps corrected"] += 1
+    fuzz_tally[
+        "clean reference, eq. (8) only" if ref.corrected_steps == 0 else "clean reference, some steps corrected"
+    ] += 1
 
 
 def test_the_oracle_can_fail():
@@ -228,9 +234,24 @@ def test_the_oracle_can_fail():
 
     class Doctored:
         def __init__(self, **changes):
-            self.__dict__.update({k: getattr(ref, k) for k in ("t", "u", "position", "velocity", "acceleration",
-                                                                 "tangent", "feedrate", "plan", "dt",
-                                                                 "step_tolerance", "step_error")})
+            self.__dict__.update(
+                {
+                    k: getattr(ref, k)
+                    for k in (
+                        "t",
+                        "u",
+                        "position",
+                        "velocity",
+                        "acceleration",
+                        "tangent",
+                        "feedrate",
+                        "plan",
+                        "dt",
+                        "step_tolerance",
+                        "step_error",
+                    )
+                }
+            )
             self.__dict__.update(changes)
 
     u = ref.u.copy()
@@ -275,11 +296,15 @@ def test_issue_first_two_control_points_equal_to_1e16():
 
 CUSPS = {
     # C'(1) = 0 at a knot and the curve turns back: the old reference jumped 20.4 mm in one 0.1 ms step
-    "at a knot": (NurbsCurve([[0, 0], [15, 15], [15, 15], [0, 1]], [1, 2, 0.5, 1], [0, 0, 0, 0.3, 1, 1, 1], 2),
-                  r"curve has a cusp at u = 0.3: the tangent reverses"),
+    "at a knot": (
+        NurbsCurve([[0, 0], [15, 15], [15, 15], [0, 1]], [1, 2, 0.5, 1], [0, 0, 0, 0.3, 1, 1, 1], 2),
+        r"curve has a cusp at u = 0.3: the tangent reverses",
+    ),
     # crossed Bezier control points: C'(1/2) = 0 inside the span (old: feedrate_fluctuation 0.77)
-    "inside a span": (NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3),
-                      r"curve has a cusp at u = 0.5: the tangent reverses"),
+    "inside a span": (
+        NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3),
+        r"curve has a cusp at u = 0.5: the tangent reverses",
+    ),
 }
 
 
@@ -312,12 +337,13 @@ STEP_CASES = {
     # the first segment's speed and made a step 9.0 x V_peak dt (end gap -0.08 mm)
     "polyline speed jump": (NurbsCurve([[0, 0], [10, 0], [10, 10]], [1, 1, 1], [0, 0, 0.9, 1, 1], 1), 1e-4),
     # weights 50 and 0.02: steps 9.3 x V_peak dt
-    "weight ratio 2500": (NurbsCurve([[0, 0], [10, 0], [10, 10], [0, 10]], [1, 50, 0.02, 1],
-                                     [0, 0, 0, 0.5, 1, 1, 1], 2), 1e-4),
+    "weight ratio 2500": (
+        NurbsCurve([[0, 0], [10, 0], [10, 10], [0, 10]], [1, 50, 0.02, 1], [0, 0, 0, 0.5, 1, 1, 1], 2),
+        1e-4,
+    ),
     # the crossed Bezier with weights 2, 1, 1, 0.5: no cusp but a turn of radius 0.7 um (|C'| down to
     # 0.012 of its mean), where eq. (8) jumped 5.2 mm (523 x V_peak dt) in one step
-    "near-cusp": (NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [2, 1, 1, 0.5], [0, 0, 0, 0, 1, 1, 1, 1], 3),
-                  1e-4),
+    "near-cusp": (NurbsCurve([[0, 0], [10, 10], [0, 10], [10, 0]], [2, 1, 1, 0.5], [0, 0, 0, 0, 1, 1, 1, 1], 3), 1e-4),
 }
 
 
@@ -352,8 +378,12 @@ def test_issue_stalled_reference_is_corrected():
 def test_paper_contours_are_not_corrected():
     """Eq. (8) alone meets the tolerance on the paper's contours (largest step error
     0.06 V_peak dt, the omega's last step at 1 ms): their figures are those of the paper's method."""
-    for make, dt, expected in ((heart, 1e-3, 6.1e-3), (heart, 1e-4, 6.1e-4), (omega, 1e-3, 5.95e-2),
-                               (omega, 1e-4, 1.42e-2)):
+    for make, dt, expected in (
+        (heart, 1e-3, 6.1e-3),
+        (heart, 1e-4, 6.1e-4),
+        (omega, 1e-3, 5.95e-2),
+        (omega, 1e-4, 1.42e-2),
+    ):
         ref = interpolate(make(), SCurveFeedrate(), dt)
         assert ref.corrected_steps == 0
         assert ref.step_error == pytest.approx(expected, rel=0.01)
@@ -376,9 +406,12 @@ def test_knot_span_too_short_in_u_for_its_length():
     """A 10 mm segment squeezed into 1e-13 of u: one floating-point step of u moves
     6 um, more than the reference may be off by; refused, naming the span."""
     curve = NurbsCurve([[0, 0], [10, 0], [10, 10], [0, 10]], [1, 1, 1, 1], [0, 0, 0.3, 0.3 + 1e-13, 1, 1], 1)
-    with pytest.raises(ValueError, match=r"cannot follow the curve near u = .* one floating-point step of u moves "
-                                         r".* mm; the knot span \[0.3, 0.3000000000000\d*\] is too short in u for "
-                                         r"its 10 mm"):
+    with pytest.raises(
+        ValueError,
+        match=r"cannot follow the curve near u = .* one floating-point step of u moves "
+        r".* mm; the knot span \[0.3, 0.3000000000000\d*\] is too short in u for "
+        r"its 10 mm",
+    ):
         interpolate(curve, SCurveFeedrate(), 1e-4)
 
 
@@ -421,12 +454,15 @@ def test_the_limit_is_an_argument():
     curve, profile = omega(), SCurveFeedrate()
     n = reference_samples(curve.arc_length(), profile, 1e-4)
     assert len(interpolate(curve, profile, 1e-4, max_samples=n)) == n
-    with pytest.raises(ValueError, match=rf"would make {re.escape(f'{n:.3g}')} reference samples .* max_samples={n - 1} \("):
+    with pytest.raises(
+        ValueError, match=rf"would make {re.escape(f'{n:.3g}')} reference samples .* max_samples={n - 1} \("
+    ):
         interpolate(curve, profile, 1e-4, max_samples=n - 1)
 
 
-@pytest.mark.parametrize("bad", [True, np.True_, "1e-4", 1e-4 + 0j, None, [1e-4], 0.0, -1e-4, float("nan"),
-                                 float("inf")])
+@pytest.mark.parametrize(
+    "bad", [True, np.True_, "1e-4", 1e-4 + 0j, None, [1e-4], 0.0, -1e-4, float("nan"), float("inf")]
+)
 def test_dt_must_be_a_positive_real_number(bad):
     with pytest.raises(ValueError, match=r"dt must be .*\(s\)"):
         interpolate(omega(), SCurveFeedrate(), bad)

@@ -21,6 +21,7 @@ def _plant_arrays(argument):
 
         model = get_plant("vcnc_feed_drive")
         model.arrays(v, 1e-4) if argument == "n_machines" else model.arrays(1, v)
+
     return call
 
 
@@ -47,6 +48,7 @@ def _imc(argument):
         from vcnc_baselines.feedback.pi_imc_hinf import imc_controller
 
         imc_controller(**{argument: v})
+
     return call
 
 

@@ -171,12 +171,25 @@ def test_stribeck_friction_opposes_motion_and_fades_with_speed():
 
 
 # -- the envs ------------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("plant, kwargs", [
-    ("vcnc_feed_drive", {"contour": "heart"}),
-    ("current_feed_drive", {"contour": "corners-smooth", "profile": "jlap", "feedrate": 50.0}),
-    ("nct_xy_table", {"contour": "circle", "profile": "constant", "feedrate": 1.0, "dt": 1e-3,
-                      "reward_scale": 1e-3, "tracking_bound": 0.5, "divergence_bound": 0.5}),
-])
+@pytest.mark.parametrize(
+    "plant, kwargs",
+    [
+        ("vcnc_feed_drive", {"contour": "heart"}),
+        ("current_feed_drive", {"contour": "corners-smooth", "profile": "jlap", "feedrate": 50.0}),
+        (
+            "nct_xy_table",
+            {
+                "contour": "circle",
+                "profile": "constant",
+                "feedrate": 1.0,
+                "dt": 1e-3,
+                "reward_scale": 1e-3,
+                "tracking_bound": 0.5,
+                "divergence_bound": 0.5,
+            },
+        ),
+    ],
+)
 def test_every_effect_off_gives_the_inner_plants_observations_to_the_bit(plant, kwargs):
     """The wrapper with every effect off is the plain plant: the same observations, rewards and infos."""
     plain = ContouringEnv(plant=plant, **kwargs)
@@ -271,7 +284,7 @@ def test_the_effects_declare_the_parameters_and_the_switches():
     assert set(sf.OFF) == {name for e in sf.EFFECTS for name in e.switches} and not any(sf.OFF.values())
     model = sf.shop_floor(PLANT)
     assert model.effects == sf.EFFECTS
-    assert [p.name for p in model.parameters[-len(sf.EFFECT_NAMES):]] == list(sf.EFFECT_NAMES)
+    assert [p.name for p in model.parameters[-len(sf.EFFECT_NAMES) :]] == list(sf.EFFECT_NAMES)
     arrays = model.arrays(2, DT)
     assert [type(s) for s in arrays.effects] == [e.Arrays for e in sf.EFFECTS]
     # an effect's columns: its parameters in the plant's, its state in the plant's state arrays (no copies)

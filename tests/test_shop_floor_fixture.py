@@ -18,8 +18,16 @@ FIXTURE = Path(__file__).resolve().parent / "data" / "shop_floor_episodes.npz"
 STEPS = 200
 
 #: Every effect off (written out here, not taken from the module under test).
-_OFF = {"encoder_resolution": 0.0, "noise_std": 0.0, "command_delay": 0.0, "sensor_delay": 0.0,
-        "mode_frequency": 0.0, "cutting_force": 0.0, "cutting_ripple": 0.0, "stribeck_force": 0.0}
+_OFF = {
+    "encoder_resolution": 0.0,
+    "noise_std": 0.0,
+    "command_delay": 0.0,
+    "sensor_delay": 0.0,
+    "mode_frequency": 0.0,
+    "cutting_force": 0.0,
+    "cutting_ripple": 0.0,
+    "stribeck_force": 0.0,
+}
 
 #: name: (env id or None for ContouringEnv on the heart, keyword arguments)
 CASES = {
@@ -86,7 +94,7 @@ def test_each_effect_alone_changes_the_episode(recorded):
     """The fixture is not blind: each effect alone gives observations other than every other case's."""
     alone = [name for name, (env_id, _) in CASES.items() if env_id is None]
     for i, a in enumerate(alone):
-        for b in alone[i + 1:]:
+        for b in alone[i + 1 :]:
             x, y = recorded[f"{a}/obs"], recorded[f"{b}/obs"]
             assert x.shape != y.shape or not np.array_equal(x, y), (a, b)
 

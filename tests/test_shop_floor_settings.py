@@ -22,8 +22,10 @@ def test_a_count_setting_must_be_a_whole_number(name, value):
 
 
 def test_counts_and_reals_given_well_are_taken_as_given():
-    model = shop_floor("vcnc_feed_drive", {"command_delay": 2, "sensor_delay": (0, 1), "teeth": 2.0,
-                                           "noise_std": 1e-4, "mode_frequency": (120, 180.5)})
+    model = shop_floor(
+        "vcnc_feed_drive",
+        {"command_delay": 2, "sensor_delay": (0, 1), "teeth": 2.0, "noise_std": 1e-4, "mode_frequency": (120, 180.5)},
+    )
     nominal = {p.name: p.nominal for p in model.parameters}
     assert nominal["command_delay"] == (2.0, 2.0) and nominal["sensor_delay"] == (0.0, 1.0)
     assert nominal["teeth"] == (2.0, 2.0) and nominal["noise_std"] == (1e-4, 1e-4)

@@ -65,8 +65,9 @@ def test_a_derived_env_documents_its_own_arguments_and_what_it_takes_from_contou
     own = set(_parameters(cls)) - set(_parameters(ContouringEnv))
     documented = _documented(cls)
     assert own <= documented, sorted(own - documented)
-    assert "every other argument of ContouringEnv" in " ".join(_arguments_section(cls).split()) or \
-        "Every argument of ContouringEnv" in _arguments_section(cls)
+    assert "every other argument of ContouringEnv" in " ".join(
+        _arguments_section(cls).split()
+    ) or "Every argument of ContouringEnv" in _arguments_section(cls)
     refused = set(_parameters(ContouringEnv)) - set(_parameters(cls))
     assert refused <= documented, f"{cls.__name__} takes no {sorted(refused - documented)}: say so"
 
@@ -112,7 +113,11 @@ def test_every_option_the_docs_name_exists():
     import vcnc_bench.cli
 
     options = {name: set(_options(p)) for name, p in _cli_parsers().items()}
-    texts = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs" / "guides").glob("*.md"))]
+    texts = [
+        ROOT / "README.md",
+        *sorted((ROOT / "docs").glob("*.md")),
+        *sorted((ROOT / "docs" / "guides").glob("*.md")),
+    ]
     sources = [(t.name, t.read_text()) for t in texts]
     sources += [("vcnc_bench.cli", vcnc_bench.cli.__doc__), ("vcnc_agents.cli", vcnc_agents.cli.__doc__)]
     unknown = []

@@ -33,14 +33,23 @@ K_P, K_D = 70000.0, 240.0
 
 
 def fake_env(dt=1e-4, parameters=NOMINAL):
-    return SimpleNamespace(unwrapped=SimpleNamespace(layout=LAYOUT, decision_period=dt,
-                                                     nominal_parameters=parameters, plant="current_feed_drive"))
+    return SimpleNamespace(
+        unwrapped=SimpleNamespace(
+            layout=LAYOUT, decision_period=dt, nominal_parameters=parameters, plant="current_feed_drive"
+        )
+    )
 
 
 def make_obs(x_d=0.0, v_d=0.0, a_d=0.0, e=0.0, v=0.0, preview=0.0):
     obs = np.zeros(LAYOUT.size)
-    for name, val in (("reference_position", x_d), ("reference_velocity", v_d), ("reference_acceleration", a_d),
-                      ("tracking_error", e), ("velocity", v), ("preview", preview)):
+    for name, val in (
+        ("reference_position", x_d),
+        ("reference_velocity", v_d),
+        ("reference_acceleration", a_d),
+        ("tracking_error", e),
+        ("velocity", v),
+        ("preview", preview),
+    ):
         obs[LAYOUT.slice(name)] = val
     return obs
 
@@ -84,8 +93,11 @@ class _NoFrameTerms(ContouringFBPolicy):
 
     def _command(self, obs):
         lay = self.layout
-        v = lay.reference_acceleration(obs) + K_P * lay.tracking_error(obs) \
+        v = (
+            lay.reference_acceleration(obs)
+            + K_P * lay.tracking_error(obs)
             + K_D * (lay.reference_velocity(obs) - lay.velocity(obs))
+        )
         return self.linearising_current(v, lay.velocity(obs))
 
 
@@ -126,8 +138,9 @@ def _circle_run(policy_class, dt=1e-5, n=3000):
     wn, zeta = math.sqrt(K_P), K_D / (2 * math.sqrt(K_P))
     wd = wn * math.sqrt(1 - zeta**2)
     e0 = e_sim[0]
-    designed = np.exp(-zeta * wn * t)[:, None] * (np.cos(wd * t)[:, None] * e0
-                                                  + np.sin(wd * t)[:, None] * (de0 + zeta * wn * e0) / wd)
+    designed = np.exp(-zeta * wn * t)[:, None] * (
+        np.cos(wd * t)[:, None] * e0 + np.sin(wd * t)[:, None] * (de0 + zeta * wn * e0) / wd
+    )
     return t, e_sim, designed
 
 
@@ -178,8 +191,16 @@ def _sequence(n, seed):
     """Observations of a table near a straight reference along 30 degrees, small random errors."""
     rng = np.random.default_rng(seed)
     direction = np.array([math.cos(math.pi / 6), math.sin(math.pi / 6)])
-    return [make_obs(x_d=direction * 0.05 * k, v_d=direction * 50.0, a_d=direction * 100.0,
-                     e=rng.normal(0, 0.004, 2), v=direction * 50.0 + rng.normal(0, 0.5, 2)) for k in range(n)]
+    return [
+        make_obs(
+            x_d=direction * 0.05 * k,
+            v_d=direction * 50.0,
+            a_d=direction * 100.0,
+            e=rng.normal(0, 0.004, 2),
+            v=direction * 50.0 + rng.normal(0, 0.5, 2),
+        )
+        for k in range(n)
+    ]
 
 
 def test_trial_1_is_the_contouring_controller():
@@ -187,8 +208,9 @@ def test_trial_1_is_the_contouring_controller():
     fb = vcnc_baselines.make("contouring-fb", fake_env())
     ilc = vcnc_baselines.make("ilc", fake_env())
     for k, obs in enumerate(seq):
-        np.testing.assert_array_equal(ilc.predict(obs, episode_start=k == 0)[0],
-                                      fb.predict(obs, episode_start=k == 0)[0])
+        np.testing.assert_array_equal(
+            ilc.predict(obs, episode_start=k == 0)[0], fb.predict(obs, episode_start=k == 0)[0]
+        )
 
 
 def _learned_input(seq, dt, fb):
@@ -303,8 +325,11 @@ def test_learning_gain_against_python_control():
 @pytest.fixture(scope="module")
 def corner_env():
     # 10 mm legs with a 90- and a 60-degree corner, at 50 mm/s
-    return ContouringEnv(contour=polyline([(0, 0), (10, 0), (10, 10), (10 - 10 * math.cos(math.radians(30)), 5)]),
-                         plant="current_feed_drive", feedrate=50)
+    return ContouringEnv(
+        contour=polyline([(0, 0), (10, 0), (10, 10), (10 - 10 * math.cos(math.radians(30)), 5)]),
+        plant="current_feed_drive",
+        feedrate=50,
+    )
 
 
 def test_ilc_q_error_falls_over_trials_on_the_nominal_plant(corner_env):
@@ -321,8 +346,12 @@ def test_ilc_removes_a_model_error_in_one_trial():
     """Table I's ILC (q = 1) on a smooth contour and a plant 10 % heavier and 10 % weaker than the
     nominal model (friction-free): the feedforward error is learned at once."""
     r2 = math.sqrt(0.5)
-    circle = NurbsCurve(5 * np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]]),
-                        [1, r2, 1, r2, 1, r2, 1, r2, 1], [0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 4], 2)
+    circle = NurbsCurve(
+        5 * np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]]),
+        [1, r2, 1, r2, 1, r2, 1, r2, 1],
+        [0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 4],
+        2,
+    )
     nominal = cfd.without_friction(NOMINAL, keep_saturation=True)
     plant = nominal.copy()
     plant[:, cfd.IDX_M] *= 1.1
@@ -336,26 +365,32 @@ def test_ilc_removes_a_model_error_in_one_trial():
 # ------------------------------------------------------------------ bad input
 
 
-@pytest.mark.parametrize("name, params, match", [
-    ("contouring-fb", {"k_p": 0.0}, "k_p"),
-    ("contouring-fb", {"k_d": (240.0, -1.0)}, "k_d"),
-    ("ilc", {"k_pl": -1.0}, "k_pl"),
-    ("ilc", {"alpha": 1.0}, "alpha"),
-    ("ilc", {"beta": 0.0}, "beta"),
-    ("ilc", {"q": 0.0}, "q"),
-    ("ilc", {"q": 1.5}, "q"),
-    ("ilc", {"q_cutoff": 6000.0}, "Nyquist"),
-    ("ilc", {"q_cutoff": "20 Hz"}, "q_cutoff"),
-    ("ilc-q", {"q_cutoff": 10.0}, "fixes"),
-])
+@pytest.mark.parametrize(
+    "name, params, match",
+    [
+        ("contouring-fb", {"k_p": 0.0}, "k_p"),
+        ("contouring-fb", {"k_d": (240.0, -1.0)}, "k_d"),
+        ("ilc", {"k_pl": -1.0}, "k_pl"),
+        ("ilc", {"alpha": 1.0}, "alpha"),
+        ("ilc", {"beta": 0.0}, "beta"),
+        ("ilc", {"q": 0.0}, "q"),
+        ("ilc", {"q": 1.5}, "q"),
+        ("ilc", {"q_cutoff": 6000.0}, "Nyquist"),
+        ("ilc", {"q_cutoff": "20 Hz"}, "q_cutoff"),
+        ("ilc-q", {"q_cutoff": 10.0}, "fixes"),
+    ],
+)
 def test_bad_parameters_raise_value_error(name, params, match):
     with pytest.raises(ValueError, match=match):
         vcnc_baselines.make(name, fake_env(), **params)
 
 
 def test_wrong_plant_and_trial_count():
-    env = SimpleNamespace(unwrapped=SimpleNamespace(layout=LAYOUT, decision_period=1e-4, plant="vcnc_feed_drive",
-                                                    nominal_parameters=cfd.MODEL.nominal()))
+    env = SimpleNamespace(
+        unwrapped=SimpleNamespace(
+            layout=LAYOUT, decision_period=1e-4, plant="vcnc_feed_drive", nominal_parameters=cfd.MODEL.nominal()
+        )
+    )
     with pytest.raises(ValueError, match="current_feed_drive"):
         vcnc_baselines.make("ilc", env)
     with pytest.raises(ValueError, match="n_trials"):

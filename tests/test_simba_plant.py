@@ -152,9 +152,9 @@ def reference_trajectory(params, currents, dt=DT):
 
             def stop(_, y, d=direction):
                 return y[1] if d > 0 else -y[1]
+
             stop.terminal, stop.direction = True, -1
-            sol = integrate.solve_ivp(rhs, (t, end), [x, v], method="DOP853", rtol=1e-13, atol=1e-16,
-                                      events=stop)
+            sol = integrate.solve_ivp(rhs, (t, end), [x, v], method="DOP853", rtol=1e-13, atol=1e-16, events=stop)
             x, v = sol.y[0, -1], sol.y[1, -1]
             if sol.status == 1:  # stopped
                 x, v, t = sol.y_events[0][0][0], 0.0, sol.t_events[0][0]
@@ -229,8 +229,9 @@ def test_env_runs_the_plant_through_the_contract():
     assert env.unwrapped.plant.input_unit == "A" and env.unwrapped.u_max == 5.0
 
 
-@pytest.mark.parametrize("name, value", [("m", 0.0), ("m", -0.1), ("c", -0.01), ("f_c", -1.0), ("k_f", 0.0),
-                                         ("i_max", 0.0), ("f_c", np.nan)])
+@pytest.mark.parametrize(
+    "name, value", [("m", 0.0), ("m", -0.1), ("c", -0.01), ("f_c", -1.0), ("k_f", 0.0), ("i_max", 0.0), ("f_c", np.nan)]
+)
 def test_bad_parameters_raise_value_error_naming_them(name, value):
     p = MODEL.nominal()
     p[1, MODEL.index(name)] = value

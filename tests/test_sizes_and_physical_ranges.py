@@ -169,9 +169,17 @@ def test_case_4_an_empty_policy_argument_is_refused():
 
 
 # -- case 5: parameters outside their physical range ---------------------------------------------------------
-@pytest.mark.parametrize("env_id,name,value", [
-    (HEART, "J", 1e-300), (HEART, "K_a", 1e300), (HEART, "K_t", 1e300), (HEART, "B", 1e300),
-    (HEART, "u_max", 1e300), ("VCNC-Corners-v1", "m", 1e-300)])
+@pytest.mark.parametrize(
+    "env_id,name,value",
+    [
+        (HEART, "J", 1e-300),
+        (HEART, "K_a", 1e300),
+        (HEART, "K_t", 1e300),
+        (HEART, "B", 1e300),
+        (HEART, "u_max", 1e300),
+        ("VCNC-Corners-v1", "m", 1e-300),
+    ],
+)
 def test_case_5_physically_meaningless_parameters_are_refused(env_id, name, value):
     plant = gym.make(env_id).unwrapped.plant
     p = plant.nominal()
@@ -272,8 +280,7 @@ def test_min_blend_angle_is_where_the_search_leaves_its_range(monkeypatch):
 # -- case 12: NurbsCurve names the argument ------------------------------------------------------------------------
 @pytest.mark.parametrize("which", ["control_points", "weights", "knots"])
 def test_case_12_a_non_numeric_argument_is_named(which):
-    args = {"control_points": [[0, 0], [1, 1], [2, 0], [3, 1]], "weights": [1] * 4,
-            "knots": [0, 0, 0, 0.5, 1, 1, 1]}
+    args = {"control_points": [[0, 0], [1, 1], [2, 0], [3, 1]], "weights": [1] * 4, "knots": [0, 0, 0, 0.5, 1, 1, 1]}
     args[which] = {"control_points": "abcd", "weights": ["1", "1", "1", "1"], "knots": [0, 0, 0, True, 1, 1, 1]}[which]
     with pytest.raises(ValueError, match=rf"^{which} must be an array of real numbers"):
         NurbsCurve(args["control_points"], args["weights"], args["knots"], 2)
@@ -313,8 +320,24 @@ def diverging_run(tiny_config, tmp_path_factory):
     """768 steps, a checkpoint every 256 and an evaluation every 256: the untrained agent's evaluations diverge."""
     pytest.importorskip("stable_baselines3")
     run = tmp_path_factory.mktemp("run") / "run"
-    code, out, err = _train(["--env", OMEGA, "--config", str(tiny_config), "--output", str(run), "--timesteps", "768",
-                             "--checkpoint-freq", "256", "--eval-freq", "256", "--threads", "1"])
+    code, out, err = _train(
+        [
+            "--env",
+            OMEGA,
+            "--config",
+            str(tiny_config),
+            "--output",
+            str(run),
+            "--timesteps",
+            "768",
+            "--checkpoint-freq",
+            "256",
+            "--eval-freq",
+            "256",
+            "--threads",
+            "1",
+        ]
+    )
     assert code == 0, err
     return run, out
 
@@ -365,8 +388,20 @@ def test_case_7_resume_skips_a_checkpoint_with_a_pickled_policy(diverging_run, t
 def test_case_8_n_envs_is_limited_by_open_files_and_memory(tiny_config, tmp_path, monkeypatch):
     out = tmp_path / "run"
     t0 = time.perf_counter()
-    code, _, err = _train(["--env", OMEGA, "--config", str(tiny_config), "--output", str(out), "--timesteps", "256",
-                           "--n-envs", str(10**6)])
+    code, _, err = _train(
+        [
+            "--env",
+            OMEGA,
+            "--config",
+            str(tiny_config),
+            "--output",
+            str(out),
+            "--timesteps",
+            "256",
+            "--n-envs",
+            str(10**6),
+        ]
+    )
     assert code == 2 and "n_envs must be at most" in err and "Traceback" not in err, err
     assert not out.exists() and time.perf_counter() - t0 < 10.0
     from vcnc_agents import run_config
@@ -382,14 +417,14 @@ def test_case_8_n_envs_is_limited_by_open_files_and_memory(tiny_config, tmp_path
 def test_case_9_an_output_folder_that_cannot_be_made_is_an_error(tiny_config):
     if not Path("/proc/self").exists():
         pytest.skip("no procfs")
-    code, _, err = _train(["--env", OMEGA, "--config", str(tiny_config), "--output", "/proc/run",
-                           "--timesteps", "256"])
+    code, _, err = _train(["--env", OMEGA, "--config", str(tiny_config), "--output", "/proc/run", "--timesteps", "256"])
     assert code == 2 and "cannot make the run folder /proc/run" in err and "Traceback" not in err, err
 
 
 def test_timesteps_have_a_ceiling(tiny_config, tmp_path):
-    code, _, err = _train(["--env", OMEGA, "--config", str(tiny_config), "--output", str(tmp_path / "run"),
-                           "--timesteps", str(10**11)])
+    code, _, err = _train(
+        ["--env", OMEGA, "--config", str(tiny_config), "--output", str(tmp_path / "run"), "--timesteps", str(10**11)]
+    )
     assert code == 2 and "n_timesteps must be at most 10,000,000,000" in err, err
 
 

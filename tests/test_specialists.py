@@ -42,12 +42,13 @@ def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline
         for env_id, entry in entries.items():
             wrapper = dict(entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"])
             assert wrapper.pop("history") >= 1
-            assert dict(entry, env_wrapper=[{"vcnc_agents.action_modes.ResidualAction": wrapper}]) == specialists[env_id]
+            assert (
+                dict(entry, env_wrapper=[{"vcnc_agents.action_modes.ResidualAction": wrapper}]) == specialists[env_id]
+            )
     for env_id in entries:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", vcnc_agents.RunWarning)  # n_timesteps rounded up to whole rollouts
-            run_dir, config, checkpoint = vcnc_agents.training.prepare_run(env_id, tmp_path / env_id,
-                                                                       config_file=path)
+            run_dir, config, checkpoint = vcnc_agents.training.prepare_run(env_id, tmp_path / env_id, config_file=path)
         assert checkpoint is None and not run_dir.exists()
         mode = config.mode
         assert mode.mode == "residual"
@@ -106,8 +107,11 @@ def test_the_residual_wrapper_replans_its_baseline_for_each_random_contour():
 
 
 #: A named contour of each generalist's machine (none of which it trained on).
-NAMED_CONTOUR = {"vcnc_feed_drive": "VCNC-Heart-v1", "current_feed_drive": "VCNC-CornersSmooth-v1",
-                 "nct_xy_table": "VCNC-Circle-v1"}
+NAMED_CONTOUR = {
+    "vcnc_feed_drive": "VCNC-Heart-v1",
+    "current_feed_drive": "VCNC-CornersSmooth-v1",
+    "nct_xy_table": "VCNC-Circle-v1",
+}
 
 
 def test_a_generalist_is_shipped_for_every_contouring_plant():

@@ -104,8 +104,16 @@ def test_tiny_sweep_retrain_command_is_the_trials_run(tiny, tmp_path):
     argv = words[1:-1] + [str(tmp_path / "retrain")]
     _, config, _ = prepare_run(**_train_kwargs(argv))
     trial = yaml.safe_load((Path(best["run_dir"]) / "config.yml").read_text())
-    for key in ("env_id", "seed", "n_envs", "n_timesteps", "eval_freq", "checkpoint_freq", "action_mode",
-                "hyperparams"):
+    for key in (
+        "env_id",
+        "seed",
+        "n_envs",
+        "n_timesteps",
+        "eval_freq",
+        "checkpoint_freq",
+        "action_mode",
+        "hyperparams",
+    ):
         assert getattr(config, key) == trial[key], key
 
 
@@ -130,8 +138,11 @@ BAD_FILES = [
     ("zero samples", dict(num_samples=0), ["num_samples"]),
     ("a bad training option", dict(vec_env="threads"), ["vec_env"]),
     ("a missing hyperparameter file", dict(hyperparams="nowhere.yml"), ["nowhere.yml", "does not exist"]),
-    ("a baseline for another plant", dict(search={"baseline": "contouring-fb"}),
-     ["cannot run", "contouring-fb", "designed for"]),
+    (
+        "a baseline for another plant",
+        dict(search={"baseline": "contouring-fb"}),
+        ["cannot run", "contouring-fb", "designed for"],
+    ),
 ]
 
 
@@ -159,10 +170,13 @@ def test_not_a_sweep_file(tmp_path):
         load_sweep(tmp_path / "absent.yml")
 
 
-@pytest.mark.parametrize("argv, words", [
-    (["--seed", "3"], "drop --seed"),
-    (["--env", "VCNC-Heart-v0", "--vec-env", "dummy"], "drop --env, --vec-env"),
-])
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["--seed", "3"], "drop --seed"),
+        (["--env", "VCNC-Heart-v0", "--vec-env", "dummy"], "drop --env, --vec-env"),
+    ],
+)
 def test_sweep_refuses_the_options_its_file_sets(tmp_path, capsys, argv, words):
     with pytest.raises(SystemExit) as code:
         main(["--sweep", str(SWEEPS / "tiny.yml"), *argv])

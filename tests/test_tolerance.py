@@ -71,16 +71,17 @@ def test_running_out_of_time_costs_the_contour_left_as_if_over_t():
     plain env's charge (um of contour error: the arc left over the reward scale) over the contour's length (the
     reference's last arc length).  The dial held near 0 leaves most of the omega."""
     plain, tolerant = gym.make(ID), gym.make(ID, tolerance=0.01)
-    (_, i1), = _dialled_episode(plain, lambda k: -0.9)[-1:]
-    (r2, i2), = _dialled_episode(tolerant, lambda k: -0.9)[-1:]
+    ((_, i1),) = _dialled_episode(plain, lambda k: -0.9)[-1:]
+    ((r2, i2),) = _dialled_episode(tolerant, lambda k: -0.9)[-1:]
     assert not i1["completed"] and not i2["completed"]
     u = tolerant.unwrapped
     length = float(u.task.reference_arrays.samples[-1, sk.REF_ARC])
     left = -i1["reward_incomplete"] * u.task.reward_scale / length
     assert 0.5 < left < 1.0
     assert i2["reward_incomplete"] == pytest.approx(-100.0 * left, rel=1e-12)
-    assert r2 == pytest.approx(i2["reward_time"] + i2["reward_tolerance"] + i2["reward_progress"]
-                               + i2["reward_incomplete"], rel=1e-12)
+    assert r2 == pytest.approx(
+        i2["reward_time"] + i2["reward_tolerance"] + i2["reward_progress"] + i2["reward_incomplete"], rel=1e-12
+    )
 
 
 def test_the_tolerance_ids_dial_reaches_150_percent_at_26_per_second():
@@ -116,12 +117,19 @@ def test_the_tolerance_env_passes_gymnasium_s_checker():
     check_env(gym.make(ID, tolerance=0.01).unwrapped, skip_render_check=True)
 
 
-@pytest.mark.parametrize("kwargs, word", [
-    ({"tolerance": -0.01}, "tolerance"), ({"tolerance": 0.0}, "tolerance"), ({"tolerance": "0.01"}, "tolerance"),
-    ({"tolerance": True}, "tolerance"), ({"tolerance": math.nan}, "tolerance"),
-    ({"tolerance": 0.01, "time_cost": 1e-3}, "time_cost"), ({"tolerance": 0.01, "violation_cost": -1.0},
-                                                            "violation_cost"),
-    ({"tolerance": 0.01, "progress_reward": -1.0}, "progress_reward")])
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        ({"tolerance": -0.01}, "tolerance"),
+        ({"tolerance": 0.0}, "tolerance"),
+        ({"tolerance": "0.01"}, "tolerance"),
+        ({"tolerance": True}, "tolerance"),
+        ({"tolerance": math.nan}, "tolerance"),
+        ({"tolerance": 0.01, "time_cost": 1e-3}, "time_cost"),
+        ({"tolerance": 0.01, "violation_cost": -1.0}, "violation_cost"),
+        ({"tolerance": 0.01, "progress_reward": -1.0}, "progress_reward"),
+    ],
+)
 def test_a_bad_tolerance_argument_is_refused_by_name(kwargs, word):
     with pytest.raises((ValueError, TypeError), match=word):
         gym.make(ID, **kwargs)
@@ -149,8 +157,9 @@ def test_the_grid_is_the_feed_and_acceleration_where_the_path_is_one_curve():
 
 def _synthetic_runs(rng, plants=6):
     runs = []
-    for c, s in itertools.product(("a", "b"), (tl.Setting(100.0, 500.0), tl.Setting(80.0, 500.0),
-                                                tl.Setting(100.0, 1000.0))):
+    for c, s in itertools.product(
+        ("a", "b"), (tl.Setting(100.0, 500.0), tl.Setting(80.0, 500.0), tl.Setting(100.0, 1000.0))
+    ):
         cycle = rng.uniform(1.0, 2.0, plants)
         cycle[rng.random(plants) < 0.2] = np.inf
         err = rng.uniform(0.0, 30.0, plants)
@@ -167,8 +176,11 @@ def test_the_choices_are_the_fastest_run_within_t_found_by_brute_force():
         for tol in (0.005, 0.01, 0.02):
             per_plant = tl.machine_choice(runs, tol, 6)
             for i, choice in enumerate(per_plant):
-                ok = [(r.cycle_time_s[i], r.controller, r.setting) for r in runs
-                      if r.max_um[i] <= 1e3 * tol and np.isfinite(r.cycle_time_s[i])]
+                ok = [
+                    (r.cycle_time_s[i], r.controller, r.setting)
+                    for r in runs
+                    if r.max_um[i] <= 1e3 * tol and np.isfinite(r.cycle_time_s[i])
+                ]
                 if not ok:
                     assert choice.controller is None
                 else:
@@ -177,7 +189,9 @@ def test_the_choices_are_the_fastest_run_within_t_found_by_brute_force():
             assert builder == per_plant[0]
             row = next(r for r in tl.tolerance_table(runs, kinds, (tol,)))
             if run is not None:
-                exceed = sum(1 for i in range(1, 6) if run.max_um[i] > 1e3 * tol or not np.isfinite(run.cycle_time_s[i]))
+                exceed = sum(
+                    1 for i in range(1, 6) if run.max_um[i] > 1e3 * tol or not np.isfinite(run.cycle_time_s[i])
+                )
                 assert row["builder_exceeded"] == exceed
             assert row["machine_unreached"] == sum(c.controller is None for c in per_plant[1:])
 
@@ -191,8 +205,9 @@ def test_a_grid_run_is_the_omega_front_s_planned_run_on_the_nominal_plant():
     from vcnc_bench.robust import plant_set
 
     parameters = plant_set(env.plant, 1, 0, nominal=env.nominal_parameters, max_vertices=0).parameters
-    runs = tl.run_grid("VCNC-OmegaLookahead-v1", parameters, controllers=("ff-pid",),
-                       settings=[tl.Setting(100.0, 2000.0)])
+    runs = tl.run_grid(
+        "VCNC-OmegaLookahead-v1", parameters, controllers=("ff-pid",), settings=[tl.Setting(100.0, 2000.0)]
+    )
     front = classical_front(policies=("ff-pid",), settings=((100.0, 2000.0),))[0]
     assert runs[0].max_um[0] == pytest.approx(front.max_um, rel=1e-9)
     assert runs[0].cycle_time_s[0] == pytest.approx(front.cycle_time_s, rel=1e-12)
@@ -226,12 +241,17 @@ def test_a_machine_commissioned_on_the_id_s_own_reference_runs_another_setting_w
         policy.identify_on(gym.make("VCNC-Circle-v1").unwrapped.task)
 
 
-@pytest.mark.parametrize("agent_id, searched", [(ID, "VCNC-OmegaLookahead-v1"),
-                                                 ("VCNC-OmegaOverrideShop-v1", "VCNC-OmegaLookaheadShop-v1"),
-                                                 ("VCNC-OmegaTolerance-v2", "VCNC-OmegaLookahead-v1"),
-                                                 ("VCNC-OmegaToleranceShop-v2", "VCNC-OmegaLookaheadShop-v1"),
-                                                 ("VCNC-HeartTolerance-v1", "VCNC-Heart-v1"),
-                                                 ("VCNC-HeartToleranceShop-v1", "VCNC-HeartShop-v1")])
+@pytest.mark.parametrize(
+    "agent_id, searched",
+    [
+        (ID, "VCNC-OmegaLookahead-v1"),
+        ("VCNC-OmegaOverrideShop-v1", "VCNC-OmegaLookaheadShop-v1"),
+        ("VCNC-OmegaTolerance-v2", "VCNC-OmegaLookahead-v1"),
+        ("VCNC-OmegaToleranceShop-v2", "VCNC-OmegaLookaheadShop-v1"),
+        ("VCNC-HeartTolerance-v1", "VCNC-Heart-v1"),
+        ("VCNC-HeartToleranceShop-v1", "VCNC-HeartShop-v1"),
+    ],
+)
 def test_the_agent_s_bench_plants_are_the_search_s(agent_id, searched):
     """The tolerance agent runs on the override id (``vcnc-bench --plants 20``), its opponents on the look-ahead id:
     the same plant model, so ``plant_set`` with the same seed draws the same plants for both."""
@@ -253,33 +273,57 @@ def test_the_comparison_scraps_runs_over_t_and_judges_the_cycle_time_by_the_benc
     for _ in range(3):
         cycle = rng.uniform(0.70, 0.74, 13)
         err = rng.uniform(2.0, 6.0, 13)
-        seeds.append({"policy": "a", "group": "g", "per_plant": {"kind": kinds, "cycle_time_s": cycle.tolist(),
-                                                                 "max_um": err.tolist()}})
+        seeds.append(
+            {
+                "policy": "a",
+                "group": "g",
+                "per_plant": {"kind": kinds, "cycle_time_s": cycle.tolist(), "max_um": err.tolist()},
+            }
+        )
     opponent_cycle = rng.uniform(0.72, 0.75, 13)
-    search = {"plants": 12, "plant_seed": 0, "kinds": kinds, "runs": [],
-              "rows": [{"tolerance_um": 5.0, "builder": {"controller": None, "setting": None},
-                        "machine_per_plant": [{"cycle_time_s": c} for c in opponent_cycle]}]}
+    search = {
+        "plants": 12,
+        "plant_seed": 0,
+        "kinds": kinds,
+        "runs": [],
+        "rows": [
+            {
+                "tolerance_um": 5.0,
+                "builder": {"controller": None, "setting": None},
+                "machine_per_plant": [{"cycle_time_s": c} for c in opponent_cycle],
+            }
+        ],
+    }
     (row,) = tl.compare(seeds, search, 0.005)
-    x = np.array([[np.inf if e > 5.0 else c for c, e in zip(s["per_plant"]["cycle_time_s"], s["per_plant"]["max_um"])]
-                  for s in seeds])
+    x = np.array(
+        [
+            [np.inf if e > 5.0 else c for c, e in zip(s["per_plant"]["cycle_time_s"], s["per_plant"]["max_um"])]
+            for s in seeds
+        ]
+    )
     assert row["agent_over_t"] == [int(np.sum(np.array(s["per_plant"]["max_um"][1:]) > 5.0)) for s in seeds]
     assert row["agent_nominal_s"] == pytest.approx(list(x[:, 0]))
     assert row["agent_faster"] == sum(int(a < b) for s in x for a, b in zip(s[1:], opponent_cycle[1:]))
-    letter = (all(c < opponent_cycle[0] for c in x[:, 0]) and np.median(x[:, 1:]) < np.median(opponent_cycle[1:])
-              and sum(row["agent_over_t"]) == 0)  # the opponent scraps none
+    letter = (
+        all(c < opponent_cycle[0] for c in x[:, 0])
+        and np.median(x[:, 1:]) < np.median(opponent_cycle[1:])
+        and sum(row["agent_over_t"]) == 0
+    )  # the opponent scraps none
     assert row["goal_letter"] is bool(letter)
     v = row["verdict"]
     assert v["iqm_y"] == pytest.approx(trim_mean(opponent_cycle[1:], 0.25))
     finite = np.sort(x[:, 1:].ravel())  # the IQM with infinities: the middle half of the sorted runs
     k = int(0.25 * finite.size)
-    middle = finite[k:finite.size - k]
+    middle = finite[k : finite.size - k]
     assert float(v["iqm_x"]) == pytest.approx(middle.mean())  # "inf" where the middle half holds a scrapped run
     with pytest.raises(ValueError, match="T = 10"):
         tl.compare(seeds, search, 0.01)
     with pytest.raises(ValueError, match="other plants"):
         tl.compare(seeds, {**search, "kinds": ["nominal", "vertex"] + kinds[2:]}, 0.005)
-    with_vertices = [{**s, "per_plant": {k: v + ([1.0] if k != "kind" else ["vertex"]) for k, v in s["per_plant"].items()}}
-                     for s in seeds]
+    with_vertices = [
+        {**s, "per_plant": {k: v + ([1.0] if k != "kind" else ["vertex"]) for k, v in s["per_plant"].items()}}
+        for s in seeds
+    ]
     assert tl.compare(with_vertices, search, 0.005) == [row]  # the bench's vertices are left out
 
 
@@ -289,7 +333,9 @@ def test_vcnc_train_s_tolerance_goes_into_the_entry_s_env_kwargs(tmp_path):
 
     _, config, _ = prepare_run(ID, tmp_path / "run", config_file="agents/hyperparams/tolerance.yml", tolerance=0.005)
     assert config.env_kwargs == {"randomize": True, "tolerance": 0.005}
-    _, shop, _ = prepare_run("VCNC-OmegaOverrideShop-v1", tmp_path / "shop", config_file="agents/hyperparams/tolerance.yml")
+    _, shop, _ = prepare_run(
+        "VCNC-OmegaOverrideShop-v1", tmp_path / "shop", config_file="agents/hyperparams/tolerance.yml"
+    )
     assert shop.env_kwargs == {"randomize": True}
     assert shop.env["signature"]["id"] == "VCNC-OmegaOverrideShop-v1"  # what keeps its agents off the ideal omega
     with pytest.raises(ValueError, match="tolerance"):  # a contouring id has no tolerance task
@@ -302,13 +348,28 @@ def test_vcnc_train_s_tolerance_goes_into_the_entry_s_env_kwargs(tmp_path):
 
 def test_a_controller_of_the_agent_s_bench_run_is_an_opponent_too():
     kinds = ["nominal"] + ["sample"] * 4
-    agent = {"policy": "a", "group": "g", "per_plant": {"kind": kinds, "cycle_time_s": [0.7] * 5,
-                                                        "max_um": [4.0] * 5}}
-    mpcc = {"policy": "mpcc", "per_plant": {"kind": kinds, "cycle_time_s": [0.68, 0.69, None, 0.7, 0.71],
-                                            "max_um": [4.5, 6.0, 3.0, 4.0, 4.9]}}
-    search = {"plants": 4, "plant_seed": 0, "kinds": kinds, "runs": [],
-              "rows": [{"tolerance_um": 5.0, "builder": {"controller": None, "setting": None},
-                        "machine_per_plant": [{"cycle_time_s": 0.75}] * 5}]}
+    agent = {"policy": "a", "group": "g", "per_plant": {"kind": kinds, "cycle_time_s": [0.7] * 5, "max_um": [4.0] * 5}}
+    mpcc = {
+        "policy": "mpcc",
+        "per_plant": {
+            "kind": kinds,
+            "cycle_time_s": [0.68, 0.69, None, 0.7, 0.71],
+            "max_um": [4.5, 6.0, 3.0, 4.0, 4.9],
+        },
+    }
+    search = {
+        "plants": 4,
+        "plant_seed": 0,
+        "kinds": kinds,
+        "runs": [],
+        "rows": [
+            {
+                "tolerance_um": 5.0,
+                "builder": {"controller": None, "setting": None},
+                "machine_per_plant": [{"cycle_time_s": 0.75}] * 5,
+            }
+        ],
+    }
     rows = tl.compare([agent], search, 0.005, others=[mpcc])
     row = next(r for r in rows if r["opponent"] == "`mpcc`")
     assert row["opponent_nominal_s"] == 0.68
@@ -360,15 +421,17 @@ def test_the_per_plant_refinement_runs_between_each_plant_s_choice_and_its_faste
 
     monkeypatch.setattr(tl, "_run", fake_run)
     inf = np.inf
-    runs = [tl.GridRun("a", tl.Setting(100.0, 1000.0), np.array([30.0, 30.0]), np.array([1.0, 1.0])),
-            tl.GridRun("a", tl.Setting(80.0, 1000.0), np.array([3.0, 30.0]), np.array([1.2, 1.2])),
-            tl.GridRun("a", tl.Setting(60.0, 1000.0), np.array([2.0, 4.0]), np.array([1.5, 1.5])),
-            tl.GridRun("a", tl.Setting(80.0, 2000.0), np.array([50.0, 50.0]), np.array([1.1, inf]))]
+    runs = [
+        tl.GridRun("a", tl.Setting(100.0, 1000.0), np.array([30.0, 30.0]), np.array([1.0, 1.0])),
+        tl.GridRun("a", tl.Setting(80.0, 1000.0), np.array([3.0, 30.0]), np.array([1.2, 1.2])),
+        tl.GridRun("a", tl.Setting(60.0, 1000.0), np.array([2.0, 4.0]), np.array([1.5, 1.5])),
+        tl.GridRun("a", tl.Setting(80.0, 2000.0), np.array([50.0, 50.0]), np.array([1.1, inf])),
+    ]
     out = tl.refine_machines("VCNC-OmegaLookahead-v1", runs, np.zeros((2, 2, 6)), tolerances=(0.005,), points=3)
     assert out[:4] == runs
-    expected = [("a", tl.Setting(60.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]          # plant 1: 60 -> 80
-    expected += [("a", tl.Setting(80.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]         # plant 0: 80 -> 100
-    expected += [("a", tl.Setting(80.0, 1000.0 + 250.0 * k)) for k in (1, 2, 3)]       # and 1000 -> 2000 mm/s^2
+    expected = [("a", tl.Setting(60.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]  # plant 1: 60 -> 80
+    expected += [("a", tl.Setting(80.0 + 5.0 * k, 1000.0)) for k in (1, 2, 3)]  # plant 0: 80 -> 100
+    expected += [("a", tl.Setting(80.0, 1000.0 + 250.0 * k)) for k in (1, 2, 3)]  # and 1000 -> 2000 mm/s^2
     assert sorted(ran, key=str) == sorted(expected, key=str)
 
 
@@ -387,9 +450,17 @@ def test_the_command_writes_the_search_and_compares_an_agent_with_it(monkeypatch
     assert data["settings"]["command"].endswith(f"--json {out}") and "cpu" in data["settings"]["provenance"]
     assert [r["tolerance_um"] for r in data["VCNC-OmegaLookahead-v1"]["rows"]] == [5.0, 10.0, 20.0]
     kinds = data["VCNC-OmegaLookahead-v1"]["kinds"]
-    bench = {"robust": [{"env": ID, "policy": f"ppo:x/seed{k}/final", "group": "ppo:x/final",
-                          "per_plant": {"kind": kinds, "cycle_time_s": [0.7] * 3, "max_um": [1.0] * 3}}
-                         for k in range(2)]}
+    bench = {
+        "robust": [
+            {
+                "env": ID,
+                "policy": f"ppo:x/seed{k}/final",
+                "group": "ppo:x/final",
+                "per_plant": {"kind": kinds, "cycle_time_s": [0.7] * 3, "max_um": [1.0] * 3},
+            }
+            for k in range(2)
+        ]
+    }
     (tmp_path / "bench.json").write_text(json.dumps(bench))
     assert tl.main(["--agents", str(tmp_path / "bench.json"), "--search", str(out), "--tolerance", "0.01"]) == 0
     printed = capsys.readouterr().out
@@ -406,12 +477,26 @@ def test_several_searches_are_one_whose_choices_are_the_fastest_of_any(tmp_path,
     kinds = ["nominal", "sample", "sample", "sample"]
 
     def search(name):
-        runs = [{"controller": name, "setting": {"feed": 100.0, "acceleration": a}, "max_um": [1.0] * 4,
-                 "cycle_time_s": list(rng.uniform(0.6, 0.8, 4))} for a in (1000.0, 2000.0)]
+        runs = [
+            {
+                "controller": name,
+                "setting": {"feed": 100.0, "acceleration": a},
+                "max_um": [1.0] * 4,
+                "cycle_time_s": list(rng.uniform(0.6, 0.8, 4)),
+            }
+            for a in (1000.0, 2000.0)
+        ]
         rows = []
         for t in (5.0, 10.0, 20.0):
-            per_plant = [{"controller": name, "setting": runs[k % 2]["setting"], "cycle_time_s":
-                          runs[k % 2]["cycle_time_s"][k], "max_um": 1.0} for k in range(4)]
+            per_plant = [
+                {
+                    "controller": name,
+                    "setting": runs[k % 2]["setting"],
+                    "cycle_time_s": runs[k % 2]["cycle_time_s"][k],
+                    "max_um": 1.0,
+                }
+                for k in range(4)
+            ]
             rows.append({"tolerance_um": t, "builder": per_plant[0], "machine_per_plant": per_plant, "n_plants": 3})
         return {"plants": 3, "plant_seed": 0, "kinds": kinds, "rows": rows, "runs": runs}
 
@@ -419,20 +504,39 @@ def test_several_searches_are_one_whose_choices_are_the_fastest_of_any(tmp_path,
     merged = tl.merge_searches([a, b])
     for k in range(3):
         cycles = [np.array([c["cycle_time_s"] for c in x["rows"][k]["machine_per_plant"]]) for x in (a, b)]
-        assert np.array_equal([c["cycle_time_s"] for c in merged["rows"][k]["machine_per_plant"]],
-                              np.minimum(*cycles))
+        assert np.array_equal([c["cycle_time_s"] for c in merged["rows"][k]["machine_per_plant"]], np.minimum(*cycles))
         assert merged["rows"][k]["builder"]["cycle_time_s"] == min(cycles[0][0], cycles[1][0])
     assert len(merged["runs"]) == 4
     with pytest.raises(ValueError, match="other plants"):
         tl.merge_searches([a, {**b, "plant_seed": 1}])
     (tmp_path / "a.json").write_text(json.dumps({"VCNC-OmegaLookahead-v1": a}))
     (tmp_path / "b.json").write_text(json.dumps({"VCNC-OmegaTolerance-v1": b, "other": b}))
-    bench = {"robust": [{"env": ID, "policy": f"ppo:x/seed{k}/final", "group": "ppo:x/final",
-                         "per_plant": {"kind": kinds, "cycle_time_s": [0.5] * 4, "max_um": [1.0] * 4}}
-                        for k in range(3)]}
+    bench = {
+        "robust": [
+            {
+                "env": ID,
+                "policy": f"ppo:x/seed{k}/final",
+                "group": "ppo:x/final",
+                "per_plant": {"kind": kinds, "cycle_time_s": [0.5] * 4, "max_um": [1.0] * 4},
+            }
+            for k in range(3)
+        ]
+    }
     (tmp_path / "bench.json").write_text(json.dumps(bench))
-    assert tl.main(["--agents", str(tmp_path / "bench.json"), "--search", str(tmp_path / "a.json"),
-                    f"{tmp_path / 'b.json'}:VCNC-OmegaTolerance-v1", "--tolerance", "0.01"]) == 0
+    assert (
+        tl.main(
+            [
+                "--agents",
+                str(tmp_path / "bench.json"),
+                "--search",
+                str(tmp_path / "a.json"),
+                f"{tmp_path / 'b.json'}:VCNC-OmegaTolerance-v1",
+                "--tolerance",
+                "0.01",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "VCNC-OmegaLookahead-v1 (a.json) and VCNC-OmegaTolerance-v1 (b.json)" in printed  # each search's file
     per_plant = np.minimum(*[[c["cycle_time_s"] for c in x["rows"][1]["machine_per_plant"]] for x in (a, b)])
@@ -443,9 +547,21 @@ def test_the_table_of_the_nominal_plant_alone_prints_no_median():
     """``--plants 0``: no sampled plant, so the medians over them are '-' (they were printed as nan)."""
     from vcnc_bench.reports.tolerance import format_table
 
-    choice = {"controller": "mpcc", "setting": {"feed": 150.0, "acceleration": None}, "cycle_time_s": 2.1518,
-              "max_um": 4.55}
-    row = {"tolerance_um": 5.0, "builder": choice, "machine_nominal": choice, "machine_median_cycle_time_s": math.nan,
-           "machine_unreached": 0, "n_plants": 0, "builder_median_cycle_time_s": math.nan, "builder_exceeded": 0}
+    choice = {
+        "controller": "mpcc",
+        "setting": {"feed": 150.0, "acceleration": None},
+        "cycle_time_s": 2.1518,
+        "max_um": 4.55,
+    }
+    row = {
+        "tolerance_um": 5.0,
+        "builder": choice,
+        "machine_nominal": choice,
+        "machine_median_cycle_time_s": math.nan,
+        "machine_unreached": 0,
+        "n_plants": 0,
+        "builder_median_cycle_time_s": math.nan,
+        "builder_exceeded": 0,
+    }
     line = format_table("VCNC-Heart-v1", [row]).splitlines()[-1]
     assert line == "| 5 | `mpcc` 150 mm/s: 2.152 s, 4.55 um | - | 0 of 0 | - | 0 of 0 |"

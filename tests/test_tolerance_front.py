@@ -17,29 +17,57 @@ KINDS = ["nominal", "sample", "sample", "sample", "vertex"]
 
 
 def _run(controller, feed, max_um, cycle):
-    return {"controller": controller, "setting": {"feed": feed, "acceleration": 1000.0}, "max_um": max_um,
-            "cycle_time_s": cycle}
+    return {
+        "controller": controller,
+        "setting": {"feed": feed, "acceleration": 1000.0},
+        "max_um": max_um,
+        "cycle_time_s": cycle,
+    }
 
 
 def _search():
     """Two controllers over the nominal plant, three sampled plants and a vertex of the box."""
-    runs = [_run("a", 100.0, [4.0, 4.0, 12.0, 4.0, 30.0], [1.0, 1.0, 1.0, 1.0, 1.0]),
-            _run("a", 80.0, [3.0, 3.0, 8.0, 3.0, 25.0], [1.2, 1.2, 1.2, 1.2, 1.2]),
-            _run("b", 120.0, [9.0, 6.0, 6.0, None, 6.0], [0.9, 0.9, 0.9, None, 0.9])]
-    grid = [tl.GridRun(r["controller"], tl.Setting(**r["setting"]),
-                       np.array([INF if v is None else v for v in r["max_um"]]),
-                       np.array([INF if v is None else v for v in r["cycle_time_s"]])) for r in runs]
-    return {"plants": 3, "plant_seed": 0, "kinds": KINDS, "rows": tl.tolerance_table(grid, KINDS, (0.005, 0.01)),
-            "runs": runs}
+    runs = [
+        _run("a", 100.0, [4.0, 4.0, 12.0, 4.0, 30.0], [1.0, 1.0, 1.0, 1.0, 1.0]),
+        _run("a", 80.0, [3.0, 3.0, 8.0, 3.0, 25.0], [1.2, 1.2, 1.2, 1.2, 1.2]),
+        _run("b", 120.0, [9.0, 6.0, 6.0, None, 6.0], [0.9, 0.9, 0.9, None, 0.9]),
+    ]
+    grid = [
+        tl.GridRun(
+            r["controller"],
+            tl.Setting(**r["setting"]),
+            np.array([INF if v is None else v for v in r["max_um"]]),
+            np.array([INF if v is None else v for v in r["cycle_time_s"]]),
+        )
+        for r in runs
+    ]
+    return {
+        "plants": 3,
+        "plant_seed": 0,
+        "kinds": KINDS,
+        "rows": tl.tolerance_table(grid, KINDS, (0.005, 0.01)),
+        "runs": runs,
+    }
 
 
 def _agents():
-    per_plant = lambda cycles, errs: {"kind": KINDS + ["vertex"], "cycle_time_s": cycles,  # noqa: E731
-                                      "max_um": errs}
-    return [{"group": "g", "policy": "ppo:x/seed0", "per_plant": per_plant([0.95, 0.95, 0.96, 0.97, 0.9, 0.9],
-                                                                           [4.0, 4.0, 6.0, 4.0, 11.0, 1.0])},
-            {"group": "g", "policy": "ppo:x/seed1", "per_plant": per_plant([0.8, 0.85, None, 0.85, 0.9, 0.9],
-                                                                           [9.0, 9.0, 2.0, 9.0, 9.0, 1.0])}]
+    per_plant = lambda cycles, errs: {  # noqa: E731
+        "kind": KINDS + ["vertex"],
+        "cycle_time_s": cycles,
+        "max_um": errs,
+    }
+    return [
+        {
+            "group": "g",
+            "policy": "ppo:x/seed0",
+            "per_plant": per_plant([0.95, 0.95, 0.96, 0.97, 0.9, 0.9], [4.0, 4.0, 6.0, 4.0, 11.0, 1.0]),
+        },
+        {
+            "group": "g",
+            "policy": "ppo:x/seed1",
+            "per_plant": per_plant([0.8, 0.85, None, 0.85, 0.9, 0.9], [9.0, 9.0, 2.0, 9.0, 9.0, 1.0]),
+        },
+    ]
 
 
 def _point(fr, name, t_um):

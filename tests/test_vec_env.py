@@ -42,15 +42,25 @@ def _run_vec(compiled, actions, baseline, correction, env_kwargs):
     for a in actions:
         venv.step_async(a)
         obs, rewards, dones, infos = venv.step_wait()
-        rows.append((obs, rewards, dones, [{k: np.asarray(inf[k]) for k in KEYS + ("terminal_observation",)
-                                            if k in inf} for inf in infos]))
+        rows.append(
+            (
+                obs,
+                rewards,
+                dones,
+                [{k: np.asarray(inf[k]) for k in KEYS + ("terminal_observation",) if k in inf} for inf in infos],
+            )
+        )
     return rows
 
 
 def _run_single(actions, baseline, correction, env_kwargs):
     """N single envs in ResidualAction, reset as SB3 does (at once, the generator continuing)."""
-    envs = [ResidualAction(gym.make(ENV_ID, action_repeat=1, **env_kwargs), baseline=baseline,
-                           correction=correction, action_repeat=10) for _ in range(N)]
+    envs = [
+        ResidualAction(
+            gym.make(ENV_ID, action_repeat=1, **env_kwargs), baseline=baseline, correction=correction, action_repeat=10
+        )
+        for _ in range(N)
+    ]
     obs = np.stack([e.reset(seed=SEED + i)[0] for i, e in enumerate(envs)])
     rows = [(obs, None, None, None)]
     for a in actions:
@@ -77,8 +87,9 @@ def _assert_same(a, b):
                     np.testing.assert_array_equal(p[key], q[key], err_msg=f"info[{key!r}] of env {i}, decision {k}")
 
 
-@pytest.mark.parametrize("baseline, randomize", [("smc", False), ("smc", True), ("qft", True), ("ff-ccc", True),
-                                                ("ff-pid-online", True)])
+@pytest.mark.parametrize(
+    "baseline, randomize", [("smc", False), ("smc", True), ("qft", True), ("ff-ccc", True), ("ff-pid-online", True)]
+)
 def test_compiled_baseline_gives_the_python_path_and_single_envs_to_the_bit(baseline, randomize):
     actions = _actions(120)
     kwargs = {"divergence_bound": 0.05, "randomize": randomize}  # 50 um: corrections of 2 u_max end episodes
@@ -97,7 +108,7 @@ def test_compiled_law_is_the_numpy_law_to_the_bit(name):
     policy = vcnc_baselines.make(name, env)
     rng = np.random.default_rng(1)
     n = 500
-    obs = (rng.normal(size=(n, layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(n, layout.size)))
+    obs = rng.normal(size=(n, layout.size)) * rng.choice([1e-3, 1.0, 100.0], size=(n, layout.size))
     obs = obs.astype(np.float32)
     controller = policy.compiled(n)
     memory = rng.uniform(-0.3, 0.3, policy.controller_state.shape)
@@ -116,18 +127,26 @@ def test_compiled_law_is_the_numpy_law_to_the_bit(name):
 
 
 def test_step_controlled_refuses_bad_arguments():
-    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point",
-                         autoreset_mode=AutoresetMode.DISABLED)
+    venv = gym.make_vec(
+        ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode=AutoresetMode.DISABLED
+    )
     controller = vcnc_baselines.make("smc", venv).compiled(2)
     with pytest.raises(RuntimeError, match="before reset"):
         venv.unwrapped.step_controlled(controller, np.zeros((2, 2)), 0.2, 10)
     venv.reset(seed=0)
-    for args, message in [((np.zeros((3, 2)), 0.2, 10), "shape"), ((np.full((2, 2), np.nan), 0.2, 10), "finite"),
-                          ((np.zeros((2, 2)), 0.0, 10), "correction"), ((np.zeros((2, 2)), 0.2, 0), "repeat")]:
+    for args, message in [
+        ((np.zeros((3, 2)), 0.2, 10), "shape"),
+        ((np.full((2, 2), np.nan), 0.2, 10), "finite"),
+        ((np.zeros((2, 2)), 0.0, 10), "correction"),
+        ((np.zeros((2, 2)), 0.2, 0), "repeat"),
+    ]:
         with pytest.raises(ValueError, match=message):
             venv.unwrapped.step_controlled(controller, *args)
-    for wrong, message in [(None, "compiled controller"), ((np.zeros((2, 2)),), "compiled controller"),
-                           (vcnc_baselines.make("smc", venv).compiled(3), "must have 2 rows")]:
+    for wrong, message in [
+        (None, "compiled controller"),
+        ((np.zeros((2, 2)),), "compiled controller"),
+        (vcnc_baselines.make("smc", venv).compiled(3), "must have 2 rows"),
+    ]:
         with pytest.raises(ValueError, match=message):
             venv.unwrapped.step_controlled(wrong, np.zeros((2, 2)), 0.2, 10)
     other = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")

@@ -83,11 +83,11 @@ def test_env_i_is_bit_identical_to_a_single_env_with_randomization(parallel, pd_
     for i in range(n):
         single = _rollout_single("VCNC-Omega-v1", seed + i, steps, acts, **kwargs)
         k = len(vec["rew"])
-        np.testing.assert_array_equal(np.array(single["obs"][:k + 1]), np.array(vec["obs"])[:, i])
+        np.testing.assert_array_equal(np.array(single["obs"][: k + 1]), np.array(vec["obs"])[:, i])
         np.testing.assert_array_equal(np.array(single["rew"][:k]), np.array(vec["rew"])[:, i])
         np.testing.assert_array_equal(np.array(single["term"][:k]), np.array(vec["term"])[:, i])
         np.testing.assert_array_equal(np.array(single["trunc"][:k]), np.array(vec["trunc"])[:, i])
-        np.testing.assert_array_equal(np.array(single["params"][:len(plants[i])]), np.array(plants[i]))
+        np.testing.assert_array_equal(np.array(single["params"][: len(plants[i])]), np.array(plants[i]))
     # the plants differ between envs (their own generators)
     assert not np.array_equal(plants[0][0], plants[1][0])
 
@@ -134,14 +134,17 @@ def test_disabled_autoreset_waits_for_a_masked_reset():
     assert r[0] < 0 and r[1] == 0
 
 
-@pytest.mark.parametrize("bad, message", [
-    (np.zeros((3, 2)), "shape"),
-    (np.zeros(2), "shape"),
-    (np.array([[0.0, np.nan], [0.0, 0.0]]), "finite"),
-    (np.array([[0.0, np.inf], [0.0, 0.0]]), "finite"),
-    (np.array([["a", "b"], ["c", "d"]]), "real"),
-    (np.zeros((2, 2), dtype=complex), "real"),
-])
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (np.zeros((3, 2)), "shape"),
+        (np.zeros(2), "shape"),
+        (np.array([[0.0, np.nan], [0.0, 0.0]]), "finite"),
+        (np.array([[0.0, np.inf], [0.0, 0.0]]), "finite"),
+        (np.array([["a", "b"], ["c", "d"]]), "real"),
+        (np.zeros((2, 2), dtype=complex), "real"),
+    ],
+)
 def test_bad_actions_raise(bad, message):
     envs = ContouringVectorEnv(2, contour="omega")
     envs.reset(seed=0)

@@ -44,8 +44,13 @@ def test_ci_matches_scipy_bootstrap_within_bootstrap_noise():
     x = _data(runs=15, tasks=1)[:, 0]
     reps = 2000
     point, low, high = v.stratified_bootstrap_ci(x, reps=reps, seed=1)
-    ref = scipy.stats.bootstrap((x,), lambda s, axis: scipy.stats.trim_mean(s, 0.25, axis=axis), n_resamples=reps,
-                                method="percentile", random_state=np.random.default_rng(7))
+    ref = scipy.stats.bootstrap(
+        (x,),
+        lambda s, axis: scipy.stats.trim_mean(s, 0.25, axis=axis),
+        n_resamples=reps,
+        method="percentile",
+        random_state=np.random.default_rng(7),
+    )
     assert point == pytest.approx(scipy.stats.trim_mean(x, 0.25), rel=1e-12)
     width = high - low
     assert width > 0
@@ -61,8 +66,12 @@ def test_ci_by_hand_is_the_same_draws():
     reps, seed = 300, 5
     rng = np.random.default_rng(seed)
     rows = rng.integers(0, 9, size=(reps, 9, 2))
-    values = np.array([scipy.stats.trim_mean(np.stack([x[rows[r, :, j], j] for j in range(2)], 1), 0.25, axis=None)
-                       for r in range(reps)])
+    values = np.array(
+        [
+            scipy.stats.trim_mean(np.stack([x[rows[r, :, j], j] for j in range(2)], 1), 0.25, axis=None)
+            for r in range(reps)
+        ]
+    )
     lo, hi = np.percentile(values, [2.5, 97.5])
     _, low, high = v.stratified_bootstrap_ci(x, reps=reps, seed=seed)
     assert (low, high) == pytest.approx((lo, hi), rel=1e-12)
@@ -130,8 +139,15 @@ def test_own_interval_resamples_plants_not_runs():
     rng = np.random.default_rng(4)
     y = rng.lognormal(1.0, 0.8, 15)
     one = v.verdict(y * 0.9, y, figure="max", x_label="a", y_label="b", reps=2000, seed=1)
-    five = v.verdict(np.repeat((y * 0.9)[:, None], 5, 1), np.repeat(y[:, None], 5, 1), figure="max", x_label="a",
-                     y_label="b", reps=2000, seed=1)
+    five = v.verdict(
+        np.repeat((y * 0.9)[:, None], 5, 1),
+        np.repeat(y[:, None], 5, 1),
+        figure="max",
+        x_label="a",
+        y_label="b",
+        reps=2000,
+        seed=1,
+    )
     w1, w5 = one.ci_y[1] - one.ci_y[0], five.ci_y[1] - five.ci_y[0]
     assert w5 == pytest.approx(w1, rel=0.25)
 
@@ -175,9 +191,16 @@ def test_a_seed_that_failed_its_training_keeps_a_win_from_being_declared():
 
 
 def _record(policy, max_um, group=None):
-    rec = {"env": "E", "policy": policy,
-           "per_plant": {"kind": ["nominal"] + ["sample"] * len(max_um), "max_um": [1.0, *max_um],
-                         "rms_um": [0.1, *(m / 10 for m in max_um)], "diverged": [False] * (len(max_um) + 1)}}
+    rec = {
+        "env": "E",
+        "policy": policy,
+        "per_plant": {
+            "kind": ["nominal"] + ["sample"] * len(max_um),
+            "max_um": [1.0, *max_um],
+            "rms_um": [0.1, *(m / 10 for m in max_um)],
+            "diverged": [False] * (len(max_um) + 1),
+        },
+    }
     if group is not None:
         rec["group"] = group
     return rec
@@ -186,14 +209,23 @@ def _record(policy, max_um, group=None):
 def test_the_bench_judges_the_seeds_of_one_run_as_one_controller():
     rng = np.random.default_rng(8)
     y = rng.lognormal(1.0, 0.5, 16)
-    records = [_record("ff-pid", y)] + [_record(f"ppo:run/seed{s}/best", y * f, group="ppo:run")
-                                       for s, f in enumerate((0.9, 0.92, 0.95))]
+    records = [_record("ff-pid", y)] + [
+        _record(f"ppo:run/seed{s}/best", y * f, group="ppo:run") for s, f in enumerate((0.9, 0.92, 0.95))
+    ]
     rows = v.robust_verdicts(records, {r["policy"] for r in records[1:]}, {"ff-pid"}, reps=500)
     assert [(r["x"], r["figure"], r["training_seeds"], r["outcome"]) for r in rows] == [
-        ("ppo:run", "max", 3, "wins"), ("ppo:run", "rms", 3, "wins")]
+        ("ppo:run", "max", 3, "wins"),
+        ("ppo:run", "rms", 3, "wins"),
+    ]
     assert all(r["verdicts"]["max"]["x"] == "ppo:run" for r in records[1:])
-    expected = v.verdict(np.stack([y * 0.9, y * 0.92, y * 0.95])[:, :, None], y, figure="max", x_label="ppo:run",
-                         y_label="ff-pid", reps=500)
+    expected = v.verdict(
+        np.stack([y * 0.9, y * 0.92, y * 0.95])[:, :, None],
+        y,
+        figure="max",
+        x_label="ppo:run",
+        y_label="ff-pid",
+        reps=500,
+    )
     assert rows[0]["low"] == expected.low and rows[0]["high"] == expected.high
     assert "ppo:run (3 seeds)" in v.format_verdicts(rows)
 
@@ -209,8 +241,9 @@ def test_a_y_with_training_seeds_is_resampled_after_everything_else():
     x = rng.lognormal(0.0, 0.3, size=(4, 30, 3))
     y = rng.lognormal(0.1, 0.3, size=(30, 3))
     assert paired_difference_ci(x, y[None], reps=500) == paired_difference_ci(x, y, reps=500)
-    assert verdict(x, y[None], figure="max", x_label="x", y_label="y", reps=500) == \
-        verdict(x, y, figure="max", x_label="x", y_label="y", reps=500)
+    assert verdict(x, y[None], figure="max", x_label="x", y_label="y", reps=500) == verdict(
+        x, y, figure="max", x_label="x", y_label="y", reps=500
+    )
     d, low, high = paired_difference_ci(x, x + 1.0, reps=500)
     assert d == pytest.approx(-1.0) and low < -1.0 < high
     same = verdict(x, x.copy(), figure="max", x_label="x", y_label="x", reps=500)

@@ -34,7 +34,9 @@ def test_printed_controllers():
     # V/mm is V/m over 1000
     for name in NAMES:
         w = 1.3j
-        assert complex(ctl.controller_tf(name)(w)) == pytest.approx(complex(ctl.controller_tf(name, unit="m")(w)) / 1000)
+        assert complex(ctl.controller_tf(name)(w)) == pytest.approx(
+            complex(ctl.controller_tf(name, unit="m")(w)) / 1000
+        )
 
 
 def test_imc_is_eq_23_from_eqs_21_22():
@@ -66,8 +68,11 @@ def test_robust_pi_design_of_section_3_2():
 
 
 def test_unknown_controller():
-    with pytest.raises(ValueError, match=r"unknown controller of Yadav et al\. \(2020\) 'lqr'; "
-                                         r"known controllers are .*'pi', 'imc', 'hinf', 'hinf-reduced'"):
+    with pytest.raises(
+        ValueError,
+        match=r"unknown controller of Yadav et al\. \(2020\) 'lqr'; "
+        r"known controllers are .*'pi', 'imc', 'hinf', 'hinf-reduced'",
+    ):
         ctl.controller_tf("lqr")
     with pytest.raises(ValueError, match="unit"):
         ctl.controller_tf("pi", unit="in")

@@ -85,8 +85,9 @@ def test_step_responses_are_python_controls(controller, dead_time):
         t = np.linspace(0.0, 3.0, 1501)
     else:
         dt = 1e-3
-        Gd = control.series(control.ss(control.tf([1.0], [1.0] + [0.0] * 100, dt)),
-                            control.ss(control.c2d(G, dt, "zoh")))
+        Gd = control.series(
+            control.ss(control.tf([1.0], [1.0] + [0.0] * 100, dt)), control.ss(control.c2d(G, dt, "zoh"))
+        )
         T = control.feedback(control.series(control.c2d(control.ss(C), dt, "tustin"), Gd), 1)
         t = np.arange(3001) * dt
     _, expected = control.step_response(T, t)

@@ -22,9 +22,20 @@ from .policies import (
     resolve_policy,
 )
 
-__all__ = ["main", "format_table", "PAPER_TABLE_4", "paper_figures", "PolicyKind", "POLICY_KINDS",
-           "register_policy_kind", "policy_kinds", "policy_label", "check_policy_spec", "resolve_policy",
-           "default_specs"]
+__all__ = [
+    "main",
+    "format_table",
+    "PAPER_TABLE_4",
+    "paper_figures",
+    "PolicyKind",
+    "POLICY_KINDS",
+    "register_policy_kind",
+    "policy_kinds",
+    "policy_label",
+    "check_policy_spec",
+    "resolve_policy",
+    "default_specs",
+]
 
 
 def __getattr__(name: str):

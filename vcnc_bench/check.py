@@ -33,9 +33,11 @@ def problems(data, default_ids: tuple | None = None) -> list[str]:
     scored = {}
     for r in records:
         if r.get("table") == "headroom" and not r.get("headroom", 0.0) >= 1.0:
-            out.append(f"{r.get('env')}: the floor ({r.get('floor_max_um')} um) is above the strongest causal "
-                       f"controller ({r.get('strongest')}, {r.get('strongest_max_um')} um): a stale floor; solve it "
-                       f"again (python benchmarks/oracle_convergence.py --env {r.get('env')} --store)")
+            out.append(
+                f"{r.get('env')}: the floor ({r.get('floor_max_um')} um) is above the strongest causal "
+                f"controller ({r.get('strongest')}, {r.get('strongest_max_um')} um): a stale floor; solve it "
+                f"again (python benchmarks/oracle_convergence.py --env {r.get('env')} --store)"
+            )
         if "table" in r:  # a report's rows (ISO 230-4, headroom)
             continue
         key = (r.get("env"), r.get("policy"))
@@ -80,8 +82,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.json}: {line}", file=sys.stderr)
     if not found:
         n = sum(len(v) for v in data["plan"].values())
-        print(f"{args.json}: complete, {len(data['plan'])} envs x their policies = {n} runs, every one with finite "
-              f"figures")
+        print(
+            f"{args.json}: complete, {len(data['plan'])} envs x their policies = {n} runs, every one with finite "
+            f"figures"
+        )
     return 1 if found else 0
 
 

@@ -95,8 +95,17 @@ from . import programs, robust, score, verdicts
 from .plots import shown_labels
 from .headroom import NON_CAUSAL, headroom
 from .provenance import provenance
-from .policies import (BenchContext, check_policy_spec, default_specs, expand_spec, policy_choices, policy_kinds,
-                       policy_label, resolve_policy, split_spec)
+from .policies import (
+    BenchContext,
+    check_policy_spec,
+    default_specs,
+    expand_spec,
+    policy_choices,
+    policy_kinds,
+    policy_label,
+    resolve_policy,
+    split_spec,
+)
 from .runner import BuildError, EnvRecipe, EnvRuns, idle_cores, label_of, run_table
 
 #: The v0 ids, kept for agents trained on them: benchmarked when named.
@@ -109,9 +118,19 @@ LEGACY_IDS = tuple(e.id for e in LEGACY)
 #: (the S-curve omega, the look-ahead heart), the G-code ids (the ISO 230-4 and NAS 979 test pieces, a part
 #: program) and the random contour.  Grouped by machine (Jahanpour et al. (2014)'s drive, Simba et al.'s, Purtojo
 #: et al.'s table, Yadav et al. (2020)'s axis); the worker pool takes the longest first.
-DEFAULT_IDS = ("VCNC-Heart-v1", "VCNC-HeartShop-v1", "VCNC-OmegaLookahead-v1", "VCNC-OmegaLookaheadShop-v1",
-               "VCNC-OmegaOverride-v1", "VCNC-Corners-v1", "VCNC-CornersSmooth-v1", "VCNC-CornersSmoothShop-v1",
-               "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-Step-v0")
+DEFAULT_IDS = (
+    "VCNC-Heart-v1",
+    "VCNC-HeartShop-v1",
+    "VCNC-OmegaLookahead-v1",
+    "VCNC-OmegaLookaheadShop-v1",
+    "VCNC-OmegaOverride-v1",
+    "VCNC-Corners-v1",
+    "VCNC-CornersSmooth-v1",
+    "VCNC-CornersSmoothShop-v1",
+    "VCNC-Circle-v1",
+    "VCNC-CircleShop-v1",
+    "VCNC-Step-v0",
+)
 
 __all__ = ["DEFAULT_IDS", "format_table", "main"]
 
@@ -145,8 +164,10 @@ def _cell(value, fmt: str) -> str:
 def format_table(records: list[dict], columns: list | None = None) -> str:
     """The records as a fixed-width table in the shape of Jahanpour et al.'s Table 4 (errors in um); ``columns``
     (header, width, record key, format) default to the ordinary bench's."""
-    columns = [(h, max([w] + [len(str(r.get(key))) for r in records]) if key in ("env", "policy") else w, key, fmt)
-               for h, w, key, fmt in (columns or _COLUMNS)]
+    columns = [
+        (h, max([w] + [len(str(r.get(key))) for r in records]) if key in ("env", "policy") else w, key, fmt)
+        for h, w, key, fmt in (columns or _COLUMNS)
+    ]
     lines = [" ".join(f"{h:>{w}}" if i > 1 else f"{h:<{w}}" for i, (h, w, _, _) in enumerate(columns))]
     lines.append("-" * len(lines[0]))
     previous_env = None
@@ -162,8 +183,14 @@ def format_table(records: list[dict], columns: list | None = None) -> str:
     return "\n".join(lines)
 
 
-def _record(env_id: str, label: str, result: EpisodeResult, compare: bool = True, trial: int | None = None,
-            kind: str | None = None) -> dict:
+def _record(
+    env_id: str,
+    label: str,
+    result: EpisodeResult,
+    compare: bool = True,
+    trial: int | None = None,
+    kind: str | None = None,
+) -> dict:
     paper = paper_figures(env_id, label).get("max_contour_error_um") if compare else None
     ratio = result.max_contour_error_um / paper if paper else None
     return {
@@ -199,66 +226,131 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="vcnc-bench",
         description="Run every policy on the vcnc-gym envs (nominal plant, one deterministic episode each) "
-                    "and compare with the source papers' figures.",
+        "and compare with the source papers' figures.",
     )
-    p.add_argument("--env", action="append", metavar="ID",
-                   help="env id, repeatable (default: the ids with a shipped agent and one of every other kind, "
-                        f"{', '.join(DEFAULT_IDS)}; --all: every id; the v0 ids when named)")
-    p.add_argument("--all", action="store_true",
-                   help=f"every id ({', '.join(ENV_IDS)}) with every policy that applies, those that learn across "
-                        "episodes (ILC) included")
-    p.add_argument("--jobs", type=int, metavar="J",
-                   help="processes that run the envs (default: the cores other processes leave idle, at least 1)")
-    p.add_argument("--policy", action="append", metavar="SPEC",
-                   help="a baseline name, 'ppo' (the agent shipped for the env) or KIND:ARGUMENT such as "
-                        "ppo:RUN/best, repeatable (default: every policy that applies to each env's plant)")
+    p.add_argument(
+        "--env",
+        action="append",
+        metavar="ID",
+        help="env id, repeatable (default: the ids with a shipped agent and one of every other kind, "
+        f"{', '.join(DEFAULT_IDS)}; --all: every id; the v0 ids when named)",
+    )
+    p.add_argument(
+        "--all",
+        action="store_true",
+        help=f"every id ({', '.join(ENV_IDS)}) with every policy that applies, those that learn across "
+        "episodes (ILC) included",
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        metavar="J",
+        help="processes that run the envs (default: the cores other processes leave idle, at least 1)",
+    )
+    p.add_argument(
+        "--policy",
+        action="append",
+        metavar="SPEC",
+        help="a baseline name, 'ppo' (the agent shipped for the env) or KIND:ARGUMENT such as "
+        "ppo:RUN/best, repeatable (default: every policy that applies to each env's plant)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed passed to env.reset, >= 0 (default 0)")
-    p.add_argument("--feedrate", type=float, metavar="MM_PER_S",
-                   help="feedrate in mm/s (default: each env's own); with another value the paper's "
-                        "columns stay empty")
-    p.add_argument("--plant", metavar="NAME",
-                   help="run every env on this plant instead of its own (a name of vcnc_gym.plants.plant_names(), such as "
-                        "current_feed_drive: a generalist's machine on the test pieces); the papers' columns stay "
-                        "empty")
-    p.add_argument("--shop-floor", action="store_true",
-                   help="run every env on its plant's shop floor (encoder, noise, delays, the mode, cutting force and "
-                        "friction: vcnc_gym.plants.shop_floor), such as the G-code test pieces for a shop-floor "
-                        "generalist; the papers' columns stay empty")
-    p.add_argument("--trials", type=int, metavar="K",
-                   help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
-                        "and the last, the JSON every one (default 10; with --plants 1, the last scored); such "
-                        "policies run by default only with --all")
-    p.add_argument("--plants", type=int, metavar="N",
-                   help="robust evaluation instead: every policy on the nominal plant, N plants drawn uniformly "
-                        "from the env's uncertainty box and the box's vertices when it has at most "
-                        f"{robust.MAX_VERTICES}; median, p95 and worst of max and RMS contour error, cycle time, "
-                        "divergences")
-    p.add_argument("--plant-seed", type=int, default=0, metavar="S",
-                   help="seed of the plants drawn by --plants, >= 0 (default 0)")
-    p.add_argument("--noise-seeds", type=int, default=1, metavar="K",
-                   help="with --plants: every plant of an id with a noisy sensor (the shop-floor ids) over K "
-                        "sensor-noise seeds, their distribution reported and paired in the verdicts (default 1)")
-    p.add_argument("--parallel", action="store_true",
-                   help="with --plants: spread each batch of plants over numba's threads (faster on idle cores, "
-                        "far slower on cores other processes use; default one thread)")
-    p.add_argument("--program", action="append", metavar="PART",
-                   help="a G-code part program (a file, a test piece of vcnc_gym.gcode.pieces.PIECES, or "
-                        "'iso230-4': the circular test both ways) run as VCNC-GCode-v1, repeatable; with no --env "
-                        "only the programs run (vcnc_bench.programs)")
-    p.add_argument("--tolerance", metavar="MM", default=None,
-                   help="with --program: corner blending tolerance in mm, or 'sharp' (exact stops; default 0.01)")
-    p.add_argument("--circle", nargs=2, type=float, metavar=("D_MM", "F_MM_PER_MIN"),
-                   help="with --program iso230-4: the circle's diameter (mm) and feed (mm/min)")
+    p.add_argument(
+        "--feedrate",
+        type=float,
+        metavar="MM_PER_S",
+        help="feedrate in mm/s (default: each env's own); with another value the paper's columns stay empty",
+    )
+    p.add_argument(
+        "--plant",
+        metavar="NAME",
+        help="run every env on this plant instead of its own (a name of vcnc_gym.plants.plant_names(), such as "
+        "current_feed_drive: a generalist's machine on the test pieces); the papers' columns stay "
+        "empty",
+    )
+    p.add_argument(
+        "--shop-floor",
+        action="store_true",
+        help="run every env on its plant's shop floor (encoder, noise, delays, the mode, cutting force and "
+        "friction: vcnc_gym.plants.shop_floor), such as the G-code test pieces for a shop-floor "
+        "generalist; the papers' columns stay empty",
+    )
+    p.add_argument(
+        "--trials",
+        type=int,
+        metavar="K",
+        help="episodes run by a policy that learns across episodes (ILC); the table shows the first "
+        "and the last, the JSON every one (default 10; with --plants 1, the last scored); such "
+        "policies run by default only with --all",
+    )
+    p.add_argument(
+        "--plants",
+        type=int,
+        metavar="N",
+        help="robust evaluation instead: every policy on the nominal plant, N plants drawn uniformly "
+        "from the env's uncertainty box and the box's vertices when it has at most "
+        f"{robust.MAX_VERTICES}; median, p95 and worst of max and RMS contour error, cycle time, "
+        "divergences",
+    )
+    p.add_argument(
+        "--plant-seed", type=int, default=0, metavar="S", help="seed of the plants drawn by --plants, >= 0 (default 0)"
+    )
+    p.add_argument(
+        "--noise-seeds",
+        type=int,
+        default=1,
+        metavar="K",
+        help="with --plants: every plant of an id with a noisy sensor (the shop-floor ids) over K "
+        "sensor-noise seeds, their distribution reported and paired in the verdicts (default 1)",
+    )
+    p.add_argument(
+        "--parallel",
+        action="store_true",
+        help="with --plants: spread each batch of plants over numba's threads (faster on idle cores, "
+        "far slower on cores other processes use; default one thread)",
+    )
+    p.add_argument(
+        "--program",
+        action="append",
+        metavar="PART",
+        help="a G-code part program (a file, a test piece of vcnc_gym.gcode.pieces.PIECES, or "
+        "'iso230-4': the circular test both ways) run as VCNC-GCode-v1, repeatable; with no --env "
+        "only the programs run (vcnc_bench.programs)",
+    )
+    p.add_argument(
+        "--tolerance",
+        metavar="MM",
+        default=None,
+        help="with --program: corner blending tolerance in mm, or 'sharp' (exact stops; default 0.01)",
+    )
+    p.add_argument(
+        "--circle",
+        nargs=2,
+        type=float,
+        metavar=("D_MM", "F_MM_PER_MIN"),
+        help="with --program iso230-4: the circle's diameter (mm) and feed (mm/min)",
+    )
     p.add_argument("--json", metavar="PATH", type=Path, help="write one record per run to this JSON file")
-    p.add_argument("--leaderboard", metavar="PAGE", type=Path,
-                   help="add this run's rows to the leaderboard page PAGE (docs/leaderboard.md; its rows are kept "
-                        "beside it in PAGE's .json), ranked by the normalised score: vcnc_bench.leaderboard")
-    p.add_argument("--plots", metavar="DIR", type=Path,
-                   help="write ENV_contour.png, ENV_error.png and ENV_deviation.png (the deviation magnified along "
-                        "the contour's normal, an inset at every corner) per env into this directory")
-    p.add_argument("--plot-all", action="store_true",
-                   help="with --plots: every policy in each env's plots (default: the paper's controllers, the "
-                        "strongest causal one, the agent and the floor)")
+    p.add_argument(
+        "--leaderboard",
+        metavar="PAGE",
+        type=Path,
+        help="add this run's rows to the leaderboard page PAGE (docs/leaderboard.md; its rows are kept "
+        "beside it in PAGE's .json), ranked by the normalised score: vcnc_bench.leaderboard",
+    )
+    p.add_argument(
+        "--plots",
+        metavar="DIR",
+        type=Path,
+        help="write ENV_contour.png, ENV_error.png and ENV_deviation.png (the deviation magnified along "
+        "the contour's normal, an inset at every corner) per env into this directory",
+    )
+    p.add_argument(
+        "--plot-all",
+        action="store_true",
+        help="with --plots: every policy in each env's plots (default: the paper's controllers, the "
+        "strongest causal one, the agent and the floor)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
     return p
 
@@ -306,16 +398,25 @@ def _check_sizes(args, envs: dict, parser) -> None:
         if args.plants is not None:
             for env in envs.values():
                 copies = args.noise_seeds if robust.noisy(env.unwrapped.plant) else 1
-                robust.check_plants((args.plants + 1) * copies, env,
-                                    "--plants" if copies == 1 else "--plants x --noise-seeds")
+                robust.check_plants(
+                    (args.plants + 1) * copies, env, "--plants" if copies == 1 else "--plants x --noise-seeds"
+                )
         if args.trials is not None:
             steps = max(int(env.unwrapped.episode_steps) for env in envs.values())
-            size("--trials", args.trials, ceiling=MAX_TRIALS,
-                 why="a learning controller converges within tens of trials; 10 000 episodes are hours")
+            size(
+                "--trials",
+                args.trials,
+                ceiling=MAX_TRIALS,
+                why="a learning controller converges within tens of trials; 10 000 episodes are hours",
+            )
             if args.plants is None:
-                size("--trials", args.trials, bytes_each=2 * steps * TRACE_BYTES_PER_STEP,
-                     why=f"every trial's traces are kept, {steps} steps of the longest env's episode (twice, "
-                         "for one that runs to its time limit)")
+                size(
+                    "--trials",
+                    args.trials,
+                    bytes_each=2 * steps * TRACE_BYTES_PER_STEP,
+                    why=f"every trial's traces are kept, {steps} steps of the longest env's episode (twice, "
+                    "for one that runs to its time limit)",
+                )
     except ValueError as exc:
         parser.error(str(exc))
 
@@ -341,8 +442,10 @@ def _check_arguments(args, parser) -> None:
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
     if args.parallel and args.plants is None:
-        parser.error("--parallel spreads the batch of --plants N over threads; without --plants each episode "
-                     "runs on one env and there is nothing to spread: add --plants N or drop --parallel")
+        parser.error(
+            "--parallel spreads the batch of --plants N over threads; without --plants each episode "
+            "runs on one env and there is nothing to spread: add --plants N or drop --parallel"
+        )
     if args.all and (args.env or args.program):
         parser.error("--all runs every id with every policy; it does not combine with --env or --program")
     if args.program and args.feedrate is not None:
@@ -389,9 +492,12 @@ def _recipes(args, parser) -> list[EnvRecipe]:
             pieces = programs.expand_programs(args.program, args.circle)
         except ValueError as exc:
             parser.error(str(exc))
-        recipes += [EnvRecipe(key, env_id, kw, specs, everything)
-                     for key, env_id, kw in programs.program_recipes(pieces, tolerance, plant=args.plant,
-                                                                       shop_floor=args.shop_floor)]
+        recipes += [
+            EnvRecipe(key, env_id, kw, specs, everything)
+            for key, env_id, kw in programs.program_recipes(
+                pieces, tolerance, plant=args.plant, shop_floor=args.shop_floor
+            )
+        ]
     return recipes
 
 
@@ -424,9 +530,19 @@ def _build_quietly(recipes: list[EnvRecipe], built: dict) -> None:
 #: 35, the S-curve omegas 15, the step response 15 with Yadav et al. (2020)'s Table 2, the circles 10, the
 #: override 4): the pool's order when the workers build the envs (:func:`_cost`), so that no long env starts last
 #: while the other core idles.
-LONGEST_FIRST = ("VCNC-Heart-v1", "VCNC-HeartShop-v1", "VCNC-CornersSmoothShop-v1", "VCNC-CornersSmooth-v1",
-                 "VCNC-Corners-v1", "VCNC-OmegaLookaheadShop-v1", "VCNC-Step-v0", "VCNC-OmegaLookahead-v1",
-                 "VCNC-Circle-v1", "VCNC-CircleShop-v1", "VCNC-OmegaOverride-v1")
+LONGEST_FIRST = (
+    "VCNC-Heart-v1",
+    "VCNC-HeartShop-v1",
+    "VCNC-CornersSmoothShop-v1",
+    "VCNC-CornersSmooth-v1",
+    "VCNC-Corners-v1",
+    "VCNC-OmegaLookaheadShop-v1",
+    "VCNC-Step-v0",
+    "VCNC-OmegaLookahead-v1",
+    "VCNC-Circle-v1",
+    "VCNC-CircleShop-v1",
+    "VCNC-OmegaOverride-v1",
+)
 
 
 def _cost(envs: dict | None):
@@ -441,33 +557,60 @@ def _print_plan(args, recipes: list[EnvRecipe], jobs: int) -> None:
     """The run's first lines: what runs, on how many processes, and what the default leaves out."""
     keys = [r.key for r in recipes]
     policies = "the policies named" if args.policy else "every policy that applies"
-    print(f"vcnc-bench: {policies} on {len(keys)} env(s), one deterministic episode each on the nominal plant "
-          f"(seed {args.seed}), on {jobs} process(es) (--jobs)", flush=True)
+    print(
+        f"vcnc-bench: {policies} on {len(keys)} env(s), one deterministic episode each on the nominal plant "
+        f"(seed {args.seed}), on {jobs} process(es) (--jobs)",
+        flush=True,
+    )
     if not (args.env or args.program or args.all):
         left = [e for e in ENV_IDS if e not in DEFAULT_IDS]
-        print(f"  the default table: the ids with a shipped agent and Yadav et al. (2020)'s step response; left out: "
-              f"{', '.join(left)} (--all runs every id, --env ID one)", flush=True)
+        print(
+            f"  the default table: the ids with a shipped agent and Yadav et al. (2020)'s step response; left out: "
+            f"{', '.join(left)} (--all runs every id, --env ID one)",
+            flush=True,
+        )
     if not (args.all or args.policy):
-        print("  left out: the policies that learn across episodes (ILC, 10 trials each) and those whose episode "
-              "costs minutes (mpc, mpcc: a QP per period in Python); --all, or --policy NAME", flush=True)
-    print("  more: --plants N (the uncertainty box: median and worst over N plants), --program PART (your G-code), "
-          "--help", flush=True)
+        print(
+            "  left out: the policies that learn across episodes (ILC, 10 trials each) and those whose episode "
+            "costs minutes (mpc, mpcc: a QP per period in Python); --all, or --policy NAME",
+            flush=True,
+        )
+    print(
+        "  more: --plants N (the uncertainty box: median and worst over N plants), --program PART (your G-code), "
+        "--help",
+        flush=True,
+    )
 
 
 def _progress(wall0: float):
     """One line per finished env on stderr: its policies, its own wall time and the run's so far."""
+
     def line(result: EnvRuns, done: int, total: int) -> None:
-        print(f"  [{done:>{len(str(total))}}/{total}] {result.key}: {len(result.runs)} policies in "
-              f"{result.wall_s:.1f} s (run so far {time.perf_counter() - wall0:.0f} s)", file=sys.stderr, flush=True)
+        print(
+            f"  [{done:>{len(str(total))}}/{total}] {result.key}: {len(result.runs)} policies in "
+            f"{result.wall_s:.1f} s (run so far {time.perf_counter() - wall0:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
     return line
 
 
 def _run(args, recipes: list[EnvRecipe], envs: dict | None, parser, jobs: int, wall0: float) -> dict:
     """{key: EnvRuns} of every recipe; an env or a policy that cannot be built exits 2 naming it."""
     try:
-        return run_table(recipes, seed=args.seed, trials=args.trials or DEFAULT_TRIALS, jobs=jobs, envs=envs,
-                         cost=_cost(envs), on_env_done=None if args.no_progress else _progress(wall0),
-                         plots=args.plots, plot_all=args.plot_all, prepare=True)
+        return run_table(
+            recipes,
+            seed=args.seed,
+            trials=args.trials or DEFAULT_TRIALS,
+            jobs=jobs,
+            envs=envs,
+            cost=_cost(envs),
+            on_env_done=None if args.no_progress else _progress(wall0),
+            plots=args.plots,
+            plot_all=args.plot_all,
+            prepare=True,
+        )
     except BuildError as exc:
         parser.error(str(exc))
 
@@ -495,29 +638,49 @@ def _table_records(args, ctx: BenchContext, results: dict) -> list[dict]:
         for run in env_runs.runs:
             k = len(run.trials)
             for trial, result in enumerate(run.trials, start=1):
-                records.append(_record(key, run.label, result, compare and trial == k, trial if k > 1 else None,
-                                       split_spec(run.spec)[0]))
+                records.append(
+                    _record(
+                        key,
+                        run.label,
+                        result,
+                        compare and trial == k,
+                        trial if k > 1 else None,
+                        split_spec(run.spec)[0],
+                    )
+                )
     ctx.records = records
     return records
 
 
 def _print_table(args, ctx: BenchContext, records: list[dict]) -> None:
-    feeds = sorted({env.unwrapped.feedrate_profile.feedrate for env in ctx.envs.values()
-                    if hasattr(env.unwrapped, "feedrate_profile")})
+    feeds = sorted(
+        {
+            env.unwrapped.feedrate_profile.feedrate
+            for env in ctx.envs.values()
+            if hasattr(env.unwrapped, "feedrate_profile")
+        }
+    )
     print()
-    print(f"Error of every policy on the nominal plant, one deterministic episode each (seed {args.seed}"
-          + (f"; policies that learn across episodes: {ctx.trials} trials, first and last shown" if ctx.trials_of
-             else "") + ")" + (f"; contours at {', '.join(f'{f:g}' for f in feeds)} mm/s" if feeds else ""))
-    print("max/mean/rms_um: the contour error (the distance from the table to the whole contour) on contouring envs, "
-          "the distance to the set-point on positioning envs; paper_max_um: the source paper's figure, ours/paper "
-          "their ratio; cycle_s: when the table reached the contour's end; wall_s: the episode's wall time; "
-          "'(non-causal)': a floor that reads the exact plant, never a controller")
+    print(
+        f"Error of every policy on the nominal plant, one deterministic episode each (seed {args.seed}"
+        + (f"; policies that learn across episodes: {ctx.trials} trials, first and last shown" if ctx.trials_of else "")
+        + ")"
+        + (f"; contours at {', '.join(f'{f:g}' for f in feeds)} mm/s" if feeds else "")
+    )
+    print(
+        "max/mean/rms_um: the contour error (the distance from the table to the whole contour) on contouring envs, "
+        "the distance to the set-point on positioning envs; paper_max_um: the source paper's figure, ours/paper "
+        "their ratio; cycle_s: when the table reached the contour's end; wall_s: the episode's wall time; "
+        "'(non-causal)': a floor that reads the exact plant, never a controller"
+    )
     shown = [r for r in records if r.get("trial") in (None, 1, ctx.trials)]
     print(format_table(shown))
     incomplete = [f"{r['env']} {r['policy']}" for r in shown if not r["completed"]]
     if incomplete:
-        print(f"\nNOT COMPLETE (diverged, or cut short before the end of its contour or step-response window; "
-              f"its errors cover only the part it ran): {', '.join(incomplete)}")
+        print(
+            f"\nNOT COMPLETE (diverged, or cut short before the end of its contour or step-response window; "
+            f"its errors cover only the part it ran): {', '.join(incomplete)}"
+        )
 
 
 def _print_headroom(results: dict, records: list[dict]) -> None:
@@ -531,15 +694,26 @@ def _print_headroom(results: dict, records: list[dict]) -> None:
             rows.append((key, h))
     if not rows:
         return
-    print("\nHeadroom: the strongest causal classical controller's max contour error over the non-causal floor's "
-          "(the room a learned controller can still win)")
+    print(
+        "\nHeadroom: the strongest causal classical controller's max contour error over the non-causal floor's "
+        "(the room a learned controller can still win)"
+    )
     width = max(len(k) for k, _ in rows)
     for key, h in rows:
-        print(f"  {key:<{width}} {h.strongest:>14} {h.strongest_max_um:10.4g} um / floor {h.floor_max_um:10.4g} um"
-              f" = {h.ratio:.3f}")
-        records.append({"table": "headroom", "env": key, "strongest": h.strongest,
-                        "strongest_max_um": h.strongest_max_um, "floor_max_um": h.floor_max_um,
-                        "headroom": h.ratio})
+        print(
+            f"  {key:<{width}} {h.strongest:>14} {h.strongest_max_um:10.4g} um / floor {h.floor_max_um:10.4g} um"
+            f" = {h.ratio:.3f}"
+        )
+        records.append(
+            {
+                "table": "headroom",
+                "env": key,
+                "strongest": h.strongest,
+                "strongest_max_um": h.strongest_max_um,
+                "floor_max_um": h.floor_max_um,
+                "headroom": h.ratio,
+            }
+        )
 
 
 def _print_reports(ctx: BenchContext, records: list[dict]) -> None:
@@ -559,11 +733,18 @@ def _print_reports(ctx: BenchContext, records: list[dict]) -> None:
 
 def _bench_json(args, results: dict, records: list[dict], jobs: int) -> dict:
     """What ``--json`` writes: the settings, the plan (every env's policy labels) and the records."""
-    settings = {"command": args.command, "seed": args.seed, "trials": args.trials or DEFAULT_TRIALS,
-                "feedrate": args.feedrate,
-                "plant": args.plant, "shop_floor": args.shop_floor, "all": args.all, "jobs": jobs,
-                "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None,
-                "provenance": provenance()}
+    settings = {
+        "command": args.command,
+        "seed": args.seed,
+        "trials": args.trials or DEFAULT_TRIALS,
+        "feedrate": args.feedrate,
+        "plant": args.plant,
+        "shop_floor": args.shop_floor,
+        "all": args.all,
+        "jobs": jobs,
+        "default_ids": list(DEFAULT_IDS) if not (args.env or args.program or args.all) else None,
+        "provenance": provenance(),
+    }
     plan = {key: [run.label for run in env_runs.runs] for key, env_runs in results.items()}
     return {"settings": settings, "plan": plan, "records": [_json_safe(r) for r in records]}
 
@@ -617,11 +798,15 @@ def main(argv: list[str] | None = None) -> int:
     out = _bench_json(args, results, records, jobs)
     if args.json is not None:
         args.json.write_text(json.dumps(out, indent=2) + "\n")
-        print(f"\nwrote {len(records)} records ({sum(map(len, (r.runs for r in results.values())))} env x policy "
-              f"runs) to {args.json}")
+        print(
+            f"\nwrote {len(records)} records ({sum(map(len, (r.runs for r in results.values())))} env x policy "
+            f"runs) to {args.json}"
+        )
     if args.plots is not None:
-        print(f"wrote {len(ctx.plots_written)} plots to {args.plots} (each env's: the paper's controllers, the "
-              f"strongest causal one, the agent and the floor; --plot-all: every policy)")
+        print(
+            f"wrote {len(ctx.plots_written)} plots to {args.plots} (each env's: the paper's controllers, the "
+            f"strongest causal one, the agent and the floor; --plot-all: every policy)"
+        )
     _add_to_leaderboard(args, out)
     for env in envs.values():
         env.close()
@@ -696,12 +881,16 @@ def _nominal_floors(args, envs: dict, runs: list) -> dict:
         u = env.unwrapped
         batch = robust.make_batch(env_id, 1)
         try:
-            res = robust.run_plants(oracle, batch, u.nominal_parameters[None], decision_period=u.decision_period,
-                                    seed=args.seed)
+            res = robust.run_plants(
+                oracle, batch, u.nominal_parameters[None], decision_period=u.decision_period, seed=args.seed
+            )
         finally:
             batch.close()
-        out[env_id] = {"max_um": float(res.max_um[0]), "rms_um": float(res.rms_um[0]),
-                       "label": label_of("oracle", oracle)}
+        out[env_id] = {
+            "max_um": float(res.max_um[0]),
+            "rms_um": float(res.rms_um[0]),
+            "label": label_of("oracle", oracle),
+        }
     return out
 
 
@@ -711,8 +900,10 @@ def _print_scores(records: list[dict]) -> None:
     if not rows:
         return
     first = rows[0]["score"]
-    print(f"\nNormalised contour score (0 = {first['reference']}, the reference PD; 1 = the non-causal floor), "
-          "on the nominal plant, max and RMS contour error (vcnc_bench.score)")
+    print(
+        f"\nNormalised contour score (0 = {first['reference']}, the reference PD; 1 = the non-causal floor), "
+        "on the nominal plant, max and RMS contour error (vcnc_bench.score)"
+    )
     width = max(len(r["env"]) for r in rows)
     pw = max(len(r["policy"]) for r in rows)
     env = None
@@ -720,12 +911,17 @@ def _print_scores(records: list[dict]) -> None:
         if r["env"] != env:
             env = r["env"]
             s = r["score"]
-            print(f"  {env}: pd-ref {s['reference_nominal_um']['max']:.4g} um, floor "
-                  f"{s['floor_nominal_um']['max']:.4g} um (max)")
+            print(
+                f"  {env}: pd-ref {s['reference_nominal_um']['max']:.4g} um, floor "
+                f"{s['floor_nominal_um']['max']:.4g} um (max)"
+            )
         s = r["score"]
         cell = " ".join("      -" if s[k] is None else f"{s[k]:7.3f}" for k in ("max", "rms"))
-        iqm = "".join(f"  IQM {k} {s[f'iqm_{k}'][0]:.3f} [{s[f'iqm_{k}'][1]:.3f}, {s[f'iqm_{k}'][2]:.3f}]"
-                      for k in ("max", "rms") if s.get(f"iqm_{k}") and None not in s[f"iqm_{k}"])
+        iqm = "".join(
+            f"  IQM {k} {s[f'iqm_{k}'][0]:.3f} [{s[f'iqm_{k}'][1]:.3f}, {s[f'iqm_{k}'][2]:.3f}]"
+            for k in ("max", "rms")
+            if s.get(f"iqm_{k}") and None not in s[f"iqm_{k}"]
+        )
         print(f"  {r['env']:<{width}} {r['policy']:<{pw}} {cell}{iqm}")
 
 
@@ -746,12 +942,26 @@ def _robust(args, envs: dict, runs: list) -> int:
 
     trials = args.trials or 1
     kwargs = _env_kwargs(args)
-    with tqdm(total=len(runs), unit="run", file=sys.stderr, dynamic_ncols=True, leave=False,
-              disable=True if args.no_progress else None) as bar:
-        records, plant_sets = robust.evaluate([(e, label_of(s, p), p) for e, s, p in runs], envs, args.plants,
-                                              plant_seed=args.plant_seed, seed=args.seed, trials=trials,
-                                              env_kwargs=kwargs, parallel=args.parallel, bar=bar,
-                                              noise_seeds=args.noise_seeds)
+    with tqdm(
+        total=len(runs),
+        unit="run",
+        file=sys.stderr,
+        dynamic_ncols=True,
+        leave=False,
+        disable=True if args.no_progress else None,
+    ) as bar:
+        records, plant_sets = robust.evaluate(
+            [(e, label_of(s, p), p) for e, s, p in runs],
+            envs,
+            args.plants,
+            plant_seed=args.plant_seed,
+            seed=args.seed,
+            trials=trials,
+            env_kwargs=kwargs,
+            parallel=args.parallel,
+            bar=bar,
+            noise_seeds=args.noise_seeds,
+        )
     score.add_scores(records, _nominal_floors(args, envs, runs))
     kinds = {(e, label_of(s, p)): split_spec(s)[0] for e, s, p in runs}
     groups = _training_seed_groups(args)
@@ -761,19 +971,27 @@ def _robust(args, envs: dict, runs: list) -> int:
             r["group"] = groups[r["policy"]]
     # every policy that is not a classical baseline (an agent, a user's kind) meets the strongest causal baseline
     learned = {label_of(s, p) for _, s, p in runs if split_spec(s)[0] != "baseline"}
-    causal = {label_of(s, p) for _, s, p in runs
-              if split_spec(s)[0] == "baseline" and getattr(p, "causal", True) is not False}
+    causal = {
+        label_of(s, p) for _, s, p in runs if split_spec(s)[0] == "baseline" and getattr(p, "causal", True) is not False
+    }
     verdict_rows = verdicts.robust_verdicts(records, learned, causal, seed=args.seed)
-    print(f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "
-          f"{args.plants} plants drawn uniformly from the box (plant seed {args.plant_seed}), worst over them and "
-          f"the box's vertices where it has at most {robust.MAX_VERTICES}; cycle time in s; a diverged plant counts "
-          f"as an infinite error, a contour never finished as an infinite cycle time")
+    print(
+        f"Contour error over the uncertainty box (um): the nominal plant, median and 95th percentile over "
+        f"{args.plants} plants drawn uniformly from the box (plant seed {args.plant_seed}), worst over them and "
+        f"the box's vertices where it has at most {robust.MAX_VERTICES}; cycle time in s; a diverged plant counts "
+        f"as an infinite error, a contour never finished as an infinite cycle time"
+    )
     for env_id, plants in plant_sets.items():
         wall = sum(r["wall_s"] for r in records if r["env"] == env_id)
-        print(f"  {env_id}: {len(plants.samples)} samples + {len(plants.vertices)} vertices"
-              + ("" if len(plants.vertices) else
-                 f" (the box has 2^{envs[env_id].unwrapped.plant.box()[0].size} > {robust.MAX_VERTICES})")
-              + f", every policy in {wall:.0f} s")
+        print(
+            f"  {env_id}: {len(plants.samples)} samples + {len(plants.vertices)} vertices"
+            + (
+                ""
+                if len(plants.vertices)
+                else f" (the box has 2^{envs[env_id].unwrapped.plant.box()[0].size} > {robust.MAX_VERTICES})"
+            )
+            + f", every policy in {wall:.0f} s"
+        )
     if any(r["trials"] > 1 for r in records):
         print(f"  policies that learn across episodes: {trials} trials per plant, the last scored")
     print(format_table(records, robust.ROBUST_COLUMNS))
@@ -782,31 +1000,52 @@ def _robust(args, envs: dict, runs: list) -> int:
         print(f"\nNOT COMPLETE on the nominal plant (diverged or cut short): {', '.join(nominal_bad)}")
     noisy = [r for r in records if "noise" in r]
     if noisy:
-        print(f"\nSensor noise: every plant over {args.noise_seeds} noise seeds (the figures above: seed 0's); "
-              "nominal plant min / median / max over the seeds, median spread (max - min) per sampled plant, IQM "
-              "over every (sampled plant, seed) run, um")
+        print(
+            f"\nSensor noise: every plant over {args.noise_seeds} noise seeds (the figures above: seed 0's); "
+            "nominal plant min / median / max over the seeds, median spread (max - min) per sampled plant, IQM "
+            "over every (sampled plant, seed) run, um"
+        )
         for r in noisy:
             n = r["noise"]
-            print(f"  {r['env']} {r['policy']}: " + "; ".join(
-                f"{k} {n[k]['nominal_min_um']:.4g} / {n[k]['nominal_median_um']:.4g} / {n[k]['nominal_max_um']:.4g}"
-                f", spread {n[k]['median_spread_um']:.3g}, IQM {n[k]['iqm_um']:.4g}" for k in ("max", "rms")))
+            print(
+                f"  {r['env']} {r['policy']}: "
+                + "; ".join(
+                    f"{k} {n[k]['nominal_min_um']:.4g} / {n[k]['nominal_median_um']:.4g} / {n[k]['nominal_max_um']:.4g}"
+                    f", spread {n[k]['median_spread_um']:.3g}, IQM {n[k]['iqm_um']:.4g}"
+                    for k in ("max", "rms")
+                )
+            )
     _print_scores(records)
     if verdict_rows:
-        print(f"\nVerdicts (vcnc_bench.verdicts): the learned controller X against the strongest causal controller Y "
-              f"of each figure, IQM over the {args.plants} sampled plants"
-              + (f" x {args.noise_seeds} noise seeds on noisy sensors" if args.noise_seeds > 1 else "")
-              + f", 95 % stratified-bootstrap intervals ({verdicts.REPS} replicates); X - Y: the paired bootstrap of "
-              "the IQMs' difference (the same plants and noise for both); P(X<Y): X's error the lower (lower is "
-              "better); 'wins'/'loses' only when the difference's interval excludes zero, else 'ties'")
+        print(
+            f"\nVerdicts (vcnc_bench.verdicts): the learned controller X against the strongest causal controller Y "
+            f"of each figure, IQM over the {args.plants} sampled plants"
+            + (f" x {args.noise_seeds} noise seeds on noisy sensors" if args.noise_seeds > 1 else "")
+            + f", 95 % stratified-bootstrap intervals ({verdicts.REPS} replicates); X - Y: the paired bootstrap of "
+            "the IQMs' difference (the same plants and noise for both); P(X<Y): X's error the lower (lower is "
+            "better); 'wins'/'loses' only when the difference's interval excludes zero, else 'ties'"
+        )
         print(verdicts.format_verdicts(verdict_rows))
     if args.json is not None or args.leaderboard is not None:
-        settings = {"command": args.command, "plants": args.plants, "plant_seed": args.plant_seed, "seed": args.seed, "trials": trials,
-                    "max_vertices": robust.MAX_VERTICES, "feedrate": args.feedrate, "plant": args.plant,
-                    "shop_floor": args.shop_floor, "noise_seeds": args.noise_seeds, "bootstrap": {"reps": verdicts.REPS, "seed": args.seed,
-                                                                   "confidence": verdicts.CONFIDENCE},
-                    "provenance": provenance()}
-        out = {"settings": settings, "robust": [_json_safe(r) for r in records],
-               "verdicts": [_json_safe(r) for r in verdict_rows]}
+        settings = {
+            "command": args.command,
+            "plants": args.plants,
+            "plant_seed": args.plant_seed,
+            "seed": args.seed,
+            "trials": trials,
+            "max_vertices": robust.MAX_VERTICES,
+            "feedrate": args.feedrate,
+            "plant": args.plant,
+            "shop_floor": args.shop_floor,
+            "noise_seeds": args.noise_seeds,
+            "bootstrap": {"reps": verdicts.REPS, "seed": args.seed, "confidence": verdicts.CONFIDENCE},
+            "provenance": provenance(),
+        }
+        out = {
+            "settings": settings,
+            "robust": [_json_safe(r) for r in records],
+            "verdicts": [_json_safe(r) for r in verdict_rows],
+        }
         if args.json is not None:
             args.json.write_text(json.dumps(out, indent=2) + "\n")
             print(f"\nwrote {len(records)} robust records to {args.json}")

@@ -69,8 +69,20 @@ from vcnc_gym.validation import integer
 from .provenance import provenance
 from .robust import make_batch, plant_set
 
-__all__ = ["DEFAULT_POLICIES", "STRONGEST", "FLOOR", "DatasetReport", "Episodes", "dataset_id", "strongest_causal",
-           "collect", "reference_scores", "write_dataset", "code_version", "main"]
+__all__ = [
+    "DEFAULT_POLICIES",
+    "STRONGEST",
+    "FLOOR",
+    "DatasetReport",
+    "Episodes",
+    "dataset_id",
+    "strongest_causal",
+    "collect",
+    "reference_scores",
+    "write_dataset",
+    "code_version",
+    "main",
+]
 
 #: The behaviour policies written by default.
 DEFAULT_POLICIES = ("pd-ref", "strongest", "smc", "oracle")
@@ -110,8 +122,13 @@ def code_version() -> dict:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
         if head.returncode == 0:
             out["commit"] = head.stdout.strip()
-            status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                                    capture_output=True, text=True, timeout=10)
+            status = subprocess.run(
+                ["git", "status", "--porcelain", "--untracked-files=no"],
+                cwd=root,
+                capture_output=True,
+                text=True,
+                timeout=10,
+            )
             out["dirty"] = bool(status.stdout.strip()) if status.returncode == 0 else None
     except (OSError, subprocess.SubprocessError):  # no git: the version alone
         pass
@@ -210,14 +227,19 @@ def collect(policy, batch, parameters: np.ndarray, *, seed: int = 0) -> Episodes
     obs_a, act_a = np.stack(obs_tr, axis=1), np.stack(act_tr, axis=1)
     rew_a, term_a, trunc_a = (np.stack(x, axis=1) for x in (rew_tr, term_tr, trunc_tr))
     n = [int(k) for k in length]
-    return Episodes(observations=[obs_a[i, :k + 1] for i, k in enumerate(n)],
-                    actions=[act_a[i, :k] for i, k in enumerate(n)],
-                    rewards=[rew_a[i, :k] for i, k in enumerate(n)],
-                    terminations=[term_a[i, :k] for i, k in enumerate(n)],
-                    truncations=[trunc_a[i, :k] for i, k in enumerate(n)],
-                    max_um=1e3 * peak, rms_um=1e3 * np.sqrt(square_sum / np.maximum(length, 1)),
-                    cycle_time_s=cycle, diverged=diverged, completed=completed,
-                    wall_s=time.perf_counter() - wall0)
+    return Episodes(
+        observations=[obs_a[i, : k + 1] for i, k in enumerate(n)],
+        actions=[act_a[i, :k] for i, k in enumerate(n)],
+        rewards=[rew_a[i, :k] for i, k in enumerate(n)],
+        terminations=[term_a[i, :k] for i, k in enumerate(n)],
+        truncations=[trunc_a[i, :k] for i, k in enumerate(n)],
+        max_um=1e3 * peak,
+        rms_um=1e3 * np.sqrt(square_sum / np.maximum(length, 1)),
+        cycle_time_s=cycle,
+        diverged=diverged,
+        completed=completed,
+        wall_s=time.perf_counter() - wall0,
+    )
 
 
 def _run_nominal(env_id: str, spec: str, env_kwargs: dict, seed: int) -> Episodes:
@@ -255,8 +277,11 @@ def strongest_causal(env_id: str, env_kwargs: dict | None = None, seed: int = 0)
     env_kwargs = dict(env_kwargs or {})
     env = gym.make(env_id, **env_kwargs)
     try:
-        specs = [s for s in policy_kinds()["baseline"].defaults(env)
-                 if getattr(policy_class(s.partition("@")[0]), "causal", True) is not False]
+        specs = [
+            s
+            for s in policy_kinds()["baseline"].defaults(env)
+            if getattr(policy_class(s.partition("@")[0]), "causal", True) is not False
+        ]
     finally:
         env.close()
     if not specs:
@@ -269,8 +294,7 @@ def strongest_causal(env_id: str, env_kwargs: dict | None = None, seed: int = 0)
     return best, figures
 
 
-def reference_scores(env_id: str, env_kwargs: dict | None = None, seed: int = 0,
-                     known: dict | None = None) -> dict:
+def reference_scores(env_id: str, env_kwargs: dict | None = None, seed: int = 0, known: dict | None = None) -> dict:
     """The normalised score's ends on the nominal plant: ``{"pd-ref": max_um, "oracle": max_um}`` (um), each from
     ``known`` (a figure already measured with the same seed) or from one episode."""
     from .score import REFERENCE
@@ -278,8 +302,9 @@ def reference_scores(env_id: str, env_kwargs: dict | None = None, seed: int = 0,
     known = dict(known or {})
     out = {}
     for spec in (REFERENCE, FLOOR):
-        out[spec] = known[spec] if spec in known else float(_run_nominal(env_id, spec, dict(env_kwargs or {}),
-                                                                         seed).max_um[0])
+        out[spec] = (
+            known[spec] if spec in known else float(_run_nominal(env_id, spec, dict(env_kwargs or {}), seed).max_um[0])
+        )
     return out
 
 
@@ -324,20 +349,38 @@ def _finite(x) -> list:
 
 
 def _description(env_id: str, spec: str, label: str, non_causal: bool, kinds: list[str], scores: dict) -> str:
-    who = (f"the NON-CAUSAL floor '{spec}' (it reads the exact plant and plans the episode ahead: a bound, never a "
-           f"controller; baselines/optimal)" if non_causal else f"the causal controller '{spec}'"
-           + (" (the strongest causal controller of the id on its nominal plant)" if label == STRONGEST else ""))
-    return (f"{env_id} driven by {who}: {kinds.count('nominal')} nominal and {kinds.count('sample')} plants drawn "
-            f"from the id's uncertainty box, one deterministic episode each (vcnc-gym, vcnc_bench/datasets.py). "
-            f"ref_min_score/ref_max_score are minus the nominal max contour error (um) of pd-ref "
-            f"({scores['pd-ref']:.6g}) and of the floor ({scores[FLOOR]:.6g}): the quantity they normalise is "
-            f"-max contour error in um, not the sum of rewards.")
+    who = (
+        f"the NON-CAUSAL floor '{spec}' (it reads the exact plant and plans the episode ahead: a bound, never a "
+        f"controller; baselines/optimal)"
+        if non_causal
+        else f"the causal controller '{spec}'"
+        + (" (the strongest causal controller of the id on its nominal plant)" if label == STRONGEST else "")
+    )
+    return (
+        f"{env_id} driven by {who}: {kinds.count('nominal')} nominal and {kinds.count('sample')} plants drawn "
+        f"from the id's uncertainty box, one deterministic episode each (vcnc-gym, vcnc_bench/datasets.py). "
+        f"ref_min_score/ref_max_score are minus the nominal max contour error (um) of pd-ref "
+        f"({scores['pd-ref']:.6g}) and of the floor ({scores[FLOOR]:.6g}): the quantity they normalise is "
+        f"-max contour error in um, not the sum of rewards."
+    )
 
 
-def write_dataset(env_id: str, spec: str, *, parameters: np.ndarray, kinds: list[str], scores: dict,
-                  command: str, label: str | None = None, seed: int = 0, env_kwargs: dict | None = None,
-                  data_format: str = "hdf5", overwrite: bool = False, policy=None,
-                  episodes: Episodes | None = None) -> DatasetReport:
+def write_dataset(
+    env_id: str,
+    spec: str,
+    *,
+    parameters: np.ndarray,
+    kinds: list[str],
+    scores: dict,
+    command: str,
+    label: str | None = None,
+    seed: int = 0,
+    env_kwargs: dict | None = None,
+    data_format: str = "hdf5",
+    overwrite: bool = False,
+    policy=None,
+    episodes: Episodes | None = None,
+) -> DatasetReport:
     """Collect ``spec``'s episodes on ``parameters`` and write them as one Minari dataset.
 
     Parameters
@@ -393,39 +436,80 @@ def write_dataset(env_id: str, spec: str, *, parameters: np.ndarray, kinds: list
             finally:
                 batch.close()
         non_causal = getattr(policy, "causal", True) is False or spec.partition(":")[0] == FLOOR
-        buffers = [EpisodeBuffer(id=i, seed=seed + i, options={"parameters": np.asarray(parameters[i])},
-                                 observations=episodes.observations[i], actions=episodes.actions[i],
-                                 rewards=episodes.rewards[i], terminations=episodes.terminations[i],
-                                 truncations=episodes.truncations[i])
-                   for i in range(parameters.shape[0])]
+        buffers = [
+            EpisodeBuffer(
+                id=i,
+                seed=seed + i,
+                options={"parameters": np.asarray(parameters[i])},
+                observations=episodes.observations[i],
+                actions=episodes.actions[i],
+                rewards=episodes.rewards[i],
+                terminations=episodes.terminations[i],
+                truncations=episodes.truncations[i],
+            )
+            for i in range(parameters.shape[0])
+        ]
         t0 = time.perf_counter()
         dataset = minari.create_dataset_from_buffers(
-            dataset_id=name, buffer=buffers, env=env.spec, eval_env=env.spec,
+            dataset_id=name,
+            buffer=buffers,
+            env=env.spec,
+            eval_env=env.spec,
             algorithm_name=f"{spec} (non-causal floor)" if non_causal else spec,
-            author="vcnc-gym", author_email="vcnc-gym (no contact address: see the project's README)",
+            author="vcnc-gym",
+            author_email="vcnc-gym (no contact address: see the project's README)",
             code_permalink=f"vcnc_bench/datasets.py of vcnc-gym {code_version()['vcnc_gym']}",
-            ref_min_score=-float(scores["pd-ref"]), ref_max_score=-float(scores[FLOOR]),
+            ref_min_score=-float(scores["pd-ref"]),
+            ref_max_score=-float(scores[FLOOR]),
             description=_description(env_id, spec, label, non_causal, list(kinds), scores),
-            data_format=data_format, requirements=_requirements())
-        dataset.storage.update_metadata({"vcnc": {
-            "env_id": env_id, "env_kwargs": env_kwargs, "policy": label, "spec": spec, "non_causal": non_causal,
-            "command": command, "code_version": code_version(),
-            "score": {"quantity": "-max contour error, um (nominal plant)", "reference": "pd-ref",
-                      "floor": FLOOR, "reference_max_um": float(scores["pd-ref"]),
-                      "floor_max_um": float(scores[FLOOR])},
-            "reset_seeds": [int(seed) + i for i in range(parameters.shape[0])], "plant_kinds": list(kinds),
-            "plant_parameters": np.asarray(parameters, dtype=np.float64).tolist(),
-            "plant_parameter_names": list(env.unwrapped.plant.parameter_names),
-            "episodes": {"max_um": _finite(episodes.max_um), "rms_um": _finite(episodes.rms_um),
-                         "cycle_time_s": _finite(episodes.cycle_time_s),
-                         "diverged": [bool(v) for v in episodes.diverged],
-                         "completed": [bool(v) for v in episodes.completed]}}})
+            data_format=data_format,
+            requirements=_requirements(),
+        )
+        dataset.storage.update_metadata(
+            {
+                "vcnc": {
+                    "env_id": env_id,
+                    "env_kwargs": env_kwargs,
+                    "policy": label,
+                    "spec": spec,
+                    "non_causal": non_causal,
+                    "command": command,
+                    "code_version": code_version(),
+                    "score": {
+                        "quantity": "-max contour error, um (nominal plant)",
+                        "reference": "pd-ref",
+                        "floor": FLOOR,
+                        "reference_max_um": float(scores["pd-ref"]),
+                        "floor_max_um": float(scores[FLOOR]),
+                    },
+                    "reset_seeds": [int(seed) + i for i in range(parameters.shape[0])],
+                    "plant_kinds": list(kinds),
+                    "plant_parameters": np.asarray(parameters, dtype=np.float64).tolist(),
+                    "plant_parameter_names": list(env.unwrapped.plant.parameter_names),
+                    "episodes": {
+                        "max_um": _finite(episodes.max_um),
+                        "rms_um": _finite(episodes.rms_um),
+                        "cycle_time_s": _finite(episodes.cycle_time_s),
+                        "diverged": [bool(v) for v in episodes.diverged],
+                        "completed": [bool(v) for v in episodes.completed],
+                    },
+                }
+            }
+        )
         write_s = time.perf_counter() - t0
     finally:
         env.close()
-    return DatasetReport(dataset_id=name, path=path, policy=label, episodes=parameters.shape[0],
-                         steps=episodes.steps, bytes=_folder_bytes(path), collect_s=episodes.wall_s,
-                         write_s=write_s, max_um=_finite(episodes.max_um))
+    return DatasetReport(
+        dataset_id=name,
+        path=path,
+        policy=label,
+        episodes=parameters.shape[0],
+        steps=episodes.steps,
+        bytes=_folder_bytes(path),
+        collect_s=episodes.wall_s,
+        write_s=write_s,
+        max_um=_finite(episodes.max_um),
+    )
 
 
 def _requirements() -> list[str]:
@@ -437,20 +521,36 @@ def _requirements() -> list[str]:
 
 # -- the command -------------------------------------------------------------------------------------------------
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="vcnc-datasets", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="vcnc-datasets", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--env", action="append", required=True, metavar="ID", help="env id (repeatable)")
-    p.add_argument("--policy", action="append", metavar="SPEC",
-                   help=f"behaviour policy (repeatable): a bench spec or '{STRONGEST}'; default "
-                        f"{' '.join(DEFAULT_POLICIES)}")
-    p.add_argument("--strongest", metavar="SPEC", help="the strongest causal controller (default: run the "
-                                                       "default table's on the nominal plant and take the best)")
-    p.add_argument("--plants", type=int, default=20, metavar="N",
-                   help="plants drawn from the box besides the nominal one (default 20; 0: the nominal only)")
+    p.add_argument(
+        "--policy",
+        action="append",
+        metavar="SPEC",
+        help=f"behaviour policy (repeatable): a bench spec or '{STRONGEST}'; default {' '.join(DEFAULT_POLICIES)}",
+    )
+    p.add_argument(
+        "--strongest",
+        metavar="SPEC",
+        help="the strongest causal controller (default: run the "
+        "default table's on the nominal plant and take the best)",
+    )
+    p.add_argument(
+        "--plants",
+        type=int,
+        default=20,
+        metavar="N",
+        help="plants drawn from the box besides the nominal one (default 20; 0: the nominal only)",
+    )
     p.add_argument("--plant-seed", type=int, default=0, help="seed of the draws (default 0, as vcnc-bench)")
     p.add_argument("--seed", type=int, default=0, help="reset seed: env i gets SEED + i (default 0)")
-    p.add_argument("--oracle-on-samples", action="store_true",
-                   help="run the floor on the drawn plants too (a search per plant, minutes each)")
+    p.add_argument(
+        "--oracle-on-samples",
+        action="store_true",
+        help="run the floor on the drawn plants too (a search per plant, minutes each)",
+    )
     p.add_argument("--out", metavar="DIR", help="dataset folder (default MINARI_DATASETS_PATH or ~/.minari/datasets)")
     p.add_argument("--format", dest="data_format", choices=("hdf5", "arrow"), default="hdf5")
     p.add_argument("--overwrite", action="store_true", help="replace datasets of the same id")
@@ -498,8 +598,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vcnc-datasets: {exc}", file=sys.stderr)
         return 2
     command = " ".join(["vcnc-datasets"] + argv)
-    print(f"{'dataset id':<40} {'policy':<16} {'episodes':>8} {'steps':>9} {'MB':>8} {'run s':>7} {'write s':>7} "
-          f"{'nominal max um':>14}")
+    print(
+        f"{'dataset id':<40} {'policy':<16} {'episodes':>8} {'steps':>9} {'MB':>8} {'run s':>7} {'write s':>7} "
+        f"{'nominal max um':>14}"
+    )
     for env_id in args.env:
         env = gym.make(env_id)
         parameters, kinds = _plants(env, args.plants, args.plant_seed)
@@ -508,20 +610,34 @@ def main(argv: list[str] | None = None) -> int:
         if STRONGEST in policies and strongest is None:
             t0 = time.perf_counter()
             strongest, figures = strongest_causal(env_id, seed=args.seed)
-            print(f"# {env_id}: strongest causal controller on the nominal plant: {strongest} "
-                  f"({figures[strongest][0]:.4g} um max; of {len(figures)} run in {time.perf_counter() - t0:.1f} s)",
-                  file=sys.stderr)
+            print(
+                f"# {env_id}: strongest causal controller on the nominal plant: {strongest} "
+                f"({figures[strongest][0]:.4g} um max; of {len(figures)} run in {time.perf_counter() - t0:.1f} s)",
+                file=sys.stderr,
+            )
         scores = reference_scores(env_id, seed=args.seed)
         for label in policies:
             spec = strongest if label == STRONGEST else label
             use, use_kinds = parameters, kinds
             if spec == FLOOR and not args.oracle_on_samples:
                 use, use_kinds = parameters[:1], kinds[:1]
-            rep = write_dataset(env_id, spec, parameters=use, kinds=use_kinds, scores=scores, command=command,
-                                label=label, seed=args.seed, data_format=args.data_format, overwrite=args.overwrite)
-            print(f"{rep.dataset_id:<40} {spec:<16} {rep.episodes:>8} {rep.steps:>9} {rep.bytes / 1e6:>8.2f} "
-                  f"{rep.collect_s:>7.1f} {rep.write_s:>7.1f} {rep.max_um[0] if rep.max_um[0] is not None else math.inf:>14.4g}",
-                  flush=True)
+            rep = write_dataset(
+                env_id,
+                spec,
+                parameters=use,
+                kinds=use_kinds,
+                scores=scores,
+                command=command,
+                label=label,
+                seed=args.seed,
+                data_format=args.data_format,
+                overwrite=args.overwrite,
+            )
+            print(
+                f"{rep.dataset_id:<40} {spec:<16} {rep.episodes:>8} {rep.steps:>9} {rep.bytes / 1e6:>8.2f} "
+                f"{rep.collect_s:>7.1f} {rep.write_s:>7.1f} {rep.max_um[0] if rep.max_um[0] is not None else math.inf:>14.4g}",
+                flush=True,
+            )
     return 0
 
 

@@ -72,8 +72,11 @@ def headroom(results: Mapping[str, Any], floor: str | None = None) -> Headroom |
         floor = floors[0]
     elif floor not in results:
         raise ValueError(f"floor {floor!r} is not among the results' labels {sorted(results)}")
-    causal = [(figure(r, "max_contour_error_um"), figure(r, "rms_contour_error_um"), label)
-              for label, r in results.items() if not label.endswith(NON_CAUSAL) and label != floor]
+    causal = [
+        (figure(r, "max_contour_error_um"), figure(r, "rms_contour_error_um"), label)
+        for label, r in results.items()
+        if not label.endswith(NON_CAUSAL) and label != floor
+    ]
     causal = [c for c in causal if math.isfinite(c[0])]
     if not causal:
         return None

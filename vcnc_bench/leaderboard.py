@@ -80,8 +80,10 @@ def _seeds_row(members: list[dict]) -> dict:
     member carries it)."""
     first = _robust_row(members[0])
     ok = [r for r in members if r["nominal_completed"] and not r["nominal_diverged"]]
-    nominal = {k: float(np.median([r[f"nominal_{k}"] for r in ok])) if len(ok) == len(members) else None
-               for k in ("max_um", "rms_um")}
+    nominal = {
+        k: float(np.median([r[f"nominal_{k}"] for r in ok])) if len(ok) == len(members) else None
+        for k in ("max_um", "rms_um")
+    }
     intervals = {}
     for figure in ("max", "rms"):
         v = (members[0].get("verdicts") or {}).get(figure)
@@ -91,19 +93,38 @@ def _seeds_row(members: list[dict]) -> dict:
         x = seed_figures(members, figure)  # (seeds, plants, noise): every seed's runs of a plant as its stratum
         x = x.transpose(1, 0, 2).reshape(x.shape[1], -1)
         intervals[f"iqm_{figure}"] = [_finite(v) for v in stratified_bootstrap_ci(x)] if x.size else None
-    return {**first, "policy": f"{members[0]['group']} ({len(members)} seeds)", **nominal, **intervals,
-            "seeds": len(members)}
+    return {
+        **first,
+        "policy": f"{members[0]['group']} ({len(members)} seeds)",
+        **nominal,
+        **intervals,
+        "seeds": len(members),
+    }
 
 
 def _robust_row(r: dict) -> dict:
-    verdicts = {k: {"outcome": v["outcome"], "opponent": v["y"], "difference": [v["difference"], v["low"], v["high"]],
-                    "controller": v.get("x"), "training_seeds": v.get("training_seeds", 1)}
-                for k, v in (r.get("verdicts") or {}).items()}
+    verdicts = {
+        k: {
+            "outcome": v["outcome"],
+            "opponent": v["y"],
+            "difference": [v["difference"], v["low"], v["high"]],
+            "controller": v.get("x"),
+            "training_seeds": v.get("training_seeds", 1),
+        }
+        for k, v in (r.get("verdicts") or {}).items()
+    }
     ok = r["nominal_completed"] and not r["nominal_diverged"]
-    return {"env": r["env"], "policy": r["policy"], "kind": r.get("kind"),
-            "max_um": r["nominal_max_um"] if ok else None, "rms_um": r["nominal_rms_um"] if ok else None,
-            "plants": r["n_samples"], "iqm_max": _interval(r, "max"), "iqm_rms": _interval(r, "rms"),
-            "verdicts": verdicts}
+    return {
+        "env": r["env"],
+        "policy": r["policy"],
+        "kind": r.get("kind"),
+        "max_um": r["nominal_max_um"] if ok else None,
+        "rms_um": r["nominal_rms_um"] if ok else None,
+        "plants": r["n_samples"],
+        "iqm_max": _interval(r, "max"),
+        "iqm_rms": _interval(r, "rms"),
+        "verdicts": verdicts,
+    }
 
 
 def _nominal_rows(records: list[dict]) -> list[dict]:
@@ -116,10 +137,19 @@ def _nominal_rows(records: list[dict]) -> list[dict]:
     rows = []
     for (env, label), (_, r) in last.items():
         ok = r["completed"] and not r["diverged"]
-        rows.append({"env": env, "policy": label, "kind": r.get("kind"),
-                     "max_um": r["max_contour_error_um"] if ok else None,
-                     "rms_um": r["rms_contour_error_um"] if ok else None,
-                     "plants": 0, "iqm_max": None, "iqm_rms": None, "verdicts": {}})
+        rows.append(
+            {
+                "env": env,
+                "policy": label,
+                "kind": r.get("kind"),
+                "max_um": r["max_contour_error_um"] if ok else None,
+                "rms_um": r["rms_contour_error_um"] if ok else None,
+                "plants": 0,
+                "iqm_max": None,
+                "iqm_rms": None,
+                "verdicts": {},
+            }
+        )
     return rows
 
 
@@ -134,8 +164,11 @@ def rows_of(bench: dict) -> list[dict]:
     for r in robust:
         if r.get("group"):
             groups.setdefault(r["group"], []).append(r)
-    rows = ([_robust_row(r) for r in robust if not r.get("group")] + [_seeds_row(m) for m in groups.values()]
-            + _nominal_rows([r for r in records if "per_plant" not in r]))
+    rows = (
+        [_robust_row(r) for r in robust if not r.get("group")]
+        + [_seeds_row(m) for m in groups.values()]
+        + _nominal_rows([r for r in records if "per_plant" not in r])
+    )
     settings = bench.get("settings", {})
     # the id run on another plant (--plant) or on the shop floor (--shop-floor) is another section, not the id's rows
     where = [settings["plant"]] if settings.get("plant") else []
@@ -144,8 +177,11 @@ def rows_of(bench: dict) -> list[dict]:
         for row in rows:
             row["env"] = f"{row['env']} on {' and '.join(where)}"
     prov = settings.get("provenance") or {}
-    source = {"command": settings.get("command"), "cpu": (prov.get("cpu") or {}).get("model"),
-              "version": (prov.get("libraries") or {}).get("vcnc-gym")}
+    source = {
+        "command": settings.get("command"),
+        "cpu": (prov.get("cpu") or {}).get("model"),
+        "version": (prov.get("libraries") or {}).get("vcnc-gym"),
+    }
     for row in rows:
         row["role"] = _role(row["policy"], row["kind"])
         row["source"] = source
@@ -180,8 +216,9 @@ def ranked(rows: list[dict]) -> dict[str, list[dict]]:
     out = {}
     for env in dict.fromkeys(r["env"] for r in rows):
         group = [r for r in rows if r["env"] == env]
-        out[env] = sorted(group, key=lambda r: (r["score_max"] is None, -(r["score_max"] or 0.0),
-                                                 -(r["score_rms"] or 0.0)))
+        out[env] = sorted(
+            group, key=lambda r: (r["score_max"] is None, -(r["score_max"] or 0.0), -(r["score_rms"] or 0.0))
+        )
     return out
 
 
@@ -194,8 +231,7 @@ def profile(board: dict[str, list[dict]], taus=None, min_ids: int = 3) -> dict[s
         for r in rows:
             if r["score_max"] is not None:
                 scores.setdefault(r["policy"], []).append(r["score_max"])
-    return {p: np.mean(np.asarray(s)[:, None] >= taus[None, :], axis=0) for p, s in scores.items()
-            if len(s) >= min_ids}
+    return {p: np.mean(np.asarray(s)[:, None] >= taus[None, :], axis=0) for p, s in scores.items() if len(s) >= min_ids}
 
 
 def _cell(v, fmt="{:.4f}") -> str:
@@ -220,29 +256,43 @@ def _verdict(r: dict) -> str:
 
 def format_page(board: dict[str, list[dict]], figure: str | None) -> str:
     """The leaderboard page (MyST Markdown)."""
-    lines = ["# Leaderboard", "",
-             "Generated by `python -m vcnc_bench.leaderboard` (module `vcnc_bench.leaderboard`) from bench JSONs; "
-             "do not edit by hand.  Per id, every policy ranked by its **normalised contour score** on the nominal "
-             f"plant (0 = `{REFERENCE}`, the reference PD loop; 1 = the non-causal floor, never a controller; "
-             "`vcnc_bench.score`), of the max contour error, the RMS's breaking ties.  IQM columns: over the "
-             "sampled plants of a `--plants` run, with the 95 % stratified-bootstrap interval.  Verdict: a policy "
-             "that is not a classical baseline against the strongest causal controller of its run; wins or loses "
-             "only where the paired interval of the difference excludes zero.  A run's training seeds are one "
-             "row, `FOLDER (K seeds)`: the seeds' median on the nominal plant, the IQM over every seed's plants.", "",
-             "Add your policy: `vcnc-bench --env ID --policy KIND:ARG [--plants 20] --leaderboard "
-             "docs/leaderboard.md`.", ""]
+    lines = [
+        "# Leaderboard",
+        "",
+        "Generated by `python -m vcnc_bench.leaderboard` (module `vcnc_bench.leaderboard`) from bench JSONs; "
+        "do not edit by hand.  Per id, every policy ranked by its **normalised contour score** on the nominal "
+        f"plant (0 = `{REFERENCE}`, the reference PD loop; 1 = the non-causal floor, never a controller; "
+        "`vcnc_bench.score`), of the max contour error, the RMS's breaking ties.  IQM columns: over the "
+        "sampled plants of a `--plants` run, with the 95 % stratified-bootstrap interval.  Verdict: a policy "
+        "that is not a classical baseline against the strongest causal controller of its run; wins or loses "
+        "only where the paired interval of the difference excludes zero.  A run's training seeds are one "
+        "row, `FOLDER (K seeds)`: the seeds' median on the nominal plant, the IQM over every seed's plants.",
+        "",
+        "Add your policy: `vcnc-bench --env ID --policy KIND:ARG [--plants 20] --leaderboard docs/leaderboard.md`.",
+        "",
+    ]
     if figure:
-        lines += [f"![performance profile]({figure})", "",
-                  "Performance profile (Agarwal et al. (2021)): the fraction of ids on which a policy's nominal "
-                  "score of the max is at least tau.", ""]
+        lines += [
+            f"![performance profile]({figure})",
+            "",
+            "Performance profile (Agarwal et al. (2021)): the fraction of ids on which a policy's nominal "
+            "score of the max is at least tau.",
+            "",
+        ]
     for env, rows in board.items():
-        lines += [f"## {env}", "",
-                  "| rank | policy | role | score max | score RMS | max, um | RMS, um | plants | IQM max, um | "
-                  "IQM RMS, um | verdict |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+        lines += [
+            f"## {env}",
+            "",
+            "| rank | policy | role | score max | score RMS | max, um | RMS, um | plants | IQM max, um | "
+            "IQM RMS, um | verdict |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
         for i, r in enumerate(rows, start=1):
-            lines.append(f"| {i} | `{r['policy']}` | {r['role']} | {_cell(r['score_max'])} | "
-                         f"{_cell(r['score_rms'])} | {_cell(r['max_um'], '{:.4g}')} | {_cell(r['rms_um'], '{:.4g}')} | "
-                         f"{r['plants'] or '-'} | {_ci(r['iqm_max'])} | {_ci(r['iqm_rms'])} | {_verdict(r)} |")
+            lines.append(
+                f"| {i} | `{r['policy']}` | {r['role']} | {_cell(r['score_max'])} | "
+                f"{_cell(r['score_rms'])} | {_cell(r['max_um'], '{:.4g}')} | {_cell(r['rms_um'], '{:.4g}')} | "
+                f"{r['plants'] or '-'} | {_ci(r['iqm_max'])} | {_ci(r['iqm_rms'])} | {_verdict(r)} |"
+            )
         commands = sorted({r["source"]["command"] for r in rows if r["source"].get("command")})
         if commands:
             lines += ["", "From: " + "; ".join(f"`{c}`" for c in commands)]
@@ -256,7 +306,7 @@ def _shown(curves: dict[str, np.ndarray], board: dict[str, list[dict]], most: in
     roles = {r["policy"]: r["role"] for rows in board.values() for r in rows}
     first = [p for p in curves if roles.get(p) in ("floor", "reference", "learned or yours")]
     rest = sorted((p for p in curves if p not in first), key=lambda p: -float(np.mean(curves[p])))
-    return (first + rest)[:max(most, len(first))]
+    return (first + rest)[: max(most, len(first))]
 
 
 def _plot(curves: dict[str, np.ndarray], board: dict[str, list[dict]], path: Path) -> None:
@@ -271,8 +321,15 @@ def _plot(curves: dict[str, np.ndarray], board: dict[str, list[dict]], path: Pat
     cmap = plt.get_cmap("tab10")
     for ax, (lo, title) in zip(axes, ((0.0, "the whole scale"), (0.9, "the last tenth (the strong controllers)"))):
         for i, p in enumerate(shown):
-            ax.step(taus, curves[p], where="post", label=p, color=cmap(i % 10), lw=2.0 if i < 3 else 1.4,
-                    ls="-" if i < 10 else "--")
+            ax.step(
+                taus,
+                curves[p],
+                where="post",
+                label=p,
+                color=cmap(i % 10),
+                lw=2.0 if i < 3 else 1.4,
+                ls="-" if i < 10 else "--",
+            )
         ax.set_xlim(lo, 1.0)
         ax.set_ylim(-0.02, 1.02)
         ax.set_title(title, fontsize=9)
@@ -280,8 +337,11 @@ def _plot(curves: dict[str, np.ndarray], board: dict[str, list[dict]], path: Pat
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("fraction of ids with score >= tau")
     axes[0].legend(fontsize=7, loc="lower left")
-    fig.suptitle(f"Performance profile over ids (0 = {REFERENCE}, 1 = the floor); {len(curves) - len(shown)} more "
-                 "policies in the tables", fontsize=9)
+    fig.suptitle(
+        f"Performance profile over ids (0 = {REFERENCE}, 1 = the floor); {len(curves) - len(shown)} more "
+        "policies in the tables",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -314,9 +374,14 @@ def main(argv=None) -> int:
     p.add_argument("json", nargs="+", type=Path, help="vcnc-bench --json outputs (default or --plants)")
     p.add_argument("--out", type=Path, default=Path("docs/leaderboard.md"), help="the page (default %(default)s)")
     p.add_argument("--replace", action="store_true", help="start the board afresh instead of adding to it")
-    p.add_argument("--drop", action="append", default=[], metavar="POLICY",
-                   help="remove the board's rows of this policy, as the page names it (e.g. 'ppo:runs/seeds/ID "
-                        "(5 seeds)', a run a newer one retires); repeatable")
+    p.add_argument(
+        "--drop",
+        action="append",
+        default=[],
+        metavar="POLICY",
+        help="remove the board's rows of this policy, as the page names it (e.g. 'ppo:runs/seeds/ID "
+        "(5 seeds)', a run a newer one retires); repeatable",
+    )
     args = p.parse_args(argv)
     rows: list[dict] = []
     for path in args.json:

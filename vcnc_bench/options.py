@@ -54,28 +54,39 @@ def check_program_options(args) -> None:
     tolerance = getattr(args, "tolerance", None)
     if circle is not None:
         if not any(p in CIRCLE_PROGRAMS for p in programs):
-            raise ValueError(f"--circle D F sets the ISO 230-4 circle: it applies to --program "
-                             f"{' / '.join(CIRCLE_PROGRAMS)} only, got "
-                             f"{'no --program' if not programs else '--program ' + ', '.join(programs)}")
+            raise ValueError(
+                f"--circle D F sets the ISO 230-4 circle: it applies to --program "
+                f"{' / '.join(CIRCLE_PROGRAMS)} only, got "
+                f"{'no --program' if not programs else '--program ' + ', '.join(programs)}"
+            )
         diameter = positive("--circle D (the circle's diameter)", circle[0], "mm")
         feed = positive("--circle F (the feed)", circle[1], "mm/min")
         if diameter / 2.0 > MAX_COORDINATE:
-            raise ValueError(f"--circle D must be at most {2 * MAX_COORDINATE:g} mm (the G-code reader's "
-                             f"coordinate range), got {diameter:g}")
+            raise ValueError(
+                f"--circle D must be at most {2 * MAX_COORDINATE:g} mm (the G-code reader's "
+                f"coordinate range), got {diameter:g}"
+            )
         if feed > MAX_FEED:
-            raise ValueError(f"--circle F must be at most {MAX_FEED:g} mm/min (the G-code reader's feed range), "
-                             f"got {feed:g}")
+            raise ValueError(
+                f"--circle F must be at most {MAX_FEED:g} mm/min (the G-code reader's feed range), got {feed:g}"
+            )
     if tolerance is not None:
         if not programs:
-            raise ValueError("--tolerance is the corner blending tolerance of --program: a registered id "
-                             "(--env) has its own contour; drop --tolerance or add --program")
+            raise ValueError(
+                "--tolerance is the corner blending tolerance of --program: a registered id "
+                "(--env) has its own contour; drop --tolerance or add --program"
+            )
         program_tolerance(tolerance)
     for name in programs:
         if name in PIECES or name in CIRCLE_PROGRAMS:
             if Path(name).exists():
-                raise ValueError(f"--program {name!r} names both a shipped test piece and the file {name!r} of "
-                                 f"this folder: write ./{name} for the file, or run from another folder for the "
-                                 "piece")
+                raise ValueError(
+                    f"--program {name!r} names both a shipped test piece and the file {name!r} of "
+                    f"this folder: write ./{name} for the file, or run from another folder for the "
+                    "piece"
+                )
     if programs and getattr(args, "plants", None) is not None:
-        raise ValueError("--plants N runs the robust evaluation of registered ids; the programs of --program are "
-                         "not registered ids: run them without --plants")
+        raise ValueError(
+            "--plants N runs the robust evaluation of registered ids; the programs of --program are "
+            "not registered ids: run them without --plants"
+        )

@@ -12,8 +12,7 @@ from __future__ import annotations
 
 from vcnc_gym.envs.registry import env_name
 
-__all__ = ["PAPER_TABLE_4", "PAPER_SIMBA", "PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT", "PAPER_FEEDRATE",
-           "paper_figures"]
+__all__ = ["PAPER_TABLE_4", "PAPER_SIMBA", "PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT", "PAPER_FEEDRATE", "paper_figures"]
 
 #: Jahanpour et al. (2014), Table 4 "Simulation results for the
 #: contour following tasks with the designed controllers": maximum contour

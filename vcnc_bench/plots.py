@@ -32,8 +32,15 @@ def shown_labels(key: str, runs, everything: bool = False) -> list[str]:
     causal = [r for r in runs if not r.label.endswith(NON_CAUSAL) and not _is_agent(r.spec)]
     finite = [r for r in causal if math.isfinite(r.trials[-1].max_contour_error_um)]
     strongest = min(finite, key=lambda r: r.trials[-1].max_contour_error_um).label if finite else None
-    keep = {r.label for r in runs if r.paper or paper_figures(key, r.label) or r.label == strongest or _is_agent(r.spec)
-            or r.label.endswith(NON_CAUSAL)}
+    keep = {
+        r.label
+        for r in runs
+        if r.paper
+        or paper_figures(key, r.label)
+        or r.label == strongest
+        or _is_agent(r.spec)
+        or r.label.endswith(NON_CAUSAL)
+    }
     return [r.label for r in runs if r.label in keep]
 
 

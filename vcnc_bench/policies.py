@@ -22,9 +22,20 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["BenchContext", "PolicyKind", "POLICY_KINDS", "register_policy_kind", "policy_kinds", "split_spec",
-           "policy_label",
-           "check_policy_spec", "expand_spec", "resolve_policy", "default_specs", "policy_choices"]
+__all__ = [
+    "BenchContext",
+    "PolicyKind",
+    "POLICY_KINDS",
+    "register_policy_kind",
+    "policy_kinds",
+    "split_spec",
+    "policy_label",
+    "check_policy_spec",
+    "expand_spec",
+    "resolve_policy",
+    "default_specs",
+    "policy_choices",
+]
 
 ENTRY_POINT_GROUP = "vcnc_bench.policy_kinds"
 
@@ -209,8 +220,10 @@ def check_policy_spec(spec: str) -> None:
     if kind not in kinds:
         raise ValueError(f"unknown policy {spec!r}; valid policies are {policy_choices()}")
     if ":" in spec and not arg.strip():
-        raise ValueError(f"policy {spec!r} has nothing after ':' (an unset variable?); give {kind}:ARGUMENT, or "
-                         f"the bare {kind!r} for its default")
+        raise ValueError(
+            f"policy {spec!r} has nothing after ':' (an unset variable?); give {kind}:ARGUMENT, or "
+            f"the bare {kind!r} for its default"
+        )
     if ":" in spec and kinds[kind].names() and arg not in kinds[kind].names():
         raise ValueError(f"unknown policy {spec!r}; valid policies are {policy_choices()}")
 

@@ -45,19 +45,23 @@ def expand_programs(specs: list[str], circle: tuple[float, float] | None) -> lis
         else:
             path = Path(spec)
             if not path.is_file():
-                raise ValueError(f"--program {spec!r}: no such file, and not a test piece ({', '.join(PIECES)}, "
-                                 "iso230-4)")
+                raise ValueError(
+                    f"--program {spec!r}: no such file, and not a test piece ({', '.join(PIECES)}, iso230-4)"
+                )
             out.append((path.stem, path))
     return out
 
 
-def program_recipes(programs: list[tuple[str, object]], tolerance: float | None,
-                    plant: str | None = None, shop_floor: bool = False) -> list[tuple[str, str, dict]]:
+def program_recipes(
+    programs: list[tuple[str, object]], tolerance: float | None, plant: str | None = None, shop_floor: bool = False
+) -> list[tuple[str, str, dict]]:
     """(table name, id, ``gym.make`` arguments) of ``VCNC-GCode-v1`` for each program, on ``plant`` (a plant's
     name) if given, on its shop floor if ``shop_floor``."""
     extra = ({} if plant is None else {"plant": plant}) | ({"shop_floor": True} if shop_floor else {})
-    return [(PROGRAM_PREFIX + name, "VCNC-GCode-v1", {"program": program, "tolerance": tolerance, **extra})
-            for name, program in programs]
+    return [
+        (PROGRAM_PREFIX + name, "VCNC-GCode-v1", {"program": program, "tolerance": tolerance, **extra})
+        for name, program in programs
+    ]
 
 
 def make_program_envs(programs: list[tuple[str, object]], tolerance: float | None, plant: str | None = None) -> dict:
@@ -103,12 +107,19 @@ def circular_report(results: dict, envs: dict) -> tuple[list[str], list[dict]]:
             if len(pts) < 3:
                 continue
             fig = circular_figures(pts, centre, radius)
-            rows.append({"env": key, "policy": label, "direction": "ccw" if ccw else "cw",
-                         "circular_deviation_um": fig.circular_deviation_um,
-                         "radial_deviation_max_um": fig.radial_deviation_max_um,
-                         "radial_deviation_min_um": fig.radial_deviation_min_um,
-                         "max_contour_error_um": result.max_contour_error_um,
-                         "rms_contour_error_um": result.rms_contour_error_um, "points": fig.points})
+            rows.append(
+                {
+                    "env": key,
+                    "policy": label,
+                    "direction": "ccw" if ccw else "cw",
+                    "circular_deviation_um": fig.circular_deviation_um,
+                    "radial_deviation_max_um": fig.radial_deviation_max_um,
+                    "radial_deviation_min_um": fig.radial_deviation_min_um,
+                    "max_contour_error_um": result.max_contour_error_um,
+                    "rms_contour_error_um": result.rms_contour_error_um,
+                    "points": fig.points,
+                }
+            )
             circles.setdefault((tuple(np.round(centre, 9)), round(radius, 9), label), []).append((ccw, pts))
     if not rows:
         return [], []
@@ -117,18 +128,25 @@ def circular_report(results: dict, envs: dict) -> tuple[list[str], list[dict]]:
         if {ccw for ccw, _ in runs} == {True, False}:
             fig = circular_figures(np.vstack([p for _, p in runs]), centre, radius)
             bidirectional[(centre, radius, label)] = fig.circular_deviation_um
-    lines = ["ISO 230-4 circular test from the table's path over the measured 360 degrees (um): G circular "
-             "deviation (least-squares centre), F radial deviation (nominal centre), G(b) bidirectional "
-             "(both directions of the same circle)",
-             f"{'env':<34} {'policy':<12} {'dir':>4} {'G':>9} {'F_max':>9} {'F_min':>9} {'G(b)':>9} "
-             f"{'max_um':>9} {'rms_um':>9}"]
+    lines = [
+        "ISO 230-4 circular test from the table's path over the measured 360 degrees (um): G circular "
+        "deviation (least-squares centre), F radial deviation (nominal centre), G(b) bidirectional "
+        "(both directions of the same circle)",
+        f"{'env':<34} {'policy':<12} {'dir':>4} {'G':>9} {'F_max':>9} {'F_min':>9} {'G(b)':>9} "
+        f"{'max_um':>9} {'rms_um':>9}",
+    ]
     for r in rows:
-        key = (tuple(np.round(_full_circle(envs[r['env']])[1], 9)), round(_full_circle(envs[r['env']])[2], 9),
-               r["policy"])
+        key = (
+            tuple(np.round(_full_circle(envs[r["env"]])[1], 9)),
+            round(_full_circle(envs[r["env"]])[2], 9),
+            r["policy"],
+        )
         gb = bidirectional.get(key)
         r["bidirectional_circular_deviation_um"] = gb
-        lines.append(f"{r['env']:<34} {r['policy']:<12} {r['direction']:>4} {r['circular_deviation_um']:9.2f} "
-                     f"{r['radial_deviation_max_um']:9.2f} {r['radial_deviation_min_um']:9.2f} "
-                     f"{'-' if gb is None else f'{gb:9.2f}':>9} {r['max_contour_error_um']:9.2f} "
-                     f"{r['rms_contour_error_um']:9.2f}")
+        lines.append(
+            f"{r['env']:<34} {r['policy']:<12} {r['direction']:>4} {r['circular_deviation_um']:9.2f} "
+            f"{r['radial_deviation_max_um']:9.2f} {r['radial_deviation_min_um']:9.2f} "
+            f"{'-' if gb is None else f'{gb:9.2f}':>9} {r['max_contour_error_um']:9.2f} "
+            f"{r['rms_contour_error_um']:9.2f}"
+        )
     return lines, rows

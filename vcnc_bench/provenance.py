@@ -27,8 +27,17 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["LIBRARIES", "CODE_PATH_VARIABLES", "OPENBLAS_CORES", "cpu", "libraries", "numba_settings", "code_paths",
-           "provenance", "code_paths_of"]
+__all__ = [
+    "LIBRARIES",
+    "CODE_PATH_VARIABLES",
+    "OPENBLAS_CORES",
+    "cpu",
+    "libraries",
+    "numba_settings",
+    "code_paths",
+    "provenance",
+    "code_paths_of",
+]
 
 #: The distributions whose versions are recorded (None where not installed).
 LIBRARIES = ("numpy", "numba", "llvmlite", "torch", "stable-baselines3", "gymnasium", "scipy", "vcnc-gym")
@@ -48,8 +57,12 @@ def cpu(cpuinfo: str | Path = "/proc/cpuinfo") -> dict:
                 flags = sorted(value.split())
     except OSError:
         pass
-    return {"model": model or platform.processor() or platform.machine(), "flags": flags,
-            "logical_cpus": os.cpu_count(), "machine": platform.machine()}
+    return {
+        "model": model or platform.processor() or platform.machine(),
+        "flags": flags,
+        "logical_cpus": os.cpu_count(),
+        "machine": platform.machine(),
+    }
 
 
 def libraries() -> dict:
@@ -81,22 +94,42 @@ def numba_settings() -> dict:
         host_name, host_features = llvm.get_host_cpu_name(), llvm.get_host_cpu_features().flatten()
     except Exception:  # noqa: BLE001  (a llvmlite without these calls: recorded as unknown)
         host_name, host_features = None, None
-    return {"threading_layer_requested": config.THREADING_LAYER, "threading_layer": in_use,
-            "opt": config.OPT, "num_threads": config.NUMBA_NUM_THREADS,
-            "cpu_name": config.CPU_NAME or host_name, "cpu_features": config.CPU_FEATURES or host_features,
-            "disable_jit": bool(config.DISABLE_JIT)}
+    return {
+        "threading_layer_requested": config.THREADING_LAYER,
+        "threading_layer": in_use,
+        "opt": config.OPT,
+        "num_threads": config.NUMBA_NUM_THREADS,
+        "cpu_name": config.CPU_NAME or host_name,
+        "cpu_features": config.CPU_FEATURES or host_features,
+        "disable_jit": bool(config.DISABLE_JIT),
+    }
 
 
 #: The environment variables that choose the code paths of the libraries the figures go through (numpy's, OpenBLAS's,
 #: torch's, MKL's, oneDNN's); numba's are in :func:`numba_settings`.
-CODE_PATH_VARIABLES = ("NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE", "ATEN_CPU_CAPABILITY",
-                       "MKL_ENABLE_INSTRUCTIONS", "ONEDNN_MAX_CPU_ISA")
+CODE_PATH_VARIABLES = (
+    "NPY_DISABLE_CPU_FEATURES",
+    "OPENBLAS_CORETYPE",
+    "ATEN_CPU_CAPABILITY",
+    "MKL_ENABLE_INSTRUCTIONS",
+    "ONEDNN_MAX_CPU_ISA",
+)
 
 #: OpenBLAS's kernels (``OPENBLAS_CORETYPE``) for the CPU names LLVM gives (numba's ``cpu_name``); a name not here
 #: leaves OpenBLAS to choose by itself, which :func:`code_paths_of` says.
-OPENBLAS_CORES = {"znver1": "Zen", "znver2": "Zen", "znver3": "Zen", "haswell": "Haswell", "broadwell": "Haswell",
-                  "skylake": "Haswell", "skylake-avx512": "SkylakeX", "cascadelake": "SkylakeX",
-                  "icelake-server": "SkylakeX", "cooperlake": "Cooperlake", "sapphirerapids": "SapphireRapids"}
+OPENBLAS_CORES = {
+    "znver1": "Zen",
+    "znver2": "Zen",
+    "znver3": "Zen",
+    "haswell": "Haswell",
+    "broadwell": "Haswell",
+    "skylake": "Haswell",
+    "skylake-avx512": "SkylakeX",
+    "cascadelake": "SkylakeX",
+    "icelake-server": "SkylakeX",
+    "cooperlake": "Cooperlake",
+    "sapphirerapids": "SapphireRapids",
+}
 
 
 def code_paths() -> dict:
@@ -106,8 +139,13 @@ def code_paths() -> dict:
 
 def provenance() -> dict:
     """Everything above, JSON-ready: ``{"cpu", "libraries", "numba", "code_paths", "platform"}``."""
-    return {"cpu": cpu(), "libraries": libraries(), "numba": numba_settings(), "code_paths": code_paths(),
-            "platform": platform.platform()}
+    return {
+        "cpu": cpu(),
+        "libraries": libraries(),
+        "numba": numba_settings(),
+        "code_paths": code_paths(),
+        "platform": platform.platform(),
+    }
 
 
 def code_paths_of(recorded: dict) -> tuple[dict, list[str]]:
@@ -142,11 +180,21 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m vcnc_bench.provenance",
         description="Run a command on the code paths of the CPU a stored run was made on (numba's target, OpenBLAS's "
-                    "kernels, torch's vector width), with a fresh numba cache of its own.")
-    p.add_argument("--like", type=Path, required=True, metavar="RUN.json",
-                   help="a vcnc-bench --json file (its settings' provenance) or a provenance JSON")
-    p.add_argument("--cache", type=Path, metavar="DIR",
-                   help="NUMBA_CACHE_DIR for the other CPU's kernels (default ~/.cache/vcnc-gym/numba-CPU_NAME)")
+        "kernels, torch's vector width), with a fresh numba cache of its own.",
+    )
+    p.add_argument(
+        "--like",
+        type=Path,
+        required=True,
+        metavar="RUN.json",
+        help="a vcnc-bench --json file (its settings' provenance) or a provenance JSON",
+    )
+    p.add_argument(
+        "--cache",
+        type=Path,
+        metavar="DIR",
+        help="NUMBA_CACHE_DIR for the other CPU's kernels (default ~/.cache/vcnc-gym/numba-CPU_NAME)",
+    )
     p.add_argument("command", nargs=argparse.REMAINDER, help="-- COMMAND ARG ...")
     args = p.parse_args(argv)
     command = args.command[1:] if args.command[:1] == ["--"] else args.command
@@ -165,8 +213,11 @@ def main(argv=None) -> int:
     env["NUMBA_CACHE_DIR"] = str(cache)
     for sentence in left:
         print(f"vcnc_bench.provenance: warning: {sentence}", file=sys.stderr)
-    print("vcnc_bench.provenance: " + " ".join(f"{k}={v if len(v) < 40 else v[:37] + '...'}" for k, v in env.items()),
-          file=sys.stderr, flush=True)
+    print(
+        "vcnc_bench.provenance: " + " ".join(f"{k}={v if len(v) < 40 else v[:37] + '...'}" for k, v in env.items()),
+        file=sys.stderr,
+        flush=True,
+    )
     return subprocess.call(command, env={**os.environ, **env})
 
 

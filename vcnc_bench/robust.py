@@ -76,8 +76,22 @@ import numpy as np
 from vcnc_gym.envs import suite_env
 from vcnc_gym.validation import integer, size
 
-__all__ = ["MAX_VERTICES", "PlantSet", "PlantRuns", "SingleEnvBatch", "plant_set", "make_batch", "run_plants",
-           "summarize", "evaluate", "ROBUST_COLUMNS", "plot_robust", "noisy", "noise_summary", "split_noise"]
+__all__ = [
+    "MAX_VERTICES",
+    "PlantSet",
+    "PlantRuns",
+    "SingleEnvBatch",
+    "plant_set",
+    "make_batch",
+    "run_plants",
+    "summarize",
+    "evaluate",
+    "ROBUST_COLUMNS",
+    "plot_robust",
+    "noisy",
+    "noise_summary",
+    "split_noise",
+]
 
 #: The vertices of the box join the plants when there are at most this many (2^6: at most 6 uncertain coordinates).
 MAX_VERTICES = 64
@@ -109,8 +123,12 @@ def bytes_per_plant(env) -> int:
 def check_plants(n_plants: int, env, argument: str = "--plants") -> int:
     """``n_plants`` if the plants of ``env`` fit in memory (:func:`vcnc_gym.validation.size`), else a
     ValueError naming ``argument``, the limit and why."""
-    return size(argument, n_plants, bytes_each=bytes_per_plant(env),
-                why=f"each plant of {env.unwrapped.spec.id} is one env of its batch and its figures")
+    return size(
+        argument,
+        n_plants,
+        bytes_each=bytes_per_plant(env),
+        why=f"each plant of {env.unwrapped.spec.id} is one env of its batch and its figures",
+    )
 
 
 @dataclass
@@ -140,7 +158,7 @@ class PlantSet:
 
     @property
     def kinds(self) -> list[str]:
-        """"nominal", "sample" or "vertex" for each plant of :attr:`parameters`."""
+        """ "nominal", "sample" or "vertex" for each plant of :attr:`parameters`."""
         return ["nominal"] + ["sample"] * len(self.samples) + ["vertex"] * len(self.vertices)
 
 
@@ -175,8 +193,12 @@ class SingleEnvBatch:
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         params = options["parameters"]
-        self._obs = np.stack([env.reset(seed=None if seed is None else seed + i, options={"parameters": p})[0]
-                              for i, (env, p) in enumerate(zip(self.envs, params))])
+        self._obs = np.stack(
+            [
+                env.reset(seed=None if seed is None else seed + i, options={"parameters": p})[0]
+                for i, (env, p) in enumerate(zip(self.envs, params))
+            ]
+        )
         self._done[:] = False
         self._info = {}
         return self._obs.copy(), {}
@@ -213,8 +235,14 @@ def make_batch(env_id: str, num_envs: int, parallel: bool = False, **kwargs):
     :class:`SingleEnvBatch`.  ``kwargs`` go to the env (e.g. ``feedrate``)."""
     if suite_env(env_id).vector_entry_point is None:
         return SingleEnvBatch(env_id, num_envs, **kwargs)
-    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        autoreset_mode="Disabled", parallel=parallel, **kwargs)
+    return gym.make_vec(
+        env_id,
+        num_envs=num_envs,
+        vectorization_mode="vector_entry_point",
+        autoreset_mode="Disabled",
+        parallel=parallel,
+        **kwargs,
+    )
 
 
 @dataclass
@@ -250,10 +278,19 @@ class PlantRuns:
     wall_s: float
 
 
-def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float, contouring: bool = True,
-               seed: int | None = 0, trials: int = 1,
-               progress: Callable[[int, int], object] | None = None, progress_every: int = 1000,
-               planning: Callable[[int, int], object] | None = None) -> PlantRuns:
+def run_plants(
+    policy,
+    batch,
+    parameters: np.ndarray,
+    *,
+    decision_period: float,
+    contouring: bool = True,
+    seed: int | None = 0,
+    trials: int = 1,
+    progress: Callable[[int, int], object] | None = None,
+    progress_every: int = 1000,
+    planning: Callable[[int, int], object] | None = None,
+) -> PlantRuns:
     """Run ``policy`` (SB3's ``predict`` on batches) on every plant of ``parameters`` at once.
 
     Parameters
@@ -309,8 +346,9 @@ def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float,
                 if hasattr(policy, "end_episodes"):  # a learning policy: the calls that follow are not its trial
                     policy.end_episodes(ended)
                 diverged[ended] = info["diverged"][ended]
-                completed[ended] = (info["completed"][ended] if "completed" in info
-                                    else terminated[ended] & ~diverged[ended])
+                completed[ended] = (
+                    info["completed"][ended] if "completed" in info else terminated[ended] & ~diverged[ended]
+                )
                 if "cycle_time" in info:
                     cycle[ended] = info["cycle_time"][ended]
                     has_cycle_time = True
@@ -322,9 +360,17 @@ def run_plants(policy, batch, parameters: np.ndarray, *, decision_period: float,
                 progress(trial, k)
     with np.errstate(invalid="ignore"):
         rms = 1e3 * np.sqrt(square_sum / np.maximum(steps, 1))
-    return PlantRuns(max_um=1e3 * peak, rms_um=rms, cycle_time_s=cycle, has_cycle_time=has_cycle_time,
-                     diverged=diverged, completed=completed, steps=steps, trials=trials,
-                     wall_s=time.perf_counter() - wall0)
+    return PlantRuns(
+        max_um=1e3 * peak,
+        rms_um=rms,
+        cycle_time_s=cycle,
+        has_cycle_time=has_cycle_time,
+        diverged=diverged,
+        completed=completed,
+        steps=steps,
+        trials=trials,
+        wall_s=time.perf_counter() - wall0,
+    )
 
 
 # -- the figures ---------------------------------------------------------------------------------
@@ -352,8 +398,11 @@ def summarize(runs: PlantRuns, plants: PlantSet, plant_model=None) -> dict:
     cycle = np.where(np.isnan(runs.cycle_time_s), np.inf, runs.cycle_time_s)
     has_cycle = runs.has_cycle_time
     sampled, boxed = kinds == "sample", kinds != "nominal"
-    rec: dict = {"n_plants": int(boxed.sum()), "n_samples": int(sampled.sum()),
-                 "n_vertices": int((kinds == "vertex").sum())}
+    rec: dict = {
+        "n_plants": int(boxed.sum()),
+        "n_samples": int(sampled.sum()),
+        "n_vertices": int((kinds == "vertex").sum()),
+    }
     for name, x in err.items():
         rec[f"nominal_{name}_um"] = float(x[0])
         rec[f"median_{name}_um"] = _quantile(x[sampled], 0.5)
@@ -394,10 +443,21 @@ def split_noise(runs: PlantRuns, k: int) -> tuple[PlantRuns, dict]:
     """``runs`` of K copies of M plants (env ``k M + m``) as copy 0's :class:`PlantRuns` (M) and every copy's
     figures, ``{"max_um", "rms_um", "diverged", "completed"}`` each (K, M)."""
     m = runs.max_um.size // k
-    shaped = {name: getattr(runs, name).reshape(k, m) for name in
-              ("max_um", "rms_um", "cycle_time_s", "diverged", "completed", "steps")}
-    first = PlantRuns(shaped["max_um"][0], shaped["rms_um"][0], shaped["cycle_time_s"][0], runs.has_cycle_time,
-                      shaped["diverged"][0], shaped["completed"][0], shaped["steps"][0], runs.trials, runs.wall_s)
+    shaped = {
+        name: getattr(runs, name).reshape(k, m)
+        for name in ("max_um", "rms_um", "cycle_time_s", "diverged", "completed", "steps")
+    }
+    first = PlantRuns(
+        shaped["max_um"][0],
+        shaped["rms_um"][0],
+        shaped["cycle_time_s"][0],
+        runs.has_cycle_time,
+        shaped["diverged"][0],
+        shaped["completed"][0],
+        shaped["steps"][0],
+        runs.trials,
+        runs.wall_s,
+    )
     return first, {name: shaped[name] for name in ("max_um", "rms_um", "diverged", "completed")}
 
 
@@ -415,10 +475,13 @@ def noise_summary(per_noise: dict, plants: PlantSet) -> dict:
         nominal = x[:, 0]
         with np.errstate(invalid="ignore"):
             spread = x[:, sampled].max(axis=0) - x[:, sampled].min(axis=0)
-        out[name] = {"nominal_min_um": float(nominal.min()), "nominal_median_um": float(np.median(nominal)),
-                     "nominal_max_um": float(nominal.max()),
-                     "median_spread_um": _quantile(np.where(np.isnan(spread), np.inf, spread), 0.5),
-                     "iqm_um": iqm(x[:, sampled]) if sampled.any() else math.nan}
+        out[name] = {
+            "nominal_min_um": float(nominal.min()),
+            "nominal_median_um": float(np.median(nominal)),
+            "nominal_max_um": float(nominal.max()),
+            "median_spread_um": _quantile(np.where(np.isnan(spread), np.inf, spread), 0.5),
+            "iqm_um": iqm(x[:, sampled]) if sampled.any() else math.nan,
+        }
     return out
 
 
@@ -481,13 +544,27 @@ def plot_robust(records: list[dict], path, *, title: str | None = None):
                 ax.boxplot(sample, positions=[j], widths=0.5, whis=(0, 100), showfliers=False)
             vertex = values[(kinds == "vertex") & ok]
             if vertex.size:
-                ax.plot(j + rng.uniform(-0.18, 0.18, vertex.size), vertex, "x", color="0.5", ms=4,
-                        label="vertices" if j == 1 else None)
+                ax.plot(
+                    j + rng.uniform(-0.18, 0.18, vertex.size),
+                    vertex,
+                    "x",
+                    color="0.5",
+                    ms=4,
+                    label="vertices" if j == 1 else None,
+                )
             if ok[0]:
                 ax.plot([j], [values[0]], "D", color="C3", ms=6, label="nominal" if j == 1 else None, zorder=3)
             if rec["n_diverged"]:
-                ax.annotate(f"{rec['n_diverged']} diverged", (j, 0), xycoords=("data", "axes fraction"),
-                            xytext=(0, 3), textcoords="offset points", ha="center", fontsize=7, color="C3")
+                ax.annotate(
+                    f"{rec['n_diverged']} diverged",
+                    (j, 0),
+                    xycoords=("data", "axes fraction"),
+                    xytext=(0, 3),
+                    textcoords="offset points",
+                    ha="center",
+                    fontsize=7,
+                    color="C3",
+                )
         ax.set_xticks(range(1, len(records) + 1))
         ax.set_xticklabels(labels, rotation=30, ha="right", fontsize=8)
         ax.set_xlim(0.4, len(records) + 0.6)
@@ -499,18 +576,32 @@ def plot_robust(records: list[dict], path, *, title: str | None = None):
         if handles:
             ax.legend(fontsize=8, loc="best")
     n = records[0]
-    fig.suptitle(title or f"{n['env']}: {error} over the uncertainty box, {n['n_samples']} sampled plants "
-                          f"(box: quartiles, whiskers: min to max)"
-                          + (f", {n['n_vertices']} vertices" if n["n_vertices"] else ""), fontsize=10)
+    fig.suptitle(
+        title
+        or f"{n['env']}: {error} over the uncertainty box, {n['n_samples']} sampled plants "
+        f"(box: quartiles, whiskers: min to max)"
+        + (f", {n['n_vertices']} vertices" if n["n_vertices"] else ""),
+        fontsize=10,
+    )
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
 # -- the bench's robust mode ------------------------------------------------------------------------
-def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int = 0, trials: int = 1,
-             env_kwargs: dict | None = None, parallel: bool = False, bar=None,
-             noise_seeds: int = 1) -> tuple[list[dict], dict]:
+def evaluate(
+    runs,
+    envs: dict,
+    n_plants: int,
+    *,
+    plant_seed: int = 0,
+    seed: int = 0,
+    trials: int = 1,
+    env_kwargs: dict | None = None,
+    parallel: bool = False,
+    bar=None,
+    noise_seeds: int = 1,
+) -> tuple[list[dict], dict]:
     """Every (env id, label, policy) of ``runs`` on the plants of its env: the records, env by env.
 
     Parameters
@@ -560,23 +651,34 @@ def evaluate(runs, envs: dict, n_plants: int, *, plant_seed: int = 0, seed: int 
 
                 def progress(trial, step, name=name):
                     if bar is not None:
-                        bar.set_postfix_str(f"{env_id} {name}" + (f" trial {trial}/{k}" if k > 1 else "")
-                                            + f" step {step}")
+                        bar.set_postfix_str(
+                            f"{env_id} {name}" + (f" trial {trial}/{k}" if k > 1 else "") + f" step {step}"
+                        )
 
                 def planning(done, total, name=name):
                     if bar is not None:
                         bar.set_postfix_str(f"{env_id} {name}: plant {done} of {total} planned")
 
                 progress(1, 0)
-                result = run_plants(policy, batch, parameters, decision_period=u.decision_period,
-                                    contouring=suite_env(env_id).contouring, seed=seed, trials=k, progress=progress,
-                                    planning=planning)
+                result = run_plants(
+                    policy,
+                    batch,
+                    parameters,
+                    decision_period=u.decision_period,
+                    contouring=suite_env(env_id).contouring,
+                    seed=seed,
+                    trials=k,
+                    progress=progress,
+                    planning=planning,
+                )
                 first, per_noise = split_noise(result, copies)
                 rec = {"env": env_id, "policy": name, **summarize(first, plants, u.plant)}
                 if copies > 1:
                     rec["noise"] = noise_summary(per_noise, plants)
-                    rec["per_noise"] = {k: (_finite_or_none(v.reshape(-1)) if v.dtype.kind == "f" else
-                                            v.reshape(-1).tolist()) for k, v in per_noise.items()}
+                    rec["per_noise"] = {
+                        k: (_finite_or_none(v.reshape(-1)) if v.dtype.kind == "f" else v.reshape(-1).tolist())
+                        for k, v in per_noise.items()
+                    }
                     rec["per_noise"]["shape"] = list(per_noise["max_um"].shape)
                 records.append(rec)
                 if bar is not None:

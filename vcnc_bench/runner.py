@@ -21,14 +21,22 @@ from dataclasses import dataclass, field
 from multiprocessing import get_context
 from typing import Callable
 
-__all__ = ["EnvRecipe", "PolicyRun", "EnvRuns", "BuildError", "idle_cores", "label_of", "trials_of", "run_env",
-           "run_table"]
+__all__ = [
+    "EnvRecipe",
+    "PolicyRun",
+    "EnvRuns",
+    "BuildError",
+    "idle_cores",
+    "label_of",
+    "trials_of",
+    "run_env",
+    "run_table",
+]
 
 
 class BuildError(ValueError):
     """An env that cannot be built from its recipe (a bad ``--plant``, ``--feedrate`` or program), or a policy
     spec that cannot be built for an env (a bad ``ppo:PATH``); the message names the env and the spec."""
-
 
 
 @dataclass(frozen=True)
@@ -145,9 +153,18 @@ def _policy(spec: str, env, key: str, policies: dict | None):
         raise BuildError(f"cannot build policy {spec!r} for {key}: {exc}") from exc
 
 
-def run_env(recipe: EnvRecipe, *, seed: int, trials: int, env=None, policies: dict | None = None,
-            progress: Callable[[int], object] | None = None, plots=None, plot_all: bool = False,
-            prepare: bool = False) -> EnvRuns:
+def run_env(
+    recipe: EnvRecipe,
+    *,
+    seed: int,
+    trials: int,
+    env=None,
+    policies: dict | None = None,
+    progress: Callable[[int], object] | None = None,
+    plots=None,
+    plot_all: bool = False,
+    prepare: bool = False,
+) -> EnvRuns:
     """Run every spec of ``recipe`` on its env: one deterministic episode each (``trials`` for a policy that
     learns across episodes), with ``env.reset(seed=seed)``; with ``plots`` (a folder), draw the env's plots of the
     runs :func:`vcnc_bench.plots.shown_labels` chooses (every run with ``plot_all``); with ``prepare``, run every
@@ -216,10 +233,20 @@ def _run_in_worker(recipe: EnvRecipe, seed: int, trials: int, plots, plot_all: b
     return run_env(recipe, seed=seed, trials=trials, plots=plots, plot_all=plot_all, prepare=prepare)
 
 
-def run_table(recipes: list[EnvRecipe], *, seed: int, trials: int, jobs: int = 1, envs: dict | None = None,
-              policies: dict | None = None, cost: Callable[[EnvRecipe], float] | None = None,
-              on_env_done: Callable[[EnvRuns, int, int], object] | None = None, plots=None,
-              plot_all: bool = False, prepare: bool = False) -> dict[str, EnvRuns]:
+def run_table(
+    recipes: list[EnvRecipe],
+    *,
+    seed: int,
+    trials: int,
+    jobs: int = 1,
+    envs: dict | None = None,
+    policies: dict | None = None,
+    cost: Callable[[EnvRecipe], float] | None = None,
+    on_env_done: Callable[[EnvRuns, int, int], object] | None = None,
+    plots=None,
+    plot_all: bool = False,
+    prepare: bool = False,
+) -> dict[str, EnvRuns]:
     """Every recipe's runs, {key: EnvRuns} in the recipes' order.
 
     Parameters
@@ -251,13 +278,23 @@ def run_table(recipes: list[EnvRecipe], *, seed: int, trials: int, jobs: int = 1
 
     if jobs <= 1 or total <= 1:
         for r in recipes:
-            finished(run_env(r, seed=seed, trials=trials, env=(envs or {}).get(r.key),
-                             policies=(policies or {}).get(r.key), plots=plots, plot_all=plot_all,
-                             prepare=prepare))
+            finished(
+                run_env(
+                    r,
+                    seed=seed,
+                    trials=trials,
+                    env=(envs or {}).get(r.key),
+                    policies=(policies or {}).get(r.key),
+                    plots=plots,
+                    plot_all=plot_all,
+                    prepare=prepare,
+                )
+            )
     else:
         order = sorted(recipes, key=cost, reverse=True) if cost is not None else list(recipes)
-        with ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
-                                 initializer=_worker_init) as pool:
+        with ProcessPoolExecutor(
+            max_workers=min(jobs, total), mp_context=get_context("spawn"), initializer=_worker_init
+        ) as pool:
             futures = [pool.submit(_run_in_worker, r, seed, trials, plots, plot_all, prepare) for r in order]
             try:
                 for f in as_completed(futures):

@@ -84,8 +84,12 @@ def add_scores(records: list[dict], floors: dict | None = None, *, reps: int = R
         else:
             floor_nom = {k: float(given[f"{k}_um"]) for k in ("max", "rms")}
         for r in group:
-            out = {"reference": REFERENCE, "floor": floor["policy"] if floor is not None else given.get("label"),
-                   "reference_nominal_um": ref_nom, "floor_nominal_um": floor_nom}
+            out = {
+                "reference": REFERENCE,
+                "floor": floor["policy"] if floor is not None else given.get("label"),
+                "reference_nominal_um": ref_nom,
+                "floor_nominal_um": floor_nom,
+            }
             for k in ("max", "rms"):
                 s = normalised_score(_figures(r, f"{k}_um")[0], ref_nom[k], floor_nom[k])
                 out[k] = s if math.isfinite(s) else None
@@ -93,10 +97,14 @@ def add_scores(records: list[dict], floors: dict | None = None, *, reps: int = R
                 kinds = np.array(r["per_plant"]["kind"])
                 sampled = kinds == "sample"
                 for k in ("max", "rms"):
-                    s = normalised_score(_figures(r, f"{k}_um"), _figures(ref, f"{k}_um"),
-                                         _figures(floor, f"{k}_um"))[sampled]
+                    s = normalised_score(_figures(r, f"{k}_um"), _figures(ref, f"{k}_um"), _figures(floor, f"{k}_um"))[
+                        sampled
+                    ]
                     s = s[~np.isnan(s)]
-                    out[f"iqm_{k}"] = ([None if not math.isfinite(v) else v for v in
-                                        stratified_bootstrap_ci(s, reps=reps, seed=seed)] if s.size else None)
+                    out[f"iqm_{k}"] = (
+                        [None if not math.isfinite(v) else v for v in stratified_bootstrap_ci(s, reps=reps, seed=seed)]
+                        if s.size
+                        else None
+                    )
             r["score"] = out
     return records

@@ -46,10 +46,23 @@ import numpy as np
 
 from vcnc_gym.validation import integer
 
-__all__ = ["REPS", "CONFIDENCE", "iqm", "stratified_bootstrap_ci", "probability_of_improvement",
-           "paired_difference_ci", "Verdict", "verdict", "decide", "FIGURE_KEYS", "sampled_figures", "seed_figures", "strongest",
-           "robust_verdicts",
-           "format_verdicts"]
+__all__ = [
+    "REPS",
+    "CONFIDENCE",
+    "iqm",
+    "stratified_bootstrap_ci",
+    "probability_of_improvement",
+    "paired_difference_ci",
+    "Verdict",
+    "verdict",
+    "decide",
+    "FIGURE_KEYS",
+    "sampled_figures",
+    "seed_figures",
+    "strongest",
+    "robust_verdicts",
+    "format_verdicts",
+]
 
 #: Bootstrap replicates by default: Agarwal et al.'s figures use 2 000 for the intervals of their tables (50 000 in
 #: rliable's default); at 2 000 the endpoints of a 95 % percentile interval move by about 1 % of its width from
@@ -63,8 +76,9 @@ CONFIDENCE = 0.95
 def _scores(name: str, x, ndim: tuple[int, ...]) -> np.ndarray:
     a = np.asarray(x, dtype=np.float64)
     if a.ndim not in ndim or a.size == 0:
-        raise ValueError(f"{name} must be a non-empty array with {' or '.join(map(str, ndim))} dimensions, "
-                         f"got shape {a.shape}")
+        raise ValueError(
+            f"{name} must be a non-empty array with {' or '.join(map(str, ndim))} dimensions, got shape {a.shape}"
+        )
     if np.isnan(a).any():
         raise ValueError(f"{name} holds NaN (a diverged plant is +inf, never NaN)")
     return a
@@ -114,8 +128,9 @@ def _confidence(confidence: float) -> float:
     return c
 
 
-def stratified_bootstrap_ci(scores, statistic=iqm, *, reps: int = REPS, seed: int = 0,
-                            confidence: float = CONFIDENCE) -> tuple[float, float, float]:
+def stratified_bootstrap_ci(
+    scores, statistic=iqm, *, reps: int = REPS, seed: int = 0, confidence: float = CONFIDENCE
+) -> tuple[float, float, float]:
     """Point estimate and percentile stratified-bootstrap interval of ``statistic`` on a score matrix.
 
     Parameters
@@ -180,8 +195,9 @@ def _runs(name: str, x) -> np.ndarray:
     return a[None] if a.ndim == 2 else a
 
 
-def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0,
-                         confidence: float = CONFIDENCE) -> tuple[float, float, float]:
+def paired_difference_ci(
+    x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0, confidence: float = CONFIDENCE
+) -> tuple[float, float, float]:
     """The paired bootstrap of ``statistic(X) - statistic(Y)`` (see the module docstring).
 
     Parameters
@@ -204,8 +220,9 @@ def paired_difference_ci(x, y, statistic=iqm, *, reps: int = REPS, seed: int = 0
     """
     a, b = _runs("x", x), _runs("y", y)
     if a.shape[1:] != b.shape[1:]:
-        raise ValueError(f"x and y must be paired: the same plants and noise seeds, got shapes {np.shape(x)} and "
-                         f"{np.shape(y)}")
+        raise ValueError(
+            f"x and y must be paired: the same plants and noise seeds, got shapes {np.shape(x)} and {np.shape(y)}"
+        )
     reps = integer("reps", reps, 1)
     confidence = _confidence(confidence)
     _, n, k = a.shape
@@ -296,17 +313,20 @@ class Verdict:
 
     def to_dict(self) -> dict:
         """JSON-ready (an infinite endpoint as None)."""
+
         def safe(v):
             if isinstance(v, float):
                 return v if math.isfinite(v) else None
             if isinstance(v, tuple):
                 return [safe(e) for e in v]
             return v
+
         return {k: safe(v) for k, v in asdict(self).items()}
 
 
-def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, seed: int = 0,
-            confidence: float = CONFIDENCE) -> Verdict:
+def verdict(
+    x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, seed: int = 0, confidence: float = CONFIDENCE
+) -> Verdict:
     """The verdict of X (a learned controller) against Y (the strongest causal controller) on one figure.
 
     ``x``: (plants,) or (plants, noise_seeds) errors (um), or (training_seeds, plants, noise_seeds) for an agent
@@ -323,9 +343,24 @@ def verdict(x, y, *, figure: str, x_label: str, y_label: str, reps: int = REPS, 
     fa, fb = a.reshape(-1), b.reshape(-1)
     # every training seed of X against every one of Y, on the same plant and noise
     paired = float(np.mean((a[:, None] < b[None]) + 0.5 * (a[:, None] == b[None])))
-    return Verdict(figure, x_label, y_label, iqm(a), iqm(b), (xl, xh), (yl, yh), d, low, high,
-                   probability_of_improvement(fa, fb), paired, int(fa.size), int(reps), int(seed),
-                   decide(low, high))
+    return Verdict(
+        figure,
+        x_label,
+        y_label,
+        iqm(a),
+        iqm(b),
+        (xl, xh),
+        (yl, yh),
+        d,
+        low,
+        high,
+        probability_of_improvement(fa, fb),
+        paired,
+        int(fa.size),
+        int(reps),
+        int(seed),
+        decide(low, high),
+    )
 
 
 # -- the bench's verdicts (vcnc-bench --plants N) ---------------------------------------------------------------
@@ -343,8 +378,10 @@ def sampled_figures(rec: dict, figure: str) -> np.ndarray:
     sampled = np.array(rec["per_plant"]["kind"]) == "sample"
     if "per_noise" in rec:
         if figure == "cycle":
-            raise ValueError(f"figure: the record of {rec['policy']!r} has sensor-noise seeds, whose cycle times "
-                             "are not kept; judge its max or rms")
+            raise ValueError(
+                f"figure: the record of {rec['policy']!r} has sensor-noise seeds, whose cycle times "
+                "are not kept; judge its max or rms"
+            )
         shape = tuple(rec["per_noise"]["shape"])
         x = np.array([np.inf if v is None else v for v in rec["per_noise"][f"{figure}_um"]]).reshape(shape)
         x = np.where(np.array(rec["per_noise"]["diverged"], dtype=bool).reshape(shape), np.inf, x)
@@ -395,8 +432,15 @@ def robust_verdicts(records: list[dict], learned, causal, *, reps: int = REPS, s
                 if opponent is None:
                     continue
                 x = seed_figures(members, figure)
-                v = verdict(x, sampled_figures(opponent, figure), figure=figure, x_label=label,
-                            y_label=opponent["policy"], reps=reps, seed=seed).to_dict()
+                v = verdict(
+                    x,
+                    sampled_figures(opponent, figure),
+                    figure=figure,
+                    x_label=label,
+                    y_label=opponent["policy"],
+                    reps=reps,
+                    seed=seed,
+                ).to_dict()
                 v["training_seeds"] = len(members)
                 for rec in members:
                     rec["verdicts"][figure] = v
@@ -407,19 +451,29 @@ def robust_verdicts(records: list[dict], learned, causal, *, reps: int = REPS, s
 def format_verdicts(rows: list[dict]) -> str:
     """The verdict rows as a table: env, figure, the learned controller and the strongest causal one with their
     IQMs and intervals (um), the difference's paired interval, P(X < Y) and the outcome."""
+
     def f(v):
         return "inf" if v is None else f"{v:.4g}"
 
-    w = max([8] + [len(r["x"]) + (len(f" ({r['training_seeds']} seeds)") if r.get("training_seeds", 1) > 1 else 0)
-                   for r in rows])
-    head = (f"{'env':<28} {'fig':<3} {'learned':<{w}} {'IQM [95% CI] um':<28} {'strongest causal':<16} "
-            f"{'IQM [95% CI] um':<28} {'X - Y [95% CI] um':<32} {'P(X<Y)':>6} verdict")
+    w = max(
+        [8]
+        + [
+            len(r["x"]) + (len(f" ({r['training_seeds']} seeds)") if r.get("training_seeds", 1) > 1 else 0)
+            for r in rows
+        ]
+    )
+    head = (
+        f"{'env':<28} {'fig':<3} {'learned':<{w}} {'IQM [95% CI] um':<28} {'strongest causal':<16} "
+        f"{'IQM [95% CI] um':<28} {'X - Y [95% CI] um':<32} {'P(X<Y)':>6} verdict"
+    )
     lines = [head, "-" * len(head)]
     for r in rows:
         x = r["x"] + (f" ({r['training_seeds']} seeds)" if r.get("training_seeds", 1) > 1 else "")
-        lines.append(f"{r['env']:<28} {r['figure']:<3} {x:<{w}} "
-                     f"{f(r['iqm_x']) + ' [' + f(r['ci_x'][0]) + ', ' + f(r['ci_x'][1]) + ']':<28} {r['y']:<16} "
-                     f"{f(r['iqm_y']) + ' [' + f(r['ci_y'][0]) + ', ' + f(r['ci_y'][1]) + ']':<28} "
-                     f"{f(r['difference']) + ' [' + f(r['low']) + ', ' + f(r['high']) + ']':<32} "
-                     f"{r['p_improvement']:>6.2f} {r['outcome']}")
+        lines.append(
+            f"{r['env']:<28} {r['figure']:<3} {x:<{w}} "
+            f"{f(r['iqm_x']) + ' [' + f(r['ci_x'][0]) + ', ' + f(r['ci_x'][1]) + ']':<28} {r['y']:<16} "
+            f"{f(r['iqm_y']) + ' [' + f(r['ci_y'][0]) + ', ' + f(r['ci_y'][1]) + ']':<28} "
+            f"{f(r['difference']) + ' [' + f(r['low']) + ', ' + f(r['high']) + ']':<32} "
+            f"{r['p_improvement']:>6.2f} {r['outcome']}"
+        )
     return "\n".join(lines)

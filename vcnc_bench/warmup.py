@@ -76,14 +76,18 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.jobs < 1:
         p.error(f"--jobs must be >= 1, got {args.jobs}")
-    ids = _one_per_machine(sorted(DEFAULT_IDS, key=lambda i: LONGEST_FIRST.index(i) if i in LONGEST_FIRST
-                                  else len(LONGEST_FIRST)))
+    ids = _one_per_machine(
+        sorted(DEFAULT_IDS, key=lambda i: LONGEST_FIRST.index(i) if i in LONGEST_FIRST else len(LONGEST_FIRST))
+    )
     # the ideal heart compiles the laws every machine shares; beside it the step response, whose plant has laws of
     # its own, rather than another machine that would compile the same laws at the same time
     rank = {ids[0]: 0, "VCNC-Step-v0": 1}
     ids.sort(key=lambda i: rank.get(i, 2))
-    print(f"vcnc_bench.warmup: compiling the controllers' kernels on {len(ids)} envs, one per machine of the default "
-          f"table, {args.jobs} at a time", flush=True)
+    print(
+        f"vcnc_bench.warmup: compiling the controllers' kernels on {len(ids)} envs, one per machine of the default "
+        f"table, {args.jobs} at a time",
+        flush=True,
+    )
     return warm_in_processes("vcnc_bench.warmup", ids, _ONE, args.jobs)
 
 

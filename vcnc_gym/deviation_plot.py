@@ -25,8 +25,7 @@ from typing import Mapping
 
 import numpy as np
 
-__all__ = ["CORNER_CURVATURE", "MAX_INSETS", "contour_corners", "magnification", "plot_deviation",
-           "signed_deviation"]
+__all__ = ["CORNER_CURVATURE", "MAX_INSETS", "contour_corners", "magnification", "plot_deviation", "signed_deviation"]
 
 #: A local maximum of |curvature| above this (1/mm, a radius of 2 mm) is a corner.
 CORNER_CURVATURE = 0.5
@@ -70,10 +69,12 @@ def contour_corners(env) -> list[np.ndarray]:
         order = sorted(range(len(joints)), key=lambda i: -joints[i].angle)
         return [np.asarray(ends[i]) for i in order if joints[i].kind != "tangent"][:MAX_INSETS]
     samples = u_env.task.reference_arrays.samples
-    pts = samples[:, sk.REF_POSITION:sk.REF_POSITION + 2]
+    pts = samples[:, sk.REF_POSITION : sk.REF_POSITION + 2]
     kappa = np.abs(samples[:, sk.REF_CURVATURE])
     inner = np.arange(1, len(kappa) - 1)
-    peaks = inner[(kappa[inner] > CORNER_CURVATURE) & (kappa[inner] >= kappa[inner - 1]) & (kappa[inner] > kappa[inner + 1])]
+    peaks = inner[
+        (kappa[inner] > CORNER_CURVATURE) & (kappa[inner] >= kappa[inner - 1]) & (kappa[inner] > kappa[inner + 1])
+    ]
     corners: list[np.ndarray] = []
     diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     for i in peaks[np.argsort(-kappa[peaks])]:
@@ -90,7 +91,7 @@ def _curve_near(u_env, point, radius: float) -> list[np.ndarray]:
     from .envs import step_kernel as sk
 
     samples = u_env.task.reference_arrays.samples
-    near = np.flatnonzero(np.hypot(*(samples[:, sk.REF_POSITION:sk.REF_POSITION + 2] - point).T) < radius)
+    near = np.flatnonzero(np.hypot(*(samples[:, sk.REF_POSITION : sk.REF_POSITION + 2] - point).T) < radius)
     if not near.size:
         return []
     runs = np.split(near, np.flatnonzero(np.diff(near) > 1) + 1)
@@ -142,8 +143,13 @@ def plot_deviation(results_by_policy: Mapping, env, path, *, title: str | None =
     ax.plot(ref[:, 0], ref[:, 1], color="0.6", lw=1.0, label="contour")
     for i, (label, (p, feet, normal, e)) in enumerate(drawn.items()):
         shown = feet + (m * e)[:, None] * normal
-        ax.plot(shown[:, 0], shown[:, 1], lw=0.8, color=f"C{i % 10}",
-                label=f"{label} (max {1e3 * np.max(np.abs(e)):.1f} µm)")
+        ax.plot(
+            shown[:, 0],
+            shown[:, 1],
+            lw=0.8,
+            color=f"C{i % 10}",
+            label=f"{label} (max {1e3 * np.max(np.abs(e)):.1f} µm)",
+        )
     for k, c in enumerate(corners):
         ax.annotate(chr(ord("a") + k), c, fontsize=8, color="k")
     ax.set_aspect("equal")

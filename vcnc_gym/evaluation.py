@@ -119,8 +119,9 @@ def _error_metrics_um(err_mm: np.ndarray) -> tuple[float, float, float]:
     return float(np.max(e)), float(np.mean(e)), float(np.sqrt(np.mean(e * e)))
 
 
-def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], object] | None = None,
-                progress_every: int = 1000) -> EpisodeResult:
+def run_episode(
+    policy, env, seed: int | None = 0, *, progress: Callable[[int], object] | None = None, progress_every: int = 1000
+) -> EpisodeResult:
     """Run one deterministic episode of ``policy`` on ``env`` and collect the traces.
 
     Parameters
@@ -172,7 +173,9 @@ def run_episode(policy, env, seed: int | None = 0, *, progress: Callable[[int], 
         obs, _, terminated, truncated, info = step(action)
         if n == capacity:  # only if a wrapper or a non-default config runs longer than planned
             capacity *= 2
-            t_tr, e_tr, p_tr, r_tr, c_tr = (np.resize(a, (capacity,) + a.shape[1:]) for a in (t_tr, e_tr, p_tr, r_tr, c_tr))
+            t_tr, e_tr, p_tr, r_tr, c_tr = (
+                np.resize(a, (capacity,) + a.shape[1:]) for a in (t_tr, e_tr, p_tr, r_tr, c_tr)
+            )
         t_tr[n] = info["time"]
         e_tr[n] = info["contour_error"]
         p_tr[n] = info["position"]
@@ -222,7 +225,7 @@ def _reference_curvature(env) -> tuple[np.ndarray, np.ndarray]:
     from .envs import step_kernel as sk
 
     samples = env.unwrapped.task.reference_arrays.samples
-    return samples[:, sk.REF_POSITION:sk.REF_POSITION + 2], np.abs(samples[:, sk.REF_CURVATURE])
+    return samples[:, sk.REF_POSITION : sk.REF_POSITION + 2], np.abs(samples[:, sk.REF_CURVATURE])
 
 
 def sharp_corners(env, n: int = 3, min_separation: float = 0.1) -> list[tuple[np.ndarray, float]]:
@@ -280,8 +283,9 @@ def _inset_half_width(results_by_policy, corner, radius: float = 3.0) -> float:
     return float(np.clip(4.0 * near, 0.1, 2.5))
 
 
-def plot_contours(results_by_policy: Mapping[str, EpisodeResult], env, path, *, n_insets: int = 3,
-                  title: str | None = None):
+def plot_contours(
+    results_by_policy: Mapping[str, EpisodeResult], env, path, *, n_insets: int = 3, title: str | None = None
+):
     """Actual against reference contour for every policy on one env, with zoomed corners.
 
     The main panel shows the whole contour; up to ``n_insets`` zoomed insets
@@ -317,8 +321,14 @@ def plot_contours(results_by_policy: Mapping[str, EpisodeResult], env, path, *, 
     ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=3.0, label="reference", zorder=1)
     for name, res in results_by_policy.items():
         p = _finite_path(res)
-        ax.plot(p[:, 0], p[:, 1], color=colors[name], lw=1.0,
-                label=f"{name} (max {res.max_contour_error_um:.3g} µm)", zorder=2)
+        ax.plot(
+            p[:, 0],
+            p[:, 1],
+            color=colors[name],
+            lw=1.0,
+            label=f"{name} (max {res.max_contour_error_um:.3g} µm)",
+            zorder=2,
+        )
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
@@ -360,14 +370,23 @@ def plot_contours(results_by_policy: Mapping[str, EpisodeResult], env, path, *, 
         cx, cy = (0.0 if abs(v) < 5e-3 else float(v) for v in c)
         ins.set_title(f"{letter}: corner ({cx:.2f}, {cy:.2f}) mm, radius {1e3 / kappa:.0f} µm", fontsize=7)
         ax.indicate_inset_zoom(ins, edgecolor="0.3", alpha=0.4)
-        ax.annotate(letter, (c[0] - half, c[1] + half), xytext=(2, -2), textcoords="offset points",
-                    ha="left", va="top", fontsize=8, color="0.2")
+        ax.annotate(
+            letter,
+            (c[0] - half, c[1] + half),
+            xytext=(2, -2),
+            textcoords="offset points",
+            ha="left",
+            va="top",
+            fontsize=8,
+            color="0.2",
+        )
     fig.savefig(path)
     plt.close(fig)
 
 
-def plot_contour_errors(results_by_policy: Mapping[str, EpisodeResult], env, path, *, log: bool = True,
-                        title: str | None = None):
+def plot_contour_errors(
+    results_by_policy: Mapping[str, EpisodeResult], env, path, *, log: bool = True, title: str | None = None
+):
     """Contour error (um) against time (s) for every policy on one env, one figure.
 
     Parameters
@@ -395,12 +414,20 @@ def plot_contour_errors(results_by_policy: Mapping[str, EpisodeResult], env, pat
         ok = np.isfinite(e)
         if log:
             ok &= e > 0.0
-        ax.plot(res.time[ok], e[ok], color=colors[name], lw=0.8,
-                label=f"{name}: max {res.max_contour_error_um:.3g} µm, RMS {res.rms_contour_error_um:.3g} µm")
+        ax.plot(
+            res.time[ok],
+            e[ok],
+            color=colors[name],
+            lw=0.8,
+            label=f"{name}: max {res.max_contour_error_um:.3g} µm, RMS {res.rms_contour_error_um:.3g} µm",
+        )
     if log:
         ax.set_yscale("log")
-        peaks = [r.max_contour_error_um for r in results_by_policy.values()
-                 if math.isfinite(r.max_contour_error_um) and r.max_contour_error_um > 0.0]
+        peaks = [
+            r.max_contour_error_um
+            for r in results_by_policy.values()
+            if math.isfinite(r.max_contour_error_um) and r.max_contour_error_um > 0.0
+        ]
         if peaks:  # three decades below the best policy's peak: the dips to zero say little
             ax.set_ylim(bottom=1e-3 * min(peaks))
     ax.set_xlabel("time (s)")

@@ -19,8 +19,14 @@ __all__ = ["EXTRAS", "missing_modules", "require_extra"]
 #: Extra -> (import name, distribution name) of each package it installs, as ``pyproject.toml`` lists them.
 EXTRAS: dict[str, tuple[tuple[str, str], ...]] = {
     "baselines": (("scipy", "scipy"), ("control", "control"), ("daqp", "daqp"), ("threadpoolctl", "threadpoolctl")),
-    "agents": (("stable_baselines3", "stable-baselines3"), ("sb3_contrib", "sb3-contrib"), ("torch", "torch"),
-               ("yaml", "pyyaml"), ("tqdm", "tqdm"), ("rich", "rich")),
+    "agents": (
+        ("stable_baselines3", "stable-baselines3"),
+        ("sb3_contrib", "sb3-contrib"),
+        ("torch", "torch"),
+        ("yaml", "pyyaml"),
+        ("tqdm", "tqdm"),
+        ("rich", "rich"),
+    ),
     "gcode": (("pygcode", "pygcode"),),
     "datasets": (("minari", "minari"), ("h5py", "h5py")),
 }
@@ -56,4 +62,6 @@ def require_extra(extra: str, package: str) -> None:
         module = dict((d, m) for m, d in EXTRAS[extra])[missing[0]]
         raise ModuleNotFoundError(
             f"{package} needs the '{extra}' extra of vcnc-gym, which is not installed (missing: "
-            f"{', '.join(missing)}): pip install 'vcnc-gym[{extra}]'", name=module)
+            f"{', '.join(missing)}): pip install 'vcnc-gym[{extra}]'",
+            name=module,
+        )

@@ -12,8 +12,18 @@ import numbers
 
 import numpy as np
 
-__all__ = ["real", "positive", "non_negative", "per_axis", "polynomial", "integer", "flag", "size", "available_memory",
-           "MEMORY_FRACTION"]
+__all__ = [
+    "real",
+    "positive",
+    "non_negative",
+    "per_axis",
+    "polynomial",
+    "integer",
+    "flag",
+    "size",
+    "available_memory",
+    "MEMORY_FRACTION",
+]
 
 #: Share of the memory available when a size is checked that one request may
 #: plan to fill (ours): the rest is left to the interpreter, the other
@@ -111,8 +121,6 @@ def flag(name: str, value) -> bool:
     return bool(value)
 
 
-
-
 def available_memory() -> int:
     """Bytes of memory a new allocation can get now without swapping.
 
@@ -143,8 +151,9 @@ def _bytes(n: float) -> str:
     return f"{n:.3g} TB"  # pragma: no cover
 
 
-def size(name: str, value, *, bytes_each: float | None = None, ceiling: int | None = None, why: str = "",
-         minimum: int = 1) -> int:
+def size(
+    name: str, value, *, bytes_each: float | None = None, ceiling: int | None = None, why: str = "", minimum: int = 1
+) -> int:
     """``value`` as an int in [minimum, limit]: a size a user gives (envs, plants, trials, steps, samples).
 
     The limit is the smaller of ``ceiling`` (a documented bound; ``why`` says
@@ -182,8 +191,10 @@ def size(name: str, value, *, bytes_each: float | None = None, ceiling: int | No
     if bytes_each is not None and bytes_each > 0:
         free = available_memory()
         fit = int(MEMORY_FRACTION * free // bytes_each)
-        reason = (f"{why + ': ' if why and ceiling is None else ''}{_bytes(bytes_each)} each, against "
-                  f"{MEMORY_FRACTION:.0%} of the {_bytes(free)} of memory this machine has available")
+        reason = (
+            f"{why + ': ' if why and ceiling is None else ''}{_bytes(bytes_each)} each, against "
+            f"{MEMORY_FRACTION:.0%} of the {_bytes(free)} of memory this machine has available"
+        )
         limits.append((max(fit, 0), reason))
     if not limits:
         return v

@@ -38,9 +38,27 @@ import numpy as np
 from vcnc_gym.plants.contract import INVERSE_ORDER, InverseDynamics
 from .identify import AxisModel
 
-__all__ = ["NO_NOTCH", "pid_gains", "PHASE_MARGIN", "GAIN_MARGIN", "SENSITIVITY_PEAK", "MODE_FRACTION", "NOTCH_QS",
-           "VELOCITY_FILTER_RATIOS", "AxisDesign", "Margins", "notch_coefficients", "loop_response", "margins", "design_axis",
-           "inverse_dynamics", "shaper", "discrete_plant", "loop_tf", "closed_loop_poles"]
+__all__ = [
+    "NO_NOTCH",
+    "pid_gains",
+    "PHASE_MARGIN",
+    "GAIN_MARGIN",
+    "SENSITIVITY_PEAK",
+    "MODE_FRACTION",
+    "NOTCH_QS",
+    "VELOCITY_FILTER_RATIOS",
+    "AxisDesign",
+    "Margins",
+    "notch_coefficients",
+    "loop_response",
+    "margins",
+    "design_axis",
+    "inverse_dynamics",
+    "shaper",
+    "discrete_plant",
+    "loop_tf",
+    "closed_loop_poles",
+]
 
 #: The coefficients of a notch (b0, b1, b2, a1, a2 of ``(b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)``) that
 #: passes its input unchanged: no notch.
@@ -93,8 +111,9 @@ class Margins:
 
     def meets(self) -> bool:
         """True if the rules' bounds hold."""
-        return (self.gain_db >= GAIN_MARGIN and self.phase_deg >= PHASE_MARGIN
-                and self.sensitivity_db <= SENSITIVITY_PEAK)
+        return (
+            self.gain_db >= GAIN_MARGIN and self.phase_deg >= PHASE_MARGIN and self.sensitivity_db <= SENSITIVITY_PEAK
+        )
 
 
 @dataclass(frozen=True)
@@ -208,6 +227,7 @@ def closed_loop_poles(L) -> np.ndarray:
 
     return control.poles(control.feedback(L, 1))
 
+
 def _grid(dt: float) -> np.ndarray:
     return np.logspace(-1, math.log10(0.999 * math.pi / dt), 4000)
 
@@ -251,8 +271,18 @@ def design_axis(model: AxisModel, dt: float, velocity_noise: float, ceiling: flo
                 if not m.meets() or (has_mode and m.crossover > MODE_FRACTION * w_mode):
                     continue
                 if np.all(np.abs(closed_loop_poles(loop_tf(model, dt, kp, kd, ki, pole, notch))) < 1.0):
-                    return AxisDesign(float(w), kp, kd, ki, float(cutoff), float(pole),
-                                      model.mode_frequency if has_mode else 0.0, float(q), tuple(notch), m)
+                    return AxisDesign(
+                        float(w),
+                        kp,
+                        kd,
+                        ki,
+                        float(cutoff),
+                        float(pole),
+                        model.mode_frequency if has_mode else 0.0,
+                        float(q),
+                        tuple(notch),
+                        m,
+                    )
         return None
 
     # down a coarse geometric grid (3 decades, 31 points) to the first bandwidth that passes, then down a fine
@@ -288,8 +318,9 @@ def inverse_dynamics(models, backlash, with_mode: bool = True) -> InverseDynamic
         coulomb.append((max(a.coulomb[0], 0.0), min(a.coulomb[1], 0.0)))
         delay.append(a.command_delay)
         stribeck.append(tuple(a.stribeck) if a.stribeck[0] > 0.0 else (0.0, 0.0))
-    return InverseDynamics(np.array(rows), np.array(coulomb), np.asarray(backlash, dtype=np.float64),
-                           np.array(delay), np.array(stribeck))
+    return InverseDynamics(
+        np.array(rows), np.array(coulomb), np.asarray(backlash, dtype=np.float64), np.array(delay), np.array(stribeck)
+    )
 
 
 def shaper(model: AxisModel, kind: str = "zv") -> tuple[np.ndarray, np.ndarray]:

@@ -42,8 +42,30 @@ from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.envs.task import ContouringBatch
 from vcnc_gym.validation import positive
 
-__all__ = ["Experiment", "Measurement", "AxisModel", "Machines", "holding_gains", "run_experiment", "frf",
-           "fit_axis", "COHERENCE_FLOOR", "experiment_task", "leg_schedule", "friction_levels", "LEG_SPEED_TOLERANCE", "LEG_SPREAD", "REVERSAL_LEGS", "STRIBECK_GRID", "STRIBECK_GAIN", "LEG_RAMP", "LEG_RAMP_MAX", "identify", "model_response", "MODE_PEAK_DB"]
+__all__ = [
+    "Experiment",
+    "Measurement",
+    "AxisModel",
+    "Machines",
+    "holding_gains",
+    "run_experiment",
+    "frf",
+    "fit_axis",
+    "COHERENCE_FLOOR",
+    "experiment_task",
+    "leg_schedule",
+    "friction_levels",
+    "LEG_SPEED_TOLERANCE",
+    "LEG_SPREAD",
+    "REVERSAL_LEGS",
+    "STRIBECK_GRID",
+    "STRIBECK_GAIN",
+    "LEG_RAMP",
+    "LEG_RAMP_MAX",
+    "identify",
+    "model_response",
+    "MODE_PEAK_DB",
+]
 
 #: The longest travel of a reversal leg, mm (within the observation's tracking-error bound).
 LEG_TRAVEL = 6.0
@@ -167,11 +189,15 @@ class Machines:
         periods = loop.u.shape[1] if np.ndim(loop.u) == 3 else -1
         for name in ("u", "e", "velocity", "excitation"):
             if np.shape(getattr(loop, name)) != (self.n, periods, 2):
-                raise ValueError(f"hold: loop.{name} must be ({self.n} machines, periods, 2) like loop.u, "
-                                 f"got {np.shape(getattr(loop, name))}")
+                raise ValueError(
+                    f"hold: loop.{name} must be ({self.n} machines, periods, 2) like loop.u, "
+                    f"got {np.shape(getattr(loop, name))}"
+                )
         for name in ("legs", "offset", "offset_rate"):
             if np.shape(getattr(loop, name)) != (periods, 2):
-                raise ValueError(f"hold: loop.{name} must be ({periods} periods, 2), got {np.shape(getattr(loop, name))}")
+                raise ValueError(
+                    f"hold: loop.{name} must be ({periods} periods, 2), got {np.shape(getattr(loop, name))}"
+                )
         sk.run_holding_loop(self._batch.data, loop)
 
     def step(self, command: np.ndarray) -> np.ndarray:
@@ -202,8 +228,9 @@ def holding_gains(mass, damping, delay, dt, fraction: float):
     return m * w**2, np.maximum(2 * m * w - c, 0.0), w
 
 
-def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment = Experiment(),
-                   working_speed: float | None = None) -> Measurement:
+def run_experiment(
+    machines: Machines, nominal_inverse, experiment: Experiment = Experiment(), working_speed: float | None = None
+) -> Measurement:
     """Run :class:`Experiment` on ``machines``; ``nominal_inverse`` (the plant's nominal
     :class:`~vcnc_gym.plants.contract.InverseDynamics`) sets the holding loop and the feedforward with which
     the axes follow the task's reference during the run (so that the excitation acts on a moving axis, whose
@@ -216,8 +243,9 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
 
     t0 = time.perf_counter()
     dt, n = machines.dt, machines.n
-    kp, kd, w = holding_gains(nominal_inverse.mass, nominal_inverse.damping, nominal_inverse.delay, dt,
-                              experiment.holding_bandwidth)
+    kp, kd, w = holding_gains(
+        nominal_inverse.mass, nominal_inverse.damping, nominal_inverse.delay, dt, experiment.holding_bandwidth
+    )
     ki = kp * w / 4.0
     alpha = np.exp(-5.0 * w * dt)  # the velocity the loop damps with: the count difference low-passed at 5 w
     samples = machines.task.reference_arrays.samples
@@ -225,7 +253,7 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     rng = np.random.default_rng(experiment.seed)
     K = int(experiment.periods)
     leg_time = 12.5 / float(np.min(w)) if experiment.leg_time is None else experiment.leg_time
-    ref_v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    ref_v = samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
     followed = float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1])))
     working_speed = followed if working_speed is None else working_speed
     speed = experiment.reversal_speed
@@ -234,8 +262,11 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     per_leg = max(int(round(leg_time / dt)), 25)
     settle = per_leg
     top = min(4.0 * working_speed, LEG_TRAVEL / leg_time)
-    schedule = leg_schedule(positive("reversal_speed", speed, "mm/s"), experiment.speed_ratio,
-                            top * 0.5 ** np.arange(experiment.sweep_steps))
+    schedule = leg_schedule(
+        positive("reversal_speed", speed, "mm/s"),
+        experiment.speed_ratio,
+        top * 0.5 ** np.arange(experiment.sweep_steps),
+    )
     legs = len(schedule)
     start = max(K, samples.shape[0]) + settle  # the legs begin once the reference has stopped
     total = start + legs * per_leg
@@ -249,10 +280,24 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
     e = np.zeros((n, total, 2))
     velocity = np.zeros((n, total, 2))
     c = np.ascontiguousarray
-    machines.hold(sk.HoldingLoop(c(u_ff, dtype=np.float64), c(u_legs, dtype=np.float64), c(offset), c(offset_rate), r,
-                                 c(kp, dtype=np.float64), c(kd, dtype=np.float64), c(ki, dtype=np.float64),
-                                 c(alpha, dtype=np.float64), float(dt), c(machines.u_max, dtype=np.float64), u, e,
-                                 velocity))
+    machines.hold(
+        sk.HoldingLoop(
+            c(u_ff, dtype=np.float64),
+            c(u_legs, dtype=np.float64),
+            c(offset),
+            c(offset_rate),
+            r,
+            c(kp, dtype=np.float64),
+            c(kd, dtype=np.float64),
+            c(ki, dtype=np.float64),
+            c(alpha, dtype=np.float64),
+            float(dt),
+            c(machines.u_max, dtype=np.float64),
+            u,
+            e,
+            velocity,
+        )
+    )
     leg_command = np.zeros((n, legs, 2))
     leg_spread = np.zeros((n, legs, 2))
     leg_velocity = np.zeros((n, legs, 2))
@@ -264,16 +309,29 @@ def run_experiment(machines: Machines, nominal_inverse, experiment: Experiment =
         leg_spread[:, leg] = _velocity_spread(velocity[:, window], alpha)
         leg_velocity[:, leg] = velocity[:, window].mean(axis=1)
         half = (window.stop - window.start) // 2  # the mean acceleration: the change of the halves' mean speeds
-        leg_acceleration[:, leg] = (velocity[:, window.stop - half:window.stop].mean(axis=1)
-                                    - velocity[:, window.start:window.start + half].mean(axis=1)) / (half * dt)
+        leg_acceleration[:, leg] = (
+            velocity[:, window.stop - half : window.stop].mean(axis=1)
+            - velocity[:, window.start : window.start + half].mean(axis=1)
+        ) / (half * dt)
     # the sensor's velocity noise: the measured velocity less its 21-period running mean on the legs at speed
-    legs_v = velocity[:, start + (3 * per_leg) // 5:start + per_leg]
+    legs_v = velocity[:, start + (3 * per_leg) // 5 : start + per_leg]
     kernel = np.ones(21) / 21.0
     smooth = np.apply_along_axis(lambda v: np.convolve(v, kernel, mode="same"), 1, legs_v)
     velocity_noise = np.std((legs_v - smooth)[:, 10:-10], axis=1)
-    return Measurement(r=r[:, :K], u=u[:, :K], e=e[:, :K], leg_command=leg_command, leg_speeds=schedule, dt=dt,
-                       seconds=time.perf_counter() - t0, velocity_noise=velocity_noise, holding_bandwidth=w,
-                       leg_velocity=leg_velocity, leg_spread=leg_spread, leg_acceleration=leg_acceleration)
+    return Measurement(
+        r=r[:, :K],
+        u=u[:, :K],
+        e=e[:, :K],
+        leg_command=leg_command,
+        leg_speeds=schedule,
+        dt=dt,
+        seconds=time.perf_counter() - t0,
+        velocity_noise=velocity_noise,
+        holding_bandwidth=w,
+        leg_velocity=leg_velocity,
+        leg_spread=leg_spread,
+        leg_acceleration=leg_acceleration,
+    )
 
 
 def _leg_moves(schedule, start: int, per_leg: int, total: int, dt: float, nominal_inverse, u_max):
@@ -292,17 +350,18 @@ def _leg_moves(schedule, start: int, per_leg: int, total: int, dt: float, nomina
     steps = np.zeros((total + ramp, 2))
     for leg, speeds in enumerate(schedule):
         a = start + leg * per_leg + ramp // 2
-        steps[a:a + per_leg] = speeds
+        steps[a : a + per_leg] = speeds
     window = np.hanning(ramp + 2)[1:-1]
-    offset_rate = np.stack([np.convolve(steps[:, j], window / window.sum(), mode="same") for j in range(2)],
-                           axis=1)[:total]
+    offset_rate = np.stack([np.convolve(steps[:, j], window / window.sum(), mode="same") for j in range(2)], axis=1)[
+        :total
+    ]
     offset = np.cumsum(offset_rate, axis=0) * dt
     # and their own nominal feedforward (inertia, viscous and Coulomb levels): the loop then takes up only the
     # machine's difference from the nominal model and the stick at a reversal; what it has not taken up by the
     # leg's last 40 % (where the command is read) the fit's acceleration term accounts for (friction_levels)
     legs_reference = np.zeros((total, sk.REF_COLUMNS))
-    legs_reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2] = offset_rate
-    legs_reference[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2] = np.gradient(offset_rate, dt, axis=0)
+    legs_reference[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2] = offset_rate
+    legs_reference[:, sk.REF_ACCELERATION : sk.REF_ACCELERATION + 2] = np.gradient(offset_rate, dt, axis=0)
     u_legs = inverse_feedforward(nominal_inverse, legs_reference, dt)
     return offset_rate, offset, u_legs
 
@@ -313,7 +372,7 @@ def _velocity_spread(v: np.ndarray, alpha) -> np.ndarray:
     out = np.empty((v.shape[0], 2))
     for j in range(2):
         filtered = signal.lfilter([1.0 - alpha[j]], [1.0, -alpha[j]], v[:, :, j], axis=1)
-        out[:, j] = filtered[:, filtered.shape[1] // 4:].std(axis=1)
+        out[:, j] = filtered[:, filtered.shape[1] // 4 :].std(axis=1)
     return out
 
 
@@ -379,8 +438,9 @@ def model_response(model_or_params, frequency_hz):
     return g
 
 
-def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None, high_hz=None,
-             holding_bandwidth: float = 0.0) -> AxisModel:
+def fit_axis(
+    f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None, high_hz=None, holding_bandwidth: float = 0.0
+) -> AxisModel:
     """Fit :class:`AxisModel`'s linear part to one axis' estimate (see the module docstring).  The band is
     ``low_hz`` (default 20 frequency bins or four times the holding loop's ``holding_bandwidth`` (rad/s), whichever
     is higher: below, the friction and the holding loop dominate) to ``high_hz`` (default where the coherence,
@@ -424,8 +484,7 @@ def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None,
 
     def solve(fun, start, n):
         start = np.clip(start, bound_lo[:n] + 1e-9, bound_hi[:n] - 1e-9)
-        return optimize.least_squares(fun, start, bounds=(bound_lo[:n], bound_hi[:n]), method="trf",
-                                      x_scale="jac")
+        return optimize.least_squares(fun, start, bounds=(bound_lo[:n], bound_hi[:n]), method="trf", x_scale="jac")
 
     def rigid_residual(t):
         return residual(t, False)[np.concatenate([lower, lower])]
@@ -452,10 +511,17 @@ def fit_axis(f, G, coherence, nominal_mass, nominal_damping, dt, *, low_hz=None,
             best, with_mode = fitted, True
     t = best.x
     rms = float(np.sqrt(2.0 * best.cost / (2 * fb.size)))
-    return AxisModel(mass=float(np.exp(t[0])), damping=float(np.exp(t[1])),
-                     mode_frequency=float(np.exp(t[3])) if with_mode else 0.0,
-                     mode_damping=float(np.exp(t[4])) if with_mode else 0.0, delay=float(t[2]), coulomb=(0.0, 0.0),
-                     fit_error=rms, band=(float(low), float(high)), dt=float(dt))
+    return AxisModel(
+        mass=float(np.exp(t[0])),
+        damping=float(np.exp(t[1])),
+        mode_frequency=float(np.exp(t[3])) if with_mode else 0.0,
+        mode_damping=float(np.exp(t[4])) if with_mode else 0.0,
+        delay=float(t[2]),
+        coulomb=(0.0, 0.0),
+        fit_error=rms,
+        band=(float(low), float(high)),
+        dt=float(dt),
+    )
 
 
 def leg_schedule(speed: float, ratio: float, sweep=()) -> np.ndarray:
@@ -530,8 +596,9 @@ def friction_levels(measurement: Measurement, machine: int, mass=None):
 
     def columns(rows, j):
         v = speeds[rows, j]
-        return measured[rows, j], np.column_stack([measured[rows, j], (v > 0).astype(float), (v < 0).astype(float),
-                                                   v / path[rows]])
+        return measured[rows, j], np.column_stack(
+            [measured[rows, j], (v > 0).astype(float), (v < 0).astype(float), v / path[rows]]
+        )
 
     for j in range(2):
         moving = np.flatnonzero(speeds[:, j] != 0)
@@ -542,8 +609,11 @@ def friction_levels(measurement: Measurement, machine: int, mass=None):
         rows = moving
         if measurement.leg_velocity is not None:  # every pair of legs (out and back) where the axis moved steadily
             target = np.abs(speeds[:, j])
-            ok = ((np.abs(measurement.leg_velocity[machine, :, j] - speeds[:, j]) <= LEG_SPEED_TOLERANCE * target)
-                  & (measurement.leg_spread[machine, :, j] <= LEG_SPREAD * target) & (target > 0))
+            ok = (
+                (np.abs(measurement.leg_velocity[machine, :, j] - speeds[:, j]) <= LEG_SPEED_TOLERANCE * target)
+                & (measurement.leg_spread[machine, :, j] <= LEG_SPREAD * target)
+                & (target > 0)
+            )
             pair = np.arange(len(speeds)) ^ 1  # leg_schedule's legs come out and back: (0, 1), (2, 3), ...
             rows = np.flatnonzero(ok & ok[np.minimum(pair, len(speeds) - 1)])
         v, A = columns(rows, j)
@@ -556,7 +626,7 @@ def friction_levels(measurement: Measurement, machine: int, mass=None):
             plain = float(np.sum((A @ optimize.lsq_linear(A, y, bounds=(lower, upper)).x - y) ** 2))
             best = (plain, None, 0.0, 0.0)
             for grid_vs in np.geomspace(speed.min(), 0.5 * speed.max(), STRIBECK_GRID):
-                As = np.column_stack([A, np.exp(-(v / grid_vs) ** 2) * np.sign(v)])
+                As = np.column_stack([A, np.exp(-((v / grid_vs) ** 2)) * np.sign(v)])
                 xs = optimize.lsq_linear(As, y, bounds=(np.append(lower, 0.0), np.append(upper, np.inf))).x
                 sse = float(np.sum((As @ xs - y) ** 2))
                 if xs[4] > 0.0 and sse < best[0]:
@@ -580,8 +650,9 @@ def experiment_task(task, experiment: Experiment = Experiment()):
         return task
     length = float(task.reference_arrays.samples[-1, sk.REF_ARC])
     feed = length / (1.05 * experiment.periods * task.dt)
-    return ContouringTask(contour=task.curve, plant=task.plant, dt=task.dt, feedrate=feed,
-                          plant_options=task.plant_options or None)
+    return ContouringTask(
+        contour=task.curve, plant=task.plant, dt=task.dt, feedrate=feed, plant_options=task.plant_options or None
+    )
 
 
 def identify(task, parameters, nominal_inverse, experiment: Experiment = Experiment()):
@@ -591,20 +662,39 @@ def identify(task, parameters, nominal_inverse, experiment: Experiment = Experim
     """
     positive("experiment.periods", experiment.periods)
     machines = Machines(experiment_task(task, experiment), parameters, seed=experiment.seed)
-    ref_v = task.reference_arrays.samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-    meas = run_experiment(machines, nominal_inverse, experiment,
-                          working_speed=float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1]))))
+    ref_v = task.reference_arrays.samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
+    meas = run_experiment(
+        machines, nominal_inverse, experiment, working_speed=float(np.max(np.hypot(ref_v[:, 0], ref_v[:, 1])))
+    )
     models = []
     for i in range(machines.n):
         axes = []
         for j in range(2):
             f, G, coh = frf(meas, i, j, experiment.segment)
-            axes.append(fit_axis(f, G, coh, nominal_inverse.mass[j], nominal_inverse.damping[j], meas.dt,
-                                 holding_bandwidth=meas.holding_bandwidth[j]))
+            axes.append(
+                fit_axis(
+                    f,
+                    G,
+                    coh,
+                    nominal_inverse.mass[j],
+                    nominal_inverse.damping[j],
+                    meas.dt,
+                    holding_bandwidth=meas.holding_bandwidth[j],
+                )
+            )
         viscous, levels, force, stribeck = friction_levels(meas, i, mass=[a.mass for a in axes])
-        axes = [AxisModel(**{**a.__dict__, "viscous": float(viscous[j]),
-                             "coulomb": (float(levels[j, 0]), float(levels[j, 1])), "process_force": float(force[j]),
-                             "stribeck": (float(stribeck[j, 0]), float(stribeck[j, 1])),
-                             "velocity_noise": float(meas.velocity_noise[i, j])}) for j, a in enumerate(axes)]
+        axes = [
+            AxisModel(
+                **{
+                    **a.__dict__,
+                    "viscous": float(viscous[j]),
+                    "coulomb": (float(levels[j, 0]), float(levels[j, 1])),
+                    "process_force": float(force[j]),
+                    "stribeck": (float(stribeck[j, 0]), float(stribeck[j, 1])),
+                    "velocity_noise": float(meas.velocity_noise[i, j]),
+                }
+            )
+            for j, a in enumerate(axes)
+        ]
         models.append(axes)
     return models, meas

@@ -74,11 +74,15 @@ class PerMachine:
             return False
         task = self.identification_task or getattr(u, "task", None) or self.task
         if task is None:
-            raise ValueError(f"baseline {self.name!r}: commissioning='machine' identifies each plant on a task's "
-                             f"reference, and {type(u).__name__} has no task (identify_on(task) names one)")
+            raise ValueError(
+                f"baseline {self.name!r}: commissioning='machine' identifies each plant on a task's "
+                f"reference, and {type(u).__name__} has no task (identify_on(task) names one)"
+            )
         if task.dt != self.dt:
-            raise ValueError(f"baseline {self.name!r}: commissioning='machine' designs the law for the control period "
-                             f"of the task it identifies on ({task.dt} s), and the law runs every {self.dt} s")
+            raise ValueError(
+                f"baseline {self.name!r}: commissioning='machine' designs the law for the control period "
+                f"of the task it identifies on ({task.dt} s), and the law runs every {self.dt} s"
+            )
         records = list(self.records) if changed.size < params.shape[0] else [None] * params.shape[0]
         for i, record in zip(changed, machine_records(task, params[changed])):
             records[i] = record
@@ -104,7 +108,9 @@ class PerMachine:
         the tolerance search (``vcnc_bench.reports.tolerance``) runs each look-ahead setting with the machines
         commissioned on the id's own reference, one identification run for every setting and controller."""
         if task.plant.name != self.plant.name or task.dt != self.dt:
-            raise ValueError(f"identify_on: the task's plant and control period ({task.plant.name}, {task.dt} s) "
-                             f"must be the controller's ({self.plant.name}, {self.dt} s)")
+            raise ValueError(
+                f"identify_on: the task's plant and control period ({task.plant.name}, {task.dt} s) "
+                f"must be the controller's ({self.plant.name}, {self.dt} s)"
+            )
         self.identification_task = task
         self._commissioned_for = None

@@ -33,9 +33,23 @@ import vcnc_gym
 from .design import AxisDesign, Margins, design_axis, inverse_dynamics, loop_response
 from .identify import AxisModel, Experiment, frf, identify, model_response
 
-__all__ = ["CommissioningRecord", "commission", "make_record", "model_record", "nominal_record", "model_axes",
-           "machine_key", "experiment_key", "ship_machines", "load", "shipped", "plot", "SOURCES", "MACHINES_SHIPPED",
-           "SHIPPED"]
+__all__ = [
+    "CommissioningRecord",
+    "commission",
+    "make_record",
+    "model_record",
+    "nominal_record",
+    "model_axes",
+    "machine_key",
+    "experiment_key",
+    "ship_machines",
+    "load",
+    "shipped",
+    "plot",
+    "SOURCES",
+    "MACHINES_SHIPPED",
+    "SHIPPED",
+]
 
 #: How a record is made (module docstring).
 SOURCES = ("nominal", "machine", "model")
@@ -98,9 +112,13 @@ class CommissioningRecord:
     def gains(self) -> dict:
         """The servo law's per-axis arrays: ``kp``, ``kd``, ``ki``, ``velocity_filter`` (2,), ``notch`` (2, 5)."""
         d = self.designs
-        return {"kp": np.array([a.kp for a in d]), "kd": np.array([a.kd for a in d]),
-                "ki": np.array([a.ki for a in d]), "velocity_filter": np.array([a.velocity_pole for a in d]),
-                "notch": np.array([a.notch for a in d])}
+        return {
+            "kp": np.array([a.kp for a in d]),
+            "kd": np.array([a.kd for a in d]),
+            "ki": np.array([a.ki for a in d]),
+            "velocity_filter": np.array([a.velocity_pole for a in d]),
+            "notch": np.array([a.notch for a in d]),
+        }
 
     # -- JSON -------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -112,36 +130,61 @@ class CommissioningRecord:
 
     @classmethod
     def from_dict(cls, d: dict) -> "CommissioningRecord":
-        axes = tuple(AxisModel(**{**a, "coulomb": tuple(a["coulomb"]), "band": tuple(a["band"]),
-                                  "stribeck": tuple(a.get("stribeck", (0.0, 0.0)))}) for a in d["axes"])
-        designs = tuple(AxisDesign(**{**a, "notch": tuple(a["notch"]), "margins": Margins(**a["margins"])})
-                        for a in d["designs"])
+        axes = tuple(
+            AxisModel(
+                **{
+                    **a,
+                    "coulomb": tuple(a["coulomb"]),
+                    "band": tuple(a["band"]),
+                    "stribeck": tuple(a.get("stribeck", (0.0, 0.0))),
+                }
+            )
+            for a in d["axes"]
+        )
+        designs = tuple(
+            AxisDesign(**{**a, "notch": tuple(a["notch"]), "margins": Margins(**a["margins"])}) for a in d["designs"]
+        )
         return cls(**{**d, "axes": axes, "designs": designs, "backlash": tuple(d["backlash"])})
 
     def save(self, path) -> None:
         Path(path).write_text(self.to_json() + "\n")
 
     def __str__(self) -> str:
-        lines = [f"commissioning of {self.plant}{' on the shop floor' if self.shop_floor else ''} ({self.source}; "
-                 f"dt = {self.dt:g} s; identification {self.identification_s:.1f} s"
-                 f"{' along ' + self.contour if self.contour else ''})"]
+        lines = [
+            f"commissioning of {self.plant}{' on the shop floor' if self.shop_floor else ''} ({self.source}; "
+            f"dt = {self.dt:g} s; identification {self.identification_s:.1f} s"
+            f"{' along ' + self.contour if self.contour else ''})"
+        ]
         for name, a, d in zip("xy", self.axes, self.designs):
-            mode = (f"mode {a.mode_frequency:.1f} Hz, zeta {a.mode_damping:.3f}" if a.mode_frequency > 0
-                    else "no mode found")
-            lines.append(f"  {name}: m = {a.mass:.4g} /(mm/s^2), c = {a.viscous or a.damping:.3g} /(mm/s), {mode}, "
-                         f"dead time {1e3 * a.delay:.3f} ms, Coulomb +{a.coulomb[0]:.3f}/{a.coulomb[1]:.3f}, "
-                         f"process force {a.process_force:.3f}, "
-                         + (f"Stribeck {a.stribeck[0]:.3g} below {a.stribeck[1]:.3g} mm/s, " if a.stribeck[0] > 0
-                            else "no Stribeck curve, ")
-                         + f"velocity noise {a.velocity_noise:.3g} mm/s")
+            mode = (
+                f"mode {a.mode_frequency:.1f} Hz, zeta {a.mode_damping:.3f}"
+                if a.mode_frequency > 0
+                else "no mode found"
+            )
+            lines.append(
+                f"  {name}: m = {a.mass:.4g} /(mm/s^2), c = {a.viscous or a.damping:.3g} /(mm/s), {mode}, "
+                f"dead time {1e3 * a.delay:.3f} ms, Coulomb +{a.coulomb[0]:.3f}/{a.coulomb[1]:.3f}, "
+                f"process force {a.process_force:.3f}, "
+                + (
+                    f"Stribeck {a.stribeck[0]:.3g} below {a.stribeck[1]:.3g} mm/s, "
+                    if a.stribeck[0] > 0
+                    else "no Stribeck curve, "
+                )
+                + f"velocity noise {a.velocity_noise:.3g} mm/s"
+            )
             notch = f"notch {d.notch_frequency:.1f} Hz Q {d.notch_q:g}" if d.notch_frequency > 0 else "no notch"
             vel = f"velocity low-pass {d.velocity_cutoff:.0f} rad/s" if d.velocity_cutoff > 0 else "no velocity filter"
-            frac = (f" ({d.margins.crossover / (2 * math.pi * a.mode_frequency):.2f} of the mode)"
-                    if a.mode_frequency > 0 else "")
-            lines.append(f"     bandwidth {d.bandwidth:.1f} rad/s, crossover {d.margins.crossover:.1f} rad/s{frac}; "
-                         f"Kp {d.kp:.4g}, Kd {d.kd:.4g}, Ki {d.ki:.4g}; {vel}; {notch}; margins: GM "
-                         f"{d.margins.gain_db:.1f} dB, PM {d.margins.phase_deg:.1f} deg, Ms "
-                         f"{d.margins.sensitivity_db:.2f} dB")
+            frac = (
+                f" ({d.margins.crossover / (2 * math.pi * a.mode_frequency):.2f} of the mode)"
+                if a.mode_frequency > 0
+                else ""
+            )
+            lines.append(
+                f"     bandwidth {d.bandwidth:.1f} rad/s, crossover {d.margins.crossover:.1f} rad/s{frac}; "
+                f"Kp {d.kp:.4g}, Kd {d.kd:.4g}, Ki {d.ki:.4g}; {vel}; {notch}; margins: GM "
+                f"{d.margins.gain_db:.1f} dB, PM {d.margins.phase_deg:.1f} deg, Ms "
+                f"{d.margins.sensitivity_db:.2f} dB"
+            )
         return "\n".join(lines)
 
 
@@ -164,8 +207,10 @@ def machine_key(plant, parameters, dt: float) -> str:
 def _ceiling(plant) -> float:
     c = getattr(plant, "servo_bandwidth", None)
     if c is None:
-        raise ValueError(f"plant {plant.name!r} declares no servo_bandwidth (rad/s): its commissioning has no "
-                         "ceiling to search below")
+        raise ValueError(
+            f"plant {plant.name!r} declares no servo_bandwidth (rad/s): its commissioning has no "
+            "ceiling to search below"
+        )
     return float(c)
 
 
@@ -186,12 +231,22 @@ def model_axes(plant, parameters, dt: float) -> list[AxisModel]:
         delays = round(value("command_delay", j)) + round(value("sensor_delay", j))
         q, sigma = value("encoder_resolution", j), value("noise_std", j)
         noise = math.sqrt(2.0 * (sigma**2 + q * q / 12.0)) / dt
-        axes.append(AxisModel(mass=float(inv.mass[j]), damping=float(inv.damping[j]),
-                              mode_frequency=value("mode_frequency", j), mode_damping=value("mode_damping", j),
-                              delay=float(inv.delay[j]) + (delays + 0.5) * dt,
-                              coulomb=tuple(float(v) for v in inv.coulomb[j]), fit_error=0.0, band=(0.0, 0.0),
-                              velocity_noise=noise, dt=dt, viscous=float(inv.damping[j]),
-                              stribeck=stribeck if stribeck[0] > 0 else (0.0, 0.0)))
+        axes.append(
+            AxisModel(
+                mass=float(inv.mass[j]),
+                damping=float(inv.damping[j]),
+                mode_frequency=value("mode_frequency", j),
+                mode_damping=value("mode_damping", j),
+                delay=float(inv.delay[j]) + (delays + 0.5) * dt,
+                coulomb=tuple(float(v) for v in inv.coulomb[j]),
+                fit_error=0.0,
+                band=(0.0, 0.0),
+                velocity_noise=noise,
+                dt=dt,
+                viscous=float(inv.damping[j]),
+                stribeck=stribeck if stribeck[0] > 0 else (0.0, 0.0),
+            )
+        )
     return axes
 
 
@@ -207,10 +262,19 @@ def make_record(plant, dt, axes, source, nominal, seconds: float = 0.0, contour:
     ceiling = _ceiling(plant)
     designs = tuple(design_axis(a, dt, a.velocity_noise, ceiling) for a in axes)
     backlash = tuple(float(b) for b in plant.inverse(nominal).backlash)
-    return CommissioningRecord(plant=plant.name, shop_floor=isinstance(plant, ShopFloorModel), source=source,
-                               dt=float(dt), ceiling=ceiling, axes=tuple(axes), designs=designs,
-                               backlash=backlash, friction_time=float(plant.friction_time),
-                               identification_s=float(seconds), contour=contour)
+    return CommissioningRecord(
+        plant=plant.name,
+        shop_floor=isinstance(plant, ShopFloorModel),
+        source=source,
+        dt=float(dt),
+        ceiling=ceiling,
+        axes=tuple(axes),
+        designs=designs,
+        backlash=backlash,
+        friction_time=float(plant.friction_time),
+        identification_s=float(seconds),
+        contour=contour,
+    )
 
 
 def model_record(plant, parameters, dt: float, nominal=None) -> CommissioningRecord:
@@ -275,13 +339,21 @@ MACHINES_SHIPPED = SHIPPED / "machines"
 #: every :func:`experiment_key`, so a stored run is never replayed for code that would give another.  Found through
 #: the packages, so that a checkout and an installed wheel (where ``baselines/`` is ``vcnc_baselines/``) hash the
 #: same files under the same names.
-_EXPERIMENT_CODE = (("vcnc_baselines", "commissioning/identify.py"), ("vcnc_baselines", "commissioning/design.py"),
-                    ("vcnc_baselines", "commissioning/record.py"), ("vcnc_baselines", "feedforward/tables.py"),
-                    ("vcnc_gym", "envs/step_kernel.py"), ("vcnc_gym", "envs/task.py"), ("vcnc_gym", "plants/*.py"))
+_EXPERIMENT_CODE = (
+    ("vcnc_baselines", "commissioning/identify.py"),
+    ("vcnc_baselines", "commissioning/design.py"),
+    ("vcnc_baselines", "commissioning/record.py"),
+    ("vcnc_baselines", "feedforward/tables.py"),
+    ("vcnc_gym", "envs/step_kernel.py"),
+    ("vcnc_gym", "envs/task.py"),
+    ("vcnc_gym", "plants/*.py"),
+)
 
 
-_PACKAGE_ROOTS = {"vcnc_baselines": Path(__file__).resolve().parents[1],
-                  "vcnc_gym": Path(vcnc_gym.__file__).resolve().parent}
+_PACKAGE_ROOTS = {
+    "vcnc_baselines": Path(__file__).resolve().parents[1],
+    "vcnc_gym": Path(vcnc_gym.__file__).resolve().parent,
+}
 
 
 def _code_digest() -> str:
@@ -386,8 +458,10 @@ def plot(record: CommissioningRecord, path, measurement=None, machine: int = 0) 
         ax[0, j].axhline(1.0, color="k", lw=0.5)
         if d.notch_frequency > 0:
             ax[0, j].axvline(d.notch_frequency, color="r", ls=":", label=f"notch {d.notch_frequency:.0f} Hz")
-        ax[0, j].set_title(f"axis {'xy'[j]}: GM {d.margins.gain_db:.1f} dB, PM {d.margins.phase_deg:.0f} deg, "
-                           f"Ms {d.margins.sensitivity_db:.1f} dB")
+        ax[0, j].set_title(
+            f"axis {'xy'[j]}: GM {d.margins.gain_db:.1f} dB, PM {d.margins.phase_deg:.0f} deg, "
+            f"Ms {d.margins.sensitivity_db:.1f} dB"
+        )
         ax[1, j].set_xlabel("frequency, Hz")
         ax[0, j].legend(fontsize=7)
     ax[0, 0].set_ylabel("|G|, mm per input unit; |L|")
@@ -409,8 +483,11 @@ def _main(argv=None) -> None:
 
     parser = argparse.ArgumentParser(description=_main.__doc__)
     parser.add_argument("env_ids", nargs="+", help="env ids whose nominal machines to commission")
-    parser.add_argument("--machines", action="store_true",
-                        help="store the @machine controllers' identification runs (MACHINES_SHIPPED) instead")
+    parser.add_argument(
+        "--machines",
+        action="store_true",
+        help="store the @machine controllers' identification runs (MACHINES_SHIPPED) instead",
+    )
     args = parser.parse_args(argv)
     for env_id in args.env_ids:
         env = gym.make(env_id)

@@ -45,21 +45,55 @@ class CrossCoupledPolicy(FeedforwardPIDPolicy):
 
     name = "ccc"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
-                 commissioning: str | None = None, bandwidth=None, integral: bool = True, feedforward=False,
-                 coupling: float = 0.1, variable: bool = False, friction_time: float | None = None,
-                 backlash_time: float = 16e-3):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        task=None,
+        commissioning: str | None = None,
+        bandwidth=None,
+        integral: bool = True,
+        feedforward=False,
+        coupling: float = 0.1,
+        variable: bool = False,
+        friction_time: float | None = None,
+        backlash_time: float = 16e-3,
+    ):
         self.coupling = non_negative("coupling", coupling)
         self.variable = bool(variable)
-        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt, task=task,
-                         commissioning=commissioning, bandwidth=bandwidth, integral=integral,
-                         feedforward=feedforward, friction_time=friction_time, backlash_time=backlash_time)
+        super().__init__(
+            layout,
+            decision_period,
+            nominal_parameters,
+            plant,
+            reference=reference,
+            dt=dt,
+            task=task,
+            commissioning=commissioning,
+            bandwidth=bandwidth,
+            integral=integral,
+            feedforward=feedforward,
+            friction_time=friction_time,
+            backlash_time=backlash_time,
+        )
 
     def _gains(self, g: dict) -> ServoGains:
         kp, ki = g["kp"], g["ki"]
-        return ServoGains(kp, g["kd"], ki, kc=self.coupling * float(np.mean(kp)), kci=self.coupling * float(np.mean(ki)),
-                          variable=1.0 if self.variable else 0.0, velocity_filter=g["velocity_filter"],
-                          notch=g["notch"])
+        return ServoGains(
+            kp,
+            g["kd"],
+            ki,
+            kc=self.coupling * float(np.mean(kp)),
+            kci=self.coupling * float(np.mean(ki)),
+            variable=1.0 if self.variable else 0.0,
+            velocity_filter=g["velocity_filter"],
+            notch=g["notch"],
+        )
 
 
 class FeedforwardCrossCoupledPolicy(CrossCoupledPolicy):
@@ -67,10 +101,38 @@ class FeedforwardCrossCoupledPolicy(CrossCoupledPolicy):
 
     name = "ff-ccc"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
-                 commissioning: str | None = None, bandwidth=None, integral: bool = True, coupling: float = 0.1,
-                 variable: bool = True, friction_time: float | None = None, backlash_time: float = 16e-3):
-        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt, task=task,
-                         commissioning=commissioning, bandwidth=bandwidth, integral=integral, feedforward=True,
-                         coupling=coupling, variable=variable, friction_time=friction_time,
-                         backlash_time=backlash_time)
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        task=None,
+        commissioning: str | None = None,
+        bandwidth=None,
+        integral: bool = True,
+        coupling: float = 0.1,
+        variable: bool = True,
+        friction_time: float | None = None,
+        backlash_time: float = 16e-3,
+    ):
+        super().__init__(
+            layout,
+            decision_period,
+            nominal_parameters,
+            plant,
+            reference=reference,
+            dt=dt,
+            task=task,
+            commissioning=commissioning,
+            bandwidth=bandwidth,
+            integral=integral,
+            feedforward=True,
+            coupling=coupling,
+            variable=variable,
+            friction_time=friction_time,
+            backlash_time=backlash_time,
+        )

@@ -170,8 +170,9 @@ class ContouringFBPolicy(BaselinePolicy):
     paper = "Simba et al."
     state_shape = (3,)  # theta [rad], theta_dot [rad/s] of the previous call, 1.0 once called
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None,
-                 k_p=TABLE_I_FB["k_p"], k_d=TABLE_I_FB["k_d"]):
+    def __init__(
+        self, layout, decision_period, nominal_parameters, plant=None, k_p=TABLE_I_FB["k_p"], k_d=TABLE_I_FB["k_d"]
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.k_p = per_axis("k_p", k_p, rule=positive)
         self.k_d = per_axis("k_d", k_d, rule=positive)
@@ -179,12 +180,21 @@ class ContouringFBPolicy(BaselinePolicy):
         self.m, self.c, self.f_c, self.k_f = (p[:, self.plant.index(n)] for n in ("m", "c", "f_c", "k_f"))
         lay = layout
         if not lay.preview_steps:
-            raise ValueError("contouring-fb reads the path direction from the observation's last preview point; "
-                             "the env's preview_steps is empty")
+            raise ValueError(
+                "contouring-fb reads the path direction from the observation's last preview point; "
+                "the env's preview_steps is empty"
+            )
         last_preview = lay.offset("preview") + 2 * (len(lay.preview_steps) - 1)
-        self._offsets = np.array([lay.offset("reference_velocity"), lay.offset("reference_acceleration"),
-                                  lay.offset("tracking_error"), lay.offset("velocity"), last_preview],
-                                 dtype=np.int64)
+        self._offsets = np.array(
+            [
+                lay.offset("reference_velocity"),
+                lay.offset("reference_acceleration"),
+                lay.offset("tracking_error"),
+                lay.offset("velocity"),
+                last_preview,
+            ],
+            dtype=np.int64,
+        )
 
     # -- eq. (5) -------------------------------------------------------------------
     def linearising_current(self, v, velocity) -> np.ndarray:

@@ -93,8 +93,7 @@ NS Z  PS PM PL PL PL
 Z  PS PM PL PL PL PL
 """
 #: Table 1 as label indices 0..6 (NL..PL), ``RULE_TABLE[change, error]``.
-RULE_TABLE = np.array([[LABELS.index(t) for t in row.split()] for row in _TABLE1.strip().splitlines()],
-                      dtype=np.int64)
+RULE_TABLE = np.array([[LABELS.index(t) for t in row.split()] for row in _TABLE1.strip().splitlines()], dtype=np.int64)
 
 #: Peaks of the seven triangular sets on the normalised universes, -1 .. 1.
 CENTRES = np.linspace(-1.0, 1.0, 7)
@@ -245,12 +244,23 @@ class FuzzyPolicy(BaselinePolicy):
     paper = "Jahanpour et al. (2014)"
     state_shape = (0,)
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None,
-                 error_scale=DEFAULT_SCALING.error_scale, rate_scale=DEFAULT_SCALING.rate_scale,
-                 output_scale=DEFAULT_SCALING.output_scale):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        error_scale=DEFAULT_SCALING.error_scale,
+        rate_scale=DEFAULT_SCALING.rate_scale,
+        output_scale=DEFAULT_SCALING.output_scale,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
-        self.scaling = FuzzyScaling(**{f.name: positive(f.name, v) for f, v in
-                                       zip(fields(FuzzyScaling), (error_scale, rate_scale, output_scale))})
+        self.scaling = FuzzyScaling(
+            **{
+                f.name: positive(f.name, v)
+                for f, v in zip(fields(FuzzyScaling), (error_scale, rate_scale, output_scale))
+            }
+        )
 
     def surface(self, e, e_dot) -> np.ndarray:
         """Crisp command in V for errors e (mm) and error rates e_dot (mm/s) of any (equal) shape."""
@@ -258,9 +268,15 @@ class FuzzyPolicy(BaselinePolicy):
         e_dot = np.broadcast_to(np.asarray(e_dot, dtype=float), e.shape)
         out = np.empty(e.size)
         s = self.scaling
-        fuzzy_infer(np.ascontiguousarray(e.ravel() / s.error_scale),
-                    np.ascontiguousarray(e_dot.ravel() / s.rate_scale),
-                    RULE_TABLE, CENTRES, HALF_WIDTH, OUTPUT_GRID, out)
+        fuzzy_infer(
+            np.ascontiguousarray(e.ravel() / s.error_scale),
+            np.ascontiguousarray(e_dot.ravel() / s.rate_scale),
+            RULE_TABLE,
+            CENTRES,
+            HALF_WIDTH,
+            OUTPUT_GRID,
+            out,
+        )
         return s.output_scale * out.reshape(e.shape)
 
     def _command(self, obs):

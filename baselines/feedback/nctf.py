@@ -126,9 +126,7 @@ __all__ = [
 LABELS = ("N", "Z", "P")
 
 #: Purtojo et al., Table I: output label index for (u_p label, u_i label), ``RULE_TABLE[u_p, u_i]``.
-RULE_TABLE = np.array([[0, 0, 1],
-                       [0, 1, 2],
-                       [1, 2, 2]], dtype=np.int64)
+RULE_TABLE = np.array([[0, 0, 1], [0, 1, 2], [1, 2, 2]], dtype=np.int64)
 
 #: Samples of the output universe [-u_r, u_r] (odd, so that the singleton Z at 0 is a sample).
 OUTPUT_POINTS = 101
@@ -224,8 +222,9 @@ def _run_open_loop(plant, commands, out):
             contract.advance(plant, 0, commands[k])
 
 
-def stepwise_experiment(parameters=None, dt: float = 1e-3, settings: NCTFSettings = DEFAULT_SETTINGS,
-                        plant="nct_xy_table") -> StepwiseExperiment:
+def stepwise_experiment(
+    parameters=None, dt: float = 1e-3, settings: NCTFSettings = DEFAULT_SETTINGS, plant="nct_xy_table"
+) -> StepwiseExperiment:
     """Run the open-loop stepwise experiment of Purtojo et al., section III, on both axes.
 
     Parameters
@@ -258,8 +257,14 @@ def stepwise_experiment(parameters=None, dt: float = 1e-3, settings: NCTFSetting
     out = np.empty((on + off + 1, 2))
     _run_open_loop(arrays, commands, out)
     return StepwiseExperiment(
-        time=dt * np.arange(on + off + 1), position=out, input=np.vstack([commands, np.zeros((1, 2))]),
-        switch_index=on, dt=dt, u_r=u_r, resolution=p[:, model.index("resolution")].copy())
+        time=dt * np.arange(on + off + 1),
+        position=out,
+        input=np.vstack([commands, np.zeros((1, 2))]),
+        switch_index=on,
+        dt=dt,
+        u_r=u_r,
+        resolution=p[:, model.index("resolution")].copy(),
+    )
 
 
 # --------------------------------------------------------------------------
@@ -302,8 +307,9 @@ class NominalCharacteristicTrajectory:
         return self.h_max / self.u_r, -self.m
 
 
-def construct_nct(experiment: StepwiseExperiment, axis: int,
-                  settings: NCTFSettings = DEFAULT_SETTINGS) -> NominalCharacteristicTrajectory:
+def construct_nct(
+    experiment: StepwiseExperiment, axis: int, settings: NCTFSettings = DEFAULT_SETTINGS
+) -> NominalCharacteristicTrajectory:
     """Construct one axis's NCT from the deceleration phase of the stepwise experiment.
 
     Parameters
@@ -351,9 +357,14 @@ def construct_nct(experiment: StepwiseExperiment, axis: int,
         raise ValueError("too few samples near the NCT's origin to fit its gradient")
     m = float(np.sum(error[near] * -velocity[near]) / np.sum(error[near] ** 2))
     # the NCT starts at (A, -h_max): the state at the switch
-    return NominalCharacteristicTrajectory(h_max=float(h_max), A=float(A), m=m, u_r=float(ex.u_r[axis]),
-                                           error=np.concatenate([[A], error]),
-                                           error_rate=np.concatenate([[-h_max], -velocity]))
+    return NominalCharacteristicTrajectory(
+        h_max=float(h_max),
+        A=float(A),
+        m=m,
+        u_r=float(ex.u_r[axis]),
+        error=np.concatenate([[A], error]),
+        error_rate=np.concatenate([[-h_max], -velocity]),
+    )
 
 
 # --------------------------------------------------------------------------
@@ -402,14 +413,27 @@ class FuzzyCompensator:
         u_i = np.broadcast_to(np.asarray(u_i, dtype=float), u_p.shape)
         out = np.empty(u_p.size)
         grid = self.output_grid
-        fuzzy_compensate(np.ascontiguousarray(u_p.ravel()), np.ascontiguousarray(u_i.ravel()),
-                         self.h_max, self.h_s_res, self.u_i_max, self.u_i_s_res,
-                         RULE_TABLE, grid, output_memberships(grid), out)
+        fuzzy_compensate(
+            np.ascontiguousarray(u_p.ravel()),
+            np.ascontiguousarray(u_i.ravel()),
+            self.h_max,
+            self.h_s_res,
+            self.u_i_max,
+            self.u_i_s_res,
+            RULE_TABLE,
+            grid,
+            output_memberships(grid),
+            out,
+        )
         return out.reshape(u_p.shape)
 
 
-def design_compensator(nct: NominalCharacteristicTrajectory, resolution: float, sample_period: float,
-                       settings: NCTFSettings = DEFAULT_SETTINGS) -> FuzzyCompensator:
+def design_compensator(
+    nct: NominalCharacteristicTrajectory,
+    resolution: float,
+    sample_period: float,
+    settings: NCTFSettings = DEFAULT_SETTINGS,
+) -> FuzzyCompensator:
     """The membership design of eqs. (1)-(2) from an axis's NCT and sensor.
 
     Parameters
@@ -425,10 +449,16 @@ def design_compensator(nct: NominalCharacteristicTrajectory, resolution: float, 
     a = positive("resolution", resolution)
     T = positive("sample_period", sample_period)
     h_s_res = float(abs(nct.rate(a))) if settings.zero_rate == "nct" else a / T
-    k_i = nct.h_max if settings.integral_gain is None else positive(
-        "integral_gain", settings.integral_gain)
-    return FuzzyCompensator(h_max=nct.h_max, h_s_res=h_s_res, u_i_max=0.5 * nct.A * nct.h_max,
-                            u_i_s_res=4.0 * a * h_s_res, a_s_res=a, u_r=nct.u_r, integral_gain=k_i)
+    k_i = nct.h_max if settings.integral_gain is None else positive("integral_gain", settings.integral_gain)
+    return FuzzyCompensator(
+        h_max=nct.h_max,
+        h_s_res=h_s_res,
+        u_i_max=0.5 * nct.A * nct.h_max,
+        u_i_s_res=4.0 * a * h_s_res,
+        a_s_res=a,
+        u_r=nct.u_r,
+        integral_gain=k_i,
+    )
 
 
 def output_memberships(grid: np.ndarray) -> np.ndarray:
@@ -632,10 +662,19 @@ class NCTFPolicy(BaselinePolicy):
     paper = "Purtojo et al."
     state_shape = (3, 2)
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None,
-                 integral_gain=DEFAULT_SETTINGS.integral_gain, on_time=DEFAULT_SETTINGS.on_time,
-                 off_time=DEFAULT_SETTINGS.off_time, fit_fraction=DEFAULT_SETTINGS.fit_fraction,
-                 velocity_window=DEFAULT_SETTINGS.velocity_window, zero_rate=DEFAULT_SETTINGS.zero_rate):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        integral_gain=DEFAULT_SETTINGS.integral_gain,
+        on_time=DEFAULT_SETTINGS.on_time,
+        off_time=DEFAULT_SETTINGS.off_time,
+        fit_fraction=DEFAULT_SETTINGS.fit_fraction,
+        velocity_window=DEFAULT_SETTINGS.velocity_window,
+        zero_rate=DEFAULT_SETTINGS.zero_rate,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         if integral_gain is not None:
             integral_gain = positive("integral_gain", integral_gain)
@@ -645,12 +684,14 @@ class NCTFPolicy(BaselinePolicy):
             off_time=positive("off_time", off_time),
             fit_fraction=positive("fit_fraction", fit_fraction),
             velocity_window=positive("velocity_window", velocity_window),
-            zero_rate=zero_rate)
-        self.experiment = stepwise_experiment(self.nominal_parameters, self.decision_period, self.settings,
-                                              self.plant)
+            zero_rate=zero_rate,
+        )
+        self.experiment = stepwise_experiment(self.nominal_parameters, self.decision_period, self.settings, self.plant)
         self.nct = tuple(construct_nct(self.experiment, a, self.settings) for a in (0, 1))
-        self.compensators = tuple(design_compensator(n, r, self.decision_period, self.settings)
-                                  for n, r in zip(self.nct, self.experiment.resolution))
+        self.compensators = tuple(
+            design_compensator(n, r, self.decision_period, self.settings)
+            for n, r in zip(self.nct, self.experiment.resolution)
+        )
         c = self.compensators
         self._m = np.array([n.m for n in self.nct])
         self._h_max = np.array([x.h_max for x in c])
@@ -669,9 +710,22 @@ class NCTFPolicy(BaselinePolicy):
         for i in range(obs.shape[0]):
             st = self._state[i]
             e_dot = first_rate[i] if st[2, 0] == 0.0 else (e[i] - st[1]) / T
-            _nctf_step(e[i], e_dot, self._m, self._h_max, self._k_i, T, self._u_i_max, self._h_s_res,
-                       self._u_i_s_res, st[0], RULE_TABLE, self._grid, self._output_mf, out[i])
+            _nctf_step(
+                e[i],
+                e_dot,
+                self._m,
+                self._h_max,
+                self._k_i,
+                T,
+                self._u_i_max,
+                self._h_s_res,
+                self._u_i_s_res,
+                st[0],
+                RULE_TABLE,
+                self._grid,
+                self._output_mf,
+                out[i],
+            )
             st[1] = e[i]
             st[2] = 1.0
         return out
-

@@ -81,8 +81,9 @@ def controller_tf(name: str, unit: str = "mm") -> control.TransferFunction:
         For an unknown controller or unit.
     """
     if not isinstance(name, str) or name not in PAPER_CONTROLLERS:
-        raise ValueError(f"unknown controller of Yadav et al. (2020) {name!r}; "
-                         f"known controllers are {controller_names()}")
+        raise ValueError(
+            f"unknown controller of Yadav et al. (2020) {name!r}; known controllers are {controller_names()}"
+        )
     if unit not in ("mm", "m"):
         raise ValueError(f"unit must be 'mm' (C in V/mm) or 'm' (C in V/m), got {unit!r}")
     num, den = PAPER_CONTROLLERS[name]
@@ -90,8 +91,9 @@ def controller_tf(name: str, unit: str = "mm") -> control.TransferFunction:
     return control.tf([scale * c for c in num], list(den))
 
 
-def imc_controller(mu: float = 1.0, lam: int = 2, a: float = PAPER_NOMINAL["a"],
-                   b: float = PAPER_NOMINAL["b"]) -> control.TransferFunction:
+def imc_controller(
+    mu: float = 1.0, lam: int = 2, a: float = PAPER_NOMINAL["a"], b: float = PAPER_NOMINAL["b"]
+) -> control.TransferFunction:
     """The IMC controller of Yadav et al. (2020), eqs. (21)-(22), for ``G(s) = b / (s (s + a))``.
 
     ``Q = G^-1 / (mu s + 1)^lambda`` and ``C = Q / (1 - G Q)``, which is
@@ -127,8 +129,14 @@ def imc_controller(mu: float = 1.0, lam: int = 2, a: float = PAPER_NOMINAL["a"],
     return control.tf(num, den)
 
 
-def robust_pi_gains(gain_margin_db: float = 10.0, phase_margin_deg: float = 60.0, alpha_1: float = 7.5,
-                    b_low: float = 3.0, b_high: float = 6.0, ratio_digits: int | None = None) -> tuple[float, float]:
+def robust_pi_gains(
+    gain_margin_db: float = 10.0,
+    phase_margin_deg: float = 60.0,
+    alpha_1: float = 7.5,
+    b_low: float = 3.0,
+    b_high: float = 6.0,
+    ratio_digits: int | None = None,
+) -> tuple[float, float]:
     """K_P and K_I of Yadav et al.'s robust PI design, eqs. (17)-(19).
 
     On Kharitonov's worst polynomial ``p_3 = s^3 + alpha_1 s^2 + b_low K_P s

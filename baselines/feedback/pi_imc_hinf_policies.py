@@ -43,6 +43,7 @@ class Yadav2020Policy(BaselinePolicy):
     name = "yadav2020"
     plants = ("cncmt_axis",)
     paper = "Yadav et al. (2020)"
+
     @property
     def controller_name(self) -> str:
         """Which of Yadav et al.'s controllers (:func:`~vcnc_baselines.feedback.pi_imc_hinf.controller_names`): the
@@ -54,8 +55,10 @@ class Yadav2020Policy(BaselinePolicy):
         try:
             layout.slice("position_error")
         except KeyError:
-            raise ValueError("Yadav et al.'s controllers need an observation with a 'position_error' field "
-                             "(the PositioningEnv, e.g. VCNC-Step-v0)") from None
+            raise ValueError(
+                "Yadav et al.'s controllers need an observation with a 'position_error' field "
+                "(the PositioningEnv, e.g. VCNC-Step-v0)"
+            ) from None
         self.continuous = controller_tf(self.controller_name)  # ValueError for an unknown name
         self.source = CONTROLLER_SOURCES[self.controller_name]
         self.discrete = discretize(self.continuous, self.decision_period, method=method)

@@ -128,8 +128,9 @@ def _as_tf(name: str, value) -> control.TransferFunction:
         try:
             num, den = value
         except (TypeError, ValueError):
-            raise ValueError(f"{name} must be a (numerator, denominator) pair or a TransferFunction, "
-                             f"got {value!r}") from None
+            raise ValueError(
+                f"{name} must be a (numerator, denominator) pair or a TransferFunction, got {value!r}"
+            ) from None
     num = polynomial(f"{name} numerator", num)
     den = polynomial(f"{name} denominator", den)
     if num.size > den.size:
@@ -213,8 +214,16 @@ class QFTPolicy(BaselinePolicy):
     plants = ("vcnc_feed_drive",)
     paper = "Jahanpour et al. (2014)"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, controller=QFT_CONTROLLER,
-                 prefilter=QFT_PREFILTER, method: str = "tustin"):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        controller=QFT_CONTROLLER,
+        prefilter=QFT_PREFILTER,
+        method: str = "tustin",
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         if not isinstance(method, str):
             raise ValueError(f"method must be a string, got {method!r}")
@@ -231,22 +240,26 @@ class QFTPolicy(BaselinePolicy):
             raise ValueError(f"cannot discretise with method {method!r}: {exc}") from None
         # W: (v_r, e) -> w = H v_r + e, then u = G w.
         Hd = self.H_d
-        W = control.ss(Hd.A, np.hstack([Hd.B, np.zeros((Hd.nstates, 1))]),
-                       Hd.C, np.hstack([Hd.D, np.ones((1, 1))]), dt)
+        W = control.ss(Hd.A, np.hstack([Hd.B, np.zeros((Hd.nstates, 1))]), Hd.C, np.hstack([Hd.D, np.ones((1, 1))]), dt)
         self.K_d = control.series(W, self.G_d)
         self._lti = DiscreteLTI(self.K_d)
         self.state_shape = (2, self._lti.nx)
-        radius = max(sampled_loop_spectral_radius(self.G, axis, dt, parameter_sets=self.nominal_parameters[None],
-                                                  method=method) for axis in (0, 1))
+        radius = max(
+            sampled_loop_spectral_radius(self.G, axis, dt, parameter_sets=self.nominal_parameters[None], method=method)
+            for axis in (0, 1)
+        )
         if radius >= 1.0:
-            warnings.warn(f"the QFT loop sampled at {dt:g} s is unstable on the nominal plant "
-                          f"(closed-loop pole at |z| = {radius:.3g}); use a shorter decision period",
-                          RuntimeWarning, stacklevel=2)
+            warnings.warn(
+                f"the QFT loop sampled at {dt:g} s is unstable on the nominal plant "
+                f"(closed-loop pole at |z| = {radius:.3g}); use a shorter decision period",
+                RuntimeWarning,
+                stacklevel=2,
+            )
 
     def _command(self, obs):
         n = obs.shape[0]
-        e = self.layout.tracking_error(obs)          # (n, 2) mm
-        v_r = self.layout.reference_velocity(obs)    # (n, 2) mm/s
+        e = self.layout.tracking_error(obs)  # (n, 2) mm
+        v_r = self.layout.reference_velocity(obs)  # (n, 2) mm/s
         inputs = np.stack([v_r, e], axis=-1).reshape(n * 2, 2)
         x = self._state.reshape(n * 2, self._lti.nx)  # a view: advanced in place
         return self._lti.step(x, inputs).reshape(n, 2)
@@ -255,8 +268,17 @@ class QFTPolicy(BaselinePolicy):
         """The compiled form (:mod:`vcnc_gym.envs.controller_contract`) around the current memory."""
         lti = self._lti
         n = self._state.shape[0]
-        return QFTArrays(self._state, lti.A, lti.B, lti.C, lti.D, self.u_max, np.zeros((n, 2)), np.zeros((n, lti.ny)),
-                         np.zeros((n, lti.nx)))
+        return QFTArrays(
+            self._state,
+            lti.A,
+            lti.B,
+            lti.C,
+            lti.D,
+            self.u_max,
+            np.zeros((n, 2)),
+            np.zeros((n, lti.ny)),
+            np.zeros((n, lti.nx)),
+        )
 
 
 #: The compiled controller's arrays: the memory x (N, 2, nx), the (H, G) cascade's discrete state-space
@@ -353,8 +375,17 @@ def _complementary_sensitivity(num, den, omega, dt):
     return np.abs(L / (1.0 + L))
 
 
-def robust_stability_peak(G=QFT_CONTROLLER, axis=0, dt=None, *, n_grid: int = 5, vertices=None,
-                          omega=None, method: str = "tustin", full_output: bool = False):
+def robust_stability_peak(
+    G=QFT_CONTROLLER,
+    axis=0,
+    dt=None,
+    *,
+    n_grid: int = 5,
+    vertices=None,
+    omega=None,
+    method: str = "tustin",
+    full_output: bool = False,
+):
     """Worst-case peak of |P G / (1 + P G)| over the uncertainty box, Jahanpour et al.'s eq. (11).
 
     Parameters
@@ -410,18 +441,22 @@ def robust_stability_peak(G=QFT_CONTROLLER, axis=0, dt=None, *, n_grid: int = 5,
         jj = int(np.argmax(mags[kk]))
         lo, hi = w[max(jj - 1, 0)], w[min(jj + 1, w.size - 1)]
         if hi > lo:
-            res = minimize_scalar(lambda lw: -_complementary_sensitivity(*loops[kk], np.array([10.0 ** lw]), dt)[0],
-                                  bounds=(np.log10(lo), np.log10(hi)), method="bounded",
-                                  options={"xatol": 1e-10})
+            res = minimize_scalar(
+                lambda lw: -_complementary_sensitivity(*loops[kk], np.array([10.0**lw]), dt)[0],
+                bounds=(np.log10(lo), np.log10(hi)),
+                method="bounded",
+                options={"xatol": 1e-10},
+            )
             if -res.fun > best:
-                best, w_best, k = -res.fun, 10.0 ** res.x, kk
+                best, w_best, k = -res.fun, 10.0**res.x, kk
     if full_output:
         return float(best), float(w_best), sets[k].copy()
     return float(best)
 
 
-def sampled_loop_spectral_radius(G=QFT_CONTROLLER, axis=0, dt=1e-4, *, parameter_sets=None,
-                                 method: str = "tustin") -> float:
+def sampled_loop_spectral_radius(
+    G=QFT_CONTROLLER, axis=0, dt=1e-4, *, parameter_sets=None, method: str = "tustin"
+) -> float:
     """Largest closed-loop pole modulus |z| of the sampled loop over a plant set.
 
     The loop is the ZOH-discretised plant P(z) (Jahanpour et al. (2014), eq. (1)) in unity
@@ -456,8 +491,6 @@ def sampled_loop_spectral_radius(G=QFT_CONTROLLER, axis=0, dt=1e-4, *, parameter
     return radius
 
 
-def sampled_loop_stable(G=QFT_CONTROLLER, dt=1e-4, *, axes=(0, 1), parameter_sets=None,
-                        method: str = "tustin") -> bool:
+def sampled_loop_stable(G=QFT_CONTROLLER, dt=1e-4, *, axes=(0, 1), parameter_sets=None, method: str = "tustin") -> bool:
     """True if the sampled loop (ZOH plant, discretised G) is stable on every vertex of every axis."""
-    return all(sampled_loop_spectral_radius(G, a, dt, parameter_sets=parameter_sets, method=method) < 1.0
-               for a in axes)
+    return all(sampled_loop_spectral_radius(G, a, dt, parameter_sets=parameter_sets, method=method) < 1.0 for a in axes)

@@ -110,9 +110,18 @@ class SlidingModePolicy(BaselinePolicy):
     paper = "Jahanpour et al. (2014)"
     state_shape = (2,)  # d_hat per axis, V
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, lam=SMC_TABLE2["lam"],
-                 K_s=SMC_TABLE2["K_s"], rho=SMC_TABLE2["rho"], d_minus=SMC_TABLE2["d_minus"],
-                 d_plus=SMC_TABLE2["d_plus"]):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        lam=SMC_TABLE2["lam"],
+        K_s=SMC_TABLE2["K_s"],
+        rho=SMC_TABLE2["rho"],
+        d_minus=SMC_TABLE2["d_minus"],
+        d_plus=SMC_TABLE2["d_plus"],
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.lam = per_axis("lam", lam, rule=positive)
         self.K_s = per_axis("K_s", K_s, rule=non_negative)
@@ -120,8 +129,10 @@ class SlidingModePolicy(BaselinePolicy):
         self.d_minus = per_axis("d_minus", d_minus)
         self.d_plus = per_axis("d_plus", d_plus)
         if np.any(self.d_minus > 0) or np.any(self.d_plus < 0):
-            raise ValueError(f"need d_minus <= 0 <= d_plus (the estimate starts at 0), "
-                             f"got d_minus={self.d_minus}, d_plus={self.d_plus}")
+            raise ValueError(
+                f"need d_minus <= 0 <= d_plus (the estimate starts at 0), "
+                f"got d_minus={self.d_minus}, d_plus={self.d_plus}"
+            )
         p = self.nominal_parameters
         r_g, K_t, K_a, J, B = (p[:, feed_drive.PARAMETER_NAMES.index(n)] for n in ("r_g", "K_t", "K_a", "J", "B"))
         gain = K_t * K_a * r_g  # Nm mm / (V rad): torque-to-voltage times transmission
@@ -154,14 +165,25 @@ class SlidingModePolicy(BaselinePolicy):
 
     def _compiled_arrays(self) -> SlidingModeArrays:
         """The compiled form (:mod:`vcnc_gym.envs.controller_contract`) around the current memory."""
-        return SlidingModeArrays(self._state, self.m, self.c, self.lam, self.K_s, self.rho, self.d_minus, self.d_plus,
-                                 self.decision_period, self.u_max)
+        return SlidingModeArrays(
+            self._state,
+            self.m,
+            self.c,
+            self.lam,
+            self.K_s,
+            self.rho,
+            self.d_minus,
+            self.d_plus,
+            self.decision_period,
+            self.u_max,
+        )
 
 
 #: The compiled controller's arrays: the memory d_hat (N, 2) V, the gains of :class:`SlidingModePolicy` ((2,)
 #: each), its period T (s) and u_max (V, (2,)).
-SlidingModeArrays = namedtuple("SlidingModeArrays",
-                               ["d_hat", "m", "c", "lam", "K_s", "rho", "d_minus", "d_plus", "period", "u_max"])
+SlidingModeArrays = namedtuple(
+    "SlidingModeArrays", ["d_hat", "m", "c", "lam", "K_s", "rho", "d_minus", "d_plus", "period", "u_max"]
+)
 
 
 @njit(cache=True, _nrt=False)

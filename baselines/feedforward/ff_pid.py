@@ -60,11 +60,33 @@ class FeedforwardPIDPolicy(ServoPolicy):
 
     name = "ff-pid"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
-                 commissioning: str | None = None, bandwidth=None, integral: bool = True, feedforward=True,
-                 friction_time: float | None = None, backlash_time: float = 16e-3):
-        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt, task=task,
-                         commissioning=commissioning)
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        task=None,
+        commissioning: str | None = None,
+        bandwidth=None,
+        integral: bool = True,
+        feedforward=True,
+        friction_time: float | None = None,
+        backlash_time: float = 16e-3,
+    ):
+        super().__init__(
+            layout,
+            decision_period,
+            nominal_parameters,
+            plant,
+            reference=reference,
+            dt=dt,
+            task=task,
+            commissioning=commissioning,
+        )
         self._bandwidth_override = None if bandwidth is None else positive("bandwidth", bandwidth, "rad/s")
         kinds = (True, False, "inverse", "rigid", "shaper-zv", "shaper-zvd")
         if not any(feedforward is k or (isinstance(k, str) and feedforward == k) for k in kinds):
@@ -72,7 +94,8 @@ class FeedforwardPIDPolicy(ServoPolicy):
         self.feedforward = "inverse" if feedforward is True else feedforward
         self.integral = bool(integral)
         self.friction_time = non_negative(
-            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s")
+            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s"
+        )
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         self._build()
 
@@ -98,18 +121,24 @@ class FeedforwardPIDPolicy(ServoPolicy):
         if self.feedforward in ("shaper-zv", "shaper-zvd"):
             shaped = shaped_reference(self.reference, record, self.feedforward[7:], self.dt)
             rigid = record.inverse(with_mode=False)
-            table[:, U_FF:U_FF + 2] = inverse_feedforward(rigid, shaped, self.dt, friction_time=self.friction_time,
-                                                          backlash_time=self.backlash_time)
-            table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, shaped, self.dt, rigid.delay)
-            table[:, OFFSET:OFFSET + 2] = (shaped[:, sk.REF_POSITION:sk.REF_POSITION + 2]
-                                           - self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2])
-            table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = (shaped[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-                                                             - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2])
+            table[:, U_FF : U_FF + 2] = inverse_feedforward(
+                rigid, shaped, self.dt, friction_time=self.friction_time, backlash_time=self.backlash_time
+            )
+            table[:, U_FF : U_FF + 2] += path_force_feedforward(record.process_force, shaped, self.dt, rigid.delay)
+            table[:, OFFSET : OFFSET + 2] = (
+                shaped[:, sk.REF_POSITION : sk.REF_POSITION + 2]
+                - self.reference[:, sk.REF_POSITION : sk.REF_POSITION + 2]
+            )
+            table[:, VELOCITY_OFFSET : VELOCITY_OFFSET + 2] = (
+                shaped[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
+                - self.reference[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
+            )
             return table
         inv = record.inverse(with_mode=False) if self.feedforward == "rigid" else inverse
-        table[:, U_FF:U_FF + 2] = inverse_feedforward(inv, self.reference, self.dt, friction_time=self.friction_time,
-                                                      backlash_time=self.backlash_time)
-        table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, self.reference, self.dt, inv.delay)
+        table[:, U_FF : U_FF + 2] = inverse_feedforward(
+            inv, self.reference, self.dt, friction_time=self.friction_time, backlash_time=self.backlash_time
+        )
+        table[:, U_FF : U_FF + 2] += path_force_feedforward(record.process_force, self.reference, self.dt, inv.delay)
         return table
 
     def _gains(self, g: dict) -> ServoGains:
@@ -132,6 +161,6 @@ def shaped_reference(samples: np.ndarray, record, kind: str, dt: float) -> np.nd
             y = np.zeros_like(x)
             for t, a in zip(times, amplitudes):
                 shift = int(round(t / dt))
-                y += a * np.concatenate([np.full(shift, x[0]), x[:x.size - shift]]) if shift else a * x
+                y += a * np.concatenate([np.full(shift, x[0]), x[: x.size - shift]]) if shift else a * x
             out[:, column + j] = y
     return out

@@ -62,30 +62,45 @@ class OnlineFeedforwardPIDPolicy(PerMachine, BaselinePolicy):
     plants = ("vcnc_feed_drive", "current_feed_drive")
     state_shape = (8,)  # the integrators (mm s), the filtered velocities (mm/s), the notches' states (input unit)
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, bandwidth=None,
-                 integral: bool = True, commissioning: str | None = None):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        bandwidth=None,
+        integral: bool = True,
+        commissioning: str | None = None,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         declared = self.plant.inverse(self.nominal_parameters)
         if np.any(declared.delay > 0) or np.any(declared.coefficients[:, 2:] != 0):
-            raise ValueError(f"ff-pid-online computes a second-order model's input from the current reference; "
-                             f"plant {self.plant.name!r} has a dead time or higher-order terms")
+            raise ValueError(
+                f"ff-pid-online computes a second-order model's input from the current reference; "
+                f"plant {self.plant.name!r} has a dead time or higher-order terms"
+            )
         from ..commissioning.record import model_record, nominal_record
 
         if commissioning not in (None, "nominal", "model", "machine"):
-            raise ValueError(f"commissioning must be 'nominal', 'model', 'machine' or None for ff-pid-online, got "
-                             f"{commissioning!r}")
+            raise ValueError(
+                f"commissioning must be 'nominal', 'model', 'machine' or None for ff-pid-online, got {commissioning!r}"
+            )
         self.commissioning = commissioning
         self.dt = self.decision_period  # the records' control period: the law is called every period
         record = None
         if commissioning != "model":
             record = nominal_record(self.plant, self.nominal_parameters, self.decision_period)
             if record is None and commissioning is not None:
-                raise ValueError(f"ff-pid-online: commissioning={commissioning!r} starts from the shipped record of "
-                                 "the nominal machine, and there is none (python -m vcnc_baselines.commissioning.record "
-                                 "ENV_ID)")
+                raise ValueError(
+                    f"ff-pid-online: commissioning={commissioning!r} starts from the shipped record of "
+                    "the nominal machine, and there is none (python -m vcnc_baselines.commissioning.record "
+                    "ENV_ID)"
+                )
         self.records = [record or model_record(self.plant, self.nominal_parameters, self.decision_period)]
-        self.bandwidth = positive("bandwidth", self.records[0].designs[0].bandwidth if bandwidth is None
-                                  else bandwidth, "rad/s")
+        self.bandwidth = positive(
+            "bandwidth", self.records[0].designs[0].bandwidth if bandwidth is None else bandwidth, "rad/s"
+        )
         self._bandwidth_override = None if bandwidth is None else self.bandwidth
         self.integral = bool(integral)
         self._build()
@@ -101,10 +116,17 @@ class OnlineFeedforwardPIDPolicy(PerMachine, BaselinePolicy):
         if not self.integral:
             ki = np.zeros(2)
         notch = np.asarray(gains["notch"], dtype=np.float64)
-        return {"coefficients": inverse.coefficients[:, :2], "coulomb": inverse.coulomb, "kp": kp, "kd": kd, "ki": ki,
-                "integral_limit": np.where(ki > 0, self.u_max / np.where(ki > 0, ki, 1.0), 0.0),
-                "velocity_filter": gains["velocity_filter"], "notch": notch,
-                "notched": np.any(notch != np.array(NO_NOTCH), axis=1).astype(np.float64)}
+        return {
+            "coefficients": inverse.coefficients[:, :2],
+            "coulomb": inverse.coulomb,
+            "kp": kp,
+            "kd": kd,
+            "ki": ki,
+            "integral_limit": np.where(ki > 0, self.u_max / np.where(ki > 0, ki, 1.0), 0.0),
+            "velocity_filter": gains["velocity_filter"],
+            "notch": notch,
+            "notched": np.any(notch != np.array(NO_NOTCH), axis=1).astype(np.float64),
+        }
 
     def _build(self) -> None:
         """The law's arrays from :attr:`records`, stacked (G, ...) with G = 1 or one row per env."""
@@ -126,8 +148,9 @@ class OnlineFeedforwardPIDPolicy(PerMachine, BaselinePolicy):
         """Each env's design row for a batch of ``n``: 0 when the envs share one, else its own."""
         g = self.kp.shape[0]
         if g > 1 and g != n:
-            raise ValueError(f"ff-pid-online commissioned {g} machines and is given {n} envs: plan(env) on the env "
-                             "it runs first")
+            raise ValueError(
+                f"ff-pid-online commissioned {g} machines and is given {n} envs: plan(env) on the env it runs first"
+            )
         return np.arange(n) if g > 1 else np.zeros(n, dtype=np.int64)
 
     def _command(self, obs: np.ndarray) -> np.ndarray:
@@ -156,8 +179,10 @@ class OnlineFeedforwardPIDPolicy(PerMachine, BaselinePolicy):
             b0, b1, b2, a1, a2 = (self.notch[r][:, :, c] for c in range(5))
             z1, z2 = mem[:, 4:8:2], mem[:, 5:8:2]
             y = b0 * x + z1
-            mem[:, 4:8:2], mem[:, 5:8:2] = (np.where(notched, b1 * x - a1 * y + z2, z1),
-                                            np.where(notched, b2 * x - a2 * y, z2))
+            mem[:, 4:8:2], mem[:, 5:8:2] = (
+                np.where(notched, b1 * x - a1 * y + z2, z1),
+                np.where(notched, b2 * x - a2 * y, z2),
+            )
             u = np.where(notched, u_ff + y, u)
         bound = self.integral_limit[r]
         mem[:, 0:2] = np.minimum(np.maximum(integral + e * self.decision_period, -bound), bound)
@@ -165,8 +190,13 @@ class OnlineFeedforwardPIDPolicy(PerMachine, BaselinePolicy):
 
     def _compiled_arrays(self) -> "OnlineArrays":
         self._rows(self._state.shape[0])
-        return OnlineArrays(self._state, *(getattr(self, name) for name in _LAW_FIELDS[:6]), self.u_max,
-                            self.decision_period, *(getattr(self, name) for name in _LAW_FIELDS[6:]))
+        return OnlineArrays(
+            self._state,
+            *(getattr(self, name) for name in _LAW_FIELDS[:6]),
+            self.u_max,
+            self.decision_period,
+            *(getattr(self, name) for name in _LAW_FIELDS[6:]),
+        )
 
 
 #: The law's per-row arrays, in :class:`OnlineArrays`' order (u_max and the period between the sixth and seventh).
@@ -178,8 +208,23 @@ _LAW_FIELDS = ("coefficients", "coulomb", "kp", "kd", "ki", "integral_limit", "v
 #: of acceleration), Coulomb levels (G, 2, 2) (per axis: positive, negative direction), the PID gains (G, 2) each,
 #: integral limits (G, 2); u_max (2,), the call period (s); the velocity filters' poles (G, 2), the notches (G, 2, 5)
 #: and whether each is one (G, 2).
-OnlineArrays = namedtuple("OnlineArrays", ["memory", "coefficients", "coulomb", "kp", "kd", "ki", "integral_limit",
-                                           "u_max", "period", "velocity_filter", "notch", "notched"])
+OnlineArrays = namedtuple(
+    "OnlineArrays",
+    [
+        "memory",
+        "coefficients",
+        "coulomb",
+        "kp",
+        "kd",
+        "ki",
+        "integral_limit",
+        "u_max",
+        "period",
+        "velocity_filter",
+        "notch",
+        "notched",
+    ],
+)
 
 
 @njit(cache=True, _nrt=False)

@@ -24,8 +24,17 @@ from scipy import signal
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.plants.contract import INVERSE_ORDER, InverseDynamics
 
-__all__ = ["reference_motion", "smooth_sign", "inverse_feedforward", "linear_inverse", "closed_loop", "split_zeros",
-           "zpetc_filter", "zpetc_reference", "path_force_feedforward"]
+__all__ = [
+    "reference_motion",
+    "smooth_sign",
+    "inverse_feedforward",
+    "linear_inverse",
+    "closed_loop",
+    "split_zeros",
+    "zpetc_filter",
+    "zpetc_reference",
+    "path_force_feedforward",
+]
 
 
 def reference_motion(samples: np.ndarray, dt: float) -> np.ndarray:
@@ -33,9 +42,9 @@ def reference_motion(samples: np.ndarray, dt: float) -> np.ndarray:
 
     Position, velocity and acceleration are the reference's own (the interpolator's exact values); jerk
     and snap are central differences of the acceleration (:func:`numpy.gradient`)."""
-    x = samples[:, sk.REF_POSITION:sk.REF_POSITION + 2]
-    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
-    a = samples[:, sk.REF_ACCELERATION:sk.REF_ACCELERATION + 2]
+    x = samples[:, sk.REF_POSITION : sk.REF_POSITION + 2]
+    v = samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
+    a = samples[:, sk.REF_ACCELERATION : sk.REF_ACCELERATION + 2]
     jerk = np.gradient(a, dt, axis=0)
     snap = np.gradient(jerk, dt, axis=0)
     return np.stack([x, v, a, jerk, snap], axis=2)
@@ -52,7 +61,7 @@ def smooth_sign(velocity: np.ndarray, dt: float, duration: float) -> np.ndarray:
     window /= window.sum()
     padded = np.concatenate([np.repeat(s[:1], n, axis=0), s, np.repeat(s[-1:], n, axis=0)])
     out = np.stack([np.convolve(padded[:, j], window, mode="same") for j in range(s.shape[1])], axis=1)
-    return out[n:n + s.shape[0]]
+    return out[n : n + s.shape[0]]
 
 
 def _at(values: np.ndarray, shift: np.ndarray) -> np.ndarray:
@@ -61,9 +70,17 @@ def _at(values: np.ndarray, shift: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(k + shift[j], k, values[:, j]) for j in range(2)])
 
 
-def inverse_feedforward(inverse: InverseDynamics, samples: np.ndarray, dt: float, *,
-                        friction_time: float = 1e-3, backlash_time: float = 16e-3,
-                        motion: bool = True, friction: bool = True, backlash: bool = True) -> np.ndarray:
+def inverse_feedforward(
+    inverse: InverseDynamics,
+    samples: np.ndarray,
+    dt: float,
+    *,
+    friction_time: float = 1e-3,
+    backlash_time: float = 16e-3,
+    motion: bool = True,
+    friction: bool = True,
+    backlash: bool = True,
+) -> np.ndarray:
     """The nominal model's input along the reference, (K, 2) in the plant's input unit (row k: the input
     held over control period k).
 
@@ -85,7 +102,7 @@ def inverse_feedforward(inverse: InverseDynamics, samples: np.ndarray, dt: float
     reference = reference_motion(samples, dt)
     velocity = reference[:, :, 1]
     s = smooth_sign(velocity, dt, friction_time)
-    derivatives = reference[:, :, 1:1 + INVERSE_ORDER] * (1.0 if motion else 0.0)
+    derivatives = reference[:, :, 1 : 1 + INVERSE_ORDER] * (1.0 if motion else 0.0)
     if backlash and np.any(inverse.backlash > 0):  # the drive leads the table by D_b / 2 in the direction of motion
         side = 0.5 * inverse.backlash * smooth_sign(velocity, dt, backlash_time)
         lead = [np.gradient(side, dt, axis=0)]
@@ -97,7 +114,7 @@ def inverse_feedforward(inverse: InverseDynamics, samples: np.ndarray, dt: float
         u = u + np.maximum(s, 0.0) * inverse.coulomb[:, 0] + np.maximum(-s, 0.0) * inverse.coulomb[:, 1]
         level, vs = inverse.stribeck[:, 0], inverse.stribeck[:, 1]
         if np.any(level > 0):  # the Stribeck curve along the reference's speed, switched as the Coulomb level
-            u = u + level * np.exp(-(velocity / np.where(level > 0, vs, 1.0)) ** 2) * s
+            u = u + level * np.exp(-((velocity / np.where(level > 0, vs, 1.0)) ** 2)) * s
     return _at(u, 0.5 + inverse.delay / dt)
 
 
@@ -191,7 +208,7 @@ def path_force_feedforward(force, samples: np.ndarray, dt: float, delay) -> np.n
     force against the path's motion shares itself among the axes as the motion does), ``v`` the reference
     velocity, read ahead as :func:`inverse_feedforward` reads it (``delay`` (2,) s); zero where the reference
     stands still (below a thousandth of its peak speed)."""
-    v = samples[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2]
+    v = samples[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
     speed = np.hypot(v[:, 0], v[:, 1])
     floor = 1e-3 * max(float(speed.max()), 1e-12)
     share = np.where(speed[:, None] > floor, v / np.maximum(speed, floor)[:, None], 0.0)

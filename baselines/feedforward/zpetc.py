@@ -48,17 +48,40 @@ class ZPETCPolicy(ServoPolicy):
 
     name = "zpetc"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, task=None,
-                 commissioning: str | None = None, bandwidth=None, friction_time: float | None = None,
-                 backlash_time: float = 16e-3):
-        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt, task=task,
-                         commissioning=commissioning)
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        task=None,
+        commissioning: str | None = None,
+        bandwidth=None,
+        friction_time: float | None = None,
+        backlash_time: float = 16e-3,
+    ):
+        super().__init__(
+            layout,
+            decision_period,
+            nominal_parameters,
+            plant,
+            reference=reference,
+            dt=dt,
+            task=task,
+            commissioning=commissioning,
+        )
         if self.stride != 1:
-            raise ValueError(f"zpetc is designed at the control period: it needs decision_period = dt "
-                             f"({self.dt} s), got {self.decision_period} s")
+            raise ValueError(
+                f"zpetc is designed at the control period: it needs decision_period = dt "
+                f"({self.dt} s), got {self.decision_period} s"
+            )
         self._bandwidth_override = None if bandwidth is None else positive("bandwidth", bandwidth, "rad/s")
         self.friction_time = non_negative(
-            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s")
+            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s"
+        )
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         self._build()
 
@@ -68,7 +91,7 @@ class ZPETCPolicy(ServoPolicy):
         return self._bandwidth_override or self.records[0].designs[0].bandwidth
 
     def _build(self) -> None:
-        x_d = self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2]
+        x_d = self.reference[:, sk.REF_POSITION : sk.REF_POSITION + 2]
         tables, gains = [], []
         for record, inverse, g in self.commissioned():
             rigid = record.inverse(with_mode=False)
@@ -77,14 +100,21 @@ class ZPETCPolicy(ServoPolicy):
             table = reference_table(self.reference)
             r = zpetc_reference(self.filters, x_d)
             r_rate = np.diff(r, axis=0, prepend=r[:1]) / self.dt  # (r_k - r_{k-1}) / T, as the closed loop models it
-            table[:, OFFSET:OFFSET + 2] = r - x_d
-            table[:, VELOCITY_OFFSET:VELOCITY_OFFSET + 2] = (r_rate
-                                                             - self.reference[:, sk.REF_VELOCITY:sk.REF_VELOCITY + 2])
-            table[:, U_FF:U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
-                rigid, self.reference, self.dt, motion=False, friction_time=self.friction_time,
-                backlash_time=self.backlash_time)
-            table[:, U_FF:U_FF + 2] += path_force_feedforward(record.process_force, self.reference, self.dt,
-                                                              rigid.delay)
+            table[:, OFFSET : OFFSET + 2] = r - x_d
+            table[:, VELOCITY_OFFSET : VELOCITY_OFFSET + 2] = (
+                r_rate - self.reference[:, sk.REF_VELOCITY : sk.REF_VELOCITY + 2]
+            )
+            table[:, U_FF : U_FF + 2] = inverse_feedforward(  # the loop's reference carries the motion
+                rigid,
+                self.reference,
+                self.dt,
+                motion=False,
+                friction_time=self.friction_time,
+                backlash_time=self.backlash_time,
+            )
+            table[:, U_FF : U_FF + 2] += path_force_feedforward(
+                record.process_force, self.reference, self.dt, rigid.delay
+            )
             tables.append(table)
             gains.append(ServoGains(g["kp"], g["kd"], g["ki"], velocity_filter=g["velocity_filter"], notch=g["notch"]))
         self._set_law(tables[0] if len(tables) == 1 else np.stack(tables), gains[0] if len(gains) == 1 else gains)

@@ -152,10 +152,22 @@ class ILCPolicy(ContouringFBPolicy):
     #: Each episode is a trial learning from the previous one (``vcnc-bench --trials K`` runs K of them).
     learns_across_episodes = True
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None,
-                 k_p=TABLE_I_FB["k_p"], k_d=TABLE_I_FB["k_d"], k_pl=TABLE_I_ILC["k_pl"], k_il=TABLE_I_ILC["k_il"],
-                 k_dl=TABLE_I_ILC["k_dl"], alpha=TABLE_I_ILC["alpha"], beta=TABLE_I_ILC["beta"],
-                 q=TABLE_I_ILC["q"], q_cutoff=None):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        k_p=TABLE_I_FB["k_p"],
+        k_d=TABLE_I_FB["k_d"],
+        k_pl=TABLE_I_ILC["k_pl"],
+        k_il=TABLE_I_ILC["k_il"],
+        k_dl=TABLE_I_ILC["k_dl"],
+        alpha=TABLE_I_ILC["alpha"],
+        beta=TABLE_I_ILC["beta"],
+        q=TABLE_I_ILC["q"],
+        q_cutoff=None,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant, k_p=k_p, k_d=k_d)
         self.k_pl = non_negative("k_pl (1/s^2)", k_pl)
         self.k_il = non_negative("k_il (1/s^3)", k_il)
@@ -169,8 +181,10 @@ class ILCPolicy(ContouringFBPolicy):
             raise ValueError(f"q must be in (0, 1], got {self.q}")
         self.q_cutoff = None if q_cutoff is None else positive("q_cutoff (Hz)", q_cutoff)
         if self.q_cutoff is not None and self.q_cutoff >= 0.5 / self.decision_period:
-            raise ValueError(f"q_cutoff must be below the Nyquist frequency {0.5 / self.decision_period:g} Hz, "
-                             f"got {self.q_cutoff:g} Hz")
+            raise ValueError(
+                f"q_cutoff must be below the Nyquist frequency {0.5 / self.decision_period:g} Hz, "
+                f"got {self.q_cutoff:g} Hz"
+            )
         self.reset_learning()
 
     # -- learning memory ---------------------------------------------------------
@@ -245,7 +259,7 @@ class ILCPolicy(ContouringFBPolicy):
         for name in ("_record_w", "_record_e", "_learned"):
             old = getattr(self, name)
             new = np.zeros((old.shape[0], cap, 2))
-            new[:, :old.shape[1]] = old
+            new[:, : old.shape[1]] = old
             setattr(self, name, new)
 
     # -- analysis ---------------------------------------------------------------------

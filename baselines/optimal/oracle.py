@@ -91,18 +91,44 @@ class OraclePolicy(BaselinePolicy):
     needs_reference = True
     state_shape = (0,)
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, population: int = 16,
-                 ilc_iterations: int = 8, rounds: int = 8, generations: int = 12, windows: int = 3,
-                 trials: int = 10, seed: int = 0, cache: bool = True, check_by_episode: bool = False,
-                 extra_starts=None):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        population: int = 16,
+        ilc_iterations: int = 8,
+        rounds: int = 8,
+        generations: int = 12,
+        windows: int = 3,
+        trials: int = 10,
+        seed: int = 0,
+        cache: bool = True,
+        check_by_episode: bool = False,
+        extra_starts=None,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
-        for key, value, low in (("population", population, 4), ("ilc_iterations", ilc_iterations, 0),
-                                ("rounds", rounds, 0), ("generations", generations, 1), ("windows", windows, 1),
-                                ("trials", trials, 1), ("seed", seed, 0)):
+        for key, value, low in (
+            ("population", population, 4),
+            ("ilc_iterations", ilc_iterations, 0),
+            ("rounds", rounds, 0),
+            ("generations", generations, 1),
+            ("windows", windows, 1),
+            ("trials", trials, 1),
+            ("seed", seed, 0),
+        ):
             integer(key, value, low)
-        self.search = {"population": int(population), "ilc_iterations": int(ilc_iterations), "rounds": int(rounds),
-                       "generations": int(generations), "windows": int(windows), "trials": int(trials),
-                       "seed": int(seed)}
+        self.search = {
+            "population": int(population),
+            "ilc_iterations": int(ilc_iterations),
+            "rounds": int(rounds),
+            "generations": int(generations),
+            "windows": int(windows),
+            "trials": int(trials),
+            "seed": int(seed),
+        }
         self.cache = flag("cache", cache)
         self.check_by_episode = flag("check_by_episode", check_by_episode)
         self._unchecked: list[str] = []  # keys loaded without a replay, for confirm()
@@ -110,8 +136,9 @@ class OraclePolicy(BaselinePolicy):
         self.extra_starts = dict(extra_starts or {})
         for label, policy in self.extra_starts.items():
             if not isinstance(label, str) or not hasattr(policy, "predict"):
-                raise ValueError(f"extra_starts must map labels to policies with predict(), got {label!r}: "
-                                 f"{type(policy).__name__}")
+                raise ValueError(
+                    f"extra_starts must map labels to policies with predict(), got {label!r}: {type(policy).__name__}"
+                )
         self.solve_time_s = float("nan")
         self.solutions: list[Solution] = []
         self._starts: list = []
@@ -124,9 +151,11 @@ class OraclePolicy(BaselinePolicy):
         """As :meth:`BaselinePolicy.from_env`; refuses an env whose reference is re-timed while it runs (a feed
         override): the floor is searched about a reference fixed before the episode."""
         if getattr(getattr(env, "unwrapped", env), "retimes_reference", False):
-            raise ValueError(f"baseline {cls.name!r} searches a correction about a reference fixed before the "
-                             f"episode; {type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
-                             "override): there is no floor there")
+            raise ValueError(
+                f"baseline {cls.name!r} searches a correction about a reference fixed before the "
+                f"episode; {type(env.unwrapped).__name__} re-times its reference while it runs (a feed "
+                "override): there is no floor there"
+            )
         return super().from_env(env, **params)
 
     def _initial_state(self):
@@ -160,7 +189,9 @@ class OraclePolicy(BaselinePolicy):
             stored = solutions.load_all(key) if self.cache and not solutions.recompute_requested() else []
             # a causal controller registered since must be among the starts; an episode did not reproduce the first
             # self._stale[key] of them (confirm)
-            stored = [x for x in stored if current <= {k.split("#")[0] for k in x.warm_starts}][self._stale.get(key, 0):]
+            stored = [x for x in stored if current <= {k.split("#")[0] for k in x.warm_starts}][
+                self._stale.get(key, 0) :
+            ]
             sol, start = None, None
             for candidate in stored:
                 sol, start = candidate, self._start(env, candidate, task, p)
@@ -170,8 +201,11 @@ class OraclePolicy(BaselinePolicy):
                 replay = self._replay(task, p, noise[i], start, sol.correction)
                 if replay == (sol.max_um, sol.rms_um):
                     break
-                warnings.warn(f"the stored floor {key} replays to {replay[0]:.6g} um, not its {sol.max_um:.6g} um: "
-                              "the next stored solution, else solving again", stacklevel=2)
+                warnings.warn(
+                    f"the stored floor {key} replays to {replay[0]:.6g} um, not its {sol.max_um:.6g} um: "
+                    "the next stored solution, else solving again",
+                    stacklevel=2,
+                )
                 sol, start = None, None
             if sol is None:
                 sol = solve(env, p, noise_state=noise[i], extra_starts=self.extra_starts or None, **self.search)
@@ -202,8 +236,11 @@ class OraclePolicy(BaselinePolicy):
         peak, rms = float(result.max_contour_error_um), float(result.rms_contour_error_um)
         if peak == sol.max_um and abs(rms - sol.rms_um) <= 1e-9 * max(abs(sol.rms_um), 1e-300):
             return True
-        warnings.warn(f"the stored floor {key} replays to {peak:.6g} um, not its {sol.max_um:.6g} um: the next "
-                      "stored solution, else solving again", stacklevel=2)
+        warnings.warn(
+            f"the stored floor {key} replays to {peak:.6g} um, not its {sol.max_um:.6g} um: the next "
+            "stored solution, else solving again",
+            stacklevel=2,
+        )
         self._stale[key] = self._stale.get(key, 0) + 1
         self._planned_for = None
         return False
@@ -234,8 +271,10 @@ class OraclePolicy(BaselinePolicy):
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         if self._planned_for is None:
-            raise RuntimeError("the oracle has no plan: call plan(env) after the env's reset (the evaluation loops "
-                               "of vcnc_gym and vcnc_bench do)")
+            raise RuntimeError(
+                "the oracle has no plan: call plan(env) after the env's reset (the evaluation loops "
+                "of vcnc_gym and vcnc_bench do)"
+            )
         obs = np.asarray(observation)
         single = obs.ndim == 1
         obs2 = obs.reshape(1, -1) if single else obs
@@ -253,7 +292,7 @@ class OraclePolicy(BaselinePolicy):
         for i in range(n):
             if start[i]:
                 steps[i] = 0
-            base, _ = self._starts[i].predict(obs2[i:i + 1], episode_start=start[i:i + 1], deterministic=True)
+            base, _ = self._starts[i].predict(obs2[i : i + 1], episode_start=start[i : i + 1], deterministic=True)
             base = np.asarray(base, dtype=np.float32).reshape(2)
             c = self._corrections[i]
             row = c[min(steps[i], len(c) - 1)]

@@ -69,12 +69,19 @@ def rollout_serial(d, controller, corrections, out, errors, tracking):
     float32, what :class:`~vcnc_baselines.optimal.oracle.OraclePolicy` returns.  Writes ``out`` (N, 5) (the ``OUT_*``
     columns) and, for the first ``errors.shape[1]`` steps, the contour error ``errors`` (N, L') mm and the true
     tracking error ``tracking`` (N, L', 2) mm (pass arrays with 0 columns to skip the traces)."""
-    plant, reference, contour, config, offsets, buffers = d.plant, d.reference, d.contour, d.config, d.offsets, \
-        d.buffers
+    plant, reference, contour, config, offsets, buffers = (
+        d.plant,
+        d.reference,
+        d.contour,
+        d.config,
+        d.offsets,
+        d.buffers,
+    )
     base = np.zeros((buffers.mode.shape[0], 2))
     for i in range(buffers.mode.shape[0]):
-        _rollout_env(plant, reference, contour, config, offsets, buffers, i, controller, corrections, base, out,
-                     errors, tracking)
+        _rollout_env(
+            plant, reference, contour, config, offsets, buffers, i, controller, corrections, base, out, errors, tracking
+        )
 
 
 class Rollouts:

@@ -180,8 +180,10 @@ def warm_starts(env, rollouts: Rollouts, *, trials: int = 10, names=None, extra=
             runs = [(name, policy, None)]
         else:
             recorded = _record(policy, task, rollouts.parameters, rollouts.noise_state, trials if learns else 1)
-            runs = [(name if len(recorded) == 1 else f"{name}#{j + 1}", OpenLoopPolicy(_exact(a)), _exact(a))
-                    for j, a in enumerate(recorded)]
+            runs = [
+                (name if len(recorded) == 1 else f"{name}#{j + 1}", OpenLoopPolicy(_exact(a)), _exact(a))
+                for j, a in enumerate(recorded)
+            ]
         for label, p, table in runs:
             rollouts.set_controller(p)
             summary, _, _ = rollouts.run(zero)
@@ -215,9 +217,23 @@ def _peaks(errors: np.ndarray, count: int, separation: int) -> list[int]:
     return chosen
 
 
-def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16, ilc_iterations: int = 8,
-          rounds: int = 8, generations: int = 12, windows: int = 3, window_s: float | None = None,
-          trials: int = 10, seed: int = 0, names=None, extra_starts=None, log=None) -> Solution:
+def solve(
+    env,
+    parameters: np.ndarray,
+    *,
+    noise_state=None,
+    population: int = 16,
+    ilc_iterations: int = 8,
+    rounds: int = 8,
+    generations: int = 12,
+    windows: int = 3,
+    window_s: float | None = None,
+    trials: int = 10,
+    seed: int = 0,
+    names=None,
+    extra_starts=None,
+    log=None,
+) -> Solution:
     """The floor's input sequence for ``env``'s task on the plant ``parameters`` (2, P); see the module notes.
 
     Parameters
@@ -261,10 +277,17 @@ def solve(env, parameters: np.ndarray, *, noise_state=None, population: int = 16
     search.learn_inverse(ilc_iterations)
     search.cross_entropy(rounds, generations, windows, window_s)
     final, peak, rms = search.replay()
-    return Solution(start=name, correction=final, table=search.first.table, max_um=1e3 * peak, rms_um=1e3 * rms,
-                    warm_starts={k: (1e3 * v.max, 1e3 * v.rms) for k, v in starts.items()},
-                    history=np.array(search.history), solve_time_s=time.perf_counter() - t0,
-                    evaluations=rollouts.evaluations)
+    return Solution(
+        start=name,
+        correction=final,
+        table=search.first.table,
+        max_um=1e3 * peak,
+        rms_um=1e3 * rms,
+        warm_starts={k: (1e3 * v.max, 1e3 * v.rms) for k, v in starts.items()},
+        history=np.array(search.history),
+        solve_time_s=time.perf_counter() - t0,
+        evaluations=rollouts.evaluations,
+    )
 
 
 class _Search:
@@ -283,7 +306,7 @@ class _Search:
         self.inverse = task.plant.inverse(parameters)
         self.u_max = task.plant.input_limits(parameters)  # (2,)
         ref = task.reference_arrays.samples
-        self.tangent = ref[:, sk.REF_TANGENT:sk.REF_TANGENT + 2]
+        self.tangent = ref[:, sk.REF_TANGENT : sk.REF_TANGENT + 2]
 
     def score(self, summary):
         """Max and RMS per rollout; a rollout that does not finish counts inf if the start finished."""
@@ -322,13 +345,13 @@ class _Search:
         for it in range(iterations):
             best = self.best
             _, _, tracking = self.rollouts.run(best[None], traces=True)
-            e = self.normal_error(tracking[0, :len(best)])
+            e = self.normal_error(tracking[0, : len(best)])
             cands = []
             for fc in cutoffs:
                 b, a = signal.butter(2, fc, fs=1.0 / dt)
                 step = signal.filtfilt(b, a, linear_inverse(self.inverse, e, dt), axis=0) / self.u_max
                 cands += [best + g * step for g in gains]
-            _, _, improved = self.evaluate(np.array(cands[:self.population]))
+            _, _, improved = self.evaluate(np.array(cands[: self.population]))
             if self.log:
                 self.log(f"  learning {it + 1}: {1e3 * self.best_peak:.4f} um max, {1e3 * self.best_rms:.4f} um rms")
             if not improved and it >= 2:
@@ -340,15 +363,17 @@ class _Search:
         width = max(4, int(round((window_s if window_s is not None else 400 * dt) / dt)))
         for rnd in range(rounds):
             _, errors, _ = self.rollouts.run(self.best[None], traces=True)
-            centres = _peaks(errors[0, :len(self.best)], windows, width // 2)
+            centres = _peaks(errors[0, : len(self.best)], windows, width // 2)
             basis = self._basis(centres, width)
             if not basis:
                 break
             self._generations(basis, generations)
             if self.log:
-                self.log(f"  search round {rnd + 1}: {1e3 * self.best_peak:.4f} um max, {1e3 * self.best_rms:.4f} "
-                         f"um rms (windows at {[round(c * dt, 4) for c in centres]} s, {self.rollouts.evaluations} "
-                         "evaluations)")
+                self.log(
+                    f"  search round {rnd + 1}: {1e3 * self.best_peak:.4f} um max, {1e3 * self.best_rms:.4f} "
+                    f"um rms (windows at {[round(c * dt, 4) for c in centres]} s, {self.rollouts.evaluations} "
+                    "evaluations)"
+                )
 
     def _basis(self, centres, width: int) -> list:
         """Bumps: per window, centres from (peak - 0.8 width) to (peak + 0.2 width); per axis.  Each (start,
@@ -374,8 +399,11 @@ class _Search:
         scale = 0.25 * 1e3 * self.best_peak if np.isfinite(self.best_peak) else 0.5
         # three quarters of the candidates at the distribution's scale, an eighth at a tenth, an eighth at a
         # hundredth of it (where the reference cannot be followed, the steps that help are small ones)
-        spread = np.where(np.arange(population) < 3 * population // 4, 1.0,
-                          np.where(np.arange(population) < 7 * population // 8, 0.1, 0.01))
+        spread = np.where(
+            np.arange(population) < 3 * population // 4,
+            1.0,
+            np.where(np.arange(population) < 7 * population // 8, 0.1, 0.01),
+        )
         mean, sigma = np.zeros(dim), np.full(dim, max(0.05, scale))  # um of displacement
         for _ in range(generations):
             theta = mean + sigma * self.rng.standard_normal((population, dim)) * spread[:, None]
@@ -387,7 +415,7 @@ class _Search:
             if improved:  # the incumbent moved: the distribution is now about it
                 mean = mean - theta[int(np.lexsort((rms, peak))[0])]
             order = np.lexsort((rms, peak))
-            elite = theta[order[:max(2, population // 4)]]
+            elite = theta[order[: max(2, population // 4)]]
             if improved:
                 elite = elite - theta[order[0]]
             mean = 0.7 * elite.mean(axis=0) + 0.3 * mean
@@ -398,7 +426,7 @@ class _Search:
         its max and RMS, mm."""
         final = self.best.astype(np.float32)
         nonzero = np.flatnonzero(np.any(final != 0, axis=1))
-        final = final[:nonzero[-1] + 2] if len(nonzero) else final[:1]  # the last row (held) is 0
+        final = final[: nonzero[-1] + 2] if len(nonzero) else final[:1]  # the last row (held) is 0
         summary, _, _ = self.rollouts.run(final[None])
         peak, rms = self.score(summary)
         if not (peak[0] <= self.first.max):  # cannot happen (the kernel reads the float32 values it was scored with)

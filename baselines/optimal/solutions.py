@@ -26,9 +26,19 @@ import numpy as np
 
 from .search import Solution
 
-__all__ = ["DIRECTORY", "SOLVER_VERSION", "signature", "user_cache", "directory", "folders", "paths", "load",
-           "load_all", "store",
-           "recompute_requested"]
+__all__ = [
+    "DIRECTORY",
+    "SOLVER_VERSION",
+    "signature",
+    "user_cache",
+    "directory",
+    "folders",
+    "paths",
+    "load",
+    "load_all",
+    "store",
+    "recompute_requested",
+]
 
 #: The shipped solutions.
 DIRECTORY = Path(__file__).with_name("solutions")
@@ -75,10 +85,21 @@ def signature(env, parameters: np.ndarray, noise_state=None) -> str:
     name = spec.id if spec is not None else task.plant.name
     kwargs = None if spec is None else {k: v for k, v in spec.kwargs.items() if k not in VECTOR_KWARGS}
     h = hashlib.sha256()
-    h.update(json.dumps({"version": SOLVER_VERSION, "id": name,
-                         "kwargs": kwargs, "dt": task.dt,
-                         "n_repeat": int(task.config.n_repeat), "plant": task.plant.name,
-                         "options": task.plant_options}, sort_keys=True, default=repr).encode())
+    h.update(
+        json.dumps(
+            {
+                "version": SOLVER_VERSION,
+                "id": name,
+                "kwargs": kwargs,
+                "dt": task.dt,
+                "n_repeat": int(task.config.n_repeat),
+                "plant": task.plant.name,
+                "options": task.plant_options,
+            },
+            sort_keys=True,
+            default=repr,
+        ).encode()
+    )
     h.update(np.ascontiguousarray(task.reference_arrays.samples).tobytes())
     h.update(np.ascontiguousarray(parameters, dtype=np.float64).tobytes())
     if noise_state is not None:
@@ -113,10 +134,17 @@ def _read(path: Path) -> Solution:
     with np.load(path, allow_pickle=False) as z:
         table = z["table"] if z["table"].size else None
         starts = json.loads(str(z["warm_starts"]))
-        return Solution(start=str(z["start"]), correction=z["correction"], table=table,
-                        max_um=float(z["max_um"]), rms_um=float(z["rms_um"]),
-                        warm_starts={k: tuple(v) for k, v in starts.items()}, history=z["history"],
-                        solve_time_s=float(z["solve_time_s"]), evaluations=int(z["evaluations"]))
+        return Solution(
+            start=str(z["start"]),
+            correction=z["correction"],
+            table=table,
+            max_um=float(z["max_um"]),
+            rms_um=float(z["rms_um"]),
+            warm_starts={k: tuple(v) for k, v in starts.items()},
+            history=z["history"],
+            solve_time_s=float(z["solve_time_s"]),
+            evaluations=int(z["evaluations"]),
+        )
 
 
 def store(key: str, solution: Solution, folder: Path | None = None) -> Path | None:
@@ -127,10 +155,17 @@ def store(key: str, solution: Solution, folder: Path | None = None) -> Path | No
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{key}.npz"
         np.savez_compressed(
-            path, start=solution.start, correction=np.asarray(solution.correction, dtype=np.float32),
+            path,
+            start=solution.start,
+            correction=np.asarray(solution.correction, dtype=np.float32),
             table=np.zeros((0, 2), dtype=np.float32) if solution.table is None else solution.table,
-            max_um=solution.max_um, rms_um=solution.rms_um, warm_starts=json.dumps(solution.warm_starts),
-            history=solution.history, solve_time_s=solution.solve_time_s, evaluations=solution.evaluations)
+            max_um=solution.max_um,
+            rms_um=solution.rms_um,
+            warm_starts=json.dumps(solution.warm_starts),
+            history=solution.history,
+            solve_time_s=solution.solve_time_s,
+            evaluations=solution.evaluations,
+        )
         return path
     except OSError:
         return None

@@ -57,9 +57,24 @@ from scipy import linalg
 
 from vcnc_gym.validation import integer, positive
 
-__all__ = ["AxisModel", "axis_model", "Preview", "preview_design", "augmented", "preview_system", "estimator_gain",
-           "closed_loop_bandwidth", "input_weight_for_bandwidth", "MAX_DELAY_PERIODS", "MAX_PREVIEW",
-           "feedback_controller", "loop_response", "closed_loop_stable", "margin_weight", "sensor_noise"]
+__all__ = [
+    "AxisModel",
+    "axis_model",
+    "Preview",
+    "preview_design",
+    "augmented",
+    "preview_system",
+    "estimator_gain",
+    "closed_loop_bandwidth",
+    "input_weight_for_bandwidth",
+    "MAX_DELAY_PERIODS",
+    "MAX_PREVIEW",
+    "feedback_controller",
+    "loop_response",
+    "closed_loop_stable",
+    "margin_weight",
+    "sensor_noise",
+]
 
 #: Longest input dead time modelled, control periods (one state each): Yadav et al.'s 0.1 s at 0.1 ms would be
 #: 1000 states, which no Riccati equation here should carry; such a plant needs a longer control period.
@@ -106,7 +121,7 @@ class AxisModel:
     @property
     def input_column(self) -> np.ndarray:
         """(order,) the column through which the input enters the plant's own states (after the dead time's)."""
-        return self.A[:self.order, self.order] if self.delay_periods else self.B[:self.order]
+        return self.A[: self.order, self.order] if self.delay_periods else self.B[: self.order]
 
     def measurement(self) -> np.ndarray:
         """The rows of the measured outputs, (1 or 2, n): position, and velocity when the model has it."""
@@ -136,15 +151,18 @@ def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True, mode_st
         raise ValueError(f"model must be a SISO control.TransferFunction, got {tf!r}")
     periods = int(round(positive("delay", delay, "s") / dt)) if delay else 0
     if periods > MAX_DELAY_PERIODS:
-        raise ValueError(f"delay {delay} s is {periods} control periods of {dt} s, more than the {MAX_DELAY_PERIODS} "
-                         "states the preview design carries; use a longer control period (the env's dt)")
+        raise ValueError(
+            f"delay {delay} s is {periods} control periods of {dt} s, more than the {MAX_DELAY_PERIODS} "
+            "states the preview design carries; use a longer control period (the env's dt)"
+        )
     sys = control.ss(tf)
     if np.any(np.abs(np.asarray(sys.D)) > 0):
         raise ValueError(f"model must be strictly proper (no direct feedthrough), got {tf}")
     A_c, B_c, C_c = (np.asarray(m, dtype=np.float64) for m in (sys.A, sys.B, sys.C))
     if tf.dt in (0, None):
-        Cv = C_c @ A_c if velocity and abs((C_c @ B_c).item()) <= 1e-12 * np.abs(C_c).max() * np.abs(B_c).max() \
-            else None
+        Cv = (
+            C_c @ A_c if velocity and abs((C_c @ B_c).item()) <= 1e-12 * np.abs(C_c).max() * np.abs(B_c).max() else None
+        )
         d = control.c2d(sys, dt, "zoh")  # the same state coordinates: expm of the continuous system
         A, B = np.asarray(d.A, dtype=np.float64), np.asarray(d.B, dtype=np.float64)
     else:
@@ -158,12 +176,13 @@ def axis_model(tf, dt: float, delay: float = 0.0, velocity: bool = True, mode_st
         A_d = np.zeros((m, m))
         A_d[:n, :n] = A
         A_d[:n, n] = B
-        A_d[n:m - 1, n + 1:] = np.eye(periods - 1)
+        A_d[n : m - 1, n + 1 :] = np.eye(periods - 1)
         B_d = np.zeros(m)
         B_d[m - 1] = 1.0
         pad = np.zeros(periods)
-        return AxisModel(A_d, B_d, np.concatenate([C, pad]), None if Cv is None else np.concatenate([Cv[0], pad]),
-                         dt, n, mode_states)
+        return AxisModel(
+            A_d, B_d, np.concatenate([C, pad]), None if Cv is None else np.concatenate([Cv[0], pad]), dt, n, mode_states
+        )
     return AxisModel(A, B, C, None if Cv is None else Cv[0], dt, n, mode_states)
 
 
@@ -223,16 +242,19 @@ def _riccati(model: AxisModel, q: float, rho: float):
     try:
         P = linalg.solve_discrete_are(Phi, Gamma[:, None], Q, np.array([[rho]]))
     except ValueError as exc:  # scipy's ordqz on an ill-conditioned pencil
-        raise np.linalg.LinAlgError(f"the preview servo's Riccati equation failed for this model at dt = {model.dt} s "
-                                    f"and input weight {rho:g} ({exc}); give another input_weight") from None
+        raise np.linalg.LinAlgError(
+            f"the preview servo's Riccati equation failed for this model at dt = {model.dt} s "
+            f"and input weight {rho:g} ({exc}); give another input_weight"
+        ) from None
     P = 0.5 * (P + P.T)
     S = rho + Gamma @ P @ Gamma
     K = (Gamma @ P @ Phi) / S
     return Phi, Gamma, G, P, S, K
 
 
-def preview_design(model: AxisModel, rho: float, preview: int | None = None, q: float = 1.0,
-                   tolerance: float = 1e-6) -> Preview:
+def preview_design(
+    model: AxisModel, rho: float, preview: int | None = None, q: float = 1.0, tolerance: float = 1e-6
+) -> Preview:
     """The LQ preview gains of one axis (module docstring) with the weights ``q`` (mm^-2) and ``rho``
     (input unit^-2, same scale).
 
@@ -254,7 +276,7 @@ def preview_design(model: AxisModel, rho: float, preview: int | None = None, q: 
         above = np.flatnonzero(np.abs(Kr_all) >= tolerance * big)
         limit = min(int(above[-1]) + 1, limit) if above.size else 1  # at most the cap: gains still above it are cut
     Kr = Kr_all[:limit]
-    Pxw = np.column_stack(columns[1:limit + 1])
+    Pxw = np.column_stack(columns[1 : limit + 1])
     return Preview(K=K, Kr=Kr, P=P, Pxw=Pxw, S=float(S), Phi_c=Phi_c, q=q, rho=rho)
 
 
@@ -266,7 +288,7 @@ def preview_system(model: AxisModel, M: int, q: float = 1.0):
     A_z = np.zeros((n1 + M, n1 + M))
     A_z[:n1, :n1] = Phi
     A_z[:n1, n1] = G
-    A_z[n1:n1 + M - 1, n1 + 1:] = np.eye(M - 1)
+    A_z[n1 : n1 + M - 1, n1 + 1 :] = np.eye(M - 1)
     B_z = np.concatenate([Gamma, np.zeros(M)])[:, None]
     Q_z = np.zeros_like(A_z)
     Q_z[0, 0] = q
@@ -281,7 +303,7 @@ def closed_loop_bandwidth(model: AxisModel, rho: float, q: float = 1.0) -> float
     *_, K = _riccati(model, q, rho)
     Phi, Gamma, _ = augmented(model)
     z = np.linalg.eigvals(Phi - np.outer(Gamma, K)).astype(complex)
-    z = z[np.argsort(np.abs(z))[::-1][:1 + model.order - model.mode_states]]
+    z = z[np.argsort(np.abs(z))[::-1][: 1 + model.order - model.mode_states]]
     s = np.abs(np.log(np.where(np.abs(z) > 1e-300, z, 1e-300))) / model.dt  # |s| of s = ln(z) / T, complex
     return float(np.exp(np.mean(np.log(np.maximum(s, 1e-300)))))
 
@@ -291,8 +313,16 @@ def input_weight_for_bandwidth(model: AxisModel, bandwidth: float, q: float = 1.
     (bisection on ``log rho``: a smaller weight, a faster loop; remembered per model, bandwidth and ``q``, as
     every controller built for an id asks the same)."""
     bandwidth = positive("bandwidth", bandwidth, "rad/s")
-    key = (model.A.tobytes(), model.B.tobytes(), model.C.tobytes(), model.order, model.mode_states, model.dt, bandwidth,
-           float(q))
+    key = (
+        model.A.tobytes(),
+        model.B.tobytes(),
+        model.C.tobytes(),
+        model.order,
+        model.mode_states,
+        model.dt,
+        bandwidth,
+        float(q),
+    )
     if key not in _WEIGHTS:
         _WEIGHTS[key] = _bisect_weight(model, bandwidth, q)
     return _WEIGHTS[key]
@@ -303,12 +333,12 @@ _WEIGHTS: dict = {}
 
 def _bisect_weight(model: AxisModel, bandwidth: float, q: float) -> float:
     lo, hi = -40.0, 40.0  # log10 rho: fast ... slow
-    if closed_loop_bandwidth(model, 10.0 ** lo, q) < bandwidth:
+    if closed_loop_bandwidth(model, 10.0**lo, q) < bandwidth:
         raise ValueError(f"bandwidth {bandwidth} rad/s is beyond what the model's LQ loop reaches at dt = {model.dt} s")
     while hi - lo > 1e-9:
         mid = 0.5 * (lo + hi)
         try:
-            faster = closed_loop_bandwidth(model, 10.0 ** mid, q) > bandwidth
+            faster = closed_loop_bandwidth(model, 10.0**mid, q) > bandwidth
         except np.linalg.LinAlgError:  # a weight so large the Riccati solver loses the integral's pole near z = 1
             faster = False
         if faster:
@@ -334,8 +364,12 @@ def estimator_gain(model: AxisModel, input_noise: float, position_noise: float, 
         L[:o] = np.linalg.inv(Cm[:, :o])
         return L
     w = positive("input_noise", input_noise)
-    R = np.diag([positive("position_noise", position_noise, "mm") ** 2,
-                 positive("velocity_noise", velocity_noise, "mm/s") ** 2][:m])
+    R = np.diag(
+        [
+            positive("position_noise", position_noise, "mm") ** 2,
+            positive("velocity_noise", velocity_noise, "mm/s") ** 2,
+        ][:m]
+    )
     b = np.zeros(n)
     b[:o] = model.input_column
     Qw = np.outer(b, b) * w * w + 1e-30 * np.eye(n)
@@ -365,8 +399,9 @@ def feedback_controller(model: AxisModel, design: Preview, L: np.ndarray):
     return Ac, Bc, Cc, Dc
 
 
-def loop_response(model: AxisModel, design: Preview, L: np.ndarray, omega, plant: AxisModel | None = None
-                  ) -> np.ndarray:
+def loop_response(
+    model: AxisModel, design: Preview, L: np.ndarray, omega, plant: AxisModel | None = None
+) -> np.ndarray:
     """The loop ``L(e^{j w T}) = -C(z) P_m(z)`` broken at the plant's input (the convention of
     :func:`vcnc_baselines.commissioning.design.margins`: the closed loop is ``1 / (1 + L)``), at ``omega`` rad/s:
     ``C`` :func:`feedback_controller` of ``model``, ``P_m`` from the command to the measured outputs of ``plant``
@@ -376,8 +411,12 @@ def loop_response(model: AxisModel, design: Preview, L: np.ndarray, omega, plant
     plant = model if plant is None else plant
     Cm = plant.measurement()
     z = np.exp(1j * np.asarray(omega, dtype=np.float64) * model.dt)
-    P = np.linalg.solve(z[:, None, None] * np.eye(plant.n) - plant.A, np.broadcast_to(plant.B, (z.size, plant.n))
-                        [..., None])[..., 0] @ Cm.T  # (W, m)
+    P = (
+        np.linalg.solve(
+            z[:, None, None] * np.eye(plant.n) - plant.A, np.broadcast_to(plant.B, (z.size, plant.n))[..., None]
+        )[..., 0]
+        @ Cm.T
+    )  # (W, m)
     S = np.linalg.solve(z[:, None, None] * np.eye(Ac.shape[0]) - Ac, np.broadcast_to(Bc, (z.size,) + Bc.shape))
     C = np.einsum("i,wim->wm", Cc, S) + Dc  # (W, m)
     return -np.sum(C * P, axis=1)
@@ -397,8 +436,9 @@ def closed_loop_stable(model: AxisModel, design: Preview, L: np.ndarray) -> bool
     return bool(np.all(np.abs(np.linalg.eigvals(A)) < 1.0))
 
 
-def margin_weight(model: AxisModel, L: np.ndarray, crossover_limit: float, mode_hz: float = 0.0,
-                  step: float = 0.25) -> float | None:
+def margin_weight(
+    model: AxisModel, L: np.ndarray, crossover_limit: float, mode_hz: float = 0.0, step: float = 0.25
+) -> float | None:
     """The commissioning rule of :func:`vcnc_baselines.commissioning.design.design_axis`, applied to the LQ servo
     with its estimator gain ``L`` (:func:`estimator_gain`): down a grid of ``log10 rho`` from ``1e8`` in ``step``
     (slow to fast) until the loop (:func:`loop_response`) crosses over above ``crossover_limit`` rad/s (the
@@ -409,15 +449,22 @@ def margin_weight(model: AxisModel, L: np.ndarray, crossover_limit: float, mode_
     from ..commissioning.design import MODE_FRACTION, margins
 
     limit = min(crossover_limit, MODE_FRACTION * 2 * np.pi * mode_hz) if mode_hz > 0 else crossover_limit
-    key = (model.A.tobytes(), model.B.tobytes(), model.measurement().tobytes(), np.asarray(L).tobytes(), model.dt,
-           float(limit), float(step))
+    key = (
+        model.A.tobytes(),
+        model.B.tobytes(),
+        model.measurement().tobytes(),
+        np.asarray(L).tobytes(),
+        model.dt,
+        float(limit),
+        float(step),
+    )
     if key in _MARGIN_WEIGHTS:  # every controller built for an id asks the same
         return _MARGIN_WEIGHTS[key]
     omega = np.logspace(-1, np.log10(0.999 * np.pi / model.dt), 2000)
     passed = None
     for log_rho in np.arange(8.0, -14.0, -step):
         try:
-            design = preview_design(model, 10.0 ** log_rho, preview=1)
+            design = preview_design(model, 10.0**log_rho, preview=1)
         except (ValueError, np.linalg.LinAlgError):  # a weight so large the Riccati solver loses the integral
             continue
         if not closed_loop_stable(model, design, L):  # (or a Riccati solution gone wrong at a huge weight)
@@ -426,7 +473,7 @@ def margin_weight(model: AxisModel, L: np.ndarray, crossover_limit: float, mode_
         if m.crossover > limit:
             break
         if m.meets():
-            passed = float(10.0 ** log_rho)
+            passed = float(10.0**log_rho)
     _MARGIN_WEIGHTS[key] = passed
     return passed
 

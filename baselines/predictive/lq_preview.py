@@ -59,8 +59,15 @@ from vcnc_gym.validation import non_negative, positive
 from ..feedforward.tables import inverse_feedforward, path_force_feedforward
 from ..commissioning.record import nominal_record
 from ..servo import ServoPolicy
-from .design import (axis_model, closed_loop_bandwidth, estimator_gain, input_weight_for_bandwidth, margin_weight,
-                     preview_design, sensor_noise)
+from .design import (
+    axis_model,
+    closed_loop_bandwidth,
+    estimator_gain,
+    input_weight_for_bandwidth,
+    margin_weight,
+    preview_design,
+    sensor_noise,
+)
 
 __all__ = ["LQPreviewPolicy", "LQPreviewArrays", "MODEL_SOURCES", "record_models"]
 
@@ -117,23 +124,44 @@ class LQPreviewPolicy(ServoPolicy):
 
     name = "lq-preview"
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, bandwidth=None,
-                 input_weight=None, preview=None, model: str = "declared", models=None, delays=None,
-                 friction_time: float | None = None,
-                 backlash_time: float = 16e-3, velocity: bool | None = None, input_noise: float | None = None,
-                 position_noise: float | None = None, velocity_noise: float = 1.0):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        bandwidth=None,
+        input_weight=None,
+        preview=None,
+        model: str = "declared",
+        models=None,
+        delays=None,
+        friction_time: float | None = None,
+        backlash_time: float = 16e-3,
+        velocity: bool | None = None,
+        input_noise: float | None = None,
+        position_noise: float | None = None,
+        velocity_noise: float = 1.0,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt)
         if self.stride != 1:
-            raise ValueError(f"{self.name} is designed at the control period: it needs decision_period = dt "
-                             f"({self.dt} s), got {self.decision_period} s")
+            raise ValueError(
+                f"{self.name} is designed at the control period: it needs decision_period = dt "
+                f"({self.dt} s), got {self.decision_period} s"
+            )
         if bandwidth is None:  # the nominal machine's commissioning (its slower axis), else the plant's ceiling
             record = nominal_record(self.plant, self.nominal_parameters, self.dt)
-            pid_bandwidth = min(d.bandwidth for d in record.designs) if record is not None else \
-                self.plant.servo_bandwidth
+            pid_bandwidth = (
+                min(d.bandwidth for d in record.designs) if record is not None else self.plant.servo_bandwidth
+            )
         else:
             pid_bandwidth = positive("bandwidth", bandwidth, "rad/s")
         self.friction_time = non_negative(
-            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s")
+            "friction_time", self.plant.friction_time if friction_time is None else friction_time, "s"
+        )
         self.backlash_time = non_negative("backlash_time", backlash_time, "s")
         if model not in MODEL_SOURCES:
             raise ValueError(f"model must be one of {list(MODEL_SOURCES)}, got {model!r}")
@@ -148,8 +176,9 @@ class LQPreviewPolicy(ServoPolicy):
             self.process_force = record.process_force
         elif models is None:
             models = [self.plant.linear_model(self.nominal_parameters, axis=j) for j in range(2)]
-            delays = [self.plant.dead_time(self.nominal_parameters, axis=j) for j in range(2)] if delays is None \
-                else delays
+            delays = (
+                [self.plant.dead_time(self.nominal_parameters, axis=j) for j in range(2)] if delays is None else delays
+            )
         elif len(models) != 2:
             raise ValueError(f"models must be one transfer function per axis (2), got {len(models)}")
         delays = np.zeros(2) if delays is None else np.asarray(delays, dtype=np.float64)
@@ -157,18 +186,27 @@ class LQPreviewPolicy(ServoPolicy):
             raise ValueError(f"delays must be two finite dead times >= 0 s, got {delays!r}")
         sensor = sensor_noise(self.plant, self.nominal_parameters)
         self.velocity = bool(np.all(sensor == 0.0)) if velocity is None else bool(velocity)
-        position_noise = np.where(sensor > 0, sensor, 1e-5) if position_noise is None else \
-            np.broadcast_to(np.asarray(position_noise, dtype=np.float64), (2,))
-        input_noise = 0.01 * self.u_max if input_noise is None else \
-            np.broadcast_to(np.asarray(input_noise, dtype=np.float64), (2,))
+        position_noise = (
+            np.where(sensor > 0, sensor, 1e-5)
+            if position_noise is None
+            else np.broadcast_to(np.asarray(position_noise, dtype=np.float64), (2,))
+        )
+        input_noise = (
+            0.01 * self.u_max
+            if input_noise is None
+            else np.broadcast_to(np.asarray(input_noise, dtype=np.float64), (2,))
+        )
         modes = [2 if from_record and a.mode_frequency > 0.0 else 0 for a in record.axes]
         self.axis_models = [axis_model(models[j], self.dt, delays[j], self.velocity, modes[j]) for j in range(2)]
-        self.estimator_gains = [estimator_gain(m, input_noise[j], position_noise[j], velocity_noise)
-                                for j, m in enumerate(self.axis_models)]
+        self.estimator_gains = [
+            estimator_gain(m, input_noise[j], position_noise[j], velocity_noise) for j, m in enumerate(self.axis_models)
+        ]
         self.bandwidth = pid_bandwidth
         if input_weight is None and bandwidth is None and from_record:
-            rho = [w if w is not None else input_weight_for_bandwidth(m, pid_bandwidth)
-                   for m, w in zip(self.axis_models, self._margin_weights(record))]
+            rho = [
+                w if w is not None else input_weight_for_bandwidth(m, pid_bandwidth)
+                for m, w in zip(self.axis_models, self._margin_weights(record))
+            ]
             self.bandwidth = min(closed_loop_bandwidth(m, r) for m, r in zip(self.axis_models, rho))
         elif input_weight is None:
             rho = [input_weight_for_bandwidth(m, pid_bandwidth) for m in self.axis_models]
@@ -189,18 +227,26 @@ class LQPreviewPolicy(ServoPolicy):
         loop itself and its estimator (:func:`.design.margin_weight`: the fastest with the margins and the
         sensitivity peak, crossing over no higher than the commissioned PID and, on a machine with a mode, below
         half of it); None where no weight meets it (then the PID's bandwidth places the poles)."""
-        return [margin_weight(m, L, d.margins.crossover, a.mode_frequency)
-                for m, L, d, a in zip(self.axis_models, self.estimator_gains, record.designs, record.axes)]
+        return [
+            margin_weight(m, L, d.margins.crossover, a.mode_frequency)
+            for m, L, d, a in zip(self.axis_models, self.estimator_gains, record.designs, record.axes)
+        ]
 
     def _build(self) -> None:
         table = np.zeros((self.reference.shape[0], 4))
-        table[:, _COMP:_COMP + 2] = inverse_feedforward(self.inverse, self.reference, self.dt, motion=False,
-                                                        friction_time=self.friction_time,
-                                                        backlash_time=self.backlash_time)
+        table[:, _COMP : _COMP + 2] = inverse_feedforward(
+            self.inverse,
+            self.reference,
+            self.dt,
+            motion=False,
+            friction_time=self.friction_time,
+            backlash_time=self.backlash_time,
+        )
         if np.any(self.process_force != 0.0):
-            table[:, _COMP:_COMP + 2] += path_force_feedforward(self.process_force, self.reference, self.dt,
-                                                                self.inverse.delay)
-        table[:, _REF:_REF + 2] = self.reference[:, sk.REF_POSITION:sk.REF_POSITION + 2]
+            table[:, _COMP : _COMP + 2] += path_force_feedforward(
+                self.process_force, self.reference, self.dt, self.inverse.delay
+            )
+        table[:, _REF : _REF + 2] = self.reference[:, sk.REF_POSITION : sk.REF_POSITION + 2]
         self.table = np.ascontiguousarray(table)
         self._compiled = None
 
@@ -218,27 +264,27 @@ class LQPreviewPolicy(ServoPolicy):
         rows = self.table[np.minimum(k, K - 1)]
         e = self.layout.tracking_error(obs).astype(np.float64)
         v = self.layout.velocity(obs).astype(np.float64)
-        y = rows[:, _REF:_REF + 2] - e
+        y = rows[:, _REF : _REF + 2] - e
         ym = np.stack([y, v], axis=2)  # (N, 2, 2): position, velocity per axis
         dx = np.empty((N, 2, n))
         up = np.empty((N, 2))
         for j in range(2):
             base = 1 + j * (1 + 2 * n)
             up[:, j] = mem[:, base]
-            xh = mem[:, base + 1:base + 1 + n]
+            xh = mem[:, base + 1 : base + 1 + n]
             xm = xh @ g.A[j].T + np.outer(up[:, j], g.B[j])
             first = k == 0
             xm[first] = ym[first, j] @ g.C_pinv[j].T
             x_new = xm + (ym[:, j] - xm @ g.Cm[j].T) @ g.L[j].T
             dx[:, j] = np.where(first[:, None], 0.0, x_new - xh)
-            mem[:, base + 1:base + 1 + n] = x_new
-        return k, e, dx, up, rows[:, _COMP:_COMP + 2]
+            mem[:, base + 1 : base + 1 + n] = x_new
+        return k, e, dx, up, rows[:, _COMP : _COMP + 2]
 
     def _preview_increments(self, k, length):
         """``r(k+j) - r(k+j-1)``, j = 1 .. length, per env and axis: (N, 2, length), mm (the table's last row held)."""
         K = self.table.shape[0]
         idx = np.minimum(k[:, None] + np.arange(length + 1)[None, :], K - 1)
-        r = self.table[idx][:, :, _REF:_REF + 2]  # (N, length + 1, 2)
+        r = self.table[idx][:, :, _REF : _REF + 2]  # (N, length + 1, 2)
         return np.transpose(np.diff(r, axis=1), (0, 2, 1))
 
     def _finish(self, k, u_lin, comp):
@@ -287,26 +333,35 @@ _Gains = namedtuple("_Gains", ["Ke", "Kx", "Kr", "A", "B", "Cm", "L", "C_pinv"])
 
 
 def _pack(models, designs, gains, n, M) -> _Gains:
-    out = _Gains(np.zeros(2), np.zeros((2, n)), np.zeros((2, M)), np.zeros((2, n, n)), np.zeros((2, n)),
-                 np.zeros((2, 2, n)), np.zeros((2, n, 2)), np.zeros((2, n, 2)))
+    out = _Gains(
+        np.zeros(2),
+        np.zeros((2, n)),
+        np.zeros((2, M)),
+        np.zeros((2, n, n)),
+        np.zeros((2, n)),
+        np.zeros((2, 2, n)),
+        np.zeros((2, n, 2)),
+        np.zeros((2, n, 2)),
+    )
     for j, (m, d, L) in enumerate(zip(models, designs, gains)):
         a = m.n
         out.Ke[j] = d.K[0]
         out.Kx[j, :a] = d.K[1:]
-        out.Kr[j, :d.preview] = d.Kr
+        out.Kr[j, : d.preview] = d.Kr
         out.A[j, :a, :a] = m.A
         out.B[j, :a] = m.B
         Cm = m.measurement()
-        out.Cm[j, :Cm.shape[0], :a] = Cm
-        out.L[j, :a, :Cm.shape[0]] = L
-        out.C_pinv[j, :a, :Cm.shape[0]] = np.linalg.pinv(Cm)
+        out.Cm[j, : Cm.shape[0], :a] = Cm
+        out.L[j, :a, : Cm.shape[0]] = L
+        out.C_pinv[j, :a, : Cm.shape[0]] = np.linalg.pinv(Cm)
     return out
 
 
 #: The compiled law: memory (N, 1 + 2 (1 + 2 n)) (k; per axis the linear input u_lin(k-1), the estimate
 #: x(k-1|k-1) and a scratch row for x(k|k-1)), the table (K, 4) (pre-compensation, reference positions), the gains of ``_Gains`` and u_max (2,).
-LQPreviewArrays = namedtuple("LQPreviewArrays", ["memory", "table", "Ke", "Kx", "Kr", "A", "B", "Cm", "L", "C_pinv",
-                                                 "u_max"])
+LQPreviewArrays = namedtuple(
+    "LQPreviewArrays", ["memory", "table", "Ke", "Kx", "Kr", "A", "B", "Cm", "L", "C_pinv", "u_max"]
+)
 
 
 @njit(cache=True, _nrt=False)

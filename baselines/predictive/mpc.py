@@ -163,15 +163,49 @@ class MPCPolicy(LQPreviewPolicy):
     #: leaves it out (``--policy mpc``, ``--all``).
     in_default_table = False
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, blocks=DEFAULT_BLOCKS,
-                 bandwidth=None, input_weight=None, preview=None, model: str = "declared", models=None, delays=None,
-                 friction_time: float | None = None, backlash_time: float = 16e-3, velocity: bool | None = None,
-                 input_noise: float | None = None, position_noise: float | None = None, velocity_noise: float = 1.0):
-        super().__init__(layout, decision_period, nominal_parameters, plant, reference=reference, dt=dt,
-                         bandwidth=bandwidth, input_weight=input_weight, preview=preview, model=model, models=models,
-                         delays=delays,
-                         friction_time=friction_time, backlash_time=backlash_time, velocity=velocity,
-                         input_noise=input_noise, position_noise=position_noise, velocity_noise=velocity_noise)
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        blocks=DEFAULT_BLOCKS,
+        bandwidth=None,
+        input_weight=None,
+        preview=None,
+        model: str = "declared",
+        models=None,
+        delays=None,
+        friction_time: float | None = None,
+        backlash_time: float = 16e-3,
+        velocity: bool | None = None,
+        input_noise: float | None = None,
+        position_noise: float | None = None,
+        velocity_noise: float = 1.0,
+    ):
+        super().__init__(
+            layout,
+            decision_period,
+            nominal_parameters,
+            plant,
+            reference=reference,
+            dt=dt,
+            bandwidth=bandwidth,
+            input_weight=input_weight,
+            preview=preview,
+            model=model,
+            models=models,
+            delays=delays,
+            friction_time=friction_time,
+            backlash_time=backlash_time,
+            velocity=velocity,
+            input_noise=input_noise,
+            position_noise=position_noise,
+            velocity_noise=velocity_noise,
+        )
         self.qps = [condensed_qp(m, d, blocks) for m, d in zip(self.axis_models, self.designs)]
         self.solves = 0
         self.calls = 0
@@ -191,8 +225,8 @@ class MPCPolicy(LQPreviewPolicy):
         R_all = self._preview_increments(k, max(qp.preview for qp in self.qps))
         for j, qp in enumerate(self.qps):
             n1 = qp.Gx.shape[1]
-            X = np.column_stack([e[:, j], dx[:, j, :n1 - 1]])
-            R = R_all[:, j, :qp.preview]
+            X = np.column_stack([e[:, j], dx[:, j, : n1 - 1]])
+            R = R_all[:, j, : qp.preview]
             z = X @ qp.Gx.T + up[:, j, None] * qp.Gu + R @ qp.Gr.T  # the unconstrained minimisers, (N, b)
             lo, hi = self._bounds(k, j)
             for i in np.flatnonzero(np.any((z < lo) | (z > hi), axis=1)):  # the QP where they leave the bounds

@@ -109,8 +109,21 @@ from vcnc_gym.validation import integer, non_negative, positive, real
 from ..base import BaselinePolicy
 from .design import axis_model, estimator_gain, sensor_noise
 
-__all__ = ["MPCCPolicy", "WEIGHTS_FEED", "PathTable", "path_table", "linearised_errors", "BlockPrediction", "block_prediction",
-           "ContouringQP", "contouring_qp", "solve_qp", "DEFAULT_BLOCKS", "FIRST_ITERATIONS", "DISTURBANCE_TIME"]
+__all__ = [
+    "MPCCPolicy",
+    "WEIGHTS_FEED",
+    "PathTable",
+    "path_table",
+    "linearised_errors",
+    "BlockPrediction",
+    "block_prediction",
+    "ContouringQP",
+    "contouring_qp",
+    "solve_qp",
+    "DEFAULT_BLOCKS",
+    "FIRST_ITERATIONS",
+    "DISTURBANCE_TIME",
+]
 
 #: Block lengths of the horizon, control periods: seven short blocks (22 periods), then eight of 1 ms and fifteen
 #: of 2 ms, to 40.2 ms (at 0.1 ms; module docstring).
@@ -172,8 +185,9 @@ def path_table(samples, dt: float) -> PathTable:
     s: the rows where the arc advances (the S-curve's samples at rest repeat a point)."""
     s = np.asarray(samples, dtype=np.float64)
     if s.ndim != 2 or s.shape[1] != sk.REF_COLUMNS or s.shape[0] < 2:
-        raise ValueError(f"samples must be an env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), got "
-                         f"shape {s.shape}")
+        raise ValueError(
+            f"samples must be an env's packed reference samples, (K >= 2, {sk.REF_COLUMNS}), got shape {s.shape}"
+        )
     arc = s[:, sk.REF_ARC]
     speed = np.hypot(s[:, sk.REF_VELOCITY], s[:, sk.REF_VELOCITY + 1])
     lead = int(round(1e-3 / positive("dt", dt, "s")))
@@ -189,8 +203,13 @@ def path_table(samples, dt: float) -> PathTable:
     keep = np.concatenate([[True], np.diff(arc) > 0])
     if keep.sum() < 2:
         raise ValueError("samples must move along a path (their arc length never increases)")
-    return PathTable(arc=arc[keep] - arc[0], point=s[keep, sk.REF_POSITION:sk.REF_POSITION + 2],
-                     tangent=s[keep, sk.REF_TANGENT:sk.REF_TANGENT + 2], feed=feed[keep], speed=speed[keep])
+    return PathTable(
+        arc=arc[keep] - arc[0],
+        point=s[keep, sk.REF_POSITION : sk.REF_POSITION + 2],
+        tangent=s[keep, sk.REF_TANGENT : sk.REF_TANGENT + 2],
+        feed=feed[keep],
+        speed=speed[keep],
+    )
 
 
 def linearised_errors(q, theta, theta_bar, path: PathTable):
@@ -258,8 +277,9 @@ class ContouringQP:
     upper: np.ndarray
 
 
-def contouring_qp(preds, path: PathTable, x0, theta0, v0, theta_bar, u_prev, a_prev, comp, u_max,
-                  v_cap, a_max, weights) -> ContouringQP:
+def contouring_qp(
+    preds, path: PathTable, x0, theta0, v0, theta_bar, u_prev, a_prev, comp, u_max, v_cap, a_max, weights
+) -> ContouringQP:
     """The condensed QP of one call (module docstring).
 
     Parameters
@@ -299,11 +319,15 @@ def contouring_qp(preds, path: PathTable, x0, theta0, v0, theta_bar, u_prev, a_p
     # residuals r = J z + r0, rows: sqrt(q_c w) e_c, sqrt(q_l w) e_l
     J = np.zeros((2 * b, 3 * b))
     sc, sl = np.sqrt(q_c * w)[:, None], np.sqrt(q_l * w)[:, None]
-    J[:b, :b], J[:b, b:2 * b] = sc * nx[:, None] * Sx, sc * ny[:, None] * Sy
-    J[b:, :b], J[b:, b:2 * b], J[b:, 2 * b:] = sl * t[:, :1] * Sx, sl * t[:, 1:] * Sy, -sl * St
+    J[:b, :b], J[:b, b : 2 * b] = sc * nx[:, None] * Sx, sc * ny[:, None] * Sy
+    J[b:, :b], J[b:, b : 2 * b], J[b:, 2 * b :] = sl * t[:, :1] * Sx, sl * t[:, 1:] * Sy, -sl * St
     d0 = y0.T - p
-    r0 = np.concatenate([sc[:, 0] * (nx * d0[:, 0] + ny * d0[:, 1]),
-                         sl[:, 0] * (t[:, 0] * d0[:, 0] + t[:, 1] * d0[:, 1] - (base - theta_bar))])
+    r0 = np.concatenate(
+        [
+            sc[:, 0] * (nx * d0[:, 0] + ny * d0[:, 1]),
+            sl[:, 0] * (t[:, 0] * d0[:, 0] + t[:, 1] * d0[:, 1] - (base - theta_bar)),
+        ]
+    )
     D = np.eye(b) - np.eye(b, k=-1)  # differences between blocks; the first against the previous input
     R = np.zeros((3 * b, 3 * b))
     f = 2.0 * J.T @ r0
@@ -311,20 +335,24 @@ def contouring_qp(preds, path: PathTable, x0, theta0, v0, theta_bar, u_prev, a_p
         s = slice(j * b, (j + 1) * b)
         R[s, s] = r * D.T @ D
         f[j * b] -= 2.0 * r * prev
-    f[2 * b:] -= (q_v * (w @ pred.Sv) + q_t * (w @ pred.St)) * _A_SCALE
+    f[2 * b :] -= (q_v * (w @ pred.Sv) + q_t * (w @ pred.St)) * _A_SCALE
     H = 2.0 * (J.T @ J + R)
     # what full braking reaches: the speed and end bounds never ask less (a QP that cannot meet them is infeasible)
     t_stop = np.minimum(pred.times, v0 / a_max)
     v_cap = np.maximum(v_cap, v0 - a_max * pred.times + 1e-9)
-    theta_max = np.maximum(path.length, theta0 + v0 * t_stop - 0.5 * a_max * t_stop ** 2
-                           + v0 * pred.blocks.max() * (pred.times[0] / pred.blocks[0]))  # braking ends in a block
-    lower = np.concatenate([-u_max[0] - comp[0], -u_max[1] - comp[1], np.full(b, -a_max / _A_SCALE),
-                            -v0 * np.ones(b), np.full(b, -np.inf)])
-    upper = np.concatenate([u_max[0] - comp[0], u_max[1] - comp[1], np.full(b, a_max / _A_SCALE),
-                            v_cap - v0, theta_max - base])
+    theta_max = np.maximum(
+        path.length,
+        theta0 + v0 * t_stop - 0.5 * a_max * t_stop**2 + v0 * pred.blocks.max() * (pred.times[0] / pred.blocks[0]),
+    )  # braking ends in a block
+    lower = np.concatenate(
+        [-u_max[0] - comp[0], -u_max[1] - comp[1], np.full(b, -a_max / _A_SCALE), -v0 * np.ones(b), np.full(b, -np.inf)]
+    )
+    upper = np.concatenate(
+        [u_max[0] - comp[0], u_max[1] - comp[1], np.full(b, a_max / _A_SCALE), v_cap - v0, theta_max - base]
+    )
     G = np.zeros((2 * b, 3 * b))
-    G[:b, 2 * b:] = pred.Sv * _A_SCALE
-    G[b:, 2 * b:] = St
+    G[:b, 2 * b :] = pred.Sv * _A_SCALE
+    G[b:, 2 * b :] = St
     return ContouringQP(0.5 * (H + H.T), f, G, lower, upper)
 
 
@@ -339,7 +367,7 @@ def solve_qp(qp: ContouringQP) -> np.ndarray:
     sense = np.zeros(upper.size, dtype=np.int32)
     z, _, flag, _ = daqp.solve(qp.H * scale, qp.f * scale, qp.G, upper, lower, sense)
     if flag < 1:  # infeasible: the progress' speed and end bounds (the general rows) made soft
-        sense[qp.f.size:] = 8
+        sense[qp.f.size :] = 8
         z, _, flag, _ = daqp.solve(qp.H * scale, qp.f * scale, qp.G, upper, lower, sense)
     if flag < 1:
         raise RuntimeError(f"DAQP failed on the MPCC's QP (exit flag {flag})")
@@ -401,19 +429,40 @@ class MPCCPolicy(BaselinePolicy):
         """A plant with a linear model per axis and declared inverse dynamics (its Coulomb levels)."""
         return plant.inverse_dynamics is not None and plant.servo_bandwidth is not None
 
-    def __init__(self, layout, decision_period, nominal_parameters, plant=None, *, reference, dt, v_max=None,
-                 contour_weight=4.0, lag_weight=1.0, progress_weight=None, advance_weight=None, input_weight=1e-3,
-                 path_weight=1e-2, a_max=None, blocks=DEFAULT_BLOCKS, disturbance_time: float | None = None,
-                 max_override: float = 1.0):
+    def __init__(
+        self,
+        layout,
+        decision_period,
+        nominal_parameters,
+        plant=None,
+        *,
+        reference,
+        dt,
+        v_max=None,
+        contour_weight=4.0,
+        lag_weight=1.0,
+        progress_weight=None,
+        advance_weight=None,
+        input_weight=1e-3,
+        path_weight=1e-2,
+        a_max=None,
+        blocks=DEFAULT_BLOCKS,
+        disturbance_time: float | None = None,
+        max_override: float = 1.0,
+    ):
         super().__init__(layout, decision_period, nominal_parameters, plant)
         self.dt = positive("dt", dt, "s")
         self.max_override = real("max_override", max_override, "x the programmed feed")
         if not 1.0 <= self.max_override <= MAX_OVERRIDE:
-            raise ValueError(f"max_override must be in [1, {MAX_OVERRIDE:g}] (the dial's top, x the programmed feed), "
-                             f"got {max_override!r}")
+            raise ValueError(
+                f"max_override must be in [1, {MAX_OVERRIDE:g}] (the dial's top, x the programmed feed), "
+                f"got {max_override!r}"
+            )
         if abs(self.decision_period - self.dt) > 1e-9 * self.dt:
-            raise ValueError(f"mpcc is designed at the control period: it needs decision_period = dt ({self.dt} s), "
-                             f"got {self.decision_period} s")
+            raise ValueError(
+                f"mpcc is designed at the control period: it needs decision_period = dt ({self.dt} s), "
+                f"got {self.decision_period} s"
+            )
         self.path = path_table(reference, self.dt)
         peak = float(self.path.feed.max())
         self.v_max = self.max_override * peak if v_max is None else positive("v_max", v_max, "mm/s")
@@ -422,13 +471,22 @@ class MPCCPolicy(BaselinePolicy):
         scale = WEIGHTS_FEED / peak
         progress_weight = 10.0 * scale if progress_weight is None else progress_weight
         advance_weight = 200.0 * scale if advance_weight is None else advance_weight
-        self.weights = (positive("contour_weight", contour_weight, "per um^2") * 1e6,
-                        positive("lag_weight", lag_weight, "per um^2") * 1e6,
-                        positive("progress_weight", progress_weight, "per mm/s"),
-                        positive("advance_weight", advance_weight, "per mm"),
-                        positive("input_weight", input_weight), positive("path_weight", path_weight))
-        models = [axis_model(self.plant.linear_model(self.nominal_parameters, axis=j), self.dt,
-                             self.plant.dead_time(self.nominal_parameters, axis=j)) for j in range(2)]
+        self.weights = (
+            positive("contour_weight", contour_weight, "per um^2") * 1e6,
+            positive("lag_weight", lag_weight, "per um^2") * 1e6,
+            positive("progress_weight", progress_weight, "per mm/s"),
+            positive("advance_weight", advance_weight, "per mm"),
+            positive("input_weight", input_weight),
+            positive("path_weight", path_weight),
+        )
+        models = [
+            axis_model(
+                self.plant.linear_model(self.nominal_parameters, axis=j),
+                self.dt,
+                self.plant.dead_time(self.nominal_parameters, axis=j),
+            )
+            for j in range(2)
+        ]
         if models[0].n != models[1].n:
             raise ValueError("mpcc needs both axes' models of one order")
         self.models = models
@@ -471,7 +529,7 @@ class MPCCPolicy(BaselinePolicy):
             for _ in range(periods + m.delay_periods + 1):
                 x = m.A @ x + m.B * u
                 ys.append(m.C @ x)
-            moved = np.asarray(ys[m.delay_periods:])
+            moved = np.asarray(ys[m.delay_periods :])
             tt = self.dt * np.arange(1, moved.size + 1)
             out.append(2.0 * moved[-1] / tt[-1] ** 2)  # y = a t^2 / 2 from rest
         return float(min(out))
@@ -483,14 +541,18 @@ class MPCCPolicy(BaselinePolicy):
         u = getattr(env, "unwrapped", env)
         task = getattr(u, "task", None)
         if not getattr(u, "retimes_reference", False) or getattr(u.action_space, "shape", None) != (3,):
-            raise ValueError(f"baseline 'mpcc' chooses its own progress and sets the feed override: it runs on a "
-                             f"feed-override id (VCNC-OmegaOverride-v1), got {type(u).__name__}; a plain contouring "
-                             "id ends the episode completion_timeout after its reference's end, which a controller "
-                             "slower than the programmed feed cannot meet")
+            raise ValueError(
+                f"baseline 'mpcc' chooses its own progress and sets the feed override: it runs on a "
+                f"feed-override id (VCNC-OmegaOverride-v1), got {type(u).__name__}; a plain contouring "
+                "id ends the episode completion_timeout after its reference's end, which a controller "
+                "slower than the programmed feed cannot meet"
+            )
         if getattr(u, "lookahead", None) is not None:
-            raise ValueError("baseline 'mpcc' sets the override itself, 0 to max_override of the programmed feed: it "
-                             "runs on a feed-override env without a look-ahead under the dial (VCNC-OmegaOverride-v1, "
-                             f"or a tolerance id with lookahead=None), got lookahead={u.lookahead!r}")
+            raise ValueError(
+                "baseline 'mpcc' sets the override itself, 0 to max_override of the programmed feed: it "
+                "runs on a feed-override env without a look-ahead under the dial (VCNC-OmegaOverride-v1, "
+                f"or a tolerance id with lookahead=None), got lookahead={u.lookahead!r}"
+            )
         if "max_override" in params and params["max_override"] != u.max_override:
             raise ValueError(f"max_override is the env's dial top ({u.max_override:g}), got {params['max_override']!r}")
         params["max_override"] = u.max_override
@@ -507,11 +569,11 @@ class MPCCPolicy(BaselinePolicy):
     def _estimate(self, mem, y, v):
         """x(k|k) per axis (2, n) from the measured position ``y`` and velocity ``v`` (2,)."""
         s, n = self._slots, self.n_states
-        x = mem[s["x"]:s["x"] + 2 * n].reshape(2, n)
+        x = mem[s["x"] : s["x"] + 2 * n].reshape(2, n)
         out = np.empty((2, n))
         gain = min(1.0, self.dt / self.disturbance_time) if self.disturbance_time > 0 else 0.0
         for j, m in enumerate(self.models):
-            ym = np.array([y[j], v[j]])[:m.measurement().shape[0]]
+            ym = np.array([y[j], v[j]])[: m.measurement().shape[0]]
             if mem[s["k"]] == 0:
                 xm = np.linalg.pinv(m.measurement()) @ ym
             else:
@@ -519,15 +581,15 @@ class MPCCPolicy(BaselinePolicy):
             out[j] = xm + self.gains[j] @ (ym - m.measurement() @ xm)
             if mem[s["k"]] > 0 and gain > 0:  # the input the last step's surprise asks, integrated
                 b = m.input_column
-                mem[s["d"] + j] += gain * (b @ (out[j] - xm)[:b.size]) / (b @ b)
-        mem[s["x"]:s["x"] + 2 * n] = out.ravel()
+                mem[s["d"] + j] += gain * (b @ (out[j] - xm)[: b.size]) / (b @ b)
+        mem[s["x"] : s["x"] + 2 * n] = out.ravel()
         return out
 
     def _theta_bar(self, mem):
         """The previous plan's progress at this call's block ends (the plan shifted by one control period)."""
         s, pred = self._slots, self.predictions[0]
         times = np.concatenate([[0.0], pred.times])
-        plan = np.concatenate([[mem[s["theta"]]], mem[s["plan"]:s["plan"] + self.n_blocks]])
+        plan = np.concatenate([[mem[s["theta"]]], mem[s["plan"] : s["plan"] + self.n_blocks]])
         if mem[s["k"]] == 0:
             return np.full(self.n_blocks, mem[s["theta"]])
         shifted = np.interp(pred.times + self.dt, times, plan)  # held beyond the plan's end
@@ -545,16 +607,31 @@ class MPCCPolicy(BaselinePolicy):
         theta0, v0 = mem[s["theta"]], mem[s["v"]]
         theta_bar = self._theta_bar(mem)
         v_bar = np.full(b, v0)
-        u_prev = mem[s["u"]:s["u"] + 2]
+        u_prev = mem[s["u"] : s["u"] + 2]
         for _ in range(FIRST_ITERATIONS if mem[s["k"]] == 0 else 1):
-            v_cap = np.minimum(np.minimum(self.v_max, self.max_override * self.path.feed_at(theta_bar)),  # braking:
-                               np.sqrt(2.0 * self.a_max * np.maximum(self.path.length - theta_bar, 0.0)))
-            comp = self._comp(theta_bar, v_bar) - mem[s["d"]:s["d"] + 2, None]
-            qp = contouring_qp(self.predictions, self.path, x0, theta0, v0, theta_bar, u_prev, mem[s["a"]],
-                               comp, self.u_max, v_cap, self.a_max, self.weights)
+            v_cap = np.minimum(
+                np.minimum(self.v_max, self.max_override * self.path.feed_at(theta_bar)),  # braking:
+                np.sqrt(2.0 * self.a_max * np.maximum(self.path.length - theta_bar, 0.0)),
+            )
+            comp = self._comp(theta_bar, v_bar) - mem[s["d"] : s["d"] + 2, None]
+            qp = contouring_qp(
+                self.predictions,
+                self.path,
+                x0,
+                theta0,
+                v0,
+                theta_bar,
+                u_prev,
+                mem[s["a"]],
+                comp,
+                self.u_max,
+                v_cap,
+                self.a_max,
+                self.weights,
+            )
             z = solve_qp(qp)
             self.solves += 1
-            a = z[2 * b:] * _A_SCALE
+            a = z[2 * b :] * _A_SCALE
             theta_bar = np.minimum(theta0 + pred.times * v0 + pred.St @ a, self.path.length)
             v_bar = v0 + pred.Sv @ a
         return z, theta_bar, comp
@@ -570,12 +647,12 @@ class MPCCPolicy(BaselinePolicy):
         u_lin = np.array([z[0], z[b]])
         u = u_lin + comp[:, 0]
         applied = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32).astype(np.float64) * self.u_max
-        mem[s["u"]:s["u"] + 2] = applied - comp[:, 0]
+        mem[s["u"] : s["u"] + 2] = applied - comp[:, 0]
         theta, vel = mem[s["theta"]], mem[s["v"]]
-        mem[s["theta"]] = min(theta + self.dt * vel + 0.5 * self.dt ** 2 * a0, self.path.length)
+        mem[s["theta"]] = min(theta + self.dt * vel + 0.5 * self.dt**2 * a0, self.path.length)
         mem[s["v"]] = max(vel + self.dt * a0, 0.0) if mem[s["theta"]] < self.path.length else 0.0  # stopped at the end
         mem[s["a"]] = a0
-        mem[s["plan"]:s["plan"] + b] = theta_plan
+        mem[s["plan"] : s["plan"] + b] = theta_plan
         mem[s["k"]] += 1
         return u, self._override(mem, r)
 
@@ -584,7 +661,7 @@ class MPCCPolicy(BaselinePolicy):
         reference point (the nearest programmed point at or after the last one found), then the override."""
         s, path = self._slots, self.path
         k = int(mem[s["clock"]])
-        window = path.point[k:k + 400]
+        window = path.point[k : k + 400]
         k += int(np.argmin(np.sum((window - r) ** 2, axis=1)))
         mem[s["clock"]] = k
         speed = path.speed[k]  # the clock's speed at 100 %
@@ -614,6 +691,7 @@ class _one_blas_thread:
         if _one_blas_thread._libs is None:
             try:
                 from threadpoolctl import ThreadpoolController
+
                 _one_blas_thread._libs = ThreadpoolController().select(user_api="blas").lib_controllers
             except ImportError:
                 _one_blas_thread._libs = []
@@ -624,4 +702,3 @@ class _one_blas_thread:
     def __exit__(self, *exc):
         for lib, n in zip(self._libs, self._old):
             lib.set_num_threads(n)
-

@@ -97,17 +97,26 @@ def _env_page(entry, env, picture: bool) -> str:
     cls = type(env)
     kwargs = ", ".join(f"`{k}={v!r}`" for k, v in entry.kwargs.items()) or "none"
     plant = env.plant
-    vector = ("yes: `gym.make_vec(\"%s\", num_envs=N, vectorization_mode=\"vector_entry_point\")`" % entry.id
-              if entry.vector_entry_point else "no (Gymnasium's `SyncVectorEnv` or `AsyncVectorEnv`)")
+    vector = (
+        'yes: `gym.make_vec("%s", num_envs=N, vectorization_mode="vector_entry_point")`' % entry.id
+        if entry.vector_entry_point
+        else "no (Gymnasium's `SyncVectorEnv` or `AsyncVectorEnv`)"
+    )
     rows = [
         ("class", f"{{py:class}}`{cls.__module__}.{cls.__name__}`"),
         ("registered arguments", kwargs),
         ("native vector env", vector),
         ("plant", f"`{plant.name}`: {plant.source}"),
-        ("action", f"`{env.action_space}`: the {plant.input_name} per axis over its limit "
-                   f"(`{plant.input_limit}`, {plant.input_unit})"),
-        ("observation", f"`Box` of shape {env.observation_space.shape}, {env.observation_space.dtype}, "
-                        f"bounded per field (`env.observation_space.low`, `high`); the fields below"),
+        (
+            "action",
+            f"`{env.action_space}`: the {plant.input_name} per axis over its limit "
+            f"(`{plant.input_limit}`, {plant.input_unit})",
+        ),
+        (
+            "observation",
+            f"`Box` of shape {env.observation_space.shape}, {env.observation_space.dtype}, "
+            f"bounded per field (`env.observation_space.low`, `high`); the fields below",
+        ),
         ("control period `dt`", f"{env.dt:g} s"),
         ("episode steps", f"{env.episode_steps}"),
     ]
@@ -116,16 +125,40 @@ def _env_page(entry, env, picture: bool) -> str:
     lines = [f"# {entry.id}", "", entry.summary + ".", ""]
     if picture:
         lines += [f"```{{image}} _img/{entry.id}.png", f":alt: the contour of {entry.id}", ":width: 420px", "```", ""]
-    lines += ["```python", "import gymnasium as gym", "import vcnc_gym  # registers the ids", "",
-              f'env = gym.make("{entry.id}")', "```", "", "| | |", "|---|---|"]
+    lines += [
+        "```python",
+        "import gymnasium as gym",
+        "import vcnc_gym  # registers the ids",
+        "",
+        f'env = gym.make("{entry.id}")',
+        "```",
+        "",
+        "| | |",
+        "|---|---|",
+    ]
     lines += [f"| {k} | {_md_cell(v)} |" for k, v in rows]
-    lines += ["", "## Observation", "", "The fields of `env.unwrapped.layout`, in order "
-              "(`env.unwrapped.layout.describe()`):", "", env.layout.describe().strip(), "",
-              "## Plant parameters", "", "`env.unwrapped.plant.parameters`, the box `randomize=True` draws from:", ""]
+    lines += [
+        "",
+        "## Observation",
+        "",
+        "The fields of `env.unwrapped.layout`, in order (`env.unwrapped.layout.describe()`):",
+        "",
+        env.layout.describe().strip(),
+        "",
+        "## Plant parameters",
+        "",
+        "`env.unwrapped.plant.parameters`, the box `randomize=True` draws from:",
+        "",
+    ]
     lines += _parameter_table(plant)
-    lines += ["", "## Full description", "",
-              f"Episode end, reward terms, arguments and version history: the docstring of "
-              f"{{py:class}}`{cls.__module__}.{cls.__name__}`.", ""]
+    lines += [
+        "",
+        "## Full description",
+        "",
+        f"Episode end, reward terms, arguments and version history: the docstring of "
+        f"{{py:class}}`{cls.__module__}.{cls.__name__}`.",
+        "",
+    ]
     return "\n".join(lines)
 
 
@@ -136,19 +169,30 @@ def write_env_pages(docs: Path) -> None:
     from vcnc_gym.envs.registry import LEGACY, SUITE
 
     out = docs / "envs"
-    index = ["# Environments", "",
-             "Every id is registered by `import vcnc_gym` from one table, "
-             "{py:data}`vcnc_gym.envs.registry.SUITE`; these pages are generated from it.", "",
-             "| id | task |", "|---|---|"]
+    index = [
+        "# Environments",
+        "",
+        "Every id is registered by `import vcnc_gym` from one table, "
+        "{py:data}`vcnc_gym.envs.registry.SUITE`; these pages are generated from it.",
+        "",
+        "| id | task |",
+        "|---|---|",
+    ]
     for entry in SUITE:
         env = gym.make(entry.id).unwrapped
         picture = _picture(env, out / "_img" / f"{entry.id}.png")
         _write(out / f"{entry.id}.md", _env_page(entry, env, picture))
         env.close()
         index.append(f"| [{entry.id}]({entry.id}.md) | {_md_cell(entry.summary)} |")
-    index += ["", "## Legacy ids", "",
-              "Still registered so that agents trained on them keep running; `vcnc-bench` runs the current ids.", "",
-              "| id | task |", "|---|---|"]
+    index += [
+        "",
+        "## Legacy ids",
+        "",
+        "Still registered so that agents trained on them keep running; `vcnc-bench` runs the current ids.",
+        "",
+        "| id | task |",
+        "|---|---|",
+    ]
     index += [f"| `{e.id}` | {_md_cell(e.summary)} |" for e in LEGACY]
     index += ["", "```{toctree}", ":hidden:", ""] + [e.id for e in SUITE] + ["```", ""]
     _write(out / "index.md", "\n".join(index))
@@ -169,28 +213,51 @@ def write_controllers_page(docs: Path) -> None:
     for name in registry.REGISTRY:
         family = registry.policy_class(name).__module__.split(".")[1]
         by_family.setdefault(family, []).append(name)
-    lines = ["# Controllers", "",
-             "The classical controllers, as policies with Stable-Baselines3's `predict`, built for an env by "
-             "name: `vcnc_baselines.make(\"qft\", env)` ({py:func}`vcnc_baselines.registry.make`).  They are grouped by "
-             "the family folders of `baselines/`.  Generated from {py:data}`vcnc_baselines.registry.REGISTRY` and "
-             "{py:data}`vcnc_baselines.registry.VARIANTS`.", "",
-             "```python", "import gymnasium as gym", "import vcnc_baselines", "import vcnc_gym", "",
-             'env = gym.make("VCNC-Heart-v1")', 'policy = vcnc_baselines.make("qft", env)',
-             "action, _ = policy.predict(env.reset(seed=0)[0])", "```", ""]
+    lines = [
+        "# Controllers",
+        "",
+        "The classical controllers, as policies with Stable-Baselines3's `predict`, built for an env by "
+        'name: `vcnc_baselines.make("qft", env)` ({py:func}`vcnc_baselines.registry.make`).  They are grouped by '
+        "the family folders of `baselines/`.  Generated from {py:data}`vcnc_baselines.registry.REGISTRY` and "
+        "{py:data}`vcnc_baselines.registry.VARIANTS`.",
+        "",
+        "```python",
+        "import gymnasium as gym",
+        "import vcnc_baselines",
+        "import vcnc_gym",
+        "",
+        'env = gym.make("VCNC-Heart-v1")',
+        'policy = vcnc_baselines.make("qft", env)',
+        "action, _ = policy.predict(env.reset(seed=0)[0])",
+        "```",
+        "",
+    ]
     for family, names in by_family.items():
         if not names:
             continue
         package = importlib.import_module(f"vcnc_baselines.{family}")
-        lines += [f"## {FAMILIES.get(family, family)}", "", _first_paragraph(package), "",
-                  "| name | class | what |", "|---|---|---|"]
+        lines += [
+            f"## {FAMILIES.get(family, family)}",
+            "",
+            _first_paragraph(package),
+            "",
+            "| name | class | what |",
+            "|---|---|---|",
+        ]
         for name in names:
             cls = registry.REGISTRY[name]
-            lines.append(f"| `{name}` | {{py:class}}`~{cls.__module__}.{cls.__name__}` | "
-                         f"{_md_cell(_first_paragraph(cls))} |")
+            lines.append(
+                f"| `{name}` | {{py:class}}`~{cls.__module__}.{cls.__name__}` | {_md_cell(_first_paragraph(cls))} |"
+            )
         lines.append("")
-    lines += ["## Variants", "",
-              "A registered controller with some of its parameters fixed, benchmarked under its own name.", "",
-              "| name | controller | fixed parameters |", "|---|---|---|"]
+    lines += [
+        "## Variants",
+        "",
+        "A registered controller with some of its parameters fixed, benchmarked under its own name.",
+        "",
+        "| name | controller | fixed parameters |",
+        "|---|---|---|",
+    ]
     for name, (base, fixed) in registry.VARIANTS.items():
         fixed_text = ", ".join(f"`{k}={v!r}`" for k, v in fixed.items())
         lines.append(f"| `{name}` | `{base}` | {_md_cell(fixed_text)} |")
@@ -215,9 +282,15 @@ def public_modules(package: str) -> list[str]:
 
 def write_api_pages(docs: Path) -> None:
     out = docs / "api"
-    index = ["# API reference", "",
-             "Generated from the numpydoc docstrings (autodoc and napoleon); one page per package, "
-             "a section per module.", "", "```{toctree}", ":maxdepth: 1", ""]
+    index = [
+        "# API reference",
+        "",
+        "Generated from the numpydoc docstrings (autodoc and napoleon); one page per package, a section per module.",
+        "",
+        "```{toctree}",
+        ":maxdepth: 1",
+        "",
+    ]
     for package, heading in API_PACKAGES.items():
         lines = [heading, "=" * len(heading), ""]
         for module in public_modules(package):
@@ -292,8 +365,10 @@ def _report_markup(app, exception) -> None:
     path.write_text("".join(r + "\n" for r in records))
     if records:
         files = {r.split(":docstring of")[0] for r in records}
-        print(f"vcnc_pages: {len(records)} docutils complaints about docstring markup in {len(files)} files, "
-              f"not fatal (listed in {path})")
+        print(
+            f"vcnc_pages: {len(records)} docutils complaints about docstring markup in {len(files)} files, "
+            f"not fatal (listed in {path})"
+        )
 
 
 _MARKUP: DocstringMarkupFilter | None = None

@@ -25,8 +25,11 @@ def applies(name: str, env) -> bool:
     cls = policy_class(name)
     u = env.unwrapped
     if getattr(cls, "sets_feed_override", False):  # mpcc: its own progress, through the feed override
-        return getattr(u, "retimes_reference", False) and getattr(u.action_space, "shape", None) == (3,) \
+        return (
+            getattr(u, "retimes_reference", False)
+            and getattr(u.action_space, "shape", None) == (3,)
             and cls.designed_for(u.plant)
+        )
     if getattr(u.action_space, "shape", None) != (2,):
         return False
     plant = getattr(u, "plant", None)
@@ -37,13 +40,15 @@ def applies(name: str, env) -> bool:
 
 def _oracle(ctx) -> list[str]:
     """The oracle's wall time (its offline solve plus the episode) per env, when it ran."""
-    rows = [(e, r.wall_s) for e in ctx.env_ids for label, r in ctx.results.get(e, {}).items()
-            if label.startswith("oracle")]
+    rows = [
+        (e, r.wall_s) for e in ctx.env_ids for label, r in ctx.results.get(e, {}).items() if label.startswith("oracle")
+    ]
     if not rows:
         return []
-    return ["oracle (non-causal floor: the best causal controller plus an input correction searched on the exact "
-            "plant, baselines/optimal/oracle.py; a stored solution replayed, else solved), plan + episode:"] + \
-        [f"  {e}: {wall:.2f} s" for e, wall in rows]
+    return [
+        "oracle (non-causal floor: the best causal controller plus an input correction searched on the exact "
+        "plant, baselines/optimal/oracle.py; a stored solution replayed, else solved), plan + episode:"
+    ] + [f"  {e}: {wall:.2f} s" for e, wall in rows]
 
 
 def _qft_stability(ctx) -> list[str]:
@@ -81,13 +86,25 @@ def _yadav2020(ctx) -> list[str]:
     from ..reports import yadav2020 as report
 
     tables = ctx.prepared.get(ran[0], {}).get(KIND.name) or _yadav2020_tables(ctx.envs[ran[0]])
-    lines = ["Yadav et al. (2020), section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)", "",
-             report.format_kharitonov()]
-    lines.append(report.format_table2(tables["continuous"], "\nTable 2, continuous loop without the dead "
-                                      "time (as the paper computes it); cells: ours / paper's"))
+    lines = [
+        "Yadav et al. (2020), section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)",
+        "",
+        report.format_kharitonov(),
+    ]
+    lines.append(
+        report.format_table2(
+            tables["continuous"],
+            "\nTable 2, continuous loop without the dead time (as the paper computes it); cells: ours / paper's",
+        )
+    )
     rows, traces = tables["env_rows"], tables["traces"]
-    lines.append(report.format_table2(rows, f"\nTable 2 on {ran[0]} (dead time 0.1 s exact, nominal and 10 plants "
-                                            f"across the box); cells: ours / paper's"))
+    lines.append(
+        report.format_table2(
+            rows,
+            f"\nTable 2 on {ran[0]} (dead time 0.1 s exact, nominal and 10 plants "
+            f"across the box); cells: ours / paper's",
+        )
+    )
     if ctx.plots is not None:
         path = ctx.plots / f"{ran[0]}_step_responses.png"
         report.plot_step_responses(traces, path, setpoint=rows[0].get("setpoint_mm", 10.0))
@@ -120,16 +137,22 @@ def _simba(ctx) -> list[str]:
                 ref = f" ({paper / paper_fb:.2f})" if paper and paper_fb else ""
                 lines.append(f"  {e}: {ilc} (last trial) / contouring-fb = {ratio:.2f}{ref}")
     if "VCNC-Corners-v1" in fb and "VCNC-CornersSmooth-v1" in fb:
-        paper = paper_figures("VCNC-CornersSmooth-v1", "contouring-fb")["max_contour_error_um"] / \
-            paper_figures("VCNC-Corners-v1", "contouring-fb")["max_contour_error_um"]
-        lines.append(f"  contouring-fb, smoothed / linear path = "
-                     f"{fb['VCNC-CornersSmooth-v1'] / fb['VCNC-Corners-v1']:.3f} ({paper:.2f})")
+        paper = (
+            paper_figures("VCNC-CornersSmooth-v1", "contouring-fb")["max_contour_error_um"]
+            / paper_figures("VCNC-Corners-v1", "contouring-fb")["max_contour_error_um"]
+        )
+        lines.append(
+            f"  contouring-fb, smoothed / linear path = "
+            f"{fb['VCNC-CornersSmooth-v1'] / fb['VCNC-Corners-v1']:.3f} ({paper:.2f})"
+        )
     durations = {e: ctx.envs[e].unwrapped.reference.duration for e in ran}
     if "VCNC-Corners-v1" in durations and "VCNC-CornersSmooth-v1" in durations:
         lin, smooth = durations["VCNC-Corners-v1"], durations["VCNC-CornersSmooth-v1"]
-        lines.append(f"  cycle time (reference): linear {lin:.4f} s, smoothed {smooth:.4f} s: "
-                     f"{100 * (smooth / lin - 1):+.2f} % "
-                     f"(paper's experiment {PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT:+.2f} %)")
+        lines.append(
+            f"  cycle time (reference): linear {lin:.4f} s, smoothed {smooth:.4f} s: "
+            f"{100 * (smooth / lin - 1):+.2f} % "
+            f"(paper's experiment {PAPER_SIMBA_CYCLE_TIME_INCREASE_PERCENT:+.2f} %)"
+        )
     return lines
 
 

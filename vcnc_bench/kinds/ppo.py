@@ -54,8 +54,10 @@ def _expand(path: str) -> list[str]:
     folders = [folder / Path(r["folder"]).name for r in runs]
     missing = [f"seed {r['seed']} ({f})" for r, f in zip(runs, folders) if r["code"] != 0 or not (f / which).is_dir()]
     if missing:
-        raise ValueError(f"{summary}: no {which} agent for {', '.join(missing)}; train it again or name the other "
-                         "seeds' folders one by one")
+        raise ValueError(
+            f"{summary}: no {which} agent for {', '.join(missing)}; train it again or name the other "
+            "seeds' folders one by one"
+        )
     return [str(f / which) for f in folders]
 
 
@@ -73,6 +75,6 @@ KIND = PolicyKind(
     make=_make,
     defaults=_defaults,
     description="a trained PPO agent: ppo:FOLDER, or ppo for the agent shipped for the env; ppo:FOLDER of a "
-                "vcnc-train --seeds run: every seed's agent, judged as one",
+    "vcnc-train --seeds run: every seed's agent, judged as one",
     expand=_expand,
 )

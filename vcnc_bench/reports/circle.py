@@ -104,8 +104,9 @@ class CircleFigures:
 PAPER_FIGURES = CircleFigures(rms_x_um=6.3, rms_y_um=3.7, rms_radial_um=0.8, max_radial_after_transient_um=2.0)
 
 
-def circle_reference(radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
-                     revolutions: float = 1.0):
+def circle_reference(
+    radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT, revolutions: float = 1.0
+):
     """The sine/cosine reference sampled at ``dt``: x = R sin(omega t), y = R cos(omega t).
 
     Parameters
@@ -150,8 +151,14 @@ def _traces(name: str, a, n: int | None = None) -> np.ndarray:
     return arr
 
 
-def circle_figures(time, position, reference_position, radius: float = DEFAULT_RADIUS, center=(0.0, 0.0),
-                   transient: float = DEFAULT_TRANSIENT) -> CircleFigures:
+def circle_figures(
+    time,
+    position,
+    reference_position,
+    radius: float = DEFAULT_RADIUS,
+    center=(0.0, 0.0),
+    transient: float = DEFAULT_TRANSIENT,
+) -> CircleFigures:
     """Purtojo et al.'s figures of a circle run.
 
     Parameters
@@ -199,24 +206,42 @@ def circle_figures(time, position, reference_position, radius: float = DEFAULT_R
 
 def comparison_table(figures: CircleFigures, paper: CircleFigures = PAPER_FIGURES) -> list[dict]:
     """Rows ``{"figure", "ours_um", "paper_um", "ratio"}`` (ours / paper) for the paper's four figures."""
-    names = (("RMS tracking error x", "rms_x_um"), ("RMS tracking error y", "rms_y_um"),
-             ("RMS radial error", "rms_radial_um"),
-             ("max |radial error| after the transient", "max_radial_after_transient_um"))
-    return [{"figure": label, "ours_um": getattr(figures, key), "paper_um": getattr(paper, key),
-             "ratio": getattr(figures, key) / getattr(paper, key)} for label, key in names]
+    names = (
+        ("RMS tracking error x", "rms_x_um"),
+        ("RMS tracking error y", "rms_y_um"),
+        ("RMS radial error", "rms_radial_um"),
+        ("max |radial error| after the transient", "max_radial_after_transient_um"),
+    )
+    return [
+        {
+            "figure": label,
+            "ours_um": getattr(figures, key),
+            "paper_um": getattr(paper, key),
+            "ratio": getattr(figures, key) / getattr(paper, key),
+        }
+        for label, key in names
+    ]
 
 
 def format_comparison(figures: CircleFigures, title: str = "", paper: CircleFigures = PAPER_FIGURES) -> str:
     """:func:`comparison_table` as aligned text lines (um), under ``title``."""
     lines = [title] if title else []
     for row in comparison_table(figures, paper):
-        lines.append(f"  {row['figure']:<40} {row['ours_um']:8.2f} um   Purtojo et al.: {row['paper_um']:4.1f} um"
-                     f"   ratio {row['ratio']:5.2f}")
+        lines.append(
+            f"  {row['figure']:<40} {row['ours_um']:8.2f} um   Purtojo et al.: {row['paper_um']:4.1f} um"
+            f"   ratio {row['ratio']:5.2f}"
+        )
     return "\n".join(lines)
 
 
-def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAULT_RADIUS,
-                 transient: float = DEFAULT_TRANSIENT, plot_path=None, shown=None) -> list[str]:
+def bench_report(
+    results_by_policy,
+    label: str = "circle",
+    radius: float = DEFAULT_RADIUS,
+    transient: float = DEFAULT_TRANSIENT,
+    plot_path=None,
+    shown=None,
+) -> list[str]:
     """Purtojo et al.'s figures of every policy's circle run, as text lines, and optionally the radial-error plot.
 
     Parameters
@@ -237,8 +262,10 @@ def bench_report(results_by_policy, label: str = "circle", radius: float = DEFAU
     -------
     list of str
     """
-    head = (f"Purtojo et al., section IV, on {label}: RMS tracking error x, y, RMS radial error and max |radial error| "
-            f"after the first {transient:g} s")
+    head = (
+        f"Purtojo et al., section IV, on {label}: RMS tracking error x, y, RMS radial error and max |radial error| "
+        f"after the first {transient:g} s"
+    )
     lines = [head]
     for name, run in results_by_policy.items():
         f = circle_figures(run.time, run.position, run.reference_position, radius, (0.0, 0.0), transient)
@@ -262,8 +289,9 @@ def circle_layout():
     return gym.make(CIRCLE_ID).unwrapped.layout
 
 
-def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT,
-               **env_kwargs):
+def run_circle(
+    policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OMEGA, dt: float = DEFAULT_DT, **env_kwargs
+):
     """One pass of ``policy`` around the sine/cosine circle: an episode of ``VCNC-Circle-v1``.
 
     The env of the registered id, with another radius (mm), frequency
@@ -289,8 +317,13 @@ def run_circle(policy, radius: float = DEFAULT_RADIUS, omega: float = DEFAULT_OM
         env.close()
 
 
-def plot_radial_error(runs, radius: float = DEFAULT_RADIUS, transient: float = DEFAULT_TRANSIENT,
-                      paper: CircleFigures = PAPER_FIGURES, path=None):
+def plot_radial_error(
+    runs,
+    radius: float = DEFAULT_RADIUS,
+    transient: float = DEFAULT_TRANSIENT,
+    paper: CircleFigures = PAPER_FIGURES,
+    path=None,
+):
     """Radial error (top) and tracking errors (bottom) of circle runs against time, um.
 
     Parameters
@@ -354,8 +387,9 @@ def nctf_main(argv=None) -> int:
     from vcnc_baselines.feedback.nctf import DEFAULT_SETTINGS, NCTFPolicy
     from vcnc_gym.plants import get_plant
 
-    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.circle",
-                                     description="NCTF design and circle figures")
+    parser = argparse.ArgumentParser(
+        prog="python -m vcnc_bench.reports.circle", description="NCTF design and circle figures"
+    )
     parser.add_argument("--omega", type=float, default=DEFAULT_OMEGA, help="circle frequency, rad/s")
     parser.add_argument("--dt", type=float, default=DEFAULT_DT, help="control period, s")
     parser.add_argument("--zero-rate", choices=("nct", "sample"), default=DEFAULT_SETTINGS.zero_rate)
@@ -366,12 +400,17 @@ def nctf_main(argv=None) -> int:
     print(f"NCTF design at T = {args.dt:g} s (stepwise experiment on the nominal table, Purtojo et al.'s eq. (4)):")
     for axis, (n, c) in enumerate(zip(policy.nct, policy.compensators)):
         K, alpha = n.model()
-        print(f"  {'xy'[axis]}: h_max {n.h_max:.3f} mm/s, A {n.A:.3f} mm, m {n.m:.4f} 1/s -> eq. (3): K {K:.2f}, "
-              f"alpha {alpha:.4f}; h_s-res {c.h_s_res:.4g} mm/s, u_i-max {c.u_i_max:.4g}, "
-              f"u_i-s-res {c.u_i_s_res:.4g} mm^2/s")
+        print(
+            f"  {'xy'[axis]}: h_max {n.h_max:.3f} mm/s, A {n.A:.3f} mm, m {n.m:.4f} 1/s -> eq. (3): K {K:.2f}, "
+            f"alpha {alpha:.4f}; h_s-res {c.h_s_res:.4g} mm/s, u_i-max {c.u_i_max:.4g}, "
+            f"u_i-s-res {c.u_i_s_res:.4g} mm^2/s"
+        )
     run = run_circle(policy, omega=args.omega, dt=args.dt)
-    print("\n".join(bench_report({"nctf": run}, f"VCNC-Circle-v1, R = 1 mm, omega = {args.omega:g} rad/s",
-                                    plot_path=args.plot)))
+    print(
+        "\n".join(
+            bench_report({"nctf": run}, f"VCNC-Circle-v1, R = 1 mm, omega = {args.omega:g} rad/s", plot_path=args.plot)
+        )
+    )
     return 0
 
 

@@ -48,16 +48,51 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FrontPoint", "KINDS", "LOOKAHEAD", "JERK_PER_ACCELERATION", "CAPS", "CLASSICAL", "OPERATOR", "FixedOverride",
-           "SCURVE", "MPCC_SPEEDS", "FEED_FRACTIONS", "MPCC_FRACTIONS", "LIMIT_FACTORS", "classical_front", "override_env",
-           "planned_settings", "id_front", "scurve_points", "operator_front", "agent_front", "mpcc_front",
-           "pareto", "verdicts", "plot_fronts", "read_fronts",
-           "format_front", "plot_front", "main"]
+__all__ = [
+    "FrontPoint",
+    "KINDS",
+    "LOOKAHEAD",
+    "JERK_PER_ACCELERATION",
+    "CAPS",
+    "CLASSICAL",
+    "OPERATOR",
+    "FixedOverride",
+    "SCURVE",
+    "MPCC_SPEEDS",
+    "FEED_FRACTIONS",
+    "MPCC_FRACTIONS",
+    "LIMIT_FACTORS",
+    "classical_front",
+    "override_env",
+    "planned_settings",
+    "id_front",
+    "scurve_points",
+    "operator_front",
+    "agent_front",
+    "mpcc_front",
+    "pareto",
+    "verdicts",
+    "plot_fronts",
+    "read_fronts",
+    "format_front",
+    "plot_front",
+    "main",
+]
 
 #: Look-ahead settings of the planned runs: (programmed feed mm/s, path acceleration limit mm/s^2).  The suite's
 #: default limit is 1000 mm/s^2 (motion.lookahead: 38 % of the drives' ~2.6e3 at 5 V); the drives take more.
-LOOKAHEAD = ((100.0, 1000.0), (80.0, 1000.0), (60.0, 1000.0), (45.0, 1000.0), (30.0, 1000.0),
-             (100.0, 1500.0), (100.0, 2000.0), (100.0, 2600.0), (150.0, 2000.0), (150.0, 2600.0))
+LOOKAHEAD = (
+    (100.0, 1000.0),
+    (80.0, 1000.0),
+    (60.0, 1000.0),
+    (45.0, 1000.0),
+    (30.0, 1000.0),
+    (100.0, 1500.0),
+    (100.0, 2000.0),
+    (100.0, 2600.0),
+    (150.0, 2000.0),
+    (150.0, 2600.0),
+)
 #: The jerk limit of a planned run, as a multiple of its acceleration limit, 1/s (the suite's 3e4 / 1000).
 JERK_PER_ACCELERATION = 30.0
 #: Caps of the agent's override and the operator's fixed overrides (1 = 100 %); the env's time limit, three times the
@@ -125,8 +160,14 @@ def classical_front(policies=CLASSICAL, settings=LOOKAHEAD) -> list[FrontPoint]:
         profile = LookaheadFeedrate(curve, feed, acceleration, jerk, acceleration, jerk)
         env = gym.make("VCNC-OmegaLookahead-v1", feedrate=float(feed), profile=profile)
         for name in policies:
-            points.append(_point(name, f"{feed:g} mm/s, {acceleration:g} mm/s^2",
-                                 run_episode(vcnc_baselines.make(name, env), env), "planned"))
+            points.append(
+                _point(
+                    name,
+                    f"{feed:g} mm/s, {acceleration:g} mm/s^2",
+                    run_episode(vcnc_baselines.make(name, env), env),
+                    "planned",
+                )
+            )
         env.close()
     return points
 
@@ -149,8 +190,9 @@ class _Capped:
         self.policy, self.cap = policy, float(cap)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        action, state = self.policy.predict(observation, state=state, episode_start=episode_start,
-                                            deterministic=deterministic)
+        action, state = self.policy.predict(
+            observation, state=state, episode_start=episode_start, deterministic=deterministic
+        )
         action = np.array(action, copy=True)  # its own dtype: the axes' commands reach the env unrounded
         action[..., 2] = self.cap * (np.clip(action[..., 2], -1.0, 1.0) + 1.0) - 1.0
         return action, state
@@ -168,8 +210,9 @@ class FixedOverride:
         self.policy, self.dial = policy, 2.0 * float(override) - 1.0
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        action, state = self.policy.predict(observation, state=state, episode_start=episode_start,
-                                            deterministic=deterministic)
+        action, state = self.policy.predict(
+            observation, state=state, episode_start=episode_start, deterministic=deterministic
+        )
         action = np.asarray(action)
         dial = np.full(action.shape[:-1] + (1,), self.dial, dtype=action.dtype)
         return np.concatenate([action, dial], axis=-1), state
@@ -182,8 +225,15 @@ def operator_front(policy: str = OPERATOR, caps=CAPS, env_id: str = "VCNC-Omega-
     from vcnc_gym.evaluation import run_episode
 
     env = override_env(env_id)
-    points = [_point(f"{policy} @ override", f"{100 * c:g} %",
-                     run_episode(FixedOverride(vcnc_baselines.make(policy, env), c), env), "operator") for c in caps]
+    points = [
+        _point(
+            f"{policy} @ override",
+            f"{100 * c:g} %",
+            run_episode(FixedOverride(vcnc_baselines.make(policy, env), c), env),
+            "operator",
+        )
+        for c in caps
+    ]
     env.close()
     return points
 
@@ -199,9 +249,10 @@ def agent_front(agent, caps=CAPS, label: str = "agent") -> list[FrontPoint]:
     env = gym.make("VCNC-OmegaOverride-v1")
     policy = load_agent(agent, env)
     # at 100 % the agent runs as it is: rescaling its dial rounds it, and the omega's corners amplify that
-    points = [_point(label, f"cap {100 * c:g} %", run_episode(policy if c == 1.0 else _Capped(policy, c), env),
-                     "agent")
-              for c in caps]
+    points = [
+        _point(label, f"cap {100 * c:g} %", run_episode(policy if c == 1.0 else _Capped(policy, c), env), "agent")
+        for c in caps
+    ]
     env.close()
     return points
 
@@ -214,9 +265,15 @@ def mpcc_front(speeds=MPCC_SPEEDS, env_id: str = "VCNC-Omega-v1", **params) -> l
     from vcnc_gym.evaluation import run_episode
 
     env = override_env(env_id)
-    points = [_point("mpcc", f"v_max {v:.4g} mm/s", run_episode(vcnc_baselines.make("mpcc", env, v_max=float(v),
-                                                                                     **params), env), "mpcc")
-              for v in speeds]
+    points = [
+        _point(
+            "mpcc",
+            f"v_max {v:.4g} mm/s",
+            run_episode(vcnc_baselines.make("mpcc", env, v_max=float(v), **params), env),
+            "mpcc",
+        )
+        for v in speeds
+    ]
     env.close()
     return points
 
@@ -252,8 +309,9 @@ def planned_settings(env_id: str) -> list[tuple[str, dict]]:
     spec = gym.spec(env_id)
     if spec.entry_point.endswith(":GCodeEnv"):
         a, j = path_limits(spec.kwargs.get("plant", "vcnc_feed_drive"), None, None)
-        return [(f"path limits x {k:g} ({k * a:g} mm/s^2)", {"acceleration": k * a, "jerk": k * j})
-                for k in LIMIT_FACTORS]
+        return [
+            (f"path limits x {k:g} ({k * a:g} mm/s^2)", {"acceleration": k * a, "jerk": k * j}) for k in LIMIT_FACTORS
+        ]
     feed = spec.kwargs.get("feedrate", inspect.signature(ContouringTask).parameters["feedrate"].default)
     return [(f"{f * feed:g} mm/s", {"feedrate": f * feed}) for f in FEED_FRACTIONS]
 
@@ -320,8 +378,10 @@ def scurve_points(policies=SCURVE) -> list[FrontPoint]:
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make("VCNC-Omega-v1")
-    points = [_point(name, "S-curve, 100 mm/s", run_episode(vcnc_baselines.make(name, env), env), "s-curve")
-              for name in policies]
+    points = [
+        _point(name, "S-curve, 100 mm/s", run_episode(vcnc_baselines.make(name, env), env), "s-curve")
+        for name in policies
+    ]
     env.close()
     return points
 
@@ -333,14 +393,23 @@ def verdicts(points) -> list[str]:
     lines = []
     for a in (p for p in points if p.kind in ("agent", "mpcc") and math.isfinite(p.cycle_time_s)):
         better = [c for c in front if c.cycle_time_s <= a.cycle_time_s and c.max_um <= a.max_um]
-        lines.append(f"{a.policy} {a.setting} ({a.cycle_time_s:.4f} s, {a.max_um:.3f} um): " + (
-            f"beaten by {better[0].policy} at {better[0].setting} ({better[0].cycle_time_s:.4f} s, "
-            f"{better[0].max_um:.3f} um)" if better else "no classical run is both faster and more accurate"))
+        lines.append(
+            f"{a.policy} {a.setting} ({a.cycle_time_s:.4f} s, {a.max_um:.3f} um): "
+            + (
+                f"beaten by {better[0].policy} at {better[0].setting} ({better[0].cycle_time_s:.4f} s, "
+                f"{better[0].max_um:.3f} um)"
+                if better
+                else "no classical run is both faster and more accurate"
+            )
+        )
     return lines
 
 
-def plot_front(points, path, title: str = "Omega, nominal plant: planned look-ahead (classical) vs online feed "
-               "override (agent, MPCC)") -> None:
+def plot_front(
+    points,
+    path,
+    title: str = "Omega, nominal plant: planned look-ahead (classical) vs online feed override (agent, MPCC)",
+) -> None:
     """Max contour error (um, log) against cycle time (s): every classical planned run (markers), their Pareto
     front (line), the operator's fixed overrides, the S-curve runs and the agent."""
     import matplotlib
@@ -366,10 +435,13 @@ def plot_fronts(fronts: dict, path) -> None:
     fig, axes = plt.subplots(rows, 3, figsize=(15.0, 3.6 * rows), squeeze=False)
     for ax, (env_id, points) in zip(axes.ravel(), fronts.items()):
         _draw_front(ax, points, env_id, legend_size=5)
-    for ax in axes.ravel()[len(fronts):]:
+    for ax in axes.ravel()[len(fronts) :]:
         ax.set_visible(False)
-    fig.suptitle("Max contour error against cycle time, nominal plant: planned feeds (classical), the operator's "
-                 "override, the contouring MPC (own progress)", fontsize=10)
+    fig.suptitle(
+        "Max contour error against cycle time, nominal plant: planned feeds (classical), the operator's "
+        "override, the contouring MPC (own progress)",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.985))
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -381,17 +453,36 @@ def _draw_front(ax, points, title: str, legend_size: int) -> None:
     for name, marker in zip(CLASSICAL, "sD^v"):
         mine = [p for p in planned if p.policy == name]
         if mine:
-            ax.scatter([p.cycle_time_s for p in mine], [p.max_um for p in mine], marker=marker, s=22, alpha=0.6,
-                       label=f"{name}, planned")
+            ax.scatter(
+                [p.cycle_time_s for p in mine],
+                [p.max_um for p in mine],
+                marker=marker,
+                s=22,
+                alpha=0.6,
+                label=f"{name}, planned",
+            )
     front = pareto(planned)
-    ax.step([p.cycle_time_s for p in front], [p.max_um for p in front], "k-", where="post", lw=1.2,
-            label="classical front (planned)")
+    ax.step(
+        [p.cycle_time_s for p in front],
+        [p.max_um for p in front],
+        "k-",
+        where="post",
+        lw=1.2,
+        label="classical front (planned)",
+    )
     for kind, name in dict.fromkeys((p.kind, p.policy) for p in finished if p.kind != "planned"):
         mine = sorted((p for p in finished if (p.kind, p.policy) == (kind, name)), key=lambda p: p.cycle_time_s)
         style = {"agent": "o-", "mpcc": "s--"}.get(kind, "x:")
-        ax.plot([p.cycle_time_s for p in mine], [p.max_um for p in mine], style, ms=7, lw=1.5,
-                label=f"{name} (S-curve)" if kind == "s-curve" else
-                ("mpcc (own progress, override)" if kind == "mpcc" else name))
+        ax.plot(
+            [p.cycle_time_s for p in mine],
+            [p.max_um for p in mine],
+            style,
+            ms=7,
+            lw=1.5,
+            label=f"{name} (S-curve)"
+            if kind == "s-curve"
+            else ("mpcc (own progress, override)" if kind == "mpcc" else name),
+        )
     ax.set_yscale("log")
     ax.set_xlabel("cycle time (s)")
     ax.set_ylabel("max contour error (um)")
@@ -413,21 +504,36 @@ def read_fronts(paths) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.feed_override", description=__doc__.split(
-        "\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m vcnc_bench.reports.feed_override", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--agent", help="the feed-override agent's folder (default: the shipped one)")
     parser.add_argument("--plot", help="write the front as a PNG here (with --id: a folder, one PNG per id)")
-    parser.add_argument("--no-mpcc", action="store_true",
-                        help="leave out the contouring MPC (a QP per control period: a minute or more per point)")
-    parser.add_argument("--id", nargs="+", metavar="ID", dest="ids",
-                        help="the front of these contouring ids instead of the omega's ('all': every one)")
+    parser.add_argument(
+        "--no-mpcc",
+        action="store_true",
+        help="leave out the contouring MPC (a QP per control period: a minute or more per point)",
+    )
+    parser.add_argument(
+        "--id",
+        nargs="+",
+        metavar="ID",
+        dest="ids",
+        help="the front of these contouring ids instead of the omega's ('all': every one)",
+    )
     parser.add_argument("--json", help="write the points here (JSON, a list per front)")
-    parser.add_argument("--mpcc-only", action="store_true",
-                        help="with --id and --json: run the contouring MPC's points again and replace them in the "
-                             "--json file's fronts, keeping the other runs (after a change of mpcc)")
-    parser.add_argument("--replot", nargs="+", metavar="JSON",
-                        help="run nothing: print the fronts of these --json files and, with --plot, draw them on one "
-                             "grid")
+    parser.add_argument(
+        "--mpcc-only",
+        action="store_true",
+        help="with --id and --json: run the contouring MPC's points again and replace them in the "
+        "--json file's fronts, keeping the other runs (after a change of mpcc)",
+    )
+    parser.add_argument(
+        "--replot",
+        nargs="+",
+        metavar="JSON",
+        help="run nothing: print the fronts of these --json files and, with --plot, draw them on one grid",
+    )
     args = parser.parse_args(argv)
     if args.replot:
         fronts = read_fronts(args.replot)
@@ -447,8 +553,13 @@ def main(argv=None) -> int:
         agent = TRAINED.get("VCNC-OmegaOverride-v1")
         if agent is None or not agent.is_dir():
             parser.error("no agent is shipped for VCNC-OmegaOverride-v1: give --agent FOLDER")
-    points = classical_front() + scurve_points() + operator_front() + agent_front(agent) + \
-        ([] if args.no_mpcc else mpcc_front())
+    points = (
+        classical_front()
+        + scurve_points()
+        + operator_front()
+        + agent_front(agent)
+        + ([] if args.no_mpcc else mpcc_front())
+    )
     _report(points, args.plot)
     if args.json:
         _write_json({"VCNC-OmegaOverride-v1": points}, args.json)
@@ -490,8 +601,7 @@ def _id_fronts(parser, args) -> int:
         return _replace_mpcc(parser, args, ids)
     fronts = {}
     for env_id in ids:
-        fronts[env_id] = points = id_front(env_id, mpcc=not args.no_mpcc,
-                                           progress=lambda line: print(line, flush=True))
+        fronts[env_id] = points = id_front(env_id, mpcc=not args.no_mpcc, progress=lambda line: print(line, flush=True))
         print(f"\n== {env_id} ==")
         plot = None
         if args.plot:

@@ -42,11 +42,31 @@ import numpy as np
 
 from vcnc_gym.validation import integer
 
-from .tolerance import (ACCELERATIONS, FEED_FACTORS, GridRun, Setting, format_table, own_task, refine, refine_machines,
-                        runs_json, tolerance_table, write_search)
+from .tolerance import (
+    ACCELERATIONS,
+    FEED_FACTORS,
+    GridRun,
+    Setting,
+    format_table,
+    own_task,
+    refine,
+    refine_machines,
+    runs_json,
+    tolerance_table,
+    write_search,
+)
 
-__all__ = ["CONTROLLER", "CONTROLLERS", "LABEL", "label", "schedule_settings", "dial_schedule", "run_schedule",
-           "refine_schedule", "main"]
+__all__ = [
+    "CONTROLLER",
+    "CONTROLLERS",
+    "LABEL",
+    "label",
+    "schedule_settings",
+    "dial_schedule",
+    "run_schedule",
+    "refine_schedule",
+    "main",
+]
 
 #: The axes' controller under the scheduled dial (by default), and those it may be.
 CONTROLLER = "ff-pid-online"
@@ -133,6 +153,7 @@ def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) ->
     nominal plant's choice per T by bisection (:func:`~vcnc_bench.reports.tolerance.refine`), then settings between
     each plant's choice and its neighbours (:func:`~vcnc_bench.reports.tolerance.refine_machines`); progress on
     stderr."""
+
     def run(name, setting):  # the runs' label: the controller under the dial
         return run_schedule(env_id, setting, parameters, name.removesuffix(_SUFFIX))
 
@@ -143,8 +164,9 @@ def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) ->
     return refine_machines(env_id, runs, parameters, run=run, progress=progress)
 
 
-def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: float,
-              controller: str = CONTROLLER) -> list[GridRun]:
+def _run_grid(
+    env_id: str, settings: list[Setting], parameters: np.ndarray, t0: float, controller: str = CONTROLLER
+) -> list[GridRun]:
     """Every setting on every plant, each acceleration's feeds fastest first, a slower feed run only while some plant
     has no run within the smallest tolerance yet (as the look-ahead search's grid: a slower feed never shortens a
     cycle) and the last one brought some plant's max contour error down by 1 % or more (below the feed at which the
@@ -163,9 +185,13 @@ def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: 
             r = run_schedule(env_id, setting, parameters, controller)
             runs.append(r)
             within |= (r.max_um <= smallest_um) & np.isfinite(r.cycle_time_s)
-            print(f"{env_id}, {controller} at {setting.label}: nominal {r.max_um[0]:.4g} um in {r.cycle_time_s[0]:.4g} s; "
-                  f"{int(within.sum())}/{within.size} plants within {smallest_um:g} um "
-                  f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+            print(
+                f"{env_id}, {controller} at {setting.label}: nominal {r.max_um[0]:.4g} um in {r.cycle_time_s[0]:.4g} s; "
+                f"{int(within.sum())}/{within.size} plants within {smallest_um:g} um "
+                f"({time.perf_counter() - t0:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
             if np.all(r.max_um >= 0.99 * last):
                 break
             last = r.max_um
@@ -173,15 +199,24 @@ def _run_grid(env_id: str, settings: list[Setting], parameters: np.ndarray, t0: 
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.override_schedule",
-                                     description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m vcnc_bench.reports.override_schedule", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--id", dest="ids", nargs="+", required=True, metavar="ID", help="feed-override ids")
-    parser.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20, the box's "
-                        "vertices left out; 0: the nominal plant alone)")
+    parser.add_argument(
+        "--plants",
+        type=int,
+        default=20,
+        help="plants drawn from the box (default 20, the box's vertices left out; 0: the nominal plant alone)",
+    )
     parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
-    parser.add_argument("--controller", default=CONTROLLER, choices=CONTROLLERS,
-                        help=f"the axes' controller under the dial (default {CONTROLLER}, the nominal machine's "
-                        "commissioning; @machine: each plant's own)")
+    parser.add_argument(
+        "--controller",
+        default=CONTROLLER,
+        choices=CONTROLLERS,
+        help=f"the axes' controller under the dial (default {CONTROLLER}, the nominal machine's "
+        "commissioning; @machine: each plant's own)",
+    )
     parser.add_argument("--json", help="write the runs and the tables here (the tolerance search's format)")
     args = parser.parse_args(argv)
     from vcnc_bench.robust import plant_set
@@ -195,8 +230,9 @@ def main(argv=None) -> int:
             parser.error(str(e))
         u = env.unwrapped
         if n:
-            plants = plant_set(u.plant, n, integer("--plant-seed", args.plant_seed, 0), nominal=u.nominal_parameters,
-                               max_vertices=0)
+            plants = plant_set(
+                u.plant, n, integer("--plant-seed", args.plant_seed, 0), nominal=u.nominal_parameters, max_vertices=0
+            )
             parameters, kinds = plants.parameters, plants.kinds
         else:
             parameters, kinds = u.nominal_parameters[None], ["nominal"]
@@ -208,8 +244,13 @@ def main(argv=None) -> int:
         rows = tolerance_table(runs, kinds)
         print(format_table(env_id, rows), flush=True)
         print(f"({len(runs)} settings of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)
-        out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": list(kinds), "rows": rows,
-                       "runs": runs_json(runs)}
+        out[env_id] = {
+            "plants": n,
+            "plant_seed": args.plant_seed,
+            "kinds": list(kinds),
+            "rows": rows,
+            "runs": runs_json(runs),
+        }
     if args.json:
         write_search(args.json, out, "vcnc_bench.reports.override_schedule", argv)
     return 0

@@ -62,11 +62,39 @@ import numpy as np
 from vcnc_gym.envs.feed_override_env import TOLERANCES
 from vcnc_gym.validation import integer, positive
 
-__all__ = ["FEED_FACTORS", "ACCELERATIONS", "JERK_PER_ACCELERATION", "CONTROLLERS", "own_task", "Setting", "GridRun",
-           "Choice", "search_settings", "planned_kwargs", "run_grid", "refine", "refine_machines", "run_mpcc",
-           "MPCC_CAPS", "builder_choice", "machine_choice", "tolerance_table", "format_table", "runs_json",
-           "write_search", "scrapped", "SearchCycles", "search_cycles", "agent_cycles", "read_search_entry",
-           "merge_searches", "compare", "goal_letter", "format_comparison", "main"]
+__all__ = [
+    "FEED_FACTORS",
+    "ACCELERATIONS",
+    "JERK_PER_ACCELERATION",
+    "CONTROLLERS",
+    "own_task",
+    "Setting",
+    "GridRun",
+    "Choice",
+    "search_settings",
+    "planned_kwargs",
+    "run_grid",
+    "refine",
+    "refine_machines",
+    "run_mpcc",
+    "MPCC_CAPS",
+    "builder_choice",
+    "machine_choice",
+    "tolerance_table",
+    "format_table",
+    "runs_json",
+    "write_search",
+    "scrapped",
+    "SearchCycles",
+    "search_cycles",
+    "agent_cycles",
+    "read_search_entry",
+    "merge_searches",
+    "compare",
+    "goal_letter",
+    "format_comparison",
+    "main",
+]
 
 #: The programmed feed of the grid, as multiples of the id's own feed, fastest first.
 FEED_FACTORS = (1.5, 1.25, 1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2)
@@ -122,8 +150,10 @@ def _suite(env_id: str):
         raise ValueError(f"env_id must be a contouring id ({', '.join(CONTOURING_IDS)}), got {env_id!r}")
     e = suite_env(env_id)
     if e.entry_point.endswith(":GCodeEnv"):
-        raise ValueError(f"{env_id} is a G-code id: its feeds are the program's F words; the tolerance search "
-                         "plans a contour id's feed (not done for G-code ids)")
+        raise ValueError(
+            f"{env_id} is a G-code id: its feeds are the program's F words; the tolerance search "
+            "plans a contour id's feed (not done for G-code ids)"
+        )
     return e
 
 
@@ -196,12 +226,17 @@ def _grid_run(controller: str, setting: Setting, runs) -> GridRun:
     """A :class:`GridRun` from the bench's :class:`~vcnc_bench.robust.PlantRuns`: a diverged plant's error and an
     unreached or diverged cycle infinite."""
     bad = runs.diverged
-    return GridRun(controller, setting, np.where(bad, np.inf, runs.max_um),
-                   np.where(np.isnan(runs.cycle_time_s) | bad, np.inf, runs.cycle_time_s))
+    return GridRun(
+        controller,
+        setting,
+        np.where(bad, np.inf, runs.max_um),
+        np.where(np.isnan(runs.cycle_time_s) | bad, np.inf, runs.cycle_time_s),
+    )
 
 
-def run_grid(env_id: str, parameters: np.ndarray, *, controllers=CONTROLLERS, tolerances=TOLERANCES,
-             settings=None, progress=None) -> list[GridRun]:
+def run_grid(
+    env_id: str, parameters: np.ndarray, *, controllers=CONTROLLERS, tolerances=TOLERANCES, settings=None, progress=None
+) -> list[GridRun]:
     """Every controller at every setting of the grid (``settings``, default :func:`search_settings`) on every
     plant of ``parameters`` (M, 2, P), each acceleration's feeds fastest first, a slower feed run only while some
     plant has no run within the smallest of ``tolerances`` (mm) yet.  ``progress(message)`` is told of each run."""
@@ -227,9 +262,11 @@ def run_grid(env_id: str, parameters: np.ndarray, *, controllers=CONTROLLERS, to
                 runs.append(run)
                 within |= (run.max_um <= smallest_um) & np.isfinite(run.cycle_time_s)
                 if progress is not None:
-                    progress(f"{env_id} {controller} at {setting.label}: nominal {run.max_um[0]:.4g} um in "
-                             f"{run.cycle_time_s[0]:.4g} s; {int(within.sum())}/{within.size} plants within "
-                             f"{smallest_um:g} um ({time.perf_counter() - t0:.1f} s)")
+                    progress(
+                        f"{env_id} {controller} at {setting.label}: nominal {run.max_um[0]:.4g} um in "
+                        f"{run.cycle_time_s[0]:.4g} s; {int(within.sum())}/{within.size} plants within "
+                        f"{smallest_um:g} um ({time.perf_counter() - t0:.1f} s)"
+                    )
     return runs
 
 
@@ -249,12 +286,27 @@ def _neighbours(runs: list[GridRun], controller: str, setting: Setting) -> list[
     """The nearest faster feed of ``setting``'s column and the nearest larger acceleration at its feed, among the
     settings ``controller`` has run (none where there is none)."""
     c, s = controller, setting
-    faster = [r.setting for r in runs if r.controller == c and r.setting.acceleration == s.acceleration
-              and r.setting.feed > s.feed]
-    larger = [r.setting for r in runs if r.controller == c and r.setting.feed == s.feed
-              and s.acceleration is not None and r.setting.acceleration > s.acceleration]
-    return [x for x in (min(faster, key=lambda x: x.feed, default=None),
-                        min(larger, key=lambda x: x.acceleration, default=None)) if x is not None]
+    faster = [
+        r.setting
+        for r in runs
+        if r.controller == c and r.setting.acceleration == s.acceleration and r.setting.feed > s.feed
+    ]
+    larger = [
+        r.setting
+        for r in runs
+        if r.controller == c
+        and r.setting.feed == s.feed
+        and s.acceleration is not None
+        and r.setting.acceleration > s.acceleration
+    ]
+    return [
+        x
+        for x in (
+            min(faster, key=lambda x: x.feed, default=None),
+            min(larger, key=lambda x: x.acceleration, default=None),
+        )
+        if x is not None
+    ]
 
 
 def _runner(env_id: str, parameters: np.ndarray, run):
@@ -270,8 +322,16 @@ def _runner(env_id: str, parameters: np.ndarray, run):
     return lambda controller, setting: _run(env_id, controller, setting, parameters, curve)
 
 
-def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES, steps: int = 3,
-           progress=None, run=None) -> list[GridRun]:
+def refine(
+    env_id: str,
+    runs: list[GridRun],
+    parameters: np.ndarray,
+    *,
+    tolerances=TOLERANCES,
+    steps: int = 3,
+    progress=None,
+    run=None,
+) -> list[GridRun]:
     """``runs`` and the refinement runs of the builder's setting (module docstring): per tolerance (mm), bisection
     from the nominal plant's choice toward the next faster feed and the next larger acceleration.  ``run(controller,
     setting)`` -> :class:`GridRun` on every plant (None: this search's look-ahead runs; the look-ahead through the
@@ -287,13 +347,23 @@ def refine(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, toleranc
             n = len(runs)
             _bisect(run, c, s, failing, 1e3 * tol, steps, runs)
             if progress is not None:
-                progress(f"{env_id} {c}: refined {s.label} toward {failing.label} for {1e3 * tol:g} um: "
-                         + ", ".join(f"{r.setting.label} {r.max_um[0]:.3g} um" for r in runs[n:]))
+                progress(
+                    f"{env_id} {c}: refined {s.label} toward {failing.label} for {1e3 * tol:g} um: "
+                    + ", ".join(f"{r.setting.label} {r.max_um[0]:.3g} um" for r in runs[n:])
+                )
     return runs
 
 
-def refine_machines(env_id: str, runs: list[GridRun], parameters: np.ndarray, *, tolerances=TOLERANCES,
-                    points: int = 3, progress=None, run=None) -> list[GridRun]:
+def refine_machines(
+    env_id: str,
+    runs: list[GridRun],
+    parameters: np.ndarray,
+    *,
+    tolerances=TOLERANCES,
+    points: int = 3,
+    progress=None,
+    run=None,
+) -> list[GridRun]:
     """``runs`` and the per-plant search's refinement: per tolerance (mm), ``points`` settings evenly between
     each plant's choice and each of its :func:`_neighbours`, each run once on every plant (every plant's boundary
     lies elsewhere, and a run serves them all); ``run`` as :func:`refine`'s."""
@@ -301,23 +371,30 @@ def refine_machines(env_id: str, runs: list[GridRun], parameters: np.ndarray, *,
     runs = list(runs)
     done = {(r.controller, r.setting) for r in runs}
     for tol in tolerances:
-        targets = {(ch.controller, ch.setting) for ch in (_fastest(runs, i, 1e3 * tol)
-                                                         for i in range(parameters.shape[0]))
-                   if ch.controller not in (None, "mpcc")}
+        targets = {
+            (ch.controller, ch.setting)
+            for ch in (_fastest(runs, i, 1e3 * tol) for i in range(parameters.shape[0]))
+            if ch.controller not in (None, "mpcc")
+        }
         n = len(runs)
         for c, s in sorted(targets, key=lambda t: (t[0], t[1].feed, t[1].acceleration or 0.0)):
             for failing in _neighbours(runs[:n], c, s):
                 for k in range(1, points + 1):
                     w = k / (points + 1)
-                    a = None if s.acceleration is None else round(s.acceleration + w * (failing.acceleration
-                                                                                        - s.acceleration), 3)
+                    a = (
+                        None
+                        if s.acceleration is None
+                        else round(s.acceleration + w * (failing.acceleration - s.acceleration), 3)
+                    )
                     mid = Setting(round(s.feed + w * (failing.feed - s.feed), 6), a)
                     if (c, mid) not in done:
                         runs.append(run(c, mid))
                         done.add((c, mid))
         if progress is not None:
-            progress(f"{env_id}: {len(runs) - n} runs refined the per-plant choices for {1e3 * tol:g} um "
-                     f"({len(targets)} settings chosen)")
+            progress(
+                f"{env_id}: {len(runs) - n} runs refined the per-plant choices for {1e3 * tol:g} um "
+                f"({len(targets)} settings chosen)"
+            )
     return runs
 
 
@@ -363,8 +440,10 @@ def run_mpcc(override_id: str, parameters: np.ndarray, *, caps=MPCC_CAPS, progre
             env.close()
         runs.append(_grid_run("mpcc", Setting(round(cap * feed, 6)), r))
         if progress is not None:
-            progress(f"{override_id} mpcc, progress capped at {cap * feed:g} mm/s: nominal {r.max_um[0]:.4g} um "
-                     f"in {r.cycle_time_s[0]:.4g} s ({time.perf_counter() - t0:.0f} s)")
+            progress(
+                f"{override_id} mpcc, progress capped at {cap * feed:g} mm/s: nominal {r.max_um[0]:.4g} um "
+                f"in {r.cycle_time_s[0]:.4g} s ({time.perf_counter() - t0:.0f} s)"
+            )
     return runs
 
 
@@ -407,10 +486,15 @@ def tolerance_table(runs: list[GridRun], kinds: list[str], tolerances=TOLERANCES
         choice, run = builder_choice(runs, tol)
         per_plant = machine_choice(runs, tol, kinds.size)
         cycles = np.array([c.cycle_time_s for c in per_plant])
-        row = {"tolerance_um": 1e3 * tol, "builder": asdict(choice), "machine_nominal": asdict(per_plant[0]),
-               "machine_median_cycle_time_s": _median(cycles[sampled]),
-               "machine_unreached": int(np.isinf(cycles[boxed]).sum()),
-               "machine_per_plant": [asdict(c) for c in per_plant], "n_plants": int(boxed.sum())}
+        row = {
+            "tolerance_um": 1e3 * tol,
+            "builder": asdict(choice),
+            "machine_nominal": asdict(per_plant[0]),
+            "machine_median_cycle_time_s": _median(cycles[sampled]),
+            "machine_unreached": int(np.isinf(cycles[boxed]).sum()),
+            "machine_per_plant": [asdict(c) for c in per_plant],
+            "n_plants": int(boxed.sum()),
+        }
         if run is not None:
             exceed = (run.max_um > 1e3 * tol) | np.isinf(run.cycle_time_s)
             row["builder_median_cycle_time_s"] = _median(run.cycle_time_s[sampled])
@@ -428,17 +512,23 @@ def _fmt_choice(c: dict) -> str:
 
 def format_table(env_id: str, rows: list[dict]) -> str:
     """The Markdown table of :func:`tolerance_table`'s rows."""
-    out = [f"{env_id}:", "",
-           "| T, um | builder's setting (nominal plant) | its median cycle, s | plants > T | per-plant search: "
-           "median cycle, s | plants with none within T |", "|---|---|---|---|---|---|"]
+    out = [
+        f"{env_id}:",
+        "",
+        "| T, um | builder's setting (nominal plant) | its median cycle, s | plants > T | per-plant search: "
+        "median cycle, s | plants with none within T |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in rows:
         med = r.get("builder_median_cycle_time_s")
         machine = r["machine_median_cycle_time_s"]
         if not r["n_plants"]:  # the nominal plant alone (--plants 0): no median over sampled plants
             med = machine = None
-        out.append(f"| {r['tolerance_um']:g} | {_fmt_choice(r['builder'])} | "
-                   f"{'-' if med is None else f'{med:.4g}'} | {r.get('builder_exceeded', '-')} of {r['n_plants']} | "
-                   f"{'-' if machine is None else f'{machine:.4g}'} | {r['machine_unreached']} of {r['n_plants']} |")
+        out.append(
+            f"| {r['tolerance_um']:g} | {_fmt_choice(r['builder'])} | "
+            f"{'-' if med is None else f'{med:.4g}'} | {r.get('builder_exceeded', '-')} of {r['n_plants']} | "
+            f"{'-' if machine is None else f'{machine:.4g}'} | {r['machine_unreached']} of {r['n_plants']} |"
+        )
     return "\n".join(out)
 
 
@@ -465,19 +555,23 @@ def search_cycles(search: dict, tolerance: float) -> SearchCycles:
     t_um = 1e3 * tolerance
     row = next((r for r in search["rows"] if math.isclose(r["tolerance_um"], t_um)), None)
     if row is None:
-        raise ValueError(f"the search has no row for T = {t_um:g} um (it has "
-                         f"{[r['tolerance_um'] for r in search['rows']]})")
+        raise ValueError(
+            f"the search has no row for T = {t_um:g} um (it has {[r['tolerance_um'] for r in search['rows']]})"
+        )
     b = row["builder"]
-    run = next((r for r in search["runs"] if r["controller"] == b["controller"] and r["setting"] == b["setting"]),
-               None)
-    return SearchCycles(np.array([c["cycle_time_s"] for c in row["machine_per_plant"]], dtype=float),
-                        None if run is None else scrapped(run["cycle_time_s"], run["max_um"], t_um), b)
+    run = next((r for r in search["runs"] if r["controller"] == b["controller"] and r["setting"] == b["setting"]), None)
+    return SearchCycles(
+        np.array([c["cycle_time_s"] for c in row["machine_per_plant"]], dtype=float),
+        None if run is None else scrapped(run["cycle_time_s"], run["max_um"], t_um),
+        b,
+    )
 
 
 def agent_cycles(records: list[dict], n: int, tolerance_um: float) -> np.ndarray:
     """(seeds, n) cycle times (s, scrap infinite) of the seeds' bench ``records`` on their first ``n`` plants."""
-    return np.stack([scrapped(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], tolerance_um)
-                     for r in records])
+    return np.stack(
+        [scrapped(r["per_plant"]["cycle_time_s"][:n], r["per_plant"]["max_um"][:n], tolerance_um) for r in records]
+    )
 
 
 def _opponents(search: dict, tolerance: float) -> dict:
@@ -510,8 +604,11 @@ def merge_searches(searches: list[dict]) -> dict:
     tolerance the fastest builder's setting on the nominal plant and, per plant, the fastest choice of any."""
     first = searches[0]
     for other in searches[1:]:
-        if (other["kinds"], other["plants"], other["plant_seed"]) != (first["kinds"], first["plants"],
-                                                                      first["plant_seed"]):
+        if (other["kinds"], other["plants"], other["plant_seed"]) != (
+            first["kinds"],
+            first["plants"],
+            first["plant_seed"],
+        ):
             raise ValueError("the searches ran other plants: give each the same --plants and --plant-seed")
         if [r["tolerance_um"] for r in other["rows"]] != [r["tolerance_um"] for r in first["rows"]]:
             raise ValueError("the searches have other tolerances")
@@ -519,16 +616,27 @@ def merge_searches(searches: list[dict]) -> dict:
     for k, row in enumerate(first["rows"]):
         mine = [x["rows"][k] for x in searches]
         builder = min((r["builder"] for r in mine), key=lambda c: c["cycle_time_s"])
-        per_plant = [min(choices, key=lambda c: c["cycle_time_s"])
-                     for choices in zip(*(r["machine_per_plant"] for r in mine))]
-        rows.append({"tolerance_um": row["tolerance_um"], "builder": builder, "machine_per_plant": per_plant,
-                     "n_plants": row["n_plants"]})
-    return {**{k: first[k] for k in ("plants", "plant_seed", "kinds")}, "rows": rows,
-            "runs": [run for x in searches for run in x["runs"]]}
+        per_plant = [
+            min(choices, key=lambda c: c["cycle_time_s"]) for choices in zip(*(r["machine_per_plant"] for r in mine))
+        ]
+        rows.append(
+            {
+                "tolerance_um": row["tolerance_um"],
+                "builder": builder,
+                "machine_per_plant": per_plant,
+                "n_plants": row["n_plants"],
+            }
+        )
+    return {
+        **{k: first[k] for k in ("plants", "plant_seed", "kinds")},
+        "rows": rows,
+        "runs": [run for x in searches for run in x["runs"]],
+    }
 
 
-def compare(records: list[dict], search: dict, tolerance: float, *, label: str = "agent",
-            others: list[dict] = ()) -> list[dict]:
+def compare(
+    records: list[dict], search: dict, tolerance: float, *, label: str = "agent", others: list[dict] = ()
+) -> list[dict]:
     """The agent (``records``: its seeds' bench records over the plants, one per seed) against the search's
     opponents at ``tolerance`` (mm) and ``others`` (bench records of causal controllers on the agent's env and
     plants, such as the contouring MPC ``mpcc``, which sets its own feed): per opponent, the nominal and median
@@ -539,8 +647,10 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
     kinds = np.array(search["kinds"])
     n = kinds.size  # the bench's plants begin with the search's (the box's vertices, if any, follow the draws)
     if any(list(r["per_plant"]["kind"][:n]) != list(kinds) for r in records):
-        raise ValueError("the agent's bench run and the search ran other plants: give vcnc-bench --plants "
-                         f"{search['plants']} --plant-seed {search['plant_seed']}")
+        raise ValueError(
+            "the agent's bench run and the search ran other plants: give vcnc-bench --plants "
+            f"{search['plants']} --plant-seed {search['plant_seed']}"
+        )
     t_um = 1e3 * tolerance
     sampled = kinds == "sample"
     x = agent_cycles(records, n, t_um)
@@ -549,16 +659,25 @@ def compare(records: list[dict], search: dict, tolerance: float, *, label: str =
     for rec in others:
         if list(rec["per_plant"]["kind"][:n]) != list(kinds):
             raise ValueError(f"{rec['policy']} ran other plants than the search")
-        opponents[f"`{rec['policy']}`"] = scrapped(rec["per_plant"]["cycle_time_s"][:n], rec["per_plant"]["max_um"][:n],
-                                                 t_um)
+        opponents[f"`{rec['policy']}`"] = scrapped(
+            rec["per_plant"]["cycle_time_s"][:n], rec["per_plant"]["max_um"][:n], t_um
+        )
     rows = []
     for name, y in opponents.items():
         v = verdict(x[:, sampled, None], y[sampled], figure="cycle", x_label=label, y_label=name)
-        row = {"tolerance_um": t_um, "opponent": name, "agent_nominal_s": [float(c) for c in x[:, 0]],
-               "agent_median_s": float(np.median(x[:, sampled])), "agent_over_t": over,
-               "opponent_nominal_s": float(y[0]), "opponent_median_s": float(np.median(y[sampled])),
-               "opponent_over_t": int(np.isinf(y[kinds != "nominal"]).sum()), "n_plants": int((kinds != "nominal").sum()),
-               "agent_faster": int(np.sum(x[:, sampled] < y[sampled])), "verdict": _signed(v)}
+        row = {
+            "tolerance_um": t_um,
+            "opponent": name,
+            "agent_nominal_s": [float(c) for c in x[:, 0]],
+            "agent_median_s": float(np.median(x[:, sampled])),
+            "agent_over_t": over,
+            "opponent_nominal_s": float(y[0]),
+            "opponent_median_s": float(np.median(y[sampled])),
+            "opponent_over_t": int(np.isinf(y[kinds != "nominal"]).sum()),
+            "n_plants": int((kinds != "nominal").sum()),
+            "agent_faster": int(np.sum(x[:, sampled] < y[sampled])),
+            "verdict": _signed(v),
+        }
         rows.append({**row, "goal_letter": goal_letter(row)})
     return rows
 
@@ -569,73 +688,123 @@ def goal_letter(row: dict) -> bool:
     unfinished (the agent's count per seed at most the opponent's).  The rule's verdict (an interval of the paired
     difference that excludes zero) asks more: it is the row's ``verdict``."""
     nominal = all(c < row["opponent_nominal_s"] for c in row["agent_nominal_s"])
-    return bool(nominal and row["agent_median_s"] < row["opponent_median_s"]
-                and sum(row["agent_over_t"]) <= row["opponent_over_t"] * len(row["agent_over_t"]))
+    return bool(
+        nominal
+        and row["agent_median_s"] < row["opponent_median_s"]
+        and sum(row["agent_over_t"]) <= row["opponent_over_t"] * len(row["agent_over_t"])
+    )
 
 
 def _signed(v) -> dict:
     """A :class:`~vcnc_bench.verdicts.Verdict` as JSON, an infinity kept with its sign (``"inf"``, ``"-inf"``: a
     scrapped run's cycle time is infinite, and ``to_dict``'s None would lose which side it is on)."""
+
     def safe(x):
         if isinstance(x, float) and not math.isfinite(x):
             return repr(x)
         return [safe(e) for e in x] if isinstance(x, tuple) else x
+
     return {k: safe(getattr(v, k)) for k in v.to_dict()}
 
 
 def format_comparison(rows: list[dict]) -> str:
     """The Markdown table of :func:`compare`'s rows."""
-    out = ["| T, um | opponent | agent nominal, s (per seed) | agent median, s | agent runs > T or unfinished | "
-           "opponent nominal, s | opponent median, s | opponent runs > T or unfinished | agent faster, runs | "
-           "agent - opponent, IQM s [95 % CI] | verdict | goal 2's letter |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        "| T, um | opponent | agent nominal, s (per seed) | agent median, s | agent runs > T or unfinished | "
+        "opponent nominal, s | opponent median, s | opponent runs > T or unfinished | agent faster, runs | "
+        "agent - opponent, IQM s [95 % CI] | verdict | goal 2's letter |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         v = r["verdict"]
         f = lambda z: z if isinstance(z, str) else f"{z:.4g}"  # noqa: E731  (an infinity kept as "inf", "-inf")
-        out.append(f"| {r['tolerance_um']:g} | {r['opponent']} | {', '.join(f(c) for c in r['agent_nominal_s'])} | "
-                   f"{f(r['agent_median_s'])} | {'+'.join(map(str, r['agent_over_t']))} of "
-                   f"{len(r['agent_over_t'])} x {r['n_plants']} | {f(r['opponent_nominal_s'])} | "
-                   f"{f(r['opponent_median_s'])} | {r['opponent_over_t']} of {r['n_plants']} | "
-                   f"{r['agent_faster']} of {len(r['agent_over_t'])} x {r['n_plants']} | "
-                   f"{f(v['difference'])} [{f(v['low'])}, {f(v['high'])}] | {v['outcome']} | "
-                   f"{'met' if r['goal_letter'] else 'not met'} |")
+        out.append(
+            f"| {r['tolerance_um']:g} | {r['opponent']} | {', '.join(f(c) for c in r['agent_nominal_s'])} | "
+            f"{f(r['agent_median_s'])} | {'+'.join(map(str, r['agent_over_t']))} of "
+            f"{len(r['agent_over_t'])} x {r['n_plants']} | {f(r['opponent_nominal_s'])} | "
+            f"{f(r['opponent_median_s'])} | {r['opponent_over_t']} of {r['n_plants']} | "
+            f"{r['agent_faster']} of {len(r['agent_over_t'])} x {r['n_plants']} | "
+            f"{f(v['difference'])} [{f(v['low'])}, {f(v['high'])}] | {v['outcome']} | "
+            f"{'met' if r['goal_letter'] else 'not met'} |"
+        )
     return "\n".join(out)
 
 
 def runs_json(runs: list[GridRun]) -> list[dict]:
     """``runs`` as the JSON of a search (a diverged error or an unreached cycle as null)."""
+
     def finite(x):
         return [None if not np.isfinite(v) else float(v) for v in x]
-    return [{"controller": r.controller, "setting": asdict(r.setting), "max_um": finite(r.max_um),
-             "cycle_time_s": finite(r.cycle_time_s)} for r in runs]
+
+    return [
+        {
+            "controller": r.controller,
+            "setting": asdict(r.setting),
+            "max_um": finite(r.max_um),
+            "cycle_time_s": finite(r.cycle_time_s),
+        }
+        for r in runs
+    ]
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.tolerance", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m vcnc_bench.reports.tolerance", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--id", dest="ids", nargs="+", metavar="ID", help="search these contouring ids")
-    parser.add_argument("--plants", type=int, default=20, help="plants drawn from the box (default 20, the box's "
-                        "vertices left out; 0: the nominal plant alone)")
+    parser.add_argument(
+        "--plants",
+        type=int,
+        default=20,
+        help="plants drawn from the box (default 20, the box's vertices left out; 0: the nominal plant alone)",
+    )
     parser.add_argument("--plant-seed", type=int, default=0, help="seed of the plants (default 0, the bench's)")
     parser.add_argument("--json", help="write the grid's runs and the tables here")
-    parser.add_argument("--mpcc", metavar="OVERRIDE_ID", help="with one --id: the contouring MPC too, on this "
-                        "feed-override id of the same contour and plant (e.g. VCNC-OmegaOverride-v1 for the omega), "
-                        "its progress capped at 1.5, 1.25, 1 and 0.8 x the programmed feed (--mpcc-caps; a QP per "
-                        "control period: minutes "
-                        "per plant)")
-    parser.add_argument("--mpcc-caps", type=float, nargs="+", default=list(MPCC_CAPS), metavar="X",
-                        help="with --mpcc: the MPCC's progress caps, x the programmed feed (default "
-                        f"{' '.join(f'{c:g}' for c in MPCC_CAPS)}; a QP per control period: on the heart about 27 "
-                        "minutes a cap for 21 plants on one core)")
-    parser.add_argument("--agents", metavar="BENCH_JSON", help="instead: compare the tolerance agents of this "
-                        "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
-                        "the JSON's causal controllers (e.g. --policy mpcc)")
-    parser.add_argument("--search", metavar="JSON[:ID]", nargs="+", help="with --agents: --json files of this "
-                        "search or of vcnc_bench.reports.override_schedule, each with the searched id after a colon "
-                        "where it holds several; several are one search (merge_searches: the fastest of any)")
-    parser.add_argument("--search-id", metavar="ID", help="with --agents and one --search: the searched id "
-                        "(default the file's only)")
-    parser.add_argument("--tolerance", type=float, nargs="+", default=list(TOLERANCES), metavar="MM",
-                        help="with --agents: the tolerances (mm; default 0.005 0.01 0.02)")
+    parser.add_argument(
+        "--mpcc",
+        metavar="OVERRIDE_ID",
+        help="with one --id: the contouring MPC too, on this "
+        "feed-override id of the same contour and plant (e.g. VCNC-OmegaOverride-v1 for the omega), "
+        "its progress capped at 1.5, 1.25, 1 and 0.8 x the programmed feed (--mpcc-caps; a QP per "
+        "control period: minutes "
+        "per plant)",
+    )
+    parser.add_argument(
+        "--mpcc-caps",
+        type=float,
+        nargs="+",
+        default=list(MPCC_CAPS),
+        metavar="X",
+        help="with --mpcc: the MPCC's progress caps, x the programmed feed (default "
+        f"{' '.join(f'{c:g}' for c in MPCC_CAPS)}; a QP per control period: on the heart about 27 "
+        "minutes a cap for 21 plants on one core)",
+    )
+    parser.add_argument(
+        "--agents",
+        metavar="BENCH_JSON",
+        help="instead: compare the tolerance agents of this "
+        "vcnc-bench --plants JSON (their training seeds, one group) with --search's opponents and "
+        "the JSON's causal controllers (e.g. --policy mpcc)",
+    )
+    parser.add_argument(
+        "--search",
+        metavar="JSON[:ID]",
+        nargs="+",
+        help="with --agents: --json files of this "
+        "search or of vcnc_bench.reports.override_schedule, each with the searched id after a colon "
+        "where it holds several; several are one search (merge_searches: the fastest of any)",
+    )
+    parser.add_argument(
+        "--search-id", metavar="ID", help="with --agents and one --search: the searched id (default the file's only)"
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        nargs="+",
+        default=list(TOLERANCES),
+        metavar="MM",
+        help="with --agents: the tolerances (mm; default 0.005 0.01 0.02)",
+    )
     args = parser.parse_args(argv)
     if args.agents is not None:
         return _compare_main(parser, args)
@@ -670,8 +839,10 @@ def _compare_main(parser, args) -> int:
     sid = " and ".join(names)
     groups = dict.fromkeys(r["group"] for r in records)
     if not groups:
-        parser.error("--agents: the JSON holds no training seeds' group (vcnc-bench --policy ppo:FOLDER of a "
-                     "vcnc-train --seeds folder)")
+        parser.error(
+            "--agents: the JSON holds no training seeds' group (vcnc-bench --policy ppo:FOLDER of a "
+            "vcnc-train --seeds folder)"
+        )
     for group in groups:
         members = [r for r in records if r["group"] == group]
         print(f"{group} ({len(members)} seeds) against the search of {sid}:")
@@ -691,8 +862,9 @@ def _search_main(parser, args, argv=None) -> int:
     from vcnc_gym.envs.feed_override_env import MAX_OVERRIDE
 
     if not all(0.0 < c <= MAX_OVERRIDE for c in args.mpcc_caps):  # before the grid's runs, not after them
-        parser.error(f"--mpcc-caps: each in (0, {MAX_OVERRIDE:g}] x the programmed feed (the dial's top), got "
-                     f"{args.mpcc_caps}")
+        parser.error(
+            f"--mpcc-caps: each in (0, {MAX_OVERRIDE:g}] x the programmed feed (the dial's top), got {args.mpcc_caps}"
+        )
     out = {}
     for env_id in args.ids:
         try:
@@ -702,8 +874,9 @@ def _search_main(parser, args, argv=None) -> int:
         env = gym.make(env_id)
         u = env.unwrapped
         if n:
-            plants = plant_set(u.plant, n, integer("--plant-seed", args.plant_seed, 0),
-                               nominal=u.nominal_parameters, max_vertices=0)
+            plants = plant_set(
+                u.plant, n, integer("--plant-seed", args.plant_seed, 0), nominal=u.nominal_parameters, max_vertices=0
+            )
             parameters, kinds = plants.parameters, plants.kinds
         else:
             parameters, kinds = u.nominal_parameters[None], ["nominal"]
@@ -719,8 +892,13 @@ def _search_main(parser, args, argv=None) -> int:
         rows = tolerance_table(runs, kinds)
         print(format_table(env_id, rows), flush=True)
         print(f"({len(runs)} runs of {len(kinds)} plants in {time.perf_counter() - t0:.0f} s)\n", flush=True)
-        out[env_id] = {"plants": n, "plant_seed": args.plant_seed, "kinds": kinds, "rows": rows,
-                       "runs": runs_json(runs)}
+        out[env_id] = {
+            "plants": n,
+            "plant_seed": args.plant_seed,
+            "kinds": kinds,
+            "rows": rows,
+            "runs": runs_json(runs),
+        }
     if args.json:
         write_search(args.json, out, "vcnc_bench.reports.tolerance", argv)
     return 0

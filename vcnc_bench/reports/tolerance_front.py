@@ -42,8 +42,17 @@ from vcnc_gym.envs.feed_override_env import TOLERANCES
 
 from .tolerance import Setting, agent_cycles, merge_searches, read_search_entry, scrapped, search_cycles
 
-__all__ = ["FrontPoint", "Front", "read_search", "read_agents", "agent_records", "front", "format_front", "plot_fronts",
-           "main"]
+__all__ = [
+    "FrontPoint",
+    "Front",
+    "read_search",
+    "read_agents",
+    "agent_records",
+    "front",
+    "format_front",
+    "plot_fronts",
+    "main",
+]
 
 
 @dataclass(frozen=True)
@@ -102,11 +111,21 @@ def _controller_points(search: dict, t_um: float) -> list[FrontPoint]:
     sampled, boxed = kinds == "sample", kinds != "nominal"
     points = []
     for name in dict.fromkeys(r["controller"] for r in search["runs"]):
-        cycles = np.stack([scrapped(r["cycle_time_s"], r["max_um"], t_um) for r in search["runs"]
-                           if r["controller"] == name])
+        cycles = np.stack(
+            [scrapped(r["cycle_time_s"], r["max_um"], t_um) for r in search["runs"] if r["controller"] == name]
+        )
         best = cycles.min(axis=0)  # per plant, the fastest of this controller's settings within T
-        points.append(FrontPoint(name, "controller", t_um, (float(best[0]),), float(np.median(best[sampled])),
-                                 int(np.isinf(best[boxed]).sum()), int(boxed.sum())))
+        points.append(
+            FrontPoint(
+                name,
+                "controller",
+                t_um,
+                (float(best[0]),),
+                float(np.median(best[sampled])),
+                int(np.isinf(best[boxed]).sum()),
+                int(boxed.sum()),
+            )
+        )
     return points
 
 
@@ -114,14 +133,31 @@ def _search_points(search: dict, t_um: float) -> list[FrontPoint]:
     kinds = np.asarray(search["kinds"])
     sampled, boxed = kinds == "sample", kinds != "nominal"
     c = search_cycles(search, 1e-3 * t_um)
-    points = [FrontPoint("per-plant search", "per-plant", t_um, (float(c.per_plant[0]),),
-                         float(np.median(c.per_plant[sampled])), int(np.isinf(c.per_plant[boxed]).sum()),
-                         int(boxed.sum()))]
+    points = [
+        FrontPoint(
+            "per-plant search",
+            "per-plant",
+            t_um,
+            (float(c.per_plant[0]),),
+            float(np.median(c.per_plant[sampled])),
+            int(np.isinf(c.per_plant[boxed]).sum()),
+            int(boxed.sum()),
+        )
+    ]
     if c.builder is not None:
         b = c.builder_choice
-        points.append(FrontPoint("builder's setting", "builder", t_um, (float(c.builder[0]),),
-                                 float(np.median(c.builder[sampled])), int(np.isinf(c.builder[boxed]).sum()),
-                                 int(boxed.sum()), f"{b['controller']}, {Setting(**b['setting']).label}"))
+        points.append(
+            FrontPoint(
+                "builder's setting",
+                "builder",
+                t_um,
+                (float(c.builder[0]),),
+                float(np.median(c.builder[sampled])),
+                int(np.isinf(c.builder[boxed]).sum()),
+                int(boxed.sum()),
+                f"{b['controller']}, {Setting(**b['setting']).label}",
+            )
+        )
     return points
 
 
@@ -129,9 +165,15 @@ def _agent_point(name: str, records: list[dict], kinds: list[str], t_um: float) 
     kinds = np.asarray(kinds)
     x = agent_cycles(records, kinds.size, t_um)
     boxed = kinds != "nominal"
-    return FrontPoint(name, "agents", t_um, tuple(float(c) for c in x[:, 0]),
-                      float(np.median(x[:, kinds == "sample"])), int(np.isinf(x[:, boxed]).sum()),
-                      int(x[:, boxed].size))
+    return FrontPoint(
+        name,
+        "agents",
+        t_um,
+        tuple(float(c) for c in x[:, 0]),
+        float(np.median(x[:, kinds == "sample"])),
+        int(np.isinf(x[:, boxed]).sum()),
+        int(x[:, boxed].size),
+    )
 
 
 def front(env_id: str, title: str, search: dict, agents: dict[str, list[dict]], tolerances=TOLERANCES) -> Front:
@@ -151,14 +193,19 @@ def _s(v: float) -> str:
 
 def format_front(fr: Front) -> str:
     """The Markdown table of a front: per tolerance and point, nominal and median cycle (s) and the runs over T."""
-    out = [f"{fr.env_id} ({fr.title}):", "",
-           "| T, um | opponent or agents | nominal cycle, s | median cycle, s | over T or none within T |",
-           "|---|---|---|---|---|"]
+    out = [
+        f"{fr.env_id} ({fr.title}):",
+        "",
+        "| T, um | opponent or agents | nominal cycle, s | median cycle, s | over T or none within T |",
+        "|---|---|---|---|---|",
+    ]
     for p in fr.points:
         what = "runs over T" if p.kind in ("agents", "builder") else "plants with none within T"
         name = f"{p.name} ({p.choice})" if p.choice else p.name
-        out.append(f"| {p.tolerance_um:g} | {name} | {', '.join(_s(c) for c in p.nominal_s)} | {_s(p.median_s)} | "
-                   f"{p.over} of {p.runs} ({what}) |")
+        out.append(
+            f"| {p.tolerance_um:g} | {name} | {', '.join(_s(c) for c in p.nominal_s)} | {_s(p.median_s)} | "
+            f"{p.over} of {p.runs} ({what}) |"
+        )
     return "\n".join(out)
 
 
@@ -198,8 +245,16 @@ def _panel(ax, fr: Front, which: str) -> None:
             ax.plot([a for a, _ in seeds], [c for _, c in seeds], ls="none", marker=".", color=style["color"], ms=4)
         off = ~np.isfinite(y)
         if off.any():  # scrap: at the top edge, open
-            ax.plot(t[off], np.full(off.sum(), top), ls="none", marker=style["marker"], mfc="none",
-                    color=style["color"], ms=8, clip_on=False)
+            ax.plot(
+                t[off],
+                np.full(off.sum(), top),
+                ls="none",
+                marker=style["marker"],
+                mfc="none",
+                color=style["color"],
+                ms=8,
+                clip_on=False,
+            )
     ax.set_xscale("log")
     ax.minorticks_off()
     ax.set_xticks([5, 10, 20], ["5", "10", "20"])
@@ -223,8 +278,11 @@ def plot_fronts(fronts: list[Front], path) -> Path:
         _panel(row[0], fr, "nominal")
         _panel(row[1], fr, "median")
         row[1].legend(fontsize=6.5, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    fig.suptitle("The tolerance task's front: the fastest cycle within T (open markers on the top edge: scrap, over T "
-                 "or unfinished; lines above the top run off the panel)", fontsize=10)
+    fig.suptitle(
+        "The tolerance task's front: the fastest cycle within T (open markers on the top edge: scrap, over T "
+        "or unfinished; lines above the top run off the panel)",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))  # room for the title
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -248,8 +306,9 @@ def _read_spec(path: str) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.tolerance_front",
-                                     description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m vcnc_bench.reports.tolerance_front", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--spec", required=True, help="the fronts, a JSON list (this module's docstring)")
     parser.add_argument("--plot", help="draw the fronts into this PNG")
     args = parser.parse_args(argv)

@@ -158,8 +158,15 @@ def kharitonov_analysis(controller: str) -> dict:
 
 
 # -- step metrics ----------------------------------------------------------------------
-def loop_step_metrics(controller: str, a: float, b: float, dead_time: float = 0.0, dt: float | None = None,
-                      t_end: float = 30.0, return_response: bool = False):
+def loop_step_metrics(
+    controller: str,
+    a: float,
+    b: float,
+    dead_time: float = 0.0,
+    dt: float | None = None,
+    t_end: float = 30.0,
+    return_response: bool = False,
+):
     """Step metrics of the unity-feedback loop of ``controller`` around ``b e^{-T_d s} / (s (s + a))``.
 
     Parameters
@@ -245,8 +252,9 @@ def _row(controller: str, plants: np.ndarray, metrics_of) -> dict:
     }
 
 
-def table2(dead_time: float = 0.0, dt: float | None = None, n_plants: int = 10, controllers=None,
-           t_end: float = 30.0) -> list[dict]:
+def table2(
+    dead_time: float = 0.0, dt: float | None = None, n_plants: int = 10, controllers=None, t_end: float = 30.0
+) -> list[dict]:
     """Yadav et al.'s Table 2 in our numbers.
 
     Parameters
@@ -296,13 +304,18 @@ def _fmt(v: float, digits: int = 3) -> str:
 
 def format_kharitonov(controllers=None) -> str:
     """A Markdown table of section 3.5: coefficient bounds, Kharitonov verdict, SM beside the paper's."""
-    rows = ["| controller | CLCE order | alpha (lower bounds) | beta (upper bounds) | 4 Kharitonov polys Hurwitz "
-            "| SM eq. (5) | paper's SM |", "|---|---|---|---|---|---|---|"]
+    rows = [
+        "| controller | CLCE order | alpha (lower bounds) | beta (upper bounds) | 4 Kharitonov polys Hurwitz "
+        "| SM eq. (5) | paper's SM |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for name in controllers or controller_names():
         k = kharitonov_analysis(name)
-        rows.append(f"| {name} | {k['alpha'].size - 1} | {', '.join(_fmt(v, 4) for v in k['alpha'])} | "
-                    f"{', '.join(_fmt(v, 4) for v in k['beta'])} | {sum(k['hurwitz'])}/4 | "
-                    f"{_fmt(k['stability_margin'], 4)} | {k['paper_stability_margin']} |")
+        rows.append(
+            f"| {name} | {k['alpha'].size - 1} | {', '.join(_fmt(v, 4) for v in k['alpha'])} | "
+            f"{', '.join(_fmt(v, 4) for v in k['beta'])} | {sum(k['hurwitz'])}/4 | "
+            f"{_fmt(k['stability_margin'], 4)} | {k['paper_stability_margin']} |"
+        )
     return "\n".join(rows)
 
 
@@ -314,8 +327,10 @@ def format_table2(rows: list[dict], title: str = "") -> str:
     reaches the set-point).
     """
     out = [title] if title else []
-    out += ["| controller | plant | OS (%) | ST (s) | RT 10-90 (s) | RT 0-100 (s) | SM, eq. (5), no dead time |",
-            "|---|---|---|---|---|---|---|"]
+    out += [
+        "| controller | plant | OS (%) | ST (s) | RT 10-90 (s) | RT 0-100 (s) | SM, eq. (5), no dead time |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         p = r["paper"]
         n = r["nominal"]
@@ -323,21 +338,26 @@ def format_table2(rows: list[dict], title: str = "") -> str:
             cells = [_fmt(n[k]) for k in _METRICS]
         else:
             cells = ["unstable"] * len(_METRICS)
-        out.append(f"| {r['controller']} | nominal | {cells[0]} / {p['nominal'][0]} | "
-                   f"{cells[1]} / {p['nominal'][1]} | {cells[2]} / {p['nominal'][2]} | "
-                   f"{cells[3]} | {_fmt(r['stability_margin'], 4)} / {p['sm']} |")
+        out.append(
+            f"| {r['controller']} | nominal | {cells[0]} / {p['nominal'][0]} | "
+            f"{cells[1]} / {p['nominal'][1]} | {cells[2]} / {p['nominal'][2]} | "
+            f"{cells[3]} | {_fmt(r['stability_margin'], 4)} / {p['sm']} |"
+        )
         u = r["uncertain"]
         rng = [f"{_fmt(u[k][0])}-{_fmt(u[k][1])}" if not math.isnan(u[k][0]) else "n/a" for k in _METRICS]
         unstable = f" ({r['unstable_plants']} unstable)" if r["unstable_plants"] else ""
-        out.append(f"| | {r['n_plants']} plants{unstable} | {rng[0]} / {p['uncertain'][0][0]}-{p['uncertain'][0][1]} | "
-                   f"{rng[1]} / {p['uncertain'][1][0]}-{p['uncertain'][1][1]} | "
-                   f"{rng[2]} / {p['uncertain'][2][0]}-{p['uncertain'][2][1]} | {rng[3]} | |")
+        out.append(
+            f"| | {r['n_plants']} plants{unstable} | {rng[0]} / {p['uncertain'][0][0]}-{p['uncertain'][0][1]} | "
+            f"{rng[1]} / {p['uncertain'][1][0]}-{p['uncertain'][1][1]} | "
+            f"{rng[2]} / {p['uncertain'][2][0]}-{p['uncertain'][2][1]} | {rng[3]} | |"
+        )
     return "\n".join(out)
 
 
 # -- through the env -------------------------------------------------------------------------
-def env_step_table(controllers=None, n_plants: int = 10, dead_time: float | None = None,
-                   env_id: str = "VCNC-Step-v0", **env_kwargs) -> tuple[list[dict], dict]:
+def env_step_table(
+    controllers=None, n_plants: int = 10, dead_time: float | None = None, env_id: str = "VCNC-Step-v0", **env_kwargs
+) -> tuple[list[dict], dict]:
     """Table 2's metrics from episodes of the registered policies on the positioning env.
 
     Each controller runs one episode on the nominal plant and one on each of
@@ -427,8 +447,14 @@ def plot_step_responses(traces: dict, path=None, setpoint: float = 10.0):
     for ax, name in zip(axes[0], names):
         for j, (t, x) in enumerate(traces[name]):
             shown = np.where(np.isfinite(x) & (np.abs(x) < 3 * abs(setpoint)), x, np.nan)  # gaps, not jumps
-            ax.plot(t, shown, color="C0" if j == 0 else "0.6", lw=1.6 if j == 0 else 0.7,
-                    zorder=3 if j == 0 else 2, label="nominal" if j == 0 else ("plants" if j == 1 else None))
+            ax.plot(
+                t,
+                shown,
+                color="C0" if j == 0 else "0.6",
+                lw=1.6 if j == 0 else 0.7,
+                zorder=3 if j == 0 else 2,
+                label="nominal" if j == 0 else ("plants" if j == 1 else None),
+            )
         ax.axhline(setpoint, color="k", ls="--", lw=0.8)
         ax.set_title(name)
         ax.set_xlabel("time (s)")
@@ -446,12 +472,15 @@ def main(argv=None) -> int:
     """Print section 3.5's margins and Table 2 (no dead time, then the stated 0.1 s), ours beside the paper's."""
     parser = argparse.ArgumentParser(prog="python -m vcnc_bench.reports.yadav2020", description=main.__doc__)
     parser.add_argument("--plants", type=int, default=10, help="plants across the box (default 10)")
-    parser.add_argument("--dead-time", type=float, default=None,
-                        help="only this dead time in s (default: 0, then 0.1 sampled at 1 ms)")
+    parser.add_argument(
+        "--dead-time", type=float, default=None, help="only this dead time in s (default: 0, then 0.1 sampled at 1 ms)"
+    )
     args = parser.parse_args(argv)
     print("Yadav et al. (2020), section 3.5: CLCE coefficient bounds over the box, Kharitonov, SM of eq. (5)\n")
     print(format_kharitonov())
-    cases = [(0.0, None), (0.1, 1e-3)] if args.dead_time is None else [(args.dead_time, 1e-3 if args.dead_time else None)]
+    cases = (
+        [(0.0, None), (0.1, 1e-3)] if args.dead_time is None else [(args.dead_time, 1e-3 if args.dead_time else None)]
+    )
     for dead_time, dt in cases:
         how = "continuous" if dt is None else f"sampled at {dt:g} s, dead time exact"
         title = f"\nTable 2, dead time {dead_time:g} s ({how}); cells: ours / paper's"

@@ -48,10 +48,10 @@ __all__ = [
 #: Which bound each Kharitonov polynomial takes at coefficient index i (mod 4),
 #: Yadav et al. (2020), eq. (4): False = lower (alpha), True = upper (beta).
 _PATTERNS = (
-    (False, False, True, True),   # p1 = alpha_0 s^n + alpha_1 s^(n-1) + beta_2 s^(n-2) + beta_3 ...
-    (False, True, True, False),   # p2 = alpha_0, beta_1, beta_2, alpha_3, ...
-    (True, False, False, True),   # p3 = beta_0, alpha_1, alpha_2, beta_3, ...
-    (True, True, False, False),   # p4 = beta_0, beta_1, alpha_2, alpha_3, ...
+    (False, False, True, True),  # p1 = alpha_0 s^n + alpha_1 s^(n-1) + beta_2 s^(n-2) + beta_3 ...
+    (False, True, True, False),  # p2 = alpha_0, beta_1, beta_2, alpha_3, ...
+    (True, False, False, True),  # p3 = beta_0, alpha_1, alpha_2, beta_3, ...
+    (True, True, False, False),  # p4 = beta_0, beta_1, alpha_2, alpha_3, ...
 )
 
 
@@ -59,12 +59,16 @@ def _bounds(alpha, beta) -> tuple[np.ndarray, np.ndarray]:
     lo = np.asarray(alpha, dtype=np.float64)
     hi = np.asarray(beta, dtype=np.float64)
     if lo.ndim != 1 or lo.shape != hi.shape or lo.size < 2:
-        raise ValueError(f"alpha and beta must be 1-D coefficient arrays of the same length >= 2, "
-                         f"got shapes {lo.shape} and {hi.shape}")
+        raise ValueError(
+            f"alpha and beta must be 1-D coefficient arrays of the same length >= 2, "
+            f"got shapes {lo.shape} and {hi.shape}"
+        )
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
         raise ValueError("alpha and beta must be finite")
     if np.any(lo > hi):
-        raise ValueError(f"every interval needs alpha_i <= beta_i; violated at indices {np.nonzero(lo > hi)[0].tolist()}")
+        raise ValueError(
+            f"every interval needs alpha_i <= beta_i; violated at indices {np.nonzero(lo > hi)[0].tolist()}"
+        )
     return lo, hi
 
 
@@ -175,8 +179,10 @@ def stability_margin(alpha, beta) -> float:
     """
     lo, hi = _bounds(alpha, beta)
     if lo.size != 4:
-        raise ValueError(f"the stability margin of eq. (5) is defined for third-order polynomials "
-                         f"(4 coefficients), got {lo.size} coefficients")
+        raise ValueError(
+            f"the stability margin of eq. (5) is defined for third-order polynomials "
+            f"(4 coefficients), got {lo.size} coefficients"
+        )
     if np.any(lo <= 0.0):
         raise ValueError(f"eq. (5) presumes positive coefficients; alpha = {lo.tolist()}")
     return float(lo[1] * lo[2] - hi[0] * hi[3])

@@ -56,8 +56,9 @@ def _first_crossing(t: np.ndarray, z: np.ndarray, level: float) -> float:
     return float(t[j - 1] + (level - z0) / (z1 - z0) * (t[j] - t[j - 1]))
 
 
-def step_metrics(t, y, target: float, initial: float | None = None, band: float = 0.02,
-                 rise: tuple[float, float] = (0.1, 0.9)) -> StepMetrics:
+def step_metrics(
+    t, y, target: float, initial: float | None = None, band: float = 0.02, rise: tuple[float, float] = (0.1, 0.9)
+) -> StepMetrics:
     """Overshoot, settling time and rise times of a step response.
 
     Parameters

@@ -278,8 +278,12 @@ def _refine_on_piece(degree, qx, qy, u0, i, piece_u, piece_table, der):
         best_u = ub
     mx = piece_table[i, _CONVEX] - qx
     my = piece_table[i, _CONVEX + 1] - qy
-    convexity = (piece_table[i, _CONVEX + 5] + mx * piece_table[i, _CONVEX + 2]
-                 + my * piece_table[i, _CONVEX + 3] - np.sqrt(mx * mx + my * my) * piece_table[i, _CONVEX + 4])
+    convexity = (
+        piece_table[i, _CONVEX + 5]
+        + mx * piece_table[i, _CONVEX + 2]
+        + my * piece_table[i, _CONVEX + 3]
+        - np.sqrt(mx * mx + my * my) * piece_table[i, _CONVEX + 4]
+    )
     if convexity > 0.0:
         # g'' = |C'|^2 + (C - q) . C'' > 0 on the whole piece: f increases, one minimum
         if fa < 0.0 < fb:
@@ -319,12 +323,12 @@ def _refine_on_piece(degree, qx, qy, u0, i, piece_u, piece_table, der):
 def _refine_from_chord(degree, qx, qy, i, limit, piece_u, piece_table, piece_sag, der):
     """:func:`_refine_on_piece` started from the foot of q on piece i's chord, or
     (inf, u_i) at once if no point of the piece can be closer than ``limit`` (mm)."""
-    d, t = _chord_distance(qx, qy, piece_table[i, 0], piece_table[i, 1],
-                           piece_table[i + 1, 0], piece_table[i + 1, 1])
+    d, t = _chord_distance(qx, qy, piece_table[i, 0], piece_table[i, 1], piece_table[i + 1, 0], piece_table[i + 1, 1])
     if d - piece_sag[i] > limit:
         return np.inf, piece_u[i]
-    return _refine_on_piece(degree, qx, qy, piece_u[i] + t * (piece_u[i + 1] - piece_u[i]), i, piece_u,
-                            piece_table, der)
+    return _refine_on_piece(
+        degree, qx, qy, piece_u[i] + t * (piece_u[i + 1] - piece_u[i]), i, piece_u, piece_table, der
+    )
 
 
 @njit(cache=True, _nrt=False)
@@ -388,8 +392,9 @@ def _ring_bound(qx, qy, bound, pieces):
                 cell = ix * ny + iy
                 for k in range(cell_start[cell], cell_start[cell + 1]):
                     i = cell_pieces[k]
-                    d, _t = _chord_distance(qx, qy, piece_table[i, 0], piece_table[i, 1],
-                                            piece_table[i + 1, 0], piece_table[i + 1, 1])
+                    d, _t = _chord_distance(
+                        qx, qy, piece_table[i, 0], piece_table[i, 1], piece_table[i + 1, 0], piece_table[i + 1, 1]
+                    )
                     bound = min(bound, d + piece_sag[i])
         if _clearance(qx, qy, cx - r, cx + r, cy - r, cy + r, grid_origin, cell_size, grid_shape) >= bound:
             break
@@ -406,8 +411,12 @@ def _segment_gap(ax, ay, bx, by, cx, cy, dx, dy):
     o4 = (dx - cx) * (by - cy) - (dy - cy) * (bx - cx)
     if o1 * o2 <= 0.0 and o3 * o4 <= 0.0:
         return 0.0
-    return min(_chord_distance(ax, ay, cx, cy, dx, dy)[0], _chord_distance(bx, by, cx, cy, dx, dy)[0],
-               _chord_distance(cx, cy, ax, ay, bx, by)[0], _chord_distance(dx, dy, ax, ay, bx, by)[0])
+    return min(
+        _chord_distance(ax, ay, cx, cy, dx, dy)[0],
+        _chord_distance(bx, by, cx, cy, dx, dy)[0],
+        _chord_distance(cx, cy, ax, ay, bx, by)[0],
+        _chord_distance(dx, dy, ax, ay, bx, by)[0],
+    )
 
 
 @njit(cache=True)
@@ -430,17 +439,29 @@ def _isolation_radii(pieces, reach):
         by = piece_table[i + 1, 1]
         w = piece_sag[i] + reach
         best = reach
-        for ix in range(_cell_index(min(ax, bx) - w, grid_origin[0], cell_size, nx),
-                        _cell_index(max(ax, bx) + w, grid_origin[0], cell_size, nx) + 1):
-            for iy in range(_cell_index(min(ay, by) - w, grid_origin[1], cell_size, ny),
-                            _cell_index(max(ay, by) + w, grid_origin[1], cell_size, ny) + 1):
+        for ix in range(
+            _cell_index(min(ax, bx) - w, grid_origin[0], cell_size, nx),
+            _cell_index(max(ax, bx) + w, grid_origin[0], cell_size, nx) + 1,
+        ):
+            for iy in range(
+                _cell_index(min(ay, by) - w, grid_origin[1], cell_size, ny),
+                _cell_index(max(ay, by) + w, grid_origin[1], cell_size, ny) + 1,
+            ):
                 cell = ix * ny + iy
                 for k in range(cell_start[cell], cell_start[cell + 1]):
                     j = cell_pieces[k]
                     if i - 1 <= j <= i + 1:
                         continue
-                    gap = _segment_gap(ax, ay, bx, by, piece_table[j, 0], piece_table[j, 1],
-                                       piece_table[j + 1, 0], piece_table[j + 1, 1])
+                    gap = _segment_gap(
+                        ax,
+                        ay,
+                        bx,
+                        by,
+                        piece_table[j, 0],
+                        piece_table[j, 1],
+                        piece_table[j + 1, 0],
+                        piece_table[j + 1, 1],
+                    )
                     best = min(best, gap - piece_sag[i] - piece_sag[j])
         piece_table[i, _ISOLATION] = max(best, 0.0)
 
@@ -487,8 +508,9 @@ def _certify(qx, qy, bound, best_d, best_u, skip_lo, skip_hi, pieces, der):
                 i = cell_pieces[k]
                 if skip_lo <= i <= skip_hi:
                     continue
-                d, t = _chord_distance(qx, qy, piece_table[i, 0], piece_table[i, 1],
-                                       piece_table[i + 1, 0], piece_table[i + 1, 1])
+                d, t = _chord_distance(
+                    qx, qy, piece_table[i, 0], piece_table[i, 1], piece_table[i + 1, 0], piece_table[i + 1, 1]
+                )
                 if d - piece_sag[i] > lim:
                     continue
                 u0 = piece_u[i] + t * (piece_u[i + 1] - piece_u[i])
@@ -699,9 +721,17 @@ class ContourProjector:
         self.piece_table = self._table(curve, self.piece_u, self.piece_points)
         self.cell_size = float(cell_size)
         self._build_grid(margin)
-        self.arrays = ProjectorArrays(curve.degree, self.piece_u, self.piece_table, self.piece_sag,
-                                      self.grid_origin, self.cell_size, self.grid_shape, self.cell_start,
-                                      self.cell_pieces)
+        self.arrays = ProjectorArrays(
+            curve.degree,
+            self.piece_u,
+            self.piece_table,
+            self.piece_sag,
+            self.grid_origin,
+            self.cell_size,
+            self.grid_shape,
+            self.cell_start,
+            self.cell_pieces,
+        )
         _isolation_radii(self.arrays, _ISOLATION_CELLS * self.cell_size)
 
     @staticmethod
@@ -773,7 +803,7 @@ class ContourProjector:
         table[:, 4:6] = np.where(at_knot[:, None], left, right)
         table[0, 4:6] = right[0]
         table[-1, 2:6] = np.concatenate([right[-1], right[-1]])  # C'(u_end) is taken from the left
-        table[:-1, _CONVEX:_CONVEX + 6] = np.column_stack([centre, acc_centre, rho, k])
+        table[:-1, _CONVEX : _CONVEX + 6] = np.column_stack([centre, acc_centre, rho, k])
         _piece_polynomials(*curve.kernel_args, piece_u, table)
         return table
 
@@ -866,8 +896,9 @@ class ContourProjector:
         lo, hi = self.curve.u_range
         bad = ~np.isnan(u) & ~((u >= lo) & (u <= hi))
         if bad.any():
-            raise ValueError(f"u_prev must be NaN (no previous foot) or a curve parameter in [{lo}, {hi}], "
-                             f"got {u[bad][0]!r}")
+            raise ValueError(
+                f"u_prev must be NaN (no previous foot) or a curve parameter in [{lo}, {hi}], got {u[bad][0]!r}"
+            )
         return u
 
     def _run(self, q, u_prev, carry, single):

@@ -6,5 +6,17 @@ from .layout import Field, ObservationLayout
 from .registry import CONTOURING_IDS, ENV_IDS, SUITE, VECTOR_IDS, register_envs, suite_env
 from .task import ContouringBatch, ContouringTask
 
-__all__ = ["ContouringEnv", "ContouringVectorEnv", "ContouringTask", "ContouringBatch", "Field",
-           "ObservationLayout", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "SUITE", "register_envs", "suite_env"]
+__all__ = [
+    "ContouringEnv",
+    "ContouringVectorEnv",
+    "ContouringTask",
+    "ContouringBatch",
+    "Field",
+    "ObservationLayout",
+    "ENV_IDS",
+    "CONTOURING_IDS",
+    "VECTOR_IDS",
+    "SUITE",
+    "register_envs",
+    "suite_env",
+]

@@ -262,10 +262,12 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     dt = property(lambda self: self.task.dt, doc="Control period in s.")
     action_repeat = property(lambda self: self.task.action_repeat, doc="Control periods per decision.")
     decision_period = property(lambda self: self.task.decision_period, doc="dt * action_repeat in s.")
-    episode_steps = property(lambda self: self.task.episode_steps,
-                             doc="Natural episode length in decision steps (without divergence).")
-    nominal_parameters = property(lambda self: self.task.nominal_parameters,
-                                  doc="The plant's nominal (2, P) parameters.")
+    episode_steps = property(
+        lambda self: self.task.episode_steps, doc="Natural episode length in decision steps (without divergence)."
+    )
+    nominal_parameters = property(
+        lambda self: self.task.nominal_parameters, doc="The plant's nominal (2, P) parameters."
+    )
     divergence_bound = property(lambda self: self.task.divergence_bound, doc="mm")
     tracking_bound = property(lambda self: self.task.tracking_bound, doc="mm")
     reward_scale = property(lambda self: self.task.reward_scale, doc="mm")
@@ -295,8 +297,11 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
             "feedrate_fluctuation": self.reference.feedrate_fluctuation,
         }
         if self.render_mode is not None:
-            self._history = {"t": [0.0], "position": [self._info[sk.INFO_POSITION:sk.INFO_POSITION + 2].copy()],
-                             "contour_error": [0.0]}
+            self._history = {
+                "t": [0.0],
+                "position": [self._info[sk.INFO_POSITION : sk.INFO_POSITION + 2].copy()],
+                "contour_error": [0.0],
+            }
         return self._obs.copy(), info
 
     def step(self, action):
@@ -324,10 +329,16 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
         return batch_arrays(self._batch)
 
     def _episode_state(self) -> dict:
-        return {"np_random": self._np_random, "np_random_seed": self._np_random_seed, "spec": self.spec,
-                "arrays": {name: a.copy() for name, a in self._episode_arrays().items()},
-                "parameters": self.parameters, "done": self._done, "warned_limit": self._warned_limit,
-                "history": self._history}
+        return {
+            "np_random": self._np_random,
+            "np_random_seed": self._np_random_seed,
+            "spec": self.spec,
+            "arrays": {name: a.copy() for name, a in self._episode_arrays().items()},
+            "parameters": self.parameters,
+            "done": self._done,
+            "warned_limit": self._warned_limit,
+            "history": self._history,
+        }
 
     def _restore_episode(self, state: dict) -> None:
         restore_arrays(self._episode_arrays(), state["arrays"])

@@ -170,8 +170,15 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, *, autoreset_mode=AutoresetMode.NEXT_STEP, parallel: bool | None = None,
-                 render_mode: str | None = None, **kwargs):
+    def __init__(
+        self,
+        num_envs: int = 1,
+        *,
+        autoreset_mode=AutoresetMode.NEXT_STEP,
+        parallel: bool | None = None,
+        render_mode: str | None = None,
+        **kwargs,
+    ):
         if render_mode is not None:
             raise ValueError("the vector env does not render; make a single env with render_mode= to watch one")
         self.task = ContouringTask(**kwargs)
@@ -180,8 +187,9 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         try:
             self.autoreset_mode = AutoresetMode(autoreset_mode)
         except ValueError:
-            raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, "
-                             f"got {autoreset_mode!r}") from None
+            raise ValueError(
+                f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, got {autoreset_mode!r}"
+            ) from None
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.parallel = self.num_envs >= PARALLEL_MIN_ENVS if parallel is None else flag("parallel", parallel)
         self._path = KernelPath() if parallel is None and self.parallel else None
@@ -246,8 +254,13 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
 
     # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
     def _episode_state(self) -> dict:
-        return {"arrays": {name: a.copy() for name, a in batch_arrays(self._batch).items()}, "rngs": self._rngs,
-                "autoreset": self._autoreset, "started": self._started, "spec": self.spec}
+        return {
+            "arrays": {name: a.copy() for name, a in batch_arrays(self._batch).items()},
+            "rngs": self._rngs,
+            "autoreset": self._autoreset,
+            "started": self._started,
+            "spec": self.spec,
+        }
 
     def _restore_episode(self, state: dict) -> None:
         restore_arrays(batch_arrays(self._batch), state["arrays"])
@@ -280,8 +293,9 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             rewards[~stepped] = 0.0
         info = self._info(stepped)
         done = terminated | truncated
-        self._autoreset = done | (self._autoreset & ~stepped if self.autoreset_mode == AutoresetMode.DISABLED
-                                  else False)
+        self._autoreset = done | (
+            self._autoreset & ~stepped if self.autoreset_mode == AutoresetMode.DISABLED else False
+        )
         obs = b.obs.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             info["final_obs"] = np.full(self.num_envs, None, dtype=object)
@@ -328,15 +342,22 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             period's, and ``info["contour_error_max"]`` the largest contour error of the decision (mm).
         """
         if self.autoreset_mode != AutoresetMode.DISABLED:
-            raise ValueError(f"step_controlled needs autoreset_mode=AutoresetMode.DISABLED, this env has "
-                             f"{self.autoreset_mode}")
+            raise ValueError(
+                f"step_controlled needs autoreset_mode=AutoresetMode.DISABLED, this env has {self.autoreset_mode}"
+            )
         if not self._started:
             raise RuntimeError("step_controlled() called before reset()")
         n = self.num_envs
         controller_contract.check_controller(controller, n)
         agent = check_actions(actions, (n, 2)).astype(np.float32)
-        loop = sk.ControlLoop(agent, np.float32(positive("correction", correction, "fraction of u_max")),
-                              integer("repeat", repeat, 1), np.zeros((n, 2)), np.zeros(n), np.zeros(n))
+        loop = sk.ControlLoop(
+            agent,
+            np.float32(positive("correction", correction, "fraction of u_max")),
+            integer("repeat", repeat, 1),
+            np.zeros((n, 2)),
+            np.zeros(n),
+            np.zeros(n),
+        )
         stepped = ~self._autoreset if active is None else ~self._autoreset & self._check_mask(active, "active")
         b = self._buffers
         b.mode[:] = sk.MODE_STEP
@@ -394,7 +415,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         info: dict[str, Any] = {}
         values = b.info.copy()  # one copy; the keys' arrays are views of it
         for key, (col, width) in sk.INFO_FIELDS.items():
-            info[key] = values[:, col] if width == 1 else values[:, col:col + width]
+            info[key] = values[:, col] if width == 1 else values[:, col : col + width]
             info["_" + key] = valid.copy()
         info["diverged"] = b.flags[:, sk.FLAG_DIVERGED].copy()
         info["_diverged"] = valid.copy()

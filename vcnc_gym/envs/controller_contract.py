@@ -71,10 +71,14 @@ def check_controller(controller, n_envs: int):
     memory, has ``n_envs`` rows); ValueError otherwise (the kernels index it unchecked)."""
     fields = getattr(controller, "_fields", None)
     if not isinstance(controller, tuple) or not fields:
-        raise ValueError(f"controller must be a compiled controller (BaselinePolicy.compiled(n_envs), a namedtuple), "
-                         f"got {type(controller).__name__}")
+        raise ValueError(
+            f"controller must be a compiled controller (BaselinePolicy.compiled(n_envs), a namedtuple), "
+            f"got {type(controller).__name__}"
+        )
     memory = controller[0]
     if not hasattr(memory, "shape") or memory.ndim < 1 or memory.shape[0] != n_envs:
-        raise ValueError(f"controller's memory {fields[0]!r} must have {n_envs} rows (one per env), got shape "
-                         f"{getattr(memory, 'shape', None)}")
+        raise ValueError(
+            f"controller's memory {fields[0]!r} must have {n_envs} rows (one per env), got shape "
+            f"{getattr(memory, 'shape', None)}"
+        )
     return controller

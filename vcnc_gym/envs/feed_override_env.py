@@ -14,8 +14,17 @@ from .signatures import forwarded_signature
 from .task import ContouringBatch
 from ..validation import flag, non_negative, positive, real, size
 
-__all__ = ["FeedOverrideEnv", "DEFAULT_OVERRIDE_RATE", "DEFAULT_TIME_COST", "DEFAULT_TIME_LIMIT", "MAX_TIME_LIMIT",
-           "DEFAULT_VIOLATION_COST", "DEFAULT_PROGRESS_REWARD", "TOLERANCES", "MAX_OVERRIDE"]
+__all__ = [
+    "FeedOverrideEnv",
+    "DEFAULT_OVERRIDE_RATE",
+    "DEFAULT_TIME_COST",
+    "DEFAULT_TIME_LIMIT",
+    "MAX_TIME_LIMIT",
+    "DEFAULT_VIOLATION_COST",
+    "DEFAULT_PROGRESS_REWARD",
+    "TOLERANCES",
+    "MAX_OVERRIDE",
+]
 
 #: How fast the override follows its dial, 1/s: the whole range in 0.1 s.  The re-timed reference's extra
 #: acceleration, rate x feed, is then 1e3 mm/s^2 at 100 mm/s, within the ~2.6e3 mm/s^2 of Jahanpour et al.
@@ -190,34 +199,52 @@ class FeedOverrideEnv(ContouringEnv):
     #: oracle) refuse this env: its reference is re-timed while it runs.
     retimes_reference = True
 
-    def __init__(self, *, override_rate: float = DEFAULT_OVERRIDE_RATE, max_override: float = 1.0,
-                 lookahead: tuple[float, float] | None = None, lookahead_reach: bool = True,
-                 time_cost: float | None = None,
-                 time_limit: float = DEFAULT_TIME_LIMIT, tolerance: float | None = None,
-                 violation_cost: float = DEFAULT_VIOLATION_COST, progress_reward: float = DEFAULT_PROGRESS_REWARD,
-                 render_mode: str | None = None, **kwargs):
+    def __init__(
+        self,
+        *,
+        override_rate: float = DEFAULT_OVERRIDE_RATE,
+        max_override: float = 1.0,
+        lookahead: tuple[float, float] | None = None,
+        lookahead_reach: bool = True,
+        time_cost: float | None = None,
+        time_limit: float = DEFAULT_TIME_LIMIT,
+        tolerance: float | None = None,
+        violation_cost: float = DEFAULT_VIOLATION_COST,
+        progress_reward: float = DEFAULT_PROGRESS_REWARD,
+        render_mode: str | None = None,
+        **kwargs,
+    ):
         if "completion_timeout" in kwargs:
-            raise ValueError("completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
-                             "at full feed) in FeedOverrideEnv")
+            raise ValueError(
+                "completion_timeout (s) is set by time_limit (a multiple of the reference's duration "
+                "at full feed) in FeedOverrideEnv"
+            )
         self.override_rate = positive("override_rate", override_rate, "1/s")  # bool and str refused
         self.max_override = real("max_override", max_override, "x the programmed feed")
         if not 1.0 <= self.max_override <= MAX_OVERRIDE:
-            raise ValueError(f"max_override must be in [1, {MAX_OVERRIDE:g}] (the dial's top, x the programmed feed: "
-                             f"a CNC's panel reaches 120-150 %), got {max_override!r}")
+            raise ValueError(
+                f"max_override must be in [1, {MAX_OVERRIDE:g}] (the dial's top, x the programmed feed: "
+                f"a CNC's panel reaches 120-150 %), got {max_override!r}"
+            )
         if lookahead is not None:
             if not isinstance(lookahead, (tuple, list)) or len(lookahead) != 2:
-                raise ValueError(f"lookahead must be None or a pair (top feed mm/s, path acceleration mm/s^2), got "
-                                 f"{lookahead!r}")
-            lookahead = (positive("lookahead[0]", lookahead[0], "mm/s (top feed)"),
-                         positive("lookahead[1]", lookahead[1], "mm/s^2 (path acceleration)"))
+                raise ValueError(
+                    f"lookahead must be None or a pair (top feed mm/s, path acceleration mm/s^2), got {lookahead!r}"
+                )
+            lookahead = (
+                positive("lookahead[0]", lookahead[0], "mm/s (top feed)"),
+                positive("lookahead[1]", lookahead[1], "mm/s^2 (path acceleration)"),
+            )
         self.lookahead = lookahead
         self.lookahead_reach = flag("lookahead_reach", lookahead_reach)
         self.tolerance = None if tolerance is None else positive("tolerance", tolerance, "mm of contour error")
         self.violation_cost = non_negative("violation_cost", violation_cost, "decision steps of time per step over T")
         self.progress_reward = non_negative("progress_reward", progress_reward, "full-feed cycles per contour")
         if self.tolerance is not None and time_cost is not None:
-            raise ValueError("time_cost (mm of contour error per second) prices the contouring reward; with a "
-                             "tolerance the time term is the cycle time itself: leave time_cost out")
+            raise ValueError(
+                "time_cost (mm of contour error per second) prices the contouring reward; with a "
+                "tolerance the time term is the cycle time itself: leave time_cost out"
+            )
         if self.tolerance is None:
             time_cost = DEFAULT_TIME_COST if time_cost is None else time_cost
             self.time_cost = non_negative("time_cost", time_cost, "mm of contour error per second")
@@ -225,8 +252,10 @@ class FeedOverrideEnv(ContouringEnv):
             self.time_cost = None
         self.time_limit = real("time_limit", time_limit, "times the reference's duration at full feed")
         if not 1.0 <= self.time_limit <= MAX_TIME_LIMIT:
-            raise ValueError(f"time_limit must be in [1, {MAX_TIME_LIMIT:g}] (times the reference's duration at "
-                             f"full feed; MAX_TIME_LIMIT: an override below 1 % is a feed hold), got {time_limit!r}")
+            raise ValueError(
+                f"time_limit must be in [1, {MAX_TIME_LIMIT:g}] (times the reference's duration at "
+                f"full feed; MAX_TIME_LIMIT: an override below 1 % is a feed hold), got {time_limit!r}"
+            )
         probe = ContouringEnv(**kwargs)  # the reference's duration at full feed sets the time limit
         duration = float(probe.task.reference.t[-1])
         columns = probe.task.reference_arrays.samples.shape[1]
@@ -234,9 +263,12 @@ class FeedOverrideEnv(ContouringEnv):
         probe.close()
         # the re-timed reference (and its copy) hold a row per control period up to the time limit: checked
         # against the memory before they are made
-        size(f"time_limit={self.time_limit:g}: the re-timed reference's rows",
-             math.ceil(self.time_limit * duration / dt) + 2, bytes_each=2 * 8 * columns,
-             why="a row per control period up to the time limit")
+        size(
+            f"time_limit={self.time_limit:g}: the re-timed reference's rows",
+            math.ceil(self.time_limit * duration / dt) + 2,
+            bytes_each=2 * 8 * columns,
+            why="a row per control period up to the time limit",
+        )
         super().__init__(render_mode=render_mode, completion_timeout=(self.time_limit - 1.0) * duration, **kwargs)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self._tau = 0.0
@@ -289,8 +321,13 @@ class FeedOverrideEnv(ContouringEnv):
         return {**super()._episode_arrays(), "reference.samples": self._buffer}  # the re-timed reference
 
     def _episode_state(self) -> dict:
-        return {**super()._episode_state(), "tau": self._tau, "speed": self._speed, "violations": self._violations,
-                "progress": self._progress}
+        return {
+            **super()._episode_state(),
+            "tau": self._tau,
+            "speed": self._speed,
+            "violations": self._violations,
+            "progress": self._progress,
+        }
 
     def _restore_episode(self, state: dict) -> None:
         super()._restore_episode(state)
@@ -311,8 +348,17 @@ class FeedOverrideEnv(ContouringEnv):
         task = self.task
         k = int(self._k[0])
         self._tau, self._speed, end = retime(
-            self._original, self._buffer, k + 1, self._lookahead, task.action_repeat, self._tau, self._speed,
-            dial, self.override_rate * task.dt, task.dt)
+            self._original,
+            self._buffer,
+            k + 1,
+            self._lookahead,
+            task.action_repeat,
+            self._tau,
+            self._speed,
+            dial,
+            self.override_rate * task.dt,
+            task.dt,
+        )
         if end >= 0:
             self._batch.buffers.reference_end[0] = end
         obs, reward, terminated, truncated, info = super().step(a[:2])
@@ -339,11 +385,18 @@ class FeedOverrideEnv(ContouringEnv):
         r_incomplete = -cost * (-info["reward_incomplete"] * task.reward_scale) / self._length
         r_progress = self.progress_reward * (info["progress"] - self._progress) / self._length
         self._progress = info["progress"]
-        info.update(reward_time=r_time, reward_tolerance=r_tolerance, reward_divergence=r_divergence,
-                    reward_incomplete=r_incomplete, reward_progress=r_progress, tolerance_exceeded=exceeded,
-                    violations=self._violations)
+        info.update(
+            reward_time=r_time,
+            reward_tolerance=r_tolerance,
+            reward_divergence=r_divergence,
+            reward_incomplete=r_incomplete,
+            reward_progress=r_progress,
+            tolerance_exceeded=exceeded,
+            violations=self._violations,
+        )
         return r_time + r_tolerance + r_progress + r_divergence + r_incomplete + info["reward_effort"]
 
 
-FeedOverrideEnv.__init__.__signature__ = forwarded_signature(FeedOverrideEnv.__init__, ContouringEnv.__init__,
-                                                            drop=("completion_timeout",))
+FeedOverrideEnv.__init__.__signature__ = forwarded_signature(
+    FeedOverrideEnv.__init__, ContouringEnv.__init__, drop=("completion_timeout",)
+)

@@ -19,13 +19,24 @@ DEFAULT_PROGRAM = "iso230-4-ccw"
 DEFAULT_TOLERANCE = 0.01
 
 
-def gcode_task_kwargs(program=None, tolerance=DEFAULT_TOLERANCE, *, plant="vcnc_feed_drive", acceleration=None,
-                      jerk=None, arc_tolerance=ARC_RADIUS_TOLERANCE, profile="lookahead", **kwargs) -> dict:
+def gcode_task_kwargs(
+    program=None,
+    tolerance=DEFAULT_TOLERANCE,
+    *,
+    plant="vcnc_feed_drive",
+    acceleration=None,
+    jerk=None,
+    arc_tolerance=ARC_RADIUS_TOLERANCE,
+    profile="lookahead",
+    **kwargs,
+) -> dict:
     """The :class:`~vcnc_gym.envs.task.ContouringTask` arguments of a program (GCodeEnv's docstring)."""
     for key in ("contour", "feedrate"):
         if key in kwargs:
-            raise ValueError(f"{key}= is the program's: give program= (G-code text, a path, or a test piece name "
-                             f"of vcnc_gym.gcode.pieces.PIECES); its F words set the feed")
+            raise ValueError(
+                f"{key}= is the program's: give program= (G-code text, a path, or a test piece name "
+                f"of vcnc_gym.gcode.pieces.PIECES); its F words set the feed"
+            )
     if program is None:
         program = DEFAULT_PROGRAM
     one_line = isinstance(program, str) and "\n" not in program
@@ -42,8 +53,10 @@ def gcode_task_kwargs(program=None, tolerance=DEFAULT_TOLERANCE, *, plant="vcnc_
         if one_line and not Path(program).exists() and exc.line is not None:
             from ..gcode.pieces import PIECES
 
-            raise GCodeError(f"program={program!r} is neither a file, a test piece ({', '.join(PIECES)}) nor "
-                             f"G-code that reads ({exc})") from None
+            raise GCodeError(
+                f"program={program!r} is neither a file, a test piece ({', '.join(PIECES)}) nor "
+                f"G-code that reads ({exc})"
+            ) from None
         raise
     return {"contour": toolpath, "plant": plant, "profile": profile, **kwargs}
 
@@ -104,7 +117,9 @@ class GCodeVectorEnv(ContouringVectorEnv):
         return self.task.path
 
 
-GCodeEnv.__init__.__signature__ = forwarded_signature(GCodeEnv.__init__, gcode_task_kwargs, ContouringEnv.__init__,
-                                                     drop=("contour", "feedrate"))
-GCodeVectorEnv.__init__.__signature__ = forwarded_signature(GCodeVectorEnv.__init__, gcode_task_kwargs,
-                                                           ContouringVectorEnv.__init__, drop=("contour", "feedrate"))
+GCodeEnv.__init__.__signature__ = forwarded_signature(
+    GCodeEnv.__init__, gcode_task_kwargs, ContouringEnv.__init__, drop=("contour", "feedrate")
+)
+GCodeVectorEnv.__init__.__signature__ = forwarded_signature(
+    GCodeVectorEnv.__init__, gcode_task_kwargs, ContouringVectorEnv.__init__, drop=("contour", "feedrate")
+)

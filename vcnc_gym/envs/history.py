@@ -79,14 +79,18 @@ class DecisionHistory:
     def space(self, base: spaces.Box) -> spaces.Box:
         """The agent's observation space: ``base`` (the env's, or the entries of it an agent sees) and the past's
         bounds (the remembered fields' own)."""
-        return spaces.Box(np.concatenate([base.low, -self._bounds]).astype(np.float32),
-                          np.concatenate([base.high, self._bounds]).astype(np.float32), dtype=np.float32)
+        return spaces.Box(
+            np.concatenate([base.low, -self._bounds]).astype(np.float32),
+            np.concatenate([base.high, self._bounds]).astype(np.float32),
+            dtype=np.float32,
+        )
 
     def _fields(self, obs, rows) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float32)
         if obs.shape != (self.n_envs, self.observation_size):
-            raise ValueError(f"observations must have shape ({self.n_envs}, {self.observation_size}) (every env's), "
-                             f"got {obs.shape}")
+            raise ValueError(
+                f"observations must have shape ({self.n_envs}, {self.observation_size}) (every env's), got {obs.shape}"
+            )
         return obs[rows][:, self.columns]
 
     def start(self, obs, rows=None) -> None:

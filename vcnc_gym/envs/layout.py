@@ -86,41 +86,73 @@ class ObservationLayout:
 
     def __post_init__(self):
         pb, vb, ab, eb = self.position_bound, self.velocity_bound, self.acceleration_bound, self.error_bound
-        for name, bound in (("position_bound", pb), ("velocity_bound", vb), ("acceleration_bound", ab),
-                            ("error_bound", eb)):
+        for name, bound in (
+            ("position_bound", pb),
+            ("velocity_bound", vb),
+            ("acceleration_bound", ab),
+            ("error_bound", eb),
+        ):
             positive(name, bound)
         steps = self.preview_steps
-        if (not isinstance(steps, tuple)
-                or not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in steps)):
+        if not isinstance(steps, tuple) or not all(
+            isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in steps
+        ):
             raise ValueError(f"preview_steps must be a tuple of integers >= 1 (control periods), got {steps!r}")
         object.__setattr__(self, "preview_steps", tuple(int(s) for s in steps))
         ahead = self.contour_ahead
-        if (not isinstance(ahead, tuple)
-                or not all(isinstance(a, (int, float, np.integer, np.floating)) and not isinstance(a, bool)
-                           and np.isfinite(a) and a > 0 for a in ahead)):
+        if not isinstance(ahead, tuple) or not all(
+            isinstance(a, (int, float, np.integer, np.floating))
+            and not isinstance(a, bool)
+            and np.isfinite(a)
+            and a > 0
+            for a in ahead
+        ):
             raise ValueError(f"contour_ahead must be a tuple of positive finite arc lengths in mm, got {ahead!r}")
         object.__setattr__(self, "contour_ahead", tuple(float(a) for a in ahead))
         by_name = {
             "reference_position": Field("reference_position", 2, "mm", pb, "reference point x_d (x, y)"),
             "reference_velocity": Field("reference_velocity", 2, "mm/s", vb, "reference velocity dx_d/dt"),
             "reference_acceleration": Field("reference_acceleration", 2, "mm/s^2", ab, "reference acceleration"),
-            "tracking_error": Field("tracking_error", 2, "mm", eb,
-                                    "x_d - x per axis, x as the position sensor reads it, Simba et al.'s eq. (2)"),
-            "contour_error": Field("contour_error", 1, "mm", eb, "shortest distance from the tool to the whole contour"),
-            "tangential_error": Field("tangential_error", 1, "mm", eb,
-                                      "tracking error along the path tangent, Simba et al.'s eq. (3)"),
-            "normal_error": Field("normal_error", 1, "mm", eb,
-                                  "tracking error along the path normal, Simba et al.'s eq. (3)"),
+            "tracking_error": Field(
+                "tracking_error",
+                2,
+                "mm",
+                eb,
+                "x_d - x per axis, x as the position sensor reads it, Simba et al.'s eq. (2)",
+            ),
+            "contour_error": Field(
+                "contour_error", 1, "mm", eb, "shortest distance from the tool to the whole contour"
+            ),
+            "tangential_error": Field(
+                "tangential_error", 1, "mm", eb, "tracking error along the path tangent, Simba et al.'s eq. (3)"
+            ),
+            "normal_error": Field(
+                "normal_error", 1, "mm", eb, "tracking error along the path normal, Simba et al.'s eq. (3)"
+            ),
             "velocity": Field("velocity", 2, "mm/s", vb, "table velocity"),
-            "preview": Field("preview", 2 * len(self.preview_steps), "mm", pb,
-                             f"reference points {list(self.preview_steps)} control periods ahead, "
-                             f"minus the tool position"),
-            "contour_preview": Field("contour_preview", 2 * len(self.contour_ahead), "mm", pb,
-                                     f"contour points {list(self.contour_ahead)} mm of arc beyond the tool's "
-                                     f"closest point, minus the tool position, along the contour's tangent and "
-                                     f"normal there"),
-            "contour_curvature": Field("contour_curvature", len(self.contour_ahead), "1/mm", self.curvature_bound,
-                                       "signed curvature of the contour at those points (positive: turning left)"),
+            "preview": Field(
+                "preview",
+                2 * len(self.preview_steps),
+                "mm",
+                pb,
+                f"reference points {list(self.preview_steps)} control periods ahead, minus the tool position",
+            ),
+            "contour_preview": Field(
+                "contour_preview",
+                2 * len(self.contour_ahead),
+                "mm",
+                pb,
+                f"contour points {list(self.contour_ahead)} mm of arc beyond the tool's "
+                f"closest point, minus the tool position, along the contour's tangent and "
+                f"normal there",
+            ),
+            "contour_curvature": Field(
+                "contour_curvature",
+                len(self.contour_ahead),
+                "1/mm",
+                self.curvature_bound,
+                "signed curvature of the contour at those points (positive: turning left)",
+            ),
             "previous_action": Field("previous_action", 2, "1", 1.0, "last normalised action in [-1, 1]"),
         }
         object.__setattr__(self, "fields", tuple(by_name[n] for n in FIELD_NAMES))

@@ -60,13 +60,17 @@ def restore_arrays(targets: dict[str, np.ndarray], saved: dict[str, np.ndarray])
     (another version of the suite, or of a plant).
     """
     if targets.keys() != saved.keys():
-        raise ValueError(f"the pickled env's arrays {sorted(saved)} are not the rebuilt env's {sorted(targets)}: "
-                         f"pickled by another version of vcnc_gym?")
+        raise ValueError(
+            f"the pickled env's arrays {sorted(saved)} are not the rebuilt env's {sorted(targets)}: "
+            f"pickled by another version of vcnc_gym?"
+        )
     for name, value in saved.items():
         target = targets[name]
         if target.shape != value.shape:
-            raise ValueError(f"the pickled env's {name} has shape {value.shape}, the rebuilt env's "
-                             f"{target.shape}: pickled by another version of vcnc_gym?")
+            raise ValueError(
+                f"the pickled env's {name} has shape {value.shape}, the rebuilt env's "
+                f"{target.shape}: pickled by another version of vcnc_gym?"
+            )
         np.copyto(target, value)
 
 
@@ -84,8 +88,10 @@ def _picklable_argument(name: str, value: Any) -> Any:
     try:
         pickle.dumps(value)
     except Exception as error:
-        raise TypeError(f"this env cannot be pickled: its argument {name}={value!r} does not pickle ({error}); "
-                        f"pass it by name or as plain data") from error
+        raise TypeError(
+            f"this env cannot be pickled: its argument {name}={value!r} does not pickle ({error}); "
+            f"pass it by name or as plain data"
+        ) from error
     return value
 
 

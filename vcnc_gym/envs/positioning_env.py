@@ -49,14 +49,23 @@ class PositioningLayout:
         positive("position_bound", self.position_bound, "mm")
         positive("velocity_bound", self.velocity_bound, "mm/s")
         pb, vb = self.position_bound, self.velocity_bound
-        object.__setattr__(self, "fields", (
-            Field("setpoint", 2, "mm", pb, "the set-point r (x, y)"),
-            Field("position_error", 2, "mm", pb, "r - x per axis, x as the position sensor reads it"),
-            Field("velocity", 2, "mm/s", vb, "table velocity"),
-            Field("pending_action", 2 * self.n_pending, "1",
-                  1.0, f"the last {self.n_pending} actions (x, y), oldest first: the commands still in the "
-                       f"plant's dead time"),
-        ))
+        object.__setattr__(
+            self,
+            "fields",
+            (
+                Field("setpoint", 2, "mm", pb, "the set-point r (x, y)"),
+                Field("position_error", 2, "mm", pb, "r - x per axis, x as the position sensor reads it"),
+                Field("velocity", 2, "mm/s", vb, "table velocity"),
+                Field(
+                    "pending_action",
+                    2 * self.n_pending,
+                    "1",
+                    1.0,
+                    f"the last {self.n_pending} actions (x, y), oldest first: the commands still in the "
+                    f"plant's dead time",
+                ),
+            ),
+        )
 
     @property
     def size(self) -> int:
@@ -293,30 +302,40 @@ class PositioningEnv(gym.Env):
         if plant_options is not None and not isinstance(plant_options, dict):
             raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
         if parameters is not None and self.randomize:
-            raise ValueError("pass either parameters= (a fixed plant) or randomize=True (a plant drawn at "
-                             "every reset), not both")
+            raise ValueError(
+                "pass either parameters= (a fixed plant) or randomize=True (a plant drawn at every reset), not both"
+            )
         self.nominal_parameters = self.plant.nominal()
         self.fixed_parameters = None if parameters is None else self._check_parameters(parameters)
         self.parameters = self.nominal_parameters if self.fixed_parameters is None else self.fixed_parameters
 
-        size("duration / dt", math.ceil(self.duration / self.dt - 1e-9), ceiling=MAX_REFERENCE_SAMPLES,
-             why=f"the control periods of an episode, at most MAX_REFERENCE_SAMPLES as for a contour's reference; "
-                 f"duration = {self.duration:g} s at dt = {self.dt:g} s")
+        size(
+            "duration / dt",
+            math.ceil(self.duration / self.dt - 1e-9),
+            ceiling=MAX_REFERENCE_SAMPLES,
+            why=f"the control periods of an episode, at most MAX_REFERENCE_SAMPLES as for a contour's reference; "
+            f"duration = {self.duration:g} s at dt = {self.dt:g} s",
+        )
         self.episode_steps = math.ceil(self.duration / self.decision_period - 1e-9)
         """Natural episode length in decisions."""
-        self.max_episode_steps = (self.episode_steps if max_episode_steps is None
-                                  else integer("max_episode_steps", max_episode_steps, 1))
+        self.max_episode_steps = (
+            self.episode_steps if max_episode_steps is None else integer("max_episode_steps", max_episode_steps, 1)
+        )
 
         # the plant's arrays; a first reset checks the dead time against dt
         self._plant = self.plant.arrays(1, self.dt, **(plant_options or {}))
         self._set_plant(self.parameters)
         dead_time = max(self.plant.dead_time(self.parameters, axis) for axis in (0, 1))
-        n_pending = size("dead time / (dt * action_repeat)", math.ceil(dead_time / self.decision_period - 1e-9),
-                         minimum=0, ceiling=MAX_REFERENCE_SAMPLES,
-                         why=f"decisions held in flight by the {dead_time:g} s dead time, at most "
-                             "MAX_REFERENCE_SAMPLES")
-        self.layout = PositioningLayout(n_pending=n_pending,
-                                        position_bound=float(np.max(np.abs(r))) + self.divergence_bound)
+        n_pending = size(
+            "dead time / (dt * action_repeat)",
+            math.ceil(dead_time / self.decision_period - 1e-9),
+            minimum=0,
+            ceiling=MAX_REFERENCE_SAMPLES,
+            why=f"decisions held in flight by the {dead_time:g} s dead time, at most MAX_REFERENCE_SAMPLES",
+        )
+        self.layout = PositioningLayout(
+            n_pending=n_pending, position_bound=float(np.max(np.abs(r))) + self.divergence_bound
+        )
         high = self.layout.high()
         self.observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
@@ -375,7 +394,7 @@ class PositioningEnv(gym.Env):
         self._steps = 0
         self._done = False
         positioning_periods(self._plant, 0, np.zeros(2), 0, self.setpoint, self._trajectory, 0, self._sensed)
-        self._trajectory[0] = self._sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
+        self._trajectory[0] = self._sensed[contract.SENSE_POSITION : contract.SENSE_POSITION + 2]
         info = {
             "parameters": self.plant.to_dict(parameters),
             "setpoint": self.setpoint.copy(),
@@ -392,21 +411,25 @@ class PositioningEnv(gym.Env):
         a = np.clip(check_actions(action, (2,)), -1.0, 1.0)
         command = a * self._input_limit
         n = self.action_repeat
-        err_sum, err_max = positioning_periods(self._plant, 0, command, n, self.setpoint, self._trajectory,
-                                               self._k, self._sensed)
+        err_sum, err_max = positioning_periods(
+            self._plant, 0, command, n, self.setpoint, self._trajectory, self._k, self._sensed
+        )
         self._k += n
         self._steps += 1
         if self._pending.shape[0]:
             self._pending[:-1] = self._pending[1:]
             self._pending[-1] = a
 
-        position = self._sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2].copy()
+        position = self._sensed[contract.SENSE_POSITION : contract.SENSE_POSITION + 2].copy()
         error = self.setpoint - position
         distance = float(np.hypot(*error))
-        finite = bool(np.all(np.isfinite(self._sensed[:contract.SENSE_SIZE])))
+        finite = bool(np.all(np.isfinite(self._sensed[: contract.SENSE_SIZE])))
         diverged = not finite or not err_max <= self.divergence_bound
-        r_error = -min(err_sum / n, self.divergence_bound) / self.reward_scale if finite else \
-            -self.divergence_bound / self.reward_scale
+        r_error = (
+            -min(err_sum / n, self.divergence_bound) / self.reward_scale
+            if finite
+            else -self.divergence_bound / self.reward_scale
+        )
         r_div = 0.0
         if diverged:
             r_div = -max(0, self.episode_steps - self._steps) * self.divergence_bound / self.reward_scale
@@ -436,8 +459,12 @@ class PositioningEnv(gym.Env):
 
     def _observation(self) -> tuple[np.ndarray, int]:
         s = self._sensed
-        parts = [self.setpoint, self.setpoint - s[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2],
-                 s[contract.SENSE_VELOCITY:contract.SENSE_VELOCITY + 2], self._pending.reshape(-1)]
+        parts = [
+            self.setpoint,
+            self.setpoint - s[contract.SENSE_MEASURED : contract.SENSE_MEASURED + 2],
+            s[contract.SENSE_VELOCITY : contract.SENSE_VELOCITY + 2],
+            self._pending.reshape(-1),
+        ]
         raw = np.concatenate(parts)
         high = self.observation_space.high
         bad = ~np.isfinite(raw)
@@ -450,7 +477,7 @@ class PositioningEnv(gym.Env):
     def trajectory(self) -> tuple[np.ndarray, np.ndarray]:
         """Time [s] (K,) and true table position [mm] (K, 2) at every control period of the episode so far."""
         k = min(self._k, self._trajectory.shape[0] - 1)
-        return np.arange(k + 1) * self.dt, self._trajectory[:k + 1].copy()
+        return np.arange(k + 1) * self.dt, self._trajectory[: k + 1].copy()
 
     def step_metrics(self) -> dict:
         """Overshoot [%], 2 % settling time [s], 10-90 % and 0-100 % rise times [s] per axis, so far.

@@ -33,9 +33,11 @@ def check_blends_fit(spec: RandomContourSpec, tolerance: float, acceleration: fl
     turns = {math.ceil(spec.turn_min), math.floor(spec.turn_max)}
     side = max(corner_side(math.radians(t), tolerance, acceleration, jerk) for t in turns)
     if 2.0 * side >= spec.line_min:
-        raise ValueError(f"tolerance = {tolerance:g} mm is too large for the spec's lines: a corner blend takes "
-                         f"{side:.4g} mm of each leg, and a line of line_min = {spec.line_min:g} mm between two "
-                         f"corners needs more than twice that; lower tolerance or raise spec line_min")
+        raise ValueError(
+            f"tolerance = {tolerance:g} mm is too large for the spec's lines: a corner blend takes "
+            f"{side:.4g} mm of each leg, and a line of line_min = {spec.line_min:g} mm between two "
+            f"corners needs more than twice that; lower tolerance or raise spec line_min"
+        )
 
 
 class RandomContourEnv(ContouringEnv):
@@ -82,12 +84,23 @@ class RandomContourEnv(ContouringEnv):
     - v1: initial release.
     """
 
-    def __init__(self, tolerance=0.01, spec: RandomContourSpec | dict | None = None, *, plant="vcnc_feed_drive",
-                 acceleration=None, jerk=None, render_mode=None, **kwargs):
+    def __init__(
+        self,
+        tolerance=0.01,
+        spec: RandomContourSpec | dict | None = None,
+        *,
+        plant="vcnc_feed_drive",
+        acceleration=None,
+        jerk=None,
+        render_mode=None,
+        **kwargs,
+    ):
         for key in ("contour", "feedrate", "profile", "program"):
             if key in kwargs:
-                raise ValueError(f"{key}= is drawn at every reset in VCNC-RandomContour-v1; "
-                                 f"shape the draws with spec= (vcnc_gym.gcode.random_contour.RandomContourSpec)")
+                raise ValueError(
+                    f"{key}= is drawn at every reset in VCNC-RandomContour-v1; "
+                    f"shape the draws with spec= (vcnc_gym.gcode.random_contour.RandomContourSpec)"
+                )
         model = get_plant(plant)  # a name or a model; an unknown name is refused here, naming the known ones
         self._spec = spec_for(model, spec)
         # the arcs' scale sets the look-ahead's sampling (0.05 mm for the defaults' 2 mm arcs)
@@ -136,5 +149,6 @@ class RandomContourEnv(ContouringEnv):
         super()._restore_episode(state)
 
 
-RandomContourEnv.__init__.__signature__ = forwarded_signature(RandomContourEnv.__init__, ContouringEnv.__init__,
-                                                             drop=("contour", "feedrate", "profile"))
+RandomContourEnv.__init__.__signature__ = forwarded_signature(
+    RandomContourEnv.__init__, ContouringEnv.__init__, drop=("contour", "feedrate", "profile")
+)

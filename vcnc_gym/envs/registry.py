@@ -13,7 +13,17 @@ from dataclasses import dataclass, field
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["SuiteEnv", "SUITE", "LEGACY", "env_name", "ENV_IDS", "CONTOURING_IDS", "VECTOR_IDS", "register_envs", "suite_env"]
+__all__ = [
+    "SuiteEnv",
+    "SUITE",
+    "LEGACY",
+    "env_name",
+    "ENV_IDS",
+    "CONTOURING_IDS",
+    "VECTOR_IDS",
+    "register_envs",
+    "suite_env",
+]
 
 _CONTOURING = "vcnc_gym.envs.contouring_env:ContouringEnv"
 _CONTOURING_VECTOR = "vcnc_gym.envs.contouring_vector_env:ContouringVectorEnv"
@@ -58,97 +68,196 @@ class SuiteEnv:
 #: The circle of Purtojo et al. is 1 mm across and driven at 1 mm/s: its contour is
 #: shown 50-400 um ahead, arrives within 2 um (twice its sensor's 1 um) and is
 #: given 1 s after the reference's end.
-_CIRCLE = {"contour": "circle", "plant": "nct_xy_table", "profile": "constant", "feedrate": 1.0, "dt": 1e-3,
-           "reward_scale": 1e-3, "tracking_bound": 0.5, "divergence_bound": 0.5}
+_CIRCLE = {
+    "contour": "circle",
+    "plant": "nct_xy_table",
+    "profile": "constant",
+    "feedrate": 1.0,
+    "dt": 1e-3,
+    "reward_scale": 1e-3,
+    "tracking_bound": 0.5,
+    "divergence_bound": 0.5,
+}
 _CIRCLE_V1 = {"contour_ahead": (0.05, 0.1, 0.2, 0.4), "completion_tolerance": 0.002, "completion_timeout": 1.0}
 
 #: Purtojo et al.'s table on the shop floor (vcnc_gym.plants.shop_floor): its own 1 um sensor with 0.2 um of noise; no
 #: cutting force (1 N is 1.3 u_r on its 10 kg carriage, beyond the motor's rating: a plotting or engraving table);
 #: Stribeck friction of 0.05 N (7 % of the rated input), fading over 0.5 mm/s.
-_CIRCLE_SHOP = {"encoder_resolution": 1e-3, "noise_std": 2e-4, "cutting_force": 0.0, "cutting_ripple": 0.0,
-                "stribeck_force": 0.05, "stribeck_velocity": 0.5}
+_CIRCLE_SHOP = {
+    "encoder_resolution": 1e-3,
+    "noise_std": 2e-4,
+    "cutting_force": 0.0,
+    "cutting_ripple": 0.0,
+    "stribeck_force": 0.05,
+    "stribeck_velocity": 0.5,
+}
 
 #: Every current env id of the suite (the contouring ids at v1: see ContouringEnv's Version History).
 SUITE: tuple[SuiteEnv, ...] = (
-    SuiteEnv("VCNC-Heart-v1", {"contour": "heart", "plant": "vcnc_feed_drive"},
-             "Jahanpour et al.'s 'heart' (cubic NURBS, 310 mm) at 100 mm/s on their feed drives"),
-    SuiteEnv("VCNC-Omega-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
-             "Jahanpour et al.'s 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on their feed drives"),
-    SuiteEnv("VCNC-HeartLookahead-v1", {"contour": "heart", "plant": "vcnc_feed_drive", "profile": "lookahead"},
-             "the heart with a CNC look-ahead feed (100 mm/s, normal acceleration and jerk within Jahanpour et al.'s "
-             "drives' reach): the classical baselines on a feasible reference"),
-    SuiteEnv("VCNC-OmegaLookahead-v1", {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead"},
-             "the omega with a CNC look-ahead feed: its 0.19 mm corners at 10 mm/s, 0.99 s instead of 0.63 s"),
-    SuiteEnv("VCNC-Corners-v1",
-             {"contour": "corners", "plant": "current_feed_drive", "profile": "constant", "feedrate": 50.0},
-             "Simba et al.'s test path (corners of 30, 60, 90 deg, sharp) at a constant 50 mm/s on their drives"),
-    SuiteEnv("VCNC-CornersSmooth-v1",
-             {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0},
-             "Simba et al.'s test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s"),
-    SuiteEnv("VCNC-Circle-v1", {**_CIRCLE, **_CIRCLE_V1},
-             "Purtojo et al.'s circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on their NCT-identified X-Y table"),
-    SuiteEnv("VCNC-HeartShop-v1", {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True},
-             "the heart on Jahanpour et al.'s drives on the shop floor: 0.1 um encoder with noise, a period of delay, "
-             "a 150 Hz mode, a milling force and Stribeck friction (vcnc_gym.plants.shop_floor's defaults)"),
-    SuiteEnv("VCNC-OmegaLookaheadShop-v1",
-             {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead", "shop_floor": True},
-             "the look-ahead omega on Jahanpour et al.'s drives on the shop floor (the defaults)"),
-    SuiteEnv("VCNC-CornersSmoothShop-v1",
-             {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0,
-              "shop_floor": True},
-             "Simba et al.'s smoothed corners on their drives on the shop floor (the defaults)"),
-    SuiteEnv("VCNC-CircleShop-v1", {**_CIRCLE, **_CIRCLE_V1, "shop_floor": _CIRCLE_SHOP},
-             "Purtojo et al.'s circle on their X-Y table with a noisy 1 um sensor, a period of delay, a 150 Hz mode "
-             "and Stribeck friction, no cutting force (a light table: see _CIRCLE_SHOP)"),
-    SuiteEnv("VCNC-GCode-v1", {"program": "iso230-4-ccw"},
-             "a G-code part program (program=, text or path; default the ISO 230-4 circle, 50 mm at 3000 mm/min) "
-             "on Jahanpour et al.'s feed drives: G01/G02/G03, Simba et al.'s corner blends at tolerance= mm, "
-             "look-ahead feeds",
-             entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
-    SuiteEnv("VCNC-ISO230Circle-v1", {"program": "iso230-4-ccw"},
-             "ISO 230-4 circular test, 50 mm diameter at 3000 mm/min counter-clockwise (the CW run: program="
-             "'iso230-4-cw'), on Jahanpour et al.'s feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
-    SuiteEnv("VCNC-CircleDiamondSquare-v1", {"program": "circle-diamond-square"},
-             "NAS 979 / ISO 10791-7 circle-diamond-square (60 mm square, 6000 mm/min, 10 um blends) on "
-             "Jahanpour et al.'s feed drives", entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
-    SuiteEnv("VCNC-Butterfly-v1", {"program": "butterfly"},
-             "butterfly free-form as G-code biarcs (78 mm, 3000 mm/min) on Jahanpour et al.'s feed drives",
-             entry_point=_GCODE, vector_entry_point=_GCODE_VECTOR),
+    SuiteEnv(
+        "VCNC-Heart-v1",
+        {"contour": "heart", "plant": "vcnc_feed_drive"},
+        "Jahanpour et al.'s 'heart' (cubic NURBS, 310 mm) at 100 mm/s on their feed drives",
+    ),
+    SuiteEnv(
+        "VCNC-Omega-v1",
+        {"contour": "omega", "plant": "vcnc_feed_drive"},
+        "Jahanpour et al.'s 'omega' (quadratic NURBS, 51 mm, 0.19 mm corners) at 100 mm/s on their feed drives",
+    ),
+    SuiteEnv(
+        "VCNC-HeartLookahead-v1",
+        {"contour": "heart", "plant": "vcnc_feed_drive", "profile": "lookahead"},
+        "the heart with a CNC look-ahead feed (100 mm/s, normal acceleration and jerk within Jahanpour et al.'s "
+        "drives' reach): the classical baselines on a feasible reference",
+    ),
+    SuiteEnv(
+        "VCNC-OmegaLookahead-v1",
+        {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead"},
+        "the omega with a CNC look-ahead feed: its 0.19 mm corners at 10 mm/s, 0.99 s instead of 0.63 s",
+    ),
+    SuiteEnv(
+        "VCNC-Corners-v1",
+        {"contour": "corners", "plant": "current_feed_drive", "profile": "constant", "feedrate": 50.0},
+        "Simba et al.'s test path (corners of 30, 60, 90 deg, sharp) at a constant 50 mm/s on their drives",
+    ),
+    SuiteEnv(
+        "VCNC-CornersSmooth-v1",
+        {"contour": "corners-smooth", "plant": "current_feed_drive", "profile": "jlap", "feedrate": 50.0},
+        "Simba et al.'s test path, corners smoothed by quintic Bezier blends (50 um), jerk-limited 50 mm/s",
+    ),
+    SuiteEnv(
+        "VCNC-Circle-v1",
+        {**_CIRCLE, **_CIRCLE_V1},
+        "Purtojo et al.'s circle, R = 1 mm at 1 mm/s (x = sin t, y = cos t), on their NCT-identified X-Y table",
+    ),
+    SuiteEnv(
+        "VCNC-HeartShop-v1",
+        {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True},
+        "the heart on Jahanpour et al.'s drives on the shop floor: 0.1 um encoder with noise, a period of delay, "
+        "a 150 Hz mode, a milling force and Stribeck friction (vcnc_gym.plants.shop_floor's defaults)",
+    ),
+    SuiteEnv(
+        "VCNC-OmegaLookaheadShop-v1",
+        {"contour": "omega", "plant": "vcnc_feed_drive", "profile": "lookahead", "shop_floor": True},
+        "the look-ahead omega on Jahanpour et al.'s drives on the shop floor (the defaults)",
+    ),
+    SuiteEnv(
+        "VCNC-CornersSmoothShop-v1",
+        {
+            "contour": "corners-smooth",
+            "plant": "current_feed_drive",
+            "profile": "jlap",
+            "feedrate": 50.0,
+            "shop_floor": True,
+        },
+        "Simba et al.'s smoothed corners on their drives on the shop floor (the defaults)",
+    ),
+    SuiteEnv(
+        "VCNC-CircleShop-v1",
+        {**_CIRCLE, **_CIRCLE_V1, "shop_floor": _CIRCLE_SHOP},
+        "Purtojo et al.'s circle on their X-Y table with a noisy 1 um sensor, a period of delay, a 150 Hz mode "
+        "and Stribeck friction, no cutting force (a light table: see _CIRCLE_SHOP)",
+    ),
+    SuiteEnv(
+        "VCNC-GCode-v1",
+        {"program": "iso230-4-ccw"},
+        "a G-code part program (program=, text or path; default the ISO 230-4 circle, 50 mm at 3000 mm/min) "
+        "on Jahanpour et al.'s feed drives: G01/G02/G03, Simba et al.'s corner blends at tolerance= mm, "
+        "look-ahead feeds",
+        entry_point=_GCODE,
+        vector_entry_point=_GCODE_VECTOR,
+    ),
+    SuiteEnv(
+        "VCNC-ISO230Circle-v1",
+        {"program": "iso230-4-ccw"},
+        "ISO 230-4 circular test, 50 mm diameter at 3000 mm/min counter-clockwise (the CW run: program="
+        "'iso230-4-cw'), on Jahanpour et al.'s feed drives",
+        entry_point=_GCODE,
+        vector_entry_point=_GCODE_VECTOR,
+    ),
+    SuiteEnv(
+        "VCNC-CircleDiamondSquare-v1",
+        {"program": "circle-diamond-square"},
+        "NAS 979 / ISO 10791-7 circle-diamond-square (60 mm square, 6000 mm/min, 10 um blends) on "
+        "Jahanpour et al.'s feed drives",
+        entry_point=_GCODE,
+        vector_entry_point=_GCODE_VECTOR,
+    ),
+    SuiteEnv(
+        "VCNC-Butterfly-v1",
+        {"program": "butterfly"},
+        "butterfly free-form as G-code biarcs (78 mm, 3000 mm/min) on Jahanpour et al.'s feed drives",
+        entry_point=_GCODE,
+        vector_entry_point=_GCODE_VECTOR,
+    ),
     # not a CONTOURING_ID: its contour (env.unwrapped.task) changes at every reset, which those ids' tests rule out
-    SuiteEnv("VCNC-RandomContour-v1", {},
-             "a new contour at every reset (random G-code: lines with Simba et al.'s blends, arcs; 33-100 mm/s "
-             "look-ahead) on Jahanpour et al.'s feed drives; make_vec gives SyncVectorEnv, each env its own contours",
-             entry_point=_RANDOM, vector_entry_point=None),
+    SuiteEnv(
+        "VCNC-RandomContour-v1",
+        {},
+        "a new contour at every reset (random G-code: lines with Simba et al.'s blends, arcs; 33-100 mm/s "
+        "look-ahead) on Jahanpour et al.'s feed drives; make_vec gives SyncVectorEnv, each env its own contours",
+        entry_point=_RANDOM,
+        vector_entry_point=None,
+    ),
     # not a CONTOURING_ID either: a third action, the feed override (the classical ids' controllers take two)
-    SuiteEnv("VCNC-OmegaOverride-v1", {"contour": "omega", "plant": "vcnc_feed_drive"},
-             "VCNC-Omega-v1 with a feed override (0-100 %) as a third action: the reference re-timed online, "
-             "cycle time in the reward", entry_point=_OVERRIDE, vector_entry_point=None),
-    SuiteEnv("VCNC-OmegaOverrideShop-v1", {"contour": "omega", "plant": "vcnc_feed_drive", "shop_floor": True},
-             "VCNC-OmegaOverride-v1 on the shop floor (vcnc_gym.plants.shop_floor's defaults): the tolerance task's "
-             "shop-floor twin (tolerance=T)", entry_point=_OVERRIDE, vector_entry_point=None),
+    SuiteEnv(
+        "VCNC-OmegaOverride-v1",
+        {"contour": "omega", "plant": "vcnc_feed_drive"},
+        "VCNC-Omega-v1 with a feed override (0-100 %) as a third action: the reference re-timed online, "
+        "cycle time in the reward",
+        entry_point=_OVERRIDE,
+        vector_entry_point=None,
+    ),
+    SuiteEnv(
+        "VCNC-OmegaOverrideShop-v1",
+        {"contour": "omega", "plant": "vcnc_feed_drive", "shop_floor": True},
+        "VCNC-OmegaOverride-v1 on the shop floor (vcnc_gym.plants.shop_floor's defaults): the tolerance task's "
+        "shop-floor twin (tolerance=T)",
+        entry_point=_OVERRIDE,
+        vector_entry_point=None,
+    ),
     # the tolerance task's own ids (issue 37): the dial reaches the feeds and path accelerations the task's classical
     # opponents are searched over (vcnc_bench.reports.tolerance: up to 1.5 x the programmed feed and 2600 mm/s^2)
-    SuiteEnv("VCNC-OmegaTolerance-v2", {"contour": "omega", "plant": "vcnc_feed_drive", **_TOLERANCE},
-             "the tolerance task on VCNC-OmegaOverride-v1's omega: the shortest cycle within T (10 um; tolerance=T), "
-             "the operator's override (50-150 %, at 26/s) on a look-ahead of "
-             f"{_TOLERANCE['lookahead'][0]:g} mm/s and {_TOLERANCE['lookahead'][1]:g} mm/s^2 from rest",
-             entry_point=_OVERRIDE, vector_entry_point=None),
-    SuiteEnv("VCNC-OmegaToleranceShop-v2",
-             {"contour": "omega", "plant": "vcnc_feed_drive", "shop_floor": True, **_TOLERANCE},
-             "VCNC-OmegaTolerance-v2 on the shop floor (vcnc_gym.plants.shop_floor's defaults)",
-             entry_point=_OVERRIDE, vector_entry_point=None),
-    SuiteEnv("VCNC-HeartTolerance-v1", {"contour": "heart", "plant": "vcnc_feed_drive", **_HEART_TOLERANCE},
-             "the tolerance task on Jahanpour et al.'s heart (310 mm, 100 mm/s programmed) on their drives: the "
-             "shortest cycle within T (10 um; tolerance=T), the operator's override (50-150 %, at 26/s) on a "
-             f"look-ahead of {_HEART_TOLERANCE['lookahead'][0]:g} mm/s and {_HEART_TOLERANCE['lookahead'][1]:g} mm/s^2 "
-             "from rest", entry_point=_OVERRIDE, vector_entry_point=None),
-    SuiteEnv("VCNC-HeartToleranceShop-v1",
-             {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True, **_HEART_TOLERANCE},
-             "VCNC-HeartTolerance-v1 on the shop floor (vcnc_gym.plants.shop_floor's defaults)",
-             entry_point=_OVERRIDE, vector_entry_point=None),
-    SuiteEnv("VCNC-Step-v0", {"plant": "cncmt_axis"},
-             "Yadav et al.'s step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
-             entry_point="vcnc_gym.envs.positioning_env:PositioningEnv", vector_entry_point=None),
+    SuiteEnv(
+        "VCNC-OmegaTolerance-v2",
+        {"contour": "omega", "plant": "vcnc_feed_drive", **_TOLERANCE},
+        "the tolerance task on VCNC-OmegaOverride-v1's omega: the shortest cycle within T (10 um; tolerance=T), "
+        "the operator's override (50-150 %, at 26/s) on a look-ahead of "
+        f"{_TOLERANCE['lookahead'][0]:g} mm/s and {_TOLERANCE['lookahead'][1]:g} mm/s^2 from rest",
+        entry_point=_OVERRIDE,
+        vector_entry_point=None,
+    ),
+    SuiteEnv(
+        "VCNC-OmegaToleranceShop-v2",
+        {"contour": "omega", "plant": "vcnc_feed_drive", "shop_floor": True, **_TOLERANCE},
+        "VCNC-OmegaTolerance-v2 on the shop floor (vcnc_gym.plants.shop_floor's defaults)",
+        entry_point=_OVERRIDE,
+        vector_entry_point=None,
+    ),
+    SuiteEnv(
+        "VCNC-HeartTolerance-v1",
+        {"contour": "heart", "plant": "vcnc_feed_drive", **_HEART_TOLERANCE},
+        "the tolerance task on Jahanpour et al.'s heart (310 mm, 100 mm/s programmed) on their drives: the "
+        "shortest cycle within T (10 um; tolerance=T), the operator's override (50-150 %, at 26/s) on a "
+        f"look-ahead of {_HEART_TOLERANCE['lookahead'][0]:g} mm/s and {_HEART_TOLERANCE['lookahead'][1]:g} mm/s^2 "
+        "from rest",
+        entry_point=_OVERRIDE,
+        vector_entry_point=None,
+    ),
+    SuiteEnv(
+        "VCNC-HeartToleranceShop-v1",
+        {"contour": "heart", "plant": "vcnc_feed_drive", "shop_floor": True, **_HEART_TOLERANCE},
+        "VCNC-HeartTolerance-v1 on the shop floor (vcnc_gym.plants.shop_floor's defaults)",
+        entry_point=_OVERRIDE,
+        vector_entry_point=None,
+    ),
+    SuiteEnv(
+        "VCNC-Step-v0",
+        {"plant": "cncmt_axis"},
+        "Yadav et al.'s step response: a 10 mm set-point on both axes of the CNCMT axis with its 0.1 s dead time",
+        entry_point="vcnc_gym.envs.positioning_env:PositioningEnv",
+        vector_entry_point=None,
+    ),
 )
 
 #: What made a contouring id v0: its episode ended 10 ms after the reference's
@@ -159,22 +268,34 @@ _V0 = {"episode_end": "reference", "contour_ahead": ()}
 #: docs/reproduction.md, ``benchmarks/train_throughput.py``); no agent is shipped on them (``agents/trained``
 #: holds agents of current ids only) and ``vcnc-bench`` runs the current ids.
 LEGACY: tuple[SuiteEnv, ...] = tuple(
-    SuiteEnv(e.id.replace("-v1", "-v0"),
-             {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
-             e.summary + " (v0: ends with the reference, no contour preview)")
-    for e in SUITE if e.contouring and e.kwargs.get("profile") != "lookahead" and e.entry_point == _CONTOURING and "shop_floor" not in e.kwargs
+    SuiteEnv(
+        e.id.replace("-v1", "-v0"),
+        {**{k: v for k, v in e.kwargs.items() if k not in _CIRCLE_V1}, **_V0},
+        e.summary + " (v0: ends with the reference, no contour preview)",
+    )
+    for e in SUITE
+    if e.contouring
+    and e.kwargs.get("profile") != "lookahead"
+    and e.entry_point == _CONTOURING
+    and "shop_floor" not in e.kwargs
 )
 
 #: The tolerance ids' v1, still registered for the figures measured on them (docs/reproduction.md, "The tolerance
 #: task", the fourth to the sixth try): their look-ahead at its top feed from the first sample (FeedOverrideEnv's
 #: Version History).
 LEGACY = LEGACY + tuple(
-    SuiteEnv(e.id.replace("-v2", "-v1"), {**e.kwargs, **_TOLERANCE_V1},
-             e.summary.replace("-v2", "-v1").split(": the shortest")[0]
-             + f": v2's task on a look-ahead of {_TOLERANCE_V1['lookahead'][0]:g} mm/s and "
-             f"{_TOLERANCE_V1['lookahead'][1]:g} mm/s^2 at its top feed from the first sample",
-             entry_point=e.entry_point, vector_entry_point=None)
-    for e in SUITE if e.id.startswith("VCNC-OmegaTolerance"))
+    SuiteEnv(
+        e.id.replace("-v2", "-v1"),
+        {**e.kwargs, **_TOLERANCE_V1},
+        e.summary.replace("-v2", "-v1").split(": the shortest")[0]
+        + f": v2's task on a look-ahead of {_TOLERANCE_V1['lookahead'][0]:g} mm/s and "
+        f"{_TOLERANCE_V1['lookahead'][1]:g} mm/s^2 at its top feed from the first sample",
+        entry_point=e.entry_point,
+        vector_entry_point=None,
+    )
+    for e in SUITE
+    if e.id.startswith("VCNC-OmegaTolerance")
+)
 
 #: The current ids, in the order of :data:`SUITE`.
 ENV_IDS: tuple[str, ...] = tuple(e.id for e in SUITE)
@@ -204,5 +325,4 @@ def register_envs() -> None:
     """Register every id of :data:`SUITE` and :data:`LEGACY` (once)."""
     for e in SUITE + LEGACY:
         if e.id not in registry:
-            register(id=e.id, entry_point=e.entry_point, vector_entry_point=e.vector_entry_point,
-                     kwargs=dict(e.kwargs))
+            register(id=e.id, entry_point=e.entry_point, vector_entry_point=e.vector_entry_point, kwargs=dict(e.kwargs))

@@ -30,8 +30,8 @@ def padded_reference(samples: np.ndarray, rows: int) -> np.ndarray:
     """``samples`` (K, REF_COLUMNS) extended to ``rows`` rows by holding the last one (the table at rest at the
     contour's end): the buffer a re-timed reference is written into, at the original timing until then."""
     out = np.empty((max(rows, samples.shape[0]), samples.shape[1]))
-    out[:samples.shape[0]] = samples
-    out[samples.shape[0]:] = samples[-1]
+    out[: samples.shape[0]] = samples
+    out[samples.shape[0] :] = samples[-1]
     return out
 
 
@@ -83,10 +83,12 @@ def _write_row(original, out, n, tau, speed, dspeed, dt):
         for c in range(sk.REF_VELOCITY, sk.REF_COLUMNS):
             out[n, c] = g * original[j, c] + f * original[j + 1, c]
         for c in range(2):
-            out[n, sk.REF_POSITION + c] = (h00 * original[j, sk.REF_POSITION + c]
-                                           + h01 * original[j + 1, sk.REF_POSITION + c]
-                                           + h10 * original[j, sk.REF_VELOCITY + c]
-                                           + h11 * original[j + 1, sk.REF_VELOCITY + c])
+            out[n, sk.REF_POSITION + c] = (
+                h00 * original[j, sk.REF_POSITION + c]
+                + h01 * original[j + 1, sk.REF_POSITION + c]
+                + h10 * original[j, sk.REF_VELOCITY + c]
+                + h11 * original[j + 1, sk.REF_VELOCITY + c]
+            )
         norm = np.hypot(out[n, sk.REF_TANGENT], out[n, sk.REF_TANGENT + 1])
         if norm > 0.0:
             out[n, sk.REF_TANGENT] /= norm

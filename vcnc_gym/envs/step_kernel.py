@@ -145,10 +145,23 @@ ReferenceArrays = namedtuple("ReferenceArrays", ["samples", "preview_steps", "co
 #: has reached the end); ``progress_window`` (mm: the farthest the tool's
 #: progress may jump ahead in one control period, so that a closest point on
 #: another branch of the contour is not taken for progress); ``dt`` (s).
-StepConfig = namedtuple("StepConfig", [
-    "n_repeat", "reward_scale", "effort_weight", "divergence_bound", "tracking_bound",
-    "episode_end", "end_index", "episode_steps", "max_steps", "completion_tolerance", "progress_window", "dt",
-])
+StepConfig = namedtuple(
+    "StepConfig",
+    [
+        "n_repeat",
+        "reward_scale",
+        "effort_weight",
+        "divergence_bound",
+        "tracking_bound",
+        "episode_end",
+        "end_index",
+        "episode_steps",
+        "max_steps",
+        "completion_tolerance",
+        "progress_window",
+        "dt",
+    ],
+)
 
 #: Per-env arrays, first axis N: inputs ``mode`` (int8) and ``action``
 #: (N, 2) float64, normalised; memory ``k`` (control periods done),
@@ -164,10 +177,28 @@ StepConfig = namedtuple("StepConfig", [
 #: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
 #: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
 #: float32; scratch ``sensed`` (N, SENSE_SIZE) and ``der`` (N, 3, 2).
-EnvBuffers = namedtuple("EnvBuffers", [
-    "mode", "action", "k", "steps", "foot", "input_limit", "previous_action", "progress", "cycle_time",
-    "reference_end", "obs", "reward", "flags", "info", "obs_high", "sensed", "der",
-])
+EnvBuffers = namedtuple(
+    "EnvBuffers",
+    [
+        "mode",
+        "action",
+        "k",
+        "steps",
+        "foot",
+        "input_limit",
+        "previous_action",
+        "progress",
+        "cycle_time",
+        "reference_end",
+        "obs",
+        "reward",
+        "flags",
+        "info",
+        "obs_high",
+        "sensed",
+        "der",
+    ],
+)
 
 
 #: A decision of :func:`step_controlled_serial`: ``agent`` (N, 2) float32, the agent's correction in [-1, 1] (clipped
@@ -232,7 +263,7 @@ def _step_env(plant, reference, c, cfg, o, b, i):
         a1 = min(1.0, max(-1.0, b.action[i, 1]))
         b.previous_action[i, 0] = a0
         b.previous_action[i, 1] = a1
-    command = b.info[i, INFO_COMMAND:INFO_COMMAND + 2]
+    command = b.info[i, INFO_COMMAND : INFO_COMMAND + 2]
     command[0] = a0 * b.input_limit[i, 0]
     command[1] = a1 * b.input_limit[i, 1]
 
@@ -245,7 +276,8 @@ def _step_env(plant, reference, c, cfg, o, b, i):
             b.k[i] += 1
         contract.sense(plant, i, sensed)
         err, b.foot[i] = project_point_warm(
-            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1], b.foot[i], c, b.der[i])
+            sensed[contract.SENSE_POSITION], sensed[contract.SENSE_POSITION + 1], b.foot[i], c, b.der[i]
+        )
         err_sum += err
         err_max = max(err_max, err)
         _advance_progress(samples, cfg, b, i)
@@ -260,8 +292,12 @@ def _step_env(plant, reference, c, cfg, o, b, i):
     ym = sensed[contract.SENSE_MEASURED + 1]
     xd = samples[kr, REF_POSITION]
     yd = samples[kr, REF_POSITION + 1]
-    finite = np.isfinite(x) and np.isfinite(y) and np.isfinite(sensed[contract.SENSE_VELOCITY]) \
+    finite = (
+        np.isfinite(x)
+        and np.isfinite(y)
+        and np.isfinite(sensed[contract.SENSE_VELOCITY])
         and np.isfinite(sensed[contract.SENSE_VELOCITY + 1])
+    )
 
     # info
     info = b.info[i]
@@ -398,8 +434,11 @@ def _advance_progress(samples, cfg, b, i):
             b.progress[i] = q
             p = q
     last = samples.shape[0] - 1
-    if (np.isnan(b.cycle_time[i]) and b.k[i] >= b.reference_end[i]
-            and samples[last, REF_ARC] - samples[p, REF_ARC] <= cfg.completion_tolerance):
+    if (
+        np.isnan(b.cycle_time[i])
+        and b.k[i] >= b.reference_end[i]
+        and samples[last, REF_ARC] - samples[p, REF_ARC] <= cfg.completion_tolerance
+    ):
         b.cycle_time[i] = b.k[i] * cfg.dt
 
 
@@ -423,14 +462,21 @@ def _contour_preview(samples, ahead, p, xm, ym, obs, o):
         obs[o.contour_preview + 2 * j] = tx * px + ty * py
         obs[o.contour_preview + 2 * j + 1] = -ty * px + tx * py
         obs[o.contour_curvature + j] = samples[q, REF_CURVATURE] + w * (
-            samples[r, REF_CURVATURE] - samples[q, REF_CURVATURE])
+            samples[r, REF_CURVATURE] - samples[q, REF_CURVATURE]
+        )
 
 
 @njit(cache=True)
 def _step_range(d, start, stop):
     """Envs ``start`` to ``stop - 1`` of ``d``, with the StepData's fields unpacked once."""
-    plant, reference, contour, config, offsets, buffers = d.plant, d.reference, d.contour, d.config, d.offsets, \
-        d.buffers
+    plant, reference, contour, config, offsets, buffers = (
+        d.plant,
+        d.reference,
+        d.contour,
+        d.config,
+        d.offsets,
+        d.buffers,
+    )
     for i in range(start, stop):
         _step_env(plant, reference, contour, config, offsets, buffers, i)
 
@@ -480,8 +526,14 @@ def _control_env(plant, reference, c, cfg, o, b, i, controller, loop):
 @njit(cache=True)
 def _control_range(d, controller, loop, start, stop):
     """Envs ``start`` to ``stop - 1`` of ``d`` under ``controller``, the StepData's fields unpacked once."""
-    plant, reference, contour, config, offsets, buffers = d.plant, d.reference, d.contour, d.config, d.offsets, \
-        d.buffers
+    plant, reference, contour, config, offsets, buffers = (
+        d.plant,
+        d.reference,
+        d.contour,
+        d.config,
+        d.offsets,
+        d.buffers,
+    )
     for i in range(start, stop):
         _control_env(plant, reference, contour, config, offsets, buffers, i, controller, loop)
 
@@ -509,8 +561,25 @@ def step_controlled_parallel(d, controller, loop):
 #: velocity low-pass pole ``alpha`` (2,); the control period ``dt`` (s) and the input limit ``u_max`` (2,); and what
 #: the run writes: the command ``u``, the measured tracking error ``e`` (mm) and velocity ``velocity`` (mm/s), each
 #: (N, K, 2).  The run lasts K periods.
-HoldingLoop = namedtuple("HoldingLoop", ["feedforward", "legs", "offset", "offset_rate", "excitation", "kp", "kd",
-                                         "ki", "alpha", "dt", "u_max", "u", "e", "velocity"])
+HoldingLoop = namedtuple(
+    "HoldingLoop",
+    [
+        "feedforward",
+        "legs",
+        "offset",
+        "offset_rate",
+        "excitation",
+        "kp",
+        "kd",
+        "ki",
+        "alpha",
+        "dt",
+        "u_max",
+        "u",
+        "e",
+        "velocity",
+    ],
+)
 
 
 @njit(cache=True)
@@ -537,8 +606,14 @@ def run_holding_loop(d, h):
                 h.e[i, k, j] = e
                 integral[i, j] += ek * h.dt
                 rate = np.float64(b.obs[i, o.reference_velocity + j]) + h.offset_rate[k, j] - vf[i, j]
-                c = (h.feedforward[f, j] + h.legs[k, j] + h.kp[j] * ek + h.kd[j] * rate + h.ki[j] * integral[i, j]
-                     + h.excitation[i, k, j])
+                c = (
+                    h.feedforward[f, j]
+                    + h.legs[k, j]
+                    + h.kp[j] * ek
+                    + h.kd[j] * rate
+                    + h.ki[j] * integral[i, j]
+                    + h.excitation[i, k, j]
+                )
                 c = min(max(c, -h.u_max[j]), h.u_max[j])
                 h.u[i, k, j] = c
                 b.action[i, j] = min(max(c / h.u_max[j], -1.0), 1.0)

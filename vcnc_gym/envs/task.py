@@ -25,8 +25,16 @@ from . import step_kernel as sk
 from ..validation import flag, integer, non_negative, positive, size
 from .layout import ObservationLayout
 
-__all__ = ["ContouringTask", "ContouringBatch", "RESET_OPTIONS", "PROFILES", "EPISODE_ENDS", "make_contour", "make_profile",
-           "pack_reference"]
+__all__ = [
+    "ContouringTask",
+    "ContouringBatch",
+    "RESET_OPTIONS",
+    "PROFILES",
+    "EPISODE_ENDS",
+    "make_contour",
+    "make_profile",
+    "pack_reference",
+]
 
 #: The feedrate profiles of ``profile=``: Jahanpour et al.'s (2014) S-curve
 #: (``feedrate``, ``ramp_time``), a constant feed from t = 0 (Simba et al.'s
@@ -104,11 +112,14 @@ def make_profile(profile, feedrate, ramp_time, curve: NurbsCurve, path: Smoothed
     ``feedrate`` and ``ramp_time`` do not apply)."""
     if not isinstance(profile, str) and callable(getattr(profile, "plan", None)):
         if ramp_time is not None:
-            raise ValueError("ramp_time (s) shapes the S-curve of profile='scurve'; a profile object plans its own feed")
+            raise ValueError(
+                "ramp_time (s) shapes the S-curve of profile='scurve'; a profile object plans its own feed"
+            )
         return profile
     if profile not in PROFILES:
-        raise ValueError(f"profile must be one of {list(PROFILES)} or a profile object with plan(length), "
-                         f"got {profile!r}")
+        raise ValueError(
+            f"profile must be one of {list(PROFILES)} or a profile object with plan(length), got {profile!r}"
+        )
     if profile != "scurve" and ramp_time is not None:
         raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
     if isinstance(path, Toolpath):  # a G-code program: its blocks' feeds
@@ -120,8 +131,10 @@ def make_profile(profile, feedrate, ramp_time, curve: NurbsCurve, path: Smoothed
     if profile == "lookahead":
         return LookaheadFeedrate(curve, feedrate)
     if path is None:
-        raise ValueError("profile='jlap' plans along a corner-smoothed path: give contour='corners-smooth' or a "
-                         "SmoothedPolyline (geometry.smooth_polyline)")
+        raise ValueError(
+            "profile='jlap' plans along a corner-smoothed path: give contour='corners-smooth' or a "
+            "SmoothedPolyline (geometry.smooth_polyline)"
+        )
     return JlapPathFeedrate(path, feedrate)
 
 
@@ -158,19 +171,37 @@ class ContouringTask:
         shop_floor: dict | bool | None = None,
     ):
         self._set_contour_and_plant(contour, plant, shop_floor, plant_options)
-        self._check_settings(dt, action_repeat, randomize, reward_scale, effort_weight, divergence_bound,
-                             tracking_bound, episode_end, settling_time, completion_tolerance, completion_timeout)
+        self._check_settings(
+            dt,
+            action_repeat,
+            randomize,
+            reward_scale,
+            effort_weight,
+            divergence_bound,
+            tracking_bound,
+            episode_end,
+            settling_time,
+            completion_tolerance,
+            completion_timeout,
+        )
         preview_steps = _as_tuple(preview_steps)
         contour_ahead = _as_tuple(contour_ahead)
         self._set_parameters(parameters)
         samples, reference_end = self._plan_reference(profile, feedrate, ramp_time, max_episode_steps)
         self._set_observation(preview_steps, contour_ahead, samples, reference_end)
         self.config = sk.StepConfig(
-            n_repeat=self.action_repeat, reward_scale=self.reward_scale, effort_weight=self.effort_weight,
-            divergence_bound=self.divergence_bound, tracking_bound=self.tracking_bound,
-            episode_end=EPISODE_ENDS[self.episode_end], end_index=self.end_index, episode_steps=self.episode_steps,
-            max_steps=self.max_episode_steps, completion_tolerance=self.completion_tolerance,
-            progress_window=self.tracking_bound, dt=self.dt,
+            n_repeat=self.action_repeat,
+            reward_scale=self.reward_scale,
+            effort_weight=self.effort_weight,
+            divergence_bound=self.divergence_bound,
+            tracking_bound=self.tracking_bound,
+            episode_end=EPISODE_ENDS[self.episode_end],
+            end_index=self.end_index,
+            episode_steps=self.episode_steps,
+            max_steps=self.max_episode_steps,
+            completion_tolerance=self.completion_tolerance,
+            progress_window=self.tracking_bound,
+            dt=self.dt,
         )
 
     def _set_contour_and_plant(self, contour, plant, shop_floor, plant_options) -> None:
@@ -187,13 +218,27 @@ class ContouringTask:
             raise ValueError(f"plant_options must be a dict of the plant's settings, got {plant_options!r}")
         self.plant_options = dict(plant_options or {})
 
-    def _check_settings(self, dt, action_repeat, randomize, reward_scale, effort_weight, divergence_bound,
-                        tracking_bound, episode_end, settling_time, completion_tolerance, completion_timeout) -> None:
+    def _check_settings(
+        self,
+        dt,
+        action_repeat,
+        randomize,
+        reward_scale,
+        effort_weight,
+        divergence_bound,
+        tracking_bound,
+        episode_end,
+        settling_time,
+        completion_tolerance,
+        completion_timeout,
+    ) -> None:
         """The scalar settings, checked (:mod:`vcnc_gym.validation`)."""
         self.dt = positive("dt", dt, "s")
         if not DT_RANGE[0] <= self.dt <= DT_RANGE[1]:
-            raise ValueError(f"dt={dt!r} s is outside [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s; dt is the control "
-                             f"period in seconds (0.1 ms is dt=1e-4)")
+            raise ValueError(
+                f"dt={dt!r} s is outside [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s; dt is the control "
+                f"period in seconds (0.1 ms is dt=1e-4)"
+            )
         self.action_repeat = integer("action_repeat", action_repeat, 1)
         self.randomize = flag("randomize", randomize)
         self.reward_scale = positive("reward_scale", reward_scale, "mm")
@@ -204,11 +249,14 @@ class ContouringTask:
             raise ValueError(f"episode_end must be one of {list(EPISODE_ENDS)}, got {episode_end!r}")
         self.episode_end = episode_end
         if episode_end == "tool" and settling_time is not None:
-            raise ValueError("settling_time (s) is the wait after the reference's end of episode_end='reference'; "
-                             "with episode_end='tool' the episode ends when the tool arrives (completion_timeout "
-                             "bounds the wait)")
-        self.settling_time = non_negative("settling_time", DEFAULT_SETTLING_TIME if settling_time is None
-                                          else settling_time, "s")
+            raise ValueError(
+                "settling_time (s) is the wait after the reference's end of episode_end='reference'; "
+                "with episode_end='tool' the episode ends when the tool arrives (completion_timeout "
+                "bounds the wait)"
+            )
+        self.settling_time = non_negative(
+            "settling_time", DEFAULT_SETTLING_TIME if settling_time is None else settling_time, "s"
+        )
         self.completion_tolerance = positive("completion_tolerance", completion_tolerance, "mm")
         self.completion_timeout = non_negative("completion_timeout", completion_timeout, "s")
 
@@ -216,8 +264,9 @@ class ContouringTask:
         """The plant's parameters: nominal, and the fixed ones if given."""
         self.nominal_parameters = self.plant.nominal()
         if parameters is not None and self.randomize:
-            raise ValueError("pass either parameters= (a fixed plant) or randomize=True (a plant drawn at "
-                             "every reset), not both")
+            raise ValueError(
+                "pass either parameters= (a fixed plant) or randomize=True (a plant drawn at every reset), not both"
+            )
         self.fixed_parameters = None if parameters is None else self.check_parameters(parameters)
 
     def _plan_reference(self, profile, feedrate, ramp_time, max_episode_steps) -> tuple[np.ndarray, int]:
@@ -227,24 +276,35 @@ class ContouringTask:
         self.feedrate_profile = make_profile(profile, feedrate, ramp_time, self.curve, self.path)
         self.reference = interpolate(self.curve, self.feedrate_profile, self.dt)
         samples = pack_reference(self.curve, self.reference)
-        self.projector = ContourProjector(self.curve, margin=min(max(10.0, 2 * self.divergence_bound),
-                                                                 _GRID_MARGIN_MAX))
+        self.projector = ContourProjector(
+            self.curve, margin=min(max(10.0, 2 * self.divergence_bound), _GRID_MARGIN_MAX)
+        )
         reference_end = len(self.reference.t) - 1
         wait = self.settling_time if episode_end == "reference" else self.completion_timeout
         self.end_index = reference_end + math.ceil(wait / self.dt - 1e-9)
         """The control period at which the episode ends ("reference") or runs out of time ("tool")."""
         if self.action_repeat > self.end_index:
-            raise ValueError(f"action_repeat={self.action_repeat} control periods is longer than the whole "
-                             f"episode ({self.end_index} periods of {self.dt:g} s)")
-        self.episode_steps = math.ceil((self.end_index if episode_end == "reference" else reference_end)
-                                       / self.action_repeat)
+            raise ValueError(
+                f"action_repeat={self.action_repeat} control periods is longer than the whole "
+                f"episode ({self.end_index} periods of {self.dt:g} s)"
+            )
+        self.episode_steps = math.ceil(
+            (self.end_index if episode_end == "reference" else reference_end) / self.action_repeat
+        )
         """Natural episode length in decision steps (without divergence): "reference", to its end; "tool", to
         the reference's end (a tool that keeps up arrives within a few steps of it)."""
         self.time_limit_steps = math.ceil(self.end_index / self.action_repeat)
         """The most decision steps an episode can take (the completion time limit, or the end)."""
-        self.max_episode_steps = (self.time_limit_steps if max_episode_steps is None else size(
-            "max_episode_steps", max_episode_steps, ceiling=self.time_limit_steps,
-            why=f"the episode ends at its completion time limit, {self.time_limit_steps} decisions, anyway"))
+        self.max_episode_steps = (
+            self.time_limit_steps
+            if max_episode_steps is None
+            else size(
+                "max_episode_steps",
+                max_episode_steps,
+                ceiling=self.time_limit_steps,
+                why=f"the episode ends at its completion time limit, {self.time_limit_steps} decisions, anyway",
+            )
+        )
         return samples, reference_end
 
     def _set_observation(self, preview_steps, contour_ahead, samples: np.ndarray, reference_end: int) -> None:
@@ -252,23 +312,32 @@ class ContouringTask:
         its end point, silently)."""
         if isinstance(preview_steps, tuple):
             for s in preview_steps:
-                size("preview_steps", s, ceiling=reference_end,
-                     why=f"the reference's length in control periods of {self.dt:g} s: a point further ahead "
-                         "is past the contour's end")
+                size(
+                    "preview_steps",
+                    s,
+                    ceiling=reference_end,
+                    why=f"the reference's length in control periods of {self.dt:g} s: a point further ahead "
+                    "is past the contour's end",
+                )
         length = float(samples[-1, sk.REF_ARC])
         if isinstance(contour_ahead, tuple):
             for a in contour_ahead:
                 if isinstance(a, (int, float, np.integer, np.floating)) and not isinstance(a, bool) and a > length:
-                    raise ValueError(f"contour_ahead must be at most {length:.6g} mm (the contour's length: a "
-                                     f"point further ahead is past its end), got {a!r}")
+                    raise ValueError(
+                        f"contour_ahead must be at most {length:.6g} mm (the contour's length: a "
+                        f"point further ahead is past its end), got {a!r}"
+                    )
         extent = float(np.max(np.abs(self.reference.position)))
         self.layout = ObservationLayout(
             preview_steps=preview_steps,
             contour_ahead=contour_ahead,
             position_bound=max(_POSITION_BOUND, extent + self.tracking_bound + _POSITION_MARGIN),
         )
-        self.reference_arrays = sk.ReferenceArrays(samples, np.array(self.layout.preview_steps, dtype=np.int64),
-                                                   np.array(self.layout.contour_ahead, dtype=np.float64))
+        self.reference_arrays = sk.ReferenceArrays(
+            samples,
+            np.array(self.layout.preview_steps, dtype=np.int64),
+            np.array(self.layout.contour_ahead, dtype=np.float64),
+        )
         self.contour_arrays = self.projector.arrays
 
     @property
@@ -319,12 +388,21 @@ def pack_reference(curve: NurbsCurve, reference) -> np.ndarray:
     der = curve.derivatives_array(reference.u, 2)
     d1, d2 = der[:, 1], der[:, 2]
     speed = np.hypot(d1[:, 0], d1[:, 1])
-    curvature = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed ** 3
+    curvature = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed**3
     arc = np.concatenate([[0.0], np.cumsum(reference.chord_lengths)])
-    return np.ascontiguousarray(np.column_stack([
-        reference.position, reference.velocity, reference.acceleration, reference.tangent, reference.u, arc,
-        curvature,
-    ]))
+    return np.ascontiguousarray(
+        np.column_stack(
+            [
+                reference.position,
+                reference.velocity,
+                reference.acceleration,
+                reference.tangent,
+                reference.u,
+                arc,
+                curvature,
+            ]
+        )
+    )
 
 
 class ContouringBatch:
@@ -340,13 +418,22 @@ class ContouringBatch:
         :class:`~vcnc_gym.envs.feed_override_env.FeedOverrideEnv`, gives a buffer it re-times).
     """
 
-    def __init__(self, task: ContouringTask, n_envs: int, *, argument: str = "n_envs",
-                 reference: sk.ReferenceArrays | None = None):
+    def __init__(
+        self,
+        task: ContouringTask,
+        n_envs: int,
+        *,
+        argument: str = "n_envs",
+        reference: sk.ReferenceArrays | None = None,
+    ):
         self.task = task
         self.reference_arrays = task.reference_arrays if reference is None else reference
-        n = self.n_envs = size(argument, n_envs, bytes_each=self.bytes_per_env(task),
-                               why="each env's rows of the batch arrays, twice (the copies step returns), and "
-                                   "its random generator")
+        n = self.n_envs = size(
+            argument,
+            n_envs,
+            bytes_each=self.bytes_per_env(task),
+            why="each env's rows of the batch arrays, twice (the copies step returns), and its random generator",
+        )
         layout = task.layout
         self.plant_arrays = task.plant.arrays(n, task.dt, **task.plant_options)
         self.parameters = np.repeat(task.nominal_parameters[None], n, axis=0)
@@ -369,8 +456,9 @@ class ContouringBatch:
             sensed=np.zeros((n, contract.SENSE_SIZE)),
             der=np.zeros((n, 3, 2)),
         )
-        self.data = sk.StepData(self.plant_arrays, self.reference_arrays, task.contour_arrays, task.config,
-                                layout.offsets(), self.buffers)
+        self.data = sk.StepData(
+            self.plant_arrays, self.reference_arrays, task.contour_arrays, task.config, layout.offsets(), self.buffers
+        )
 
     @staticmethod
     def bytes_per_env(task: ContouringTask) -> int:

@@ -25,9 +25,24 @@ from .interpreter import ARC_RADIUS_TOLERANCE, MM_PER_INCH, Move, Program, inter
 from .lexer import MAX_LINE_LENGTH, MAX_LINES, MAX_PROGRAM_BYTES, GCodeError, lex
 from .toolpath import PROFILES, Joint, Toolpath, build_toolpath
 
-__all__ = ["ARC_RADIUS_TOLERANCE", "GCodeError", "Joint", "MM_PER_INCH", "Move", "PROFILES", "Program",
-           "Toolpath", "build_toolpath", "decode", "interpret", "lex", "load_text", "path_limits", "read_program",
-           "read_program_text"]
+__all__ = [
+    "ARC_RADIUS_TOLERANCE",
+    "GCodeError",
+    "Joint",
+    "MM_PER_INCH",
+    "Move",
+    "PROFILES",
+    "Program",
+    "Toolpath",
+    "build_toolpath",
+    "decode",
+    "interpret",
+    "lex",
+    "load_text",
+    "path_limits",
+    "read_program",
+    "read_program_text",
+]
 
 #: File suffixes read as program files when ``program`` is a one-line string.
 SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".txt")
@@ -45,8 +60,10 @@ def path_limits(plant, acceleration: float | None = None, jerk: float | None = N
         return acceleration, jerk
     model = get_plant(plant)
     if model.path_limits is None:
-        raise ValueError(f"plant {model.name!r} declares no path acceleration and jerk limits "
-                         f"(PlantModel.path_limits); pass acceleration= (mm/s^2) and jerk= (mm/s^3)")
+        raise ValueError(
+            f"plant {model.name!r} declares no path acceleration and jerk limits "
+            f"(PlantModel.path_limits); pass acceleration= (mm/s^2) and jerk= (mm/s^3)"
+        )
     a, j = model.path_limits
     return float(a if acceleration is None else acceleration), float(j if jerk is None else jerk)
 
@@ -67,24 +84,30 @@ def load_text(program) -> tuple[str, str]:
     GCodeError
         A file too large or that cannot be read (permissions, a folder), naming it.
     """
-    if isinstance(program, os.PathLike) or (isinstance(program, str) and "\n" not in program
-                                            and (program.lower().endswith(SUFFIXES) or Path(program).is_file())):
+    if isinstance(program, os.PathLike) or (
+        isinstance(program, str)
+        and "\n" not in program
+        and (program.lower().endswith(SUFFIXES) or Path(program).is_file())
+    ):
         path = Path(program)
         if not path.is_file():
             raise FileNotFoundError(f"program file {str(path)!r} not found")
         try:
             size = path.stat().st_size
             if size > MAX_PROGRAM_BYTES:
-                raise GCodeError(f"program file {str(path)!r} has {size:,} bytes: at most MAX_PROGRAM_BYTES = "
-                                 f"{MAX_PROGRAM_BYTES:,} are read ({MAX_LINES:,} lines of {MAX_LINE_LENGTH} "
-                                 "characters)")
+                raise GCodeError(
+                    f"program file {str(path)!r} has {size:,} bytes: at most MAX_PROGRAM_BYTES = "
+                    f"{MAX_PROGRAM_BYTES:,} are read ({MAX_LINES:,} lines of {MAX_LINE_LENGTH} "
+                    "characters)"
+                )
             with open(path, "rb") as f:
                 data = f.read(MAX_PROGRAM_BYTES + 1)  # a file that grew since: still bounded
         except OSError as exc:
             raise GCodeError(f"program file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
         if len(data) > MAX_PROGRAM_BYTES:
-            raise GCodeError(f"program file {str(path)!r} has more than MAX_PROGRAM_BYTES = {MAX_PROGRAM_BYTES:,} "
-                             "bytes")
+            raise GCodeError(
+                f"program file {str(path)!r} has more than MAX_PROGRAM_BYTES = {MAX_PROGRAM_BYTES:,} bytes"
+            )
         return decode(data), path.stem
     if not isinstance(program, str):
         raise TypeError(f"program must be G-code text or a path to a file, got {type(program).__name__}")
@@ -106,8 +129,15 @@ def decode(data: bytes) -> str:
     return "\n".join(out)
 
 
-def read_program(program, tolerance: float | None = 0.01, *, acceleration: float = 1000.0, jerk: float = 3.0e4,
-                 arc_tolerance: float = ARC_RADIUS_TOLERANCE, spacing: float = 0.01) -> Toolpath:
+def read_program(
+    program,
+    tolerance: float | None = 0.01,
+    *,
+    acceleration: float = 1000.0,
+    jerk: float = 3.0e4,
+    arc_tolerance: float = ARC_RADIUS_TOLERANCE,
+    spacing: float = 0.01,
+) -> Toolpath:
     """A part program as a :class:`Toolpath` (contour and feeds).
 
     Parameters
@@ -136,5 +166,6 @@ def read_program(program, tolerance: float | None = 0.01, *, acceleration: float
     acceleration, jerk = positive("acceleration", acceleration, "mm/s^2"), positive("jerk", jerk, "mm/s^3")
     arc_tolerance, spacing = non_negative("arc_tolerance", arc_tolerance, "mm"), positive("spacing", spacing, "mm")
     text, name = load_text(program)
-    return build_toolpath(read_program_text(text, arc_tolerance=arc_tolerance, name=name), tolerance,
-                          acceleration, jerk, spacing)
+    return build_toolpath(
+        read_program_text(text, arc_tolerance=arc_tolerance, name=name), tolerance, acceleration, jerk, spacing
+    )

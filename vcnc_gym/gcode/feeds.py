@@ -70,8 +70,16 @@ class ProgramFeedrate(LookaheadFeedrate):
         plateau of v_lim the look-ahead would otherwise find its end one grid point per round.
     """
 
-    def __init__(self, curve: NurbsCurve, edges, feeds, acceleration: float, jerk: float, cuts=None,
-                 spacing: float = DEFAULT_SPACING):
+    def __init__(
+        self,
+        curve: NurbsCurve,
+        edges,
+        feeds,
+        acceleration: float,
+        jerk: float,
+        cuts=None,
+        spacing: float = DEFAULT_SPACING,
+    ):
         self.edges = np.asarray(edges, dtype=np.float64)
         self.feeds = np.asarray(feeds, dtype=np.float64)
         self.cuts = np.zeros(self.edges.size, dtype=bool) if cuts is None else np.asarray(cuts, dtype=bool)
@@ -92,8 +100,6 @@ class ProgramFeedrate(LookaheadFeedrate):
         left = np.clip(np.searchsorted(self.edges, s - tol, side="right") - 1, 0, self.feeds.size - 1)
         right = np.clip(np.searchsorted(self.edges, s + tol, side="left") - 1, 0, self.feeds.size - 1)
         return np.minimum(self.feeds[left], self.feeds[right])
-
-
 
     def feed_cuts(self, arc: np.ndarray) -> tuple:
         """Grid indices of the edges in ``cuts`` (the first sample at each)."""
@@ -135,8 +141,9 @@ class ProgramProfile:
         """The joined plan over ``length`` mm (the program's whole contour, within 1e-6 relative)."""
         total = float(np.sum(self.lengths))
         if not abs(total - length) <= 1e-6 * length:
-            raise ValueError(f"this program's feed plan covers its own contour ({total:.6g} mm), "
-                             f"not a {length:.6g} mm one")
+            raise ValueError(
+                f"this program's feed plan covers its own contour ({total:.6g} mm), not a {length:.6g} mm one"
+            )
         if self._plan is not None and self._plan.length == length:
             return self._plan
         scale = length / total
@@ -152,9 +159,18 @@ class ProgramProfile:
             rows.append(coeffs)
             breaks.extend((sub.breaks[1:] + t0).tolist())
             for sec in sub.sections:
-                sections.append(JlapSection(sec.kind, sec.t_start + t0, sec.t_end + t0, sec.s_start * factor + s0,
-                                            sec.s_end * factor + s0, sec.v_start * factor, sec.v_end * factor,
-                                            sec.v_peak * factor))
+                sections.append(
+                    JlapSection(
+                        sec.kind,
+                        sec.t_start + t0,
+                        sec.t_end + t0,
+                        sec.s_start * factor + s0,
+                        sec.s_end * factor + s0,
+                        sec.v_start * factor,
+                        sec.v_end * factor,
+                        sec.v_peak * factor,
+                    )
+                )
             t0 += sub.duration
             s0 += own
         coeffs = np.vstack(rows + [np.array([[length, 0.0, 0.0, 0.0]])])

@@ -67,8 +67,18 @@ import numpy as np
 from .lexer import Block, GCodeError, Word, lex
 from ..validation import non_negative
 
-__all__ = ["ARC_RADIUS_TOLERANCE", "RADIUS_TOLERANCE", "ZERO_LENGTH", "MAX_COORDINATE", "MAX_FEED", "MM_PER_INCH", "Move", "Program", "interpret",
-           "read_program_text"]
+__all__ = [
+    "ARC_RADIUS_TOLERANCE",
+    "RADIUS_TOLERANCE",
+    "ZERO_LENGTH",
+    "MAX_COORDINATE",
+    "MAX_FEED",
+    "MM_PER_INCH",
+    "Move",
+    "Program",
+    "interpret",
+    "read_program_text",
+]
 
 #: mm per inch (exact, by the international yard and pound agreement of 1959).
 MM_PER_INCH = 25.4
@@ -97,11 +107,20 @@ MAX_LINE_NUMBER = 99_999_999
 
 # G codes by meaning (G numbers as floats, as pygcode gives them)
 _MOTION = {0.0: "rapid", 1.0: "line", 2.0: "cw", 3.0: "ccw"}
-_NO_OPS = {40.0: "cutter compensation off", 49.0: "tool length offset off", 80.0: "canned cycle off",
-           54.0: "work offset 1 (taken as the machine's coordinates)"}
+_NO_OPS = {
+    40.0: "cutter compensation off",
+    49.0: "tool length offset off",
+    80.0: "canned cycle off",
+    54.0: "work offset 1 (taken as the machine's coordinates)",
+}
 _PLANES = {17.0, 18.0, 19.0}
-_LISTED_LETTERS = {"M": "machine function", "T": "tool", "S": "spindle speed", "O": "program number",
-                   "Z": "Z axis (the machine is biaxial)"}
+_LISTED_LETTERS = {
+    "M": "machine function",
+    "T": "tool",
+    "S": "spindle speed",
+    "O": "program number",
+    "Z": "Z axis (the machine is biaxial)",
+}
 _USED_LETTERS = {"G", "N", "F", "X", "Y", "I", "J", "R"}
 
 
@@ -228,7 +247,7 @@ def interpret(blocks: list[Block], *, arc_tolerance: float = ARC_RADIUS_TOLERANC
     reader = _Interpreter(arc_tolerance)
     for index, block in enumerate(blocks):
         if reader.block(block):
-            _skip_rest(blocks[index + 1:], reader.ignored)
+            _skip_rest(blocks[index + 1 :], reader.ignored)
             break
     if not reader.moves:
         raise GCodeError("the program has no cutting move (G01, G02 or G03 with X/Y): nothing to contour")
@@ -292,8 +311,11 @@ class _Interpreter:
                 state.scale = MM_PER_INCH if g.value == 20.0 else 1.0
             elif g.value in _PLANES:
                 if g.value != 17.0:
-                    raise err(f"{g.text} selects the {'XZ' if g.value == 18.0 else 'YZ'} plane; only G17 (XY) "
-                              "is supported on a biaxial machine", g)
+                    raise err(
+                        f"{g.text} selects the {'XZ' if g.value == 18.0 else 'YZ'} plane; only G17 (XY) "
+                        "is supported on a biaxial machine",
+                        g,
+                    )
             elif g.value in (90.0, 91.0):
                 state.absolute = g.value == 90.0
             elif g.value == 94.0:
@@ -304,8 +326,11 @@ class _Interpreter:
                 motion_word = g
                 state.motion = _MOTION[g.value]
             else:
-                raise err(f"{g.text} is not supported (read: G00-G03, G17, G20, G21, G90, G91, G94; "
-                          f"G40, G49, G54, G80 listed as ignored)", g)
+                raise err(
+                    f"{g.text} is not supported (read: G00-G03, G17, G20, G21, G90, G91, G94; "
+                    f"G40, G49, G54, G80 listed as ignored)",
+                    g,
+                )
         return motion_word
 
     def _other_words(self, block: Block, err) -> bool:
@@ -317,8 +342,11 @@ class _Interpreter:
                 if w.letter == "M" and w.value in (2.0, 30.0):
                     ended = True
             elif w.letter not in _USED_LETTERS:
-                raise err(f"word {w.text}: the letter {w.letter} is not supported (read: G, N, F, X, Y, I, J, R, "
-                          f"and M, T, S, O, Z listed as ignored)", w)
+                raise err(
+                    f"word {w.text}: the letter {w.letter} is not supported (read: G, N, F, X, Y, I, J, R, "
+                    f"and M, T, S, O, Z listed as ignored)",
+                    w,
+                )
         return ended
 
     def _feed(self, block: Block, err) -> None:
@@ -363,9 +391,13 @@ class _Interpreter:
             raise err(f"{_code(self.state.motion)} before any F word: no feed to cut at", word)
         if self.rapid_after_cut is not None:
             b, w = self.rapid_after_cut
-            raise GCodeError("G00 moves X/Y between cutting moves: the env follows one continuous contour (the "
-                             "rapid would leave it); split the program into one contour per part", b.line,
-                             _fmt(w), b.text)
+            raise GCodeError(
+                "G00 moves X/Y between cutting moves: the env follows one continuous contour (the "
+                "rapid would leave it); split the program into one contour per part",
+                b.line,
+                _fmt(w),
+                b.text,
+            )
 
     def _line(self, block: Block, target: np.ndarray, n: int | None, arc_words: list, err) -> bool:
         """A G01 move appended; False if it is dropped (zero length, with a warning)."""
@@ -422,8 +454,11 @@ def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, toleranc
         h2 = radius * radius - half * half
         if h2 < 0.0:
             if half - radius > RADIUS_TOLERANCE:
-                raise err(f"{code} radius {r.text} is shorter than half the chord ({half / state.scale:.6g} in "
-                          f"program units) by more than {RADIUS_TOLERANCE:g} mm: no arc joins the two points", r)
+                raise err(
+                    f"{code} radius {r.text} is shorter than half the chord ({half / state.scale:.6g} in "
+                    f"program units) by more than {RADIUS_TOLERANCE:g} mm: no arc joins the two points",
+                    r,
+                )
             h2 = 0.0
             radius = half
         normal = np.array([-chord[1], chord[0]]) / d  # left of the chord
@@ -435,13 +470,18 @@ def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, toleranc
         programmed = p0 + offset
         r0 = float(np.hypot(*offset))
         if r0 <= ZERO_LENGTH:
-            raise err(f"{code} centre offsets {_fmt(i)} {_fmt(j)} put the centre on the start point".replace("  ", " "),
-                      i or j)
+            raise err(
+                f"{code} centre offsets {_fmt(i)} {_fmt(j)} put the centre on the start point".replace("  ", " "),
+                i or j,
+            )
         r1 = float(np.hypot(*(end - programmed)))
         if abs(r1 - r0) > tolerance:
-            raise err(f"{code} radii disagree: {r0:.6g} mm from the start point to the centre ({_fmt(i)} "
-                      f"{_fmt(j)}), {r1:.6g} mm from the end point, {abs(r1 - r0):.3g} mm apart; the arc "
-                      f"tolerance is {tolerance:.4g} mm", i or j)
+            raise err(
+                f"{code} radii disagree: {r0:.6g} mm from the start point to the centre ({_fmt(i)} "
+                f"{_fmt(j)}), {r1:.6g} mm from the end point, {abs(r1 - r0):.3g} mm apart; the arc "
+                f"tolerance is {tolerance:.4g} mm",
+                i or j,
+            )
         if closed:
             centre, shift = programmed, 0.0
         else:
@@ -459,8 +499,19 @@ def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, toleranc
         sweep = (a1 - a0) % (2.0 * math.pi) if ccw else -((a0 - a1) % (2.0 * math.pi))
         if sweep == 0.0:  # end on the start point to rounding, not caught above: a full turn
             sweep = 2.0 * math.pi if ccw else -2.0 * math.pi
-    return Move("arc", p0, end.copy(), state.feed, block.line, number, code, centre=centre, radius=radius,
-                sweep=sweep, centre_shift=shift)
+    return Move(
+        "arc",
+        p0,
+        end.copy(),
+        state.feed,
+        block.line,
+        number,
+        code,
+        centre=centre,
+        radius=radius,
+        sweep=sweep,
+        centre_shift=shift,
+    )
 
 
 def read_program_text(text: str, *, arc_tolerance: float = ARC_RADIUS_TOLERANCE, name: str = "program") -> Program:

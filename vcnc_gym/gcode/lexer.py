@@ -59,8 +59,17 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-__all__ = ["GCodeError", "Block", "Word", "lex", "split_lines", "check_size", "MAX_LINE_LENGTH", "MAX_LINES",
-           "MAX_PROGRAM_BYTES"]
+__all__ = [
+    "GCodeError",
+    "Block",
+    "Word",
+    "lex",
+    "split_lines",
+    "check_size",
+    "MAX_LINE_LENGTH",
+    "MAX_LINES",
+    "MAX_PROGRAM_BYTES",
+]
 
 #: Longest line read, characters: LinuxCNC's LINELEN = 255 (src/emc/rs274ngc/interp_internal.hh).  Checked for
 #: every line before any is lexed.
@@ -158,9 +167,10 @@ def _check_covered(block, number: int, raw: str) -> None:
             rest = text[pos:].strip()
             if not rest:
                 break
-            hint = (": a block delete '/' must start the block (RS-274/NGC 3.3)" if rest.startswith("/") else "")
-            raise GCodeError(f"cannot be lexed: {rest!r} is not a word (a letter and a number){hint}", number,
-                             rest.split()[0], raw)
+            hint = ": a block delete '/' must start the block (RS-274/NGC 3.3)" if rest.startswith("/") else ""
+            raise GCodeError(
+                f"cannot be lexed: {rest!r} is not a word (a letter and a number){hint}", number, rest.split()[0], raw
+            )
         pos = m.end()
         count += 1
     if count != len(block.words):
@@ -187,15 +197,22 @@ def check_size(text: str, name: str = "program") -> list[str]:
     """The lines of ``text``; GCodeError if it has more than ``MAX_LINES`` lines or a line longer than
     ``MAX_LINE_LENGTH`` characters (checked before anything is lexed: a fraction of a second for the largest)."""
     if len(text) > MAX_PROGRAM_BYTES:
-        raise GCodeError(f"{name} has {len(text):,} characters: at most {MAX_PROGRAM_BYTES:,} are read "
-                         f"(MAX_LINES = {MAX_LINES:,} lines of MAX_LINE_LENGTH = {MAX_LINE_LENGTH} characters)")
+        raise GCodeError(
+            f"{name} has {len(text):,} characters: at most {MAX_PROGRAM_BYTES:,} are read "
+            f"(MAX_LINES = {MAX_LINES:,} lines of MAX_LINE_LENGTH = {MAX_LINE_LENGTH} characters)"
+        )
     lines = split_lines(text)
     if len(lines) > MAX_LINES:
         raise GCodeError(f"{name} has {len(lines):,} lines: at most MAX_LINES = {MAX_LINES:,} are read; split it")
     longest = max(range(len(lines)), key=lambda k: len(lines[k]), default=None)
     if longest is not None and len(lines[longest]) > MAX_LINE_LENGTH:
-        raise GCodeError(f"the line has {len(lines[longest]):,} characters: at most MAX_LINE_LENGTH = "
-                         f"{MAX_LINE_LENGTH} (LinuxCNC's LINELEN)", longest + 1, None, lines[longest][:40] + "...")
+        raise GCodeError(
+            f"the line has {len(lines[longest]):,} characters: at most MAX_LINE_LENGTH = "
+            f"{MAX_LINE_LENGTH} (LinuxCNC's LINELEN)",
+            longest + 1,
+            None,
+            lines[longest][:40] + "...",
+        )
     return lines
 
 
@@ -227,7 +244,7 @@ def lex(text: str) -> list[Block]:
             continue
         skip = _BLOCK_DELETE.match(line)
         if skip is not None:  # block delete, switch off: the block runs
-            line = " " * skip.end() + line[skip.end():]
+            line = " " * skip.end() + line[skip.end() :]
             if not line.strip():
                 continue
         cleaned = _PLUS.sub(r"\1", line)
@@ -242,8 +259,13 @@ def lex(text: str) -> list[Block]:
             raise GCodeError("unbalanced comment parentheses", number, "(" if depth > 0 else ")", raw)
         try:
             parsed = pygcode.Line(cleaned)
-        except (pygcode.exceptions.GCodeWordStrError, pygcode.exceptions.GCodeParameterError,
-                pygcode.exceptions.GCodeBlockFormatError, AssertionError, ValueError) as e:
+        except (
+            pygcode.exceptions.GCodeWordStrError,
+            pygcode.exceptions.GCodeParameterError,
+            pygcode.exceptions.GCodeBlockFormatError,
+            AssertionError,
+            ValueError,
+        ) as e:
             detail = str(e)
             m = re.search(r"word '(\w)'|remaining '([^']*)'|-> (\w\S*)", detail)
             codes = re.findall(r": (\w[\d.]*)[{>]", detail)

@@ -33,8 +33,16 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CIRCLE_LEAD", "PIECES", "PROGRAM_DIR", "butterfly_program", "circle_diamond_square_program",
-           "circle_program", "piece_path", "write_pieces"]
+__all__ = [
+    "CIRCLE_LEAD",
+    "PIECES",
+    "PROGRAM_DIR",
+    "butterfly_program",
+    "circle_diamond_square_program",
+    "circle_program",
+    "piece_path",
+    "write_pieces",
+]
 
 PROGRAM_DIR = Path(__file__).parent / "programs"
 
@@ -45,8 +53,10 @@ CIRCLE_LEAD = 0.5 * math.pi
 PIECES = {
     "iso230-4-ccw": ("iso230-4-ccw.nc", "ISO 230-4 circular test, 50 mm diameter at 3000 mm/min, counter-clockwise"),
     "iso230-4-cw": ("iso230-4-cw.nc", "ISO 230-4 circular test, 50 mm diameter at 3000 mm/min, clockwise"),
-    "circle-diamond-square": ("circle-diamond-square.nc",
-                              "NAS 979 / ISO 10791-7 circle-diamond-square, 60 mm square at 6000 mm/min"),
+    "circle-diamond-square": (
+        "circle-diamond-square.nc",
+        "NAS 979 / ISO 10791-7 circle-diamond-square, 60 mm square at 6000 mm/min",
+    ),
     "butterfly": ("butterfly.nc", "butterfly free-form (polar curve as tangent biarcs), 78 mm across at 3000 mm/min"),
 }
 
@@ -80,21 +90,25 @@ def circle_program(diameter: float = 50.0, feed: float = 3000.0, direction: str 
     start = np.array([0.0, -r])
     lead_end = np.array([sign * r, 0.0])  # 90 degrees on
     out_end = np.array([0.0, r]) if direction == "ccw" else np.array([0.0, r])
+
     def ij(p):
         return f"I{_num(-p[0])} J{_num(-p[1])}"
-    return "\n".join([
-        "%",
-        f"(ISO 230-4 circular test: diameter {diameter:g} mm, F{feed:g} mm/min, {direction})",
-        "(lead-in 90 deg, measured circle 360 deg, lead-out 90 deg, centre X0 Y0)",
-        "N10 G21 G17 G90 G94 G40 G49 G80",
-        f"N20 G00 X{_num(start[0])} Y{_num(start[1])}",
-        f"N30 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(start)} F{feed:g} (lead-in)",
-        f"N40 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(lead_end)} (measured circle)",
-        f"N50 {code} X{_num(out_end[0])} Y{_num(out_end[1])} {ij(lead_end)} (lead-out)",
-        "N60 M30",
-        "%",
-        "",
-    ])
+
+    return "\n".join(
+        [
+            "%",
+            f"(ISO 230-4 circular test: diameter {diameter:g} mm, F{feed:g} mm/min, {direction})",
+            "(lead-in 90 deg, measured circle 360 deg, lead-out 90 deg, centre X0 Y0)",
+            "N10 G21 G17 G90 G94 G40 G49 G80",
+            f"N20 G00 X{_num(start[0])} Y{_num(start[1])}",
+            f"N30 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(start)} F{feed:g} (lead-in)",
+            f"N40 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(lead_end)} (measured circle)",
+            f"N50 {code} X{_num(out_end[0])} Y{_num(out_end[1])} {ij(lead_end)} (lead-out)",
+            "N60 M30",
+            "%",
+            "",
+        ]
+    )
 
 
 def circle_diamond_square_program(size: float = 60.0, feed: float = 6000.0) -> str:
@@ -103,8 +117,12 @@ def circle_diamond_square_program(size: float = 60.0, feed: float = 6000.0) -> s
     h = 0.5 * size
     d = 0.45 * size
     r = 0.3 * size
-    lines = ["%", f"(NAS 979 / ISO 10791-7 circle-diamond-square: square {size:g} mm, F{feed:g} mm/min)",
-             "N10 G21 G17 G90 G94 G40", f"N20 G00 X{_num(-h)} Y{_num(-h)}"]
+    lines = [
+        "%",
+        f"(NAS 979 / ISO 10791-7 circle-diamond-square: square {size:g} mm, F{feed:g} mm/min)",
+        "N10 G21 G17 G90 G94 G40",
+        f"N20 G00 X{_num(-h)} Y{_num(-h)}",
+    ]
     n = 30
     square = [(h, -h), (h, h), (-h, h), (-h, -h)]
     lines.append(f"N{n} G01 X{_num(square[0][0])} Y{_num(square[0][1])} F{feed:g} (square)")
@@ -174,9 +192,13 @@ def butterfly_program(radius: float = 30.0, feed: float = 3000.0, step_deg: floa
     pts[-1] = pts[0]
     tans = _butterfly_tangent(theta, radius)
     tans[-1] = tans[0]
-    lines = ["%", f"(butterfly free-form: r = R [1 - 0.45 cos 2t - 0.15 cos 4t], R = {radius:g} mm, "
-             f"biarcs every {step_deg:g} deg, F{feed:g} mm/min)", "N10 G21 G17 G90 G94 G40",
-             f"N20 G00 X{_num(pts[0][0])} Y{_num(pts[0][1])}"]
+    lines = [
+        "%",
+        f"(butterfly free-form: r = R [1 - 0.45 cos 2t - 0.15 cos 4t], R = {radius:g} mm, "
+        f"biarcs every {step_deg:g} deg, F{feed:g} mm/min)",
+        "N10 G21 G17 G90 G94 G40",
+        f"N20 G00 X{_num(pts[0][0])} Y{_num(pts[0][1])}",
+    ]
     number = 30
     pos = pts[0]
     first = True
@@ -188,8 +210,10 @@ def butterfly_program(radius: float = 30.0, feed: float = 3000.0, step_deg: floa
                 lines.append(f"N{number} G01 X{_num(end[0])} Y{_num(end[1])}{feed_word}")
             else:
                 code = "G03" if ccw else "G02"
-                lines.append(f"N{number} {code} X{_num(end[0])} Y{_num(end[1])} I{_num(centre[0] - pos[0])} "
-                             f"J{_num(centre[1] - pos[1])}{feed_word}")
+                lines.append(
+                    f"N{number} {code} X{_num(end[0])} Y{_num(end[1])} I{_num(centre[0] - pos[0])} "
+                    f"J{_num(centre[1] - pos[1])}{feed_word}"
+                )
             pos = end
             number += 10
     lines += [f"N{number} M30", "%", ""]
@@ -199,8 +223,12 @@ def butterfly_program(radius: float = 30.0, feed: float = 3000.0, step_deg: floa
 def write_pieces(directory: Path = PROGRAM_DIR) -> None:
     """Write the shipped programs (:data:`PIECES`) with their default sizes and feeds."""
     directory.mkdir(parents=True, exist_ok=True)
-    texts = {"iso230-4-ccw": circle_program(direction="ccw"), "iso230-4-cw": circle_program(direction="cw"),
-             "circle-diamond-square": circle_diamond_square_program(), "butterfly": butterfly_program()}
+    texts = {
+        "iso230-4-ccw": circle_program(direction="ccw"),
+        "iso230-4-cw": circle_program(direction="cw"),
+        "circle-diamond-square": circle_diamond_square_program(),
+        "butterfly": butterfly_program(),
+    }
     for name, text in texts.items():
         (directory / PIECES[name][0]).write_text(text)
 

@@ -69,24 +69,33 @@ class RandomContourSpec:
                 field = f"{name}_{end}"
                 set_(self, field, positive(f"spec {field}", getattr(self, field), _UNITS[name]))
         set_(self, "line_probability", real("spec line_probability", self.line_probability))
-        pairs = [("moves", self.moves_min, self.moves_max), ("line", self.line_min, self.line_max),
-                 ("turn", self.turn_min, self.turn_max), ("radius", self.radius_min, self.radius_max),
-                 ("sweep", self.sweep_min, self.sweep_max), ("feed", self.feed_min, self.feed_max)]
+        pairs = [
+            ("moves", self.moves_min, self.moves_max),
+            ("line", self.line_min, self.line_max),
+            ("turn", self.turn_min, self.turn_max),
+            ("radius", self.radius_min, self.radius_max),
+            ("sweep", self.sweep_min, self.sweep_max),
+            ("feed", self.feed_min, self.feed_max),
+        ]
         for name, lo, hi in pairs:
             if not lo <= hi:
                 raise ValueError(f"spec {name}_min must be at most {name}_max, got {lo!r} > {hi!r}")
         if self.turn_max >= 180.0 or self.sweep_max > 360.0:
             raise ValueError("spec turn_max must be < 180 degrees (no U-turn) and sweep_max <= 360 degrees")
         if math.floor(self.turn_max) < math.ceil(self.turn_min):
-            raise ValueError(f"spec turn_min..turn_max ({self.turn_min:g}..{self.turn_max:g} degrees) holds no whole "
-                             "degree (turns are drawn in whole degrees)")
+            raise ValueError(
+                f"spec turn_min..turn_max ({self.turn_min:g}..{self.turn_max:g} degrees) holds no whole "
+                "degree (turns are drawn in whole degrees)"
+            )
         if not 0.0 <= self.line_probability <= 1.0:
             raise ValueError(f"spec line_probability must be in [0, 1], got {self.line_probability!r}")
         extent = self.moves_max * max(self.line_max, 2.0 * self.radius_max)
         if extent > MAX_EXTENT:
-            raise ValueError(f"spec moves_max x the longest move (line_max, or an arc's chord up to 2 radius_max) "
-                             f"= {extent:g} mm: at most MAX_EXTENT = {MAX_EXTENT:g} mm, so that every contour "
-                             "stays within the observation's position bound (1000 mm)")
+            raise ValueError(
+                f"spec moves_max x the longest move (line_max, or an arc's chord up to 2 radius_max) "
+                f"= {extent:g} mm: at most MAX_EXTENT = {MAX_EXTENT:g} mm, so that every contour "
+                "stays within the observation's position bound (1000 mm)"
+            )
 
 
 #: Most moves a random program may have (``moves_max``).
@@ -112,8 +121,10 @@ def spec_for(plant, spec=None) -> RandomContourSpec:
     if isinstance(spec, dict):
         unknown = sorted(set(spec) - set(RandomContourSpec.__dataclass_fields__))
         if unknown:
-            raise ValueError(f"spec has unknown field(s) {unknown}; RandomContourSpec's fields are "
-                             f"{list(RandomContourSpec.__dataclass_fields__)}")
+            raise ValueError(
+                f"spec has unknown field(s) {unknown}; RandomContourSpec's fields are "
+                f"{list(RandomContourSpec.__dataclass_fields__)}"
+            )
         return RandomContourSpec(**spec)
     raise ValueError(f"spec must be a RandomContourSpec or a dict of its fields, got {spec!r}")
 
@@ -153,8 +164,10 @@ def random_program(rng: np.random.Generator, spec: RandomContourSpec = RandomCon
             a0 = math.atan2(pos[1] - centre[1], pos[0] - centre[0])
             a1 = a0 + side * sweep
             end = centre + radius * np.array([math.cos(a1), math.sin(a1)])
-            lines.append(f"{'G03' if ccw else 'G02'} X{_n(end[0])} Y{_n(end[1])} I{_n(centre[0] - pos[0])} "
-                         f"J{_n(centre[1] - pos[1])}{feed_word}")
+            lines.append(
+                f"{'G03' if ccw else 'G02'} X{_n(end[0])} Y{_n(end[1])} I{_n(centre[0] - pos[0])} "
+                f"J{_n(centre[1] - pos[1])}{feed_word}"
+            )
             pos = end
             heading += side * sweep
             previous = "arc"

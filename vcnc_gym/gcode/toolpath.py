@@ -50,7 +50,6 @@ PROFILES = ("lookahead", "scurve", "constant")
 U_TURN_ANGLE = 1e-6
 
 
-
 @dataclass(frozen=True)
 class Joint:
     """Where one move ends and the next begins.
@@ -155,11 +154,17 @@ class Toolpath:
         if profile != "scurve" and ramp_time is not None:
             raise ValueError(f"ramp_time (s) shapes the S-curve only; profile={profile!r} has no ramp time to set")
         if profile == "lookahead":
-            return ProgramProfile([ProgramFeedrate(curve, edges, feeds, self.acceleration, self.jerk, cuts, self.spacing)
-                                   for curve, edges, feeds, cuts in self._sections])
+            return ProgramProfile(
+                [
+                    ProgramFeedrate(curve, edges, feeds, self.acceleration, self.jerk, cuts, self.spacing)
+                    for curve, edges, feeds, cuts in self._sections
+                ]
+            )
         if self.feed is None:
-            raise ValueError(f"profile={profile!r} runs one feed; this program has several "
-                             f"({sorted(set(self.feeds.tolist()))} mm/s): use profile='lookahead'")
+            raise ValueError(
+                f"profile={profile!r} runs one feed; this program has several "
+                f"({sorted(set(self.feeds.tolist()))} mm/s): use profile='lookahead'"
+            )
         if profile == "constant":
             return ConstantFeedrate(self.feed)
         return SCurveFeedrate(self.feed, 0.12 if ramp_time is None else ramp_time)
@@ -176,8 +181,9 @@ def _arc_pieces(m: Move) -> list[tuple[np.ndarray, float]]:
     return [(s, each) for s in segs]
 
 
-def build_toolpath(program: Program, tolerance: float | None, acceleration: float, jerk: float,
-                   spacing: float = DEFAULT_SPACING) -> Toolpath:
+def build_toolpath(
+    program: Program, tolerance: float | None, acceleration: float, jerk: float, spacing: float = DEFAULT_SPACING
+) -> Toolpath:
     """The contour and feeds of an interpreted program (module docstring).
 
     Parameters
@@ -199,8 +205,13 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
         a, b = moves[k], moves[k + 1]
         angle = _turn(a.tangent(True), b.tangent(False))
         if angle >= math.pi - U_TURN_ANGLE:
-            raise GCodeError(f"the path turns back on itself where the move of line {a.line} ends (a "
-                             f"180-degree corner: no contour to follow through it)", b.line, b.code, None)
+            raise GCodeError(
+                f"the path turns back on itself where the move of line {a.line} ends (a "
+                f"180-degree corner: no contour to follow through it)",
+                b.line,
+                b.code,
+                None,
+            )
         if angle <= TANGENT_ANGLE:
             kind = "tangent"
         elif tolerance is not None and a.kind == b.kind == "line":
@@ -227,10 +238,12 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
     samples = sum(max(8, math.ceil(s.length / spacing)) + 1 for s in segments)
     if samples > MAX_LIMIT_SAMPLES:  # before the look-ahead samples it (its own check comes after the work)
         length = sum(s.length for s in segments)
-        raise GCodeError(f"the program's path is {length:.6g} mm long in {len(segments)} segments: the look-ahead "
-                         f"samples its curvature every {spacing:g} mm and plans at most MAX_LIMIT_SAMPLES = "
-                         f"{MAX_LIMIT_SAMPLES:,} samples (vcnc_gym.motion.lookahead), about "
-                         f"{MAX_LIMIT_SAMPLES * spacing:g} mm of path; split the program into shorter contours")
+        raise GCodeError(
+            f"the program's path is {length:.6g} mm long in {len(segments)} segments: the look-ahead "
+            f"samples its curvature every {spacing:g} mm and plans at most MAX_LIMIT_SAMPLES = "
+            f"{MAX_LIMIT_SAMPLES:,} samples (vcnc_gym.motion.lookahead), about "
+            f"{MAX_LIMIT_SAMPLES * spacing:g} mm of path; split the program into shorter contours"
+        )
     degree = max(s.points.shape[0] - 1 for s in segments)
     degree = 5 if degree > 2 else 2
     lengths = np.array([s.length for s in segments])
@@ -242,16 +255,33 @@ def build_toolpath(program: Program, tolerance: float | None, acceleration: floa
     for c0, c1 in zip(cuts[:-1], cuts[1:]):
         local = edges[c0 : c1 + 1] - edges[c0]
         section = curve if len(cuts) == 2 else _curve([s.points for s in segments[c0:c1]], local, degree)
-        sections.append((section, local, feeds[c0:c1],  # one section: the curve itself (its checks are cached)
-                         _cuts(segments[c0:c1], acceleration, jerk)))
+        sections.append(
+            (
+                section,
+                local,
+                feeds[c0:c1],  # one section: the curve itself (its checks are cached)
+                _cuts(segments[c0:c1], acceleration, jerk),
+            )
+        )
     segment_moves = np.array([s.move for s in segments])
     segment_blends = np.array([s.blend for s in segments])
     for a in (edges, feeds, segment_moves, segment_blends):
         a.flags.writeable = False
-    return Toolpath(program=program, curve=curve, tolerance=tolerance, joints=tuple(joints), edges=edges,
-                    feeds=feeds, stops=tuple(stop_after), segment_moves=segment_moves,
-                    segment_blends=segment_blends, acceleration=acceleration, jerk=jerk, spacing=spacing,
-                    _sections=tuple(sections))
+    return Toolpath(
+        program=program,
+        curve=curve,
+        tolerance=tolerance,
+        joints=tuple(joints),
+        edges=edges,
+        feeds=feeds,
+        stops=tuple(stop_after),
+        segment_moves=segment_moves,
+        segment_blends=segment_blends,
+        acceleration=acceleration,
+        jerk=jerk,
+        spacing=spacing,
+        _sections=tuple(sections),
+    )
 
 
 def _segments(moves, joints, tolerance, acceleration, jerk):
@@ -332,8 +362,7 @@ def corner_side(turn: float, tolerance: float, acceleration: float, jerk: float)
     where the tangent turns by ``turn`` rad, at ``tolerance`` mm (as :func:`build_toolpath` blends it)."""
     theta = math.pi - turn
     design = _design(theta, tolerance, acceleration, jerk)
-    return max(corner_length(theta, tolerance, design.n),
-               corner_length(theta, tolerance, max(design.n_a, design.n_j)))
+    return max(corner_length(theta, tolerance, design.n), corner_length(theta, tolerance, max(design.n_a, design.n_j)))
 
 
 def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> list[_Segment]:
@@ -354,8 +383,11 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
         try:
             design = _design(theta, tolerance, acceleration, jerk)
         except ValueError as exc:  # a corner sharper than the blend design reaches
-            raise GCodeError(f"the corner where this move begins cannot be blended: {exc}", moves[run[k + 1]].line,
-                             moves[run[k + 1]].code) from None
+            raise GCodeError(
+                f"the corner where this move begins cannot be blended: {exc}",
+                moves[run[k + 1]].line,
+                moves[run[k + 1]].code,
+            ) from None
         l_t = corner_length(theta, tolerance, design.n)
         l_s = max(l_t, corner_length(theta, tolerance, max(design.n_a, design.n_j)))
         ctrl = blend_control_points(vertices[k + 1], d_in, d_out, l_t, design.n)
@@ -368,11 +400,16 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
         if need >= moves[i].length:
             corners = [i - 1] * (k > 0) + [i] * (k < len(run) - 1)  # the joints at its ends (joint j: moves j, j+1)
             if failed is None:
-                failed = _NoFit([], GCodeError(
-                    f"the corner blends do not fit: tolerance = {tolerance:g} mm is too large for this "
-                    f"{moves[i].length:.6g} mm move; its corner segments take {need:.6g} mm (side l_s of Simba et "
-                    f"al.'s eq. (22)); corners of at most {math.degrees(KINK_ANGLE):g} degree are run through",
-                    moves[i].line, f"tolerance={tolerance!r}"))
+                failed = _NoFit(
+                    [],
+                    GCodeError(
+                        f"the corner blends do not fit: tolerance = {tolerance:g} mm is too large for this "
+                        f"{moves[i].length:.6g} mm move; its corner segments take {need:.6g} mm (side l_s of Simba et "
+                        f"al.'s eq. (22)); corners of at most {math.degrees(KINK_ANGLE):g} degree are run through",
+                        moves[i].line,
+                        f"tolerance={tolerance!r}",
+                    ),
+                )
             failed.joints += [j for j in corners if j not in failed.joints]
     if failed is not None:
         raise failed
@@ -380,12 +417,12 @@ def _lines(moves: list[Move], run: list[int], tolerance, acceleration, jerk) -> 
     start = np.asarray(vertices[0], dtype=np.float64)
     for k, i in enumerate(run):
         end = blends[k][0][0] if k < len(blends) else np.asarray(vertices[-1], dtype=np.float64)
-        out.append(_Segment(arcs.line_segment(start, end), float(np.hypot(*(end - start))), moves[i].feed, i,
-                            False))
+        out.append(_Segment(arcs.line_segment(start, end), float(np.hypot(*(end - start))), moves[i].feed, i, False))
         if k < len(blends):
             ctrl, s_arc = blends[k]
-            out.append(_Segment(arcs.homogeneous(ctrl, np.ones(6)), s_arc, min(moves[i].feed, moves[i + 1].feed),
-                                i, True))
+            out.append(
+                _Segment(arcs.homogeneous(ctrl, np.ones(6)), s_arc, min(moves[i].feed, moves[i + 1].feed), i, True)
+            )
             start = ctrl[-1]
     return out
 
@@ -394,7 +431,8 @@ def _curve(pieces: list[np.ndarray], edges: np.ndarray, degree: int) -> NurbsCur
     """One NURBS of Bezier ``pieces`` (homogeneous), knot spans ``edges``' differences."""
     hom = [arcs.elevate(p, degree) for p in pieces]
     control = np.concatenate([hom[0]] + [h[1:] for h in hom[1:]])
-    knots = np.concatenate([np.full(degree + 1, edges[0])] + [np.full(degree, u) for u in edges[1:-1]]
-                           + [np.full(degree + 1, edges[-1])])
+    knots = np.concatenate(
+        [np.full(degree + 1, edges[0])] + [np.full(degree, u) for u in edges[1:-1]] + [np.full(degree + 1, edges[-1])]
+    )
     w = control[:, 2]
     return NurbsCurve(control[:, :2] / w[:, None], w, knots, degree)

@@ -141,8 +141,6 @@ _GOLDEN = 0.5 * (math.sqrt(5.0) - 1.0)
 # --------------------------------------------------------------------------
 
 
-
-
 def _angle(name: str, value) -> float:
     """An interior angle strictly inside (0, pi), rad, else a ValueError."""
     try:
@@ -176,8 +174,7 @@ def _check_vertices(vertices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for k, theta in enumerate(angles):
         if theta >= math.pi - ANGLE_TOLERANCE:
             raise ValueError(
-                f"vertices {k}, {k + 1}, {k + 2} are collinear (straight on at vertex {k + 1}): "
-                f"remove vertex {k + 1}"
+                f"vertices {k}, {k + 1}, {k + 2} are collinear (straight on at vertex {k + 1}): remove vertex {k + 1}"
             )
         if theta <= TURN_BACK_ANGLE:
             raise ValueError(
@@ -557,8 +554,10 @@ def _log_n_search(objective) -> float:
     values = [objective(x) for x in xs]
     i = int(np.argmax(values))
     if i == 0 or i == _N_GRID - 1:
-        raise RuntimeError(f"the optimal length ratio left the search range {_N_RANGE} (a corner sharper than "
-                           f"MIN_BLEND_ANGLE = {math.degrees(MIN_BLEND_ANGLE):.4g} deg?)")
+        raise RuntimeError(
+            f"the optimal length ratio left the search range {_N_RANGE} (a corner sharper than "
+            f"MIN_BLEND_ANGLE = {math.degrees(MIN_BLEND_ANGLE):.4g} deg?)"
+        )
     a, b = xs[i - 1], xs[i + 1]
     x1, x2 = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
     f1, f2 = objective(x1), objective(x2)
@@ -600,8 +599,10 @@ def design_corner(theta: float, epsilon: float, a_max: float, j_max: float) -> C
     """
     theta = _angle("theta", theta)
     if theta < MIN_BLEND_ANGLE:
-        raise ValueError(f"theta = {math.degrees(theta):.4g} deg is sharper than MIN_BLEND_ANGLE = "
-                         f"{math.degrees(MIN_BLEND_ANGLE):.4g} deg, the sharpest corner the blend design reaches")
+        raise ValueError(
+            f"theta = {math.degrees(theta):.4g} deg is sharper than MIN_BLEND_ANGLE = "
+            f"{math.degrees(MIN_BLEND_ANGLE):.4g} deg, the sharpest corner the blend design reaches"
+        )
     epsilon = _positive("epsilon", epsilon, "mm")
     a_max = _positive("a_max", a_max, "mm/s^2")
     j_max = _positive("j_max", j_max, "mm/s^3")

@@ -387,9 +387,7 @@ class NurbsCurve:
         uu = np.array(us, dtype=np.float64).reshape(-1)  # a writable copy: one compiled batch for every caller
         self._check_u(uu)
         out = np.empty((uu.size, int(order) + 1, 2))
-        _curve_derivatives_batch(
-            self.control_points, self.weights, self.knots, self.degree, uu, int(order), out
-        )
+        _curve_derivatives_batch(self.control_points, self.weights, self.knots, self.degree, uu, int(order), out)
         return out
 
     def arc_length(self, u_start: float | None = None, u_end: float | None = None) -> float:
@@ -511,8 +509,10 @@ class NurbsCurve:
             f"|C'(u)| = {speed[j]:.3g} mm per unit of u, {ratio[j]:.2g} of the knot span [{a:.10g}, {b:.10g}]'s "
             f"mean speed (SPEED_TOLERANCE = {SPEED_TOLERANCE:g})"
         )
-        consequence = ("the feed relation of Jahanpour et al. (2014), eq. (9), du/dt = V / |C'(u)|, and the tangent are "
-                       "undefined there")
+        consequence = (
+            "the feed relation of Jahanpour et al. (2014), eq. (9), du/dt = V / |C'(u)|, and the tangent are "
+            "undefined there"
+        )
         near = 1e-6 * (b - a)
         if u - lo <= near or hi - u <= near:
             end = "start" if u - lo <= near else "end"
@@ -579,7 +579,4 @@ class NurbsCurve:
 
     def __repr__(self) -> str:
         lo, hi = self.u_range
-        return (
-            f"NurbsCurve(degree={self.degree}, n_control_points={len(self.weights)}, "
-            f"u_range=({lo:g}, {hi:g}))"
-        )
+        return f"NurbsCurve(degree={self.degree}, n_control_points={len(self.weights)}, u_range=({lo:g}, {hi:g}))"

@@ -31,8 +31,14 @@ def _rule(nodes: int) -> tuple[np.ndarray, np.ndarray]:
     return _RULES[nodes]
 
 
-def arc_length(speed: Callable[[np.ndarray], np.ndarray], breaks: np.ndarray, *, pieces: int = 8,
-               nodes: int = 16, max_bisections: int = 40) -> float:
+def arc_length(
+    speed: Callable[[np.ndarray], np.ndarray],
+    breaks: np.ndarray,
+    *,
+    pieces: int = 8,
+    nodes: int = 16,
+    max_bisections: int = 40,
+) -> float:
     """The integral of ``speed`` from ``breaks[0]`` to ``breaks[-1]``: an arc length in mm.
 
     Parameters
@@ -52,8 +58,9 @@ def arc_length(speed: Callable[[np.ndarray], np.ndarray], breaks: np.ndarray, *,
     """
     x, w = _rule(nodes)
     breaks = np.asarray(breaks, dtype=np.float64)
-    edges = np.concatenate([np.linspace(s, e, pieces + 1)[:-1] for s, e in zip(breaks[:-1], breaks[1:])]
-                           + [breaks[-1:]])
+    edges = np.concatenate(
+        [np.linspace(s, e, pieces + 1)[:-1] for s, e in zip(breaks[:-1], breaks[1:])] + [breaks[-1:]]
+    )
 
     def gauss(lo_e, hi_e):
         """Rule values of the pieces, and their resolution: the length of 4 floating-point steps of u."""

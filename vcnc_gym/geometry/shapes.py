@@ -69,8 +69,9 @@ def corners_vertices() -> np.ndarray:
     return np.cumsum(np.array([[0.0, 0.0]] + steps), axis=0)
 
 
-def corners_path(smooth: bool = True, epsilon: float = 0.05, a_max: float | None = None,
-                 j_max: float | None = None) -> NurbsCurve:
+def corners_path(
+    smooth: bool = True, epsilon: float = 0.05, a_max: float | None = None, j_max: float | None = None
+) -> NurbsCurve:
     """Simba et al.'s test path (Fig. 5, :func:`corners_vertices`), sharp or corner-smoothed.
 
     Parameters

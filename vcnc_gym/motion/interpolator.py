@@ -182,7 +182,6 @@ class _ArcWorkspace(NamedTuple):
     stack: np.ndarray  #: (3, ARC_STACK) for arc_between
 
 
-
 # --------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------
@@ -614,8 +613,7 @@ _ARRAYS = ReferenceBuffers._fields
 def _check_profile(profile):
     if not callable(getattr(profile, "plan", None)):
         raise TypeError(
-            f"profile must be a feedrate profile with plan(length), e.g. SCurveFeedrate; "
-            f"got {type(profile).__name__}"
+            f"profile must be a feedrate profile with plan(length), e.g. SCurveFeedrate; got {type(profile).__name__}"
         )
 
 
@@ -819,9 +817,15 @@ def interpolate(
         )
     k_max = _check_cost(length, profile, plan, dt, max_samples) + 1
 
-    out = ReferenceBuffers(t=np.empty(k_max), u=np.empty(k_max), position=np.empty((k_max, 2)),
-                           velocity=np.empty((k_max, 2)), acceleration=np.empty((k_max, 2)),
-                           tangent=np.empty((k_max, 2)), feedrate=np.empty(k_max))
+    out = ReferenceBuffers(
+        t=np.empty(k_max),
+        u=np.empty(k_max),
+        position=np.empty((k_max, 2)),
+        velocity=np.empty((k_max, 2)),
+        acceleration=np.empty((k_max, 2)),
+        tangent=np.empty((k_max, 2)),
+        feedrate=np.empty(k_max),
+    )
     t, u, pos, vel, acc, tan, feed = out
     info = np.zeros(INFO_SIZE)
     settings = InterpolationSettings(u_start, u_end, dt, plan.v_peak, step_tolerance)
@@ -866,7 +870,9 @@ def _check_end(end, info, n: int, t, u, curve, plan, dt: float, step_tolerance: 
         raise ValueError(_unresolved(curve, plan, dt, step_tolerance, float(info[INFO_U_END]), float(t[n - 1])))
     if end == END_FAILED:
         k = int(info[INFO_WORST_K])
-        raise ValueError(_cannot_follow(curve, plan, dt, step_tolerance, k, u[: k + 2], np.diff(plan.distance(t[: k + 2]))))
+        raise ValueError(
+            _cannot_follow(curve, plan, dt, step_tolerance, k, u[: k + 2], np.diff(plan.distance(t[: k + 2])))
+        )
 
 
 def _end_gap(curve, plan, info, end) -> tuple[float, float]:
@@ -894,8 +900,9 @@ def _fluctuations(pos, t, plan, dt: float) -> tuple[float, float]:
     else:
         fluctuation = float("nan")
     t0, t1 = t[:-2], t[1:-1]
-    cruise = (np.abs(plan.velocity(t0) - plan.v_peak) <= 1e-12 * plan.v_peak) \
-        & (np.abs(plan.velocity(t1) - plan.v_peak) <= 1e-12 * plan.v_peak)
+    cruise = (np.abs(plan.velocity(t0) - plan.v_peak) <= 1e-12 * plan.v_peak) & (
+        np.abs(plan.velocity(t1) - plan.v_peak) <= 1e-12 * plan.v_peak
+    )
     if np.any(cruise):
         cruise_pct = float(100.0 * np.max(np.abs(v_act[cruise] - plan.v_peak)) / plan.v_peak)
     else:
@@ -916,8 +923,10 @@ def _verify(curve, plan, dt, step_tolerance, info, t, u, pos, vel, acc, tan, fee
     for name, a in zip(_ARRAYS, (t, u, pos, vel, acc, tan, feed)):
         if not np.all(np.isfinite(a)):
             k = int(np.flatnonzero(~np.isfinite(a.reshape(len(t), -1)).all(axis=1))[0])
-            raise ValueError(f"the reference's {name} is not finite at sample {k} (u = {u[k]!r}): "
-                             f"the curve's derivatives overflow there")
+            raise ValueError(
+                f"the reference's {name} is not finite at sample {k} (u = {u[k]!r}): "
+                f"the curve's derivatives overflow there"
+            )
     if u[0] != u_start or u[-1] != u_end or np.any(np.diff(u) < 0.0):
         raise ValueError("internal error: the reference's u does not run from u_start to u_end")
     chords = np.linalg.norm(np.diff(pos, axis=0), axis=1)

@@ -122,7 +122,6 @@ __all__ = [
 ]
 
 
-
 # --------------------------------------------------------------------------
 # kernels: plain arrays in, plain floats out, no validation
 # --------------------------------------------------------------------------
@@ -208,8 +207,6 @@ def _jlap_batch(ts, breaks, coeffs, out):
 # --------------------------------------------------------------------------
 # validation
 # --------------------------------------------------------------------------
-
-
 
 
 # --------------------------------------------------------------------------
@@ -475,8 +472,10 @@ class JlapPathFeedrate:
         return plan
 
     def __repr__(self) -> str:
-        return f"JlapPathFeedrate(feedrate={self.feedrate!r} mm/s, a_max={self.planner.a_max!r} mm/s^2, " \
-               f"j_max={self.planner.j_max!r} mm/s^3)"
+        return (
+            f"JlapPathFeedrate(feedrate={self.feedrate!r} mm/s, a_max={self.planner.a_max!r} mm/s^2, "
+            f"j_max={self.planner.j_max!r} mm/s^3)"
+        )
 
 
 class JlapFeedrate:
@@ -567,7 +566,8 @@ class JlapFeedrate:
             else:  # no room for the feedrate: the highest peak whose two changes fill the gap, no cruise
                 peak = bisect_increasing(
                     lambda v: transition_distance(v0, v, a, j) + transition_distance(v, v1, a, j) - gap,
-                    max(v0, v1), self.feedrate,
+                    max(v0, v1),
+                    self.feedrate,
                 )
                 cruise = 0.0
             s, v, acc = starts[i], v0, 0.0

@@ -299,7 +299,8 @@ def _write(cuts_s, speeds, caps, a: float, j: float, length: float) -> JlapPlan:
         else:  # no room for the cap: the highest peak whose two changes fill the gap
             peak = bisect_increasing(
                 lambda v: transition_distance(v0, v, a, j) + transition_distance(v, v1, a, j) - gap,
-                max(v0, v1), max(v0, v1, cap),
+                max(v0, v1),
+                max(v0, v1, cap),
             )
             cruise = 0.0
         s, v, acc = s0, v0, 0.0
@@ -336,15 +337,25 @@ def _critical_points(v_lim: np.ndarray, feedrate: float) -> list[int]:
     return kept
 
 
-def _schedule(arc: np.ndarray, v_lim: np.ndarray, length: float, feedrate: float, a: float, j: float,
-              max_rounds: int = 100_000, extra_cuts=()) -> JlapPlan:
+def _schedule(
+    arc: np.ndarray,
+    v_lim: np.ndarray,
+    length: float,
+    feedrate: float,
+    a: float,
+    j: float,
+    max_rounds: int = 100_000,
+    extra_cuts=(),
+) -> JlapPlan:
     """Sections 2 and 3 of the module docstring: cuts, scans, check, cuts at the violations; ``extra_cuts``
     (grid indices) are cut too (where a G-code program's feed changes between blocks)."""
     cuts = sorted(set([0] + _critical_points(v_lim, feedrate) + [int(c) for c in extra_cuts] + [v_lim.size - 1]))
     bounded = [False] * (len(cuts) - 1)  # True: the section's cap is the least v_lim inside it
     for _ in range(max_rounds):
-        caps = [float(v_lim[c0 : c1 + 1].min() if low else v_lim[c0 : c1 + 1].max())
-                for c0, c1, low in zip(cuts[:-1], cuts[1:], bounded)]
+        caps = [
+            float(v_lim[c0 : c1 + 1].min() if low else v_lim[c0 : c1 + 1].max())
+            for c0, c1, low in zip(cuts[:-1], cuts[1:], bounded)
+        ]
         speeds = [0.0] + [float(min(v_lim[c], caps[i], caps[i + 1])) for i, c in enumerate(cuts[1:-1])] + [0.0]
         gaps = [float(arc[c1] - arc[c0]) for c0, c1 in zip(cuts[:-1], cuts[1:])]
         for i, gap in enumerate(gaps):  # forward scan
@@ -533,8 +544,13 @@ class LookaheadFeedrate:
         """v_lim = min(F, sqrt(A_n / kappa), (J_n / kappa^2)^(1/3)), mm/s, for curvatures kappa (1/mm)."""
         k = np.asarray(kappa, dtype=np.float64)
         with np.errstate(divide="ignore"):
-            return np.minimum.reduce([np.full_like(k, self.feedrate), np.sqrt(self.normal_acceleration / k),
-                                      np.cbrt(self.normal_jerk / k**2)])
+            return np.minimum.reduce(
+                [
+                    np.full_like(k, self.feedrate),
+                    np.sqrt(self.normal_acceleration / k),
+                    np.cbrt(self.normal_jerk / k**2),
+                ]
+            )
 
     def feed_limit(self, arc: np.ndarray) -> np.ndarray:
         """The programmed feed at arc lengths ``arc`` (mm), mm/s: F everywhere here; a G-code program's
@@ -556,22 +572,38 @@ class LookaheadFeedrate:
         """
         length = positive("length", length, "mm")
         if not abs(self._arc[-1] - length) <= 1e-6 * length:
-            raise ValueError(f"this look-ahead profile plans its own curve ({self._arc[-1]:.6g} mm), "
-                             f"not a {length:.6g} mm one")
+            raise ValueError(
+                f"this look-ahead profile plans its own curve ({self._arc[-1]:.6g} mm), not a {length:.6g} mm one"
+            )
         if self._plan is None or self._plan.length != length:
             arc = self._arc * (length / self._arc[-1])
             v_lim = np.minimum(self.speed_limit(self._kappa_samples), self.feed_limit(arc))
             knot = np.flatnonzero(arc[1:] == arc[:-1])  # both sides of a knot: the lower limit
             v_lim[knot] = v_lim[knot + 1] = np.minimum(v_lim[knot], v_lim[knot + 1])
-            plan = _schedule(arc, v_lim, length, self.feedrate, self.tangential_acceleration, self.tangential_jerk,
-                             extra_cuts=self.feed_cuts(arc))
+            plan = _schedule(
+                arc,
+                v_lim,
+                length,
+                self.feedrate,
+                self.tangential_acceleration,
+                self.tangential_jerk,
+                extra_cuts=self.feed_cuts(arc),
+            )
             for a in (arc, v_lim):
                 a.flags.writeable = False
-            self._plan = LookaheadPlan(length=plan.length, breaks=plan.breaks, coeffs=plan.coeffs,
-                                       sections=plan.sections, limit_arc=arc, limit_speed=v_lim)
+            self._plan = LookaheadPlan(
+                length=plan.length,
+                breaks=plan.breaks,
+                coeffs=plan.coeffs,
+                sections=plan.sections,
+                limit_arc=arc,
+                limit_speed=v_lim,
+            )
         return self._plan
 
     def __repr__(self) -> str:
-        return (f"LookaheadFeedrate(feedrate={self.feedrate:g} mm/s, normal_acceleration={self.normal_acceleration:g} "
-                f"mm/s^2, normal_jerk={self.normal_jerk:g} mm/s^3, tangential_acceleration="
-                f"{self.tangential_acceleration:g} mm/s^2, tangential_jerk={self.tangential_jerk:g} mm/s^3)")
+        return (
+            f"LookaheadFeedrate(feedrate={self.feedrate:g} mm/s, normal_acceleration={self.normal_acceleration:g} "
+            f"mm/s^2, normal_jerk={self.normal_jerk:g} mm/s^3, tangential_acceleration="
+            f"{self.tangential_acceleration:g} mm/s^2, tangential_jerk={self.tangential_jerk:g} mm/s^3)"
+        )

@@ -79,8 +79,10 @@ def plan_arrays(plan) -> PlanArrays:
     """
     breaks, coeffs = (np.ascontiguousarray(a, dtype=np.float64) for a in plan.kernel_args)
     if coeffs.ndim != 2 or coeffs.shape[1] > PLAN_COLUMNS or coeffs.shape[0] != breaks.shape[0]:
-        raise ValueError(f"a plan's kernel_args must be breaks (K+1,) and coeffs (K+1, <= {PLAN_COLUMNS}), "
-                         f"got {breaks.shape} and {coeffs.shape}")
+        raise ValueError(
+            f"a plan's kernel_args must be breaks (K+1,) and coeffs (K+1, <= {PLAN_COLUMNS}), "
+            f"got {breaks.shape} and {coeffs.shape}"
+        )
     if breaks[0] != 0.0 or np.any(np.diff(breaks) <= 0.0):
         raise ValueError("a plan's breaks must start at 0 s and increase")
     if coeffs.shape[1] < PLAN_COLUMNS:

@@ -21,8 +21,9 @@ _NOT_PLANTS = {"contract", "shop_floor", "exact_zoh", "stick_slip"}
 
 def plant_names() -> list[str]:
     """Names of the plant modules of this package, sorted."""
-    return sorted(m.name for m in pkgutil.iter_modules(__path__) if m.name not in _NOT_PLANTS
-                  and not m.name.startswith("_"))
+    return sorted(
+        m.name for m in pkgutil.iter_modules(__path__) if m.name not in _NOT_PLANTS and not m.name.startswith("_")
+    )
 
 
 def get_plant(plant) -> PlantModel:

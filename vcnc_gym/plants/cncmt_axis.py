@@ -145,35 +145,56 @@ PAPER_NOMINAL = {"a": 9.7, "b": 4.85, "T_d": 0.1}
 #: parameters, SI units, with the pitch p = 0.05 m (printed "5 (mm)"; see the
 #: module docstring).  Used only to document the disagreement with eq. (2).
 TABLE_1 = {
-    "K_1": (2.0, 0.50),   # power amplifier gain, V/V, +-50 %
-    "K_2": (4.0, 0.25),   # servomotor gain, N m/V, +-25 %
-    "m": (50.0, 0.40),    # mass of the workpiece, kg, +-40 %
+    "K_1": (2.0, 0.50),  # power amplifier gain, V/V, +-50 %
+    "K_2": (4.0, 0.25),  # servomotor gain, N m/V, +-25 %
+    "m": (50.0, 0.40),  # mass of the workpiece, kg, +-40 %
     "I_m": (0.01, 0.20),  # equivalent inertia, kg m^2, +-20 %
-    "p": (0.05, 0.0),     # pitch of the lead screw, m
-    "n": (2.0, 0.0),      # gear ratio
-    "H_2": (0.1, 0.0),    # tachogenerator gain
+    "p": (0.05, 0.0),  # pitch of the lead screw, m
+    "n": (2.0, 0.0),  # gear ratio
+    "H_2": (0.1, 0.0),  # tachogenerator gain
 }
 
 #: The per-axis parameters, in the order of the last axis of a parameter array.
 PARAMETERS = (
-    Parameter("a", "1/s", nominal=(9.7, 9.7), interval=((7.5, 11.9), (7.5, 11.9)),
-              source=f"{_EQ_2}; lower bound alpha_1 of {_SEC_35}; upper bound ours (7.5 mirrored about 9.7)",
-              description="velocity-loop pole K_1 K_2 n H_2 / (p^2 m + n^2 I_m), eq. (30)",
-              physical_range=(0.001, 10000),
-              range_source="ours: velocity-loop poles from 0.1 ms to 1000 s"),
-    Parameter("b", "mm/(V s^2)", nominal=(4850.0, 4850.0), interval=((3000.0, 6000.0), (3000.0, 6000.0)),
-              source=f"{_EQ_2} (4.85 m/(V s^2)); interval 3-6 m/(V s^2) of {_SEC_35}",
-              description="gain K_1 K_2 n p / (p^2 m + n^2 I_m), eq. (30)",
-              physical_range=(1, 1e+07),
-              range_source="ours: 1 mm/(V s^2) to 10 km/(V s^2), 2000 times Yadav et al.'s 4.85 m/(V s^2) either way"),
-    Parameter("T_d", "s", nominal=(0.1, 0.1), source=f"{_EQ_2} (T_d = 0.1 s 'for simulation')", sign="nonnegative",
-              description="input dead time, a whole number of control periods",
-              physical_range=(0, 10),
-              range_source="ours: a dead time beyond 10 s is no servo axis"),
-    Parameter("u_max", "V", nominal=(10.0, 10.0), source="ours (+-10 V servo command; Yadav et al. (2020) gives no limit)",
-              description="amplifier command saturation",
-              physical_range=(0.1, 100),
-              range_source="ours: amplifier commands are +-10 V in industry, +-100 V at most"),
+    Parameter(
+        "a",
+        "1/s",
+        nominal=(9.7, 9.7),
+        interval=((7.5, 11.9), (7.5, 11.9)),
+        source=f"{_EQ_2}; lower bound alpha_1 of {_SEC_35}; upper bound ours (7.5 mirrored about 9.7)",
+        description="velocity-loop pole K_1 K_2 n H_2 / (p^2 m + n^2 I_m), eq. (30)",
+        physical_range=(0.001, 10000),
+        range_source="ours: velocity-loop poles from 0.1 ms to 1000 s",
+    ),
+    Parameter(
+        "b",
+        "mm/(V s^2)",
+        nominal=(4850.0, 4850.0),
+        interval=((3000.0, 6000.0), (3000.0, 6000.0)),
+        source=f"{_EQ_2} (4.85 m/(V s^2)); interval 3-6 m/(V s^2) of {_SEC_35}",
+        description="gain K_1 K_2 n p / (p^2 m + n^2 I_m), eq. (30)",
+        physical_range=(1, 1e07),
+        range_source="ours: 1 mm/(V s^2) to 10 km/(V s^2), 2000 times Yadav et al.'s 4.85 m/(V s^2) either way",
+    ),
+    Parameter(
+        "T_d",
+        "s",
+        nominal=(0.1, 0.1),
+        source=f"{_EQ_2} (T_d = 0.1 s 'for simulation')",
+        sign="nonnegative",
+        description="input dead time, a whole number of control periods",
+        physical_range=(0, 10),
+        range_source="ours: a dead time beyond 10 s is no servo axis",
+    ),
+    Parameter(
+        "u_max",
+        "V",
+        nominal=(10.0, 10.0),
+        source="ours (+-10 V servo command; Yadav et al. (2020) gives no limit)",
+        description="amplifier command saturation",
+        physical_range=(0.1, 100),
+        range_source="ours: amplifier commands are +-10 V in industry, +-100 V at most",
+    ),
 )
 IDX_A, IDX_B, IDX_T_D, IDX_U_MAX = range(len(PARAMETERS))
 
@@ -221,9 +242,11 @@ def delay_periods(dead_time, dt: float, name: str = "T_d") -> int:
     ratio = d / dt
     n = round(ratio)
     if abs(ratio - n) > _WHOLE * max(1.0, ratio):
-        raise ValueError(f"{name} = {d:g} s is not a whole number of control periods dt = {dt:g} s "
-                         f"({ratio:.6g} periods): the dead time is simulated exactly as a delay line of whole "
-                         f"periods; choose dt dividing {d:g} s (e.g. {d / max(1, math.ceil(ratio)):g} s)")
+        raise ValueError(
+            f"{name} = {d:g} s is not a whole number of control periods dt = {dt:g} s "
+            f"({ratio:.6g} periods): the dead time is simulated exactly as a delay line of whole "
+            f"periods; choose dt dividing {d:g} s (e.g. {d / max(1, math.ceil(ratio)):g} s)"
+        )
     return int(n)
 
 
@@ -296,8 +319,10 @@ def _reset_machine(arrays: CncmtArrays, k: int, position) -> None:
         t_d = float(arrays.params[k, i, IDX_T_D])
         n = delay_periods(t_d, arrays.dt, f"T_d of axis {contract.AXES[i]}")
         if n > capacity:
-            raise ValueError(f"T_d = {t_d:g} s needs {n} control periods of delay line, this plant's arrays hold "
-                             f"{capacity}: make them with plant_options={{'max_dead_time': {t_d:g}}}")
+            raise ValueError(
+                f"T_d = {t_d:g} s needs {n} control periods of delay line, this plant's arrays hold "
+                f"{capacity}: make them with plant_options={{'max_dead_time': {t_d:g}}}"
+            )
         arrays.state[k, i, S_X] = float(position[i])
         arrays.state[k, i, S_V] = 0.0
     arrays.line[k] = 0.0
@@ -308,6 +333,7 @@ def _reset_machine(arrays: CncmtArrays, k: int, position) -> None:
 def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     """Eq. (2) of Yadav, Pathak and Gaur (2020) inverted: ``u(t) = (a_x(t + T_d) + a v(t + T_d)) / b`` V."""
     return contract.InverseDynamics.from_linear(MODEL, params)
+
 
 MODEL = PlantModel(
     name="cncmt_axis",
@@ -382,18 +408,22 @@ def advance_machine(state, params, line, head, dt, k, command):
 @overload(contract.advance, jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, CncmtArrays):
+
         def impl(plant, k, command):
             advance_machine(plant.state, plant.params, plant.line, plant.head, plant.dt, k, command)
+
         return impl
 
 
 @overload(contract.sense, jit_options={"cache": True})
 def _sense(plant, k, out):
     if contract.is_plant(plant, CncmtArrays):
+
         def impl(plant, k, out):
             for i in range(2):
                 x = plant.state[k, i, S_X]
                 out[contract.SENSE_POSITION + i] = x
                 out[contract.SENSE_MEASURED + i] = x
                 out[contract.SENSE_VELOCITY + i] = plant.state[k, i, S_V]
+
         return impl

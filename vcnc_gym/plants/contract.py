@@ -150,8 +150,9 @@ class Parameter:
             lo, hi = self.physical_range
             inside = list(self.nominal) + [v for iv in (self.interval or ()) for v in iv]
             if not (lo < hi and all(lo <= v <= hi for v in inside)):
-                raise ValueError(f"parameter {self.name}: physical range ({lo}, {hi}) must hold its nominal values "
-                                 f"and its interval")
+                raise ValueError(
+                    f"parameter {self.name}: physical range ({lo}, {hi}) must hold its nominal values and its interval"
+                )
 
     @property
     def uncertain(self) -> bool:
@@ -370,8 +371,10 @@ class PlantModel:
         if p.ndim == 2:
             p = p[None]
         if p.ndim != 3 or p.shape[1:] != (2, P):
-            raise ValueError(f"{self.name} parameters must have shape (2, {P}) or (N, 2, {P}) "
-                             f"(columns {list(self.parameter_names)}), got {raw.shape}")
+            raise ValueError(
+                f"{self.name} parameters must have shape (2, {P}) or (N, 2, {P}) "
+                f"(columns {list(self.parameter_names)}), got {raw.shape}"
+            )
         if n_machines is not None:
             if p.shape[0] == 1 and n_machines != 1:
                 p = np.broadcast_to(p, (n_machines, 2, P))
@@ -385,12 +388,17 @@ class PlantModel:
         if not finite.all():
             bad = sorted({self.parameter_names[j] for j in np.nonzero(~finite)[2]})
             raise ValueError(f"{self.name} parameters must be finite; not finite: {bad}")
-        rules = {"positive": lambda v: v > 0, "nonnegative": lambda v: v >= 0,
-                 "nonpositive": lambda v: v <= 0, "any": lambda v: np.ones_like(v, dtype=bool)}
+        rules = {
+            "positive": lambda v: v > 0,
+            "nonnegative": lambda v: v >= 0,
+            "nonpositive": lambda v: v <= 0,
+            "any": lambda v: np.ones_like(v, dtype=bool),
+        }
         for j, par in enumerate(self.parameters):
             if not np.all(rules[par.sign](p[..., j])):
-                raise ValueError(f"{self.name} parameter {par.name} [{par.unit}] must be {par.sign}, "
-                                 f"got {np.unique(p[..., j])}")
+                raise ValueError(
+                    f"{self.name} parameter {par.name} [{par.unit}] must be {par.sign}, got {np.unique(p[..., j])}"
+                )
             if par.shared and np.any(p[:, 0, j] != p[:, 1, j]):
                 raise ValueError(f"{par.name} is shared by both axes of a machine ({par.source})")
         self._check_ranges(p, lim if allow_infinite_limit else None)
@@ -411,7 +419,8 @@ class PlantModel:
                 if bad.any():
                     raise ValueError(
                         f"{self.name} parameter {par.name} must lie in its physical range [{lo:g}, {hi:g}] "
-                        f"{par.unit} ({par.range_source or 'the plant module'}), got {np.unique(v[bad])[:4]}")
+                        f"{par.unit} ({par.range_source or 'the plant module'}), got {np.unique(v[bad])[:4]}"
+                    )
             if par.uncertain:
                 for a in range(2):
                     ilo, ihi = par.interval[a]
@@ -421,7 +430,10 @@ class PlantModel:
                         warnings.warn(
                             f"{self.name} parameter {par.name} = {np.unique(v[:, a][out])[:4]} {par.unit} on the "
                             f"{AXES[a]} axis is outside its uncertainty interval [{ilo:g}, {ihi:g}] ({par.source}) "
-                            f"but inside its physical range: accepted", ParameterWarning, stacklevel=3)
+                            f"but inside its physical range: accepted",
+                            ParameterWarning,
+                            stacklevel=3,
+                        )
                         break
 
     def to_dict(self, params) -> dict:
@@ -430,8 +442,10 @@ class PlantModel:
         if p.shape[0] != 1:
             raise ValueError("to_dict takes one machine's (2, P) parameters")
         p = p[0]
-        return {par.name: float(p[0, j]) if par.shared else (float(p[0, j]), float(p[1, j]))
-                for j, par in enumerate(self.parameters)}
+        return {
+            par.name: float(p[0, j]) if par.shared else (float(p[0, j]), float(p[1, j]))
+            for j, par in enumerate(self.parameters)
+        }
 
     def input_limits(self, params) -> np.ndarray:
         """The input limit per axis (..., 2) in ``input_unit``, from a (..., 2, P) array."""
@@ -510,9 +524,15 @@ class PlantModel:
         """A Markdown table of the parameters: name, unit, nominal (x, y), interval, source."""
         rows = ["| parameter | unit | nominal x, y | interval x; y | source |", "|---|---|---|---|---|"]
         for p in self.parameters:
-            iv = "fixed" if not p.uncertain else (f"[{p.interval[0][0]:g}, {p.interval[0][1]:g}] (shared)"
-                                                  if p.shared else
-                                                  "; ".join(f"[{lo:g}, {hi:g}]" for lo, hi in p.interval))
+            iv = (
+                "fixed"
+                if not p.uncertain
+                else (
+                    f"[{p.interval[0][0]:g}, {p.interval[0][1]:g}] (shared)"
+                    if p.shared
+                    else "; ".join(f"[{lo:g}, {hi:g}]" for lo, hi in p.interval)
+                )
+            )
             rows.append(f"| {p.name} | {p.unit} | {p.nominal[0]:g}, {p.nominal[1]:g} | {iv} | {p.source} |")
         return "\n".join(rows)
 
@@ -568,8 +588,13 @@ class InverseDynamics:
     stribeck: np.ndarray = ((0.0, 0.0), (0.0, 0.0))
 
     def __post_init__(self):
-        shapes = {"coefficients": (2, INVERSE_ORDER), "coulomb": (2, 2), "backlash": (2,), "delay": (2,),
-                  "stribeck": (2, 2)}
+        shapes = {
+            "coefficients": (2, INVERSE_ORDER),
+            "coulomb": (2, 2),
+            "backlash": (2,),
+            "delay": (2,),
+            "stribeck": (2, 2),
+        }
         for name, shape in shapes.items():
             value = np.array(getattr(self, name), dtype=np.float64)
             if value.shape != shape or not np.all(np.isfinite(value)):
@@ -581,8 +606,9 @@ class InverseDynamics:
         if np.any(self.backlash < 0) or np.any(self.delay < 0):
             raise ValueError("InverseDynamics.backlash and delay must be >= 0")
         if np.any(self.stribeck[:, 0] < 0) or np.any((self.stribeck[:, 0] > 0) & (self.stribeck[:, 1] <= 0)):
-            raise ValueError(f"InverseDynamics.stribeck must be (F_s >= 0, v_s > 0 where F_s > 0) per axis, "
-                             f"got {self.stribeck}")
+            raise ValueError(
+                f"InverseDynamics.stribeck must be (F_s >= 0, v_s > 0 where F_s > 0) per axis, got {self.stribeck}"
+            )
 
     @classmethod
     def from_linear(cls, plant: "PlantModel", params, coulomb=((0.0, 0.0), (0.0, 0.0)), backlash=(0.0, 0.0)):
@@ -594,15 +620,21 @@ class InverseDynamics:
             num, den = (np.atleast_1d(np.asarray(c, dtype=np.float64)) for c in plant.linear_coefficients(params, axis))
             num = np.trim_zeros(num, "f")
             if num.size != 1 or den.size - 1 > INVERSE_ORDER or den[-1] != 0.0:
-                raise ValueError(f"plant {plant.name}: InverseDynamics.from_linear needs a constant numerator and "
-                                 f"a denominator s (...) of degree <= {INVERSE_ORDER}, got {num}, {den}")
+                raise ValueError(
+                    f"plant {plant.name}: InverseDynamics.from_linear needs a constant numerator and "
+                    f"a denominator s (...) of degree <= {INVERSE_ORDER}, got {num}, {den}"
+                )
             row = np.zeros(INVERSE_ORDER)
             ascending = den[::-1] / num[0]  # coefficient of s^n at n
-            row[:ascending.size - 1] = ascending[1:]
+            row[: ascending.size - 1] = ascending[1:]
             rows.append(row)
         delay = [plant.delay(params, a) if plant.delay is not None else 0.0 for a in (0, 1)]
-        return cls(np.array(rows), np.array(coulomb, dtype=np.float64), np.array(backlash, dtype=np.float64),
-                   np.array(delay, dtype=np.float64))
+        return cls(
+            np.array(rows),
+            np.array(coulomb, dtype=np.float64),
+            np.array(backlash, dtype=np.float64),
+            np.array(delay, dtype=np.float64),
+        )
 
     @property
     def mass(self) -> np.ndarray:

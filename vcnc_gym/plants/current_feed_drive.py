@@ -128,27 +128,57 @@ def _interval(nominal, rel):
 #: array: Table I's values as nominal, intervals and the current limit our
 #: choice (see the module docstring).
 PARAMETERS = (
-    Parameter("m", "N s^2/mm", nominal=(0.088, 0.097), interval=_interval((0.088, 0.097), 0.10),
-              source=_TABLE_I + "; interval +-10 % " + _CHOICE, description="equivalent mass of the table",
-              physical_range=(0.001, 100),
-              range_source="ours: table masses from 1 kg to 100 t"),
-    Parameter("c", "N s/mm", nominal=(0.559, 0.796), interval=_interval((0.559, 0.796), 0.30),
-              source=_TABLE_I + "; interval +-30 % " + _CHOICE, sign="nonnegative",
-              description="viscous friction coefficient",
-              physical_range=(0, 100),
-              range_source="ours: 100 times the box's upper end"),
-    Parameter("f_c", "N", nominal=(48.0, 58.0), interval=_interval((48.0, 58.0), 0.20),
-              source=_TABLE_I + "; interval +-20 % " + _CHOICE, sign="nonnegative",
-              description="Coulomb friction force (also the break-away force)",
-              physical_range=(0, 100000),
-              range_source="ours: up to a 100 t table on a friction coefficient of 0.1"),
-    Parameter("k_f", "N/A", nominal=(235.62, 331.12), interval=_interval((235.62, 331.12), 0.10),
-              source=_TABLE_I + "; interval +-10 % " + _CHOICE, description="force-current conversion ratio",
-              physical_range=(1, 10000),
-              range_source="ours: linear motors' and ball-screw drives' force constants span 10-5000 N/A"),
-    Parameter("i_max", "A", nominal=(5.0, 5.0), source=_CHOICE, description="amplifier current limit",
-              physical_range=(0.01, 1000),
-              range_source="ours: servo amplifiers' current limits span 0.1-500 A"),
+    Parameter(
+        "m",
+        "N s^2/mm",
+        nominal=(0.088, 0.097),
+        interval=_interval((0.088, 0.097), 0.10),
+        source=_TABLE_I + "; interval +-10 % " + _CHOICE,
+        description="equivalent mass of the table",
+        physical_range=(0.001, 100),
+        range_source="ours: table masses from 1 kg to 100 t",
+    ),
+    Parameter(
+        "c",
+        "N s/mm",
+        nominal=(0.559, 0.796),
+        interval=_interval((0.559, 0.796), 0.30),
+        source=_TABLE_I + "; interval +-30 % " + _CHOICE,
+        sign="nonnegative",
+        description="viscous friction coefficient",
+        physical_range=(0, 100),
+        range_source="ours: 100 times the box's upper end",
+    ),
+    Parameter(
+        "f_c",
+        "N",
+        nominal=(48.0, 58.0),
+        interval=_interval((48.0, 58.0), 0.20),
+        source=_TABLE_I + "; interval +-20 % " + _CHOICE,
+        sign="nonnegative",
+        description="Coulomb friction force (also the break-away force)",
+        physical_range=(0, 100000),
+        range_source="ours: up to a 100 t table on a friction coefficient of 0.1",
+    ),
+    Parameter(
+        "k_f",
+        "N/A",
+        nominal=(235.62, 331.12),
+        interval=_interval((235.62, 331.12), 0.10),
+        source=_TABLE_I + "; interval +-10 % " + _CHOICE,
+        description="force-current conversion ratio",
+        physical_range=(1, 10000),
+        range_source="ours: linear motors' and ball-screw drives' force constants span 10-5000 N/A",
+    ),
+    Parameter(
+        "i_max",
+        "A",
+        nominal=(5.0, 5.0),
+        source=_CHOICE,
+        description="amplifier current limit",
+        physical_range=(0.01, 1000),
+        range_source="ours: servo amplifiers' current limits span 0.1-500 A",
+    ),
 )
 
 PARAMETER_NAMES = tuple(p.name for p in PARAMETERS)
@@ -213,8 +243,14 @@ def step_machine(state, k, current, params, dt):
         i_max = params[k, i, IDX_I_MAX]
         u = min(i_max, max(-i_max, current[i]))
         state[k, i, S_X], state[k, i, S_V] = advance_axis(
-            state[k, i, S_X], state[k, i, S_V], params[k, i, IDX_K_F] * u,
-            params[k, i, IDX_M], params[k, i, IDX_C], params[k, i, IDX_F_C], dt)
+            state[k, i, S_X],
+            state[k, i, S_V],
+            params[k, i, IDX_K_F] * u,
+            params[k, i, IDX_M],
+            params[k, i, IDX_C],
+            params[k, i, IDX_F_C],
+            dt,
+        )
 
 
 @numba.njit(cache=True)
@@ -239,19 +275,23 @@ def step_feed_drives(state, current, params, dt):
 @overload(contract.advance, jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, CurrentFeedDriveArrays):
+
         def impl(plant, k, command):
             step_machine(plant.state, k, command, plant.params, plant.dt)
+
         return impl
 
 
 @overload(contract.sense, jit_options={"cache": True})
 def _sense(plant, k, out):
     if contract.is_plant(plant, CurrentFeedDriveArrays):
+
         def impl(plant, k, out):
             for i in range(2):
                 out[contract.SENSE_POSITION + i] = plant.state[k, i, S_X]
                 out[contract.SENSE_MEASURED + i] = plant.state[k, i, S_X]  # perfect sensor
                 out[contract.SENSE_VELOCITY + i] = plant.state[k, i, S_V]
+
         return impl
 
 

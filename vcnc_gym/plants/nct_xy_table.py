@@ -106,24 +106,44 @@ def _interval(x_value: float, y_value: float) -> tuple:
 
 #: The per-axis parameters, in the order of the last axis of a parameter array.
 PARAMETERS = (
-    Parameter("K", "mm/s per u_r", nominal=(50.7, 53.1), interval=_interval(50.7, 53.1),
-              source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
-              description="velocity gain K = h_max / u_r, eq. (3)",
-              physical_range=(0.01, 10000),
-              range_source="ours: 0.01 mm/s to 10 m/s at the rated input"),
-    Parameter("alpha", "1/s", nominal=(1.475, 3.156), interval=_interval(1.475, 3.156),
-              source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
-              description="velocity pole alpha = -m, eq. (3)",
-              physical_range=(0.001, 10000),
-              range_source="ours: velocity-loop poles from 1 ms to 1000 s"),
-    Parameter("u_r", "u_r", nominal=(1.0, 1.0), source="Purtojo et al., sections II-B and III (no number given)",
-              description="rated motor input: the input limit, the unit of the input",
-              physical_range=(0.001, 1000),
-              range_source="ours: a rated input in V or in per-unit"),
-    Parameter("resolution", "mm", nominal=(0.001, 0.001), source="Purtojo et al., section III (1 um sensor)",
-              description="position sensor resolution",
-              physical_range=(1e-07, 1),
-              range_source="ours: position sensors resolve 0.1 nm (interferometers) to 1 mm"),
+    Parameter(
+        "K",
+        "mm/s per u_r",
+        nominal=(50.7, 53.1),
+        interval=_interval(50.7, 53.1),
+        source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
+        description="velocity gain K = h_max / u_r, eq. (3)",
+        physical_range=(0.01, 10000),
+        range_source="ours: 0.01 mm/s to 10 m/s at the rated input",
+    ),
+    Parameter(
+        "alpha",
+        "1/s",
+        nominal=(1.475, 3.156),
+        interval=_interval(1.475, 3.156),
+        source=f"{_EQ_4}; +-10 % interval chosen here (Purtojo et al. give none)",
+        description="velocity pole alpha = -m, eq. (3)",
+        physical_range=(0.001, 10000),
+        range_source="ours: velocity-loop poles from 1 ms to 1000 s",
+    ),
+    Parameter(
+        "u_r",
+        "u_r",
+        nominal=(1.0, 1.0),
+        source="Purtojo et al., sections II-B and III (no number given)",
+        description="rated motor input: the input limit, the unit of the input",
+        physical_range=(0.001, 1000),
+        range_source="ours: a rated input in V or in per-unit",
+    ),
+    Parameter(
+        "resolution",
+        "mm",
+        nominal=(0.001, 0.001),
+        source="Purtojo et al., section III (1 um sensor)",
+        description="position sensor resolution",
+        physical_range=(1e-07, 1),
+        range_source="ours: position sensors resolve 0.1 nm (interferometers) to 1 mm",
+    ),
 )
 IDX_K, IDX_ALPHA, IDX_U_R, IDX_RESOLUTION = range(len(PARAMETERS))
 
@@ -161,6 +181,7 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     """Eq. (3) of Purtojo et al. inverted: ``u = (a / alpha + v) / K`` in units of u_r (no friction term)."""
     return contract.InverseDynamics.from_linear(MODEL, params)
 
+
 #: Moving mass of one axis of the X-Y table, kg: Purtojo et al. identifies no mass (its model is velocity over
 #: motor input), so this is ours, a small laboratory X-Y table's carriage; used only to convert a force on the
 #: table into the motor input that produces it (:func:`_force_gain`).
@@ -196,8 +217,14 @@ MODEL = PlantModel(
     path_limits=(30.0, 900.0),
     # the table runs its 1 mm circle at 1 mm/s and tops out at 50 mm/s with the rated input on a 0.7 s time
     # constant: its random contours are a tenth of the defaults' size (0.5-3 mm lines, 0.2-2 mm arcs) at 0.5-2 mm/s
-    random_contour={"line_min": 0.5, "line_max": 3.0, "radius_min": 0.2, "radius_max": 2.0, "feed_min": 30.0,
-                    "feed_max": 120.0},
+    random_contour={
+        "line_min": 0.5,
+        "line_max": 3.0,
+        "radius_min": 0.2,
+        "radius_max": 2.0,
+        "feed_min": 30.0,
+        "feed_max": 120.0,
+    },
 )
 
 
@@ -246,15 +273,18 @@ def step_axis(state, k, i, u, params, dt):
 @overload(contract.advance, jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, NctTableArrays):
+
         def impl(plant, k, command):
             for i in range(2):
                 step_axis(plant.state, k, i, command[i], plant.params, plant.dt)
+
         return impl
 
 
 @overload(contract.sense, jit_options={"cache": True})
 def _sense(plant, k, out):
     if contract.is_plant(plant, NctTableArrays):
+
         def impl(plant, k, out):
             for i in range(2):
                 x = plant.state[k, i, S_X]
@@ -262,4 +292,5 @@ def _sense(plant, k, out):
                 out[contract.SENSE_POSITION + i] = x
                 out[contract.SENSE_MEASURED + i] = q
                 out[contract.SENSE_VELOCITY + i] = (q - plant.state[k, i, S_Q_PREV]) / plant.dt
+
         return impl

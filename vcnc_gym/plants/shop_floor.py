@@ -102,9 +102,27 @@ from numba.extending import overload
 from . import contract
 from .contract import Parameter, PlantModel
 
-__all__ = ["Effect", "EFFECTS", "EFFECT_PARAMETERS", "EFFECT_NAMES", "OFF", "MAX_DELAY", "ShopFloorArrays",
-           "ShopFloorModel", "shop_floor", "PositionSensor", "CommandDelay", "SensorDelay", "StructuralMode",
-           "CuttingForce", "StribeckFriction", "mode_response", "mode_transition", "splitmix64", "normal_pair"]
+__all__ = [
+    "Effect",
+    "EFFECTS",
+    "EFFECT_PARAMETERS",
+    "EFFECT_NAMES",
+    "OFF",
+    "MAX_DELAY",
+    "ShopFloorArrays",
+    "ShopFloorModel",
+    "shop_floor",
+    "PositionSensor",
+    "CommandDelay",
+    "SensorDelay",
+    "StructuralMode",
+    "CuttingForce",
+    "StribeckFriction",
+    "mode_response",
+    "mode_transition",
+    "splitmix64",
+    "normal_pair",
+]
 
 #: Longest delay, control periods (command or sensor): the FIFOs hold this many entries plus one.
 MAX_DELAY = 8
@@ -231,10 +249,10 @@ class Effect:
         """The ``Arrays`` record of numpy views of the plant's arrays ``plant`` for the columns ``s``: ``params``
         (N, 2, E) and each state array ``(N, *shape)``; writing them writes the plant's."""
         n = plant.params.shape[0]
-        views = [plant.params[:, :, s.params:s.params + len(cls.parameters)]]
+        views = [plant.params[:, :, s.params : s.params + len(cls.parameters)]]
         for (shape, dtype), start in zip(cls.state.values(), s[1:]):
             pool = plant.fstate if np.dtype(dtype) == np.dtype(np.float64) else plant.istate
-            view = pool[:, start:start + math.prod(shape)].reshape((n, *shape))
+            view = pool[:, start : start + math.prod(shape)].reshape((n, *shape))
             assert np.shares_memory(view, pool)
             views.append(view)
         return cls.Arrays(*views)
@@ -269,8 +287,8 @@ def splitmix64(rng, k):
 def normal_pair(rng, k):
     """Two independent standard normal numbers from machine ``k``'s generator (Box-Muller on two uniforms
     in (0, 1])."""
-    u1 = float((splitmix64(rng, k) >> _S11) + _ONE) * 2.0 ** -53
-    u2 = float((splitmix64(rng, k) >> _S11) + _ONE) * 2.0 ** -53
+    u1 = float((splitmix64(rng, k) >> _S11) + _ONE) * 2.0**-53
+    u2 = float((splitmix64(rng, k) >> _S11) + _ONE) * 2.0**-53
     r = math.sqrt(-2.0 * math.log(u1))
     t = 2.0 * math.pi * u2
     return r * math.cos(t), r * math.sin(t)
@@ -291,17 +309,31 @@ class PositionSensor(Effect):
     a CNC's position loop computes); with a perfect one the table's velocity."""
 
     parameters = (
-        Parameter("encoder_resolution", "mm", nominal=(1e-4, 1e-4), interval=((5e-5, 2e-4), (5e-5, 2e-4)),
-                  shared=True, sign="nonnegative",
-                  source="the CNC increment system IS-C, 0.1 um (FANUC; IS-B is 1 um); 0: exact",
-                  description="position sensor's quantisation step (nearest count)",
-                  physical_range=(0.0, 0.01), range_source="ours: 10 um, a coarse rotary encoder on a 10 mm lead"),
-        Parameter("noise_std", "mm", nominal=(5e-5, 5e-5), interval=((0.0, 1e-4), (0.0, 1e-4)), shared=True,
-                  sign="nonnegative",
-                  source="ours: a quarter of the +-0.2 um interpolation error of a 20 um grating (+-1 % of the "
-                         "signal period, optical linear encoders' data sheets), as white noise; 0: none",
-                  description="standard deviation of the position reading's white Gaussian noise",
-                  physical_range=(0.0, 0.01), range_source="ours: 10 um, a noisy analogue transducer"),
+        Parameter(
+            "encoder_resolution",
+            "mm",
+            nominal=(1e-4, 1e-4),
+            interval=((5e-5, 2e-4), (5e-5, 2e-4)),
+            shared=True,
+            sign="nonnegative",
+            source="the CNC increment system IS-C, 0.1 um (FANUC; IS-B is 1 um); 0: exact",
+            description="position sensor's quantisation step (nearest count)",
+            physical_range=(0.0, 0.01),
+            range_source="ours: 10 um, a coarse rotary encoder on a 10 mm lead",
+        ),
+        Parameter(
+            "noise_std",
+            "mm",
+            nominal=(5e-5, 5e-5),
+            interval=((0.0, 1e-4), (0.0, 1e-4)),
+            shared=True,
+            sign="nonnegative",
+            source="ours: a quarter of the +-0.2 um interpolation error of a 20 um grating (+-1 % of the "
+            "signal period, optical linear encoders' data sheets), as white noise; 0: none",
+            description="standard deviation of the position reading's white Gaussian noise",
+            physical_range=(0.0, 0.01),
+            range_source="ours: 10 um, a noisy analogue transducer",
+        ),
     )
     switches = ("encoder_resolution", "noise_std")
 
@@ -342,11 +374,18 @@ class CommandDelay(Effect):
     ed. 2012, ch. 6: the ZOH and computation delay of a CNC's sampled loop)."""
 
     parameters = (
-        Parameter("command_delay", "periods", nominal=(1.0, 1.0), interval=((1.0, 2.0), (1.0, 2.0)), shared=True,
-                  sign="nonnegative",
-                  source=f"{_ALTINTAS}, ch. 6: one sample of computation delay; rounded to whole control periods",
-                  description="delay of the command, whole control periods (rounded)",
-                  physical_range=(0.0, float(MAX_DELAY)), range_source=f"the FIFO's length, MAX_DELAY = {MAX_DELAY}"),
+        Parameter(
+            "command_delay",
+            "periods",
+            nominal=(1.0, 1.0),
+            interval=((1.0, 2.0), (1.0, 2.0)),
+            shared=True,
+            sign="nonnegative",
+            source=f"{_ALTINTAS}, ch. 6: one sample of computation delay; rounded to whole control periods",
+            description="delay of the command, whole control periods (rounded)",
+            physical_range=(0.0, float(MAX_DELAY)),
+            range_source=f"the FIFO's length, MAX_DELAY = {MAX_DELAY}",
+        ),
     )
     switches = counts = ("command_delay",)
     state = {"commands": ((_FIFO, 2), np.float64), "delay": ((), np.int64), "head": ((), np.int64)}
@@ -380,11 +419,18 @@ class SensorDelay(Effect):
     every entry the rest reading after a reset)."""
 
     parameters = (
-        Parameter("sensor_delay", "periods", nominal=(0.0, 0.0), interval=((0.0, 1.0), (0.0, 1.0)), shared=True,
-                  sign="nonnegative",
-                  source="ours: a serial encoder's transmission, up to one period; rounded to whole control periods",
-                  description="delay of the position reading, whole control periods (rounded)",
-                  physical_range=(0.0, float(MAX_DELAY)), range_source=f"the FIFO's length, MAX_DELAY = {MAX_DELAY}"),
+        Parameter(
+            "sensor_delay",
+            "periods",
+            nominal=(0.0, 0.0),
+            interval=((0.0, 1.0), (0.0, 1.0)),
+            shared=True,
+            sign="nonnegative",
+            source="ours: a serial encoder's transmission, up to one period; rounded to whole control periods",
+            description="delay of the position reading, whole control periods (rounded)",
+            physical_range=(0.0, float(MAX_DELAY)),
+            range_source=f"the FIFO's length, MAX_DELAY = {MAX_DELAY}",
+        ),
     )
     switches = counts = ("sensor_delay",)
     state = {"readings": ((_FIFO, 4), np.float64), "delay": ((), np.int64), "head": ((), np.int64)}
@@ -452,16 +498,29 @@ class StructuralMode(Effect):
     damped mode in series with the rigid body).  The reading moves with the table."""
 
     parameters = (
-        Parameter("mode_frequency", "Hz", nominal=(150.0, 150.0), interval=((100.0, 200.0), (100.0, 200.0)),
-                  sign="nonnegative",
-                  source=f"ours, a ball-screw drive's first axial mode (Erkorkmaz & Altintas 2001, Part II; "
-                         f"{_ALTINTAS}, ch. 6); 0: rigid",
-                  description="natural frequency of the first structural mode between drive and table",
-                  physical_range=(0.0, 5000.0), range_source="ours: a direct drive's stiff table, kHz"),
-        Parameter("mode_damping", "1", nominal=(0.05, 0.05), interval=((0.02, 0.1), (0.02, 0.1)),
-                  sign="nonnegative", source="ours: lightly damped structural modes, 2-10 % of critical",
-                  description="its damping ratio",
-                  physical_range=(0.0, 2.0), range_source="ours: beyond 1 the mode is overdamped"),
+        Parameter(
+            "mode_frequency",
+            "Hz",
+            nominal=(150.0, 150.0),
+            interval=((100.0, 200.0), (100.0, 200.0)),
+            sign="nonnegative",
+            source=f"ours, a ball-screw drive's first axial mode (Erkorkmaz & Altintas 2001, Part II; "
+            f"{_ALTINTAS}, ch. 6); 0: rigid",
+            description="natural frequency of the first structural mode between drive and table",
+            physical_range=(0.0, 5000.0),
+            range_source="ours: a direct drive's stiff table, kHz",
+        ),
+        Parameter(
+            "mode_damping",
+            "1",
+            nominal=(0.05, 0.05),
+            interval=((0.02, 0.1), (0.02, 0.1)),
+            sign="nonnegative",
+            source="ours: lightly damped structural modes, 2-10 % of critical",
+            description="its damping ratio",
+            physical_range=(0.0, 2.0),
+            range_source="ours: beyond 1 the mode is overdamped",
+        ),
     )
     switches = ("mode_frequency",)
     #: ``phi`` (2, 4) per machine: per axis the transition matrix over dt, row-major
@@ -502,21 +561,52 @@ class CuttingForce(Effect):
     tooth-passing frequency), along the table's mean velocity over the previous period."""
 
     parameters = (
-        Parameter("cutting_force", "N", nominal=(100.0, 100.0), interval=((50.0, 150.0), (50.0, 150.0)), shared=True,
-                  sign="nonnegative", source=f"ours: a light finishing cut ({_ALTINTAS}, ch. 2); 0: air cutting",
-                  description="mean cutting force against the direction of motion",
-                  physical_range=(0.0, 1e4), range_source="ours: 10 kN, heavy roughing"),
-        Parameter("cutting_ripple", "N", nominal=(50.0, 50.0), interval=((25.0, 75.0), (25.0, 75.0)), shared=True,
-                  sign="nonnegative",
-                  source=f"ours: half the mean, the first tooth-passing harmonic ({_ALTINTAS}, ch. 2)",
-                  description="amplitude of the cutting force's tooth-passing component",
-                  physical_range=(0.0, 1e4), range_source="ours: 10 kN"),
-        Parameter("spindle_speed", "rpm", nominal=(6000.0, 6000.0), interval=((5000.0, 7000.0), (5000.0, 7000.0)),
-                  shared=True, sign="nonnegative", source="ours: a machining centre's spindle",
-                  description="spindle speed", physical_range=(0.0, 1e5), range_source="ours: high-speed spindles"),
-        Parameter("teeth", "1", nominal=(4.0, 4.0), shared=True, source="ours: a four-flute end mill",
-                  description="cutter teeth (the tooth-passing frequency is spindle_speed teeth / 60 Hz)",
-                  physical_range=(1.0, 64.0), range_source="ours: face mills have tens of inserts"),
+        Parameter(
+            "cutting_force",
+            "N",
+            nominal=(100.0, 100.0),
+            interval=((50.0, 150.0), (50.0, 150.0)),
+            shared=True,
+            sign="nonnegative",
+            source=f"ours: a light finishing cut ({_ALTINTAS}, ch. 2); 0: air cutting",
+            description="mean cutting force against the direction of motion",
+            physical_range=(0.0, 1e4),
+            range_source="ours: 10 kN, heavy roughing",
+        ),
+        Parameter(
+            "cutting_ripple",
+            "N",
+            nominal=(50.0, 50.0),
+            interval=((25.0, 75.0), (25.0, 75.0)),
+            shared=True,
+            sign="nonnegative",
+            source=f"ours: half the mean, the first tooth-passing harmonic ({_ALTINTAS}, ch. 2)",
+            description="amplitude of the cutting force's tooth-passing component",
+            physical_range=(0.0, 1e4),
+            range_source="ours: 10 kN",
+        ),
+        Parameter(
+            "spindle_speed",
+            "rpm",
+            nominal=(6000.0, 6000.0),
+            interval=((5000.0, 7000.0), (5000.0, 7000.0)),
+            shared=True,
+            sign="nonnegative",
+            source="ours: a machining centre's spindle",
+            description="spindle speed",
+            physical_range=(0.0, 1e5),
+            range_source="ours: high-speed spindles",
+        ),
+        Parameter(
+            "teeth",
+            "1",
+            nominal=(4.0, 4.0),
+            shared=True,
+            source="ours: a four-flute end mill",
+            description="cutter teeth (the tooth-passing frequency is spindle_speed teeth / 60 Hz)",
+            physical_range=(1.0, 64.0),
+            range_source="ours: face mills have tens of inserts",
+        ),
     )
     switches = ("cutting_force", "cutting_ripple")
     counts = ("teeth",)
@@ -551,17 +641,28 @@ class StribeckFriction(Effect):
     the table's mean velocity over the previous period."""
 
     parameters = (
-        Parameter("stribeck_force", "N", nominal=(30.0, 30.0), interval=((15.0, 45.0), (15.0, 45.0)),
-                  sign="nonnegative",
-                  source="ours: excess of static over Coulomb friction of linear guides (Armstrong-Helouvry, Dupont "
-                         "& Canudas de Wit 1994); 0: none",
-                  description="Stribeck friction at rest beyond the inner plant's Coulomb level",
-                  physical_range=(0.0, 1e4), range_source="ours: 10 kN, a heavy gantry's guides"),
-        Parameter("stribeck_velocity", "mm/s", nominal=(1.0, 1.0), interval=((0.5, 2.0), (0.5, 2.0)),
-                  source="ours: Stribeck velocities of lubricated guides, 0.1-100 mm/s (Armstrong-Helouvry et al. "
-                         "1994)",
-                  description="speed over which the Stribeck friction decays",
-                  physical_range=(1e-3, 1e3), range_source="Armstrong-Helouvry et al. 1994's span, widened"),
+        Parameter(
+            "stribeck_force",
+            "N",
+            nominal=(30.0, 30.0),
+            interval=((15.0, 45.0), (15.0, 45.0)),
+            sign="nonnegative",
+            source="ours: excess of static over Coulomb friction of linear guides (Armstrong-Helouvry, Dupont "
+            "& Canudas de Wit 1994); 0: none",
+            description="Stribeck friction at rest beyond the inner plant's Coulomb level",
+            physical_range=(0.0, 1e4),
+            range_source="ours: 10 kN, a heavy gantry's guides",
+        ),
+        Parameter(
+            "stribeck_velocity",
+            "mm/s",
+            nominal=(1.0, 1.0),
+            interval=((0.5, 2.0), (0.5, 2.0)),
+            source="ours: Stribeck velocities of lubricated guides, 0.1-100 mm/s (Armstrong-Helouvry et al. 1994)",
+            description="speed over which the Stribeck friction decays",
+            physical_range=(1e-3, 1e3),
+            range_source="Armstrong-Helouvry et al. 1994's span, widened",
+        ),
     )
     switches = ("stribeck_force",)
 
@@ -573,7 +674,7 @@ class StribeckFriction(Effect):
             if f > 0.0:
                 vs = plant.params[k, i, s.params + 1]
                 v = plant.memory[k, i, M_MEAN_VELOCITY]
-                x[i] -= f * math.exp(-(v / vs) ** 2) * math.tanh(v / (STRIBECK_SIGN_WIDTH * vs))
+                x[i] -= f * math.exp(-((v / vs) ** 2)) * math.tanh(v / (STRIBECK_SIGN_WIDTH * vs))
 
 
 #: The shop floor's effects, in the order of their parameters.
@@ -598,9 +699,26 @@ OFF = {name: 0.0 for effect in EFFECTS for name in effect.switches}
 #: scratch ``applied`` (N, 2), ``force`` (N, 2), ``table`` (N, 2, A_SIZE) and ``sensed`` (N, SENSE_SIZE), the
 #: effects' state ``fstate`` (N, F) float64 and ``istate`` (N, I) int64, and ``effects`` (the tuple of the effects'
 #: ``Arrays`` records of columns, in the composition's order).
-ShopFloorArrays = namedtuple("ShopFloorArrays", [
-    "inner", "state", "params", "dt", "n_inner", "gain", "memory", "rng", "applied", "force", "table", "sensed",
-    "fstate", "istate", "effects"])
+ShopFloorArrays = namedtuple(
+    "ShopFloorArrays",
+    [
+        "inner",
+        "state",
+        "params",
+        "dt",
+        "n_inner",
+        "gain",
+        "memory",
+        "rng",
+        "applied",
+        "force",
+        "table",
+        "sensed",
+        "fstate",
+        "istate",
+        "effects",
+    ],
+)
 
 
 def _stage(name: str):
@@ -660,17 +778,30 @@ def _set(p: Parameter, value, counted: bool) -> Parameter:
     around it (none around 0, off, or a default of 0)."""
     pair = _setting(p, value, counted)
     if p.physical_range is not None and not all(p.physical_range[0] <= v <= p.physical_range[1] for v in pair):
-        raise ValueError(f"shop-floor setting {p.name} = {value!r} {p.unit} is outside its physical range "
-                         f"[{p.physical_range[0]:g}, {p.physical_range[1]:g}] ({p.range_source})")
+        raise ValueError(
+            f"shop-floor setting {p.name} = {value!r} {p.unit} is outside its physical range "
+            f"[{p.physical_range[0]:g}, {p.physical_range[1]:g}] ({p.range_source})"
+        )
     interval = p.interval
     if interval is not None and not all(lo <= v <= hi for v, (lo, hi) in zip(pair, interval)):
         top = math.inf if p.physical_range is None else p.physical_range[1]  # within the physical range
-        interval = (None if min(pair) <= 0 or min(p.nominal) <= 0 else
-                    tuple((v * lo / n, min(v * hi / n, max(v, top)))
-                          for v, n, (lo, hi) in zip(pair, p.nominal, interval)))
-    return Parameter(p.name, p.unit, nominal=pair, interval=interval, shared=p.shared, source=p.source,
-                     sign=p.sign, description=p.description, physical_range=p.physical_range,
-                     range_source=p.range_source)
+        interval = (
+            None
+            if min(pair) <= 0 or min(p.nominal) <= 0
+            else tuple((v * lo / n, min(v * hi / n, max(v, top))) for v, n, (lo, hi) in zip(pair, p.nominal, interval))
+        )
+    return Parameter(
+        p.name,
+        p.unit,
+        nominal=pair,
+        interval=interval,
+        shared=p.shared,
+        source=p.source,
+        sign=p.sign,
+        description=p.description,
+        physical_range=p.physical_range,
+        range_source=p.range_source,
+    )
 
 
 def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFECTS) -> ShopFloorModel:
@@ -702,8 +833,9 @@ def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFE
     if isinstance(inner, ShopFloorModel):
         raise ValueError(f"plant {inner.name!r} is already on the shop floor")
     effects = tuple(effects) if isinstance(effects, (tuple, list)) else effects
-    if not isinstance(effects, tuple) or not all(isinstance(e, type) and issubclass(e, Effect) and e is not Effect
-                                                 for e in effects):
+    if not isinstance(effects, tuple) or not all(
+        isinstance(e, type) and issubclass(e, Effect) and e is not Effect for e in effects
+    ):
         raise ValueError(f"effects must be a tuple of Effect subclasses, got {effects!r}")
     names = [p.name for e in effects for p in e.parameters]
     clash = sorted({n for n in names if names.count(n) > 1} | (set(names) & {p.name for p in inner.parameters}))
@@ -716,14 +848,22 @@ def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFE
     unknown = sorted(set(settings) - set(names))
     if unknown:
         raise ValueError(f"unknown shop-floor setting(s) {unknown}; the effects' parameters are {names}")
-    parameters = tuple(_set(p, settings[p.name], p.name in e.counts) if p.name in settings else p
-                       for e in effects for p in e.parameters)
-    on = {p.name for p in parameters
-          if max(p.nominal) > 0 or (p.interval is not None and max(hi for _, hi in p.interval) > 0)}
+    parameters = tuple(
+        _set(p, settings[p.name], p.name in e.counts) if p.name in settings else p
+        for e in effects
+        for p in e.parameters
+    )
+    on = {
+        p.name
+        for p in parameters
+        if max(p.nominal) > 0 or (p.interval is not None and max(hi for _, hi in p.interval) > 0)
+    }
     forces = [name for e in effects if e.uses_force_gain() for name in e.switches if name in on]
     if forces and inner.force_gain is None:
-        raise ValueError(f"plant {inner.name} declares no force_gain (input per N): the effects "
-                         f"{forces} cannot act on it; set them to 0")
+        raise ValueError(
+            f"plant {inner.name} declares no force_gain (input per N): the effects "
+            f"{forces} cannot act on it; set them to 0"
+        )
     n_inner = inner.n_parameters
 
     def inner_part(params):
@@ -749,11 +889,15 @@ def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFE
         make_arrays=make_arrays,
         reset_machine=lambda arrays, k, position: _reset_machine(model, arrays, k, position),
         check=check,
-        linear_coefficients=(None if inner.linear_coefficients is None else
-                             lambda params, axis: inner.linear_coefficients(inner_part(params), axis)),
+        linear_coefficients=(
+            None
+            if inner.linear_coefficients is None
+            else lambda params, axis: inner.linear_coefficients(inner_part(params), axis)
+        ),
         delay=None if inner.delay is None else lambda params, axis: inner.delay(inner_part(params), axis),
-        inverse_dynamics=(None if inner.inverse_dynamics is None else
-                          lambda params: inner.inverse_dynamics(inner_part(params))),
+        inverse_dynamics=(
+            None if inner.inverse_dynamics is None else lambda params: inner.inverse_dynamics(inner_part(params))
+        ),
         force_gain=None if inner.force_gain is None else lambda params: inner.force_gain(inner_part(params)),
         seed_machine=_seed_machine,
         servo_bandwidth=inner.servo_bandwidth,
@@ -780,10 +924,22 @@ def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -
         column += len(effect.parameters)
         fcol, icol = fcol + effect.sizes()[0], icol + effect.sizes()[1]
     out = ShopFloorArrays(
-        inner=arrays, state=arrays.state, params=params, dt=float(dt), n_inner=P, gain=np.zeros((n, 2)),
-        memory=np.zeros((n, 2, M_SIZE)), rng=np.zeros(n, dtype=np.uint64), applied=np.zeros((n, 2)),
-        force=np.zeros((n, 2)), table=np.zeros((n, 2, A_SIZE)), sensed=np.zeros((n, contract.SENSE_SIZE)),
-        fstate=np.zeros((n, fcol)), istate=np.zeros((n, icol), dtype=np.int64), effects=tuple(effects))
+        inner=arrays,
+        state=arrays.state,
+        params=params,
+        dt=float(dt),
+        n_inner=P,
+        gain=np.zeros((n, 2)),
+        memory=np.zeros((n, 2, M_SIZE)),
+        rng=np.zeros(n, dtype=np.uint64),
+        applied=np.zeros((n, 2)),
+        force=np.zeros((n, 2)),
+        table=np.zeros((n, 2, A_SIZE)),
+        sensed=np.zeros((n, contract.SENSE_SIZE)),
+        fstate=np.zeros((n, fcol)),
+        istate=np.zeros((n, icol), dtype=np.int64),
+        effects=tuple(effects),
+    )
     for k in range(n):
         _reset_machine(model, out, k, np.zeros(2))
     return out
@@ -801,10 +957,10 @@ def _reset_machine(model: ShopFloorModel, arrays: ShopFloorArrays, k: int, posit
     _sense_inner(arrays.inner, k, sensed)
     memory = arrays.memory[k]
     memory[:] = 0.0
-    memory[:, M_DRIVE] = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
-    memory[:, M_TABLE] = sensed[contract.SENSE_POSITION:contract.SENSE_POSITION + 2]
-    memory[:, M_READING] = sensed[contract.SENSE_MEASURED:contract.SENSE_MEASURED + 2]
-    memory[:, M_READING_VELOCITY] = sensed[contract.SENSE_VELOCITY:contract.SENSE_VELOCITY + 2]
+    memory[:, M_DRIVE] = sensed[contract.SENSE_POSITION : contract.SENSE_POSITION + 2]
+    memory[:, M_TABLE] = sensed[contract.SENSE_POSITION : contract.SENSE_POSITION + 2]
+    memory[:, M_READING] = sensed[contract.SENSE_MEASURED : contract.SENSE_MEASURED + 2]
+    memory[:, M_READING_VELOCITY] = sensed[contract.SENSE_VELOCITY : contract.SENSE_VELOCITY + 2]
     arrays.rng[k] = np.uint64(k)
     for effect, s in zip(model.effects, arrays.effects):
         if effect.reset is not None:
@@ -819,6 +975,7 @@ def _seed_machine(arrays: ShopFloorArrays, k: int, rng: np.random.Generator) -> 
 # --------------------------------------------------------------------------
 # Kernels
 # --------------------------------------------------------------------------
+
 
 @njit(cache=True)
 def _sense_inner(inner, k, out):
@@ -884,14 +1041,18 @@ def _sense_shop(plant, k, out):
 @overload(contract.advance, inline="always", jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, ShopFloorArrays):
+
         def impl(plant, k, command):
             _advance_shop(plant, k, command)
+
         return impl
 
 
 @overload(contract.sense, inline="always", jit_options={"cache": True})
 def _sense(plant, k, out):
     if contract.is_plant(plant, ShopFloorArrays):
+
         def impl(plant, k, out):
             _sense_shop(plant, k, out)
+
         return impl

@@ -151,49 +151,113 @@ _TABLE_3 = "Jahanpour et al. (2014), Table 3"
 #: values (J is "Total reflected inertia", printed kg/m^2 in the paper;
 #: T_coul are the paper's "T_cont"; saturation limits -5, +5 V).
 PARAMETERS = (
-    Parameter("r_g", "mm/rad", interval=((1.4, 1.73), (1.4, 1.73)), shared=True, source=_SECTION_2C,
-              description="transmission gain (ball screw and gear)",
-              physical_range=(0.01, 20),
-              range_source="ours: ball-screw leads of 1-40 mm/rev through gear ratios 1-10 give 0.016-6.4 mm/rad"),
-    Parameter("K_t", "N m/A", interval=((0.42, 0.52), (0.42, 0.52)), shared=True, source=_SECTION_2C,
-              description="motor torque constant",
-              physical_range=(0.005, 20),
-              range_source="ours: feed-drive servo motors' torque constants span 0.01-10 N m/A"),
-    Parameter("K_a", "A/V", interval=((5.71, 7.07), (6.67, 8.26)), source=_SECTION_2C,
-              description="amplifier gain",
-              physical_range=(0.01, 100),
-              range_source="ours: current amplifiers' transconductance spans 0.05-50 A/V"),
-    Parameter("J", "kg m^2", nominal=(0.0077736, 0.0098109), source=_TABLE_3,
-              description="total reflected inertia",
-              physical_range=(1e-06, 10),
-              range_source="ours: rotor plus reflected table inertia, 1e-5 (small servo) to 1 kg m^2"),
-    Parameter("B", "N m s/rad", interval=((0.014, 0.026), (0.02, 0.037)), source=_SECTION_2C, sign="nonnegative",
-              description="viscous friction",
-              physical_range=(0, 10),
-              range_source="ours: 300 times the box's upper end; at 10 N m s/rad a 2000 rpm motor loses 2 kN m"),
-    Parameter("T_stat_pos", "N m", nominal=(2.6256, 2.7658), source=_TABLE_3, sign="nonnegative",
-              description="static friction, break-away in + direction",
-              physical_range=(0, 100),
-              range_source="ours: the continuous torque of the largest feed-drive servo motors"),
-    Parameter("T_stat_neg", "N m", nominal=(-1.8672, -2.4520), source=_TABLE_3, sign="nonpositive",
-              description="static friction, break-away in - direction",
-              physical_range=(-100, 0),
-              range_source="ours: the continuous torque of the largest feed-drive servo motors"),
-    Parameter("T_coul_pos", "N m", nominal=(2.1529, 2.5228), source=_TABLE_3, sign="nonnegative",
-              description="Coulomb friction while w > 0",
-              physical_range=(0, 100),
-              range_source="ours: the continuous torque of the largest feed-drive servo motors"),
-    Parameter("T_coul_neg", "N m", nominal=(-1.4730, -2.3887), source=_TABLE_3, sign="nonpositive",
-              description="Coulomb friction while w < 0",
-              physical_range=(-100, 0),
-              range_source="ours: the continuous torque of the largest feed-drive servo motors"),
-    Parameter("backlash", "mm", nominal=(0.003, 0.003), source=_TABLE_3, sign="nonnegative",
-              description="backlash width D_b",
-              physical_range=(0, 1),
-              range_source="ours: a worn machine's play is tenths of a mm"),
-    Parameter("u_max", "V", nominal=(5.0, 5.0), source=_TABLE_3, description="amplifier saturation",
-              physical_range=(0.1, 100),
-              range_source="ours: amplifier commands are +-10 V in industry, +-100 V at most"),
+    Parameter(
+        "r_g",
+        "mm/rad",
+        interval=((1.4, 1.73), (1.4, 1.73)),
+        shared=True,
+        source=_SECTION_2C,
+        description="transmission gain (ball screw and gear)",
+        physical_range=(0.01, 20),
+        range_source="ours: ball-screw leads of 1-40 mm/rev through gear ratios 1-10 give 0.016-6.4 mm/rad",
+    ),
+    Parameter(
+        "K_t",
+        "N m/A",
+        interval=((0.42, 0.52), (0.42, 0.52)),
+        shared=True,
+        source=_SECTION_2C,
+        description="motor torque constant",
+        physical_range=(0.005, 20),
+        range_source="ours: feed-drive servo motors' torque constants span 0.01-10 N m/A",
+    ),
+    Parameter(
+        "K_a",
+        "A/V",
+        interval=((5.71, 7.07), (6.67, 8.26)),
+        source=_SECTION_2C,
+        description="amplifier gain",
+        physical_range=(0.01, 100),
+        range_source="ours: current amplifiers' transconductance spans 0.05-50 A/V",
+    ),
+    Parameter(
+        "J",
+        "kg m^2",
+        nominal=(0.0077736, 0.0098109),
+        source=_TABLE_3,
+        description="total reflected inertia",
+        physical_range=(1e-06, 10),
+        range_source="ours: rotor plus reflected table inertia, 1e-5 (small servo) to 1 kg m^2",
+    ),
+    Parameter(
+        "B",
+        "N m s/rad",
+        interval=((0.014, 0.026), (0.02, 0.037)),
+        source=_SECTION_2C,
+        sign="nonnegative",
+        description="viscous friction",
+        physical_range=(0, 10),
+        range_source="ours: 300 times the box's upper end; at 10 N m s/rad a 2000 rpm motor loses 2 kN m",
+    ),
+    Parameter(
+        "T_stat_pos",
+        "N m",
+        nominal=(2.6256, 2.7658),
+        source=_TABLE_3,
+        sign="nonnegative",
+        description="static friction, break-away in + direction",
+        physical_range=(0, 100),
+        range_source="ours: the continuous torque of the largest feed-drive servo motors",
+    ),
+    Parameter(
+        "T_stat_neg",
+        "N m",
+        nominal=(-1.8672, -2.4520),
+        source=_TABLE_3,
+        sign="nonpositive",
+        description="static friction, break-away in - direction",
+        physical_range=(-100, 0),
+        range_source="ours: the continuous torque of the largest feed-drive servo motors",
+    ),
+    Parameter(
+        "T_coul_pos",
+        "N m",
+        nominal=(2.1529, 2.5228),
+        source=_TABLE_3,
+        sign="nonnegative",
+        description="Coulomb friction while w > 0",
+        physical_range=(0, 100),
+        range_source="ours: the continuous torque of the largest feed-drive servo motors",
+    ),
+    Parameter(
+        "T_coul_neg",
+        "N m",
+        nominal=(-1.4730, -2.3887),
+        source=_TABLE_3,
+        sign="nonpositive",
+        description="Coulomb friction while w < 0",
+        physical_range=(-100, 0),
+        range_source="ours: the continuous torque of the largest feed-drive servo motors",
+    ),
+    Parameter(
+        "backlash",
+        "mm",
+        nominal=(0.003, 0.003),
+        source=_TABLE_3,
+        sign="nonnegative",
+        description="backlash width D_b",
+        physical_range=(0, 1),
+        range_source="ours: a worn machine's play is tenths of a mm",
+    ),
+    Parameter(
+        "u_max",
+        "V",
+        nominal=(5.0, 5.0),
+        source=_TABLE_3,
+        description="amplifier saturation",
+        physical_range=(0.1, 100),
+        range_source="ours: amplifier commands are +-10 V in industry, +-100 V at most",
+    ),
 )
 
 #: Names of the per-axis parameters, in the order of the last axis of a
@@ -261,10 +325,7 @@ def substeps_for(dt: float) -> int:
 
 
 def _check_friction(p: np.ndarray) -> None:
-    ordered = (
-        (p[..., IDX_T_STAT_NEG] <= p[..., IDX_T_COUL_NEG])
-        & (p[..., IDX_T_COUL_POS] <= p[..., IDX_T_STAT_POS])
-    )
+    ordered = (p[..., IDX_T_STAT_NEG] <= p[..., IDX_T_COUL_NEG]) & (p[..., IDX_T_COUL_POS] <= p[..., IDX_T_STAT_POS])
     if not np.all(ordered):
         raise ValueError("friction must satisfy T_stat_neg <= T_coul_neg <= 0 <= T_coul_pos <= T_stat_pos")
 
@@ -330,6 +391,7 @@ def _inverse_dynamics(params: np.ndarray) -> contract.InverseDynamics:
     volts_to_torque = params[:, IDX_K_T] * params[:, IDX_K_A]  # N m per V
     coulomb = np.column_stack([params[:, IDX_T_COUL_POS], params[:, IDX_T_COUL_NEG]]) / volts_to_torque[:, None]
     return contract.InverseDynamics.from_linear(MODEL, params, coulomb, params[:, IDX_BACKLASH])
+
 
 def _force_gain(params: np.ndarray) -> np.ndarray:
     """Volts per newton of force on the table, per axis: a force F [N] on the table is a torque F r_g / 1000
@@ -527,8 +589,15 @@ def step_machine(state, k, voltage, params, dt, n_substeps):
         kt_ka = params[k, i, IDX_K_T] * params[k, i, IDX_K_A]
         jj = params[k, i, IDX_J]
         inv_j = 1.0 / jj
-        axis = StickSlipAxis(jj, params[k, i, IDX_B], inv_j, params[k, i, IDX_T_STAT_POS],
-                             params[k, i, IDX_T_STAT_NEG], params[k, i, IDX_T_COUL_POS], params[k, i, IDX_T_COUL_NEG])
+        axis = StickSlipAxis(
+            jj,
+            params[k, i, IDX_B],
+            inv_j,
+            params[k, i, IDX_T_STAT_POS],
+            params[k, i, IDX_T_STAT_NEG],
+            params[k, i, IDX_T_COUL_POS],
+            params[k, i, IDX_T_COUL_NEG],
+        )
         half = 0.5 * params[k, i, IDX_BACKLASH]
         u_max = params[k, i, IDX_U_MAX]
 
@@ -598,8 +667,11 @@ def table_velocities(state, params, out):
     for k in range(state.shape[0]):
         for i in range(2):
             out[k, i] = table_velocity(
-                state[k, i, S_XM], state[k, i, S_W], state[k, i, S_XT], params[k, i, IDX_R_G],
-                params[k, i, IDX_BACKLASH]
+                state[k, i, S_XM],
+                state[k, i, S_W],
+                state[k, i, S_XT],
+                params[k, i, IDX_R_G],
+                params[k, i, IDX_BACKLASH],
             )
 
 
@@ -611,20 +683,28 @@ def table_velocities(state, params, out):
 @overload(contract.advance, jit_options={"cache": True})
 def _advance(plant, k, command):
     if contract.is_plant(plant, FeedDriveArrays):
+
         def impl(plant, k, command):
             step_machine(plant.state, k, command, plant.params, plant.dt, plant.n_substeps)
+
         return impl
 
 
 @overload(contract.sense, jit_options={"cache": True})
 def _sense(plant, k, out):
     if contract.is_plant(plant, FeedDriveArrays):
+
         def impl(plant, k, out):
             for i in range(2):
                 x_t = plant.state[k, i, S_XT]
                 out[contract.SENSE_POSITION + i] = x_t
                 out[contract.SENSE_MEASURED + i] = x_t
                 out[contract.SENSE_VELOCITY + i] = table_velocity(
-                    plant.state[k, i, S_XM], plant.state[k, i, S_W], x_t,
-                    plant.params[k, i, IDX_R_G], plant.params[k, i, IDX_BACKLASH])
+                    plant.state[k, i, S_XM],
+                    plant.state[k, i, S_W],
+                    x_t,
+                    plant.params[k, i, IDX_R_G],
+                    plant.params[k, i, IDX_BACKLASH],
+                )
+
         return impl
