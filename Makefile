@@ -36,6 +36,7 @@ install: $(VENV)/.installed
 
 lint: install
 	$(BIN)/ruff check --no-cache .
+	$(BIN)/ruff format --check --no-cache .
 
 # The documentation site (docs/), warnings as errors, no network: docs/_build/html/index.html
 docs: install
