@@ -192,11 +192,11 @@ def test_the_robust_bench_on_the_override_id_has_no_floor_to_score_against():
     reference has no floor), and the bench leaves the score out there."""
     import argparse
 
-    from vcnc_bench import cli
+    from vcnc_bench import robust_run
 
     env = gym.make("VCNC-OmegaOverride-v1")
     with pytest.raises(ValueError, match="re-times its reference"):
         make_baseline("oracle", env)
     args = argparse.Namespace(feedrate=None, plant=None, shop_floor=False, seed=0)
     runs = [("VCNC-OmegaOverride-v1", "ff-pid-online", make_baseline("ff-pid-online", env))]
-    assert cli._nominal_floors(args, {"VCNC-OmegaOverride-v1": env}, runs) == {}
+    assert robust_run.nominal_floors(args, {"VCNC-OmegaOverride-v1": env}, runs) == {}

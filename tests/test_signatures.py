@@ -94,7 +94,7 @@ def _options(parser) -> dict[str, object]:
 
 def _cli_parsers():
     from vcnc_agents.arguments import parser as train_parser
-    from vcnc_bench.cli import _parser as bench_parser
+    from vcnc_bench.arguments import bench_parser
 
     return {"vcnc-bench": bench_parser(), "vcnc-train": train_parser()}
 

@@ -5,7 +5,7 @@ printed (every env with the labels of the policies it ran) and, for every env an
 its scored episode with finite max, mean and RMS errors; and every floor must be one: at or below the strongest
 causal controller (a headroom row under 1 says the stored floor is stale, solved before a controller changed).
 With ``--default`` the plan's envs must also be
-:data:`vcnc_bench.cli.DEFAULT_IDS`, every one with at least one policy.  Exit 1 with one line per problem.
+:data:`vcnc_bench.recipes.DEFAULT_IDS`, every one with at least one policy.  Exit 1 with one line per problem.
 """
 
 from __future__ import annotations

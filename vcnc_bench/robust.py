@@ -489,7 +489,7 @@ def _finite_or_none(x: np.ndarray) -> list:
     return [float(v) if math.isfinite(v) else None for v in x]
 
 
-#: The robust table's columns: header, width, record key, format (:func:`vcnc_bench.cli.format_table`).
+#: The robust table's columns: header, width, record key, format (:func:`vcnc_bench.output.format_table`).
 ROBUST_COLUMNS = [
     ("env", 14, "env", "{}"),
     ("policy", 10, "policy", "{}"),

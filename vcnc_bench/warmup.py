@@ -1,6 +1,6 @@
 """Compile the main job's controller kernels ahead of it: ``python -m vcnc_bench.warmup``.
 
-:mod:`vcnc_gym.warmup` compiles the envs' kernels at install.  The default table (:data:`vcnc_bench.cli.DEFAULT_IDS`)
+:mod:`vcnc_gym.warmup` compiles the envs' kernels at install.  The default table (:data:`vcnc_bench.recipes.DEFAULT_IDS`)
 also runs the controllers' compiled laws (one numba entry point per controller type,
 :mod:`vcnc_gym.envs.controller_contract`): about 30 s of a core on a cold cache, paid inside the first run of
 ``vcnc-bench`` before this module existed, twice where two workers started on the same laws.  The install
