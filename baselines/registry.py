@@ -120,7 +120,7 @@ VARIANTS: dict[str, tuple[str, dict]] = {
 #: Variants vcnc-bench's default table leaves out (run when named, or with ``--all``): the predictive pair on the
 #: commissioned model, weaker than the bare names where measured (docs/reproduction.md, "Predictive control on
 #: the commissioned model"); ``ff-pid-online@machine``, whose place is under a feed override (the bench runs no
-#: classical law there: the dial is the tolerance search's, ``vcnc_bench.reports.override_schedule``), and which on a
+#: classical law there: the dial is the tolerance search's, ``experiments/tolerance/override_schedule.py``), and which on a
 #: planned reference is ``ff-pid@machine`` without the table's lead terms.
 EXTRA_VARIANTS = frozenset({"lq-preview@commissioned", "mpc@commissioned", "ff-pid-online@machine"})
 

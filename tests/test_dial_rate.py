@@ -126,9 +126,10 @@ def test_dial_rate_round_trips_through_a_config_entry_and_the_command_line():
     assert "dial_rate" not in ActionMode("residual", 20, "ff-pid", 0.1).to_dict()
     assert ActionMode(**mode.to_dict()) == mode
     assert action_mode_of(with_action_mode({"n_envs": 4}, mode)) == mode
-    config = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "tolerance_violation30.yml"
+    root = Path(__file__).resolve().parents[1]
+    config = root / "experiments" / "tolerance" / "recipes" / "tolerance_violation30.yml"
     args = parser().parse_args(["--env", "VCNC-OmegaToleranceShop-v2", "--config", str(config), "--dial-rate", "3"])
     assert action_mode(args, config) == ActionMode("residual", 20, "ff-pid-online@machine", 0.1, dial_rate=3.0)
     args = parser().parse_args(["--env", "VCNC-Heart-v1", "--action-mode", "direct", "--dial-rate", "3"])
     with pytest.raises(ValueError, match="--dial-rate apply to --action-mode residual"):
-        action_mode(args, config.with_name("ppo.yml"))
+        action_mode(args, root / "agents" / "hyperparams" / "ppo.yml")

@@ -1,4 +1,4 @@
-"""The look-ahead through the feed override dial (``vcnc_bench.reports.override_schedule``): the tolerance task's third
+"""The look-ahead through the feed override dial (``experiments/tolerance/override_schedule.py``): the tolerance task's third
 classical opponent."""
 
 from __future__ import annotations
@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 import vcnc_gym  # noqa: F401  (registers the ids)
+from benchmark_script import study_module
 from vcnc_gym.envs import step_kernel as sk
-from vcnc_bench.reports import override_schedule as osch
-from vcnc_bench.reports import tolerance as tl
+
+osch = study_module("tolerance", "override_schedule")
+tl = study_module("tolerance", "tolerance")
 
 ID = "VCNC-OmegaTolerance-v2"
 V1 = "VCNC-OmegaTolerance-v1"  # the look-ahead at its top feed from the first sample (lookahead_reach=False)
@@ -99,13 +101,13 @@ def test_a_scheduled_run_reads_only_the_interpolator_s_clock():
 
 
 def test_the_command_writes_the_search_s_format(monkeypatch, tmp_path, capsys):
-    """``--json`` holds the tolerance search's rows and runs, which ``reports.tolerance``'s comparison reads as its
+    """``--json`` holds the tolerance search's rows and runs, which ``tolerance.py``'s comparison reads as its
     opponents."""
     monkeypatch.setattr(osch, "schedule_settings", lambda env: [tl.Setting(150.0, 2000.0), tl.Setting(100.0, 2000.0)])
     out = tmp_path / "schedule.json"
     assert osch.main(["--id", ID, "--plants", "0", "--json", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert data["settings"]["command"].startswith("python -m vcnc_bench.reports.override_schedule")
+    assert data["settings"]["command"].startswith("python experiments/tolerance/override_schedule.py")
     entry = data[ID]
     assert [r["tolerance_um"] for r in entry["rows"]] == [5.0, 10.0, 20.0]
     opponents = tl._opponents(entry, 0.02)

@@ -1,5 +1,5 @@
 """The tolerance task (issue 37, item 2): FeedOverrideEnv's ``tolerance`` reward and the classical search for the
-fastest look-ahead within T (``vcnc_bench.reports.tolerance``)."""
+fastest look-ahead within T (``experiments/tolerance/tolerance.py``)."""
 
 from __future__ import annotations
 
@@ -13,11 +13,15 @@ from gymnasium.utils.env_checker import check_env
 
 import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
+from benchmark_script import study_module
 from vcnc_gym.envs import step_kernel as sk
-from vcnc_bench.reports import tolerance as tl
 from vcnc_bench.reports.feed_override import classical_front
 
+tl = study_module("tolerance", "tolerance")
+
 ID = "VCNC-OmegaOverride-v1"
+#: The tolerance study's recipe (its entries of the override ids), as ``vcnc-train --config`` reads it.
+RECIPE = "experiments/tolerance/recipes/tolerance.yml"
 
 
 def _dialled_episode(env, dial_of_step, seed=0, steps=None):
@@ -331,17 +335,15 @@ def test_vcnc_train_s_tolerance_goes_into_the_entry_s_env_kwargs(tmp_path):
     from vcnc_agents.cli import main
     from vcnc_agents.run_session import prepare_run
 
-    _, config, _ = prepare_run(ID, tmp_path / "run", config_file="agents/hyperparams/tolerance.yml", tolerance=0.005)
+    _, config, _ = prepare_run(ID, tmp_path / "run", config_file=RECIPE, tolerance=0.005)
     assert config.env_kwargs == {"randomize": True, "tolerance": 0.005}
-    _, shop, _ = prepare_run(
-        "VCNC-OmegaOverrideShop-v1", tmp_path / "shop", config_file="agents/hyperparams/tolerance.yml"
-    )
+    _, shop, _ = prepare_run("VCNC-OmegaOverrideShop-v1", tmp_path / "shop", config_file=RECIPE)
     assert shop.env_kwargs == {"randomize": True}
     assert shop.env["signature"]["id"] == "VCNC-OmegaOverrideShop-v1"  # what keeps its agents off the ideal omega
     with pytest.raises(ValueError, match="tolerance"):  # a contouring id has no tolerance task
         prepare_run("VCNC-Heart-v1", tmp_path / "heart", tolerance=0.005)
     with pytest.raises(ValueError, match="tolerance"):
-        prepare_run(ID, tmp_path / "bad", config_file="agents/hyperparams/tolerance.yml", tolerance=-1.0)
+        prepare_run(ID, tmp_path / "bad", config_file=RECIPE, tolerance=-1.0)
     with pytest.raises(SystemExit):
         main(["--resume", str(tmp_path / "run"), "--tolerance", "0.01"])
 
@@ -545,7 +547,7 @@ def test_several_searches_are_one_whose_choices_are_the_fastest_of_any(tmp_path,
 
 def test_the_table_of_the_nominal_plant_alone_prints_no_median():
     """``--plants 0``: no sampled plant, so the medians over them are '-' (they were printed as nan)."""
-    from vcnc_bench.reports.tolerance import format_table
+    format_table = tl.format_table
 
     choice = {
         "controller": "mpcc",

@@ -1,5 +1,5 @@
 """The tolerance task's front (issue 37: cycle time against T, every opponent and the agents;
-``vcnc_bench.reports.tolerance_front``), checked against figures worked out by hand in the test."""
+``experiments/tolerance/tolerance_front.py``), checked against figures worked out by hand in the test."""
 
 from __future__ import annotations
 
@@ -9,8 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from vcnc_bench.reports import tolerance as tl
-from vcnc_bench.reports import tolerance_front as tf
+from benchmark_script import study_module
+
+tl = study_module("tolerance", "tolerance")
+tf = study_module("tolerance", "tolerance_front")
 
 INF = math.inf
 KINDS = ["nominal", "sample", "sample", "sample", "vertex"]
@@ -114,7 +116,7 @@ def test_agents_of_other_plants_are_refused():
 def test_the_shipped_fronts_draw_and_a_bad_spec_is_refused_by_name(tmp_path, capsys):
     """The shipped spec's files exist and give a table and a figure; a spec without a search is named."""
     out = tmp_path / "front.png"
-    assert tf.main(["--spec", "docs/data/tolerance/fronts.json", "--plot", str(out)]) == 0
+    assert tf.main(["--spec", "experiments/tolerance/data/searches/fronts.json", "--plot", str(out)]) == 0
     assert out.stat().st_size > 10_000
     assert "VCNC-OmegaTolerance-v2 (the omega, ideal drives):" in capsys.readouterr().out
     bad = tmp_path / "bad.json"

@@ -105,7 +105,7 @@ class PerMachine:
         """With ``commissioning="machine"``: identify the machines while their axes follow ``task``'s reference
         (a :class:`~vcnc_gym.envs.task.ContouringTask` on the same plant and control period) instead of the env's.
         A CNC commissions a machine once, on one program, and runs every later program with that commissioning:
-        the tolerance search (``vcnc_bench.reports.tolerance``) runs each look-ahead setting with the machines
+        the tolerance search (``experiments/tolerance/tolerance.py``) runs each look-ahead setting with the machines
         commissioned on the id's own reference, one identification run for every setting and controller."""
         if task.plant.name != self.plant.name or task.dt != self.dt:
             raise ValueError(

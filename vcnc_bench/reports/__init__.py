@@ -4,6 +4,5 @@
 - :mod:`.simba`: Simba et al.'s cycle times of their test path, sharp and smoothed;
 - :mod:`.circle`: Purtojo et al.'s circle figures (radial error, layout of the circle env);
 - :mod:`.feed_override`: the front of max contour error against cycle time (the look-ahead, the operator's
-  override, the override agent, the contouring MPC);
-- :mod:`.tolerance`: the tolerance task's classical opponents, the fastest look-ahead within a contour tolerance.
+  override, the override agent, the contouring MPC).
 """

@@ -5,7 +5,7 @@ override.  A CNC can turn that dial itself, from the part program it reads ahead
 look-ahead (the top feed F, the path's normal and tangential acceleration within A) divided by the S-curve's own
 feed at the same point of the path.  This is the tolerance agent's own action space (the dial, at the id's
 ``override_rate``, up to its ``max_override``) with a classical law in it, and ``ff-pid-online`` (the one classical
-controller that runs on a re-timed reference: :data:`~vcnc_bench.reports.feed_override.CLASSICAL`) on the axes, on
+controller that runs on a re-timed reference: ``CLASSICAL`` of ``experiments/feed-override/feed_override.py``) on the axes, on
 the nominal machine's commissioning or, with ``--controller ff-pid-online@machine``, on each machine's own (an
 identification run per plant on the id's own reference before its runs, as the look-ahead search's ``@machine``
 controllers):
@@ -18,16 +18,16 @@ controllers):
   runs it (``FeedOverrideEnv(lookahead=(F, A))``, the dial at 100 %);
 - **causal as a CNC is**: the override at each control period is read at the interpolator's own point of the path
   (the re-timed reference's clock), never at the tool's measured position or the plant's state;
-- **the grid and the choices** are :mod:`vcnc_bench.reports.tolerance`'s: F at the feeds of
-  :data:`~vcnc_bench.reports.tolerance.FEED_FACTORS` the dial reaches, A at
-  :data:`~vcnc_bench.reports.tolerance.ACCELERATIONS`, every setting on every plant (the nominal one and the bench's
+- **the grid and the choices** are :mod:`tolerance`'s: F at the feeds of
+  :data:`tolerance.FEED_FACTORS` the dial reaches, A at
+  :data:`tolerance.ACCELERATIONS`, every setting on every plant (the nominal one and the bench's
   ``--plants`` draws), then refined as the look-ahead search refines its own (:func:`refine_schedule`: bisection
   toward the next faster setting on the nominal plant, settings between each plant's choice and its neighbours); the
   builder's setting is the fastest within T on the nominal plant, the commissioned machine the fastest on each plant
-  (:func:`~vcnc_bench.reports.tolerance.tolerance_table`).
+  (:func:`tolerance.tolerance_table`).
 
-``python -m vcnc_bench.reports.override_schedule --id VCNC-OmegaTolerance-v2 --plants 20 --json OUT`` prints the
-table and writes the runs in the search's format, so that ``python -m vcnc_bench.reports.tolerance --agents BENCH
+``python experiments/tolerance/override_schedule.py --id VCNC-OmegaTolerance-v2 --plants 20 --json OUT`` prints the
+table and writes the runs in the search's format, so that ``python experiments/tolerance/tolerance.py --agents BENCH
 --search OUT`` judges a tolerance agent against this opponent too.
 """
 
@@ -42,7 +42,7 @@ import numpy as np
 
 from vcnc_gym.validation import integer
 
-from .tolerance import (
+from tolerance import (
     ACCELERATIONS,
     FEED_FACTORS,
     GridRun,
@@ -150,8 +150,8 @@ def run_schedule(env_id: str, setting: Setting, parameters: np.ndarray, controll
 
 def refine_schedule(env_id: str, runs: list[GridRun], parameters: np.ndarray) -> list[GridRun]:
     """``runs`` and the look-ahead search's two refinements on the dial's settings (every run on every plant): the
-    nominal plant's choice per T by bisection (:func:`~vcnc_bench.reports.tolerance.refine`), then settings between
-    each plant's choice and its neighbours (:func:`~vcnc_bench.reports.tolerance.refine_machines`); progress on
+    nominal plant's choice per T by bisection (:func:`tolerance.refine`), then settings between
+    each plant's choice and its neighbours (:func:`tolerance.refine_machines`); progress on
     stderr."""
 
     def run(name, setting):  # the runs' label: the controller under the dial
@@ -200,7 +200,7 @@ def _run_grid(
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m vcnc_bench.reports.override_schedule", description=__doc__.split("\n\n")[0]
+        prog="python experiments/tolerance/override_schedule.py", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--id", dest="ids", nargs="+", required=True, metavar="ID", help="feed-override ids")
     parser.add_argument(
@@ -252,7 +252,7 @@ def main(argv=None) -> int:
             "runs": runs_json(runs),
         }
     if args.json:
-        write_search(args.json, out, "vcnc_bench.reports.override_schedule", argv)
+        write_search(args.json, out, "experiments/tolerance/override_schedule.py", argv)
     return 0
 
 

@@ -4,12 +4,12 @@ Issue 37 asks for "the front: cycle time against T for every opponent and the ag
 over the plants, with the runs that exceed T.  This module draws and tabulates it from the JSON files the searches
 and the bench wrote; it runs nothing:
 
-- **every classical controller** the searches ran (:mod:`~vcnc_bench.reports.tolerance`'s look-ahead search: the
-  nominal and per-machine commissionings, the contouring MPC; :mod:`~vcnc_bench.reports.override_schedule`'s
+- **every classical controller** the searches ran (:mod:`tolerance`'s look-ahead search: the
+  nominal and per-machine commissionings, the contouring MPC; :mod:`override_schedule`'s
   look-ahead through the dial, on either commissioning): on the nominal plant its fastest run within T (the
   builder's setting of that controller); over the sampled plants the median of each plant's fastest run within T
   (the machine commissioned with that controller), and the plants where it has none;
-- **the searches together** (:func:`~vcnc_bench.reports.tolerance.merge_searches`): the builder's setting (the
+- **the searches together** (:func:`tolerance.merge_searches`): the builder's setting (the
   fastest of any on the nominal plant) run on every plant, with the plants it takes over T, and the per-plant
   search (the fastest of any per plant), the strongest classical opponent;
 - **each group of agents** (a ``vcnc-bench --plants`` JSON of a ``vcnc-train --seeds`` folder): each seed's
@@ -17,14 +17,14 @@ and the bench wrote; it runs nothing:
 
 A run over T, or one whose tool did not arrive, is scrap: its cycle time counts as infinite, so a median over a
 set that is half scrap or more is infinite (drawn at the panel's top edge as an open marker).  The verdicts by the
-rule are :mod:`~vcnc_bench.reports.tolerance`'s ``--agents`` tables; this is the picture and the summary beside
+rule are :mod:`tolerance`'s ``--agents`` tables; this is the picture and the summary beside
 them.
 
 The fronts are listed in a JSON file (``--spec``): a list of ``{"id": ..., "title": ..., "search": [FILE[:ID],
 ...], "agents": {NAME: BENCH_JSON, ...}}``, the search files relative to the current folder::
 
-    python -m vcnc_bench.reports.tolerance_front --spec docs/data/tolerance/fronts.json \\
-        --plot docs/figures/tolerance_front.png
+    python experiments/tolerance/tolerance_front.py --spec experiments/tolerance/data/searches/fronts.json \\
+        --plot experiments/tolerance/figures/tolerance_front.png
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ import numpy as np
 
 from vcnc_gym.envs.feed_override_env import TOLERANCES
 
-from .tolerance import Setting, agent_cycles, merge_searches, read_search_entry, scrapped, search_cycles
+from tolerance import Setting, agent_cycles, merge_searches, read_search_entry, scrapped, search_cycles
 
 __all__ = [
     "FrontPoint",
@@ -82,7 +82,7 @@ class Front:
 
 def read_search(items: list[str]) -> dict:
     """The searches ``items`` (``FILE`` or ``FILE:ID``, over the same plants) as one
-    (:func:`~vcnc_bench.reports.tolerance.merge_searches`)."""
+    (:func:`tolerance.merge_searches`)."""
     found = [read_search_entry(item)[1] for item in items]
     return found[0] if len(found) == 1 else merge_searches(found)
 
@@ -307,7 +307,7 @@ def _read_spec(path: str) -> list[dict]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m vcnc_bench.reports.tolerance_front", description=__doc__.split("\n\n")[0]
+        prog="python experiments/tolerance/tolerance_front.py", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--spec", required=True, help="the fronts, a JSON list (this module's docstring)")
     parser.add_argument("--plot", help="draw the fronts into this PNG")

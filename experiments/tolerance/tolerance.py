@@ -31,12 +31,12 @@ contour error within T.  This module finds them by search, for every classical c
   not dropped.
 
 The controllers (:data:`CONTROLLERS`) are the omega front's (``ff-pid``, ``zpetc``, ``ff-ccc``, ``ff-pid-online``,
-:data:`~vcnc_bench.reports.feed_override.CLASSICAL`, on the nominal machine's commissioning) and the per-machine
+``CLASSICAL`` of ``experiments/feed-override/feed_override.py``, on the nominal machine's commissioning) and the per-machine
 commissioning of the first three (``@machine``).  A ``@machine`` controller identifies each plant once, its axes
 following the id's own reference (``ServoPolicy.identify_on``), and runs every setting with that commissioning, as a
 CNC commissioned once runs every later program.
 
-``python -m vcnc_bench.reports.tolerance --id VCNC-HeartShop-v1 --plants 20 --json OUT`` prints the table and writes the
+``python experiments/tolerance/tolerance.py --id VCNC-HeartShop-v1 --plants 20 --json OUT`` prints the table and writes the
 runs.
 
 **The agent against them** (:func:`compare`; ``--agents BENCH.json --search OUT``): a tolerance agent's training seeds
@@ -600,7 +600,7 @@ def read_search_entry(item: str, default_id: str | None = None) -> tuple[str, di
 
 def merge_searches(searches: list[dict]) -> dict:
     """One search of several (``--json`` entries over the same plants, e.g. this module's look-ahead search and
-    :mod:`~vcnc_bench.reports.override_schedule`'s look-ahead through the dial): their runs together, and per
+    :mod:`override_schedule`'s look-ahead through the dial): their runs together, and per
     tolerance the fastest builder's setting on the nominal plant and, per plant, the fastest choice of any."""
     first = searches[0]
     for other in searches[1:]:
@@ -642,7 +642,7 @@ def compare(
     plants, such as the contouring MPC ``mpcc``, which sets its own feed): per opponent, the nominal and median
     cycle times (s), the runs over T, and the verdict on the cycle time (scrap infinite) over the sampled
     plants."""
-    from ..verdicts import verdict
+    from vcnc_bench.verdicts import verdict
 
     kinds = np.array(search["kinds"])
     n = kinds.size  # the bench's plants begin with the search's (the box's vertices, if any, follow the draws)
@@ -749,7 +749,7 @@ def runs_json(runs: list[GridRun]) -> list[dict]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m vcnc_bench.reports.tolerance", description=__doc__.split("\n\n")[0]
+        prog="python experiments/tolerance/tolerance.py", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--id", dest="ids", nargs="+", metavar="ID", help="search these contouring ids")
     parser.add_argument(
@@ -791,7 +791,7 @@ def main(argv=None) -> int:
         metavar="JSON[:ID]",
         nargs="+",
         help="with --agents: --json files of this "
-        "search or of vcnc_bench.reports.override_schedule, each with the searched id after a colon "
+        "search or of override_schedule.py, each with the searched id after a colon "
         "where it holds several; several are one search (merge_searches: the fastest of any)",
     )
     parser.add_argument(
@@ -900,17 +900,17 @@ def _search_main(parser, args, argv=None) -> int:
             "runs": runs_json(runs),
         }
     if args.json:
-        write_search(args.json, out, "vcnc_bench.reports.tolerance", argv)
+        write_search(args.json, out, "experiments/tolerance/tolerance.py", argv)
     return 0
 
 
-def write_search(path, out: dict, module: str, argv=None) -> None:
+def write_search(path, out: dict, script: str, argv=None) -> None:
     """Write a search's entries ``out`` (id: plants, kinds, rows, runs) to ``path`` with the command that made them
-    (``python -m module`` and ``argv``, default the process's) and its provenance."""
-    from ..provenance import provenance
+    (``python script`` and ``argv``, default the process's) and its provenance."""
+    from vcnc_bench.provenance import provenance
 
     command = " ".join(sys.argv[1:] if argv is None else argv)
-    out["settings"] = {"command": f"python -m {module} {command}", "provenance": provenance()}
+    out["settings"] = {"command": f"python {script} {command}", "provenance": provenance()}
     with open(path, "w") as f:
         json.dump(out, f, indent=1)
 
