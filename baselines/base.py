@@ -103,6 +103,12 @@ class BaselinePolicy:
         self._compiled = None  # (the memory it wraps, the compiled form) once predict has built it
         self._entry = None  # (the observations' writability, commands' compiled entry point for them)
         self._offsets = layout.offsets() if hasattr(layout, "offsets") else None
+        if getattr(layout, "is_scaled", False):
+            raise ValueError(
+                "a classical controller reads the observation in its physical units: make the env with "
+                "action='voltage', observation_scale='raw' and action_repeat=1 (the v1 interface), or use base= "
+                "to run it inside a learnable env's step"
+            )
 
     # -- construction from an env -------------------------------------------
     @classmethod
@@ -145,7 +151,7 @@ class BaselinePolicy:
 
     @property
     def controller_state(self):
-        """The per-env controller memory, (n_envs, *state_shape), or None before the first predict."""
+        """The per-env controller memory, shape ``(n_envs, *state_shape)``, or None before the first predict."""
         return self._state
 
     def _initial_state(self) -> np.ndarray:

@@ -180,3 +180,36 @@ def make(name: str, env, **params) -> BaselinePolicy:
     if clash:
         raise ValueError(f"baseline {name!r} fixes {clash}; use {VARIANTS[name][0]!r} to set them")
     return cls.from_env(env, **fixed, **params)
+
+
+class _ControlPeriodView:
+    """A learnable env's task as a classical controller reads an env: its layout in physical units and a decision
+    every control period (the controller runs inside the step, every period)."""
+
+    def __init__(self, task):
+        self.task = task
+        self.layout = task.physical_layout
+        self.decision_period = task.dt
+        self.nominal_parameters = task.nominal_parameters
+        self.plant = task.plant
+
+    @property
+    def unwrapped(self):
+        return self
+
+
+def base_controller(name: str, task, n_envs: int):
+    """Classical controller ``name`` for ``task`` as a learnable env's ``base=`` runs it: the policy and its
+    compiled form for ``n_envs`` envs (the entry point of ``vcnc_gym.envs.decision.ENTRY_POINT_GROUP``).
+
+    ValueError for an unknown name or a controller without a compiled form."""
+    if name not in names():
+        raise ValueError(f"base must be one of {names()}, got {name!r}")
+    policy = make(name, _ControlPeriodView(task))
+    compiled = policy.compiled(n_envs)
+    if compiled is None:
+        raise ValueError(
+            f"base={name!r} has no compiled form to run inside the step; use a controller with one "
+            "(ff-pid, zpetc, ccc, ff-ccc, pd-ref, ...)"
+        )
+    return policy, compiled

@@ -12,6 +12,7 @@ from gymnasium import spaces
 from . import step_kernel as sk
 from .pickling import RebuiltOnUnpickle, batch_arrays, restore_arrays
 from .signatures import forwarded_signature
+from .decision import DecisionLoop, episode_summary
 from .task import ContouringBatch, ContouringTask
 
 __all__ = ["ContouringEnv", "check_actions", "step_info"]
@@ -239,8 +240,9 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
         self._reward = b.reward
         self._dt = self.task.dt
         self.layout = self.task.layout
-        high = b.obs_high
-        self.observation_space = spaces.Box(-high, high, dtype=np.float32)
+        self._decision = DecisionLoop(self.task, 1) if self.task.controlled else None
+        self._scale = self.layout.scale_vector().astype(np.float32) if self.layout.is_scaled else None
+        self.observation_space = observation_space(self.layout)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self.parameters = self.task.nominal_parameters
         self._done = True
@@ -285,6 +287,8 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
         super().reset(seed=seed)
         self.parameters = self.task.parameters_for_reset(self.np_random, options)
         self._batch.reset_env(0, self.parameters, self.np_random)
+        if self._decision is not None:
+            self._decision.reset_env(0, self.parameters)
         self._done = False
         self._check_time_limit()
         self._batch.run()
@@ -302,18 +306,41 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
                 "position": [self._info[sk.INFO_POSITION : sk.INFO_POSITION + 2].copy()],
                 "contour_error": [0.0],
             }
-        return self._obs.copy(), info
+        return self._observation(), info
+
+    def _observation(self) -> np.ndarray:
+        """The observation the agent sees: the kernel's, scaled, with the agent's own last action under the
+        learnable action types."""
+        obs = self._obs.copy()
+        if self._decision is not None:
+            obs[self.layout.slice("previous_action")] = self._decision.last_action[0]
+        if self._scale is not None:
+            obs /= self._scale
+        return obs
 
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
-        self._action[:] = check_actions(action, (2,))
+        a = check_actions(action, (2,))
         self._mode[0] = sk.MODE_STEP
-        self._run(self._data)
+        d = self._decision
+        if d is None:
+            self._action[:] = a
+            self._run(self._data)
+            reward = float(self._reward[0])
+        else:
+            before = self._batch.buffers.episode[0].copy()
+            d.set_actions(a[None])
+            self._batch.run_controlled(d.controller, d.loop)
+            reward = float(d.rewards()[0])
         flags = self._flags.tolist()
         terminated, truncated = flags[sk.FLAG_TERMINATED], flags[sk.FLAG_TRUNCATED]
         self._done = terminated or truncated
         info = step_info(self._info, flags, int(self._k[0]) * self._dt)
+        if d is not None:
+            decision_info(info, before, self._batch.buffers.episode[0], d.loop.peak[0])
+        if self._done:
+            info["episode_summary"] = episode_summary(self._batch.buffers, 0)
         if self._history is not None:
             self._history["t"].append(info["time"])
             self._history["position"].append(info["position"].copy())
@@ -321,12 +348,15 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
             frame = round(1.0 / (self.metadata["render_fps"] * self.decision_period))
             if self.render_mode == "human" and (self._done or len(self._history["t"]) % frame == 0):
                 self.render()
-        return self._obs.copy(), float(self._reward[0]), terminated, truncated, info
+        return self._observation(), reward, terminated, truncated, info
 
     # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
     def _episode_arrays(self) -> dict[str, np.ndarray]:
         """Every array of the episode state the kernel reads and writes, by name (the ones a pickle saves)."""
-        return batch_arrays(self._batch)
+        arrays = batch_arrays(self._batch)
+        if self._decision is not None:
+            arrays.update(self._decision.arrays())
+        return arrays
 
     def _episode_state(self) -> dict:
         return {
@@ -398,6 +428,23 @@ def check_actions(action, shape: tuple) -> np.ndarray:
 
 _SCALARS = tuple((key, col) for key, (col, width) in sk.INFO_FIELDS.items() if width == 1)
 _VECTORS = tuple((key, col, col + width) for key, (col, width) in sk.INFO_FIELDS.items() if width > 1)
+
+
+def observation_space(layout) -> spaces.Box:
+    """The Box of one env's observation: the layout's bounds, divided by the fields' scales."""
+    high = layout.high()
+    if layout.is_scaled:
+        high = (high / layout.scale_vector()).astype(np.float32)
+    return spaces.Box(-high, high, dtype=np.float32)
+
+
+def decision_info(info: dict, before: np.ndarray, after: np.ndarray, peak: float) -> None:
+    """A learnable action type's per-decision contour error keys, named per step: ``step_contour_error_max`` and
+    ``step_contour_error_mean`` (mm, over the decision's control periods) replace the kernel's last period's."""
+    del info["contour_error_max"], info["contour_error_mean"]
+    periods = after[sk.EPISODE_PERIODS] - before[sk.EPISODE_PERIODS]
+    info["step_contour_error_max"] = float(peak)
+    info["step_contour_error_mean"] = float((after[sk.EPISODE_SUM] - before[sk.EPISODE_SUM]) / max(periods, 1.0))
 
 
 def step_info(info_arr: np.ndarray, flags: list, time: float) -> dict:

@@ -25,7 +25,8 @@ from gymnasium.vector.utils import batch_space
 from ..validation import flag, integer, positive
 from . import controller_contract
 from . import step_kernel as sk
-from .contouring_env import check_actions
+from .contouring_env import check_actions, observation_space
+from .decision import DecisionLoop, episode_summary
 from .pickling import RebuiltOnUnpickle, batch_arrays, restore_arrays
 from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
@@ -195,8 +196,9 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         self._path = KernelPath() if parallel is None and self.parallel else None
         b = self._batch.buffers
         self._buffers = b
-        high = b.obs_high
-        self.single_observation_space = spaces.Box(-high, high, dtype=np.float32)
+        self._decision = DecisionLoop(self.task, self.num_envs) if self.task.controlled else None
+        self._scale = self.task.layout.scale_vector().astype(np.float32) if self.task.layout.is_scaled else None
+        self.single_observation_space = observation_space(self.task.layout)
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -246,16 +248,22 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             opts = dict(options)
             if parameters is not None:
                 opts["parameters"] = per_env[i]
-            self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None), self._rngs[i])
+            self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None))
         self._batch.run(self._observe_parallel())
         self._autoreset[mask] = False
         self._started = True
-        return b.obs.copy(), self._info(mask)
+        return self._observations(), self._info(mask)
 
     # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
+    def _episode_arrays(self) -> dict[str, np.ndarray]:
+        arrays = batch_arrays(self._batch)
+        if self._decision is not None:
+            arrays.update(self._decision.arrays())
+        return arrays
+
     def _episode_state(self) -> dict:
         return {
-            "arrays": {name: a.copy() for name, a in batch_arrays(self._batch).items()},
+            "arrays": {name: a.copy() for name, a in self._episode_arrays().items()},
             "rngs": self._rngs,
             "autoreset": self._autoreset,
             "started": self._started,
@@ -263,7 +271,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         }
 
     def _restore_episode(self, state: dict) -> None:
-        restore_arrays(batch_arrays(self._batch), state["arrays"])
+        restore_arrays(self._episode_arrays(), state["arrays"])
         self._rngs, self._autoreset = list(state["rngs"]), state["autoreset"].copy()
         self._started, self.spec = state["started"], state["spec"]
 
@@ -276,27 +284,26 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         b.mode[:] = sk.MODE_STEP
         if resetting is not None and resetting.any():
             for i in np.flatnonzero(resetting):
-                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None), self._rngs[i])
+                self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
         elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
             b.mode[self._autoreset] = sk.MODE_IDLE
-        self._run(1)
-
-        terminated = b.flags[:, sk.FLAG_TERMINATED].copy()
-        truncated = b.flags[:, sk.FLAG_TRUNCATED].copy()
-        rewards = b.reward.copy()
         stepped = self._all if resetting is None else ~resetting
         if self.autoreset_mode == AutoresetMode.DISABLED:
             stepped = stepped & ~self._autoreset
+        rewards, before = self._decide(resetting)
+        terminated = b.flags[:, sk.FLAG_TERMINATED].copy()
+        truncated = b.flags[:, sk.FLAG_TRUNCATED].copy()
         if not stepped.all():
             terminated[~stepped] = False
             truncated[~stepped] = False
             rewards[~stepped] = 0.0
         info = self._info(stepped)
         done = terminated | truncated
+        self._decision_info(info, stepped, done, before)
         self._autoreset = done | (
             self._autoreset & ~stepped if self.autoreset_mode == AutoresetMode.DISABLED else False
         )
-        obs = b.obs.copy()
+        obs = self._observations()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             info["final_obs"] = np.full(self.num_envs, None, dtype=object)
             info["final_info"] = {k: v.copy() for k, v in info.items() if k != "final_obs"}
@@ -306,9 +313,9 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
                 info["final_obs"][i] = obs[i].copy()
             b.mode[:] = sk.MODE_IDLE
             for i in np.flatnonzero(done):
-                self._batch.reset_env(i, self.task.parameters_for_reset(self._rngs[i], None), self._rngs[i])
+                self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
             self._batch.run(self._observe_parallel())
-            obs[done] = b.obs[done]
+            obs[done] = self._observations()[done]
             self._autoreset[:] = False
         return obs, rewards, terminated, truncated, info
 
@@ -373,6 +380,63 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
 
     def close_extras(self, **kwargs):
         pass
+
+    # -- the learnable action types (vcnc_gym.envs.decision) ---------------------------
+    def _reset_env(self, i: int, parameters: np.ndarray) -> None:
+        """Env ``i`` at the start of an episode on the plant ``parameters``, its controller's memory cleared."""
+        self._batch.reset_env(i, parameters, self._rngs[i])
+        if self._decision is not None:
+            self._decision.reset_env(i, parameters)
+
+    def _decide(self, resetting):
+        """One decision of every env in MODE_STEP with ``self._buffers.action``'s actions; the envs just reset
+        (``resetting``) observe.  Returns the rewards and the episode accumulators before the decision."""
+        b = self._buffers
+        d = self._decision
+        if d is None:
+            self._run(1)
+            return b.reward.copy(), None
+        before = b.episode.copy()
+        d.set_actions(b.action)
+        self._run(d.repeat, d.controller, d.loop)
+        if resetting is not None and resetting.any():  # the controlled loop steps only; the reset envs observe
+            b.mode[~resetting] = sk.MODE_IDLE
+            self._batch.run(self._observe_parallel())
+        return d.rewards(), before
+
+    def _decision_info(self, info: dict, stepped: np.ndarray, done: np.ndarray, before) -> None:
+        """The learnable action types' per-decision keys (:func:`~vcnc_gym.envs.contouring_env.decision_info`) and
+        the episode summary of every env whose episode ended (``info["episode_summary"]``, a dict of arrays)."""
+        b = self._buffers
+        if before is not None:
+            ep = b.episode
+            periods = np.maximum(ep[:, sk.EPISODE_PERIODS] - before[:, sk.EPISODE_PERIODS], 1.0)
+            for key in ("contour_error_max", "contour_error_mean"):
+                del info[key], info["_" + key]
+            info["step_contour_error_max"] = self._decision.loop.peak.copy()
+            info["step_contour_error_mean"] = (ep[:, sk.EPISODE_SUM] - before[:, sk.EPISODE_SUM]) / periods
+            info["_step_contour_error_max"] = stepped.copy()
+            info["_step_contour_error_mean"] = stepped.copy()
+        ended = done & stepped
+        if ended.any():
+            rows = [episode_summary(b, i) if ended[i] else None for i in range(self.num_envs)]
+            keys = next(r for r in rows if r is not None).keys()
+            summary = {k: np.array([np.nan if r is None else r[k] for r in rows]) for k in keys}
+            for k in ("completed", "diverged"):
+                summary[k] = summary[k] == 1.0
+            summary.update({"_" + k: ended.copy() for k in keys})
+            info["episode_summary"] = summary
+            info["_episode_summary"] = ended.copy()
+
+    def _observations(self) -> np.ndarray:
+        """The observations the agents see: the kernel's, scaled, with each agent's last action under the learnable
+        action types."""
+        obs = self._buffers.obs.copy()
+        if self._decision is not None:
+            obs[:, self.task.layout.slice("previous_action")] = self._decision.last_action
+        if self._scale is not None:
+            obs /= self._scale
+        return obs
 
     # -- helpers --------------------------------------------------------------------
     def _run(self, repeat: int, controller=None, loop=None) -> None:

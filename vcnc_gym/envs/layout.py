@@ -9,13 +9,17 @@ with ``VecNormalize``.
 from __future__ import annotations
 
 from collections import namedtuple
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..validation import positive
 
-__all__ = ["ObservationLayout", "Field", "FIELD_NAMES", "ObservationOffsets"]
+__all__ = ["ObservationLayout", "Field", "FIELD_NAMES", "ObservationOffsets", "UNIT_BOUND"]
+
+#: The bound of a scaled field, in multiples of its scale: an entry beyond it is clipped there.
+UNIT_BOUND = 100.0
 
 #: The observation's fields by name, in the order of the vector.  The step
 #: kernel writes each field through ``ObservationOffsets`` (the offsets of
@@ -51,6 +55,8 @@ class Field:
     unit: str
     bound: float
     description: str
+    scale: float = 1.0
+    """The constant the env divides the field by (in ``unit``; 1.0: shown in its unit)."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,7 @@ class ObservationLayout:
     acceleration_bound: float = 1.0e6
     error_bound: float = 10.0
     curvature_bound: float = 1.0e4
+    scales: tuple[tuple[str, float], ...] = ()
     fields: tuple[Field, ...] = field(init=False)
 
     def __post_init__(self):
@@ -155,6 +162,13 @@ class ObservationLayout:
             ),
             "previous_action": Field("previous_action", 2, "1", 1.0, "last normalised action in [-1, 1]"),
         }
+        scales = dict(self.scales)
+        unknown = sorted(set(scales) - set(FIELD_NAMES))
+        if unknown or not all(np.isfinite(v) and v > 0 for v in scales.values()):
+            raise ValueError(f"scales must map field names to positive scales, got {self.scales!r}")
+        for name, scale in scales.items():  # a scaled field is clipped at UNIT_BOUND of its scale
+            f = by_name[name]
+            by_name[name] = Field(f.name, f.size, f.unit, min(f.bound, UNIT_BOUND * scale), f.description, scale)
         object.__setattr__(self, "fields", tuple(by_name[n] for n in FIELD_NAMES))
         slices, start = {}, 0
         for f in self.fields:  # the offsets, once: a controller reads fields every control period
@@ -184,12 +198,15 @@ class ObservationLayout:
         return ObservationOffsets(**{f.name: self.offset(f.name) for f in self.fields})
 
     def high(self) -> np.ndarray:
-        """Upper bounds of the observation space (float32); low is -high."""
+        """Upper bounds of the fields in their units (float32; low is -high): where the step kernel clips."""
         return np.concatenate([np.full(f.size, f.bound, dtype=np.float32) for f in self.fields])
 
     def get(self, obs: np.ndarray, name: str) -> np.ndarray:
-        """Field ``name`` of one observation (..., size) as float64."""
-        return np.asarray(obs, dtype=np.float64)[..., self.slice(name)]
+        """Field ``name`` of one observation (..., size) as float64, in the field's unit (a scaled field is
+        multiplied back by its scale)."""
+        values = np.asarray(obs, dtype=np.float64)[..., self.slice(name)]
+        scale = self.fields[FIELD_NAMES.index(name)].scale
+        return values if scale == 1.0 else values * scale
 
     # -- named accessors, so that policies read fields, not indices ----------
     def reference_position(self, obs):
@@ -239,9 +256,26 @@ class ObservationLayout:
         return self.get(obs, "previous_action")
 
     def describe(self) -> str:
-        """A Markdown table of the fields: index range, name, unit, meaning."""
-        rows = ["| index | field | unit | meaning |", "|---|---|---|---|"]
+        """A Markdown table of the fields: index or index range, name, unit, scale, meaning (a field of size 0,
+        such as no contour preview, is left out)."""
+        rows = ["| index | field | unit | scale | meaning |", "|---|---|---|---|---|"]
         for f in self.fields:
             s = self.slice(f.name)
-            rows.append(f"| {s.start}-{s.stop - 1} | {f.name} | {f.unit} | {f.description} |")
+            if f.size == 0:
+                continue
+            index = str(s.start) if f.size == 1 else f"{s.start}-{s.stop - 1}"
+            rows.append(f"| {index} | {f.name} | {f.unit} | {f.scale:g} | {f.description} |")
         return "\n".join(rows)
+
+    @property
+    def is_scaled(self) -> bool:
+        """True if any field is divided by a scale (an env made with ``observation_scale="unit"``)."""
+        return any(f.scale != 1.0 for f in self.fields)
+
+    def scaled(self, scales: dict) -> "ObservationLayout":
+        """This layout with the fields of ``scales`` (name -> scale, in the field's unit) divided by their scale."""
+        return dataclasses.replace(self, scales=tuple(sorted(scales.items())))
+
+    def scale_vector(self) -> np.ndarray:
+        """The scale of every entry, (size,) float64: the observation is the physical one divided by it."""
+        return np.concatenate([np.full(f.size, f.scale) for f in self.fields])

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from gymnasium.envs.registration import register, registry
 
 __all__ = [
+    "LEARNABLE",
+    "LEARNABLE_IDS",
     "SuiteEnv",
     "SUITE",
     "LEGACY",
@@ -297,6 +299,42 @@ LEGACY = LEGACY + tuple(
     if e.id.startswith("VCNC-OmegaTolerance")
 )
 
+#: What makes a contouring id's v2 learnable by a standard RL algorithm with its default settings (ContouringEnv's
+#: Version History): the drive's servo closed inside the step and a set-point correction as the action, a decision
+#: every 10 control periods (1 ms at the 0.1 ms of Jahanpour et al.'s and Simba et al.'s drives), the observation
+#: scaled to order one by fixed constants, and a reward of -(contour error / 1 um) clipped at 10 um (-10 a decision).
+_LEARNABLE = {
+    "action": "setpoint",
+    "action_repeat": 10,
+    "observation_scale": "unit",
+    "reward_scale": 1e-3,
+    "error_clip": 0.01,
+}
+#: Purtojo et al.'s circle (1 mm across at 1 mm/s, 1 ms control period): a decision every 10 ms, and the reward's
+#: scale and clip ten times finer (0.2 um and 2 um, its completion tolerance), for contour errors below 1 um.
+_LEARNABLE_CIRCLE = {**_LEARNABLE, "reward_scale": 2e-4, "error_clip": 2e-3}
+
+#: The learnable version (v2) of every contouring id: the same machine, contour, reference and episode end as its
+#: v1, with the interface of :data:`_LEARNABLE`.  The v1 ids stay current for the classical controllers, which
+#: command the amplifier every control period (``action="voltage"``) and read the physical observation.
+LEARNABLE: tuple[SuiteEnv, ...] = tuple(
+    SuiteEnv(
+        e.id.replace("-v1", "-v2"),
+        {**e.kwargs, **(_LEARNABLE_CIRCLE if e.kwargs.get("plant") == "nct_xy_table" else _LEARNABLE)},
+        e.summary
+        + "; learnable: a set-point correction to the drive's servo every "
+        + ("10 ms" if e.kwargs.get("plant") == "nct_xy_table" else "1 ms")
+        + ", a scaled observation, a clipped reward",
+        entry_point=e.entry_point,
+        vector_entry_point=e.vector_entry_point,
+    )
+    for e in SUITE
+    if e.contouring
+)
+
+#: The learnable ids (v2), in the order of :data:`SUITE`.
+LEARNABLE_IDS: tuple[str, ...] = tuple(e.id for e in LEARNABLE)
+
 #: The current ids, in the order of :data:`SUITE`.
 ENV_IDS: tuple[str, ...] = tuple(e.id for e in SUITE)
 
@@ -315,14 +353,14 @@ def env_name(env_id: str) -> str:
 
 def suite_env(env_id: str) -> SuiteEnv:
     """The :class:`SuiteEnv` of ``env_id`` (current or :data:`LEGACY`); ValueError naming the valid ids otherwise."""
-    for e in SUITE + LEGACY:
+    for e in SUITE + LEARNABLE + LEGACY:
         if e.id == env_id:
             return e
     raise ValueError(f"unknown env id {env_id!r}; valid ids are {', '.join(ENV_IDS)}")
 
 
 def register_envs() -> None:
-    """Register every id of :data:`SUITE` and :data:`LEGACY` (once)."""
-    for e in SUITE + LEGACY:
+    """Register every id of :data:`SUITE`, :data:`LEARNABLE` and :data:`LEGACY` (once)."""
+    for e in SUITE + LEARNABLE + LEGACY:
         if e.id not in registry:
             register(id=e.id, entry_point=e.entry_point, vector_entry_point=e.vector_entry_point, kwargs=dict(e.kwargs))

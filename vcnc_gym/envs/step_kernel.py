@@ -117,6 +117,13 @@ INFO_FIELDS = {
     "observation_clipped": (INFO_CLIPPED, 1),
 }
 
+# columns of buffers.episode (N, EPISODE_SIZE): the episode's contour error over its control periods
+EPISODE_SUM = 0  # mm
+EPISODE_SQUARES = 1  # mm^2
+EPISODE_MAX = 2  # mm
+EPISODE_PERIODS = 3
+EPISODE_SIZE = 4
+
 # flags of buffers.flags (N, FLAG_SIZE), bool
 FLAG_TERMINATED = 0
 FLAG_TRUNCATED = 1
@@ -144,7 +151,9 @@ ReferenceArrays = namedtuple("ReferenceArrays", ["samples", "preview_steps", "co
 #: truncated); ``completion_tolerance`` (mm of contour left at which the tool
 #: has reached the end); ``progress_window`` (mm: the farthest the tool's
 #: progress may jump ahead in one control period, so that a closest point on
-#: another branch of the contour is not taken for progress); ``dt`` (s).
+#: another branch of the contour is not taken for progress); ``dt`` (s); ``error_clip`` (mm: the contour error at
+#: which a control period's reward saturates, and the worst per-step reward the divergence penalty charges per
+#: remaining decision).
 StepConfig = namedtuple(
     "StepConfig",
     [
@@ -160,6 +169,7 @@ StepConfig = namedtuple(
         "completion_tolerance",
         "progress_window",
         "dt",
+        "error_clip",
     ],
 )
 
@@ -176,7 +186,9 @@ StepConfig = namedtuple(
 #: moves it while it re-times the reference);
 #: outputs ``obs`` (N, D) float32, ``reward`` (N,), ``flags`` (N,
 #: FLAG_SIZE) bool, ``info`` (N, INFO_SIZE); constant ``obs_high`` (D,)
-#: float32; scratch ``sensed`` (N, SENSE_SIZE) and ``der`` (N, 3, 2).
+#: float32; scratch ``sensed`` (N, SENSE_SIZE) and ``der`` (N, 3, 2); the episode's contour error so far
+#: ``episode`` (N, EPISODE_SIZE): its sum and sum of squares over the control periods (mm, mm^2), its largest
+#: value (mm) and the control periods counted.
 EnvBuffers = namedtuple(
     "EnvBuffers",
     [
@@ -197,6 +209,7 @@ EnvBuffers = namedtuple(
         "obs_high",
         "sensed",
         "der",
+        "episode",
     ],
 )
 
@@ -280,6 +293,12 @@ def _step_env(plant, reference, c, cfg, o, b, i):
         )
         err_sum += err
         err_max = max(err_max, err)
+        if n > 0:
+            ep = b.episode[i]
+            ep[EPISODE_SUM] += err
+            ep[EPISODE_SQUARES] += err * err
+            ep[EPISODE_MAX] = max(ep[EPISODE_MAX], err)
+            ep[EPISODE_PERIODS] += 1.0
         _advance_progress(samples, cfg, b, i)
     if n > 0:
         b.steps[i] += 1
@@ -337,13 +356,13 @@ def _step_env(plant, reference, c, cfg, o, b, i):
         terminated = diverged or k >= cfg.end_index
     if n > 0:
         mean_err = err_sum / n
-        if not mean_err < cfg.divergence_bound:  # beyond the bound, or NaN (a non-finite state): the bound
-            mean_err = cfg.divergence_bound
+        if not mean_err < cfg.error_clip:  # beyond the clip, or NaN (a non-finite state): the clip
+            mean_err = cfg.error_clip
         r_contour = -mean_err / cfg.reward_scale
         r_effort = -cfg.effort_weight * 0.5 * (a0 * a0 + a1 * a1)
         if diverged:
             steps_left = max(0, cfg.episode_steps - (k + cfg.n_repeat - 1) // cfg.n_repeat)
-            r_div = -steps_left * cfg.divergence_bound / cfg.reward_scale
+            r_div = -steps_left * cfg.error_clip / cfg.reward_scale
             if not np.isfinite(err):
                 info[INFO_CONTOUR_ERROR] = np.inf
     info[INFO_REWARD_CONTOUR] = r_contour

@@ -74,6 +74,17 @@ DEFAULT_CONTOUR_AHEAD = (0.25, 0.5, 1.0, 2.0, 4.0)
 #: Generator in the vector env (860 B measured with tracemalloc, numpy 2).
 ENV_OVERHEAD_BYTES = 1024
 
+#: What the action commands (``action=``): "voltage", the amplifier's input u / u_max of both axes (the papers'
+#: setting, the v0 and v1 ids); "setpoint", a correction of up to ``setpoint_range`` mm per axis to the set-point
+#: of the drive's own servo (:mod:`~vcnc_gym.envs.drive_servo`), closed inside the step every control period (the
+#: v2 ids); "correction", a correction of up to ``correction`` x u_max added to a classical controller's command
+#: (``base=``), which runs every control period inside the step.
+ACTIONS = ("voltage", "setpoint", "correction")
+
+#: How the observation is scaled (``observation_scale=``): "raw", the fields in their physical units; "unit", each
+#: divided by a fixed constant of the task (``layout.fields[k].scale``) to order one.
+OBSERVATION_SCALES = ("raw", "unit")
+
 #: The keys ``reset(options=...)`` understands.
 RESET_OPTIONS = ("parameters",)
 
@@ -169,6 +180,13 @@ class ContouringTask:
         max_episode_steps: int | None = None,
         plant_options: dict | None = None,
         shop_floor: dict | bool | None = None,
+        action: str = "voltage",
+        setpoint_range: float | None = None,
+        servo_gains: dict | None = None,
+        base: str | None = None,
+        correction: float = 0.5,
+        error_clip: float | None = None,
+        observation_scale: str = "raw",
     ):
         self._set_contour_and_plant(contour, plant, shop_floor, plant_options)
         self._check_settings(
@@ -189,19 +207,24 @@ class ContouringTask:
         self._set_parameters(parameters)
         samples, reference_end = self._plan_reference(profile, feedrate, ramp_time, max_episode_steps)
         self._set_observation(preview_steps, contour_ahead, samples, reference_end)
+        self._set_action(action, setpoint_range, servo_gains, base, correction, error_clip, observation_scale)
+        # a decision of the set-point or correction actions is a compiled controller's loop of action_repeat kernel
+        # steps of one control period each (step_kernel.step_controlled_serial): the kernel counts periods
+        periods = self.action_repeat if self.controlled else 1
         self.config = sk.StepConfig(
-            n_repeat=self.action_repeat,
+            n_repeat=self.action_repeat // periods,
             reward_scale=self.reward_scale,
             effort_weight=self.effort_weight,
             divergence_bound=self.divergence_bound,
             tracking_bound=self.tracking_bound,
             episode_end=EPISODE_ENDS[self.episode_end],
             end_index=self.end_index,
-            episode_steps=self.episode_steps,
-            max_steps=self.max_episode_steps,
+            episode_steps=self.episode_steps * periods,
+            max_steps=self.max_episode_steps * periods,
             completion_tolerance=self.completion_tolerance,
             progress_window=self.tracking_bound,
             dt=self.dt,
+            error_clip=self.error_clip,
         )
 
     def _set_contour_and_plant(self, contour, plant, shop_floor, plant_options) -> None:
@@ -259,6 +282,89 @@ class ContouringTask:
         )
         self.completion_tolerance = positive("completion_tolerance", completion_tolerance, "mm")
         self.completion_timeout = non_negative("completion_timeout", completion_timeout, "s")
+
+    def _set_action(self, action, setpoint_range, servo_gains, base, correction, error_clip, scale) -> None:
+        """What the action commands (:data:`ACTIONS`), the drive's servo or the base controller's name, the reward's
+        clip and the observation's scale."""
+        if action not in ACTIONS:
+            raise ValueError(f"action must be one of {list(ACTIONS)}, got {action!r}")
+        if base is not None:
+            if not isinstance(base, str) or not base:
+                raise ValueError(
+                    f"base must be the name of a classical controller (vcnc_baselines.names()), got {base!r}"
+                )
+            if action == "voltage":
+                raise ValueError(
+                    "base= adds the agent's correction to a classical controller's command; it needs "
+                    "action='correction' (or the learnable ids' default 'setpoint', which it replaces)"
+                )
+            action = "correction"
+        elif action == "correction":
+            raise ValueError("action='correction' corrects a classical controller's command: name it with base=")
+        self.action = action
+        self.base = base
+        self.controlled = action != "voltage"
+        self.correction = positive("correction", correction, "fraction of the input limit")
+        if self.correction > 2:
+            raise ValueError(f"correction must be at most 2 (fractions of the input limit), got {correction!r}")
+        self.servo_gains = None
+        if action == "setpoint":
+            from .drive_servo import DriveServoGains, drive_servo_gains
+
+            if servo_gains is None:
+                self.servo_gains = drive_servo_gains(self.plant, self.nominal_parameters, self.dt)
+            elif isinstance(servo_gains, dict):
+                self.servo_gains = DriveServoGains.from_dict("servo_gains", servo_gains)
+            else:
+                raise ValueError(f"servo_gains must be a dict of the servo's gains, got {type(servo_gains).__name__}")
+        elif servo_gains is not None or setpoint_range is not None:
+            raise ValueError("servo_gains and setpoint_range set the drive's servo of action='setpoint'")
+        u_max = self.plant.input_limits(self.nominal_parameters)
+        self.setpoint_range = (
+            None
+            if action != "setpoint"
+            else (
+                positive("setpoint_range", setpoint_range, "mm")
+                if setpoint_range is not None
+                else float(np.min(u_max / self.servo_gains.kp))
+            )
+        )
+        self.error_clip = self.divergence_bound if error_clip is None else positive("error_clip", error_clip, "mm")
+        if self.error_clip > self.divergence_bound:
+            raise ValueError(f"error_clip={error_clip!r} mm is beyond divergence_bound={self.divergence_bound!r} mm")
+        if scale not in OBSERVATION_SCALES:
+            raise ValueError(f"observation_scale must be one of {list(OBSERVATION_SCALES)}, got {scale!r}")
+        self.observation_scale = scale
+        self.physical_layout = self.layout
+        """The layout of the fields in their units, as the step kernel writes them (what a classical controller
+        reads)."""
+        self.layout = self.layout.scaled(self._unit_scales()) if scale == "unit" else self.layout
+
+    def _unit_scales(self) -> dict:
+        """The fixed constants that bring each observation field to order one (``observation_scale="unit"``), in
+        the field's unit: the contour's extent, its top speed and acceleration, the reward's error clip, the
+        preview's reach at the top speed, the farthest contour preview, the contour's largest curvature."""
+        ref = self.reference
+        speed = float(np.max(np.hypot(ref.velocity[:, 0], ref.velocity[:, 1])))
+        accel = float(np.max(np.abs(ref.acceleration)))
+        curvature = float(np.max(np.abs(self.reference_arrays.samples[:, sk.REF_CURVATURE])))
+        steps = self.layout.preview_steps
+        ahead = self.layout.contour_ahead
+        error = self.error_clip
+        return {
+            "reference_position": _round(float(np.max(np.abs(ref.position)))),
+            "reference_velocity": _round(speed),
+            "reference_acceleration": _round(accel),
+            "tracking_error": _round(10 * error),
+            "contour_error": _round(error),
+            "tangential_error": _round(10 * error),
+            "normal_error": _round(error),
+            "velocity": _round(speed),
+            "preview": _round(speed * self.dt * max(steps)) if steps else 1.0,
+            "contour_preview": _round(max(ahead)) if ahead else 1.0,
+            "contour_curvature": _round(curvature) if curvature > 0 else 1.0,
+            "previous_action": 1.0,
+        }
 
     def _set_parameters(self, parameters) -> None:
         """The plant's parameters: nominal, and the fixed ones if given."""
@@ -351,7 +457,10 @@ class ContouringTask:
         return self.dt * self.action_repeat
 
     def check_parameters(self, parameters) -> np.ndarray:
-        """One machine's parameters, (2, P), checked by the plant model."""
+        """One machine's parameters, (2, P), checked by the plant model: an array, or a dict as the reset's
+        ``info["parameters"]`` gives them (name -> a value shared by both axes, or a per-axis pair)."""
+        if isinstance(parameters, dict):
+            parameters = _parameters_array(self.plant, parameters)
         p = self.plant.validate(parameters)
         if p.shape[0] != 1:
             raise ValueError(f"parameters must be one machine's (2, {self.plant.n_parameters}) array, got {p.shape}")
@@ -372,6 +481,35 @@ class ContouringTask:
         if self.fixed_parameters is not None:
             return self.fixed_parameters
         return self.nominal_parameters
+
+
+def _parameters_array(plant: PlantModel, values: dict) -> np.ndarray:
+    """The (2, P) array of a dict of ``plant``'s parameters (:meth:`PlantModel.to_dict`'s form); ValueError
+    naming the missing or unknown names."""
+    names = [p.name for p in plant.parameters]
+    missing, unknown = sorted(set(names) - set(values)), sorted(set(values) - set(names))
+    if missing or unknown:
+        raise ValueError(f"parameters: missing {missing}, unknown {unknown}; {plant.name} has {names}")
+    out = np.empty((2, len(names)))
+    for j, name in enumerate(names):
+        v = values[name]
+        pair = v if isinstance(v, (tuple, list, np.ndarray)) else (v, v)
+        if len(pair) != 2:
+            raise ValueError(f"parameters[{name!r}] must be a number or an (x, y) pair, got {v!r}")
+        try:
+            out[:, j] = [float(pair[0]), float(pair[1])]
+        except (TypeError, ValueError):
+            raise ValueError(f"parameters[{name!r}] must be real numbers, got {v!r}") from None
+    return out
+
+
+def _round(value: float) -> float:
+    """``value`` rounded up to 1, 2 or 5 times a power of ten: a scale a reader recognises."""
+    exponent = math.floor(math.log10(value))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * 10.0**exponent >= value * (1 - 1e-12):
+            return m * 10.0**exponent
+    return 10.0 ** (exponent + 1)
 
 
 def _as_tuple(values):
@@ -455,6 +593,7 @@ class ContouringBatch:
             obs_high=layout.high(),
             sensed=np.zeros((n, contract.SENSE_SIZE)),
             der=np.zeros((n, 3, 2)),
+            episode=np.zeros((n, sk.EPISODE_SIZE)),
         )
         self.data = sk.StepData(
             self.plant_arrays, self.reference_arrays, task.contour_arrays, task.config, layout.offsets(), self.buffers
@@ -467,7 +606,12 @@ class ContouringBatch:
         arrays = task.plant.arrays(1, task.dt, **task.plant_options)
         rows = sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
         layout = task.layout
-        rows += layout.size * 4 + (sk.INFO_SIZE + contract.SENSE_SIZE + 6 + 2 * 5 + 5) * 8 + sk.FLAG_SIZE + 1
+        rows += (
+            layout.size * 4
+            + (sk.INFO_SIZE + contract.SENSE_SIZE + sk.EPISODE_SIZE + 6 + 2 * 5 + 5) * 8
+            + sk.FLAG_SIZE
+            + 1
+        )
         return 2 * rows + ENV_OVERHEAD_BYTES
 
     def reset_env(self, i: int, parameters: np.ndarray, rng: np.random.Generator | None = None) -> None:
@@ -488,6 +632,7 @@ class ContouringBatch:
         b.cycle_time[i] = np.nan
         b.reference_end[i] = self.reference_arrays.samples.shape[0] - 1
         b.action[i] = 0.0
+        b.episode[i] = 0.0
         b.mode[i] = sk.MODE_OBSERVE
 
     def run(self, parallel: bool = False) -> None:
