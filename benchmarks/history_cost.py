@@ -4,7 +4,7 @@
         [--blocks 5]
 
 The envs are what ``vcnc-train`` steps (:class:`vcnc_agents.lean_ppo.DecisionEnv`: the native vector env, the
-id's shop-floor specialist's action mode from ``agents/hyperparams/adaptive.yml``, its compiled baseline), one per
+id's shop-floor specialist's action mode from ``experiments/adaptive/recipes/adaptive.yml``, its compiled baseline), one per
 memory length, built and warmed up first.  Each is stepped with the same random actions for ``--decisions``
 decisions in turn, block after block (so a busy moment of a shared host falls on every side alike), and the best
 block of each is kept.  Printed: agent steps/s per memory length and its ratio to the envs without memory, measured in
@@ -24,7 +24,7 @@ import numpy as np
 from vcnc_agents.config import action_mode_of, load_hyperparameters
 from vcnc_agents.lean_ppo import DecisionEnv
 
-ADAPTIVE = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "adaptive.yml"
+ADAPTIVE = Path(__file__).resolve().parents[1] / "experiments" / "adaptive" / "recipes" / "adaptive.yml"
 
 
 def _block(env: DecisionEnv, actions: np.ndarray) -> float:

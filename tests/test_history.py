@@ -185,14 +185,15 @@ def test_vcnc_train_history_changes_the_entry_s_memory_only():
 
     from vcnc_agents.arguments import action_mode, parser
 
-    adaptive = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "adaptive.yml"
+    root = Path(__file__).resolve().parents[1]
+    adaptive = root / "experiments" / "adaptive" / "recipes" / "adaptive.yml"
     args = parser().parse_args(["--env", "VCNC-HeartShop-v1", "--config", str(adaptive), "--history", "64"])
     assert action_mode(args, adaptive) == ActionMode("residual", 5, "ff-ccc", 0.3, history=64)
     args = parser().parse_args(["--env", "VCNC-HeartShop-v1", "--config", str(adaptive), "--action-repeat", "10"])
     assert action_mode(args, adaptive).history == 16  # the entry's memory, unchanged by another option
     args = parser().parse_args(["--env", HEART, "--action-mode", "direct", "--history", "4"])
     with pytest.raises(ValueError, match="--peak-weight and --dial-rate apply to --action-mode residual"):
-        action_mode(args, adaptive.with_name("ppo.yml"))
+        action_mode(args, root / "agents" / "hyperparams" / "ppo.yml")
 
 
 def test_an_ended_episode_s_last_observation_keeps_its_past_and_the_next_starts_afresh():

@@ -122,7 +122,8 @@ def test_vcnc_train_peak_weight_changes_the_entry_s_price_only():
 
     from vcnc_agents.arguments import action_mode, parser
 
-    adaptive = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "adaptive_machine.yml"
+    root = Path(__file__).resolve().parents[1]
+    adaptive = root / "experiments" / "adaptive" / "recipes" / "adaptive_machine.yml"
     omega = "VCNC-OmegaLookaheadShop-v1"
     args = parser().parse_args(["--env", omega, "--config", str(adaptive), "--peak-weight", "100"])
     assert action_mode(args, adaptive) == ActionMode("residual", 5, "ff-pid@machine", 0.3, history=16, peak_weight=100)
@@ -130,7 +131,7 @@ def test_vcnc_train_peak_weight_changes_the_entry_s_price_only():
     assert action_mode(args, adaptive) == ActionMode("residual", 5, "ff-pid@machine", 0.3, peak_weight=100)
     args = parser().parse_args(["--env", CIRCLE, "--action-mode", "direct", "--peak-weight", "1"])
     with pytest.raises(ValueError, match="--peak-weight and --dial-rate apply to --action-mode residual"):
-        action_mode(args, adaptive.with_name("ppo.yml"))
+        action_mode(args, root / "agents" / "hyperparams" / "ppo.yml")
 
 
 def test_a_mode_option_keeps_the_entry_s_baseline_arguments_unless_it_names_another_baseline(tmp_path):

@@ -19,6 +19,8 @@ from vcnc_gym.envs.registry import CONTOURING_IDS
 
 ROOT = Path(__file__).resolve().parents[1]
 SPECIALISTS = ROOT / "agents" / "hyperparams" / "specialists.yml"
+#: The adaptive study's recipes: the shop-floor specialists' entries with a memory.
+ADAPTIVE = ROOT / "experiments" / "adaptive" / "recipes" / "adaptive.yml"
 
 
 def test_shipped_agents_are_on_current_ids_only():
@@ -34,7 +36,7 @@ def test_every_specialist_entry_prepares_a_residual_run_over_a_compiled_baseline
     """Each entry of specialists.yml (and of adaptive.yml, the shop-floor specialists with a history) passes
     vcnc-train's checks for its id; the baseline it corrects has a compiled form (the lean trainer steps a whole
     decision in one call).  The adaptive agents differ from their specialists in their history alone."""
-    path = SPECIALISTS.with_name(name)
+    path = SPECIALISTS if name == "specialists.yml" else ADAPTIVE
     entries = yaml.safe_load(path.read_text())
     assert set(entries) <= set(CONTOURING_IDS)
     if name == "adaptive.yml":
