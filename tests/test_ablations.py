@@ -1,4 +1,4 @@
-"""``benchmarks/ablations.py`` (issue 33, item 5): every family's variants change one thing of the agent's recipe, and
+"""``experiments/ablations/ablations.py`` (issue 33, item 5): every family's variants change one thing of the agent's recipe, and
 the stored table's figures are the IQM an independent computation (scipy's trimmed mean) gives."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from benchmark_script import benchmark_script
+from benchmark_script import study_script
 
 ROOT = Path(__file__).resolve().parents[1]
 FAMILIES = [
@@ -19,7 +19,7 @@ FAMILIES = [
 
 
 def _ablations():
-    return benchmark_script("ablations")
+    return study_script("ablations", "ablations")
 
 
 def _differences(a, b, path=()):
@@ -82,7 +82,7 @@ def test_the_stored_table_gives_the_iqm_of_the_seeds_records():
     from scipy.stats import trim_mean
 
     module = _ablations()
-    data = json.loads((ROOT / "docs" / "data" / "ablations" / "VCNC-OmegaLookahead-v1.json").read_text())
+    data = json.loads((ROOT / "experiments" / "ablations" / "data" / "VCNC-OmegaLookahead-v1.json").read_text())
     lines = module.table(data)
     rows = {
         (c[1].strip(), c[3].split(",")[0].strip()): c
@@ -110,7 +110,7 @@ def test_the_override_family_is_judged_on_its_final_agents_and_on_cycle_time():
     from vcnc_bench.kinds.ppo import KIND
 
     module = _ablations()
-    folder = ROOT / "agents" / "trained" / "seeds" / "override_1M" / "VCNC-OmegaOverride-v1"
+    folder = ROOT / "experiments" / "ablations" / "seeds" / "override_1M" / "VCNC-OmegaOverride-v1"
     spec = module.agents_spec(folder, "final")
     agents = KIND.expand(spec.split(":", 1)[1])
     assert [Path(a).parent.name for a in agents] == ["seed0", "seed1", "seed2"]

@@ -1,7 +1,7 @@
 """Ablations of an agent family (issue 33, item 5): the agent against itself with one thing changed, by the verdict
 rule.
 
-    python benchmarks/ablations.py --env VCNC-OmegaLookahead-v1 [--config YAML] [--on ID ...] [--seeds 5] [--jobs 2]
+    python experiments/ablations/ablations.py --env VCNC-OmegaLookahead-v1 [--config YAML] [--on ID ...] [--seeds 5] [--jobs 2]
         [--plants 20] [--timesteps N] [--eval-freq N] [--variants NAME ...] [--output runs/ablations]
         [--agent runs/seeds/ID] [--which best|final] [--table JSON]
 
@@ -50,7 +50,7 @@ from vcnc_agents.action_modes import ActionMode
 from vcnc_agents.config import action_mode_of, load_hyperparameters, with_action_mode
 from vcnc_bench.verdicts import seed_figures, verdict
 
-SPECIALISTS = Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "specialists.yml"
+SPECIALISTS = Path(__file__).resolve().parents[2] / "agents" / "hyperparams" / "specialists.yml"
 AGENT = "agent"
 
 
