@@ -1,7 +1,7 @@
 """Per-machine commissioning on plants from an env's box: the identified first mode against the true one, the
-chosen bandwidth as a fraction of the mode, and the margins (docs/reproduction.md, "Commissioned machines").
+chosen bandwidth as a fraction of the mode, and the margins (experiments/commissioning/README.md).
 
-    python benchmarks/commissioning_report.py VCNC-HeartShop-v1 --plants 20
+    python experiments/commissioning/commissioning_report.py VCNC-HeartShop-v1 --plants 20
 
 The plants are those of ``vcnc-bench --plants N`` (:func:`vcnc_bench.robust.plant_set`: the nominal plant, then
 N draws with ``--plant-seed``); the experiment reads only the observation (:mod:`vcnc_baselines.commissioning`)."""
