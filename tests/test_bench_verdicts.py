@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from vcnc_bench import cli, robust, score, verdicts
 from vcnc_bench.provenance import cpu, provenance
+
+#: The specialists study's stored runs (``experiments/specialists/data/``) and the predictive controllers' runs over
+#: the same plants, which the seeds' tables join.
+SPECIALIST_DATA = Path(__file__).resolve().parents[1] / "experiments" / "specialists" / "data"
+MPC_BOX = Path(__file__).resolve().parents[1] / "docs" / "data" / "mpc_box"
 
 
 def _record(env, policy, max_um, rms_um, kinds, diverged=None, per_noise=None):
@@ -157,13 +163,10 @@ def test_another_cpus_code_paths_come_from_its_recorded_provenance():
     """``code_paths_of``: a run made on a Zen 3 host (no AVX-512) gives numba its CPU name and features, OpenBLAS
     its Zen kernels and torch AVX2; a CPU without a known OpenBLAS core is said, not guessed; a provenance without
     numba's CPU is refused by name."""
-    from pathlib import Path
 
     from vcnc_bench.provenance import code_paths_of
 
-    data = json.loads(
-        (Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds_5" / "VCNC-HeartShop-v1.json").read_text()
-    )
+    data = json.loads((SPECIALIST_DATA / "shop_seeds_5" / "VCNC-HeartShop-v1.json").read_text())
     recorded = data["settings"]["provenance"]
     env, left = code_paths_of(recorded)
     assert env["NUMBA_CPU_NAME"] == "znver3" and "-avx512f" in env["NUMBA_CPU_FEATURES"]
@@ -222,22 +225,21 @@ def test_plants_json_carries_scores_verdicts_noise_and_provenance(tmp_path, caps
 
 
 def _seed_verdicts():
-    from benchmark_script import benchmark_script
+    from benchmark_script import study_script
 
-    return benchmark_script("seed_verdicts")
+    return study_script("specialists", "seed_verdicts")
 
 
 def test_joined_run_judges_the_seeds_against_a_later_controller():
-    """``benchmarks/seed_verdicts.py --with``: the sharp corners' five seeds, evaluated before ``mpc`` was in the
+    """``experiments/specialists/seed_verdicts.py --with``: the sharp corners' five seeds, evaluated before ``mpc`` was in the
     house, meet ``mpc`` from its own run on the same 20 plants; its IQM is checked against scipy's trimmed mean,
     and a run on other plants is refused by name."""
-    from pathlib import Path
 
     from scipy.stats import trim_mean
 
-    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    data_dir = SPECIALIST_DATA
     seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
-    box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
+    box = json.loads((MPC_BOX / "VCNC-Corners-v1.json").read_text())
     sv = _seed_verdicts()
     joined = sv.join(seeds, box)
     # the classical controller both runs hold is the same on the same plants: the pairing is plant by plant
@@ -260,11 +262,10 @@ def test_joined_run_judges_the_seeds_against_a_later_controller():
 def test_a_join_restricted_to_some_policies_adds_only_their_records():
     """``--only``: the earlier five-seed run of the sharp corners lends its costly controller (``mpc`` here) and not
     its agents; a policy the other run lacks is named."""
-    from pathlib import Path
 
-    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    data_dir = SPECIALIST_DATA
     seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
-    box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
+    box = json.loads((MPC_BOX / "VCNC-Corners-v1.json").read_text())
     sv = _seed_verdicts()
     lacking = {r["policy"] for r in box["robust"]} - {r["policy"] for r in seeds["robust"]}
     assert lacking == {"mpc"}  # what a plain join adds
@@ -279,11 +280,10 @@ def test_a_join_restricted_to_some_policies_adds_only_their_records():
 def test_with_is_repeatable_and_joins_every_file_in_order(tmp_path, capsys):
     """``--with A --with B``: the records each lacks join, A's first, then B's (a later --with replaced an earlier
     one before)."""
-    from pathlib import Path
 
-    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    data_dir = SPECIALIST_DATA
     seeds = json.loads((data_dir / "ideal_seeds_before_mpc" / "VCNC-Corners-v1.json").read_text())
-    box = json.loads((data_dir / "mpc_box" / "VCNC-Corners-v1.json").read_text())
+    box = json.loads((MPC_BOX / "VCNC-Corners-v1.json").read_text())
     paths = {}
     for name, run, keep in (
         ("base", seeds, lambda p: p != "lq-preview"),
@@ -307,13 +307,10 @@ def test_with_is_repeatable_and_joins_every_file_in_order(tmp_path, capsys):
 def test_the_seeds_spread_is_the_range_of_their_own_interquartile_means():
     """``--summary``'s spread table: the lowest and highest of the seeds' IQMs over the sampled plants, each checked
     here against scipy's 25 %-trimmed mean of that seed's per-plant figures."""
-    from pathlib import Path
 
     from scipy.stats import trim_mean
 
-    data = json.loads(
-        (Path(__file__).resolve().parents[1] / "docs" / "data" / "ideal_seeds_5" / "VCNC-Heart-v1.json").read_text()
-    )
+    data = json.loads((SPECIALIST_DATA / "ideal_seeds_5" / "VCNC-Heart-v1.json").read_text())
     row = next(line for line in _seed_verdicts().spread([data]) if "runs/seeds/VCNC-Heart-v1" in line)
     seeds = [r for r in data["robust"] if r.get("group") == "ppo:runs/seeds/VCNC-Heart-v1"]
     iqms = {
@@ -333,9 +330,8 @@ def test_the_seeds_spread_is_the_range_of_their_own_interquartile_means():
 def test_the_changes_table_counts_the_verdicts_an_earlier_run_gave_otherwise():
     """``--summary --before``: the sharp corners' five seeds before ``mpc`` joined (a tie on the max against
     ``lq-preview``) and after (a loss against ``mpc``) is one changed verdict, read from the two JSONs."""
-    from pathlib import Path
 
-    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    data_dir = SPECIALIST_DATA
     before, now = (
         json.loads((data_dir / d / "VCNC-Corners-v1.json").read_text())
         for d in ("ideal_seeds_before_mpc", "ideal_seeds_5")
@@ -354,11 +350,8 @@ def test_within_counts_the_plants_whose_max_is_within_each_tolerance():
     """``--within``: per policy, the nominal plant's verdict and the count of sampled plants whose max is at most T,
     counted here from the JSON's per-plant figures (a diverged plant never within); a run on the shop floor is
     not paired with one off it, and a JSON written before the setting existed counts as off it."""
-    from pathlib import Path
 
-    data = json.loads(
-        (Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds" / "VCNC-HeartShop-v1.json").read_text()
-    )
+    data = json.loads((SPECIALIST_DATA / "shop_seeds" / "VCNC-HeartShop-v1.json").read_text())
     sv = _seed_verdicts()
     rows = {
         line.split("|")[1].strip(" `"): line.split("|")[2:5]
@@ -384,11 +377,11 @@ def test_within_counts_the_plants_whose_max_is_within_each_tolerance():
 
 
 def test_cross_cpu_counts_the_figures_that_moved_and_the_verdicts_that_changed():
-    """``benchmarks/cross_cpu.py``: one plant's max moved by 1 % and one verdict flipped, counted as such; labels
+    """``experiments/specialists/cross_cpu.py``: one plant's max moved by 1 % and one verdict flipped, counted as such; labels
     matched after the rename; runs of other plants refused."""
-    from benchmark_script import benchmark_script
+    from benchmark_script import study_script
 
-    cc = benchmark_script("cross_cpu")
+    cc = study_script("specialists", "cross_cpu")
     kinds = ["nominal", "sample", "sample"]
 
     def run(cpu, max_um, outcome):
@@ -476,9 +469,8 @@ def test_the_tables_name_the_causal_controllers_a_run_did_not_hold():
     6.06 um over the same plants, ``docs/reproduction.md``, "Every causal controller and the floor over the box");
     the tables say so.  Neither the reference PD (never a start of the floor) nor ``mpcc`` (it sets a feed
     override) is asked for, and an unregistered id asks for none."""
-    from pathlib import Path
 
-    data_dir = Path(__file__).resolve().parents[1] / "docs" / "data"
+    data_dir = SPECIALIST_DATA
     run = json.loads((data_dir / "shop_seeds_5" / "VCNC-HeartShop-v1.json").read_text())
     sv = _seed_verdicts()
     present = {r["policy"] for r in run["robust"]}

@@ -228,7 +228,14 @@ def test_the_default_tables_machine_runs_are_shipped_for_the_current_code():
 
 
 #: A run made on the host the identification runs were shipped from (an AMD Zen 3: its provenance names the CPU).
-SHIPPING_HOST = Path(__file__).resolve().parents[1] / "docs" / "data" / "shop_seeds_5" / "VCNC-HeartShop-v1.json"
+SHIPPING_HOST = (
+    Path(__file__).resolve().parents[1]
+    / "experiments"
+    / "specialists"
+    / "data"
+    / "shop_seeds_5"
+    / "VCNC-HeartShop-v1.json"
+)
 
 _FRESH_RUN = """
 import json

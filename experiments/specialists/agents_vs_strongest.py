@@ -1,6 +1,6 @@
 """The shipped agents against the strongest causal controller and the floor, from a ``vcnc-bench --json`` file.
 
-    python benchmarks/agents_vs_strongest.py bench-out/bench.json
+    python experiments/specialists/agents_vs_strongest.py bench-out/bench.json
 
 Prints a Markdown table, one row per env where ``ppo`` ran: the strongest causal classical controller (agents
 aside) and its max ; RMS contour error, the agent's, the floor's (non-causal), and where the agent stands on the

@@ -2,7 +2,7 @@
 (issue 33: "no verdict that flips with the CPU").
 
     python -m vcnc_bench.provenance --like OLD.json -- vcnc-bench ... --json NEW.json     # OLD's CPU, this host
-    python benchmarks/cross_cpu.py OLD.json NEW.json [--rename runs/seeds10=agents/trained/seeds/specialists]
+    python experiments/specialists/cross_cpu.py OLD.json NEW.json [--rename runs/seeds10=agents/trained/seeds/specialists]
 
 Per policy both runs hold (labels matched after ``--rename OLD_PREFIX=NEW_PREFIX``, for agents moved since), on
 every plant of the run: how many max and RMS figures differ at all, and the largest relative difference; then per

@@ -1,9 +1,13 @@
 """An agent's training seeds on the box, from a ``vcnc-bench --plants N --policy ppo:FOLDER --json`` file.
 
-    python benchmarks/seed_verdicts.py docs/data/shop_seeds/VCNC-HeartShop-v1.json [--base ff-ccc] [--within 5 10 20]
-    python benchmarks/seed_verdicts.py docs/data/ideal_seeds/VCNC-Corners-v1.json --with docs/data/mpc_box/VCNC-Corners-v1.json
-    python benchmarks/seed_verdicts.py --summary docs/data/generalist_seeds/current_feed_drive/*.json
-    python benchmarks/seed_verdicts.py --summary docs/data/*_seeds/VCNC-*.json --before docs/data/ideal_seeds_5 --before docs/data/shop_seeds_5
+    python experiments/specialists/seed_verdicts.py experiments/specialists/data/shop_seeds/VCNC-HeartShop-v1.json \
+        [--base ff-ccc] [--within 5 10 20]
+    python experiments/specialists/seed_verdicts.py experiments/specialists/data/ideal_seeds/VCNC-Corners-v1.json \
+        --with experiments/classical-opponents/data/mpc_box/VCNC-Corners-v1.json
+    python experiments/specialists/seed_verdicts.py --summary \
+        experiments/generalists/data/generalist_seeds/current_feed_drive/*.json
+    python experiments/specialists/seed_verdicts.py --summary experiments/specialists/data/*_seeds/VCNC-*.json \
+        --before experiments/specialists/data/ideal_seeds_5 --before experiments/specialists/data/shop_seeds_5
 
 ``ppo:FOLDER`` of a ``vcnc-train --seeds K`` folder stands for the K seeds' agents, judged as one controller
 (``vcnc_bench.verdicts``).  Prints Markdown: every record's nominal / median / worst max and RMS contour error and
@@ -167,8 +171,8 @@ def base_of(bases: list[str], env: str) -> str:
 
 def summary(runs: list[dict], base: str | list[str]) -> list[str]:
     """One Markdown table over several runs (one id each): every training run's seeds against the strongest causal
-    controller, figure by figure, then a line per id against their ``base``; what ``docs/reproduction.md``'s seed
-    tables hold."""
+    controller, figure by figure, then a line per id against their ``base``; what the studies' seed tables
+    hold (``experiments/specialists/README.md``)."""
     rows = [
         "| id | fig | seeds' IQM [95 % CI] | strongest causal Y | Y IQM [95 % CI] | X - Y [95 % CI] | P(X<Y) | "
         "verdict |",
