@@ -239,7 +239,7 @@ def run_experiment(
     machines' task's (:func:`identify` passes the env's own task's, which a slowed experiment task,
     :func:`experiment_task`, does not show; the reversal legs' speed is the followed task's,
     :attr:`Experiment.reversal_speed`)."""
-    from ..feedforward.tables import inverse_feedforward
+    from ..inverse_model import inverse_feedforward
 
     t0 = time.perf_counter()
     dt, n = machines.dt, machines.n
@@ -337,7 +337,7 @@ def run_experiment(
 def _leg_moves(schedule, start: int, per_leg: int, total: int, dt: float, nominal_inverse, u_max):
     """The legs' moves on top of the reference: their rate (total, 2) mm/s, the offset (total, 2) mm and their
     nominal feedforward (total, 2) in input units, each leg ``per_leg`` periods from period ``start``."""
-    from ..feedforward.tables import inverse_feedforward
+    from ..inverse_model import inverse_feedforward
 
     # the legs' moves on top of the reference, mm/s: each leg's speed reached by a Hann-shaped change at its start
     # (a step at ramp / 2 smoothed symmetrically: each leg's travel is the step's, no drift), over a tenth of the leg

@@ -343,10 +343,10 @@ _EXPERIMENT_CODE = (
     ("vcnc_baselines", "commissioning/identify.py"),
     ("vcnc_baselines", "commissioning/design.py"),
     ("vcnc_baselines", "commissioning/record.py"),
-    ("vcnc_baselines", "feedforward/tables.py"),
+    ("vcnc_baselines", "inverse_model.py"),
     ("vcnc_gym", "envs/step_kernel.py"),
     ("vcnc_gym", "envs/task.py"),
-    ("vcnc_gym", "plants/*.py"),
+    ("vcnc_gym", "plants/**/*.py"),
 )
 
 

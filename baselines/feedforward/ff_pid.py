@@ -3,8 +3,8 @@
 The command of each axis is the commissioned machine's inverse dynamics along the reference (the identified
 rigid body with its first mode, :mod:`vcnc_baselines.commissioning`), read ahead by half a control period and the
 identified dead time, with the identified Coulomb friction of the direction of motion, the identified process
-force along the path (:func:`~vcnc_baselines.feedforward.tables.path_force_feedforward`) and the backlash crossing
-pre-compensated (:func:`vcnc_baselines.feedforward.tables.inverse_feedforward`), plus a PID on the measured tracking
+force along the path (:func:`~vcnc_baselines.inverse_model.path_force_feedforward`) and the backlash crossing
+pre-compensated (:func:`vcnc_baselines.inverse_model.inverse_feedforward`), plus a PID on the measured tracking
 error (derivative on ``v_d - v``, the measured velocity through the commissioned low-pass), its gains by pole
 placement on the identified axis (:func:`vcnc_baselines.commissioning.design.pid_gains`: a triple closed-loop pole at the
 commissioned bandwidth) and its output through the commissioned notch.  The law is :mod:`vcnc_baselines.servo`'s
@@ -27,7 +27,7 @@ import numpy as np
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import non_negative, positive
 from ..servo import OFFSET, VELOCITY_OFFSET, ServoGains, ServoPolicy, U_FF, reference_table
-from .tables import inverse_feedforward, path_force_feedforward
+from ..inverse_model import inverse_feedforward, path_force_feedforward
 
 __all__ = ["FeedforwardPIDPolicy", "shaped_reference"]
 
@@ -55,7 +55,7 @@ class FeedforwardPIDPolicy(ServoPolicy):
         ``"nominal"``, ``"machine"`` or ``"model"`` (:data:`vcnc_baselines.servo.COMMISSIONING_SOURCES`); None: the
         nominal machine's record where there is one, else the model's.
     backlash_time : float
-        s; both as :func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`.
+        s; both as :func:`~vcnc_baselines.inverse_model.inverse_feedforward`.
     """
 
     name = "ff-pid"

@@ -17,7 +17,8 @@ import numpy as np
 from vcnc_gym.validation import non_negative, positive
 from ..servo import OFFSET, U_FF, VELOCITY_OFFSET, ServoGains, ServoPolicy, reference_table
 from vcnc_gym.envs import step_kernel as sk
-from .tables import closed_loop, inverse_feedforward, path_force_feedforward, zpetc_filter, zpetc_reference
+from ..inverse_model import inverse_feedforward, path_force_feedforward
+from .tables import closed_loop, zpetc_filter, zpetc_reference
 
 __all__ = ["ZPETCPolicy"]
 
@@ -36,7 +37,7 @@ class ZPETCPolicy(ServoPolicy):
     commissioning : str, optional
         As :class:`~vcnc_baselines.feedforward.ff_pid.FeedforwardPIDPolicy`'s.
     backlash_time : float
-        s; both as :func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`.
+        s; both as :func:`~vcnc_baselines.inverse_model.inverse_feedforward`.
 
     Attributes
     ----------

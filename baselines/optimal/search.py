@@ -13,7 +13,7 @@ saturation, friction, backlash and shop-floor effects).  Three stages, every fig
    RMS) is the incumbent: so the floor is at or below every causal controller by construction.
 2. **Inverse-model learning** with a population of gains (the old oracle's update, now open-loop and
    everywhere): ``U + gamma Q(P^{-1} e_n)``, ``e_n`` the incumbent's true tracking error along the contour
-   normal, ``P^{-1}`` the exact plant's linear inverse (:func:`vcnc_baselines.feedforward.tables.linear_inverse`),
+   normal, ``P^{-1}`` the exact plant's linear inverse (:func:`vcnc_baselines.inverse_model.linear_inverse`),
    ``Q`` a zero-phase Butterworth low-pass; each candidate is scored on the exact plant and kept only if
    better (a learning step that drifts is never kept).
 3. **Cross-entropy search** (Rubinstein 1999; de Boer et al. 2005) in windows around the incumbent's largest
@@ -37,7 +37,7 @@ from scipy import signal
 
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.envs.task import ContouringBatch
-from ..feedforward.tables import linear_inverse
+from ..inverse_model import linear_inverse
 from .open_loop import OpenLoopPolicy
 from .rollout import Rollouts, figures, OUT_COMPLETED
 

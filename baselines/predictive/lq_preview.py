@@ -12,7 +12,7 @@ Each axis runs the law of :mod:`.design` at the control period ``T``: per call `
 with ``e = x_d - x`` the observation's tracking error (mm), ``y_m`` the measured position ``x_d - e`` (mm) and
 velocity (mm/s), ``r`` the reference positions of the table ahead (the CNC interpolator's output, as
 :mod:`vcnc_baselines.servo` reads it: "Where the reference comes from"), and ``u_c`` the Coulomb-friction and backlash
-pre-compensation of ``ff-pid`` (:func:`vcnc_baselines.feedforward.tables.inverse_feedforward` without the motion
+pre-compensation of ``ff-pid`` (:func:`vcnc_baselines.inverse_model.inverse_feedforward` without the motion
 term: the preview gains carry the motion).  ``u_lin(k)`` is the linear part of the command the plant received
 (after the clip to the input limit): the velocity form's anti-windup.
 
@@ -56,7 +56,7 @@ from numba.extending import overload
 from vcnc_gym.envs import controller_contract
 from vcnc_gym.envs import step_kernel as sk
 from vcnc_gym.validation import non_negative, positive
-from ..feedforward.tables import inverse_feedforward, path_force_feedforward
+from ..inverse_model import inverse_feedforward, path_force_feedforward
 from ..commissioning.record import nominal_record
 from ..servo import ServoPolicy
 from .design import (
@@ -103,7 +103,7 @@ class LQPreviewPolicy(ServoPolicy):
     delays : (2,) float, optional
         Per axis input dead time, s; default the ``model``'s (with ``models``: 0).
     friction_time, backlash_time : float
-        s, as ``ff-pid`` (:func:`~vcnc_baselines.feedforward.tables.inverse_feedforward`); ``friction_time`` defaults to
+        s, as ``ff-pid`` (:func:`~vcnc_baselines.inverse_model.inverse_feedforward`); ``friction_time`` defaults to
         the machine's commissioning.
     velocity : bool, optional
         Whether the estimator reads the measured velocity; default: unless the plant declares a position sensor
