@@ -17,6 +17,13 @@ from vcnc_gym.motion import SCurveFeedrate, interpolate
 ID = "VCNC-OmegaOverride-v1"
 
 
+def _front():
+    """The feed-override study's front (``experiments/feed-override/feed_override.py``), imported when a test needs it."""
+    from benchmark_script import study_module
+
+    return study_module("feed-override", "feed_override")
+
+
 @pytest.fixture(scope="module")
 def omega():
     return gym.make("VCNC-Omega-v1").unwrapped
@@ -235,9 +242,9 @@ def test_running_out_of_time_pays_for_the_whole_contour_left():
 
 
 def test_operator_fixed_override_is_the_held_dial():
-    """The report's operator points (vcnc_bench.reports.feed_override.FixedOverride) are ff-pid-online with
+    """The report's operator points (experiments/feed-override/feed_override.py's FixedOverride) are ff-pid-online with
     the dial held: the same episode as the hand-written loop with that dial; the cap must lie in (0, 1]."""
-    from vcnc_bench.reports.feed_override import FixedOverride
+    FixedOverride = _front().FixedOverride
     from vcnc_gym.evaluation import run_episode
 
     env = gym.make(ID).unwrapped
@@ -252,10 +259,10 @@ def test_operator_fixed_override_is_the_held_dial():
 
 
 def test_the_front_keeps_exactly_the_points_nothing_beats():
-    """vcnc_bench.reports.feed_override.pareto against a brute-force check of every pair: a point is on the
+    """experiments/feed-override/feed_override.py's pareto against a brute-force check of every pair: a point is on the
     front when no other finished point is at least as fast and strictly more accurate (ties in time: the lower
     error); unfinished runs (infinite cycle time) are never on it."""
-    from vcnc_bench.reports.feed_override import FrontPoint, pareto
+    FrontPoint, pareto = _front().FrontPoint, _front().pareto
 
     rng = np.random.default_rng(0)
     points = [
@@ -278,10 +285,10 @@ def test_the_front_keeps_exactly_the_points_nothing_beats():
 
 @pytest.mark.parametrize("env_id", ["VCNC-ISO230Circle-v1", "VCNC-CircleShop-v1"])
 def test_an_ids_override_version_runs_its_own_reference(env_id):
-    """The report's override version of a contouring id (vcnc_bench.reports.feed_override.override_env) holds that
+    """The report's override version of a contouring id (experiments/feed-override/feed_override.py's override_env) holds that
     id's task: the same reference samples, plant and shop floor as gym.make(env_id) (a G-code id's program read
     as GCodeEnv reads it), in FeedOverrideEnv; a non-contouring id is refused by name."""
-    from vcnc_bench.reports.feed_override import override_env
+    override_env = _front().override_env
 
     base, over = gym.make(env_id).unwrapped, override_env(env_id).unwrapped
     assert type(over).__name__ == "FeedOverrideEnv" and over.action_space.shape == (3,)
@@ -293,12 +300,13 @@ def test_an_ids_override_version_runs_its_own_reference(env_id):
 
 
 def test_an_ids_front_on_the_table():
-    """vcnc_bench.reports.feed_override.id_front on Purtojo et al.'s circle: the planned runs at the programmed
+    """experiments/feed-override/feed_override.py's id_front on Purtojo et al.'s circle: the planned runs at the programmed
     feed's fractions (1 mm/s and slower: a slower feed takes longer, by the feed's ratio to within the start and
     the end), the operator's override left out (ff-pid-online is not designed for the table), and each planned
     point the episode that gym.make(id, feedrate=f) gives."""
     import vcnc_baselines
-    from vcnc_bench.reports.feed_override import FEED_FRACTIONS, id_front
+
+    FEED_FRACTIONS, id_front = _front().FEED_FRACTIONS, _front().id_front
     from vcnc_gym.evaluation import run_episode
 
     lines = []
@@ -314,7 +322,8 @@ def test_an_ids_front_on_the_table():
 def test_the_fronts_json_reads_back_and_replots(tmp_path):
     """--json's file read back by read_fronts gives the same points (FrontPoint equality, infinite cycle times
     included), and --replot draws them on one grid without running anything."""
-    from vcnc_bench.reports.feed_override import FrontPoint, _write_json, main, read_fronts
+    front = _front()
+    FrontPoint, _write_json, main, read_fronts = front.FrontPoint, front._write_json, front.main, front.read_fronts
 
     fronts = {
         "VCNC-Heart-v1": [

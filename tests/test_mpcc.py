@@ -235,8 +235,10 @@ def test_on_a_slow_path_it_runs_at_its_cap():
     progress rewards in proportion to the programmed feed (WEIGHTS_FEED) it runs at its 0.6 mm/s cap, finishing
     the 2 pi mm within 1 % of 2 pi / 0.6 s (with the omega's weights unscaled it crawled at 0.32 mm/s and ran out of
     the time limit), its max contour error within 3 um."""
-    from vcnc_bench.reports.feed_override import override_env
+    from benchmark_script import study_module
     from vcnc_gym.evaluation import run_episode
+
+    override_env = study_module("feed-override", "feed_override").override_env
 
     env = override_env("VCNC-Circle-v1")
     policy = vcnc_baselines.make("mpcc", env, v_max=0.6)

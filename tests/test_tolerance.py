@@ -15,9 +15,9 @@ import vcnc_baselines
 import vcnc_gym  # noqa: F401  (registers the ids)
 from benchmark_script import study_module
 from vcnc_gym.envs import step_kernel as sk
-from vcnc_bench.reports.feed_override import classical_front
 
 tl = study_module("tolerance", "tolerance")
+classical_front = study_module("feed-override", "feed_override").classical_front
 
 ID = "VCNC-OmegaOverride-v1"
 #: The tolerance study's recipe (its entries of the override ids), as ``vcnc-train --config`` reads it.
@@ -402,7 +402,7 @@ def test_a_cap_beyond_the_dial_s_reach_is_refused_before_the_grid_runs(capsys):
 def test_the_search_s_contouring_mpc_is_the_omega_front_s():
     """``run_mpcc`` on the nominal plant (a batch of one) gives the omega front's MPCC point at 100 mm/s
     (``mpcc_front``: one env, ``run_episode``)."""
-    from vcnc_bench.reports.feed_override import mpcc_front
+    mpcc_front = study_module("feed-override", "feed_override").mpcc_front
 
     env = gym.make(ID).unwrapped
     (run,) = tl.run_mpcc(ID, env.nominal_parameters[None], caps=(1.0,))

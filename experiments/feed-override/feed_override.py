@@ -22,7 +22,7 @@ side on the nominal plant:
 :func:`pareto` keeps the points no other point beats in both cycle time and max error: the classical front is
 the Pareto set of every planned run.
 
-Run ``python -m vcnc_bench.reports.feed_override --plot bench-out/omega_front.png`` (the shipped agent, or
+Run ``python experiments/feed-override/feed_override.py --plot bench-out/omega_front.png`` (the shipped agent, or
 ``--agent FOLDER``; ``--no-mpcc`` leaves out the contouring MPC, whose episodes take a minute or more each).
 
 **Every other contouring id** (``--id ID``, or ``--id all`` for :data:`CONTOURING_IDS`; :func:`id_front`): the
@@ -505,7 +505,7 @@ def read_fronts(paths) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m vcnc_bench.reports.feed_override", description=__doc__.split("\n\n")[0]
+        prog="python experiments/feed-override/feed_override.py", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--agent", help="the feed-override agent's folder (default: the shipped one)")
     parser.add_argument("--plot", help="write the front as a PNG here (with --id: a folder, one PNG per id)")

@@ -1,7 +1,7 @@
-"""The table of every contouring id's front (docs/reproduction.md, "The front of every contouring id"), from a
-``python -m vcnc_bench.reports.feed_override --id ... --json`` file.
+"""The table of every contouring id's front (experiments/feed-override/README.md), from a
+``python experiments/feed-override/feed_override.py --id ... --json`` file.
 
-    python benchmarks/fronts_table.py docs/data/fronts.json
+    python experiments/feed-override/fronts_table.py experiments/feed-override/data/fronts.json
 
 Per id: the planned runs' Pareto front at its fastest and at its most accurate point, the operator's most accurate
 fixed override, the contouring MPC at its caps ("unfinished": it did not finish within the time limit), and
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from vcnc_bench.reports.feed_override import pareto, read_fronts
+from feed_override import pareto, read_fronts
 
 
 def _run(p) -> str:
