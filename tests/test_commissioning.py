@@ -134,6 +134,22 @@ def test_record_round_trips_through_json(tmp_path):
     np.testing.assert_allclose(inv.coefficients[:, 3], inv.coefficients[:, 1] / w2)
 
 
+def test_only_ship_nominal_writes_the_shipped_records(tmp_path, monkeypatch):
+    """``nominal_record`` reads a machine's shipped record and writes nothing; ``ship_nominal`` runs the nominal
+    identification afresh and (over)writes the package's data (here redirected to a temporary folder)."""
+    monkeypatch.setattr(record, "SHIPPED", tmp_path)
+    monkeypatch.setattr(record, "_CACHE", {})
+    task = _nominal_task("VCNC-Circle-v1")
+    key = record.machine_key(task.plant, task.nominal_parameters, task.dt)
+    assert record.nominal_record(task.plant, task.nominal_parameters, task.dt) is None  # none shipped, no task
+    assert list(tmp_path.iterdir()) == []
+    fresh = record.ship_nominal(task)
+    assert [p.name for p in tmp_path.iterdir()] == [f"{key}.json"]
+    record._CACHE.clear()
+    assert record.nominal_record(task.plant, task.nominal_parameters, task.dt) == fresh
+    assert list(tmp_path.iterdir()) == [tmp_path / f"{key}.json"]
+
+
 @pytest.mark.slow
 def test_servo_law_filters_compiled_equals_numpy():
     """The servo law with a velocity filter and a notch: the compiled form gives the NumPy form's commands, and

@@ -43,8 +43,8 @@ __all__ = [
     "machine_key",
     "experiment_key",
     "ship_machines",
+    "ship_nominal",
     "load",
-    "shipped",
     "plot",
     "SOURCES",
     "MACHINES_SHIPPED",
@@ -420,8 +420,10 @@ def ship_machines(task, experiment: Experiment = Experiment()) -> Path:
     return path
 
 
-def shipped(task) -> CommissioningRecord:
-    """Commission ``task``'s nominal machine afresh and write the record to :data:`SHIPPED`."""
+def ship_nominal(task) -> CommissioningRecord:
+    """Run the ``"nominal"`` identification of ``task``'s nominal machine afresh and (over)write its record in
+    :data:`SHIPPED`, the package's data; returns the record.  :func:`nominal_record` reads it (and writes
+    nothing)."""
     key = machine_key(task.plant, task.nominal_parameters, task.dt)
     _CACHE.pop(key, None)
     inv = task.plant.inverse(task.nominal_parameters)
@@ -496,7 +498,7 @@ def _main(argv=None) -> None:
         if args.machines:
             print(env_id, "->", ship_machines(task).name, flush=True)
             continue
-        record = shipped(task)
+        record = ship_nominal(task)
         print(env_id, "->", machine_key(task.plant, task.nominal_parameters, task.dt))
         print(record)
 
