@@ -1,12 +1,13 @@
 """The house's layers: every import of the four packages, lazy ones included, runs downward, and no module imports
-itself round a loop (what ``farm-studio look`` draws: 0 upward arrows, 0 circles).
+itself round a loop: 0 upward arrows, 0 circles (``pytest tests/test_layers.py``).
 
 The order, from the ground: ``vcnc_gym`` (envs, plants, contours), ``vcnc_baselines`` (the classical controllers,
 folder ``baselines/``), ``vcnc_agents`` (training, and the agents that correct a baseline, folder ``agents/``),
 ``vcnc_bench`` (the bench that runs them all, its
 policy kinds in ``vcnc_bench/kinds``).
 
-Within ``vcnc_agents`` the modules stand on at most :data:`AGENTS_MAX_FLOORS` floors, its storage on leaves (issue 34).
+Within each package its parts (subpackages and top modules) import one way; within ``vcnc_agents`` the modules
+stand on at most :data:`AGENTS_MAX_FLOORS` floors, its storage on leaves.
 """
 
 from __future__ import annotations
@@ -122,8 +123,8 @@ def test_the_parts_of_each_package_import_one_way(package):
     assert loops == []
 
 
-#: The most floors ``vcnc_agents`` (``agents/``) may stand on (issue 34: it stood on 11): floor 1 is a module that imports no other
-#: module of the package, and a module stands one floor above the highest it imports (``farm-studio look agents``).
+#: The most floors ``vcnc_agents`` (``agents/``) may stand on (it stood on 11): floor 1 is a module that imports no other
+#: module of the package, and a module stands one floor above the highest it imports (:func:`_floors`).
 AGENTS_MAX_FLOORS = 7
 
 #: The storage and IO of ``vcnc_agents``: the run folder, the model file, the normalisation file, the env signature an
