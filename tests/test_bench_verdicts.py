@@ -15,7 +15,7 @@ from vcnc_bench.provenance import cpu, provenance
 #: The specialists study's stored runs (``experiments/specialists/data/``) and the predictive controllers' runs over
 #: the same plants, which the seeds' tables join.
 SPECIALIST_DATA = Path(__file__).resolve().parents[1] / "experiments" / "specialists" / "data"
-MPC_BOX = Path(__file__).resolve().parents[1] / "docs" / "data" / "mpc_box"
+MPC_BOX = Path(__file__).resolve().parents[1] / "experiments" / "classical-opponents" / "data" / "mpc_box"
 
 
 def _record(env, policy, max_um, rms_um, kinds, diverged=None, per_noise=None):

@@ -37,8 +37,8 @@ class CrossCoupledPolicy(FeedforwardPIDPolicy):
         Default False: Koren's CCC runs the axis loops without feedforward (``ff-ccc`` adds it).
     coupling : float
         Coupling gains relative to the axis gains, >= 0.  Default 0.1: the best max contour error of 0.1, 0.3
-        and 1 on the heart, the look-ahead omega and the circle (``python benchmarks/tune_servo.py``; 1 is 3-4
-        times worse on Jahanpour et al.'s drive).
+        and 1 on the heart, the look-ahead omega and the circle
+        (``python experiments/classical-opponents/tune_servo.py``; 1 is 3-4 times worse on Jahanpour et al.'s drive).
     variable : bool
         Koren and Lo's variable gains (True) or Koren's fixed ones (False, default).
     """

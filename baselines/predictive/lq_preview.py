@@ -37,8 +37,8 @@ its estimator (:func:`.design.margin_weight`: phase >= 45 deg, gain >= 6 dB, sen
 at most the commissioned PID's and half the mode).  A machine without a shipped record falls back to the declared
 model.  It is not the default because it is weaker where it was measured: an LQ regulator with a Kalman filter
 has no guaranteed margins (Doyle 1978), and on the shop floor's drives the rule stops its loop at a crossover of
-about 90 rad/s (``python benchmarks/lq_commissioning.py``; docs/reproduction.md, "Predictive control on the
-commissioned model").
+about 90 rad/s (``python experiments/classical-opponents/lq_commissioning.py``; that folder's README.md, "Predictive
+control on the commissioned model").
 
 Any other model goes in through ``models=`` and ``delays=``.  A model whose state the measured position and velocity
 do not determine (a mode, a delay, a position-only sensor) is estimated by a steady-state Kalman filter

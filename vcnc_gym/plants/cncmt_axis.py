@@ -349,7 +349,7 @@ MODEL = PlantModel(
     delay=_delay,
     inverse_dynamics=_inverse_dynamics,
     # the position-loop bandwidth ceiling: the best max contour error of ff-pid, zpetc and ff-ccc on the nominal
-    # plant of its ids over a grid (python benchmarks/tune_servo.py; docs/reproduction.md)
+    # plant of its ids over a grid (python experiments/classical-opponents/tune_servo.py)
     servo_bandwidth=1.0,
 )
 

@@ -372,7 +372,7 @@ MODEL = PlantModel(
     inverse_dynamics=_inverse_dynamics,
     force_gain=_force_gain,
     # the position-loop bandwidth ceiling: the best max contour error of ff-pid, zpetc and ff-ccc on the nominal
-    # plant of its ids over a grid (python benchmarks/tune_servo.py; docs/reproduction.md)
+    # plant of its ids over a grid (python experiments/classical-opponents/tune_servo.py)
     servo_bandwidth=2000.0,
     friction_time=0.0,  # a Coulomb switch at the reversal halves the smoothed corners' max (zpetc 4.3 against 12.9 nm at 1 ms)
     path_limits=(4000.0, 1.6e5),  # Simba et al.'s JLAP limits (motion.jlap's SIMBA_*)

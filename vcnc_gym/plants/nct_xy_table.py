@@ -209,7 +209,7 @@ MODEL = PlantModel(
     inverse_dynamics=_inverse_dynamics,
     force_gain=_force_gain,
     # the position-loop bandwidth ceiling: the best max contour error of ff-pid, zpetc and ff-ccc on the nominal
-    # plant of its ids over a grid (python benchmarks/tune_servo.py; docs/reproduction.md)
+    # plant of its ids over a grid (python experiments/classical-opponents/tune_servo.py)
     servo_bandwidth=30.0,
     # Purtojo et al. give no path limits (their 1 mm circle runs at 1 mm/s): 30 mm/s^2 is 40 % of the slower (x)
     # axis's acceleration at the rated input from rest, K alpha u_r = 50.7 x 1.475 = 75 mm/s^2 (Jahanpour et al.'s

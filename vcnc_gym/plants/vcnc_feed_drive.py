@@ -415,7 +415,7 @@ MODEL = PlantModel(
     inverse_dynamics=_inverse_dynamics,
     force_gain=_force_gain,
     # the position-loop bandwidth ceiling: the best max contour error of ff-pid, zpetc and ff-ccc on the nominal
-    # plant of its ids over a grid (python benchmarks/tune_servo.py; docs/reproduction.md)
+    # plant of its ids over a grid (python experiments/classical-opponents/tune_servo.py)
     servo_bandwidth=1000.0,
     # the path limits the suite plans Jahanpour et al.'s moves with (motion.lookahead's JAHANPOUR2014_PATH_*):
     # 1000 mm/s^2 is 38 % of the drives' ~2.6e3 mm/s^2 at the +-5 V saturation

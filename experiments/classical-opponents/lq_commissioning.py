@@ -1,7 +1,7 @@
 """The LQ preview servo on a machine's commissioned model: the commissioning's margin rule applied to its loop, and
 what the rule costs it.
 
-Run: ``python benchmarks/lq_commissioning.py [--env ID ...] [--sweep]``.
+Run: ``python experiments/classical-opponents/lq_commissioning.py [--env ID ...] [--sweep]``.
 
 Per id and axis x, for ``lq-preview`` (the plant's declared nominal model at the commissioned PID's bandwidth) and
 ``lq-preview@commissioned`` (the nominal machine's identified model: rigid body, the mode and the command delay

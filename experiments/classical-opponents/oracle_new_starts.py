@@ -9,7 +9,7 @@ stored solution's own env (the nominal plant, seed 0: the shipped ones) with the
   starts: the floor is at or below them, measured;
 - where one does, solves that id again (with every start, the new ones included) and stores the new floor.
 
-Run ``python benchmarks/oracle_new_starts.py [--env ID ...]``; it prints one line per id and controller.
+Run ``python experiments/classical-opponents/oracle_new_starts.py [--env ID ...]``; it prints one line per id and controller.
 """
 
 from __future__ import annotations

@@ -4,15 +4,15 @@ feedforward's friction transition.
 ``vcnc_baselines.commissioning.design.pid_gains`` places a triple pole at ``-bandwidth`` on the nominal axis; this script runs
 ``ff-pid`` and ``ff-ccc`` on the nominal plant of each plant's contouring ids over a grid of bandwidths (and of
 coupling gains for ``ff-ccc``) and prints max / RMS contour error, the figures behind
-the bandwidths (now each plant's ``servo_bandwidth`` ceiling, below which ``vcnc_baselines.commissioning`` designs) and ``vcnc_baselines.coupling.ccc``'s default coupling (docs/reproduction.md).
+the bandwidths (now each plant's ``servo_bandwidth`` ceiling, below which ``vcnc_baselines.commissioning`` designs) and ``vcnc_baselines.coupling.ccc``'s default coupling (experiments/classical-opponents/README.md).
 ``--transitions`` runs ``zpetc``, ``ff-pid`` and ``ff-ccc`` over a grid of the durations over which the
 feedforward's Coulomb level (``friction_time``) and the backlash crossing (``backlash_time``) change at a
 reversal, and ``--shop-floor`` the bandwidth grid on the shop-floor ids, the rest of the former hand table (now ``PlantModel.friction_time``)::
 
-    python benchmarks/tune_servo.py            # every plant's grid, a few minutes on 2 cores
-    python benchmarks/tune_servo.py --env VCNC-Heart-v1
-    python benchmarks/tune_servo.py --transitions
-    python benchmarks/tune_servo.py --shop-floor
+    python experiments/classical-opponents/tune_servo.py            # every plant's grid, a few minutes on 2 cores
+    python experiments/classical-opponents/tune_servo.py --env VCNC-Heart-v1
+    python experiments/classical-opponents/tune_servo.py --transitions
+    python experiments/classical-opponents/tune_servo.py --shop-floor
 """
 
 from __future__ import annotations
