@@ -103,6 +103,8 @@ ERROR_LIMIT = 50.0
 class ServoGains:
     """The feedback gains of the servo law.
 
+    A policy holds them stacked, (G, 2) and (G,), G = 1 or one row per env (:meth:`ServoPolicy._set_law`).
+
     Attributes
     ----------
     kp, kd, ki : ndarray, (2,)
@@ -122,8 +124,6 @@ class ServoGains:
     notch : ndarray, (2, 5)
         Per axis a biquad ``(b0, b1, b2, a1, a2)`` the feedback part of the command passes (the PID's and the
         coupling's output, not the feedforward): a notch at a structural mode; default :data:`NO_NOTCH`.
-
-    A policy holds them stacked, (G, 2) and (G,), G = 1 or one row per env (:meth:`ServoPolicy._set_law`).
     """
 
     kp: np.ndarray

@@ -4,7 +4,9 @@ Markdown pages through myst-parser, the furo theme (Gymnasium's), the API
 reference from the numpydoc docstrings (autodoc + napoleon, numpy style).
 The env and controller pages are generated at build time from
 ``vcnc_gym.envs.registry.SUITE`` and ``vcnc_baselines.registry`` by
-``_ext/vcnc_pages.py``.  No network: no intersphinx.
+``_ext/vcnc_pages.py``; the numpydoc types are shown as text by
+``_ext/plain_types.py``.  No network: no intersphinx.  Nothing is filtered:
+``make docs`` fails on any warning, the docstrings' markup included.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ extensions = [
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
     "vcnc_pages",
+    "plain_types",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
@@ -47,10 +50,6 @@ autodoc_typehints = "description"
 autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
 # what autodoc need not import to document the modules (none of these is needed to build the docs)
 autodoc_mock_imports: list[str] = []
-
-# An info field's type that names an attribute several classes have ("params", "name") finds several
-# targets; with nitpicky off that is the only kind of Python reference warning, and not a broken link.
-suppress_warnings = ["ref.python"]
 
 html_theme = "furo"
 html_title = f"vcnc-gym {release}"

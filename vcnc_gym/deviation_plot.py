@@ -27,7 +27,7 @@ import numpy as np
 
 __all__ = ["CORNER_CURVATURE", "MAX_INSETS", "contour_corners", "magnification", "plot_deviation", "signed_deviation"]
 
-#: A local maximum of |curvature| above this (1/mm, a radius of 2 mm) is a corner.
+#: A local maximum of ``|curvature|`` above this (1/mm, a radius of 2 mm) is a corner.
 CORNER_CURVATURE = 0.5
 #: Most insets drawn.
 MAX_INSETS = 8

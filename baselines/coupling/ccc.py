@@ -30,8 +30,7 @@ class CrossCoupledPolicy(FeedforwardPIDPolicy):
 
     Parameters
     ----------
-    layout, decision_period, nominal_parameters, plant, reference, dt, bandwidth, integral, friction_time,
-    backlash_time
+    layout, decision_period, nominal_parameters, plant, reference, dt, bandwidth, integral, friction_time, backlash_time
         As :class:`~vcnc_baselines.feedforward.ff_pid.FeedforwardPIDPolicy`.
     feedforward : bool
         Default False: Koren's CCC runs the axis loops without feedforward (``ff-ccc`` adds it).

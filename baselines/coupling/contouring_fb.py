@@ -76,7 +76,7 @@ TABLE_I_FB = {"k_p": 70000.0, "k_d": 240.0}
 
 #: Reference speed in mm/s below which the path angle is not taken from the
 #: reference velocity and its rate is 0 (float32 velocity and acceleration
-#: make the rate's rounding error about |a| 1e-7 / |v| rad/s).
+#: make the rate's rounding error about ``|a|`` 1e-7 / ``|v|`` rad/s).
 MIN_SPEED = 1e-3
 
 

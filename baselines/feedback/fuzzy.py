@@ -28,7 +28,7 @@ differencing quantised float32 positions.  A per-period change Delta e
 corresponds to D * T in mm.
 
 Scalings (:class:`FuzzyScaling`), chosen for this plant, not fitted to the paper
--------------------------------------------------------------------------------
+--------------------------------------------------------------------------------
 The FC has no integral and no feedforward (the paper's FC has neither), so
 the error itself must produce the steady command.  At 100 mm/s (the paper's
 feed) the x axis needs c v + T_coul/(K_t K_a), about 0.4 V + 0.7 V = 1.1 V

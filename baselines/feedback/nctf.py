@@ -67,7 +67,7 @@ The fuzzy compensator (section II-A/B, Table I, Fig. 4)
   clipped to them.
 
 What the paper leaves out, chosen here (:class:`NCTFSettings`, :data:`OUTPUT_POINTS`)
------------------------------------------------------------------------------------
+-------------------------------------------------------------------------------------
 * ``integral_gain`` ``k_i``: eqs. (1)-(2) give ``u_i``'s universe as an area
   of the phase plane (mm x mm/s), while ``u_i`` is the time integral of
   ``u_p`` (mm).  We scale the integral by ``k_i = h_max`` (mm/s, per axis):

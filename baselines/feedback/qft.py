@@ -47,22 +47,22 @@ model, stepped per axis by :func:`vcnc_baselines.linear.lti_step`.
 Robustness figures (computed by the functions below)
 ----------------------------------------------------
 * Continuous loop, eq. (11), over the 64 vertices and a 5^4 grid of the
-  box: peak |T| = 1.170 on x (at about 9.7e3 rad/s) and 1.141 on y, both
+  box: peak ``|T|`` = 1.170 on x (at about 9.7e3 rad/s) and 1.141 on y, both
   below mu = 1.2.
 * The sampled loop (zero-order-hold plant, Tustin G) is stable on every
   vertex at 0.1 ms (largest pole modulus 0.99973, the slow pole of G's zero
   at 2.7 rad/s) and unstable at 1 ms, the paper's interpolation period
-  (a pole at |z| = 10.7 on x, 9.8 on y): G lifts the crossover to about
+  (a pole at ``|z|`` = 10.7 on x, 9.8 on y): G lifts the crossover to about
   8.6e3 rad/s.  At 0.1 ms the hold's delay and the bilinear warping cost
   about 27 degrees of phase there (nominal x: phase margin 57 -> 30
-  degrees, gain margin infinite -> 1.96): the sampled peak of |T| is about 4.0
+  degrees, gain margin infinite -> 1.96): the sampled peak of ``|T|`` is about 4.0
   (x) and 3.3 (y), and the nominal closed-loop pair has a damping ratio of
   about 0.23.  Eq. (11) holds for the sampled loop only from about
   dt = 1e-5 s on.
 
 What the pre-filter does to the contour
 ---------------------------------------
-From r to y the loop is about F(s) (|T| is close to 1 far beyond F's
+From r to y the loop is about F(s) (``|T|`` is close to 1 far beyond F's
 bandwidth), and F is a critically damped second-order filter with
 omega_n = 93.4 rad/s: the table lags the command by F's delay,
 0.187/8.72 = 21 ms, i.e. 2.1 mm at 100 mm/s, equally on both axes.  On a
@@ -386,7 +386,7 @@ def robust_stability_peak(
     method: str = "tustin",
     full_output: bool = False,
 ):
-    """Worst-case peak of |P G / (1 + P G)| over the uncertainty box, Jahanpour et al.'s eq. (11).
+    """Worst-case peak of ``|P G / (1 + P G)|`` over the uncertainty box, Jahanpour et al.'s eq. (11).
 
     Parameters
     ----------
@@ -415,7 +415,7 @@ def robust_stability_peak(
     Returns
     -------
     peak : float
-        max |T(j omega)| over plants and frequencies; eq. (11) asks for < mu = 1.2.
+        max ``|T(j omega)|`` over plants and frequencies; eq. (11) asks for < mu = 1.2.
     omega_peak : float
         Only with ``full_output``: the frequency of the peak, rad/s.
     parameters : ndarray, (2, P)
@@ -423,7 +423,7 @@ def robust_stability_peak(
 
     Notes
     -----
-    A type-1 loop has |T| -> 1 at low frequency, so the peak is >= 1; a peak
+    A type-1 loop has ``|T|`` -> 1 at low frequency, so the peak is >= 1; a peak
     above 1 is a real resonance of the closed loop.  The discrete peak is only
     meaningful when the sampled loop is stable
     (:func:`sampled_loop_spectral_radius` < 1).
@@ -457,7 +457,7 @@ def robust_stability_peak(
 def sampled_loop_spectral_radius(
     G=QFT_CONTROLLER, axis=0, dt=1e-4, *, parameter_sets=None, method: str = "tustin"
 ) -> float:
-    """Largest closed-loop pole modulus |z| of the sampled loop over a plant set.
+    """Largest closed-loop pole modulus ``|z|`` of the sampled loop over a plant set.
 
     The loop is the ZOH-discretised plant P(z) (Jahanpour et al. (2014), eq. (1)) in unity
     feedback with G discretised by ``method`` at ``dt``; the poles are those
@@ -477,7 +477,7 @@ def sampled_loop_spectral_radius(
     Returns
     -------
     float
-        max |z| over all closed-loop poles and plants; < 1 means stable.
+        max ``|z|`` over all closed-loop poles and plants; < 1 means stable.
     """
     axis = _axis_index(axis)
     sets = feed_drive.uncertainty_vertices() if parameter_sets is None else np.asarray(parameter_sets, dtype=float)

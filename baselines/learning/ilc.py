@@ -53,21 +53,21 @@ How the equations are read
   one value each).
 * **Q(b^-1)** is ``q`` (Table I: 1), times, if ``q_cutoff`` is given, a
   zero-phase low-pass (second-order Butterworth run forwards and backwards
-  over the finished trial: |Q| = q / (1 + (f / q_cutoff)^4)).
+  over the finished trial: ``|Q|`` = q / (1 + (f / q_cutoff)^4)).
 
 Convergence, and the ``ilc-q`` variant
 --------------------------------------
 With the stored feedback the trial-to-trial map of the error is, for the
 linear loop, e_{j+1} = Q S_i (1 - G L) e_j, S_i = 1 / (1 + loop gain) the
 sensitivity of the sampled eq. (7) loop (G = 1/s^2 after eq. (5)): learning
-is fast below the loop's bandwidth (|S_i| << 1), but |S_i| exceeds 1 from
+is fast below the loop's bandwidth (``|S_i|`` << 1), but ``|S_i|`` exceeds 1 from
 38.5 Hz on, peaking at 1.26 near 55 Hz (dt = 0.1 ms; 1.51 at 1 ms), and L
 (k_PL = 200 1/s^2 against k_P = 70 000) cannot pull it back.  With Table I's
 q = 1 the error content there grows by up to 26 % per trial: the ringing
 after a sharp corner or a friction break-away builds up over the trials (the
 paper's own ILC gains 9 % on its linear path).  The registered variant
-``ilc-q`` adds the low-pass with q_cutoff = 20 Hz (|Q| = 0.07 at 38.5 Hz):
-then |Q S_i (1 - G L)| <= 0.13 at every frequency (computed for the sampled
+``ilc-q`` adds the low-pass with q_cutoff = 20 Hz (``|Q|`` = 0.07 at 38.5 Hz):
+then ``|Q S_i (1 - G L)|`` <= 0.13 at every frequency (computed for the sampled
 loop at 0.1 ms), a monotone convergence of the linear loop, at the price of
 learning little above about 20 Hz.
 
@@ -264,7 +264,7 @@ class ILCPolicy(ContouringFBPolicy):
 
     # -- analysis ---------------------------------------------------------------------
     def learning_gain(self, frequencies) -> np.ndarray:
-        """|Q S_i (1 - G L)| at ``frequencies`` (Hz): how much of the normal error's content there remains
+        """``|Q S_i (1 - G L)|`` at ``frequencies`` (Hz): how much of the normal error's content there remains
         after one trial, for the linear loop (psi = 1, no saturation or friction).
 
         G(z) = T^2 (z + 1) / (2 (z - 1)^2) is the sampled double integrator that

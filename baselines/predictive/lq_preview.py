@@ -1,7 +1,7 @@
 """The optimal LQ preview servo (``lq-preview``): Tomizuka and Whitney (1975)'s discrete finite preview control with
 Katayama et al. (1985)'s integral action, per axis, on the plant's nominal linear model.
 
-Each axis runs the law of :mod:`.design` at the control period ``T``: per call ``k``,
+Each axis runs the law of :mod:`~vcnc_baselines.predictive.design` at the control period ``T``: per call ``k``,
 
 .. math::
 

@@ -2,8 +2,8 @@
 over a finite horizon as a box-constrained QP at every control period.
 
 Per axis and call ``k``, with the augmented error system ``X(l+1) = Phi X(l) + Gamma Du(l) + G Dr(l+1)`` of
-:mod:`.design`, the input is chosen over ``H = sum(blocks)`` control periods, held constant over each block
-(move blocking: ``b = len(blocks)`` decision variables ``z``, the linear input's level per block):
+:mod:`~vcnc_baselines.predictive.design`, the input is chosen over ``H = sum(blocks)`` control periods, held constant
+over each block (move blocking: ``b = len(blocks)`` decision variables ``z``, the linear input's level per block):
 
 .. math::
 

@@ -82,9 +82,9 @@ class CircleFigures:
     rms_radial_um : float
         RMS radial error.
     max_radial_after_transient_um : float
-        Largest |radial error| after the transient (the paper: "within 2 um").
+        Largest ``|radial error|`` after the transient (the paper: "within 2 um").
     max_radial_um : float
-        Largest |radial error| over the whole run.
+        Largest ``|radial error|`` over the whole run.
     transient_s : float
         The excluded start, s.
     """

@@ -11,7 +11,7 @@ How it is found exactly and fast enough for every control period:
    on how far the curve strays from that chord (the sag), the Taylor
    coefficients of its homogeneous polynomials (the curve on a span is a
    rational polynomial: evaluating it costs a few Horner steps instead of
-   The NURBS Book's A2.3 + A4.2), bounds that prove g(u) = |C(u) - q|^2 / 2
+   The NURBS Book's A2.3 + A4.2), bounds that prove g(u) = ``|C(u) - q|^2`` / 2
    convex on the piece for a given q, and an isolation radius (how far the
    piece is from every piece but its two neighbours).  A uniform grid of
    square cells lists the pieces whose chord, widened by h_i, touches each
@@ -192,13 +192,13 @@ def _chord_distance(qx, qy, ax, ay, bx, by):
 
 @njit(cache=True, _nrt=False)
 def _bracketed_newton(piece_table, degree, i, ui, qx, qy, lo, hi, u0, der):
-    """Local minimum of |C(u) - q| in [lo, hi] given f(lo) < 0 < f(hi): (dist mm, u).
+    """Local minimum of ``|C(u) - q|`` in [lo, hi] given f(lo) < 0 < f(hi): (dist mm, u).
 
     [lo, hi] lies on piece i, which starts at ``ui``.
 
     Newton's method on f(u) = (C(u) - q) . C'(u), each step kept inside the
     bracket (else a bisection step), the bracket shrunk by the sign of f.  It
-    cannot stall where f' = |C'|^2 + (C - q) . C'' is small or negative.
+    cannot stall where f' = ``|C'|^2`` + (C - q) . C'' is small or negative.
     """
     u = u0
     if not (lo < u < hi):
@@ -255,7 +255,7 @@ def _refine_on_piece(degree, qx, qy, u0, i, piece_u, piece_table, der):
 
     ``piece_table`` rows hold C(u_i), C'(u_i) from the right and from the left
     (they differ at a knot of multiplicity p) and, for piece i, the bounds of
-    :meth:`ContourProjector._table` that prove g = |C - q|^2 / 2 convex on
+    :meth:`ContourProjector._table` that prove g = ``|C - q|^2`` / 2 convex on
     the piece for this q, or not.  C is evaluated only strictly inside the
     piece; its end points (stored exactly) cover a minimum on its boundary.
     ``u0`` is the first Newton iterate (the bracket's middle if it lies
@@ -766,17 +766,17 @@ class ContourProjector:
         grid) and the polynomials of :func:`_piece_polynomials`; shape
         (n+1, 13 + 3 (p+1)).
 
-        Convexity: on piece i, g(u) = |C(u) - q|^2 / 2 has g'' = |C'|^2 +
-        (C - q) . C''.  With C = M + c, |c| <= r, and C'' = A + a, |a| <= rho:
+        Convexity: on piece i, g(u) = ``|C(u) - q|^2`` / 2 has g'' = ``|C'|^2`` +
+        (C - q) . C''.  With C = M + c, ``|c|`` <= r, and C'' = A + a, ``|a|`` <= rho::
 
             g'' >= min|C'|^2 - r (|A| + rho) + (M - q) . A - |M - q| rho,
 
-        stored as (M, A, rho, k = min|C'|^2 - r (|A| + rho)).  When it is
+        stored as (M, A, rho, k = min|C'|^2 - r (``|A|`` + rho)).  When it is
         positive g is convex on the whole piece (one minimum): q on the outer
         side of a bend at any distance, or inside it closer than about the
         radius of curvature.  M is the middle of the box of the sampled
         points and A of the sampled second derivatives; the sampled bounds
-        get margins, as the sag does: the least |C'|^2 is halved, rho doubled
+        get margins, as the sag does: the least ``|C'|^2`` is halved, rho doubled
         and r widened by the longest step between samples.  C' and C'' of
         piece i are sampled on [u_i, u_i+1) and at u_i+1 from the left.
         """

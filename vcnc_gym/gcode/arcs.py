@@ -5,7 +5,7 @@ An arc of sweep phi <= 90 degrees is one rational quadratic Bezier segment
 Jahanpour et al.'s curve type): end points P0, P2 on the circle, the middle point P1
 where the end tangents meet, at distance r / cos(phi / 2) from the centre on
 the bisector, weights (1, cos(phi / 2), 1).  A longer arc is cut into
-ceil(|sweep| / 90 deg) equal segments (section 7.5, algorithm A7.1), a full
+ceil(``|sweep|`` / 90 deg) equal segments (section 7.5, algorithm A7.1), a full
 circle into four.  Every point of such a segment lies on the circle exactly
 (up to rounding), which tests/test_gcode.py checks to 1e-9 mm.
 
@@ -47,7 +47,7 @@ def arc_segments(centre, radius: float, start_angle: float, sweep: float) -> lis
     start_angle : float
         Angle of the start point seen from the centre, rad.
     sweep : float
-        Signed sweep, rad (counter-clockwise positive), |sweep| <= 2 pi.
+        Signed sweep, rad (counter-clockwise positive), ``|sweep|`` <= 2 pi.
     """
     c = np.asarray(centre, dtype=np.float64)
     n = max(1, math.ceil(abs(sweep) / MAX_SEGMENT_SWEEP - 1e-12))

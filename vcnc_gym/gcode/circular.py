@@ -14,7 +14,7 @@ recorded over 360 degrees of a programmed circle:
   circle, centred on the nominal centre, max F_max (outwards, > 0) and min
   F_min (inwards, < 0) (clause 3.6).
 
-The least-squares circle minimises sum (|p_i - c| - r)^2: Gauss-Newton from
+The least-squares circle minimises sum (``|p_i - c|`` - r)^2: Gauss-Newton from
 the algebraic (Kasa 1976) fit, to 1e-15 relative.
 """
 

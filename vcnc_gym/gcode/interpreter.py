@@ -87,7 +87,7 @@ MM_PER_INCH = 25.4
 #: CENTER_ARC_RADIUS_TOLERANCE_MM = 2 * 0.01 * sqrt(2) (src/emc/rs274ngc/interp_internal.hh).
 ARC_RADIUS_TOLERANCE = 2 * 0.01 * math.sqrt(2.0)
 
-#: How much half the chord of an R arc may exceed |R|, mm (the arc is then a half circle):
+#: How much half the chord of an R arc may exceed ``|R|``, mm (the arc is then a half circle):
 #: LinuxCNC's RADIUS_TOLERANCE_MM = 0.00005 in (interp_internal.hh).
 RADIUS_TOLERANCE = 0.00005 * MM_PER_INCH
 

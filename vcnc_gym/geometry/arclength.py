@@ -23,7 +23,7 @@ ARC_STACK = 64  # depth of the adaptive quadrature's stack (bisections of one st
 
 @njit(cache=True)
 def gauss_arc(control_points, weights, knots, degree, a, b, ders, work):
-    """Arc length from a to b (one knot span) by 5-point Gauss-Legendre on |C'(u)|, mm.
+    """Arc length from a to b (one knot span) by 5-point Gauss-Legendre on ``|C'(u)|``, mm.
 
     A node that rounds onto b (a piece a few ulps wide) is moved just below
     it: at a knot the evaluator takes the span on the right.
@@ -41,7 +41,7 @@ def gauss_arc(control_points, weights, knots, degree, a, b, ders, work):
 
 @njit(cache=True)
 def _arc_within_span(control_points, weights, knots, degree, a, b, tol, ders, work, stack):
-    """Arc length from a to b inside one knot span (|C'| smooth), adaptive Gauss-Legendre, mm.
+    """Arc length from a to b inside one knot span (``|C'|`` smooth), adaptive Gauss-Legendre, mm.
 
     A piece is accepted when its 5-point value and the sum over its two
     halves agree to ``tol`` mm (or to 1e-13 relative); otherwise its halves
@@ -100,12 +100,12 @@ def arc_between(control_points, weights, knots, degree, a, b, tol, ders, work, s
 
 @njit(cache=True)
 def curve_speed(ders):
-    """|C'(u)| from ``ders`` ((>= 2, 2): C, C', ...), mm per unit of u."""
+    """``|C'(u)|`` from ``ders`` ((>= 2, 2): C, C', ...), mm per unit of u."""
     return math.sqrt(ders[1, 0] * ders[1, 0] + ders[1, 1] * ders[1, 1])
 
 
 @njit(cache=True)
 def curve_curvature(ders, speed):
-    """|C' x C''| / |C'|^3, 1/mm, in an order that neither overflows nor underflows early."""
+    """``|C' x C''|`` / ``|C'|^3``, 1/mm, in an order that neither overflows nor underflows early."""
     cross = abs(ders[1, 0] * ders[2, 1] - ders[1, 1] * ders[2, 0])
     return cross / speed / speed / speed

@@ -10,7 +10,7 @@ Placement (Simba et al., Fig. 3)
 --------------------------------
 At a corner G with interior angle theta between the legs, p_1, p_2, p_3
 lie on the incoming leg and p_4, p_5, p_6 on the outgoing one, symmetric
-about the bisector:
+about the bisector::
 
     |p_1 p_2| = |p_2 p_3| = l_1,   |p_3 G| = l_2   (and mirrored on the way out),
     l_t = |p_1 G| = 2 l_1 + l_2,   n = l_1 / l_2.
@@ -30,7 +30,7 @@ Length ratio (Simba et al., eqs. (14)-(20))
 With eq. (13) solved for l_t, the blend of a given (theta, eps) depends on n
 only.  Travelled at a constant speed v, its acceleration is v^2 kappa
 (eq. (14)) and its jerk v^3 varkappa (eq. (17)), with kappa the curvature and
-varkappa = |d^3 p / ds^3| = sqrt(kappa_s^2 + kappa^4).  So
+varkappa = ``|d^3 p / ds^3|`` = sqrt(kappa_s^2 + kappa^4).  So
 
     v_max,a(n) = sqrt(a_max / max_h kappa)           (eq. (15)),
     v_max,j(n) = cbrt(j_max / max_h varkappa)       (eq. (18)),
@@ -38,9 +38,9 @@ varkappa = |d^3 p / ds^3| = sqrt(kappa_s^2 + kappa^4).  So
 n_opt,a = argmin_n max_h kappa (eq. (16), eps held fixed as Simba et al. do),
 n_opt,j = argmin_n max_h varkappa (eq. (19)) and
 n_opt = argmax_n min(v_max,a, v_max,j) (eq. (20)).  Eq. (17) as printed has
-|p''|^7 in its denominator and "+" before the p''' p' term of H_1 and before
-H_2; differentiating p_ss = (p'' |p'|^2 - (p'.p'') p') / |p'|^4 once more gives
-|p'|^7 and minus signs, which is what :func:`blend_curvature` uses (the test
+``|p''|^7`` in its denominator and "+" before the p''' p' term of H_1 and before
+H_2; differentiating p_ss = (p'' ``|p'|^2`` - (p'.p'') p') / ``|p'|^4`` once more gives
+``|p'|^7`` and minus signs, which is what :func:`blend_curvature` uses (the test
 checks it against a finite-difference kappa_s).
 
 Maxima over h are found on a 513-point grid of h in [0, 1/2] (the blend is
@@ -242,7 +242,7 @@ def corner_error(theta: float, l_t: float, n: float) -> float:
     theta : float
         Interior angle of the corner, rad, in (0, pi).
     l_t : float
-        Distance |p_1 G| from the blend's first control point to the corner, mm.
+        Distance ``|p_1 G|`` from the blend's first control point to the corner, mm.
     n : float
         Length ratio l_1 / l_2, > 0.
     """
@@ -284,7 +284,7 @@ def blend_control_points(corner, d_in, d_out, l_t: float, n: float) -> np.ndarra
     d_in, d_out : array_like (2,)
         Unit directions of travel on the incoming and outgoing legs.
     l_t : float
-        |p_1 G| = |G p_6| = 2 l_1 + l_2, mm.
+        ``|p_1 G|`` = ``|G p_6|`` = 2 l_1 + l_2, mm.
     n : float
         Length ratio l_1 / l_2.
 
@@ -433,10 +433,10 @@ def blend_curvature(control_points, h) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     kappa : array, 1/mm
-        |p' x p''| / |p'|^3: at constant speed v the acceleration is v^2 kappa.
+        ``|p' x p''|`` / ``|p'|^3``: at constant speed v the acceleration is v^2 kappa.
     varkappa : array, 1/mm^2
-        |d^3 p / ds^3| = |p''' g^2 - 3 d g p'' + (4 d^2 - |p''|^2 g - (p'.p''') g) p'| / |p'|^7
-        with g = |p'|^2 and d = p'.p'': at constant speed the jerk is v^3 varkappa.
+        ``|d^3 p / ds^3| = |p''' g^2 - 3 d g p'' + (4 d^2 - |p''|^2 g - (p'.p''') g) p'| / |p'|^7``
+        with g = ``|p'|^2`` and d = p'.p'': at constant speed the jerk is v^3 varkappa.
     """
     c = np.ascontiguousarray(control_points, dtype=np.float64)
     hh = np.ascontiguousarray(np.atleast_1d(np.asarray(h, dtype=np.float64)).reshape(-1))
@@ -476,7 +476,7 @@ def peak_curvature(theta: float, epsilon: float, n: float) -> tuple[float, float
 def bezier_arc_length(control_points) -> float:
     """Arc length of a Bezier curve, Simba et al.'s eq. (21), mm.
 
-    :func:`vcnc_gym.geometry.quadrature.arc_length` of |dp/dh| on [0, 1]: 8 pieces of 16 Gauss-Legendre
+    :func:`vcnc_gym.geometry.quadrature.arc_length` of ``|dp/dh|`` on [0, 1]: 8 pieces of 16 Gauss-Legendre
     nodes, bisected until a piece and its halves agree to 1e-12 relative.  Where the speed touches zero (a cusp)
     the integral still converges, the bisection gathering at the cusp.
     """

@@ -33,12 +33,12 @@ __all__ = [
 ]
 
 #: :meth:`NurbsCurve.check_regular`: a knot span (or the whole curve) shorter
-#: than this fraction of the curve's size max(length, max |P_k|) is a
+#: than this fraction of the curve's size max(length, max ``|P_k|``) is a
 #: (near-)zero-length span.  Above it the span's points stand clear of the
-#: rounding of the coordinates (~1e-16 max |P_k|) by seven orders.
+#: rounding of the coordinates (~1e-16 max ``|P_k|``) by seven orders.
 SPAN_LENGTH_TOLERANCE = 1e-9
 
-#: :meth:`NurbsCurve.check_regular`: |C'(u)| below this fraction of its knot
+#: :meth:`NurbsCurve.check_regular`: ``|C'(u)|`` below this fraction of its knot
 #: span's mean parametric speed (span arc length / span width) is a near-zero
 #: derivative.  Random curves with weights in [0.1, 10] keep at least 2e-4;
 #: a repeated control point gives ~1e-16, a true cusp ~1e-10 or less.
@@ -393,7 +393,7 @@ class NurbsCurve:
     def arc_length(self, u_start: float | None = None, u_end: float | None = None) -> float:
         """Arc length in mm between two parameters (adaptive Gauss-Legendre per knot span).
 
-        :func:`vcnc_gym.geometry.quadrature.arc_length` on |C'(u)|, cut at the knots between: every knot
+        :func:`vcnc_gym.geometry.quadrature.arc_length` on ``|C'(u)|``, cut at the knots between: every knot
         span starts as 8 pieces of 16 nodes, bisected until a piece and its halves agree to 1e-12 relative (or
         to the resolution of u).  The compiled :func:`vcnc_gym.geometry.arclength.arc_between` computes the
         same integral (they agree to ~1e-15 on the heart, the omega and random curves of degree 1-5) and is the
@@ -421,20 +421,20 @@ class NurbsCurve:
         return inner, math.pi - interior_angle(before, after)
 
     def check_regular(self) -> None:
-        """Raise ``ValueError`` where the curve's tangent C'(u) / |C'(u)| is undefined.
+        """Raise ``ValueError`` where the curve's tangent C'(u) / ``|C'(u)|`` is undefined.
 
-        The interpolator divides by |C'(u)| (Jahanpour et al. (2014), eq. (9): du/dt =
-        V / |C'|) and the envs command the unit tangent, so a curve must be
+        The interpolator divides by ``|C'(u)|`` (Jahanpour et al. (2014), eq. (9): du/dt =
+        V / ``|C'|``) and the envs command the unit tangent, so a curve must be
         *regular*: C'(u) != 0 everywhere.  Checked, with relative tolerances
         so that the answer does not depend on the units of u or of the
         coordinates:
 
         1. the curve's length L is at least ``SPAN_LENGTH_TOLERANCE`` (1e-9)
-           x its size max(L, max |P_k|) mm;
+           x its size max(L, max ``|P_k|``) mm;
         2. so is every non-empty knot span (a shorter span is a (near-)
            zero-length span: the curve stands still over it);
-        3. |C'(u)| >= ``SPEED_TOLERANCE`` (1e-6) x the span's mean speed
-           (span length / span width) for every u: |C'| is sampled at 65
+        3. ``|C'(u)|`` >= ``SPEED_TOLERANCE`` (1e-6) x the span's mean speed
+           (span length / span width) for every u: ``|C'|`` is sampled at 65
            points per span (the right end from the left: u = nextafter(b,
            a)) and every sampled local minimum is refined by golden-section
            search to the resolution of u.  A point below the tolerance is
@@ -531,18 +531,18 @@ class NurbsCurve:
         )
 
     def _slowest_points(self, starts: np.ndarray, ends: np.ndarray, n: int = 64):
-        """Local minima of the parametric speed |C'(u)| on the knot spans [starts[i], ends[i]].
+        """Local minima of the parametric speed ``|C'(u)|`` on the knot spans [starts[i], ends[i]].
 
-        |C'| on n + 1 points per span (the right end from the left,
+        ``|C'|`` on n + 1 points per span (the right end from the left,
         nextafter(b, a)), then golden-section search around every sampled
         local minimum, all spans at once, until the bracket is 1e-12 of its
-        span or 4 floating-point steps of u (|C'| then within ~1e-12 |C''|
+        span or 4 floating-point steps of u (``|C'|`` then within ~1e-12 ``|C''|``
         (b - a) of the minimum).
 
         Returns
         -------
         u, speed : ndarray
-            Where the minima are and |C'| there, mm per unit of u.
+            Where the minima are and ``|C'|`` there, mm per unit of u.
         span : ndarray of int
             The span (index into ``starts``) of each minimum.
         """
@@ -573,7 +573,7 @@ class NurbsCurve:
         return best_u, best, span
 
     def _speeds(self, us) -> np.ndarray:
-        """|C'(u)| for an array of u, mm per unit of u."""
+        """``|C'(u)|`` for an array of u, mm per unit of u."""
         d1 = self.derivatives_array(us, 1)[:, 1, :]
         return np.hypot(d1[:, 0], d1[:, 1])
 

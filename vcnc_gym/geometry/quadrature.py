@@ -1,4 +1,4 @@
-"""Arc length of a parametric curve from its speed |C'(u)|: adaptive Gauss-Legendre quadrature, vectorised.
+"""Arc length of a parametric curve from its speed ``|C'(u)|``: adaptive Gauss-Legendre quadrature, vectorised.
 
 The one arc-length integrator of the Python side, for every curve that can give its speed at an array of
 parameters: :meth:`vcnc_gym.geometry.nurbs.NurbsCurve.arc_length` and
@@ -8,7 +8,7 @@ The compiled kernels' arc length (the interpolator's, the look-ahead feed's) is
 
 Every interval between two breaks is cut in ``pieces`` equal pieces; a piece's ``nodes``-point Gauss-Legendre
 value is compared with the sum over its two halves and the piece is bisected again until they agree to 1e-12
-relative, or to the length of 4 floating-point steps of u (all a piece narrow for its |u| resolves).  A fixed rule
+relative, or to the length of 4 floating-point steps of u (all a piece narrow for its ``|u|`` resolves).  A fixed rule
 is not enough for curves whose speed is sharply peaked (large NURBS weight ratios, short spans): it was off by up to
 ~1e-4 relative on random rational curves.
 """
@@ -44,7 +44,7 @@ def arc_length(
     Parameters
     ----------
     speed : callable
-        |C'(u)| (mm per unit of u) at a 1-D array of parameters, as an array of the same length.  A node never
+        ``|C'(u)|`` (mm per unit of u) at a 1-D array of parameters, as an array of the same length.  A node never
         lands on an interval's right end (it is moved one float below it): at a break the curve's one-sided
         derivative on the right is the one taken, as a knot evaluates on its right span.
     breaks : array

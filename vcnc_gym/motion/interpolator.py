@@ -2,12 +2,14 @@
 
 Given a curve C(u) and a feedrate profile V(t), the interpolator finds the
 parameter u_k at every sampling instant t_k = k T so that the tool moves
-along the curve at the commanded feed. The feed relation (eq. (6))
+along the curve at the commanded feed. The feed relation (eq. (6)),
+
+::
 
     V(t) = ds/dt = |C'(u)| du/dt
 
 has no closed-form solution for u(t) (eq. (7)), so u is advanced with its
-second-order Taylor expansion around t_k (eq. (8)):
+second-order Taylor expansion around t_k (eq. (8))::
 
     u_{k+1} = u_k + T du/dt + T^2 / 2 d2u/dt2,
     du/dt   = V / |C'|                                   (eq. (9))
@@ -24,8 +26,8 @@ curve's length, runs the kernel, checks the result and packs it in a
 read-only :class:`Reference`.
 
 Step control (not in the paper)
-------------------------------
-Eq. (8) is a truncated expansion: where |C'| changes fast compared with a
+-------------------------------
+Eq. (8) is a truncated expansion: where ``|C'|`` changes fast compared with a
 step (large weight ratios, knots where C'' jumps, corners of a polyline)
 its step can be several times too long or stall.  Every step's arc length
 is therefore compared with the distance the profile commands over it, and
@@ -170,7 +172,7 @@ class ReferenceBuffers(NamedTuple):
     position: np.ndarray  #: (K_max, 2) C(u_k), mm
     velocity: np.ndarray  #: (K_max, 2) mm/s
     acceleration: np.ndarray  #: (K_max, 2) mm/s^2
-    tangent: np.ndarray  #: (K_max, 2) unit tangent C'(u_k) / |C'(u_k)|
+    tangent: np.ndarray  #: (K_max, 2) unit tangent C'(u_k) / ``|C'(u_k)|``
     feedrate: np.ndarray  #: (K_max,) commanded V(t_k), mm/s
 
 
@@ -191,8 +193,8 @@ class _ArcWorkspace(NamedTuple):
 def _step_arc(curve, u0, u1, d0, d1, tol, ws):
     """Arc length of the step u0 -> u1 (derivatives d0, d1 of order 2 at its ends), mm.
 
-    Within one knot span, where |C'| is smooth, the corrected trapezoid rule
-    h/2 (f0 + f1) + h^2/12 (f0' - f1') on f = |C'| (f' = C'.C''/|C'|, error
+    Within one knot span, where ``|C'|`` is smooth, the corrected trapezoid rule
+    h/2 (f0 + f1) + h^2/12 (f0' - f1') on f = ``|C'|`` (f' = C'.C''/``|C'|``, error
     O(h^5)) needs no new evaluation; it is used when it agrees with the
     chord-and-curvature estimate c (1 + kappa^2 c^2 / 24) (c the chord,
     kappa the mean curvature of the ends) to within ``tol`` mm: the step then
@@ -227,9 +229,9 @@ def _step_arc(curve, u0, u1, d0, d1, tol, ws):
 def _arc_step(curve, u0, speed0, target, u_end, tol, ws, result):
     """The u > u0 at which the arc from u0 is ``target`` mm (to ``tol`` mm).
 
-    The arc length is increasing in u with slope |C'(u)|, so the root is
+    The arc length is increasing in u with slope ``|C'(u)|``, so the root is
     unique: bracketed by marching from u0 with doubling steps (the first
-    target / |C'(u0)|), then Newton's method safeguarded by bisection.
+    target / ``|C'(u0)|``), then Newton's method safeguarded by bisection.
 
     Writes ``result`` = [u, arc from u0 to u (mm), 1.0 if the curve ends
     (u = u_end) before the target is reached else 0.0].  ``curve`` is a
@@ -322,16 +324,16 @@ def taylor_interpolate_kernel(curve, plan, settings, out, info):
         plan's v_peak (mm/s) and the step tolerance (a fraction of v_peak dt).
     out : ReferenceBuffers
         Written with t_k (s), u_k, C(u_k) (mm), velocity (mm/s), acceleration
-        (mm/s^2), the unit tangent C'(u_k) / |C'(u_k)| and the commanded V(t_k)
+        (mm/s^2), the unit tangent C'(u_k) / ``|C'(u_k)|`` and the commanded V(t_k)
         (mm/s); K_max rows, at least ceil(duration / dt) + 2.
     info : (INFO_SIZE,) float64 array
         Written with the status, at the slots ``INFO_*``: the end code
         (``INFO_END_CODE``), u where eq. (8) stood at the end (``INFO_U_END``,
         see :func:`interpolate`), the time of that u (s) and the planned
         distance S then (mm), the number of corrected steps, the largest
-        |a_k - dS_k| (mm, the last step onto u_end included) and u_k and k of
+        ``|a_k - dS_k|`` (mm, the last step onto u_end included) and u_k and k of
         that step.  End codes: ``END_PROFILE`` the profile ended,
-        ``END_CLAMPED`` u reached u_end first, ``END_SINGULAR`` |C'(u)| = 0
+        ``END_CLAMPED`` u reached u_end first, ``END_SINGULAR`` ``|C'(u)|`` = 0
         met at u = info[INFO_U_END] (stopped there), ``END_FAILED`` a corrected
         step k = info[INFO_WORST_K] still missed the tolerance (stopped after
         its sample k + 1: no u can meet it), ``END_UNRESOLVED`` one
@@ -496,7 +498,7 @@ class Reference:
         (10)), mm/s^2: tangential part dV/dt, normal part kappa V^2. Zero at
         the last sample.
     tangent : ndarray, shape (K, 2)
-        Unit tangent C'(u_k) / |C'(u_k)| of the curve at every sample (also
+        Unit tangent C'(u_k) / ``|C'(u_k)|`` of the curve at every sample (also
         the last), dimensionless; finite.
     feedrate : ndarray, shape (K,)
         Commanded feed V(t_k) of the S-curve profile, mm/s (0 at the last
@@ -514,7 +516,7 @@ class Reference:
         from u_k to u_{k+1}) within ``step_tolerance`` x V_peak x dt of the
         commanded distance S(t_{k+1}) - S(t_k); dimensionless.
     step_error : float
-        The largest such |arc - commanded| over the steps, as a fraction of
+        The largest such ``|arc - commanded|`` over the steps, as a fraction of
         V_peak dt (at most ``step_tolerance``).
     corrected_steps : int
         Steps where eq. (8) was off by more than the tolerance and u_{k+1}
@@ -531,10 +533,10 @@ class Reference:
         The same gap in the parameter, u_end minus the Taylor-integrated u
         at t_e (negative when clamped).
     feedrate_fluctuation : float
-        max_k |V_act,k - V_cmd,k| / V_peak over the steps made by eq. (8)
+        max_k ``|V_act,k - V_cmd,k|`` / V_peak over the steps made by eq. (8)
         or its correction (every step but the final one onto u_end, which
         ``end_gap`` describes), dimensionless (multiply by 100 for %). Here
-        V_act,k = |C(u_{k+1}) - C(u_k)| / dt is the chord feed of step k and
+        V_act,k = ``|C(u_{k+1}) - C(u_k)|`` / dt is the chord feed of step k and
         V_cmd,k = (S(t_{k+1}) - S(t_k)) / dt the commanded feed averaged over
         the step (S = integral of V, exact for the cubic). The step average
         is used rather than V(t_k) because a chord covers the whole step:
@@ -542,7 +544,7 @@ class Reference:
         offset (dV/dt) dt / 2 (0.6 % of 100 mm/s at dt = 1 ms on the ramps).
         NaN if there is no such step.
     cruise_fluctuation_percent : float
-        100 max_k |V_act,k - V_peak| / V_peak over the steps lying wholly in
+        100 max_k ``|V_act,k - V_peak|`` / V_peak over the steps lying wholly in
         the constant-feed phase, %. NaN if that phase holds no whole step.
     """
 
@@ -578,7 +580,7 @@ class Reference:
 
     @property
     def chord_lengths(self) -> np.ndarray:
-        """|C(u_{k+1}) - C(u_k)| for every step, shape (K-1,), mm."""
+        """``|C(u_{k+1}) - C(u_k)|`` for every step, shape (K-1,), mm."""
         return np.linalg.norm(np.diff(self.position, axis=0), axis=1)
 
     @property
@@ -593,7 +595,7 @@ class Reference:
 
     @property
     def actual_feedrate(self) -> np.ndarray:
-        """Chord feed V_act,k = |C(u_{k+1}) - C(u_k)| / dt of every step, shape (K-1,), mm/s."""
+        """Chord feed V_act,k = ``|C(u_{k+1}) - C(u_k)|`` / dt of every step, shape (K-1,), mm/s."""
         return self.chord_lengths / self.dt
 
     @property
@@ -719,8 +721,8 @@ def interpolate(
 
     Plans ``profile`` over the curve's arc length, then advances the
     parameter with the second-order Taylor expansion u_{k+1} = u_k + T du/dt
-    + T^2/2 d2u/dt2 (eq. (8)), du/dt = V / |C'| (eq. (9)) and d2u/dt2 =
-    (dV/dt) / |C'| - V^2 (C' . C'') / |C'|^4 (eq. (10)), sampling every
+    + T^2/2 d2u/dt2 (eq. (8)), du/dt = V / ``|C'|`` (eq. (9)) and d2u/dt2 =
+    (dV/dt) / ``|C'|`` - V^2 (C' . C'') / ``|C'|^4`` (eq. (10)), sampling every
     ``dt`` from t = 0.
 
     What the reference guarantees (checked before it is returned; a curve or
@@ -975,7 +977,7 @@ def _resolution(curve, us: np.ndarray) -> np.ndarray:
 
 
 def _squeezed(curve, u: float, move: float) -> str:
-    """'|C'(u)| = ..., so one floating-point step of u moves ... mm; the knot span [a, b] ...'."""
+    """'``|C'(u)|`` = ..., so one floating-point step of u moves ... mm; the knot span [a, b] ...'."""
     knots = curve.knots
     i = min(int(np.searchsorted(knots, u, side="right")), len(knots) - 1)
     a, b = float(knots[i - 1]), float(knots[i])

@@ -12,7 +12,7 @@ section IV-A) on the straight parts where there is room.
 
 One feed change
 ---------------
-From v_0 to v_1 at rest acceleration, with Delta v = |v_1 - v_0|:
+From v_0 to v_1 at rest acceleration, with Delta v = ``|v_1 - v_0|``:
 
 * Delta v >= a_max^2 / j_max: jerk +-j_max for T_j = a_max / j_max, constant
   a_max for Delta v / a_max - T_j, jerk -+j_max for T_j; duration
@@ -215,10 +215,10 @@ def _jlap_batch(ts, breaks, coeffs, out):
 
 
 def transition_time(dv: float, a_max: float, j_max: float) -> float:
-    """Duration of a JLAP feed change of |dv| mm/s from and to zero acceleration, s.
+    """Duration of a JLAP feed change of ``|dv|`` mm/s from and to zero acceleration, s.
 
-    |dv| / a_max + a_max / j_max when a_max is reached (|dv| >= a_max^2 / j_max),
-    else 2 sqrt(|dv| / j_max).
+    ``|dv|`` / a_max + a_max / j_max when a_max is reached (``|dv|`` >= a_max^2 / j_max),
+    else 2 sqrt(``|dv|`` / j_max).
     """
     dv = abs(float(dv))
     if dv >= a_max * a_max / j_max:

@@ -89,7 +89,7 @@ time-optimal jerk-limited motion, and every section is time-optimal for its
 end speeds and peak (tests/test_lookahead.py checks both against ruckig).
 
 With the defaults the omega takes 0.986 s and the heart 3.286 s (Jahanpour et al.'s
-S-curve: 0.631 and 3.221 s); no feed below v_lim with |dV/dt| <= A_t, jerk
+S-curve: 0.631 and 3.221 s); no feed below v_lim with ``|dV/dt|`` <= A_t, jerk
 unbounded, can do them in less than 0.862 and 3.243 s (the bidirectional
 acceleration-only scan of v^2 on the same grid).
 
@@ -400,7 +400,7 @@ class LookaheadFeedrate:
 
     ``plan(length)`` plans ``curve`` (the length must be the curve's, as
     :func:`vcnc_gym.motion.interpolate` passes it): V^2 kappa <= A_n,
-    kappa^2 V^3 <= J_n, |dV/dt| <= A_t, |d2V/dt2| <= J_t, V <= F, from rest
+    kappa^2 V^3 <= J_n, ``|dV/dt|`` <= A_t, ``|d2V/dt2|`` <= J_t, V <= F, from rest
     to rest.  The curvature is sampled when the profile is made, the plan
     when it is first asked for (then kept): about 0.05 s for the omega and
     0.2 s for the heart together (once numba's kernels are compiled).

@@ -187,9 +187,9 @@ class PlantModel:
     input_limit : str
         Name of the parameter that is the input's saturation limit; action
         1.0 maps to it.
-    make_arrays : callable (n_machines, dt, **options) -> namedtuple
+    make_arrays : callable (n_machines, dt, options...) -> namedtuple
         The plant's arrays for N machines at control period ``dt`` s, state
-        at rest at the origin, parameters nominal; ``options`` are the
+        at rest at the origin, parameters nominal; ``options`` (keyword arguments) are the
         plant's own settings (e.g. Jahanpour et al. (2014)'s integration ``substep``), the
         envs' ``plant_options``.
     reset_machine : callable (arrays, k, position) -> None

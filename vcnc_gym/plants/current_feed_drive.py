@@ -27,8 +27,8 @@ What the paper does not give, and what we chose
 * **Current limit** ``i_max`` = 5 A per axis.  The paper states no limit but
   says (section IV-B) that in its simulations the high curvature of the
   linear path's corners saturates the control inputs.  The contouring
-  controller of eq. (7) asks about K_D |dv_d| m / k_f ~ 8.4 A on x at the
-  30-degree corner at 50 mm/s (a 150-degree turn: |dv_d| ~ 97 mm/s) and
+  controller of eq. (7) asks about K_D ``|dv_d|`` m / k_f ~ 8.4 A on x at the
+  30-degree corner at 50 mm/s (a 150-degree turn: ``|dv_d|`` ~ 97 mm/s) and
   ~4.7 A at the 90-degree one, so the paper's limit lies below ~8 A.  5 A gives
   (k_f i_max - f_c) / m ~ 1.3e4 mm/s^2 on x and 1.6e4 mm/s^2 on y, the
   1-1.5 g class of a machine-tool feed drive.  Chosen once from those two

@@ -26,7 +26,7 @@ def phi1(z):
 
 @numba.njit(cache=True)
 def phi2(z):
-    """(e^z - 1 - z) / z^2, accurate for small |z|."""
+    """(e^z - 1 - z) / z^2, accurate for small ``|z|``."""
     if abs(z) < 0.1:
         # Taylor series: sum_k z^k / (k + 2)!
         return 1.0 / 2.0 + z * (
