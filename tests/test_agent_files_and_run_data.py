@@ -643,9 +643,9 @@ def test_two_sessions_never_write_one_run_folder(base_run, tmp_path):
 # -- 5. SIGKILL mid-run and resume, in subprocesses --------------------------------------------------
 @pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)
 def test_kill_and_resume_loses_and_duplicates_no_row(tmp_path):
-    from benchmark_script import benchmark_script
+    from benchmark_script import probe_script
 
-    module = benchmark_script("kill_and_resume")
+    module = probe_script("kill_and_resume")
     report = module.kill_and_resume(tmp_path, timesteps=4096, kill_after=1024)
     audit, naive = report["audit"], report["naive_merge_audit"]
     assert report["pre_checkpoint_rows_unchanged"]

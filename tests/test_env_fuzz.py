@@ -1,6 +1,6 @@
-"""A short run of benchmarks/fuzz_envs.py: random valid curves and settings give clean episodes.
+"""A short run of tests/probes/fuzz_envs.py: random valid curves and settings give clean episodes.
 
-The full run (1 000 episodes) is ``python benchmarks/fuzz_envs.py``; here 30
+The full run (1 000 episodes) is ``python tests/probes/fuzz_envs.py``; here 30
 episodes, and a check that the fuzz does see a NaN when one is there.
 """
 
@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from benchmark_script import benchmark_script
+from benchmark_script import probe_script
 
 import vcnc_gym
 
-fuzz_envs = benchmark_script("fuzz_envs")
+fuzz_envs = probe_script("fuzz_envs")
 
 
 @pytest.mark.slow  # > 10 s on 2 cores (pytest --durations, 2026-11-24)

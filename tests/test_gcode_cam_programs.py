@@ -201,7 +201,7 @@ def test_read_program_numbers_go_through_validation(name, value):
 
 
 def test_a_corner_sharper_than_the_blend_design_reaches_is_named_by_line():
-    # the path turns back by 179.98 degrees (not a full U-turn): found by benchmarks/fuzz_new_surfaces.py
+    # the path turns back by 179.98 degrees (not a full U-turn): found by tests/probes/fuzz_new_surfaces.py
     text = "G01 X10 Y0 F600\nG01 X0 Y0.0036\n"
     with pytest.raises(GCodeError, match="cannot be blended") as exc:
         read_program(text, 0.01)

@@ -430,9 +430,9 @@ def test_timesteps_have_a_ceiling(tiny_config, tmp_path):
 
 # -- item 5: the fuzz's NaN check can fail ---------------------------------------------------------------------------
 def _fuzz_module():
-    from benchmark_script import benchmark_script
+    from benchmark_script import probe_script
 
-    return benchmark_script("fuzz_envs", "fuzz_envs_round2")
+    return probe_script("fuzz_envs", "fuzz_envs_round2")
 
 
 def test_the_id_fuzz_is_clean_and_its_nan_check_can_fail(monkeypatch):

@@ -1,5 +1,5 @@
-"""A short run of benchmarks/fuzz_new_surfaces.py, a check that it can fail, and a kill and resume of the lean
-trainer audited by benchmarks/kill_and_resume.py (the full runs: ``python benchmarks/fuzz_new_surfaces.py
+"""A short run of tests/probes/fuzz_new_surfaces.py, a check that it can fail, and a kill and resume of the lean
+trainer audited by tests/probes/kill_and_resume.py (the full runs: ``python tests/probes/fuzz_new_surfaces.py
 --kill-resume``)."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import sys
 
 import numpy as np
 import pytest
-from benchmark_script import BENCHMARKS as _DIR
-from benchmark_script import benchmark_script as _load
+from benchmark_script import PROBES as _DIR
+from benchmark_script import probe_script as _load
 
 fuzz = _load("fuzz_new_surfaces")
 

@@ -1,12 +1,12 @@
 """Fuzz the new surfaces with a check that can fail: G-code programs, shop-floor settings, override actions,
 random-contour specs.
 
-Run: ``python benchmarks/fuzz_new_surfaces.py [--n 200] [--seed 0]``.  Every input must give either a clear
+Run: ``python tests/probes/fuzz_new_surfaces.py [--n 200] [--seed 0]``.  Every input must give either a clear
 error (a ValueError naming what it refuses: a GCodeError with its line for a program, the setting's name for a
 shop-floor setting, ``spec`` for a spec) or a result that holds (a toolpath with a finite contour; observations
 finite and inside the space).  Anything else (another exception, an error that names nothing, a non-finite
 value) is counted as a failure, printed, and makes the exit status 1.  ``--kill-resume`` adds a SIGKILL and
-resume of each trainer (``benchmarks/kill_and_resume.py``: no row lost or duplicated, the rows reach the end).
+resume of each trainer (``tests/probes/kill_and_resume.py``: no row lost or duplicated, the rows reach the end).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Time to refuse the largest inputs of the new surfaces (issue 35): each must be refused within 1 s, before the
 work starts.
 
-Run: ``python benchmarks/refusal_times.py [--bomb-gb 4]``.  Prints one line per case: what was given, the time
+Run: ``python tests/probes/refusal_times.py [--bomb-gb 4]``.  Prints one line per case: what was given, the time
 to the error, and the error's first words; exit status 1 if a case is not refused or takes 1 s or more.  The
 8 GiB program file is sparse (no disk space used); the model.zip bomb is a real deflated member of
 ``--bomb-gb`` GB of zeros (about 4 MB on disk per GB; writing it takes a while, reading it must not).

@@ -1,6 +1,6 @@
 """Kill a vcnc-train run with SIGKILL mid-run, resume it, and account for every logged row.
 
-Run: ``python benchmarks/kill_and_resume.py`` (``--workdir DIR`` to keep the
+Run: ``python tests/probes/kill_and_resume.py`` (``--workdir DIR`` to keep the
 run folder, ``--mode residual`` for evaluations with finite scores and a best/).
 
 1. ``vcnc-train`` starts a small run on VCNC-Omega-v1 in a subprocess (a tiny

@@ -6,7 +6,7 @@ of the tool's closest point at the reference's end and at the end of the
 wait (um), and how long after the reference's end the tool came within 20,
 5, 2 and 1 um of the end (s; "-": never)::
 
-    python benchmarks/episode_end.py
+    python experiments/episode-ends/episode_end.py
 """
 
 from __future__ import annotations

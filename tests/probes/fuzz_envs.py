@@ -1,6 +1,6 @@
 """Fuzz the contouring env: random valid curves, random settings, random and PD policies; then every id.
 
-Run: ``python benchmarks/fuzz_envs.py --episodes 1000`` (``--seed S``; ``--id-episodes K`` per id).
+Run: ``python tests/probes/fuzz_envs.py --episodes 1000`` (``--seed S``; ``--id-episodes K`` per id).
 
 Each episode draws a random NURBS (degree 1-5, 4-12 control points within
 +-60 mm, weights in [0.3, 3], random clamped knots), random settings
