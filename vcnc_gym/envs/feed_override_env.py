@@ -366,7 +366,7 @@ class FeedOverrideEnv(ContouringEnv):
         info["reference_time"] = self._tau * task.dt
         if self.tolerance is not None:
             return obs, self._tolerance_reward(info), terminated, truncated, info
-        r_time = -self.time_cost / task.reward_scale  # a step is taken only before the tool has arrived
+        r_time = -self.time_cost / task.reward_scale  # pyright: ignore[reportOptionalOperand]  (set without a tolerance)
         info["reward_time"] = r_time
         return obs, reward + r_time, terminated, truncated, info
 
@@ -377,7 +377,7 @@ class FeedOverrideEnv(ContouringEnv):
         exceeded = excess > 0.0
         self._violations += exceeded
         r_time = -d  # a step is taken only before the tool has arrived
-        r_tolerance = -cost * d * min(1.0, excess / self.tolerance)
+        r_tolerance = -cost * d * min(1.0, excess / self.tolerance)  # pyright: ignore[reportOperatorIssue]  (the tolerance task)
         # the kernel's ends, in um of contour error, turned into steps over T: the steps the contour had left, the
         # fraction of the contour left
         steps_left = -info["reward_divergence"] * task.reward_scale / task.divergence_bound

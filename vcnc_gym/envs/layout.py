@@ -180,12 +180,12 @@ class ObservationLayout:
     @property
     def size(self) -> int:
         """Length of the observation vector."""
-        return self._slices[self.fields[-1].name].stop
+        return self._slices[self.fields[-1].name].stop  # pyright: ignore[reportAttributeAccessIssue]  (__post_init__)
 
     def slice(self, name: str) -> slice:
         """The slice of field ``name`` in the observation vector."""
         try:
-            return self._slices[name]
+            return self._slices[name]  # pyright: ignore[reportAttributeAccessIssue]  (__post_init__)
         except KeyError:
             raise KeyError(f"no observation field {name!r}; fields are {[f.name for f in self.fields]}") from None
 

@@ -466,7 +466,7 @@ class PositioningEnv(gym.Env):
             self._pending.reshape(-1),
         ]
         raw = np.concatenate(parts)
-        high = self.observation_space.high
+        high = self.observation_space.high  # pyright: ignore[reportAttributeAccessIssue]  (a Box)
         bad = ~np.isfinite(raw)
         raw[bad] = 0.0
         clipped = int(np.count_nonzero(bad)) + int(np.count_nonzero(np.abs(raw) > high))

@@ -103,7 +103,7 @@ _POSITION_BOUND = 1000.0
 _POSITION_MARGIN = 100.0
 
 
-def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | None]:
+def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | Toolpath | None]:
     """The contour given by name (``geometry.SHAPES``), as a NurbsCurve, as a SmoothedPolyline or as a
     G-code program's :class:`~vcnc_gym.gcode.Toolpath`: (the curve, the smoothed path or toolpath, or None)."""
     if isinstance(contour, str) and contour in SHAPES:
@@ -326,7 +326,7 @@ class ContouringTask:
             else (
                 positive("setpoint_range", setpoint_range, "mm")
                 if setpoint_range is not None
-                else float(np.min(u_max / self.servo_gains.kp))
+                else float(np.min(u_max / self.servo_gains.kp))  # pyright: ignore[reportOptionalMemberAccess]
             )
         )
         self.error_clip = self.divergence_bound if error_clip is None else positive("error_clip", error_clip, "mm")
