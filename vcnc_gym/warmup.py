@@ -9,7 +9,8 @@ about 2 s once cached (``benchmarks/step_cost.py`` prints both).  ``make
 install`` runs this module once, the way an extension module is compiled at
 install time, so that a new user's first env starts warm.
 
-For every current id it makes the env, resets it and steps it once, and
+For every current id (and one learnable id per machine, :data:`LEARNABLE_MACHINES`) it makes the env, resets it
+and steps it once, and
 does the same with the native vector env at 16 envs (its parallel kernel),
 one fresh process per id, ``--jobs`` at a time (``--ids ID ...``: only those).
 """
@@ -23,7 +24,13 @@ import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 
-from .envs.registry import SUITE
+from .envs.registry import LEARNABLE, SUITE
+
+#: The learnable ids whose kernels are warmed too: one per machine (a plant, ideal or on the shop floor), whose
+#: compiled servo loop every learnable id of that machine shares (numba caches a kernel per argument types).
+LEARNABLE_MACHINES = tuple(
+    {(e.kwargs.get("plant"), bool(e.kwargs.get("shop_floor"))): e.id for e in reversed(LEARNABLE)}.values()
+)
 
 _ONE = """
 import gymnasium as gym, numpy as np, vcnc_gym
@@ -63,13 +70,13 @@ def warm_in_processes(name: str, ids: list[str], script: str, jobs: int) -> int:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="processes at a time (default: the cores)")
     p.add_argument("--ids", nargs="+", metavar="ID", help="only these ids (default: every current id)")
     args = p.parse_args(argv)
     if args.jobs < 1:
         p.error(f"--jobs must be >= 1, got {args.jobs}")
-    ids = [e.id for e in SUITE]
+    ids = [e.id for e in SUITE] + list(LEARNABLE_MACHINES)
     unknown = sorted(set(args.ids or ()) - set(ids))
     if unknown:
         p.error(f"--ids: {', '.join(unknown)} not among the current ids ({', '.join(ids)})")
