@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 import vcnc_gym
+from vcnc_gym.envs.drive_servo import machine_key  # a shipped record's file stem (the drives' servos' key)
 
 from .design import AxisDesign, Margins, design_axis, inverse_dynamics, loop_response
 from .identify import AxisModel, Experiment, frf, identify, model_response
@@ -191,17 +192,6 @@ class CommissioningRecord:
 def load(path) -> CommissioningRecord:
     """A record saved by :meth:`CommissioningRecord.save`."""
     return CommissioningRecord.from_dict(json.loads(Path(path).read_text()))
-
-
-def machine_key(plant, parameters, dt: float) -> str:
-    """A shipped record's file stem: the plant's name, shop floor or not, and a digest of its (nominal)
-    parameters and the control period."""
-    from vcnc_gym.plants.shop_floor import ShopFloorModel
-
-    shop = isinstance(plant, ShopFloorModel)
-    p = np.ascontiguousarray(np.asarray(parameters, dtype=np.float64))
-    digest = hashlib.sha1(p.tobytes() + np.float64(dt).tobytes()).hexdigest()[:12]
-    return f"{plant.name}-{'shop' if shop else 'ideal'}-{digest}"
 
 
 def _ceiling(plant) -> float:
