@@ -221,7 +221,7 @@ class PeakPrice:
     """The price of a new episode maximum of the contour error, per env: a term of the training reward.
 
     The env's reward pays for the contour error of every control period, and so for the many periods, not for the
-    few at the sharpest turn that set the max contour error (``docs/reproduction.md``, "The second id, the memory's
+    few at the sharpest turn that set the max contour error (``experiments/adaptive/README.md``, "The second id, the memory's
     part and a recurrent policy").  This term prices the max itself: at each decision the reward loses
     ``weight * (m_new - m_old) / reward_scale``, with ``m`` the largest contour error of the episode so far
     (mm, clipped at the env's divergence bound as the env's reward is), so that over an episode the penalties sum
@@ -261,7 +261,7 @@ class DialSlew:
 
     A dial swung from one end to the other between two decisions (20 ms) steps the path acceleration by the
     override's whole rate times the feed, and through a shop-floor machine's 150 Hz mode that costs tens of um
-    (``docs/reproduction.md``, "The eighth step").  With a rate, the dial in force moves toward the agent's at most
+    (``experiments/tolerance/README.md``, "The eighth step").  With a rate, the dial in force moves toward the agent's at most
     ``rate * dt`` per control period and starts every episode at 0 (the look-ahead's own plan on the tolerance
     ids); the env's override then follows that dial as it follows any.  The arithmetic is float32, the action
     space's dtype, so that the training wrapper (:class:`ResidualAction`) and the evaluation

@@ -94,7 +94,7 @@ def register_floor(cls: type[BaselinePolicy]) -> type[BaselinePolicy]:
 #: registry with some of its parameters changed, benchmarked under its own name.
 VARIANTS: dict[str, tuple[str, dict]] = {
     # QFT's feedback G(s) without the pre-filter (F = 1): isolates the share of
-    # the contour error that the paper's F(s) causes (docs/reproduction.md).
+    # the contour error that the paper's F(s) causes (docs/papers/jahanpour2014.md).
     "qft-g": ("qft", {"prefilter": ((1.0,), (1.0,))}),
     # Simba et al.'s ILC with a 20 Hz zero-phase low-pass Q: monotone convergence
     # where Table I's q = 1 lets the ringing above 38.5 Hz grow (baselines/learning/ilc.py).
@@ -118,7 +118,7 @@ VARIANTS: dict[str, tuple[str, dict]] = {
 }
 
 #: Variants vcnc-bench's default table leaves out (run when named, or with ``--all``): the predictive pair on the
-#: commissioned model, weaker than the bare names where measured (docs/reproduction.md, "Predictive control on
+#: commissioned model, weaker than the bare names where measured (experiments/classical-opponents/README.md, "Predictive control on
 #: the commissioned model"); ``ff-pid-online@machine``, whose place is under a feed override (the bench runs no
 #: classical law there: the dial is the tolerance search's, ``experiments/tolerance/override_schedule.py``), and which on a
 #: planned reference is ``ff-pid@machine`` without the table's lead terms.

@@ -1,9 +1,9 @@
 """The floor's solve on each contouring id's nominal plant: convergence (max contour error against whole-episode
 evaluations), solve time, the replayed figures beside the strongest causal controller, and the headroom
-(baselines/optimal/oracle.py; docs/reproduction.md)::
+(baselines/optimal/oracle.py; experiments/classical-opponents/README.md, "The floor")::
 
     python benchmarks/oracle_convergence.py [--env ID ...] [--store | --stored] [--plot PNG]
-    python benchmarks/oracle_convergence.py --plot-stored docs/figures/oracle_convergence.png
+    python benchmarks/oracle_convergence.py --plot-stored experiments/classical-opponents/figures/oracle_convergence.png
 
 Solves afresh (``VCNC_ORACLE_RECOMPUTE``); ``--store`` writes the solutions into the package
 (``baselines/optimal/solutions/``, what the bench replays), else into a temporary directory; ``--stored``

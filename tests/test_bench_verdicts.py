@@ -466,7 +466,7 @@ def test_a_joined_floor_scores_every_record_plant_by_plant():
 def test_the_tables_name_the_causal_controllers_a_run_did_not_hold():
     """A verdict weighs the strongest causal controller among those that ran: the shop-floor heart's 5-seed run
     holds ``ff-pid@machine`` but not ``zpetc@machine``, which is stronger there on the max (an IQM of 5.96 against
-    6.06 um over the same plants, ``docs/reproduction.md``, "Every causal controller and the floor over the box");
+    6.06 um over the same plants, ``experiments/adaptive/README.md``, "Every causal controller and the floor over the box");
     the tables say so.  Neither the reference PD (never a start of the floor) nor ``mpcc`` (it sets a feed
     override) is asked for, and an unregistered id asks for none."""
 

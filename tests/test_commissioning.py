@@ -533,7 +533,7 @@ def test_identified_stribeck_curve_on_plants_from_the_box():
     speed) it is found on the nominal machine's two axes, and wherever it is found its level is within 20 % and its
     velocity within 25 % of the true ones (the shop floor's force through the plant's force gain).  Of the other
     machines' such axes it is found on 1 of 4 here (the others keep the reversal legs' map:
-    docs/reproduction.md, "Friction below the working feed")."""
+    experiments/commissioning/README.md, "Friction below the working feed")."""
     env = gym.make("VCNC-CircleShop-v1")
     task = env.unwrapped.task
     rng = np.random.default_rng(7)

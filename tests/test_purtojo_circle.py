@@ -124,7 +124,7 @@ def test_nctf_tracks_the_circle_within_micrometres(tmp_path):
     run = cr.run_circle(policy)
     assert run.completed and run.time[-1] == pytest.approx(2 * np.pi, abs=0.02)
     f = cr.circle_figures(run.time, run.position, run.reference_position)
-    # the paper's order of magnitude (its figures: 6.3, 3.7, 0.8 and 2 um); ours in docs/reproduction.md
+    # the paper's order of magnitude (its figures: 6.3, 3.7, 0.8 and 2 um); ours in docs/papers/purtojo.md
     assert f.rms_x_um < 5.0 and f.rms_y_um < 3.0 and f.rms_radial_um < 3.0
     assert f.max_radial_after_transient_um < 10.0
     assert np.max(np.abs(run.command)) <= 1.0

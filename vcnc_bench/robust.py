@@ -38,7 +38,7 @@ set-point), as :func:`vcnc_gym.evaluation.run_episode` computes them, so
 the nominal row is the ordinary bench's figure (a trained agent's may differ:
 its network asked for a batch rounds in another order than for one
 observation, and a part whose feed the agent sets can grow that last bit
-into microns; ``docs/reproduction.md``, "The sixth try"); ``info["diverged"]``;
+into microns; ``experiments/tolerance/README.md``, "The sixth try"); ``info["diverged"]``;
 ``info["completed"]`` (where the env gives none: terminated and not
 diverged); the cycle time ``info["cycle_time"]`` (s, NaN if the tool did
 not reach the end; where the env gives none: steps x decision period on a

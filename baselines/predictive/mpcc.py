@@ -95,7 +95,7 @@ Cost per step (``python benchmarks/mpcc_cost.py --steps 1500``, ``predict`` alon
 periods, shared 2-core host, two runs): 3.2 and 4.0 ms per control period, 7.0 and 6.7 times ``mpc``'s 0.46 and
 0.60 ms (which solves its two 10-variable QPs only where the unconstrained minimiser leaves the bounds); an omega
 episode takes 25-70 s.  The
-front on the omega is in ``docs/reproduction.md``, "Contouring MPC"."""
+front on the omega is in ``experiments/feed-override/README.md``, "Contouring MPC"."""
 
 from __future__ import annotations
 
