@@ -11,7 +11,7 @@
 
 from .envs import ENV_IDS, SUITE, ContouringEnv, ContouringVectorEnv, ObservationLayout, register_envs
 
-__version__ = "0.2.0"  # the one place: pyproject.toml reads it (CHANGELOG.md)
+__version__ = "0.3.0"  # the one place: pyproject.toml reads it (CHANGELOG.md)
 
 register_envs()
 
