@@ -101,6 +101,10 @@ DATA = (
     "vcnc_agents/hyperparams/ppo.yml",
     "vcnc_baselines/optimal/solutions/",
     "vcnc_baselines/commissioning/shipped/machines/",
+    "vcnc_gym/py.typed",  # the packages are typed (PEP 561)
+    "vcnc_baselines/py.typed",
+    "vcnc_agents/py.typed",
+    "vcnc_bench/py.typed",
 )
 #: The cheapest env to compile (a single axis): the smoke test's.
 ENV = "VCNC-Step-v0"

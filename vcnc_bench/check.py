@@ -60,7 +60,7 @@ def problems(data, default_ids: tuple | None = None) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m vcnc_bench.check", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m vcnc_bench.check", description=(__doc__ or "").partition("\n")[0])
     p.add_argument("json", type=Path, help="the file vcnc-bench --json wrote")
     p.add_argument("--default", action="store_true", help="the plan must be the default table's envs")
     args = p.parse_args(argv)

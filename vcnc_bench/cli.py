@@ -73,6 +73,7 @@ it back (``tests/test_layers.py``).
 
 from __future__ import annotations
 
+import argparse
 import json
 import shlex
 import sys
@@ -103,7 +104,9 @@ from .runner import BuildError, EnvRecipe, idle_cores, run_table
 __all__ = ["DEFAULT_IDS", "LEGACY_IDS", "LONGEST_FIRST", "format_table", "main"]
 
 
-def _run(args, recipes: list[EnvRecipe], envs: dict | None, parser, jobs: int, wall0: float) -> dict:
+def _run(
+    args, recipes: list[EnvRecipe], envs: dict | None, parser: argparse.ArgumentParser, jobs: int, wall0: float
+) -> dict:
     """{key: EnvRuns} of every recipe; an env or a policy that cannot be built exits 2 naming it."""
     try:
         return run_table(

@@ -289,6 +289,7 @@ def bench_json(args, results: dict, records: list[dict], jobs: int) -> dict:
 
 
 def write_trial_plots(ctx: BenchContext) -> None:
+    assert ctx.plots is not None  # --plots
     for (env_id, label), trials in ctx.trials_of.items():
         path = ctx.plots / f"{env_id}_{label}_trials.png"
         plot_trials(trials, path, title=f"{env_id}: {label}, max contour error per trial")

@@ -64,7 +64,7 @@ def contour_corners(env) -> list[np.ndarray]:
     u_env = env.unwrapped
     path = getattr(u_env.task, "path", None)
     joints = getattr(path, "joints", None)
-    if joints is not None:
+    if path is not None and joints is not None:
         ends = [m.end for m in path.program.moves[:-1]]
         order = sorted(range(len(joints)), key=lambda i: -joints[i].angle)
         return [np.asarray(ends[i]) for i in order if joints[i].kind != "tangent"][:MAX_INSETS]
@@ -122,7 +122,8 @@ def plot_deviation(results_by_policy: Mapping, env, path, *, title: str | None =
 
     u_env = env.unwrapped
     curve = u_env.curve
-    ref = curve.points(np.linspace(*curve.u_range, 4001))
+    lo, hi = curve.u_range
+    ref = curve.points(np.linspace(lo, hi, 4001))
     extent = float(np.max(ref.max(axis=0) - ref.min(axis=0)))
     drawn = {}
     largest = 0.0
@@ -151,7 +152,7 @@ def plot_deviation(results_by_policy: Mapping, env, path, *, title: str | None =
             label=f"{label} (max {1e3 * np.max(np.abs(e)):.1f} µm)",
         )
     for k, c in enumerate(corners):
-        ax.annotate(chr(ord("a") + k), c, fontsize=8, color="k")
+        ax.annotate(chr(ord("a") + k), (c[0], c[1]), fontsize=8, color="k")
     ax.set_aspect("equal")
     ax.set_xlabel(f"x (mm); deviation drawn x{m:g} along the normal: 1 mm of the drawing = {1e3 / m:.3g} µm")
     ax.set_ylabel("y (mm)")

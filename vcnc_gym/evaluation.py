@@ -317,7 +317,7 @@ def plot_contours(
     corners = sharp_corners(env, n=n_insets)
 
     fig = plt.figure(figsize=(11.0, 7.0), dpi=110)
-    ax = fig.add_axes([0.07, 0.09, 0.52, 0.82])
+    ax = fig.add_axes((0.07, 0.09, 0.52, 0.82))
     ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=3.0, label="reference", zorder=1)
     for name, res in results_by_policy.items():
         p = _finite_path(res)
@@ -347,7 +347,7 @@ def plot_contours(
     corners = sorted(corners, key=lambda ck: -ck[0][1])  # top to bottom, like the insets
     for j, (c, kappa) in enumerate(corners):
         half = _inset_half_width(results_by_policy, c)
-        ins = ax.inset_axes([1.1, 1.0 - (j + 1) * h - j * gap, w, h])
+        ins = ax.inset_axes((1.1, 1.0 - (j + 1) * h - j * gap, w, h))
         ins.plot(ref[:, 0], ref[:, 1], color="0.55", lw=3.0, zorder=1)
         for name, res in results_by_policy.items():
             p = _finite_path(res)
@@ -359,7 +359,7 @@ def plot_contours(
         # ticks as offsets from the corner in um: short labels, and the error reads directly
         ins.xaxis.set_major_formatter(FuncFormatter(lambda v, _, c0=c[0]: f"{1e3 * (v - c0):.0f}"))
         ins.yaxis.set_major_formatter(FuncFormatter(lambda v, _, c1=c[1]: f"{1e3 * (v - c1):.0f}"))
-        offsets = MaxNLocator(4, symmetric=True).tick_values(-1e3 * half, 1e3 * half) / 1e3
+        offsets = np.asarray(MaxNLocator(4, symmetric=True).tick_values(-1e3 * half, 1e3 * half)) / 1e3
         offsets = offsets[np.abs(offsets) <= half * (1 + 1e-9)]
         ins.xaxis.set_major_locator(FixedLocator(c[0] + offsets))
         ins.yaxis.set_major_locator(FixedLocator(c[1] + offsets))

@@ -94,7 +94,7 @@ class KernelPath:
         if self._trying:
             return self._try_path
         best = parallel < serial
-        wait = self._wait if self._wait is not None else PROBE_RATIO * PROBE_CALLS * self.cost[not best] * work
+        wait = self._wait if self._wait is not None else PROBE_RATIO * PROBE_CALLS * self.cost[not best] * work  # pyright: ignore[reportOperatorIssue]
         if self._since_probe >= wait:
             self._trying, self._try_path, self._try_time = PROBE_CALLS, not best, 0.0
             return not best
@@ -129,7 +129,7 @@ class KernelPath:
         once must not send the choice to the other path, a path whose every call stalls still climbs)."""
         cost = seconds / self._work
         old = self.cost[parallel]
-        self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (min(cost, 2.0 * old) - old)
+        self.cost[parallel] = cost if old is None else old + COST_WEIGHT * (min(cost, 2.0 * old) - old)  # pyright: ignore[reportCallIssue, reportArgumentType]
 
 
 class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
@@ -248,7 +248,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             opts = dict(options)
             if parameters is not None:
                 opts["parameters"] = per_env[i]
-            self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None))
+            self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], opts or None))  # pyright: ignore[reportArgumentType]  (an index)
         self._batch.run(self._observe_parallel())
         self._autoreset[mask] = False
         self._started = True
@@ -284,7 +284,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         b.mode[:] = sk.MODE_STEP
         if resetting is not None and resetting.any():
             for i in np.flatnonzero(resetting):
-                self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
+                self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))  # pyright: ignore[reportArgumentType]  (an index)
         elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
             b.mode[self._autoreset] = sk.MODE_IDLE
         stepped = self._all if resetting is None else ~resetting
@@ -313,7 +313,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
                 info["final_obs"][i] = obs[i].copy()
             b.mode[:] = sk.MODE_IDLE
             for i in np.flatnonzero(done):
-                self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))
+                self._reset_env(i, self.task.parameters_for_reset(self._rngs[i], None))  # pyright: ignore[reportArgumentType]  (an index)
             self._batch.run(self._observe_parallel())
             obs[done] = self._observations()[done]
             self._autoreset[:] = False
@@ -413,7 +413,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             periods = np.maximum(ep[:, sk.EPISODE_PERIODS] - before[:, sk.EPISODE_PERIODS], 1.0)
             for key in ("contour_error_max", "contour_error_mean"):
                 del info[key], info["_" + key]
-            info["step_contour_error_max"] = self._decision.loop.peak.copy()
+            info["step_contour_error_max"] = self._decision.loop.peak.copy()  # pyright: ignore[reportOptionalMemberAccess]
             info["step_contour_error_mean"] = (ep[:, sk.EPISODE_SUM] - before[:, sk.EPISODE_SUM]) / periods
             info["_step_contour_error_max"] = stepped.copy()
             info["_step_contour_error_mean"] = stepped.copy()
@@ -447,7 +447,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         if controller is None:
             self._batch.run(parallel)
         else:
-            self._batch.run_controlled(controller, loop, parallel)
+            self._batch.run_controlled(controller, loop, parallel)  # pyright: ignore[reportArgumentType]
         if path is not None:
             path.record(parallel, time.perf_counter() - t0)
 
@@ -463,7 +463,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             if seed < 0:
                 raise ValueError(f"seed must be >= 0, got {seed}")
             return [int(seed) + i for i in range(n)]
-        seeds = list(seed)
+        seeds = list(seed)  # pyright: ignore[reportArgumentType]
         if len(seeds) != n:
             raise ValueError(f"seed must be an int or a sequence of {n} seeds, got {len(seeds)}")
         return seeds

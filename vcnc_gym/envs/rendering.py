@@ -44,4 +44,4 @@ def render_contouring(env):
         plt.pause(0.001)
         return None
     fig.canvas.draw()
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()  # pyright: ignore[reportAttributeAccessIssue]  (the Agg canvas)

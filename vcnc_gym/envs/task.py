@@ -117,7 +117,7 @@ def make_contour(contour) -> tuple[NurbsCurve, SmoothedPolyline | Toolpath | Non
     raise ValueError(f"contour must be one of {sorted(SHAPES)}, a NurbsCurve or a SmoothedPolyline, got {contour!r}")
 
 
-def make_profile(profile, feedrate, ramp_time, curve: NurbsCurve, path: SmoothedPolyline | None):
+def make_profile(profile, feedrate, ramp_time, curve: NurbsCurve, path: SmoothedPolyline | Toolpath | None):
     """The feedrate profile of ``profile=``: one of :data:`PROFILES`, or a profile object of the user's own (any
     object with ``plan(length_mm) -> plan``, as :mod:`vcnc_gym.motion`'s profiles; its plan sets the feed, so
     ``feedrate`` and ``ramp_time`` do not apply)."""

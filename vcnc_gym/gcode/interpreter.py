@@ -269,7 +269,7 @@ class _Interpreter:
         self.ignored: list[tuple[int, str, str]] = []
         self.dropped: list[str] = []
         self.start = np.zeros(2)
-        self.rapid_after_cut: tuple[Block, Word] | None = None
+        self.rapid_after_cut: tuple[Block, Word | None] | None = None
 
     def block(self, block: Block) -> bool:
         """Run one block; True if it ends the program (M02/M30) and the blocks after it are to be skipped."""
@@ -288,10 +288,12 @@ class _Interpreter:
         if self.state.motion is None:
             raise err("coordinates without a motion mode (no G00, G01, G02 or G03 in force)", x or y)
         target = self._target(x, y)
+        word = motion_word or x or y
+        assert word is not None  # X, Y or the G word of an arc back to its start (above)
         if self.state.motion == "rapid":
-            self._rapid(block, target, motion_word or x or y, arc_words, err)
+            self._rapid(block, target, word, arc_words, err)
             return ended
-        self._check_cut(motion_word or x or y, err)
+        self._check_cut(word, err)
         number = block.get("N")
         n = None if number is None else int(number.value)
         if self.state.motion == "line":
@@ -388,7 +390,7 @@ class _Interpreter:
     def _check_cut(self, word: Word, err) -> None:
         """A cutting move needs a feed, and no rapid may have left the contour before it."""
         if self.state.feed is None:
-            raise err(f"{_code(self.state.motion)} before any F word: no feed to cut at", word)
+            raise err(f"{_code(self.state.motion)} before any F word: no feed to cut at", word)  # pyright: ignore[reportArgumentType]  (a cut's motion is set)
         if self.rapid_after_cut is not None:
             b, w = self.rapid_after_cut
             raise GCodeError(
@@ -408,7 +410,9 @@ class _Interpreter:
             self.dropped.append(msg)
             warnings.warn(msg, stacklevel=5)  # the caller of read_program_text, as before the split
             return False
-        self.moves.append(Move("line", self.state.position.copy(), target, self.state.feed, block.line, n, "G01"))
+        feed = self.state.feed
+        assert feed is not None  # _check_cut
+        self.moves.append(Move("line", self.state.position.copy(), target, feed, block.line, n, "G01"))
         return True
 
 
@@ -503,7 +507,7 @@ def _arc(state: _State, end: np.ndarray, i, j, r, block: Block, number, toleranc
         "arc",
         p0,
         end.copy(),
-        state.feed,
+        state.feed,  # pyright: ignore[reportArgumentType]  (a cut has a feed: _check_cut)
         block.line,
         number,
         code,

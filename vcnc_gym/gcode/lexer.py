@@ -219,6 +219,7 @@ def check_size(text: str, name: str = "program") -> list[str]:
 def _pygcode():
     try:
         import pygcode
+        import pygcode.exceptions
     except ImportError:  # pragma: no cover - the extra is in dev
         raise ImportError("reading G-code needs pygcode: pip install 'vcnc-gym[gcode]'") from None
     return pygcode
@@ -275,7 +276,7 @@ def lex(text: str) -> list[Block]:
         if parsed.macro:
             raise GCodeError(f"'%' inside a block is not RS-274 (got {parsed.macro!r})", number, parsed.macro, raw)
         words = []
-        for w in parsed.block.words:
+        for w in parsed.block.words:  # pyright: ignore[reportOptionalMemberAccess]  (a line with text has a block)
             try:
                 value = float(w.value)
             except ValueError:  # O and T keep pygcode's text

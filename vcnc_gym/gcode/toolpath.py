@@ -175,8 +175,10 @@ def _turn(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _arc_pieces(m: Move) -> list[tuple[np.ndarray, float]]:
-    a0 = math.atan2(m.start[1] - m.centre[1], m.start[0] - m.centre[0])
-    segs = arcs.arc_segments(m.centre, m.radius, a0, m.sweep)
+    centre = m.centre
+    assert centre is not None  # an arc's
+    a0 = math.atan2(m.start[1] - centre[1], m.start[0] - centre[0])
+    segs = arcs.arc_segments(centre, m.radius, a0, m.sweep)
     each = m.radius * abs(m.sweep) / len(segs)
     return [(s, each) for s in segs]
 

@@ -124,7 +124,7 @@ class Parameter:
 
     name: str
     unit: str
-    nominal: tuple | None = None
+    nominal: tuple = None  # pyright: ignore[reportAssignmentType]  (None: the interval's midpoints, __post_init__)
     interval: tuple | None = None
     shared: bool = False
     source: str = ""
@@ -585,7 +585,7 @@ class InverseDynamics:
     coulomb: np.ndarray
     backlash: np.ndarray
     delay: np.ndarray
-    stribeck: np.ndarray = ((0.0, 0.0), (0.0, 0.0))
+    stribeck: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
 
     def __post_init__(self):
         shapes = {
@@ -615,9 +615,12 @@ class InverseDynamics:
         """The inverse of ``plant``'s linear model at ``params`` (2, P) (constant numerator, denominator of
         degree <= 4, ``den[-1] = 0``: an integrator to position), its dead time, plus the given friction
         and backlash."""
+        linear = plant.linear_coefficients
+        if linear is None:
+            raise ValueError(f"plant {plant.name} declares no linear_coefficients: no linear inverse")
         rows = []
         for axis in (0, 1):
-            num, den = (np.atleast_1d(np.asarray(c, dtype=np.float64)) for c in plant.linear_coefficients(params, axis))
+            num, den = (np.atleast_1d(np.asarray(c, dtype=np.float64)) for c in linear(params, axis))
             num = np.trim_zeros(num, "f")
             if num.size != 1 or den.size - 1 > INVERSE_ORDER or den[-1] != 0.0:
                 raise ValueError(

@@ -286,7 +286,9 @@ S_XM, S_W, S_XT = 0, 1, 2
 #: Uncertainty intervals of Jahanpour et al. (2014), section 2c, keyed by name: shared ones
 #: (lo, hi), per-axis ones ((lo_x, hi_x), (lo_y, hi_y)).  Derived from
 #: ``PARAMETERS``.
-PARAMETER_INTERVALS = {p.name: (p.interval[0] if p.shared else p.interval) for p in PARAMETERS if p.uncertain}
+PARAMETER_INTERVALS = {
+    p.name: (p.interval[0] if p.shared else p.interval) for p in PARAMETERS if p.interval is not None
+}
 
 #: Default control period of the envs [s] (see DESIGN.md, "Control rate").
 DEFAULT_DT = 1e-4

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
+from typing import Any
 
 import numpy as np
 
@@ -107,7 +108,7 @@ class Effect:
     state: dict = {}
     reset = None
     command = force = table = reading = sense = None
-    Arrays = None
+    Arrays: Any = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -121,7 +122,7 @@ class Effect:
         arrays = namedtuple(f"{cls.__name__}Arrays", ["params", *cls.state])
         arrays.__module__ = cls.__module__
         arrays.__qualname__ = f"{cls.__qualname__}.Arrays"
-        arrays.effect = cls
+        setattr(arrays, "effect", cls)  # the stages read an effect's class from its record's type
         cls.Arrays = arrays
 
     @classmethod

@@ -140,6 +140,8 @@ def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFE
         )
     n_inner = inner.n_parameters
 
+    linear, delay, inverse, gain = inner.linear_coefficients, inner.delay, inner.inverse_dynamics, inner.force_gain
+
     def inner_part(params):
         return np.asarray(params)[..., :n_inner]
 
@@ -163,16 +165,10 @@ def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFE
         make_arrays=make_arrays,
         reset_machine=lambda arrays, k, position: _reset_machine(model, arrays, k, position),
         check=check,
-        linear_coefficients=(
-            None
-            if inner.linear_coefficients is None
-            else lambda params, axis: inner.linear_coefficients(inner_part(params), axis)
-        ),
-        delay=None if inner.delay is None else lambda params, axis: inner.delay(inner_part(params), axis),
-        inverse_dynamics=(
-            None if inner.inverse_dynamics is None else lambda params: inner.inverse_dynamics(inner_part(params))
-        ),
-        force_gain=None if inner.force_gain is None else lambda params: inner.force_gain(inner_part(params)),
+        linear_coefficients=None if linear is None else lambda params, axis: linear(inner_part(params), axis),
+        delay=None if delay is None else lambda params, axis: delay(inner_part(params), axis),
+        inverse_dynamics=None if inverse is None else lambda params: inverse(inner_part(params)),
+        force_gain=None if gain is None else lambda params: gain(inner_part(params)),
         seed_machine=_seed_machine,
         servo_bandwidth=inner.servo_bandwidth,
         friction_time=SHOP_FRICTION_TIME,
@@ -186,6 +182,7 @@ def shop_floor(plant, settings: dict | bool | None = True, effects: tuple = EFFE
 
 def _make_arrays(model: ShopFloorModel, n_machines: int, dt: float, **options) -> ShopFloorArrays:
     inner = model.inner
+    assert inner is not None
     arrays = inner.make_arrays(n_machines, dt, **options)
     P = inner.n_parameters
     params = np.repeat(model.nominal()[None], n_machines, axis=0)
@@ -224,6 +221,7 @@ def _reset_machine(model: ShopFloorModel, arrays: ShopFloorArrays, k: int, posit
     the inner plant's, the noise generator at seed ``k`` (the envs then draw it from their generator:
     ``seed_machine``); then each effect's ``reset``, in order."""
     inner = model.inner
+    assert inner is not None
     P = arrays.n_inner
     inner.reset_machine(arrays.inner, k, position)
     arrays.gain[k] = inner.force_gain(arrays.params[k, :, :P]) if inner.force_gain is not None else 0.0
