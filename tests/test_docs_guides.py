@@ -1,4 +1,6 @@
-"""The documentation's code runs: every Python block of the guides and of the getting-started page.
+"""The documentation's code runs: every Python block of the guides and of the getting-started page; and the
+commands the README and the docs print exist: every option of ``vcnc-bench``, ``vcnc-train`` and ``vcnc-datasets``
+is one of its parser's, every ``python -m MODULE`` imports and every script named is in the checkout.
 
 A page's blocks run in order as one script, in a fresh interpreter (a guide
 registers a controller or compiles a plant: nothing leaks into this process),
@@ -112,3 +114,55 @@ def test_page_code_runs(page, tmp_path):
         [sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
     )
     assert proc.returncode == 0, f"{page}'s code failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-6000:]}"
+
+
+# -- the commands the pages print ----------------------------------------------------------------------------------
+
+ROOT = DOCS.parent
+
+#: A command line of the package's commands as the pages print it, up to the end of its line, code span or comment.
+_COMMAND = re.compile(r"(vcnc-bench|vcnc-train|vcnc-datasets)((?:[ \t]+[^\s`#|]+)*)")
+
+
+def _pages() -> list[Path]:
+    """The README and every written page of docs/ (the generated env and API pages left out)."""
+    generated = {"envs", "api", "_build"}
+    return [ROOT / "README.md"] + [
+        p for p in sorted(DOCS.rglob("*.md")) if not generated.intersection(p.relative_to(DOCS).parts)
+    ]
+
+
+def _options() -> dict[str, set[str]]:
+    from vcnc_agents.arguments import parser as train_parser
+    from vcnc_bench.arguments import bench_parser
+    from vcnc_bench.datasets import _parser as datasets_parser
+
+    parsers = {"vcnc-bench": bench_parser(), "vcnc-train": train_parser(), "vcnc-datasets": datasets_parser()}
+    return {name: {s for a in p._actions for s in a.option_strings} for name, p in parsers.items()}
+
+
+def test_the_pages_command_lines_use_their_parsers_options():
+    options = _options()
+    wrong = [
+        f"{page.relative_to(ROOT)}: {m.group(1)} {option}"
+        for page in _pages()
+        for m in _COMMAND.finditer(page.read_text())
+        for option in re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", m.group(2))
+        if option not in options[m.group(1)]
+    ]
+    assert not wrong, "options the commands do not have: " + "; ".join(wrong)
+
+
+def test_the_pages_modules_and_scripts_exist():
+    import importlib.util
+
+    missing = []
+    for page in _pages():
+        text = page.read_text()
+        for module in re.findall(r"python -m ([\w.]+)", text):
+            if importlib.util.find_spec(module) is None:
+                missing.append(f"{page.relative_to(ROOT)}: python -m {module}")
+        for script in re.findall(r"python ((?:benchmarks|experiments|tests)/[\w/.-]+\.py)", text):
+            if not Path(script).stem.isupper() and not (ROOT / script).is_file():  # NAME.py: a placeholder
+                missing.append(f"{page.relative_to(ROOT)}: python {script}")
+    assert not missing, "named but not in the checkout: " + "; ".join(missing)
