@@ -504,7 +504,10 @@ def _parameters_array(plant: PlantModel, values: dict) -> np.ndarray:
 
 
 def _round(value: float) -> float:
-    """``value`` rounded up to 1, 2 or 5 times a power of ten: a scale a reader recognises."""
+    """``value`` rounded up to 1, 2 or 5 times a power of ten: a scale a reader recognises (1 for a field that is
+    zero all along, such as the acceleration of a constant feed along straight lines)."""
+    if not value > 0 or not math.isfinite(value):
+        return 1.0
     exponent = math.floor(math.log10(value))
     for m in (1.0, 2.0, 5.0, 10.0):
         if m * 10.0**exponent >= value * (1 - 1e-12):
