@@ -1,6 +1,8 @@
 """Step cost and vector-env throughput of this tree against an earlier commit, in one run.
 
-Run: ``python benchmarks/before_after.py --before REF`` (``--pairs P``, ``--ids`` the envs).
+Run: ``python benchmarks/before_after.py --before REF`` (``--pairs P``, ``--ids`` the envs).  ``--quick`` is a smoke
+run of a few seconds: both workers run this tree (no worktree, this tree's numba cache), two block pairs of a few
+steps on the heart; it checks the script, its figures mean nothing.
 
 A git worktree of ``REF`` is made in a temporary folder and put first on ``PYTHONPATH`` for the "before"
 worker process; the "after" worker imports this tree.  Each side has its own numba cache.  Each worker builds
@@ -139,27 +141,35 @@ def ratio_interval(ratios: np.ndarray, rng, n_boot: int = 10_000) -> tuple[float
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--before", required=True, help="the earlier commit (any git ref)")
+    p.add_argument("--before", help="the earlier commit (any git ref); required but with --quick")
     p.add_argument("--pairs", type=int, default=300, help="timed block pairs per figure (default 300)")
     p.add_argument("--ids", nargs="+", default=["VCNC-Heart-v1", "VCNC-HeartShop-v1"], help="env ids")
     p.add_argument("--block", type=int, default=2000, help="single-env steps per timed block (default 2000)")
     p.add_argument("--vector-block", type=int, default=10, help="vector-env steps per timed block (default 10)")
     p.add_argument("--envs", type=int, default=1024, help="envs in the native vector env (default 1024)")
     p.add_argument("--json", help="write every block's figures here")
+    p.add_argument("--quick", action="store_true", help="a smoke run: this tree on both sides, a few tiny blocks")
     args = p.parse_args(argv)
-    settings = [args.ids, 20_000, args.block, args.vector_block, args.envs]
+    if args.quick:
+        args.before, args.pairs, args.ids = "this tree (--quick)", 2, args.ids[:1]
+        args.block, args.vector_block, args.envs = 20, 1, 4
+    elif args.before is None:
+        p.error("--before REF is required (or --quick)")
+    settings = [args.ids, 200 if args.quick else 20_000, args.block, args.vector_block, args.envs]
     figures = [(kind, env_id) for kind in ("single", "vector") for env_id in args.ids]
     blocks = {f"{k} {i}": {"before": [], "after": []} for k, i in figures}
 
     with tempfile.TemporaryDirectory() as tmp:
-        tree = Path(tmp) / "before"
-        subprocess.run(
-            ["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.before], check=True
-        )
+        tree = ROOT if args.quick else Path(tmp) / "before"
+        if not args.quick:
+            subprocess.run(
+                ["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.before], check=True
+            )
         workers = {}
         try:
             for name, path in (("before", tree), ("after", ROOT)):
-                side = dict(os.environ, PYTHONPATH=str(path), NUMBA_CACHE_DIR=str(Path(tmp) / f"numba-{name}"))
+                cache = {} if args.quick else {"NUMBA_CACHE_DIR": str(Path(tmp) / f"numba-{name}")}
+                side = dict(os.environ, PYTHONPATH=str(path), **cache)
                 workers[name] = Worker(side, settings)
                 print(f"{name}: {workers[name].file} (built and warmed)", flush=True)
             for kind, env_id in figures:
@@ -171,7 +181,8 @@ def main(argv=None) -> None:
         finally:
             for w in workers.values():
                 w.close()
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=False)
+            if not args.quick:
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=False)
 
     rng = np.random.default_rng(0)
     rev = subprocess.run(

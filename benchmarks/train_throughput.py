@@ -1,7 +1,8 @@
 """vcnc-train throughput before and after the native vector env, same settings, in one run (issue 8).
 
 Run: ``python benchmarks/train_throughput.py`` from the repository root
-(``--steps N``, ``--n-envs N [N ...]``, ``--before COMMIT``; ``--help``).
+(``--steps N``, ``--n-envs N [N ...]``, ``--before COMMIT``; ``--help``).  ``--quick`` is a smoke run: the
+working tree's trainer alone (no "before", no worktree), 2 envs, one rollout; it checks the script, not a figure.
 
 "Before" is the trainer of commit ``e9abf30`` (the last one before the native
 vector env: SB3's ``DummyVecEnv`` over single Gymnasium envs, the residual
@@ -59,9 +60,15 @@ _CHILD = r"""
 import json, sys, time, warnings
 root, config_file, out_dir, env_id, steps, n_envs = sys.argv[1:7]
 sys.path.insert(0, root)
+import importlib.util
 import torch
 torch.set_num_threads(1)
-import vcnc_agents, baselines, vcnc_gym
+spec = importlib.util.find_spec("vcnc_agents")  # found, not imported: an installed one may be another tree's
+if spec is not None and spec.origin.startswith(root):
+    import vcnc_agents as agents, vcnc_baselines as baselines
+else:  # a tree from before the packages' own names (0.2.0): its top-level folders
+    import agents, baselines
+import vcnc_gym
 import vcnc_gym.evaluation as evaluation
 warnings.simplefilter("ignore")
 for module in (agents, baselines, vcnc_gym):
@@ -76,18 +83,18 @@ def timed_run_episode(*args, **kwargs):
     finally:
         eval_wall.append(time.perf_counter() - t0)
 evaluation.run_episode = timed_run_episode
-new = hasattr(vcnc_agents.training, "VEC_ENVS")  # the trainer with the native vector env
+new = hasattr(agents.training, "VEC_ENVS")  # the trainer with the native vector env
 # only at the end: the old trainer reads None that way, the new one 0
 options = dict(config_file=config_file, seed=0, n_envs=int(n_envs), progress_bar=False, tensorboard=False,
                checkpoint_freq=10**9, eval_freq=0 if new else None)
 from stable_baselines3.common.vec_env import VecNormalize  # noqa: F401  (imported before timing, as SB3 is)
-h = vcnc_agents.config.load_hyperparameters(env_id, config_file)
+h = agents.config.load_hyperparameters(env_id, config_file)
 rollout = int(h["n_steps"]) * int(n_envs)
-vcnc_agents.train(env_id, f"{out_dir}/warmup", n_timesteps=rollout, **options)  # numba compiles or loads its cache
+agents.train(env_id, f"{out_dir}/warmup", n_timesteps=rollout, **options)  # numba compiles or loads its cache
 eval_wall.clear()
-r = vcnc_agents.train(env_id, f"{out_dir}/run", n_timesteps=int(steps), **options)
+r = agents.train(env_id, f"{out_dir}/run", n_timesteps=int(steps), **options)
 summary = json.load(open(f"{out_dir}/run/summary.json"))["sessions"][-1]
-print(json.dumps({"agents": vcnc_agents.__file__, "vcnc_gym": vcnc_gym.__file__, "steps": r.session_timesteps,
+print(json.dumps({"agents": agents.__file__, "vcnc_gym": vcnc_gym.__file__, "steps": r.session_timesteps,
                   "wall_s": r.wall_s, "steps_per_s": r.steps_per_s, "control_periods_per_s": r.control_periods_per_s,
                   "eval_s": sum(eval_wall), "summary_steps_per_s": summary["steps_per_s"],
                   "vec_env": summary.get("vec_env")}))
@@ -121,6 +128,14 @@ def _rates(r: dict, repeat: int) -> tuple[float, float, float, float]:
     return (r["steps_per_s"], r["control_periods_per_s"], r["steps"] / train_s, r["steps"] * repeat / train_s)
 
 
+def _print_side(n: int, side: str, r: dict, rates: tuple) -> None:
+    vec = r["vec_env"] or "dummy"
+    print(
+        f"{n:6d} {side:7s} {vec:7s} {r['steps']:7d} {rates[0]:9.0f} {rates[1]:10.0f} {rates[2]:9.0f} "
+        f"{rates[3]:11.0f}  {Path(r['agents']).parent}"
+    )
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument(
@@ -144,11 +159,14 @@ def main(argv=None) -> None:
         help="where the 'before' commit is checked out (default /tmp/vcnc_before)",
     )
     p.add_argument("--keep-worktree", action="store_true", help="leave the worktree (and its numba cache) in place")
+    p.add_argument("--quick", action="store_true", help="a smoke run: the working tree alone, 2 envs, one rollout")
     args = p.parse_args(argv)
+    if args.quick:
+        args.n_envs, args.steps = [2], 1  # rounded up to one rollout
 
     entry = yaml.safe_load((ROOT / "agents" / "hyperparams" / "ppo.yml").read_text())[ENTRY]
     repeat = entry["env_wrapper"][0]["vcnc_agents.action_modes.ResidualAction"]["action_repeat"]
-    made = not args.worktree.exists()
+    made = not args.quick and not args.worktree.exists()
     if made:
         subprocess.run(
             ["git", "worktree", "add", "--detach", str(args.worktree), args.before],
@@ -164,7 +182,8 @@ def main(argv=None) -> None:
             print(
                 f"{ENV_ID} with {ENTRY}'s hyperparameters: {args.steps} agent steps per run (whole rollouts "
                 f"of n_steps {entry['n_steps']} x n_envs), residual over {mode['baseline']} (correction {mode['correction']}, action_repeat "
-                f"{repeat}), 1 torch + 1 numba thread; before = {args.before}, after = the working tree"
+                f"{repeat}), 1 torch + 1 numba thread; before = {'not run (--quick)' if args.quick else args.before}, "
+                "after = the working tree"
             )
             header = (
                 f"{'n_envs':>6s} {'side':7s} {'VecEnv':7s} {'steps':>7s} {'steps/s':>9s} {'periods/s':>10s} "
@@ -172,15 +191,15 @@ def main(argv=None) -> None:
             )
             print(header)
             for n in args.n_envs:
-                before = _run_side(args.worktree, config_file, tmp / f"before_{n}", args.steps, n)
                 after = _run_side(ROOT, config_file, tmp / f"after_{n}", args.steps, n)
-                rb, ra = _rates(before, repeat), _rates(after, repeat)
-                for side, r, rates in (("before", before, rb), ("after", after, ra)):
-                    vec = r["vec_env"] or "dummy"
-                    print(
-                        f"{n:6d} {side:7s} {vec:7s} {r['steps']:7d} {rates[0]:9.0f} {rates[1]:10.0f} {rates[2]:9.0f} "
-                        f"{rates[3]:11.0f}  {Path(r['agents']).parent}"
-                    )
+                ra = _rates(after, repeat)
+                if args.quick:
+                    _print_side(n, "after", after, ra)
+                    continue
+                before = _run_side(args.worktree, config_file, tmp / f"before_{n}", args.steps, n)
+                rb = _rates(before, repeat)
+                _print_side(n, "before", before, rb)
+                _print_side(n, "after", after, ra)
                 print(
                     f"{n:6d} {'ratio':7s} {'':7s} {'':7s} {ra[0] / rb[0]:8.2f}x {ra[1] / rb[1]:9.2f}x "
                     f"{ra[2] / rb[2]:8.2f}x {ra[3] / rb[3]:10.2f}x"

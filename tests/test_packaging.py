@@ -37,7 +37,7 @@ from package_layout import PACKAGES, ROOT, TOP, folder
 
 OLD_NAMES = ("baselines", "agents")
 #: The folders whose Python files must not import the old names.
-SOURCES = [*TOP.values(), ROOT / "tests", ROOT / "benchmarks", ROOT / "docs" / "_ext"]
+SOURCES = [*TOP.values(), ROOT / "tests", ROOT / "benchmarks", ROOT / "experiments", ROOT / "docs" / "_ext"]
 
 
 def test_the_wheel_lists_every_package_folder():
@@ -204,7 +204,7 @@ def test_the_wheel_carries_what_the_packages_read_and_nothing_else(installed):
     wheel = installed[0]
     names = zipfile.ZipFile(wheel).namelist()
     tops = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
-    assert tops == set(TOP)  # no top-level baselines or agents, no tests, benchmarks or docs
+    assert tops == set(TOP)  # no top-level baselines or agents, no tests, benchmarks, experiments or docs
     for data in DATA:
         assert any(n.startswith(data) for n in names), f"the wheel lacks {data}"
     assert not [n for n in names if "__pycache__" in n or n.endswith((".nbi", ".nbc", ".pyc"))]
