@@ -45,7 +45,7 @@ def test_the_envs_signatures_show_every_argument_they_accept():
     for cls in (ContouringEnv, ContouringVectorEnv, GCodeEnv, GCodeVectorEnv, RandomContourEnv, FeedOverrideEnv):
         kinds = {p.kind for p in inspect.signature(cls).parameters.values()}
         assert inspect.Parameter.VAR_KEYWORD not in kinds, cls.__name__
-    assert task | {"render_mode"} == set(_parameters(ContouringEnv))
+    assert task | {"render_mode", "render_every"} == set(_parameters(ContouringEnv))
     assert task - {"contour", "feedrate"} <= set(_parameters(GCodeEnv))
     assert task - {"contour", "feedrate", "profile"} <= set(_parameters(RandomContourEnv))
     assert "completion_timeout" not in _parameters(FeedOverrideEnv)

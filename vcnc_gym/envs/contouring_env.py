@@ -13,6 +13,7 @@ from . import step_kernel as sk
 from .pickling import RebuiltOnUnpickle, batch_arrays, restore_arrays
 from .signatures import forwarded_signature
 from .decision import DecisionLoop, episode_summary
+from .rendering import EpisodeHistory, Renderer, render_every_argument, render_fps
 from .task import ContouringBatch, ContouringTask
 
 __all__ = ["ContouringEnv", "check_actions", "step_info"]
@@ -31,29 +32,60 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     eq. (1), with the parameters of section 2c and Table 3: +-5 V amplifier
     saturation, 3 um backlash, asymmetric static and Coulomb friction
     (Karnopp stick-slip), integrated in closed form on substeps.  The policy
-    commands the plant's two inputs and is judged by the contour error: the
-    shortest distance from the table to the whole contour, not to the
-    current reference point.
+    is judged by the contour error: the shortest distance from the table to
+    the whole contour, not to the current reference point.
+
+    Each id comes in two interfaces.  The v2 ids (``VCNC-Heart-v2``, ...) are
+    the ones to learn on: as on a CNC, the drive closes its own servo loop
+    every control period inside the step, and the policy, an outer loop
+    deciding every 1 ms, moves the servo's set-point; the observation is
+    scaled to order one and the reward is clipped at 10 um.  The v1 ids keep
+    the papers' interface, the amplifier's voltage every 0.1 ms and the
+    observation in physical units, for the classical controllers
+    (:mod:`vcnc_baselines`) and the figures measured on them.
 
     ## Action Space
 
-    ``Box(-1, 1, (2,), float32)``: the normalised amplifier command per axis.
+    ``Box(-1, 1, (2,), float32)`` in every version: one value per axis, whose
+    meaning ``action`` sets.
 
-    | Num | Action            | Min | Max | Unit                                   |
-    |-----|-------------------|-----|-----|----------------------------------------|
-    | 0   | x-axis command    | -1  | 1   | x the plant's input limit (5 V, Jahanpour et al. (2014)) |
-    | 1   | y-axis command    | -1  | 1   | x the plant's input limit (5 V, Jahanpour et al. (2014)) |
+    | Num | Action         | Min | Max | ``action="voltage"`` (v0, v1)       | ``action="setpoint"`` (v2)               |
+    |-----|----------------|-----|-----|--------------------------------------|-------------------------------------------|
+    | 0   | x axis         | -1  | 1   | amplifier command / input limit (5 V) | set-point correction / ``setpoint_range`` |
+    | 1   | y axis         | -1  | 1   | amplifier command / input limit (5 V) | set-point correction / ``setpoint_range`` |
 
-    Values outside [-1, 1] are clipped: that is the amplifier's saturation.
-    ``env.unwrapped.plant`` names the input and its unit (``input_name``,
-    ``input_unit``, ``input_limit``).  Wrong shapes, non-real and non-finite
-    values raise ``ValueError``.
+    - "voltage": the plant's input over its limit (5 V on Jahanpour et al.'s
+      drives), held for ``action_repeat`` control periods.  Values outside
+      [-1, 1] are clipped: that is the amplifier's saturation.
+      ``env.unwrapped.plant`` names the input and its unit (``input_name``,
+      ``input_unit``, ``input_limit``).
+    - "setpoint": the drive's set-point is moved by ``a * setpoint_range`` mm
+      per axis, held for the decision, and the drive's servo
+      (:mod:`~vcnc_gym.envs.drive_servo`: the PID of the machine's
+      commissioning record, with velocity feedforward and, on the shop floor,
+      a notch at the structural mode) turns the shifted tracking error into
+      the amplifier command every control period.  The action 0 is the servo
+      alone, which finishes every contour.  ``setpoint_range`` defaults to the
+      set-point error at which the servo's proportional term alone reaches the
+      input limit, ``u_max / K_p`` of the stiffer axis
+      (``env.unwrapped.task.setpoint_range``, mm; each id's page gives it):
+      0.91 um on Jahanpour et al.'s ideal drives, 1.8 um on Simba et al.'s,
+      28 um on Purtojo et al.'s table; on the shop floor, whose commissioned
+      servos are softer, 104 um (Jahanpour et al.'s) and 406 um (Simba et al.'s).
+    - "correction" (set by ``base=NAME``): the classical controller NAME runs
+      every control period inside the step and the amplifier command is
+      ``clip(u_c / u_max + correction * a, -1, 1)``, ``u_c`` its command: a
+      correction learnt on top of a controller, with no extra package beyond
+      the controllers' (``pip install 'vcnc-gym[baselines]'``).
+
+    Wrong shapes, non-real and non-finite values raise ``ValueError``.
 
     ## Observation Space
 
     A flat float32 ``Box``; its fields are named by
     :class:`~vcnc_gym.envs.layout.ObservationLayout` (``env.unwrapped.layout``),
-    so a policy reads ``layout.tracking_error(obs)`` instead of indices.  With
+    so a policy reads ``layout.tracking_error(obs)`` instead of indices (the
+    accessors return physical units under either scale).  With
     the default three preview points:
 
     | Index | Field                  | Unit   | Meaning                                        |
@@ -75,6 +107,21 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     to brake from 100 mm/s, so a policy can see a corner coming and slow
     down for it (``contour_ahead=``, mm; ``()`` for none).
 
+    With ``observation_scale="unit"`` (v2) each field is divided by a fixed
+    constant of the task, its ``scale`` (``layout.fields[k].scale``, in the
+    field's unit; ``layout.describe()`` prints them with the fields), so that
+    typical values are of order one, without running statistics inside the
+    env: the contour's extent for the positions, the reference's top speed
+    and acceleration, the reward's error clip for the contour and normal
+    errors and ten times it for the tracking and tangential errors, the
+    preview's reach at the top speed, the farthest contour preview, the
+    contour's largest curvature.  On the v2 heart: 100 mm, 100 mm/s,
+    2000 mm/s^2, 0.1 mm, 0.01 mm, 1 mm, 5 mm and 0.2 1/mm.  A scaled field
+    is bounded at 100 times its scale.  ``"raw"`` (v0, v1) shows the
+    physical units, bounded at 1000 mm, 1000 mm/s, 1e6 mm/s^2 and 10 mm.
+    Under ``action="setpoint"`` and ``"correction"`` the previous action is
+    the agent's own, not the amplifier command.
+
     The position bound is 1000 mm, or the contour's extent plus
     ``tracking_bound`` plus 100 mm if that is larger.  Values beyond the
     layout's bounds are clipped, so every observation lies inside the space;
@@ -82,23 +129,38 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
 
     ## Rewards
 
-    ``reward = -min(contour_error, divergence_bound) / reward_scale - effort_weight * mean(action**2)``,
-    with the contour error averaged over the step's control periods (clipped at
-    the divergence bound: a step never costs more than one at the bound, the
-    rest is the divergence penalty's) and ``reward_scale`` = 0.01 mm (10 um),
-    so typical values are of order one.
-    The effort term is off by default.  On divergence a terminal penalty of
-    ``-(divergence_bound / reward_scale)`` per remaining decision step of the
-    contour is added, so ending an episode early never pays.  Every term is in
-    ``info`` ("reward_contour", "reward_effort", "reward_divergence").
+    ``reward = -min(contour_error, error_clip) / reward_scale - effort_weight * mean(u**2)``,
+    the contour error averaged over the decision's control periods (under the
+    set-point and correction actions each period's is clipped, then averaged)
+    and ``u`` the amplifier command over its limit: a monotone function of the
+    contour error, 0 for none.
+    In v2 ``reward_scale`` is 1 um and ``error_clip`` 10 um (0.2 um and 2 um
+    on Purtojo et al.'s circle, whose contour errors are below 1 um): a
+    decision earns between -10 and 0, so an episode's return is of the order
+    of its number of decisions (the servo alone: -24 over the 3 222 decisions
+    of the heart).  In v0 and v1 ``reward_scale`` is 10 um and ``error_clip``
+    the divergence bound, 5 mm (up to -500 a step).  The effort term is off
+    by default.  On divergence a terminal penalty of
+    ``-(error_clip / reward_scale)`` per remaining decision of the contour
+    is added (-10 a decision in v2), so ending an episode early never pays
+    more than finishing it.  Every term is in ``info`` ("reward_contour",
+    "reward_effort", "reward_divergence", "reward_incomplete").
+
+    The per-step contour error keys are named per step: under the set-point
+    and correction actions ``info["step_contour_error_max"]`` and
+    ``info["step_contour_error_mean"]`` (mm, over the decision's control
+    periods); ``info["contour_error"]`` is the last period's.  The episode's
+    figures are in ``info["episode_summary"]`` at its end (Episode End).
 
     ## Starting State
 
     The table rests at the start of the contour with the backlash gap
-    centred; the plant parameters are the nominal ones (interval midpoints),
+    centred, the drive's servo (v2) or the base controller with its memory
+    cleared; the plant parameters are the nominal ones (interval midpoints),
     those given by ``parameters``, or, with ``randomize=True``, drawn
     uniformly from Jahanpour et al.'s intervals by the env's seeded generator.  The
-    parameters in force are in the reset info.
+    parameters in force are in the reset info, in a form
+    ``reset(options={"parameters": info["parameters"]})`` takes back.
 
     ## Episode End
 
@@ -133,9 +195,16 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       ``gym.make``) truncates earlier; the env warns when that cuts the
       contour short.
 
+    However it ends, the last step's ``info["episode_summary"]`` holds the
+    episode's figures (:data:`~vcnc_gym.envs.decision.SUMMARY_KEYS`): the
+    max, mean and RMS contour error over every control period (mm), the
+    cycle time (s, NaN unless completed), completed, diverged and the
+    control periods run.  It is named so as not to clash with
+    ``RecordEpisodeStatistics``' ``info["episode"]``.
+
     ## Arguments
 
-    ``gym.make("VCNC-Heart-v1", **kwargs)`` with
+    ``gym.make("VCNC-Heart-v2", **kwargs)`` with
 
     - ``contour``: a name of ``vcnc_gym.geometry.SHAPES`` ("heart", "omega",
       "circle", "corners", "corners-smooth"), a :class:`NurbsCurve` or a
@@ -156,15 +225,19 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     - ``feedrate`` (mm/s, 100) and ``ramp_time`` (s, S-curve only, default 0.12).
     - ``dt`` (s, 1e-4): the control period, at which the command is held
       and the reference is sampled.  At 1 ms Jahanpour et al.'s QFT loop is unstable
-      (a closed-loop pole near |z| = 10); at 0.1 ms it is stable on every
+      (a closed-loop pole of magnitude near 10); at 0.1 ms it is stable on every
       vertex of the uncertainty box.
-    - ``action_repeat`` (1): control periods per decision.
+    - ``action_repeat`` (1; 10 in v2): control periods per decision.
     - ``randomize`` (False) / ``parameters`` (None, a (2, P) array of the
       plant, columns ``env.unwrapped.plant.parameter_names``): the plant in
       force; not both.  ``reset(options={"parameters": p})`` sets it for one
       episode.
-    - ``reward_scale`` (mm, 0.01), ``effort_weight`` (0.0),
+    - ``reward_scale`` (mm, 0.01; 0.001 in v2), ``effort_weight`` (0.0),
       ``divergence_bound`` (mm, 5.0), ``tracking_bound`` (mm, 10.0).
+    - ``error_clip`` (mm; None: ``divergence_bound``; 0.01 in v2): the
+      contour error at which a control period's reward saturates, and the
+      reward per remaining decision the divergence penalty charges.  At most
+      ``divergence_bound``.
     - ``episode_end`` ("tool"): "tool" as above, or "reference" (v0: the
       episode ends ``settling_time``, s, default 0.01, after the
       reference's end); ``completion_tolerance`` (mm, 0.02) and
@@ -173,6 +246,27 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       controllers read their preview from the reference; ``contouring-fb`` refuses it).
     - ``contour_ahead`` ((0.25, 0.5, 1, 2, 4)): arc lengths, mm, of the
       contour preview.
+    - ``observation_scale`` ("raw"; "unit" in v2): the fields in their
+      physical units, or each divided by its fixed scale (Observation Space).
+    - ``action`` ("voltage"; "setpoint" in v2): what the action commands,
+      "voltage", "setpoint" or "correction" (Action Space); "correction" is
+      set by ``base``.
+    - ``setpoint_range`` (mm; None: ``u_max / K_p`` of the stiffer axis): the
+      set-point correction of the action 1, ``action="setpoint"`` only.
+    - ``servo_gains`` (None: the commissioning record of the id's nominal
+      machine, shipped in ``vcnc_gym/envs/drive_servos.json``): the drive's
+      servo of ``action="setpoint"``, a dict with per axis "kp" (input unit
+      per mm), "kd" (per mm/s), "ki" (per mm s), "velocity_pole" (in [0, 1))
+      and "notch" ((2, 5) biquad coefficients).
+    - ``base`` (None): the name of a classical controller
+      (``vcnc_baselines.names()``, e.g. "ff-pid", "zpetc", "ccc"; one with a
+      compiled form) run every control period inside the step, the action a
+      correction to its command (``action="correction"``).  The controllers
+      come from the packages of the entry point group
+      ``vcnc_gym.base_controllers`` (``vcnc_baselines``, the baselines extra);
+      ``vcnc_gym`` itself names none.
+    - ``correction`` (0.5, at most 2): the largest correction of ``base``'s
+      command, a fraction of the input limit.
     - ``plant_options`` (None): the plant's own settings, e.g.
       ``{"substep": 1e-5}`` (s) for Jahanpour et al.'s integration substep.
     - ``shop_floor`` (None): the machine as it is on the shop floor
@@ -182,9 +276,24 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       Stribeck friction) over them; their parameters are appended to the
       plant's (``randomize`` draws them), the observation shows the
       quantised, noisy, delayed reading and ``info`` keeps the true contour
-      error.  The ``...Shop-v1`` ids set it.
+      error.  The ``...Shop-v1`` and ``...Shop-v2`` ids set it.
     - ``max_episode_steps`` (None: the natural length): truncation, decisions.
-    - ``render_mode``: None, "human" or "rgb_array" (matplotlib).
+    - ``render_mode``: None, "human" or "rgb_array" (matplotlib; Rendering).
+    - ``render_every`` (None: about 30 pictures per simulated second, every 33
+      decisions of 1 ms): the decisions between two new pictures (Rendering).
+
+    ## Rendering
+
+    ``render_mode="rgb_array"`` gives 800 x 360 RGB frames: the contour with the
+    table's path, its contour error magnified, and the contour error over
+    time; ``"human"`` shows them in a window.  ``metadata["render_fps"]`` is
+    one frame per decision, ``1 / decision_period`` (1000 in v2): a video of
+    one frame per step, as ``gymnasium.wrappers.RecordVideo`` records it
+    (``pip install 'vcnc-gym[video]'`` for its moviepy), plays the episode in
+    real time.  A new picture is drawn every ``render_every`` decisions and at
+    the episode's end, the last one returned in between, so recording a
+    whole v2 heart (3 222 decisions, a 3.2 s video) draws about a hundred
+    pictures of a few milliseconds each (``python benchmarks/render_timing.py``).
 
     ## Pickling
 
@@ -196,9 +305,31 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
 
     ## Version History
 
+    - v2: the learnable version of every contouring id (``VCNC-Heart-v2``,
+      ``VCNC-HeartShop-v2``, ...; ``vcnc_gym.envs.registry.LEARNABLE_IDS``):
+      the machine, contour, reference and episode end of its v1, with
+      ``action="setpoint"``, ``action_repeat=10`` (a decision every 1 ms, 10 ms
+      on the circle), ``observation_scale="unit"``, ``reward_scale`` 1 um and
+      ``error_clip`` 10 um (0.2 um and 2 um on the circle).  Why: Stable-Baselines3's
+      PPO with its default settings did not learn v1 (nor v0): every episode
+      diverged at decision 1 603 of 32 212 (0.16 s of the heart's 3.2 s),
+      return -1.5e7, with 4 envs and ``VecNormalize`` too (a value loss of
+      9.9e11).  The causes: the divergence penalty (500 per remaining
+      decision) was a million times a typical step reward; the raw
+      observation spanned 1e9 (contour errors of 1e-6 mm beside
+      accelerations of 1e3 mm/s^2, bounds of 1e6); a decision every 0.1 ms
+      made 32 212 decisions a heart, so 20 000 steps were less than one
+      episode; and the raw voltage let an untrained Gaussian policy leave the
+      10 mm tracking bound at once.  A real feed drive closes its own servo
+      loop and a CNC's outer loop commands set-points; v2 does the same.
+      The v1 ids stay current for the classical controllers, which command
+      the amplifier every control period.  Changes that alter no episode, in
+      every version: ``info["episode_summary"]`` at every episode's end, the
+      per-step keys named per step under the learnable actions, and
+      ``reset(options={"parameters": info["parameters"]})`` accepted.
     - The ``...Shop-v1`` ids (``VCNC-HeartShop-v1``, ``VCNC-OmegaLookaheadShop-v1``,
       ``VCNC-CornersSmoothShop-v1``, ``VCNC-CircleShop-v1``) start at v1: the v1 env
-      of their ideal id with ``shop_floor`` set (issue 20); the ideal ids do
+      of their ideal id with ``shop_floor`` set; the ideal ids do
       not change.
     - v1: the episode ends when the table has reached the end of the
       contour (or at a completion time limit, with a penalty for the
@@ -207,8 +338,8 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       traversed.  The cycle time is in ``info``.  The observation gained the
       contour ahead of the table ("contour_preview", "contour_curvature").
       Purtojo et al.'s circle: contour shown 0.05-0.4 mm ahead, 2 um band, 1 s limit.
-      Fixes that change no episode a valid configuration can reach (issue
-      23), so no new version: a non-finite plant state is rewarded with the
+      Fixes that change no episode a valid configuration can reach, so no
+      new version: a non-finite plant state is rewarded with the
       divergence penalty (was NaN); a preview beyond the contour's end, a
       ``max_episode_steps`` beyond the time limit, a contour that turns back
       on itself and plant parameters outside their physical range are
@@ -217,16 +348,20 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       batched kernel and the ids lost their fixed ``TimeLimit`` (the natural
       length now follows the configuration) without changing any episode of
       the default configuration.  Still registered (``episode_end=
-      "reference"``, ``contour_ahead=()``) for the agents trained on it.
+      "reference"``, ``contour_ahead=()``) for the figures measured on it.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+    #: ``render_fps`` is the default configuration's (one frame per decision of 0.1 ms: real time); each env sets
+    #: its own, ``1 / decision_period`` (:func:`~vcnc_gym.envs.rendering.render_fps`).
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10000}
 
-    def __init__(self, *, render_mode: str | None = None, **kwargs):
+    def __init__(self, *, render_mode: str | None = None, render_every: int | None = None, **kwargs):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
         self.task = ContouringTask(**kwargs)
+        self.render_every = render_every_argument(render_every, self.task.decision_period)
+        self.metadata = {**type(self).metadata, "render_fps": render_fps(self.task.decision_period)}
         self._batch = self._make_batch()
         b = self._batch.buffers
         self._obs = b.obs[0]
@@ -247,8 +382,10 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
         self.parameters = self.task.nominal_parameters
         self._done = True
         self._warned_limit = False
-        self._history: dict[str, list] | None = None
-        self._figure = None
+        self._history: dict[str, list] | None = None  # the episode a render draws (rendering.EpisodeHistory)
+        if getattr(self, "_renderer", None) is not None:  # a subclass that builds its env again (a new contour)
+            self._renderer.close()  # pyright: ignore[reportOptionalMemberAccess]
+        self._renderer = None if render_mode is None else Renderer(self.task, render_mode, self.render_every)
 
     def _make_batch(self) -> ContouringBatch:
         """The batch of one env this env steps (a subclass may give it its own reference buffer)."""
@@ -301,11 +438,12 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
             "feedrate_fluctuation": self.reference.feedrate_fluctuation,
         }
         if self.render_mode is not None:
-            self._history = {
-                "t": [0.0],
-                "position": [self._info[sk.INFO_POSITION : sk.INFO_POSITION + 2].copy()],
-                "contour_error": [0.0],
-            }
+            history = EpisodeHistory()
+            history.start(self._info, sk.INFO_FIELDS)
+            self._history = history.data
+            self._renderer.restart()  # pyright: ignore[reportOptionalMemberAccess]
+            if self.render_mode == "human":
+                self.render()
         return self._observation(), info
 
     def _observation(self) -> np.ndarray:
@@ -342,11 +480,8 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
         if self._done:
             info["episode_summary"] = episode_summary(self._batch.buffers, 0)
         if self._history is not None:
-            self._history["t"].append(info["time"])
-            self._history["position"].append(info["position"].copy())
-            self._history["contour_error"].append(info["contour_error"])
-            frame = round(1.0 / (self.metadata["render_fps"] * self.decision_period))
-            if self.render_mode == "human" and (self._done or len(self._history["t"]) % frame == 0):
+            EpisodeHistory(self._history).append(info["time"], self._info, sk.INFO_FIELDS)
+            if self.render_mode == "human":
                 self.render()
         return self._observation(), reward, terminated, truncated, info
 
@@ -389,19 +524,18 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
 
     # -- rendering ------------------------------------------------------------------
     def render(self):
+        """The episode so far: an RGB array (H, W, 3) uint8 with ``render_mode="rgb_array"`` (a new picture once
+        ``render_every`` decisions have passed since the last, and at the episode's end; the last one, the same
+        array, in between), the window updated with ``"human"`` (the env draws it every ``render_every``
+        decisions itself)."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        from .rendering import render_contouring
-
-        return render_contouring(self)
+        return self._renderer.render(self._history, self._done)  # pyright: ignore[reportOptionalMemberAccess]
 
     def close(self):
-        if self._figure is not None:
-            import matplotlib.pyplot as plt
-
-            plt.close(self._figure)
-            self._figure = None
+        if self._renderer is not None:
+            self._renderer.close()
 
 
 ContouringEnv.__init__.__signature__ = forwarded_signature(ContouringEnv.__init__, ContouringTask.__init__)

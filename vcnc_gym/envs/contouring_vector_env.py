@@ -28,6 +28,7 @@ from . import step_kernel as sk
 from .contouring_env import check_actions, observation_space
 from .decision import DecisionLoop, episode_summary
 from .pickling import RebuiltOnUnpickle, batch_arrays, restore_arrays
+from .rendering import EpisodeHistory, Renderer, render_every_argument, render_fps
 from .signatures import forwarded_signature
 from .task import ContouringBatch, ContouringTask
 
@@ -151,6 +152,12 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         thread.  Default (None): one thread below 16 envs, else whichever of
         the two recently stepped faster (:class:`KernelPath`: on a core
         another process uses, a parallel call waits for its thread).
+    render_mode : str, optional
+        "rgb_array": :meth:`render` draws env 0's episode (the other envs are not drawn); None (default): no
+        rendering.
+    render_every : int, optional
+        Decisions between two new pictures of :meth:`render` (default: about 30 per simulated second, as
+        :class:`~vcnc_gym.envs.ContouringEnv`'s).
     **kwargs
         The arguments of :class:`~vcnc_gym.envs.ContouringEnv` (contour,
         plant, feedrate, dt, action_repeat, randomize, parameters, ...).
@@ -169,7 +176,8 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
     (:mod:`vcnc_gym.envs.pickling`).
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    #: ``render_fps`` is the default configuration's; each vector env sets its own, ``1 / decision_period``.
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10000}
 
     def __init__(
         self,
@@ -178,10 +186,14 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         autoreset_mode=AutoresetMode.NEXT_STEP,
         parallel: bool | None = None,
         render_mode: str | None = None,
+        render_every: int | None = None,
         **kwargs,
     ):
-        if render_mode is not None:
-            raise ValueError("the vector env does not render; make a single env with render_mode= to watch one")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(
+                f"the vector env renders env 0 with render_mode='rgb_array' (or None), got {render_mode!r}; make a "
+                "single env with render_mode='human' to watch one in a window"
+            )
         self.task = ContouringTask(**kwargs)
         self._batch = ContouringBatch(self.task, num_envs, argument="num_envs")
         self.num_envs = self._batch.n_envs
@@ -191,7 +203,12 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             raise ValueError(
                 f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, got {autoreset_mode!r}"
             ) from None
-        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+        self.render_every = render_every_argument(render_every, self.task.decision_period)
+        self.metadata = {
+            **self.metadata,
+            "autoreset_mode": self.autoreset_mode,
+            "render_fps": render_fps(self.task.decision_period),
+        }
         self.parallel = self.num_envs >= PARALLEL_MIN_ENVS if parallel is None else flag("parallel", parallel)
         self._path = KernelPath() if parallel is None and self.parallel else None
         b = self._batch.buffers
@@ -203,7 +220,9 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.layout = self.task.layout
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._renderer = None if render_mode is None else Renderer(self.task, render_mode, self.render_every)
+        self._history: dict | None = None  # env 0's episode, drawn by render()
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._all = np.ones(self.num_envs, dtype=bool)
@@ -252,6 +271,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         self._batch.run(self._observe_parallel())
         self._autoreset[mask] = False
         self._started = True
+        self._record_env0(started=bool(mask[0]), stepped=False)
         return self._observations(), self._info(mask)
 
     # -- pickling (vcnc_gym.envs.pickling) ----------------------------------------
@@ -317,6 +337,10 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             self._batch.run(self._observe_parallel())
             obs[done] = self._observations()[done]
             self._autoreset[:] = False
+        restarted = (resetting is not None and resetting[0]) or (
+            self.autoreset_mode == AutoresetMode.SAME_STEP and done[0]
+        )
+        self._record_env0(started=bool(restarted), stepped=bool(stepped[0]))
         return obs, rewards, terminated, truncated, info
 
     def step_controlled(self, controller, actions, correction: float, repeat: int, active=None):
@@ -376,10 +400,34 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
         info = self._info(stepped)
         info["contour_error_max"] = loop.peak
         self._autoreset = self._autoreset | terminated | truncated
+        self._record_env0(started=False, stepped=bool(stepped[0]))
         return b.obs.copy(), rewards, terminated, truncated, info
 
+    # -- rendering: env 0 (vcnc_gym.envs.rendering) -------------------------------------
+    def render(self) -> tuple | None:
+        """Env 0's episode so far, as a tuple of one RGB array (H, W, 3) uint8 (``render_mode="rgb_array"``): a
+        new picture once ``render_every`` decisions have passed since the last, and at its episode's end; the
+        last one in between.  The other envs are not drawn."""
+        if self._renderer is None:
+            return None
+        return (self._renderer.render(self._history, bool(self._autoreset[0])),)
+
+    def _record_env0(self, started: bool, stepped: bool) -> None:
+        """Env 0's history for :meth:`render`: a new episode (``started``) or one more decision (``stepped``)."""
+        if self._renderer is None:
+            return
+        row = self._buffers.info[0]
+        if started or self._history is None:
+            history = EpisodeHistory()
+            history.start(row, sk.INFO_FIELDS)
+            self._history = history.data
+            self._renderer.restart()
+        elif stepped:
+            EpisodeHistory(self._history).append(self._buffers.k[0] * self.task.dt, row, sk.INFO_FIELDS)
+
     def close_extras(self, **kwargs):
-        pass
+        if self._renderer is not None:
+            self._renderer.close()
 
     # -- the learnable action types (vcnc_gym.envs.decision) ---------------------------
     def _reset_env(self, i: int, parameters: np.ndarray) -> None:

@@ -108,7 +108,9 @@ class GCodeVectorEnv(ContouringVectorEnv):
     """N machines running one G-code program (:class:`GCodeEnv`'s arguments), one kernel call per step."""
 
     def __init__(self, num_envs: int = 1, program=None, tolerance=DEFAULT_TOLERANCE, **kwargs):
-        vector = {k: kwargs.pop(k) for k in ("autoreset_mode", "parallel", "render_mode") if k in kwargs}
+        vector = {
+            k: kwargs.pop(k) for k in ("autoreset_mode", "parallel", "render_mode", "render_every") if k in kwargs
+        }
         super().__init__(num_envs, **vector, **gcode_task_kwargs(program, tolerance, **kwargs))
 
     @property
