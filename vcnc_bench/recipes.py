@@ -9,7 +9,7 @@ when the workers build their own.
 from __future__ import annotations
 
 from vcnc_gym.envs import ENV_IDS
-from vcnc_gym.envs.registry import LEGACY
+from vcnc_gym.envs.registry import LEARNABLE_IDS, LEGACY
 
 from . import programs
 from .options import program_tolerance
@@ -78,16 +78,20 @@ def unique(items) -> list:
 
 
 def _env_ids(args, parser) -> list[str]:
-    """The ids run: those named, else every id (``--all``) or :data:`DEFAULT_IDS` (none with only ``--program``)."""
+    """The ids run: those named (a v0 or a learnable id too), else every id (``--all``) or :data:`DEFAULT_IDS` (none
+    with only ``--program``)."""
     if args.env:
         env_ids = unique(args.env)
     elif args.program:
         env_ids = []
     else:
         env_ids = list(ENV_IDS if args.all else DEFAULT_IDS)
-    unknown = [e for e in env_ids if e not in ENV_IDS + LEGACY_IDS]
+    unknown = [e for e in env_ids if e not in ENV_IDS + LEGACY_IDS + LEARNABLE_IDS]
     if unknown:
-        parser.error(f"unknown env id(s) {', '.join(map(repr, unknown))}; valid ids are {', '.join(ENV_IDS)}")
+        parser.error(
+            f"unknown env id(s) {', '.join(map(repr, unknown))}; valid ids are {', '.join(ENV_IDS)} and the "
+            f"learnable {', '.join(LEARNABLE_IDS)}"
+        )
     return env_ids
 
 

@@ -20,8 +20,9 @@ __all__ = ["KIND", "applies"]
 def applies(name: str, env) -> bool:
     """True if baseline ``name`` was designed for the plant of ``env`` (and, for a controller that follows a
     contour's reference, ``env`` has one), and the env takes the two axis commands a controller gives (not a
-    third action such as ``VCNC-OmegaOverride-v1``'s feed override); a controller that sets the feed override
-    itself (``mpcc``, ``sets_feed_override``) applies to the feed-override envs only."""
+    third action such as ``VCNC-OmegaOverride-v1``'s feed override, nor a learnable id's set-point correction); a
+    controller that sets the feed override itself (``mpcc``, ``sets_feed_override``) applies to the feed-override
+    envs only."""
     cls = policy_class(name)
     u = env.unwrapped
     if getattr(cls, "sets_feed_override", False):  # mpcc: its own progress, through the feed override
@@ -31,6 +32,8 @@ def applies(name: str, env) -> bool:
             and cls.designed_for(u.plant)
         )
     if getattr(u.action_space, "shape", None) != (2,):
+        return False
+    if getattr(getattr(u, "task", None), "controlled", False):  # a learnable id's action: a set-point, not a command
         return False
     plant = getattr(u, "plant", None)
     if getattr(cls, "needs_reference", False) and not hasattr(getattr(u, "task", None), "reference_arrays"):
