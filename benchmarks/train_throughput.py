@@ -191,13 +191,13 @@ def main(argv=None) -> None:
             )
             print(header)
             for n in args.n_envs:
-                after = _run_side(ROOT, config_file, tmp / f"after_{n}", args.steps, n)
-                ra = _rates(after, repeat)
                 if args.quick:
-                    _print_side(n, "after", after, ra)
+                    after = _run_side(ROOT, config_file, tmp / f"after_{n}", args.steps, n)
+                    _print_side(n, "after", after, _rates(after, repeat))
                     continue
                 before = _run_side(args.worktree, config_file, tmp / f"before_{n}", args.steps, n)
-                rb = _rates(before, repeat)
+                after = _run_side(ROOT, config_file, tmp / f"after_{n}", args.steps, n)
+                rb, ra = _rates(before, repeat), _rates(after, repeat)
                 _print_side(n, "before", before, rb)
                 _print_side(n, "after", after, ra)
                 print(
