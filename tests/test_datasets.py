@@ -24,7 +24,8 @@ from vcnc_gym.evaluation import run_episode  # noqa: E402
 
 ENV = "VCNC-Heart-v1"
 KWARGS = {"max_episode_steps": 300}
-SCORES = {"pd-ref": 42.0, "oracle": 1.25}
+#: The references' returns (and max contour errors, um) a tiny dataset is written with.
+SCORES = {"pd-ref": {"return": -3.0e4, "max_um": 42.0}, "oracle": {"return": -900.0, "max_um": 1.25}}
 
 
 class _Recorder(gym.Wrapper):
@@ -108,9 +109,12 @@ def test_a_tiny_dataset_reads_back_as_the_policys_own_episode(tiny):
     assert v["code_version"]["vcnc_gym"] == vcnc_gym.__version__
     np.testing.assert_array_equal(np.array(v["plant_parameters"][0]), env.unwrapped.nominal_parameters)
     assert v["episodes"]["max_um"][0] == pytest.approx(result.max_contour_error_um, rel=1e-12)
-    # Minari's normalised score of -max um is the suite's score (0 = pd-ref, 1 = the floor)
-    e = result.max_contour_error_um
-    assert minari.get_normalized_score(ds, -e) == pytest.approx(normalised_score(e, 42.0, 1.25), rel=1e-12)
+    # Minari's normalised score is of returns of the env's reward: 0 at pd-ref's, 1 at the floor's
+    assert meta["ref_min_score"] == -3.0e4 and meta["ref_max_score"] == -900.0
+    episode_return = float(np.sum(ep.rewards))
+    assert minari.get_normalized_score(ds, episode_return) == pytest.approx((episode_return + 3.0e4) / 29100.0)
+    assert v["score"]["reference_return"] == -3.0e4 and v["score"]["floor_max_um"] == 1.25
+    assert normalised_score(42.0, v["score"]["reference_max_um"], v["score"]["floor_max_um"]) == 0.0
     remade = ds.recover_environment()
     assert remade.spec.id == ENV and remade.spec.kwargs == gym.make(ENV, **KWARGS).spec.kwargs
     assert remade.spec.max_episode_steps == 300  # gym's TimeLimit, as the dataset's episodes were cut
@@ -187,3 +191,92 @@ def test_the_command_names_a_bad_argument(tmp_path, capsys):
     assert "--plants" in capsys.readouterr().err
     assert datasets.main(["--env", "VCNC-Nope-v1", "--policy", "strongest", "--out", str(tmp_path)]) == 2
     assert "Nope" in capsys.readouterr().err
+
+
+# -- the learnable ids ---------------------------------------------------------------------------------------------
+LEARNABLE = "VCNC-Heart-v2"
+
+
+def test_a_learnable_ids_dataset_holds_its_own_observations_actions_and_rewards(tmp_path, monkeypatch):
+    """``random`` on the v2 heart: the dataset's env is the v2 id, its episode replays from its seed and plant."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    env = gym.make(LEARNABLE, **KWARGS)
+    report = datasets.write_dataset(
+        LEARNABLE,
+        "random",
+        parameters=env.unwrapped.nominal_parameters[None],
+        kinds=["nominal"],
+        scores=SCORES,
+        command="pytest learnable",
+        seed=5,
+        env_kwargs=KWARGS,
+    )
+    ds = minari.load_dataset(report.dataset_id)
+    assert report.dataset_id == "vcnc/Heart-v2/random-v0" and ds.recover_environment().spec.id == LEARNABLE
+    ep = next(ds.iterate_episodes())
+    assert ep.actions.shape == (300, 2) and np.abs(ep.actions).max() <= 1.0 and ep.actions.std() > 0.3
+    assert np.all(ep.rewards <= 0.0) and np.all(ep.rewards >= -10.0)
+    assert np.abs(ep.observations).max() < 100.0  # the scaled observation
+    obs, _ = env.reset(seed=5, options={"parameters": ds.storage.metadata["vcnc"]["plant_parameters"][0]})
+    np.testing.assert_array_equal(obs, ep.observations[0])
+    rewards = [env.step(a)[1] for a in ep.actions]
+    np.testing.assert_array_equal(rewards, ep.rewards)
+    peak = ds.storage.metadata["vcnc"]["episodes"]["max_um"][0]
+    assert peak == pytest.approx(1e3 * env.unwrapped._batch.buffers.episode[0, 2])  # the summary's, every period
+
+
+@pytest.mark.parametrize("env_id", ["VCNC-Omega-v2", "VCNC-Circle-v2"])
+def test_a_references_return_is_what_the_learnable_id_returns_for_it(env_id):
+    """pd-ref run on the v1 id and scored with the v2 reward returns what the v2 id with ``base="pd-ref"`` and a zero
+    correction returns (the floor, with no compiled form, is scored the same way)."""
+    env = gym.make(env_id, base="pd-ref")
+    env.reset(seed=0)
+    total, done = 0.0, False
+    while not done:
+        _, r, term, trunc, info = env.step(np.zeros(2, dtype=np.float32))
+        total, done = total + r, term or trunc
+    scored = datasets.learnable_return(env_id, "pd-ref", seed=0)
+    assert scored["return"] == pytest.approx(total, rel=1e-9)
+    assert scored["max_um"] == pytest.approx(1e3 * info["episode_summary"]["contour_error_max"], rel=1e-12)
+
+
+def test_a_v1_references_return_is_the_sum_of_its_rewards():
+    lines = []
+    scores = datasets.reference_scores(
+        ENV, KWARGS, seed=3, known={"oracle": {"return": -1.0, "max_um": 1.0}}, report=lines.append
+    )
+    env = gym.make(ENV, **KWARGS)
+    policy = make("pd-ref", env)
+    obs, _ = env.reset(seed=3)
+    total, done = 0.0, False
+    while not done:
+        obs, r, term, trunc, _ = env.step(policy.predict(obs, deterministic=True)[0])
+        total, done = total + r, term or trunc
+    assert scores["pd-ref"]["return"] == pytest.approx(total, rel=1e-12) and scores["oracle"]["return"] == -1.0
+    assert len(lines) == 1 and lines[0].startswith(f"# {ENV}: pd-ref on the nominal plant: return")
+
+
+def test_the_behaviour_policies_fit_the_ids_action():
+    v2, v1 = gym.make(LEARNABLE), gym.make(ENV)
+    with pytest.raises(ValueError, match="set-point correction"):
+        datasets.behaviour_policy("pd-ref", v2)
+    with pytest.raises(ValueError, match="learnable ids"):
+        datasets.behaviour_policy("servo", v1)
+    servo = datasets.behaviour_policy("servo", v2)
+    assert np.array_equal(servo.predict(np.zeros((3, 36)))[0], np.zeros((3, 2), dtype=np.float32))
+    a = datasets.behaviour_policy("random", v2, seed=1).predict(np.zeros(36))[0]
+    assert a.shape == (2,) and np.array_equal(
+        a, datasets.behaviour_policy("random", v2, seed=1).predict(np.zeros(36))[0]
+    )
+
+
+def test_the_command_shows_its_progress_and_defaults_to_servo_and_random_on_a_learnable_id(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setattr(datasets, "reference_scores", lambda env_id, seed=0, report=None, **kw: SCORES)
+    assert datasets.main(["--env", "VCNC-Circle-v2", "--plants", "1", "--out", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    assert "vcnc/Circle-v2/servo-v0" in out and "vcnc/Circle-v2/random-v0" in out
+    assert "decision" in err  # the progress bar of the episodes' decisions
+    assert datasets.main(["--env", "VCNC-Circle-v2", "--policy", "pd-ref", "--out", str(tmp_path)]) == 2
+    assert "VCNC-Circle-v1" in capsys.readouterr().err
