@@ -5,7 +5,8 @@ reference from the numpydoc docstrings (autodoc + napoleon, numpy style).
 The env and controller pages are generated at build time from
 ``vcnc_gym.envs.registry.SUITE`` and ``vcnc_baselines.registry`` by
 ``_ext/vcnc_pages.py``; the numpydoc types are shown as text by
-``_ext/plain_types.py``.  No network: no intersphinx.  Nothing is filtered:
+``_ext/plain_types.py``, and a reference to a re-exported or inherited name
+links to where it is documented (``_ext/canonical_refs.py``).  No network: no intersphinx.  Nothing is filtered:
 ``make docs`` fails on any warning, the docstrings' markup included.
 """
 
@@ -33,6 +34,7 @@ extensions = [
     "sphinxarg.ext",
     "vcnc_pages",
     "plain_types",
+    "canonical_refs",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
