@@ -60,7 +60,7 @@ DEFAULT_CONFIG = Path(__file__).parent / "hyperparams" / "ppo.yml"
 
 #: The import path of the residual wrapper, as the Zoo's ``env_wrapper`` names it.
 RESIDUAL_WRAPPER = "vcnc_agents.action_modes.ResidualAction"
-#: Its path before the package was installed as ``vcnc_agents`` (0.2.0; issue 36), still read in a run's config.yml
+#: Its path before the package was installed as ``vcnc_agents`` (0.2.0), still read in a run's config.yml
 #: or a hyperparameter file with a DeprecationWarning, until 0.4.
 _OLD_RESIDUAL_WRAPPER = "agents.action_modes.ResidualAction"
 

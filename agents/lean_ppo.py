@@ -1,4 +1,4 @@
-"""A lean PPO over the native vector env: ``vcnc-train --trainer lean`` (issue 21).
+"""A lean PPO over the native vector env: ``vcnc-train --trainer lean``.
 
 Stable-Baselines3's PPO spends, per agent decision, a few hundred
 microseconds of Python whatever the number of envs (per-env info dicts,

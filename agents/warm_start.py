@@ -20,7 +20,7 @@ The agent must fit the run, and :func:`check_init_agent` says why not before any
 - the same policy, network and PPO arguments, but for :data:`RUN_OWN` (the learning rate and clip ranges, which the
   run sets anew).
 
-**A memory grown** (the run's ``history`` K longer than the agent's K0: item 1 of issue 37 on an agent trained
+**A memory grown** (the run's ``history`` K longer than the agent's K0: as on an agent trained
 without one).  The decisions K0+1..K are new inputs at the observation's end (:mod:`vcnc_gym.envs.history`: the past,
 newest first).  :func:`grow_agent` gives them weight 0 in every first layer (actor, critic), so the run starts from
 the agent's very actions and values, and normalises each as the present observation's field it remembers (a past

@@ -1,4 +1,4 @@
-"""FeedOverrideEnv: contour following where the policy also turns the feed override dial (issue 24)."""
+"""FeedOverrideEnv: contour following where the policy also turns the feed override dial."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ DEFAULT_TIME_COST = 1e-3
 
 #: The largest override a dial may reach, 1 = 100 %: a CNC's operator panel runs its feed override to 120-150 %
 #: (Heidenhain's to 150 %), and the tolerance task's classical opponents are searched up to 1.5 times the
-#: programmed feed (vcnc_bench.reports.tolerance).  ``max_override`` is 1.0 by default (the dial of issue 24).
+#: programmed feed (experiments/tolerance/tolerance.py).  ``max_override`` is 1.0 by default (the dial of v1).
 MAX_OVERRIDE = 1.5
 
 #: Largest time limit, times the reference's duration at full feed: an override held below 1 % is a feed hold,
@@ -56,7 +56,7 @@ DEFAULT_TIME_LIMIT = 3.0
 #: time term of -0.0016: the agents learned to crawl and ran out of time (reproduction.md, "The tolerance task").
 DEFAULT_VIOLATION_COST = 100.0
 
-#: The contour tolerances of the tolerance task (issue 37), mm: Heidenhain's bands, 5-10 um for high accuracy and
+#: The contour tolerances of the tolerance task, mm: Heidenhain's bands, 5-10 um for high accuracy and
 #: 10-20 um for finishing.
 TOLERANCES = (0.005, 0.01, 0.02)
 
@@ -119,7 +119,7 @@ class FeedOverrideEnv(ContouringEnv):
     tool arrives (``info["reward_time"]``): with the default 1 um and 10 um,
     0.1 per step, against 0.1 per step for each um of mean contour error.
 
-    **The tolerance task** (``tolerance=T``, mm; issue 37): the shortest
+    **The tolerance task** (``tolerance=T``, mm): the shortest
     cycle time within a contour tolerance, a shop's objective.  Every term
     is in decision steps of time, normalised by the reference's duration at
     full feed (``d``: the decision period over that duration, so a cycle at
@@ -171,16 +171,16 @@ class FeedOverrideEnv(ContouringEnv):
 
     ## Version History
 
-    - v1 (``VCNC-OmegaOverride-v1``): initial release (issue 24); the omega
+    - v1 (``VCNC-OmegaOverride-v1``): initial release; the omega
       of ``VCNC-Omega-v1`` with the override.  The ``tolerance`` argument
-      (issue 37) came later; its default, None, leaves the env as it was.
-    - v1 (``VCNC-OmegaOverrideShop-v1``): initial release (issue 37); the
+      came later; its default, None, leaves the env as it was.
+    - v1 (``VCNC-OmegaOverrideShop-v1``): initial release; the
       same omega on the shop floor (``shop_floor=True``), the tolerance
-      task's shop-floor twin.  The ``max_override`` argument (issue 37) came
+      task's shop-floor twin.  The ``max_override`` argument came
       later, and so did ``lookahead``; their defaults, 1.0 and None, leave
       both ids as they were.
     - v1 (``VCNC-OmegaTolerance-v1``, ``VCNC-OmegaToleranceShop-v1``):
-      initial release (issue 37); the tolerance task's own ids (registry).
+      initial release; the tolerance task's own ids (registry).
     - v2 (``VCNC-OmegaTolerance-v2``, ``VCNC-OmegaToleranceShop-v2``): the
       look-ahead (a = 0) plans within the dial's reach and from rest
       (``lookahead_reach``).  In v1 it was at its top feed from the first
@@ -191,7 +191,7 @@ class FeedOverrideEnv(ContouringEnv):
       opponents' tolerance and the agents' starting point.  v1 stays
       registered (``LEGACY``) for the figures measured on it.
     - v1 (``VCNC-HeartTolerance-v1``, ``VCNC-HeartToleranceShop-v1``):
-      initial release (issue 37); the tolerance task on the heart, with v2's
+      initial release; the tolerance task on the heart, with v2's
       look-ahead.
     """
 

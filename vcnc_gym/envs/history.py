@@ -1,4 +1,4 @@
-"""An agent's memory of its last decisions: what lets a residual identify the machine it runs on (issue 37).
+"""An agent's memory of its last decisions: what lets a residual identify the machine it runs on.
 
 Here, beside the observation's layout, because the trainers, the residual's wrapper and the bench's agents all
 use it (``vcnc_agents`` imports it; it imports nothing but numpy and Gymnasium's spaces).

@@ -33,20 +33,20 @@ _GCODE = "vcnc_gym.envs.gcode_env:GCodeEnv"
 _GCODE_VECTOR = "vcnc_gym.envs.gcode_env:GCodeVectorEnv"
 _RANDOM = "vcnc_gym.envs.random_contour_env:RandomContourEnv"
 _OVERRIDE = "vcnc_gym.envs.feed_override_env:FeedOverrideEnv"
-#: The tolerance task's ids (issue 37): T = 10 um by default, the dial to 150 % (``MAX_OVERRIDE``) at 26/s (the
+#: The tolerance task's ids: T = 10 um by default, the dial to 150 % (``MAX_OVERRIDE``) at 26/s (the
 #: re-timed reference's extra acceleration at the omega's 100 mm/s is then 2600 mm/s^2, the top of the look-ahead
 #: opponents' grid and about Jahanpour et al. (2014)'s drives' limit), the operator's override on a look-ahead as on a
 #: CNC: the look-ahead through the dial (``lookahead``, top feed 150 mm/s, path acceleration 1937.5 mm/s^2, within the
-#: dial's reach and from rest) is the fastest within 10 um on the nominal plant of the ideal omega (``python -m
-#: vcnc_bench.reports.override_schedule --id VCNC-OmegaTolerance-v2``, refined by bisection).  With
+#: dial's reach and from rest) is the fastest within 10 um on the nominal plant of the ideal omega (``python
+#: experiments/tolerance/override_schedule.py --id VCNC-OmegaTolerance-v2``, refined by bisection).  With
 #: VCNC-OmegaOverride-v1's dial alone (to 100 % at 10/s) three tries of agents took 1.08 s where the opponents take
-#: 0.68 (docs/reproduction.md, "The tolerance task").
+#: 0.68 (experiments/tolerance/README.md).
 _TOLERANCE = {"tolerance": 0.01, "max_override": 1.5, "override_rate": 26.0, "lookahead": (150.0, 1937.5)}
 #: v1 of the omega's tolerance ids (``LEGACY``): the look-ahead at its top feed from the first sample, at the
 #: 1500 mm/s^2 that v1's unrefined search found the fastest within 10 um.
 _TOLERANCE_V1 = {"lookahead": (150.0, 1500.0), "lookahead_reach": False}
-#: The heart's tolerance ids: the same dial, on the look-ahead that the bisection of ``python -m
-#: vcnc_bench.reports.override_schedule --id VCNC-HeartTolerance-v1`` found the fastest within 10 um on the heart's
+#: The heart's tolerance ids: the same dial, on the look-ahead that the bisection of ``python
+#: experiments/tolerance/override_schedule.py --id VCNC-HeartTolerance-v1`` found the fastest within 10 um on the heart's
 #: nominal plant (9.54 um in 2.1832 s; its per-plant refinement later found 2267 mm/s^2, 9.64 um, 0.3 ms faster).
 _HEART_TOLERANCE = {**_TOLERANCE, "lookahead": (150.0, 2262.5)}
 
@@ -218,8 +218,8 @@ SUITE: tuple[SuiteEnv, ...] = (
         entry_point=_OVERRIDE,
         vector_entry_point=None,
     ),
-    # the tolerance task's own ids (issue 37): the dial reaches the feeds and path accelerations the task's classical
-    # opponents are searched over (vcnc_bench.reports.tolerance: up to 1.5 x the programmed feed and 2600 mm/s^2)
+    # the tolerance task's own ids: the dial reaches the feeds and path accelerations the task's classical
+    # opponents are searched over (experiments/tolerance/tolerance.py: up to 1.5 x the programmed feed and 2600 mm/s^2)
     SuiteEnv(
         "VCNC-OmegaTolerance-v2",
         {"contour": "omega", "plant": "vcnc_feed_drive", **_TOLERANCE},
@@ -267,7 +267,7 @@ SUITE: tuple[SuiteEnv, ...] = (
 _V0 = {"episode_end": "reference", "contour_ahead": ()}
 
 #: The v0 contouring ids, still registered for the figures measured on them (the papers' tables in
-#: docs/reproduction.md, ``benchmarks/train_throughput.py``); no agent is shipped on them (``agents/trained``
+#: docs/papers/, ``benchmarks/train_throughput.py``); no agent is shipped on them (``agents/trained``
 #: holds agents of current ids only) and ``vcnc-bench`` runs the current ids.
 LEGACY: tuple[SuiteEnv, ...] = tuple(
     SuiteEnv(
@@ -282,8 +282,8 @@ LEGACY: tuple[SuiteEnv, ...] = tuple(
     and "shop_floor" not in e.kwargs
 )
 
-#: The tolerance ids' v1, still registered for the figures measured on them (docs/reproduction.md, "The tolerance
-#: task", the fourth to the sixth try): their look-ahead at its top feed from the first sample (FeedOverrideEnv's
+#: The tolerance ids' v1, still registered for the figures measured on them (experiments/tolerance/README.md, the
+#: fourth to the sixth try): their look-ahead at its top feed from the first sample (FeedOverrideEnv's
 #: Version History).
 LEGACY = LEGACY + tuple(
     SuiteEnv(

@@ -53,8 +53,7 @@ DEFAULT_RAMP_TIME = 0.12
 #: "reference" once the reference has reached it plus ``settling_time`` (v0).
 EPISODE_ENDS = {"reference": sk.END_REFERENCE, "tool": sk.END_TOOL}
 
-#: Defaults of the episode end (ours, measured in docs/reproduction.md, "Episode
-#: ends"): the settling time after the reference's end of v0, s; the
+#: Defaults of the episode end (ours, measured in experiments/episode-ends/README.md): the settling time after the reference's end of v0, s; the
 #: completion tolerance, mm of contour still ahead of the tool's closest point
 #: when it counts as arrived, an in-position band: Jahanpour et al.'s QFT loop
 #: comes to rest 11 um short of the heart's end (friction and the 3 um

@@ -20,7 +20,7 @@ __all__ = ["SHOP_FRICTION_TIME", "ShopFloorModel", "shop_floor"]
 
 #: The feedforward's Coulomb transition on the shop floor, s: the Stribeck friction spreads the reversal, which a
 #: switch at the reversal itself does not model (Simba et al.'s drive: ff-ccc 166 um with 1 ms against 181 um with 0
-#: on the shop-floor smoothed corners, ``python benchmarks/tune_servo.py --shop-floor``).
+#: on the shop-floor smoothed corners, ``python experiments/classical-opponents/tune_servo.py --shop-floor``).
 SHOP_FRICTION_TIME = 1e-3
 
 
