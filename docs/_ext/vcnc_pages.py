@@ -122,6 +122,11 @@ def _env_page(entry, env, picture: bool) -> str:
     ]
     if hasattr(env, "reward_scale"):
         rows.append(("reward scale", f"{env.reward_scale:g} mm (reward = -contour error / scale)"))
+    learnable = entry.id.replace("-v1", "-v2")
+    if learnable != entry.id and entry.contouring:
+        rows.append(
+            ("to learn on", f"[{learnable}]({learnable}.md): the drive's servo inside the step, a set-point action")
+        )
     lines = [f"# {entry.id}", "", entry.summary + ".", ""]
     if picture:
         lines += [f"```{{image}} _img/{entry.id}.png", f":alt: the contour of {entry.id}", ":width: 420px", "```", ""]
@@ -184,6 +189,18 @@ def write_env_pages(docs: Path) -> None:
         _write(out / f"{entry.id}.md", _env_page(entry, env, picture))
         env.close()
         index.append(f"| [{entry.id}]({entry.id}.md) | {_md_cell(entry.summary)} |")
+    learnable, legacy = _learnable_and_legacy_pages(out)
+    index += [
+        "",
+        "## Learnable ids (v2)",
+        "",
+        "The ids to learn on: the same tasks, the drive's servo closed inside the step under a set-point action "
+        "every 1 ms, the observation scaled to order one, the reward clipped at 10 um.",
+        "",
+        "| id | task |",
+        "|---|---|",
+    ]
+    index += [f"| [{e.id}]({e.id}.md) | {_md_cell(e.summary)} |" for e in learnable]
     index += [
         "",
         "## Legacy ids",
@@ -193,9 +210,40 @@ def write_env_pages(docs: Path) -> None:
         "| id | task |",
         "|---|---|",
     ]
-    index += [f"| `{e.id}` | {_md_cell(e.summary)} |" for e in LEGACY]
-    index += ["", "```{toctree}", ":hidden:", ""] + [e.id for e in SUITE] + ["```", ""]
+    index += [
+        f"| [{e.id}]({e.id}.md) | {_md_cell(e.summary)} |" if e in legacy else f"| `{e.id}` | {_md_cell(e.summary)} |"
+        for e in LEGACY
+    ]
+    pages = [e.id for e in SUITE] + [e.id for e in learnable] + [e.id for e in legacy]
+    index += ["", "```{toctree}", ":hidden:", ""] + pages + ["```", ""]
     _write(out / "index.md", "\n".join(index))
+
+
+def _learnable_and_legacy_pages(out: Path) -> tuple[list, list]:
+    """The pages of the learnable ids (v2) and of the v0 contouring ids (:mod:`vcnc_env_pages`): the entries
+    written, each list in the registry's order."""
+    import gymnasium as gym
+
+    import vcnc_env_pages
+    from vcnc_gym.envs.registry import LEARNABLE, LEGACY, SUITE
+
+    ids = {e.id: e for e in SUITE + LEARNABLE + LEGACY}
+    written = []
+    for entry in LEARNABLE:
+        env = gym.make(entry.id).unwrapped
+        vcnc_env_pages.write_frame(entry.id, out / "_img" / f"{entry.id}-frame.png")
+        v1 = ids[entry.id.replace("-v2", "-v1")].kwargs
+        _write(out / f"{entry.id}.md", vcnc_env_pages.learnable_page(entry, env, v1, ids, _parameter_table, True))
+        env.close()
+        written.append(entry)
+    legacy = []
+    for entry in LEGACY:
+        if entry.id.endswith("-v0") and entry.id.replace("-v0", "-v2") in ids:
+            env = gym.make(entry.id).unwrapped
+            _write(out / f"{entry.id}.md", vcnc_env_pages.legacy_page(entry, env, ids))
+            env.close()
+            legacy.append(entry)
+    return written, legacy
 
 
 # -- controllers ------------------------------------------------------------------------------------

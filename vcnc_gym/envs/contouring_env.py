@@ -49,10 +49,12 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     ``Box(-1, 1, (2,), float32)`` in every version: one value per axis, whose
     meaning ``action`` sets.
 
-    | Num | Action         | Min | Max | ``action="voltage"`` (v0, v1)       | ``action="setpoint"`` (v2)               |
-    |-----|----------------|-----|-----|--------------------------------------|-------------------------------------------|
-    | 0   | x axis         | -1  | 1   | amplifier command / input limit (5 V) | set-point correction / ``setpoint_range`` |
-    | 1   | y axis         | -1  | 1   | amplifier command / input limit (5 V) | set-point correction / ``setpoint_range`` |
+    ===  ======  ===  ===  =====================================  =========================================
+    Num  Axis    Min  Max  ``action="voltage"`` (v0, v1)          ``action="setpoint"`` (v2)
+    ===  ======  ===  ===  =====================================  =========================================
+    0    x       -1   1    amplifier command / input limit (5 V)  set-point correction / ``setpoint_range``
+    1    y       -1   1    amplifier command / input limit (5 V)  set-point correction / ``setpoint_range``
+    ===  ======  ===  ===  =====================================  =========================================
 
     - "voltage": the plant's input over its limit (5 V on Jahanpour et al.'s
       drives), held for ``action_repeat`` control periods.  Values outside
@@ -88,20 +90,22 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     accessors return physical units under either scale).  With
     the default three preview points:
 
-    | Index | Field                  | Unit   | Meaning                                        |
-    |-------|------------------------|--------|------------------------------------------------|
-    | 0-1   | reference_position     | mm     | reference point x_d                            |
-    | 2-3   | reference_velocity     | mm/s   | dx_d/dt                                        |
-    | 4-5   | reference_acceleration | mm/s^2 | d2x_d/dt2                                      |
-    | 6-7   | tracking_error         | mm     | x_d - x (Simba et al., eq. (2))                     |
-    | 8     | contour_error          | mm     | distance from the table to the whole contour   |
-    | 9     | tangential_error       | mm     | tracking error along the path tangent (eq. (3))|
-    | 10    | normal_error           | mm     | tracking error along the path normal (eq. (3)) |
-    | 11-12 | velocity               | mm/s   | table velocity                                 |
-    | 13-18 | preview                | mm     | x_d 1, 5, 10 ms ahead minus the table position |
-    | 19-28 | contour_preview        | mm     | the contour 0.25, 0.5, 1, 2, 4 mm of arc beyond the table's closest point, minus the table position, along the tangent and normal there |
-    | 29-33 | contour_curvature      | 1/mm   | signed curvature of the contour at those points |
-    | 34-35 | previous_action        | 1      | the last action                                |
+    =====  ======================  ======  ==============================================
+    Index  Field                   Unit    Meaning
+    =====  ======================  ======  ==============================================
+    0-1    reference_position      mm      reference point x_d
+    2-3    reference_velocity      mm/s    dx_d/dt
+    4-5    reference_acceleration  mm/s^2  d2x_d/dt2
+    6-7    tracking_error          mm      x_d - x (Simba et al., eq. (2))
+    8      contour_error           mm      distance from the table to the whole contour
+    9      tangential_error        mm      tracking error along the path tangent (eq. (3))
+    10     normal_error            mm      tracking error along the path normal (eq. (3))
+    11-12  velocity                mm/s    table velocity
+    13-18  preview                 mm      x_d 1, 5, 10 ms ahead minus the table position
+    19-28  contour_preview         mm      the contour 0.25, 0.5, 1, 2, 4 mm of arc beyond the table's closest point, minus the table position, along the tangent and normal there
+    29-33  contour_curvature       1/mm    signed curvature of the contour at those points
+    34-35  previous_action         1       the last action
+    =====  ======================  ======  ==============================================
 
     The contour preview reaches twice the ~1.9 mm that Jahanpour et al.'s drives need
     to brake from 100 mm/s, so a policy can see a corner coming and slow
@@ -173,7 +177,9 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     - Terminated at the completion time limit, ``completion_timeout`` (0.1 s)
       after the reference's end, with ``info["completed"] = False`` and a
       penalty of ``-(untraversed length) / reward_scale``
-      (``info["reward_incomplete"]``).  Terminated, not truncated, on
+      (``info["reward_incomplete"]``; under the set-point and correction
+      actions divided by ``action_repeat``, as every period's reward is in
+      the decision's mean).  Terminated, not truncated, on
       purpose: the limit is part of the task (a part has a cycle time, and
       running out of it ends the task at the cost of what is left), so a
       learner must not bootstrap past it; Gymnasium's truncation is for
@@ -457,6 +463,9 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
         return obs
 
     def step(self, action):
+        """One decision: ``action`` (2,) held for ``action_repeat`` control periods (the class docstring's Action
+        Space); returns ``(observation, reward, terminated, truncated, info)`` as Gymnasium's ``step``, with
+        ``info["episode_summary"]`` at the episode's end."""
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         a = check_actions(action, (2,))
