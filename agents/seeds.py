@@ -20,12 +20,19 @@ import os
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-from .run_config import check_seed
+from vcnc_gym import schema
+from vcnc_gym.validation import integer, size
 
-__all__ = ["SeedRun", "seed_folders", "seed_argv", "run_seeds"]
+from .run_config import SEED_MAX, check_seed
+
+__all__ = ["SeedRun", "MAX_SEEDS", "seed_folders", "seed_argv", "run_seeds", "read_summary"]
+
+#: Most seeds of one ``--seeds`` command (ours): each is a whole training run (minutes to hours) with its own run
+#: folder and log; a verdict rests on 5 to 20 (Agarwal et al. (2021)), a family is grown over several commands.
+MAX_SEEDS = 1000
 
 #: Options of the parent command that each seed's command sets itself (value-taking).
 _OWN = ("--seeds", "--seed", "--output", "--jobs", "--ray-address")
@@ -69,16 +76,46 @@ def seed_argv(argv: list[str], seed: int, folder: Path) -> list[str]:
     return _options(argv) + ["--seed", str(seed), "--output", str(folder), "--no-progress"]
 
 
+def _check_run(name: str, r) -> dict:
+    """One seed's row of ``seeds.json`` (a :class:`SeedRun`) checked; ValueError naming the field."""
+    schema.mapping(name, r, ("seed", "folder", "code"), known=[f.name for f in fields(SeedRun)])
+    integer(f"{name}.seed", r["seed"], 0, SEED_MAX)
+    folder = schema.text(f"{name}.folder", r["folder"])
+    if Path(folder).name in ("", ".", ".."):
+        raise ValueError(f"{name}.folder must name a run folder, got {folder!r}")
+    integer(f"{name}.code", r["code"], -(2**31), 2**31 - 1)
+    schema.number(f"{name}.wall_s", r.get("wall_s", 0.0), "s", minimum=0.0)
+    for k in ("best_max_um", "best_rms_um"):
+        schema.maybe(schema.number, f"{name}.{k}", r.get(k), "um", minimum=0.0)
+    return r
+
+
+def read_summary(summary) -> dict:
+    """The ``seeds.json`` ``summary`` written by :func:`run_seeds` (``{"env", "argv", "runs"}``), every field checked
+    as :func:`run_seeds` writes it (the seeds distinct); a :class:`vcnc_gym.schema.BadFile` naming the file and the
+    field otherwise."""
+    with schema.checked(summary):
+        data = schema.mapping("the file", schema.read_json(summary, "a vcnc-train --seeds summary"), ("runs",))
+        schema.text("env", data.get("env", "?"))
+        for i, a in enumerate(schema.sequence("argv", data.get("argv", []))):
+            schema.text(f"argv[{i}]", a, empty=True)
+        runs = [_check_run(f"runs[{i}]", r) for i, r in enumerate(schema.sequence("runs", data["runs"], minimum=1))]
+        seeds = [r["seed"] for r in runs]
+        if len(set(seeds)) != len(seeds):
+            raise ValueError(f"runs holds seed {next(s for s in seeds if seeds.count(s) > 1)} twice")
+    return data
+
+
 def _earlier(summary: Path, env_id: str, argv: list[str], seeds: list[int]) -> list[dict]:
     """The runs an earlier ``--seeds`` command of the same env and options recorded in ``summary`` (other seeds
     than ``seeds``), which the new summary keeps; ValueError, before anything trains, where that command differed."""
     if not summary.is_file():
         return []
     try:
-        data = json.loads(summary.read_text())
-        runs = [dict(r) for r in data["runs"]]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f"{summary} is not a seeds.json ({type(exc).__name__}); choose another --output") from None
+        data = read_summary(summary)
+    except schema.BadFile as exc:
+        raise ValueError(f"{exc}: not a seeds.json; choose another --output") from None
+    runs = [dict(r) for r in data["runs"]]
     if data.get("env") != env_id or _options(data.get("argv") or []) != _options(argv):
         raise ValueError(
             f"{summary} holds the seeds of another run (env {data.get('env')!r}, options "
@@ -163,6 +200,13 @@ def run_seeds(
     """Train seeds ``first .. first + count - 1`` with the options ``argv`` (see the module docstring); the runs,
     in seed order, written to ``seeds.json`` in the folders' parent.  ValueError for a bad seed range or a run
     folder that exists."""
+    size(
+        "--seeds",
+        count,
+        ceiling=MAX_SEEDS,
+        why="each seed is a whole training run, minutes to hours, with a run folder of its own; a verdict rests on "
+        "5 to 20 (Agarwal et al. (2021))",
+    )
     seeds = [check_seed(s) for s in (first, first + count - 1)]
     seeds = list(range(seeds[0], seeds[1] + 1))
     folders = seed_folders(env_id, seeds, output)

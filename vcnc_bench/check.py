@@ -11,10 +11,13 @@ With ``--default`` the plan's envs must also be
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
+
+from vcnc_gym.schema import BadFile, read_json
+
+from .files import check_bench
 
 __all__ = ["problems", "main"]
 
@@ -26,13 +29,17 @@ def problems(data, default_ids: tuple | None = None) -> list[str]:
     the envs the plan must hold, in order."""
     if not isinstance(data, dict) or not {"settings", "plan", "records"} <= set(data):
         return ["not a vcnc-bench table JSON: expected the keys settings, plan and records"]
+    try:
+        check_bench(data)
+    except ValueError as exc:
+        return [f"not as vcnc-bench writes it: {exc}"]
     plan, records = data["plan"], data["records"]
     out = []
     if default_ids is not None and list(plan) != list(default_ids):
         out.append(f"the plan's envs {list(plan)} are not the default table's {list(default_ids)}")
     scored = {}
     for r in records:
-        if r.get("table") == "headroom" and not r.get("headroom", 0.0) >= 1.0:
+        if r.get("table") == "headroom" and not (r.get("headroom") or 0.0) >= 1.0:
             out.append(
                 f"{r.get('env')}: the floor ({r.get('floor_max_um')} um) is above the strongest causal "
                 f"controller ({r.get('strongest')}, {r.get('strongest_max_um')} um): a stale floor; solve it "
@@ -68,9 +75,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.json}: no such file (did vcnc-bench run to its end?)", file=sys.stderr)
         return 1
     try:
-        data = json.loads(args.json.read_text())
-    except (OSError, ValueError) as exc:
-        print(f"{args.json}: cannot be read as JSON: {exc}", file=sys.stderr)
+        data = read_json(args.json, "a vcnc-bench --json output")
+    except BadFile as exc:
+        print(exc, file=sys.stderr)
         return 1
     default_ids = None
     if args.default:

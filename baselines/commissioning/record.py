@@ -29,7 +29,10 @@ from pathlib import Path
 import numpy as np
 
 import vcnc_gym
+from vcnc_gym import schema
 from vcnc_gym.envs.drive_servo import machine_key  # a shipped record's file stem (the drives' servos' key)
+from vcnc_gym.schema import checked, read_json
+from vcnc_gym.validation import flag, positive
 
 from .design import AxisDesign, Margins, design_axis, inverse_dynamics, loop_response
 from .identify import AxisModel, Experiment, frf, identify, model_response
@@ -46,6 +49,7 @@ __all__ = [
     "ship_machines",
     "ship_nominal",
     "load",
+    "check_record",
     "plot",
     "SOURCES",
     "MACHINES_SHIPPED",
@@ -130,22 +134,13 @@ class CommissioningRecord:
         return json.dumps(self.to_dict(), indent=1)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "CommissioningRecord":
-        axes = tuple(
-            AxisModel(
-                **{
-                    **a,
-                    "coulomb": tuple(a["coulomb"]),
-                    "band": tuple(a["band"]),
-                    "stribeck": tuple(a.get("stribeck", (0.0, 0.0))),
-                }
-            )
-            for a in d["axes"]
-        )
-        designs = tuple(
-            AxisDesign(**{**a, "notch": tuple(a["notch"]), "margins": Margins(**a["margins"])}) for a in d["designs"]
-        )
-        return cls(**{**d, "axes": axes, "designs": designs, "backlash": tuple(d["backlash"])})
+    def from_dict(cls, d: dict, where: str = "the record") -> "CommissioningRecord":
+        """The record of ``d`` (:meth:`to_dict`'s mapping), every field checked as :func:`make_record` builds it
+        (:func:`check_record`); ValueError naming the field."""
+        d = check_record(d, where)
+        axes = tuple(AxisModel(**a) for a in d["axes"])
+        designs = tuple(AxisDesign(**{**a, "margins": Margins(**a["margins"])}) for a in d["designs"])
+        return cls(**{**d, "axes": axes, "designs": designs})
 
     def save(self, path) -> None:
         Path(path).write_text(self.to_json() + "\n")
@@ -190,8 +185,103 @@ class CommissioningRecord:
 
 
 def load(path) -> CommissioningRecord:
-    """A record saved by :meth:`CommissioningRecord.save`."""
-    return CommissioningRecord.from_dict(json.loads(Path(path).read_text()))
+    """A record saved by :meth:`CommissioningRecord.save`, checked (:func:`check_record`); a
+    :class:`vcnc_gym.schema.BadFile` naming the file and the field if it is not one."""
+    with checked(path):
+        return CommissioningRecord.from_dict(read_json(path, "a commissioning record"))
+
+
+#: The axes of a record: the suite's machines are X-Y tables.
+AXES = 2
+
+
+def _pair(name: str, value, rule=schema.number, **kwargs) -> tuple:
+    return tuple(rule(f"{name}[{i}]", v, **kwargs) for i, v in enumerate(schema.sequence(name, value, 2)))
+
+
+def _check_axis(name: str, a) -> dict:
+    """One :class:`AxisModel` mapping checked as :func:`~.identify.identify` and :func:`model_axes` build it."""
+    fields = [f.name for f in dataclasses.fields(AxisModel)]
+    required = ("mass", "damping", "mode_frequency", "mode_damping", "delay", "coulomb", "fit_error", "band")
+    a = schema.mapping(name, a, required, known=fields)
+    n = schema.number
+    out = {
+        "mass": positive(f"{name}.mass", a["mass"], "input unit per mm/s^2"),
+        "damping": n(f"{name}.damping", a["damping"], "input unit per mm/s"),
+        "mode_frequency": n(f"{name}.mode_frequency", a["mode_frequency"], "Hz", minimum=0.0),
+        "mode_damping": n(f"{name}.mode_damping", a["mode_damping"], minimum=0.0),
+        "delay": n(f"{name}.delay", a["delay"], "s", minimum=0.0),
+        "coulomb": _pair(f"{name}.coulomb", a["coulomb"]),
+        "fit_error": n(f"{name}.fit_error", a["fit_error"], minimum=0.0),
+        "band": _pair(f"{name}.band", a["band"], minimum=0.0),
+    }
+    for key, unit in (("velocity_noise", "mm/s"), ("dt", "s"), ("viscous", "input unit per mm/s")):
+        out[key] = n(f"{name}.{key}", a.get(key, 0.0), unit, minimum=0.0)
+    out["process_force"] = n(f"{name}.process_force", a.get("process_force", 0.0))
+    out["stribeck"] = _pair(f"{name}.stribeck", a.get("stribeck", (0.0, 0.0)), minimum=0.0)
+    return out
+
+
+def _check_design(name: str, a, dt: float) -> dict:
+    """One :class:`AxisDesign` mapping checked as :func:`~.design.design_axis` builds it: positive stiffness,
+    non-negative damping and integral gains, a stable velocity pole, a notch below the Nyquist frequency."""
+    fields = [f.name for f in dataclasses.fields(AxisDesign)]
+    a = schema.mapping(name, a, fields, known=())
+    n = schema.number
+    out = {
+        "bandwidth": positive(f"{name}.bandwidth", a["bandwidth"], "rad/s"),
+        "kp": positive(f"{name}.kp", a["kp"], "input unit per mm"),
+        "kd": n(f"{name}.kd", a["kd"], "input unit per mm/s", minimum=0.0),
+        "ki": n(f"{name}.ki", a["ki"], "input unit per mm s", minimum=0.0),
+        "velocity_cutoff": n(f"{name}.velocity_cutoff", a["velocity_cutoff"], "rad/s", minimum=0.0),
+        "velocity_pole": n(f"{name}.velocity_pole", a["velocity_pole"], minimum=0.0),
+        "notch_frequency": n(f"{name}.notch_frequency", a["notch_frequency"], "Hz", minimum=0.0),
+        "notch_q": n(f"{name}.notch_q", a["notch_q"], minimum=0.0),
+        "notch": tuple(
+            n(f"{name}.notch[{i}]", v) for i, v in enumerate(schema.sequence(f"{name}.notch", a["notch"], 5))
+        ),
+    }
+    if out["velocity_pole"] >= 1.0:
+        raise ValueError(f"{name}.velocity_pole must be < 1 (a stable filter pole), got {a['velocity_pole']!r}")
+    if out["notch_frequency"] >= 0.5 / dt:
+        raise ValueError(
+            f"{name}.notch_frequency must be below the Nyquist frequency {0.5 / dt:g} Hz, got {a['notch_frequency']!r}"
+        )
+    m = schema.mapping(f"{name}.margins", a["margins"], [f.name for f in dataclasses.fields(Margins)], known=())
+    out["margins"] = {
+        "gain_db": n(f"{name}.margins.gain_db", m["gain_db"], "dB", infinite=True),
+        "phase_deg": n(f"{name}.margins.phase_deg", m["phase_deg"], "deg"),
+        "sensitivity_db": n(f"{name}.margins.sensitivity_db", m["sensitivity_db"], "dB"),
+        "crossover": n(f"{name}.margins.crossover", m["crossover"], "rad/s", minimum=0.0),
+    }
+    return out
+
+
+def check_record(d, where: str = "the record") -> dict:
+    """``d`` (a :meth:`CommissioningRecord.to_dict` mapping) with every field checked as :func:`make_record` builds
+    it, numbers as floats and pairs as tuples: :data:`AXES` axes and designs, a positive control period, bandwidth
+    ceiling and stiffness ``kp``, finite numbers; ValueError naming the field otherwise."""
+    fields = [f.name for f in dataclasses.fields(CommissioningRecord)]
+    d = schema.mapping(where, d, [k for k in fields if k not in ("identification_s", "contour")], known=fields)
+    dt = positive("dt", d["dt"], "s")
+    axes = schema.sequence("axes", d["axes"], AXES)
+    designs = schema.sequence("designs", d["designs"], AXES)
+    return {
+        "plant": schema.text("plant", d["plant"]),
+        "shop_floor": flag("shop_floor", d["shop_floor"]),
+        "source": schema.choice("source", d["source"], SOURCES),
+        "dt": dt,
+        "ceiling": positive("ceiling", d["ceiling"], "rad/s"),
+        "axes": tuple(_check_axis(f"axes[{j}]", a) for j, a in enumerate(axes)),
+        "designs": tuple(_check_design(f"designs[{j}]", a, dt) for j, a in enumerate(designs)),
+        "backlash": tuple(
+            schema.number(f"backlash[{j}]", v, "mm", minimum=0.0)
+            for j, v in enumerate(schema.sequence("backlash", d["backlash"], AXES))
+        ),
+        "friction_time": schema.number("friction_time", d["friction_time"], "s", minimum=0.0),
+        "identification_s": schema.number("identification_s", d.get("identification_s", 0.0), "s", minimum=0.0),
+        "contour": schema.text("contour", d.get("contour", ""), empty=True),
+    }
 
 
 def _ceiling(plant) -> float:
@@ -394,7 +484,9 @@ def _load_machines(key: str) -> list | None:
     path = MACHINES_SHIPPED / f"{key}.json"
     if os.environ.get("VCNC_COMMISSION_RECOMPUTE", "") not in ("", "0") or not path.exists():
         return None
-    return [CommissioningRecord.from_dict(d) for d in json.loads(path.read_text())]
+    with checked(path):
+        stored = schema.sequence("the file", read_json(path, "a list of commissioning records"), minimum=1)
+        return [CommissioningRecord.from_dict(d, f"record [{i}]") for i, d in enumerate(stored)]
 
 
 def ship_machines(task, experiment: Experiment = Experiment()) -> Path:

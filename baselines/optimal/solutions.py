@@ -20,9 +20,14 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import warnings
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
+
+from vcnc_gym.schema import BadFile, checked, count, mapping, number, sequence
 
 from .search import Solution
 
@@ -120,31 +125,96 @@ def paths(key: str) -> list[Path]:
 
 
 def load_all(key: str) -> list[Solution]:
-    """Every solution stored under ``key`` (:func:`paths`), the first to try first."""
-    return [_read(p) for p in paths(key)]
+    """Every solution stored under ``key`` (:func:`paths`), the first to try first; a damaged file (truncated,
+    empty, not one :func:`store` writes) is passed over with a warning naming it."""
+    out = []
+    for p in paths(key):
+        try:
+            out.append(_read(p))
+        except BadFile as exc:
+            warnings.warn(f"the stored floor {exc}: the next stored solution, else solving again", stacklevel=2)
+    return out
 
 
 def load(key: str) -> Solution | None:
-    """The first solution stored under ``key``, or None."""
+    """The first solution stored under ``key``, or None; :class:`vcnc_gym.schema.BadFile` naming a damaged file."""
     found = paths(key)
     return _read(found[0]) if found else None
 
 
+#: The arrays of a stored solution (:func:`store`): name -> (dimensions, dtype kind) ("f" real, "i" integer, "U"
+#: text).
+_ARRAYS = {
+    "start": (0, "U"),
+    "correction": (2, "f"),
+    "table": (2, "f"),
+    "max_um": (0, "f"),
+    "rms_um": (0, "f"),
+    "warm_starts": (0, "U"),
+    "history": (2, "f"),
+    "solve_time_s": (0, "f"),
+    "evaluations": (0, "i"),
+}
+
+
+def _arrays(path: Path) -> dict:
+    """The arrays of the ``.npz`` ``path``; BadFile if it is not one (truncated, empty, pickled objects)."""
+    try:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise BadFile(path, "is a single .npy array, not a stored floor's .npz")
+        with z:
+            return {k: z[k] for k in z.files}
+    except BadFile:
+        raise
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise BadFile(
+            path, f"is not a stored floor's .npz (damaged or truncated?): {type(exc).__name__}: {exc}"
+        ) from None
+
+
+def _check(path: Path, z: dict) -> None:
+    """The arrays checked as :func:`store` writes them: every one present with its shape and kind, the correction
+    and the table (L, 2) and finite, the figures finite and >= 0."""
+    missing = [k for k in _ARRAYS if k not in z]
+    if missing:
+        raise BadFile(path, f"is not a stored floor: it has no array {missing[0]!r}")
+    for name, (ndim, dtype) in _ARRAYS.items():
+        a = z[name]
+        if a.ndim != ndim or a.dtype.kind != dtype or (ndim == 2 and a.shape[1] != 2):
+            shape = "a scalar" if ndim == 0 else "(L, 2)"
+            raise BadFile(path, f"{name} must be {shape} of kind {dtype!r}, got {a.dtype} of shape {a.shape}")
+    with checked(path):
+        for name in ("correction", "table"):
+            if not np.all(np.isfinite(z[name])):
+                raise ValueError(f"{name} holds a value that is not finite")
+        number("max_um", float(z["max_um"]), "um", minimum=0.0)
+        number("rms_um", float(z["rms_um"]), "um", minimum=0.0)
+        count("evaluations", int(z["evaluations"]))
+        try:
+            starts = json.loads(str(z["warm_starts"]))
+        except (ValueError, RecursionError):
+            raise ValueError("warm_starts is not the JSON of the starts' figures") from None
+        for k, v in mapping("warm_starts", starts).items():
+            sequence(f"warm_starts[{k!r}]", v, 2)
+
+
 def _read(path: Path) -> Solution:
-    with np.load(path, allow_pickle=False) as z:
-        table = z["table"] if z["table"].size else None
-        starts = json.loads(str(z["warm_starts"]))
-        return Solution(
-            start=str(z["start"]),
-            correction=z["correction"],
-            table=table,
-            max_um=float(z["max_um"]),
-            rms_um=float(z["rms_um"]),
-            warm_starts={k: tuple(v) for k, v in starts.items()},
-            history=z["history"],
-            solve_time_s=float(z["solve_time_s"]),
-            evaluations=int(z["evaluations"]),
-        )
+    """The solution stored in ``path``, checked (:func:`_check`); BadFile naming the file otherwise."""
+    z = _arrays(path)
+    _check(path, z)
+    table = z["table"] if z["table"].size else None
+    return Solution(
+        start=str(z["start"]),
+        correction=z["correction"],
+        table=table,
+        max_um=float(z["max_um"]),
+        rms_um=float(z["rms_um"]),
+        warm_starts={k: tuple(v) for k, v in json.loads(str(z["warm_starts"])).items()},
+        history=z["history"],
+        solve_time_s=float(z["solve_time_s"]),
+        evaluations=int(z["evaluations"]),
+    )
 
 
 def store(key: str, solution: Solution, folder: Path | None = None) -> Path | None:

@@ -12,10 +12,10 @@ agents (each run's ``best``), run one by one and judged as one controller
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import vcnc_agents  # an install without the agents extra (torch, SB3) skips this kind
+from vcnc_agents.seeds import read_summary
 
 from ..policies import PolicyKind
 
@@ -50,7 +50,7 @@ def _expand(path: str) -> list[str]:
     summary = folder / "seeds.json"
     if not summary.is_file():
         return [path]
-    runs = json.loads(summary.read_text())["runs"]
+    runs = read_summary(summary)["runs"]  # checked: a BadFile naming the file and the field
     folders = [folder / Path(r["folder"]).name for r in runs]
     missing = [f"seed {r['seed']} ({f})" for r, f in zip(runs, folders) if r["code"] != 0 or not (f / which).is_dir()]
     if missing:
