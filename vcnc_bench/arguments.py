@@ -17,7 +17,15 @@ from . import robust
 from .options import check_program_options
 from .recipes import DEFAULT_IDS
 
-__all__ = ["DEFAULT_TRIALS", "MAX_TRIALS", "bench_parser", "check_arguments", "check_sizes", "check_writable"]
+__all__ = [
+    "DEFAULT_TRIALS",
+    "MAX_TRIALS",
+    "bench_parser",
+    "check_arguments",
+    "check_sizes",
+    "check_writable",
+    "check_outputs",
+]
 
 
 def bench_parser() -> argparse.ArgumentParser:
@@ -153,8 +161,11 @@ def bench_parser() -> argparse.ArgumentParser:
     return p
 
 
-def check_writable(path: Path, parser, what: str) -> None:
-    """Fail before any episode runs if ``path`` (a file, or a directory for plots) cannot be written."""
+def check_writable(path: Path, parser, what: str, option: str = "--json") -> None:
+    """Fail before any episode runs if ``path`` (a file, or a directory for plots) cannot be written; the message
+    names ``option``."""
+    if what == "file" and path.is_dir():
+        parser.error(f"{option} {path} is a directory; give a file name")
     target = path if what == "directory" else path.parent
     try:
         target.mkdir(parents=True, exist_ok=True)
@@ -162,9 +173,31 @@ def check_writable(path: Path, parser, what: str) -> None:
         probe.write_text("")
         probe.unlink()
     except OSError as exc:
-        parser.error(f"cannot write the {what} {path}: {exc}")
-    if what == "file" and path.is_dir():
-        parser.error(f"--json {path} is a directory; give a file name")
+        parser.error(f"{option}: cannot write the {what} {path}: {exc}")
+
+
+def check_outputs(args, parser) -> None:
+    """``--json``, ``--leaderboard`` and ``--plots`` before any episode runs: each can be written, the leaderboard
+    page's files are regular files apart from ``--json`` and its rows are a leaderboard's (a malformed one is
+    refused now, not after the run); each message names the option."""
+    if args.json is not None:
+        check_writable(args.json, parser, "file", "--json")
+    if args.leaderboard is not None:
+        from .leaderboard import board_rows, page_files
+
+        try:
+            files = page_files(args.leaderboard)
+            board_rows(args.leaderboard)
+        except ValueError as exc:
+            parser.error(f"--leaderboard {exc}")
+        if args.json is not None and args.json.resolve() in {f.resolve() for f in files}:
+            parser.error(
+                f"--json {args.json} is one of the leaderboard's files ({', '.join(map(str, files))}): the run would "
+                "write over it; give --json another name"
+            )
+        check_writable(args.leaderboard, parser, "file", "--leaderboard")
+    if args.plots is not None:
+        check_writable(args.plots, parser, "directory", "--plots")
 
 
 #: Most trials (--trials) of a policy that learns across episodes (ours): such controllers converge within tens
@@ -176,15 +209,31 @@ MAX_TRIALS = 10_000
 TRACE_BYTES_PER_STEP = 64
 
 
+def _check_plants(args, env) -> None:
+    """The runs of ``--plants N`` (and ``--noise-seeds K`` on a noisy sensor) on ``env`` against this machine's
+    memory: the nominal plant, N samples and the box's vertices, each K times; the message counts them."""
+    plant = env.unwrapped.plant
+    box = getattr(plant, "box", None)
+    d = box()[0].size if box is not None else 0
+    vertices = 2**d if 0 < d and 2**d <= robust.MAX_VERTICES else 0
+    plants = f"the nominal one, {args.plants:,} sampled and {vertices} vertices"
+    if not robust.noisy(plant):
+        robust.check_plants(1 + args.plants + vertices, env, f"the plants of --plants {args.plants} ({plants})")
+        return
+    robust.check_plants(
+        (1 + args.plants + vertices) * args.noise_seeds,
+        env,
+        f"the runs of --plants {args.plants} x --noise-seeds {args.noise_seeds} (the plants: {plants}; each over "
+        f"{args.noise_seeds:,} noise seeds)",
+    )
+
+
 def check_sizes(args, envs: dict, parser) -> None:
     """--plants and --trials against this machine's memory and MAX_TRIALS, before any episode runs."""
     try:
         if args.plants is not None:
             for env in envs.values():
-                copies = args.noise_seeds if robust.noisy(env.unwrapped.plant) else 1
-                robust.check_plants(
-                    (args.plants + 1) * copies, env, "--plants" if copies == 1 else "--plants x --noise-seeds"
-                )
+                _check_plants(args, env)
         if args.trials is not None:
             steps = max(int(env.unwrapped.episode_steps) for env in envs.values())
             size(

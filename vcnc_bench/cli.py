@@ -82,7 +82,7 @@ import time
 
 import vcnc_gym  # noqa: F401  (registers the ids)
 
-from .arguments import DEFAULT_TRIALS, bench_parser, check_arguments, check_sizes, check_writable
+from .arguments import DEFAULT_TRIALS, bench_parser, check_arguments, check_outputs, check_sizes
 from .output import (
     add_to_leaderboard,
     bench_context,
@@ -133,12 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     args.command = "vcnc-bench " + shlex.join(sys.argv[1:] if argv is None else argv)
     check_arguments(args, parser)
     recipes = env_recipes(args, parser)
-    if args.json is not None:
-        check_writable(args.json, parser, "file")
-    if args.leaderboard is not None:
-        check_writable(args.leaderboard, parser, "file")
-    if args.plots is not None:
-        check_writable(args.plots, parser, "directory")
+    check_outputs(args, parser)
     if args.plants is not None:
         return robust_main(args, recipes, parser, wall0)
 
@@ -176,11 +171,11 @@ def main(argv: list[str] | None = None) -> int:
             f"wrote {len(ctx.plots_written)} plots to {args.plots} (each env's: the paper's controllers, the "
             f"strongest causal one, the agent and the floor; --plot-all: every policy)"
         )
-    add_to_leaderboard(args, out)
+    code = add_to_leaderboard(args, out)
     for env in envs.values():
         env.close()
     print(f"total wall time {time.perf_counter() - wall0:.1f} s")
-    return 0
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -39,17 +39,21 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from vcnc_gym.schema import BadFile
+
+from .files import read_bench, read_board
 from .headroom import NON_CAUSAL
 from .score import REFERENCE, normalised_score
 from .verdicts import sampled_figures, seed_figures, stratified_bootstrap_ci
 
-__all__ = ["rows_of", "merge", "ranked", "profile", "format_page", "write", "main"]
+__all__ = ["rows_of", "merge", "ranked", "profile", "format_page", "page_files", "board_rows", "write", "main"]
 
 _TRIAL = re.compile(r" \(trial (\d+)\)$")
 
@@ -347,25 +351,67 @@ def _plot(curves: dict[str, np.ndarray], board: dict[str, list[dict]], path: Pat
     plt.close(fig)
 
 
+def page_files(page) -> tuple[Path, Path, Path]:
+    """The files of the leaderboard page ``page``: the page (Markdown), its rows (the page's ``.json``) and its
+    profile figure (``_profile.png``), all beside it.  ValueError naming ``page`` where they cannot be: a page that
+    is its own rows file (``board.json``), a folder, or something other than a regular file (``/dev/null``: the
+    rows and the figure would be new files in ``/dev``)."""
+    page = Path(page)
+    if page.is_dir() or not page.name:
+        raise ValueError(f"{page} is a folder; give the page's file name, such as {page / 'leaderboard.md'}")
+    data = page.with_name(page.stem + ".json")
+    figure = page.with_name(page.stem + "_profile.png")
+    if page.suffix == ".json" or data == page:
+        raise ValueError(
+            f"{page} would be both the page and its rows (PAGE.json beside it); give the Markdown page, "
+            f"{page.with_suffix('.md')}, whose rows are kept in {data}"
+        )
+    for path in (page, data, figure):
+        if path.exists() and not path.is_file():
+            raise ValueError(
+                f"{path} is not a regular file: the page, its rows ({data.name}) and its profile ({figure.name}) "
+                "are written side by side; name a page in a folder of yours, such as docs/leaderboard.md"
+            )
+    return page, data, figure
+
+
+def board_rows(page) -> list[dict]:
+    """The rows kept beside ``page`` (none if it has no ``.json`` yet), checked as :func:`rows_of` builds them
+    (:func:`vcnc_bench.files.read_board`); ValueError naming the file and the field."""
+    _, data, _ = page_files(page)
+    return read_board(data) if data.exists() else []
+
+
+def _replace(path: Path, content: str) -> None:
+    """Write ``content`` to ``path`` through a temporary file beside it, renamed over it: a reader never sees half
+    a file, and a failure leaves the old one."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(content)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def write(page: Path, new_rows: list[dict], add: bool = True, drop: tuple[str, ...] = ()) -> Path:
     """Merge ``new_rows`` into the board beside ``page`` (its ``leaderboard.json``; replaced unless ``add``), less
     the board's rows of the policies in ``drop`` (a row's policy as the page names it, such as
     ``"ppo:runs/seeds/VCNC-Heart-v1 (5 seeds)"``: a run retired by a newer one), and write the page and its profile
-    figure; returns the page.  ValueError naming a policy of ``drop`` that no row of the board has."""
-    page = Path(page)
-    data = page.with_name(page.stem + ".json")
-    old = json.loads(data.read_text())["rows"] if add and data.is_file() else []
+    figure; returns the page.  ValueError naming the page's files where they cannot be (:func:`page_files`), the
+    board's rows file where it is not one (:func:`board_rows`), or a policy of ``drop`` that no row of the board
+    has."""
+    page, data, figure = page_files(page)
+    old = board_rows(page) if add else []
     missing = [p for p in drop if not any(r["policy"] == p for r in old)]
     if missing:
         raise ValueError(f"--drop: no row of {data} has the policy {missing[0]!r}")
     rows = merge([r for r in old if r["policy"] not in drop], new_rows)
     board = ranked(rows)
     curves = profile(board)
-    figure = page.with_name(page.stem + "_profile.png")
     if curves:
         _plot(curves, board, figure)
-    page.write_text(format_page(board, figure.name if curves else None) + "\n")
-    data.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
+    _replace(data, json.dumps({"rows": rows}, indent=1) + "\n")
+    _replace(page, format_page(board, figure.name if curves else None) + "\n")
     return page
 
 
@@ -383,15 +429,21 @@ def main(argv=None) -> int:
         "(5 seeds)', a run a newer one retires); repeatable",
     )
     args = p.parse_args(argv)
+    try:  # every file checked before anything is written
+        page_files(args.out)
+        if not args.replace:
+            board_rows(args.out)
+    except ValueError as exc:
+        p.error(f"--out {exc}")
     rows: list[dict] = []
     for path in args.json:
         try:
-            rows = merge(rows, rows_of(json.loads(path.read_text())))
-        except (OSError, ValueError, KeyError) as exc:
-            p.error(f"{path}: not a vcnc-bench JSON ({exc})")
+            rows = merge(rows, rows_of(read_bench(path)))
+        except ValueError as exc:
+            p.error(f"{path}: not a vcnc-bench JSON: {exc.problem if isinstance(exc, BadFile) else exc}")
     try:
         page = write(args.out, rows, add=not args.replace, drop=tuple(args.drop))
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:
         p.error(str(exc))
     print(f"wrote {page} ({len(rows)} rows from {len(args.json)} JSON file(s))")
     return 0

@@ -296,12 +296,42 @@ def write_trial_plots(ctx: BenchContext) -> None:
         ctx.plots_written.append(path)
 
 
-def add_to_leaderboard(args, out: dict) -> None:
-    """``--leaderboard PAGE``: this run's rows added to the board (:mod:`vcnc_bench.leaderboard`)."""
+def add_to_leaderboard(args, out: dict) -> int:
+    """``--leaderboard PAGE``: this run's rows added to the board (:mod:`vcnc_bench.leaderboard`); 0, or 1 where the
+    board cannot be written now (changed since the run began, a full disk): one line says so and where the run's
+    records are kept (``--json``, else a file beside the page), so that no run is lost."""
     if args.leaderboard is None:
-        return
+        return 0
     from . import leaderboard
 
     rows = leaderboard.rows_of(out)
-    page = leaderboard.write(args.leaderboard, rows)
+    try:
+        page = leaderboard.write(args.leaderboard, rows)
+    except (ValueError, OSError) as exc:
+        kept = args.json if args.json is not None else _keep(args.leaderboard, out)
+        where = (
+            f"this run's records are in {kept}: add them with python -m vcnc_bench.leaderboard {kept} --out "
+            f"{args.leaderboard}"
+            if kept is not None
+            else "this run's records could not be kept (no folder was writable)"
+        )
+        print(f"vcnc-bench: error: --leaderboard {exc}; {where}", file=sys.stderr)
+        return 1
     print(f"added {len(rows)} rows to the leaderboard {page}")
+    return 0
+
+
+def _keep(page, out: dict):
+    """Write the run's JSON beside ``page`` (else in the current folder); its path, or None."""
+    import json
+    from pathlib import Path
+
+    name = f"{Path(page).stem}-run-{time.strftime('%Y%m%d-%H%M%S')}.json"
+    for folder in (Path(page).parent, Path.cwd()):
+        try:
+            path = folder / name
+            path.write_text(json.dumps(out, indent=2) + "\n")
+            return path
+        except OSError:
+            continue
+    return None

@@ -139,6 +139,7 @@ def _robust(args, envs: dict, runs: list) -> int:
     """``--plants N``: every run on the nominal plant, N sampled plants and the vertices (vcnc_bench.robust)."""
     from tqdm import tqdm
 
+    code = 0
     trials = args.trials or 1
     kwargs = env_kwargs(args)
     with tqdm(
@@ -248,9 +249,9 @@ def _robust(args, envs: dict, runs: list) -> int:
         if args.json is not None:
             args.json.write_text(json.dumps(out, indent=2) + "\n")
             print(f"\nwrote {len(records)} robust records to {args.json}")
-        add_to_leaderboard(args, out)
+        code = add_to_leaderboard(args, out)
     if args.plots is not None:
         for env_id in plant_sets:
             robust.plot_robust([r for r in records if r["env"] == env_id], args.plots / f"{env_id}_robust.png")
         print(f"wrote {len(plant_sets)} plots to {args.plots}")
-    return 0
+    return code
