@@ -53,6 +53,11 @@ def _check_repeat(action_repeat) -> int:
 #: ``vcnc-train``'s options of the same names, besides ``action_repeat``).
 RESIDUAL_OPTIONS = ("baseline", "correction", "history", "peak_weight", "dial_rate")
 
+#: Most past decisions a residual agent may remember (ours): each adds the remembered fields (about ten entries) to
+#: its observation, for every env of a batch, and the network's input grows alike; an episode is a few thousand
+#: decisions, and the memories that help span a mode's period or two (8 decisions on the heart).
+MAX_HISTORY = 1000
+
 
 @dataclass(frozen=True)
 class ActionMode:
@@ -99,6 +104,12 @@ class ActionMode:
         h = self.history
         if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 0:
             raise ValueError(f"history must be an integer >= 0 (past decisions remembered), got {h!r}")
+        if h > MAX_HISTORY:
+            raise ValueError(
+                f"history must be at most {MAX_HISTORY:,} past decisions (each adds its commands, errors, velocity "
+                f"and acceleration to the agent's observation, per env; an episode is a few thousand decisions), "
+                f"got {h:,}"
+            )
         object.__setattr__(self, "history", int(h))
         if not real("peak_weight", self.peak_weight, "decisions") >= 0:
             raise ValueError(f"peak_weight must be a number >= 0 (decisions), got {self.peak_weight!r}")

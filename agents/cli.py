@@ -239,6 +239,7 @@ def _prepare(parser, args, tensorboard):
 
 def _train(args, trainer: str, run_dir, config, checkpoint, tensorboard):
     """The training's result, or the exit code of a failure (its one line printed)."""
+    from .run_folder import RunLocked
     from .training import learn
 
     try:
@@ -255,6 +256,9 @@ def _train(args, trainer: str, run_dir, config, checkpoint, tensorboard):
             vec_env=args.vec_env,
             verbose=args.verbose,
         )
+    except RunLocked as exc:  # another trainer took the folder since the checks: it is its, untouched here
+        print(f"vcnc-train: error: {exc}; this session wrote nothing", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:  # a second Ctrl-C
         print(f"vcnc-train: stopped at once; {_after_failure(run_dir, checkpoint)}", file=sys.stderr)
         return 130

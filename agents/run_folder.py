@@ -85,10 +85,12 @@ __all__ = [
     "record_session",
     "session_rates",
     "run_lock",
+    "RunLocked",
     "check_output_folder",
     "stale_run",
     "read_run_config",
     "clear_new_run",
+    "set_aside",
 ]
 
 #: The files of an agent folder (a run's ``best/`` and ``final/``, a shipped agent): what
@@ -363,6 +365,19 @@ def roll_back_monitor(path: Path, steps: int) -> int:
     return dropped
 
 
+def set_aside(model_zips, above: int = -1) -> list[Path]:
+    """Rename the checkpoint pairs of ``model_zips`` (their model zip and statistics) past ``above`` steps to
+    ``*.damaged``: kept for a look, never resumed from; the renamed files."""
+    renamed = []
+    for model_zip in model_zips:
+        steps = int(CHECKPOINT_NAME.match(Path(model_zip).name).group(1))
+        if steps > above:
+            for p in checkpoint_files(Path(model_zip).parent, steps):
+                if p.exists():
+                    renamed.append(p.rename(p.with_name(p.name + ".damaged")))
+    return renamed
+
+
 def roll_back(run_dir: Path, config, steps: int, damaged: list) -> dict:
     """Bring the run's logs and best/ back to the checkpoint at ``steps`` (see the module docstring)."""
     csv_path = run_dir / "evaluations.csv"
@@ -371,11 +386,7 @@ def roll_back(run_dir: Path, config, steps: int, damaged: list) -> dict:
     if csv_path.exists():
         write_evaluations(csv_path, kept)
     episodes = sum(roll_back_monitor(p, steps) for p in sorted((run_dir / "monitor").glob("*.monitor.csv")))
-    for _, model_zip, _ in damaged:
-        if int(CHECKPOINT_NAME.match(model_zip.name).group(1)) > steps:
-            for p in checkpoint_files(model_zip.parent, int(CHECKPOINT_NAME.match(model_zip.name).group(1))):
-                if p.exists():
-                    p.rename(p.with_name(p.name + ".damaged"))
+    set_aside([model_zip for _, model_zip, _ in damaged], above=steps)
     rebuild_best(run_dir, config, kept, steps)
     summary = read_summary(run_dir)
     for s in summary["sessions"]:
@@ -459,11 +470,15 @@ def session_rates(start: int, end: int, wall: float, repeat: int) -> dict:
     return {"wall_s": wall, "steps_per_s": steps / wall, "control_periods_per_s": steps * repeat / wall}
 
 
+class RunLocked(ValueError):
+    """Another process trains the run folder (it holds its lock): this session wrote nothing there."""
+
+
 @contextmanager
 def run_lock(run_dir: Path, *, probe: bool = False):
     """Hold an exclusive lock on ``run_dir/.lock`` (released by the OS even on SIGKILL).
 
-    ValueError if another process holds it: two sessions must never write one
+    :class:`RunLocked` (a ValueError) if another process holds it: two sessions must never write one
     run folder.  ``probe`` only checks (the folder must exist).
     """
     try:
@@ -481,7 +496,7 @@ def run_lock(run_dir: Path, *, probe: bool = False):
         except BlockingIOError:
             f.seek(0)
             owner = f.read().strip() or "?"
-            raise ValueError(
+            raise RunLocked(
                 f"{run_dir} is being trained by another process (pid {owner}); wait for it to end or stop it first"
             ) from None
         if not probe:

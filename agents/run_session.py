@@ -41,6 +41,7 @@ from .run_folder import (
     roll_back,
     run_lock,
     scan_checkpoints,
+    set_aside,
     stale_run,
     write_config,
 )
@@ -181,10 +182,13 @@ def _prepare_resume(env_id, run_dir, n_timesteps, options: dict):
         raise ValueError(f"{run_dir} is a run on {config.env_id}, not {env_id}")
     checkpoint = latest_checkpoint(run_dir, config.n_envs)
     if checkpoint is None:
+        intact, damaged = scan_checkpoints(run_dir, config.n_envs)
+        renamed = set_aside([c[1] for c in intact + damaged])  # every one failed a check: none can be resumed
+        aside = f"; the damaged ones are set aside as *.damaged ({len(renamed)} files)" if renamed else ""
         raise FileNotFoundError(
             f"cannot resume: {run_dir / 'checkpoints'} holds no intact checkpoint "
             f"({CHECKPOINT_PREFIX}_<steps>_steps.zip with its vecnormalize .npz); it never reached one or all "
-            f"are damaged: start it again with vcnc-train --env {config.env_id} --output {run_dir}"
+            f"are damaged{aside}: start it again with vcnc-train --env {config.env_id} --output {run_dir}"
         )
     config = config.with_options(**options)
     env = check_envs(config)

@@ -18,7 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from vcnc_gym.gcode.interpreter import MAX_COORDINATE, MAX_FEED
-from vcnc_gym.gcode.pieces import PIECES
+from vcnc_gym.gcode.pieces import CIRCLE_MIN_DIAMETER, CIRCLE_MIN_FEED, PIECES
 from vcnc_gym.validation import positive
 
 __all__ = ["CIRCLE_PROGRAMS", "DEFAULT_TOLERANCE", "check_program_options", "program_tolerance"]
@@ -61,6 +61,12 @@ def check_program_options(args) -> None:
             )
         diameter = positive("--circle D (the circle's diameter)", circle[0], "mm")
         feed = positive("--circle F (the feed)", circle[1], "mm/min")
+        if diameter < CIRCLE_MIN_DIAMETER or feed < CIRCLE_MIN_FEED:
+            raise ValueError(
+                f"--circle D F must be at least {CIRCLE_MIN_DIAMETER:g} mm and {CIRCLE_MIN_FEED:g} mm/min (the "
+                f"program writes its numbers to six decimals: a smaller circle or feed would not be the one asked "
+                f"for), got {diameter:g} and {feed:g}"
+            )
         if diameter / 2.0 > MAX_COORDINATE:
             raise ValueError(
                 f"--circle D must be at most {2 * MAX_COORDINATE:g} mm (the G-code reader's "

@@ -149,8 +149,16 @@ class OraclePolicy(BaselinePolicy):
     @classmethod
     def from_env(cls, env, **params):
         """As :meth:`BaselinePolicy.from_env`; refuses an env whose reference is re-timed while it runs (a feed
-        override): the floor is searched about a reference fixed before the episode."""
-        if getattr(getattr(env, "unwrapped", env), "retimes_reference", False):
+        override), and one without a contour (the positioning env): the floor is searched about a contour's reference
+        fixed before the episode."""
+        u = getattr(env, "unwrapped", env)
+        vec = hasattr(env, "get_attr") and hasattr(env, "env_method")  # an SB3 VecEnv: checked by plan()
+        if not vec and not hasattr(getattr(u, "task", None), "reference_arrays"):
+            raise ValueError(
+                f"baseline {cls.name!r} searches a correction along a contour's reference: it needs a contouring "
+                f"env (env.unwrapped.task.reference_arrays), got {type(u).__name__}"
+            )
+        if getattr(u, "retimes_reference", False):
             raise ValueError(
                 f"baseline {cls.name!r} searches a correction about a reference fixed before the "
                 f"episode; {type(env.unwrapped).__name__} re-times its reference while it runs (a feed "

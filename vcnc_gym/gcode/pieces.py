@@ -33,8 +33,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..validation import positive
+from .interpreter import MAX_COORDINATE, MAX_FEED
+
 __all__ = [
     "CIRCLE_LEAD",
+    "CIRCLE_MIN_DIAMETER",
+    "CIRCLE_MIN_FEED",
     "PIECES",
     "PROGRAM_DIR",
     "butterfly_program",
@@ -68,6 +73,20 @@ def piece_path(name: str) -> Path:
     return PROGRAM_DIR / PIECES[name][0]
 
 
+#: The smallest step of the numbers the programs here write (six decimals), mm or mm/min.
+_RESOLUTION = 1e-6
+#: The smallest diameter (mm) and feed (mm/min) of :func:`circle_program`: a thousand steps of its numbers, so that
+#: the circle written is the one asked for to 0.1 %.
+CIRCLE_MIN_DIAMETER = 2000 * _RESOLUTION
+CIRCLE_MIN_FEED = 1000 * _RESOLUTION
+
+
+def _fixed(x: float) -> str:
+    """``x`` as ``:g`` writes it where that has no exponent (``3000``), else to six decimals (G-code has none)."""
+    s = f"{x:g}"
+    return _num(x) if "e" in s else s
+
+
 def _num(x: float, digits: int = 6) -> str:
     s = f"{x:.{digits}f}".rstrip("0")
     s = s + "0" if s.endswith(".") else s
@@ -82,8 +101,21 @@ def circle_program(diameter: float = 50.0, feed: float = 3000.0, direction: str 
     """
     if direction not in ("ccw", "cw"):
         raise ValueError(f"direction must be 'ccw' or 'cw', got {direction!r}")
-    if not diameter > 0 or not feed > 0:
-        raise ValueError(f"diameter (mm) and feed (mm/min) must be > 0, got {diameter!r}, {feed!r}")
+    # the program's numbers are written to six decimals (_num): a smaller circle or feed would not be the one asked
+    # for (a diameter of 1e-9 mm writes a circle of radius 0, a feed of 1e-6 mm/min an F word the reader refuses)
+    diameter = positive("the circle's diameter", diameter, "mm")
+    feed = positive("the circle's feed", feed, "mm/min")
+    if not CIRCLE_MIN_DIAMETER <= diameter <= 2 * MAX_COORDINATE:
+        raise ValueError(
+            f"the circle's diameter must be in [{CIRCLE_MIN_DIAMETER:g}, {2 * MAX_COORDINATE:g}] mm (the program "
+            f"writes its coordinates to {_RESOLUTION:g} mm, at most {MAX_COORDINATE:g} mm from the centre), got "
+            f"{diameter:g}"
+        )
+    if not CIRCLE_MIN_FEED <= feed <= MAX_FEED:
+        raise ValueError(
+            f"the circle's feed must be in [{CIRCLE_MIN_FEED:g}, {MAX_FEED:g}] mm/min (the program writes its F word "
+            f"to {_RESOLUTION:g} mm/min), got {feed:g}"
+        )
     r = 0.5 * diameter
     code = "G03" if direction == "ccw" else "G02"
     sign = 1.0 if direction == "ccw" else -1.0
@@ -101,7 +133,7 @@ def circle_program(diameter: float = 50.0, feed: float = 3000.0, direction: str 
             "(lead-in 90 deg, measured circle 360 deg, lead-out 90 deg, centre X0 Y0)",
             "N10 G21 G17 G90 G94 G40 G49 G80",
             f"N20 G00 X{_num(start[0])} Y{_num(start[1])}",
-            f"N30 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(start)} F{feed:g} (lead-in)",
+            f"N30 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(start)} F{_fixed(feed)} (lead-in)",
             f"N40 {code} X{_num(lead_end[0])} Y{_num(lead_end[1])} {ij(lead_end)} (measured circle)",
             f"N50 {code} X{_num(out_end[0])} Y{_num(out_end[1])} {ij(lead_end)} (lead-out)",
             "N60 M30",

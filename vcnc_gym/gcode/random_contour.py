@@ -80,6 +80,11 @@ class RandomContourSpec:
         for name, lo, hi in pairs:
             if not lo <= hi:
                 raise ValueError(f"spec {name}_min must be at most {name}_max, got {lo!r} > {hi!r}")
+        if self.feed_min < MIN_FEED:
+            raise ValueError(
+                f"spec feed_min must be at least {MIN_FEED:g} mm/min (the program writes its F word to 0.1 mm/min: "
+                f"a slower feed would not be the one drawn), got {self.feed_min!r}"
+            )
         if self.turn_max >= 180.0 or self.sweep_max > 360.0:
             raise ValueError("spec turn_max must be < 180 degrees (no U-turn) and sweep_max <= 360 degrees")
         if math.floor(self.turn_max) < math.ceil(self.turn_min):
@@ -97,6 +102,10 @@ class RandomContourSpec:
                 "stays within the observation's position bound (1000 mm)"
             )
 
+
+#: Slowest feed of a random program (``feed_min``), mm/min: its F word is written to 0.1 mm/min, so that a feed of
+#: 10 mm/min is written to within 0.5 % (and one below 0.05 mm/min as F0, which no reader accepts).
+MIN_FEED = 10.0
 
 #: Most moves a random program may have (``moves_max``).
 MAX_MOVES = 1000
