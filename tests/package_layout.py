@@ -13,6 +13,8 @@ ROOT = Path(__file__).resolve().parents[1]
 _SETUPTOOLS = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
 #: Every package of the wheel, as pyproject.toml lists it.
 PACKAGES: list[str] = _SETUPTOOLS["packages"]
+#: Package -> the patterns of its data files, as pyproject.toml declares them.
+PACKAGE_DATA: dict[str, list[str]] = _SETUPTOOLS.get("package-data", {})
 _DIRS: dict[str, str] = _SETUPTOOLS.get("package-dir", {})
 #: Import name -> folder, the four top packages from the ground floor up.
 TOP = {name: ROOT / _DIRS.get(name, name) for name in ("vcnc_gym", "vcnc_baselines", "vcnc_agents", "vcnc_bench")}

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import pytest
 
-from package_layout import PACKAGES, ROOT, TOP, folder
+from package_layout import PACKAGE_DATA, PACKAGES, ROOT, TOP, folder
 
 OLD_NAMES = ("baselines", "agents")
 #: The folders whose Python files must not import the old names.
@@ -42,11 +42,21 @@ SOURCES = [*TOP.values(), ROOT / "tests", ROOT / "benchmarks", ROOT / "experimen
 
 def test_the_wheel_lists_every_package_folder():
     """pyproject.toml lists the packages by hand (a renamed folder cannot be found by setuptools' search): the list
-    is every folder of the four packages that holds an ``__init__.py``, each under its import name."""
+    is every folder of the four packages that holds an ``__init__.py``, each under its import name, and the folders
+    of package data (no Python file), each with its files in ``package-data``: setuptools ships the data of a
+    listed package only, and warns at the install of one it would have to guess."""
     listed = {folder(p) for p in PACKAGES}
     found = {init.parent for top in TOP.values() for init in top.rglob("__init__.py")}
-    assert listed == found
+    data = [p for p in PACKAGES if not (folder(p) / "__init__.py").is_file()]
+    assert listed - {folder(p) for p in data} == found
     assert {p.split(".")[0] for p in PACKAGES} == set(TOP)
+    for p in data:
+        assert folder(p).is_dir() and not list(folder(p).glob("*.py")), p
+        assert p in PACKAGE_DATA, f"{p} is listed as a data package but declares no files in package-data"
+    nested = [
+        k for k, patterns in PACKAGE_DATA.items() for pat in patterns if "/" in pat and pat.split("/")[0].isidentifier()
+    ]
+    assert not nested, f"package-data reaches into a sub-folder named as a package: list it as a package: {nested}"
 
 
 def _old_imports(path: Path) -> list[str]:
@@ -156,9 +166,10 @@ def installed(tmp_path_factory):
     venv's site-packages)."""
     tmp = tmp_path_factory.mktemp("wheel")
     dist = tmp / "dist"
-    _run(
+    build = _run(
         [sys.executable, "-m", "build", "--no-isolation", "--outdir", dist, ROOT], cwd=tmp, env=os.environ, timeout=300
     )
+    _BUILD_OUTPUT.append(build.stdout + build.stderr)
     wheel = next(dist.glob("vcnc_gym-*.whl"))
     venv = tmp / "venv"
     _run([sys.executable, "-m", "venv", "--without-pip", venv], cwd=tmp, env=os.environ)
@@ -198,6 +209,19 @@ def installed(tmp_path_factory):
     for path in (site, *site.rglob("*")):  # pytest may remove the folder
         if not path.is_symlink():
             path.chmod(path.stat().st_mode | stat.S_IWUSR)
+
+
+#: What ``python -m build`` printed in the fixture :func:`installed`.
+_BUILD_OUTPUT: list[str] = []
+
+
+def test_the_build_gives_no_warning_of_setuptools(installed):
+    """No package data outside a declared package, no deprecated license table: the warnings setuptools turns
+    into errors later."""
+    printed = "\n".join(_BUILD_OUTPUT)
+    assert "absent from the `packages` configuration" not in printed
+    assert "`project.license` as a TOML table is deprecated" not in printed
+    assert not [line for line in printed.splitlines() if line.startswith("WARNING")]
 
 
 def test_the_wheel_carries_what_the_packages_read_and_nothing_else(installed):
