@@ -604,3 +604,20 @@ def test_a_resume_refused_for_damaged_checkpoints_sets_them_aside_as_promised(tm
         "rl_model_64_steps.zip.damaged",
         "rl_model_vecnormalize_64_steps.npz.damaged",
     ]
+
+
+@pytest.mark.parametrize(
+    "vertices, message",
+    [
+        ("abc", "vertices must be K >= 2 points (x, y) in mm, got str 'abc'"),
+        ({"x": 1}, "got dict"),
+        ([[0, 0], ["a", 1]], "of real numbers in mm: could not convert string to float"),
+        ([[0, 0], [1, {}]], "of real numbers in mm"),
+    ],
+)
+def test_a_polyline_of_no_numbers_is_refused_naming_the_vertices(vertices, message):
+    from vcnc_gym.geometry import smooth_polyline
+
+    with pytest.raises(ValueError, match="^vertices must be") as exc:
+        smooth_polyline(vertices, 0.1, 1000.0, 1e5)
+    assert message in str(exc.value)

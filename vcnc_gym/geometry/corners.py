@@ -158,7 +158,12 @@ def _check_vertices(vertices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Raises a ValueError naming the vertices if two consecutive ones coincide
     or three consecutive ones are collinear (straight on or a U-turn).
     """
-    pts = np.array(vertices, dtype=np.float64)
+    if isinstance(vertices, (str, bytes, dict)):
+        raise ValueError(f"vertices must be K >= 2 points (x, y) in mm, got {type(vertices).__name__} {vertices!r:.40}")
+    try:
+        pts = np.array(vertices, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"vertices must be K >= 2 points (x, y) of real numbers in mm: {exc}") from None
     if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 2:
         raise ValueError(f"vertices must have shape (K, 2) with K >= 2, in mm; got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
