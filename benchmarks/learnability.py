@@ -103,6 +103,7 @@ def main(argv=None) -> list[dict]:
     p.add_argument("--steps", type=int, default=1_000_000, help="agent steps (decisions) per seed")
     p.add_argument("--base", default=None, help="a classical controller the agent corrects (base=)")
     p.add_argument("--opponent", action="append", default=[], help="a classical controller to run on v1 too")
+    p.add_argument("--env-kwargs", type=json.loads, default={}, help="the env's arguments, JSON (default: the id's)")
     p.add_argument("--json", default=None, help="write the rows to this file")
     p.add_argument("--quick", action="store_true", help="a smoke run: 2 048 PPO steps on VCNC-Circle-v2")
     a = p.parse_args(argv)
@@ -112,8 +113,11 @@ def main(argv=None) -> list[dict]:
         p.error(f"--env must be a learnable id (-v2), got {a.env!r}")
     if a.steps < 1:
         p.error(f"--steps must be >= 1, got {a.steps}")
-    kwargs = {} if a.base is None else {"base": a.base}
-    rows = [{"policy": "servo alone", "env": a.env, **_episode(None, _eval_env(a.env, {}))}]
+    if not isinstance(a.env_kwargs, dict):
+        p.error(f"--env-kwargs must be a JSON object, got {a.env_kwargs!r}")
+    kwargs = {**a.env_kwargs, **({} if a.base is None else {"base": a.base})}
+    servo = {k: v for k, v in a.env_kwargs.items() if k != "setpoint_range"}
+    rows = [{"policy": "servo alone", "env": a.env, **_episode(None, _eval_env(a.env, servo))}]
     if a.base is not None:
         rows.append({"policy": f"{a.base} inside the step", "env": a.env, **_episode(None, _eval_env(a.env, kwargs))})
     for name in ["pd-ref", *a.opponent]:

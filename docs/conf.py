@@ -14,11 +14,16 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 
 sys.path.insert(0, os.path.abspath("_ext"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import vcnc_gym  # noqa: E402
+
+# The pages document every version of every id on purpose: Gymnasium's note that an older version is out of date
+# (printed by gym.make) says nothing to the reader of the build's output.
+warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
 
 project = "vcnc-gym"
 author = "the vcnc-gym authors"

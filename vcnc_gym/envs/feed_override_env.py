@@ -88,11 +88,13 @@ class FeedOverrideEnv(ContouringEnv):
 
     ``Box(-1, 1, (3,), float32)``:
 
-    | Num | Action           | Min | Max | Unit                                      |
-    |-----|------------------|-----|-----|-------------------------------------------|
-    | 0   | x-axis command   | -1  | 1   | x the plant's input limit (5 V)           |
-    | 1   | y-axis command   | -1  | 1   | x the plant's input limit (5 V)           |
-    | 2   | feed override    | -1  | 1   | dial: override = m (a + 1) / 2, 0 to m    |
+    ===  ==============  ===  ===  ======================================
+    Num  Action          Min  Max  Unit
+    ===  ==============  ===  ===  ======================================
+    0    x-axis command  -1   1    x the plant's input limit (5 V)
+    1    y-axis command  -1   1    x the plant's input limit (5 V)
+    2    feed override   -1   1    dial: override = m (a + 1) / 2, 0 to m
+    ===  ==============  ===  ===  ======================================
 
     with ``m = max_override`` (1.0: 0 to 100 %).  With ``lookahead=(F, A)``
     the dial is the operator's override on a look-ahead, as on a CNC, 50 to
@@ -335,6 +337,9 @@ class FeedOverrideEnv(ContouringEnv):
         self._progress = state["progress"]
 
     def step(self, action):
+        """One decision: ``action`` (3,), the axes' normalised commands and the feed override dial (the class
+        docstring's Action Space); returns ``(observation, reward, terminated, truncated, info)`` as Gymnasium's
+        ``step``."""
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         a = check_actions(action, (3,))

@@ -165,10 +165,12 @@ class PositioningEnv(gym.Env):
 
     ``Box(-1, 1, (2,), float32)``: the normalised amplifier command per axis.
 
-    | Num | Action         | Min | Max | Unit                                          |
-    |-----|----------------|-----|-----|-----------------------------------------------|
-    | 0   | x-axis command | -1  | 1   | x the plant's input limit (10 V, cncmt_axis)  |
-    | 1   | y-axis command | -1  | 1   | x the plant's input limit (10 V, cncmt_axis)  |
+    ===  ==============  ===  ===  ============================================
+    Num  Action          Min  Max  Unit
+    ===  ==============  ===  ===  ============================================
+    0    x-axis command  -1   1    x the plant's input limit (10 V, cncmt_axis)
+    1    y-axis command  -1   1    x the plant's input limit (10 V, cncmt_axis)
+    ===  ==============  ===  ===  ============================================
 
     Values outside [-1, 1] are clipped (the amplifier saturates); wrong
     shapes and non-finite values raise ``ValueError``.
@@ -179,12 +181,14 @@ class PositioningEnv(gym.Env):
     (``env.unwrapped.layout``; a policy reads ``layout.position_error(obs)``).
     With the default dead time (0.1 s) and control period (10 ms):
 
-    | Index | Field          | Unit | Meaning                                                   |
-    |-------|----------------|------|-----------------------------------------------------------|
-    | 0-1   | setpoint       | mm   | the set-point r                                           |
-    | 2-3   | position_error | mm   | r - x per axis, x as the position sensor reads it         |
-    | 4-5   | velocity       | mm/s | table velocity                                            |
-    | 6-25  | pending_action | 1    | the last 10 actions (x, y), oldest first                  |
+    =====  ==============  ====  =================================================
+    Index  Field           Unit  Meaning
+    =====  ==============  ====  =================================================
+    0-1    setpoint        mm    the set-point r
+    2-3    position_error  mm    r - x per axis, x as the position sensor reads it
+    4-5    velocity        mm/s  table velocity
+    6-25   pending_action  1     the last 10 actions (x, y), oldest first
+    =====  ==============  ====  =================================================
 
     ``pending_action`` holds the last ``ceil(T_d / decision_period)``
     actions: the commands the dead time has not fully applied yet, which
@@ -406,6 +410,8 @@ class PositioningEnv(gym.Env):
         return obs, info
 
     def step(self, action):
+        """One decision: ``action`` (2,), the normalised amplifier commands, held for the decision period; returns
+        ``(observation, reward, terminated, truncated, info)`` as Gymnasium's ``step``."""
         if self._done:
             raise RuntimeError("step() called on a finished episode; call reset() first")
         a = np.clip(check_actions(action, (2,)), -1.0, 1.0)

@@ -524,7 +524,7 @@ def _as_tuple(values):
 def pack_reference(curve: NurbsCurve, reference) -> np.ndarray:
     """The reference packed for the step kernel, (K, REF_COLUMNS): x_d, dx_d/dt, d2x_d/dt2, unit tangent, u,
     arc length (the cumulative chord of the samples, mm: short of the arc by sum kappa^2 c^3 / 24, below 1e-6 mm
-    on the suite's contours) and signed curvature (x' y'' - y' x'') / |C'|^3 in 1/mm at u."""
+    on the suite's contours) and signed curvature ``(x' y'' - y' x'') / |C'|^3`` in 1/mm at u."""
     der = curve.derivatives_array(reference.u, 2)
     d1, d2 = der[:, 1], der[:, 2]
     speed = np.hypot(d1[:, 0], d1[:, 1])
