@@ -196,6 +196,11 @@ def run_episode(
 
     e_tr = e_tr[:n]
     mx, mean, rms = _error_metrics_um(e_tr)
+    summary = info.get("episode_summary") if n else None
+    if summary is not None and "step_contour_error_max" in info and not diverged:
+        # a learnable id's decision spans several control periods: its summary holds every period's error, where
+        # the trace holds the last period's of each decision
+        mx, mean, rms = (1e3 * summary[k] for k in ("contour_error_max", "contour_error_mean", "contour_error_rms"))
     track = np.hypot(r_tr[:n, 0] - p_tr[:n, 0], r_tr[:n, 1] - p_tr[:n, 1])
     max_track = 1e3 * float(np.max(track)) if n else math.nan
     return EpisodeResult(
