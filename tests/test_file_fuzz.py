@@ -62,13 +62,22 @@ def _places(holder: list) -> list:
 
 @st.composite
 def _mutated(draw, base) -> str:
-    """The text of ``base`` after one to three mutations (a value replaced by any JSON value or an awkward number,
-    a field or item deleted, a value nested 20 to 3000 lists deep), one time in ten cut short."""
+    """The text of ``base`` after none to three mutations (a value replaced by any JSON value, an awkward number or
+    a value of its own type, a field or item deleted, a value nested 20 to 3000 lists deep), one time in ten cut
+    short."""
     holder = [copy.deepcopy(base)]
-    for _ in range(draw(st.integers(1, 3))):
+    for _ in range(draw(st.integers(0, 3))):
         container, key = draw(st.sampled_from(_places(holder)))
-        action = draw(st.sampled_from(["replace", "replace", "delete", "nest", "number"]))
-        if action == "delete" and container is not holder:
+        action = draw(st.sampled_from(["replace", "replace", "delete", "nest", "number", "alike"]))
+        if action == "alike":  # a value of the same type: a file the suite could have written, or near it
+            value = container[key]
+            if isinstance(value, bool):
+                container[key] = draw(st.booleans())
+            elif isinstance(value, (int, float)):
+                container[key] = type(value)(draw(st.integers(0, 10**6)) / (1 if isinstance(value, int) else 7))
+            elif isinstance(value, str):
+                container[key] = draw(st.text(min_size=1, max_size=8))
+        elif action == "delete" and container is not holder:
             del container[key]
         elif action == "nest":
             value = container[key]
