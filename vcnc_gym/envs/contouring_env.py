@@ -138,11 +138,13 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     set-point and correction actions each period's is clipped, then averaged)
     and ``u`` the amplifier command over its limit: a monotone function of the
     contour error, 0 for none.
-    In v2 ``reward_scale`` is 1 um and ``error_clip`` 10 um (0.2 um and 2 um
-    on Purtojo et al.'s circle, whose contour errors are below 1 um): a
+    In v2 ``reward_scale`` is 10 um and ``error_clip`` 100 um (2 um and 20 um
+    on Purtojo et al.'s circle, whose contour errors are a few um): a
     decision earns between -10 and 0, so an episode's return is of the order
-    of its number of decisions (the servo alone: -24 over the 3 222 decisions
-    of the heart).  In v0 and v1 ``reward_scale`` is 10 um and ``error_clip``
+    of its number of decisions.  The clip lies above the peaks the drive's
+    servo alone leaves (43-47 um on the shop floor), so lowering a peak pays;
+    clipped at 10 um the reward saturated there and PPO left the shop-floor
+    heart's peak where the servo had it.  In v0 and v1 ``reward_scale`` is 10 um and ``error_clip``
     the divergence bound, 5 mm (up to -500 a step).  The effort term is off
     by default.  On divergence a terminal penalty of
     ``-(error_clip / reward_scale)`` per remaining decision of the contour
@@ -315,8 +317,8 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
       ``VCNC-HeartShop-v2``, ...; ``vcnc_gym.envs.registry.LEARNABLE_IDS``):
       the machine, contour, reference and episode end of its v1, with
       ``action="setpoint"``, ``action_repeat=10`` (a decision every 1 ms, 10 ms
-      on the circle), ``observation_scale="unit"``, ``reward_scale`` 1 um and
-      ``error_clip`` 10 um (0.2 um and 2 um on the circle).  Why: Stable-Baselines3's
+      on the circle), ``observation_scale="unit"``, ``reward_scale`` 10 um and
+      ``error_clip`` 100 um (2 um and 20 um on the circle).  Why: Stable-Baselines3's
       PPO with its default settings did not learn v1 (nor v0): every episode
       diverged at decision 1 603 of 32 212 (0.16 s of the heart's 3.2 s),
       return -1.5e7, with 4 envs and ``VecNormalize`` too (a value loss of

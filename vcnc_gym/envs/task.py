@@ -341,15 +341,16 @@ class ContouringTask:
 
     def _unit_scales(self) -> dict:
         """The fixed constants that bring each observation field to order one (``observation_scale="unit"``), in
-        the field's unit: the contour's extent, its top speed and acceleration, the reward's error clip, the
-        preview's reach at the top speed, the farthest contour preview, the contour's largest curvature."""
+        the field's unit: the contour's extent, its top speed and acceleration, the reward's scale (ten times it for
+        the tracking error and its tangential part), the preview's reach at the top speed, the farthest contour
+        preview, the contour's largest curvature."""
         ref = self.reference
         speed = float(np.max(np.hypot(ref.velocity[:, 0], ref.velocity[:, 1])))
         accel = float(np.max(np.abs(ref.acceleration)))
         curvature = float(np.max(np.abs(self.reference_arrays.samples[:, sk.REF_CURVATURE])))
         steps = self.layout.preview_steps
         ahead = self.layout.contour_ahead
-        error = self.error_clip
+        error = self.reward_scale
         return {
             "reference_position": _round(float(np.max(np.abs(ref.position)))),
             "reference_velocity": _round(speed),
