@@ -316,10 +316,14 @@ class VcncVecEnv(VecEnv):
 
 
 def _merge(previous: dict, info: dict, stepped: np.ndarray) -> dict:
-    """Per env, the info of the last control period it was stepped in."""
+    """Per env, the info of the last control period it was stepped in (the episode summary, a dict present only
+    in the step an episode ends, is the step's own)."""
     out = {}
     for key, value in info.items():
         if key.startswith("_"):
+            continue
+        if key not in previous or isinstance(value, dict):
+            out[key] = value
             continue
         mask = stepped.reshape((-1,) + (1,) * (np.ndim(value) - 1))
         out[key] = np.where(mask, value, previous[key])

@@ -160,12 +160,14 @@ def test_check_names_what_is_missing():
                 "max_contour_error_um": 1.0,
                 "mean_contour_error_um": 0.5,
                 "rms_contour_error_um": None,
+                "completed": True,
+                "diverged": False,
             }
         ],
     }
     found = check.problems(data, default_ids=("A", "C"))
     assert any("not the default table" in f for f in found)
-    assert "A p: no finite rms_contour_error_um (diverged: None)" in found
+    assert "A p: no finite rms_contour_error_um (diverged: False)" in found
     assert "A q: no record" in found and "B: no policy ran" in found
     stale = {
         **data,
