@@ -214,3 +214,29 @@ def test_the_bench_warm_up_compiles_every_machine_of_the_default_table_once():
     machines = {(suite_env(i).kwargs.get("plant"), bool(suite_env(i).kwargs.get("shop_floor"))) for i in DEFAULT_IDS}
     assert len(ids) == len(machines) and set(ids) <= set(DEFAULT_IDS)
     assert warm_env("VCNC-Step-v0") == 4
+
+
+def test_same_figures_names_every_field_that_moved(tmp_path):
+    record = {
+        "env": "A",
+        "policy": "p",
+        "trial": None,
+        "max_contour_error_um": 1.0,
+        "mean_contour_error_um": 0.5,
+        "rms_contour_error_um": 0.6,
+        "completed": True,
+        "diverged": False,
+        "wall_s": 1.0,
+    }
+    data = {"settings": {}, "plan": {"A": ["p"]}, "records": [record]}
+    moved = {**record, "rms_contour_error_um": 0.7, "wall_s": 9.0}
+    assert check.figure_differences(data, {**data, "records": [dict(record, wall_s=3.0)]}) == []
+    assert check.figure_differences(data, {**data, "records": [moved]}) == [
+        "('A', 'p', None): rms_contour_error_um 0.6 against 0.7"
+    ]
+    assert check.figure_differences(data, {**data, "records": []}) == ["('A', 'p', None): in one file only"]
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps(data))
+    b.write_text(json.dumps({**data, "records": [moved]}))
+    assert check.main([str(a), "--same-figures", str(b)]) == 1
+    assert check.main([str(a), "--same-figures", str(a)]) == 0

@@ -66,10 +66,39 @@ def problems(data, default_ids: tuple | None = None) -> list[str]:
     return out
 
 
+#: A record's fields that time the run, not the policy: left out of :func:`figure_differences`.
+TIMING_FIELDS = ("wall_s",)
+
+
+def figure_differences(data: dict, other: dict) -> list[str]:
+    """The records (by env, policy or table, and trial) that only one of two bench JSONs holds, and every field
+    but :data:`TIMING_FIELDS` whose value differs between the two (NaN equal to NaN)."""
+
+    def rows(d):
+        return {(r.get("env"), r.get("policy", r.get("table")), r.get("trial")): r for r in d["records"]}
+
+    a, b = rows(data), rows(other)
+    out = [f"{k}: in one file only" for k in sorted(set(a) ^ set(b), key=str)]
+    for key in sorted(set(a) & set(b), key=str):
+        for field in sorted((set(a[key]) | set(b[key])) - set(TIMING_FIELDS)):
+            x, y = a[key].get(field), b[key].get(field)
+            nan = isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)
+            if x != y and not nan:
+                out.append(f"{key}: {field} {x!r} against {y!r}")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m vcnc_bench.check", description=(__doc__ or "").partition("\n")[0])
     p.add_argument("json", type=Path, help="the file vcnc-bench --json wrote")
     p.add_argument("--default", action="store_true", help="the plan must be the default table's envs")
+    p.add_argument(
+        "--same-figures",
+        type=Path,
+        metavar="OTHER",
+        help="another vcnc-bench --json output whose records must hold the same figures, field by field (the run's "
+        "wall times aside): a change that should move no figure",
+    )
     args = p.parse_args(argv)
     if not args.json.is_file():
         print(f"{args.json}: no such file (did vcnc-bench run to its end?)", file=sys.stderr)
@@ -85,6 +114,15 @@ def main(argv: list[str] | None = None) -> int:
 
         default_ids = DEFAULT_IDS
     found = problems(data, default_ids)
+    if args.same_figures is not None and not found:
+        try:
+            other = read_json(args.same_figures, "a vcnc-bench --json output")
+        except (BadFile, OSError) as exc:
+            print(f"--same-figures: {exc}", file=sys.stderr)
+            return 1
+        found = figure_differences(data, other)
+        if not found:
+            print(f"{args.json}: the same figures as {args.same_figures}, {len(data['records'])} records")
     for line in found:
         print(f"{args.json}: {line}", file=sys.stderr)
     if not found:
