@@ -195,7 +195,7 @@ def write_env_pages(docs: Path) -> None:
         "## Learnable ids (v2)",
         "",
         "The ids to learn on: the same tasks, the drive's servo closed inside the step under a set-point action "
-        "every 1 ms, the observation scaled to order one, the reward clipped at 10 um.",
+        "every 1 ms, the observation scaled to order one, the reward clipped at 100 um.",
         "",
         "| id | task |",
         "|---|---|",

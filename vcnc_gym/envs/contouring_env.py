@@ -39,7 +39,7 @@ class ContouringEnv(RebuiltOnUnpickle, gym.Env):
     the ones to learn on: as on a CNC, the drive closes its own servo loop
     every control period inside the step, and the policy, an outer loop
     deciding every 1 ms, moves the servo's set-point; the observation is
-    scaled to order one and the reward is clipped at 10 um.  The v1 ids keep
+    scaled to order one and the reward is clipped at 100 um.  The v1 ids keep
     the papers' interface, the amplifier's voltage every 0.1 ms and the
     observation in physical units, for the classical controllers
     (:mod:`vcnc_baselines`) and the figures measured on them.
