@@ -171,6 +171,15 @@ def test_vector_env_is_the_single_env_and_pickles():
         o1, r1, *_ = one.step(a[0])
         np.testing.assert_array_equal(o[0], o1)
         assert r[0] == r1
+    # an episode that ends resets its env at the next step, whose action it ignores: as a new single env
+    short = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=3)
+    short.reset(seed=1)
+    for _ in range(3):
+        short.step(np.full((2, 2), 0.5, dtype=np.float32))
+    o, *_ = short.step(np.full((2, 2), 0.9, dtype=np.float32))
+    fresh, _ = gym.make(env_id).reset(seed=None)
+    np.testing.assert_array_equal(o[0, vec.unwrapped.layout.slice("previous_action")], [0.0, 0.0])
+    np.testing.assert_array_equal(o[0, :6], fresh[:6])  # the reference at the start, the env at rest
     copy = pickle.loads(pickle.dumps(one))
     a = np.array([0.5, -0.5], dtype=np.float32)
     np.testing.assert_array_equal(copy.step(a)[0], one.step(a)[0])

@@ -445,7 +445,7 @@ class ContouringVectorEnv(RebuiltOnUnpickle, VectorEnv):
             self._run(1)
             return b.reward.copy(), None
         before = b.episode.copy()
-        d.set_actions(b.action)
+        d.set_actions(b.action, Ellipsis if resetting is None else ~resetting)
         self._run(d.repeat, d.controller, d.loop)
         if resetting is not None and resetting.any():  # the controlled loop steps only; the reset envs observe
             b.mode[~resetting] = sk.MODE_IDLE

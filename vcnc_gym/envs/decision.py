@@ -85,14 +85,16 @@ class DecisionLoop:
             self.policy.reset(mask=mask)
         self.last_action[i] = 0.0
 
-    def set_actions(self, actions: np.ndarray) -> None:
-        """The agents' actions (N, 2), checked finite, clipped to [-1, 1] and held for the decision."""
-        a = np.clip(actions, -1.0, 1.0).astype(np.float32)
-        self.last_action[...] = a
+    def set_actions(self, actions: np.ndarray, envs=Ellipsis) -> None:
+        """The agents' actions (N, 2), checked finite, clipped to [-1, 1] and held for the decision, for the envs
+        ``envs`` selects (a mask; default all: an env just reset ignores its action, as Gymnasium's autoreset
+        does)."""
+        a = np.clip(actions[envs], -1.0, 1.0).astype(np.float32)
+        self.last_action[envs] = a
         if self.policy is None:
-            self.controller.setpoint[...] = a * self.task.setpoint_range
+            self.controller.setpoint[envs] = a * self.task.setpoint_range
         else:
-            self.loop.agent[...] = a
+            self.loop.agent[envs] = a
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The loop's episode state by name, the arrays a pickle of the env saves: the controller's memory (and
